@@ -1,0 +1,56 @@
+#include "core/spawn.h"
+
+namespace tessera {
+
+SurfacePoint triangle_surface_point(const Triangle& tri, float b0, float b1, float b2) {
+  SurfacePoint sp;
+  sp.p = b0 * tri.p0 + b1 * tri.p1 + b2 * tri.p2;
+  sp.p_error = gamma(7) * (glm::abs(b0 * tri.p0) + glm::abs(b1 * tri.p1) + glm::abs(b2 * tri.p2));
+  const Vec3d n = glm::cross(Vec3d(tri.p1) - Vec3d(tri.p0), Vec3d(tri.p2) - Vec3d(tri.p0));
+  const double len = glm::length(n);
+  sp.n = len > 0.0 ? Vec3(n / len) : Vec3(0.f, 0.f, 1.f);
+  return sp;
+}
+
+SurfacePoint sphere_surface_point(const Sphere& s, const Ray& r, float t) {
+  const Vec3d c(s.center);
+  Vec3d w = Vec3d(r.o) + double(t) * Vec3d(r.d) - c;
+  double len = glm::length(w);
+  if (!(len > 0.0)) { w = Vec3d(0, 0, 1); len = 1.0; }
+  const Vec3d n = w / len;
+  SurfacePoint sp;
+  sp.p = Vec3(c + double(s.radius) * n);
+  // Double-precision re-projection, then one rounding to float: bounded well inside gamma(2) of these terms.
+  sp.p_error = gamma(2) * (glm::abs(sp.p) + glm::abs(s.center) + Vec3(s.radius));
+  sp.n = Vec3(n);
+  return sp;
+}
+
+Vec3 offset_ray_origin(const SurfacePoint& sp, const Vec3& w) {
+  const float d = glm::dot(glm::abs(sp.n), sp.p_error);
+  Vec3 offset = d * sp.n;
+  if (glm::dot(w, sp.n) < 0.f) offset = -offset;
+  Vec3 po = sp.p + offset;
+  for (int i = 0; i < 3; ++i) {
+    if (offset[i] > 0.f) po[i] = next_float_up(po[i]);
+    else if (offset[i] < 0.f) po[i] = next_float_down(po[i]);
+  }
+  return po;
+}
+
+namespace {
+constexpr float kShadowEnd = 1.f - 1e-4f;  // relative: scales with the segment, not with the coordinates
+}
+
+Ray spawn_ray_to(const SurfacePoint& sp, const Vec3& to) {
+  const Vec3 o = offset_ray_origin(sp, to - sp.p);
+  return Ray{o, to - o, kShadowEnd};
+}
+
+Ray spawn_ray_to(const SurfacePoint& from, const SurfacePoint& to) {
+  const Vec3 o = offset_ray_origin(from, to.p - from.p);
+  const Vec3 target = offset_ray_origin(to, o - to.p);
+  return Ray{o, target - o, kShadowEnd};
+}
+
+}  // namespace tessera

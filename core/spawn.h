@@ -1,0 +1,39 @@
+// Surface points with floating-point error bounds, and ray origins offset past that error (pbrt-v4 style).
+#pragma once
+
+#include "core/math.h"
+#include "core/ray.h"
+#include "core/sphere.h"
+#include "core/triangle.h"
+
+namespace tessera {
+
+/// A point on a surface with a per-axis bound on its rounding error and the geometric normal.
+struct SurfacePoint {
+  Vec3 p;        ///< Position.
+  Vec3 p_error;  ///< |computed - exact| is at most this, per axis.
+  Vec3 n;        ///< Unit geometric normal (orientation as the primitive defines it).
+};
+
+/// The point on a triangle at barycentrics (b0, b1, b2), with the interpolation's error bound gamma(7)*sum|bi*pi|.
+SurfacePoint triangle_surface_point(const Triangle& tri, float b0, float b1, float b2);
+
+/// The point where ray r meets sphere s at t, re-projected onto the sphere in double precision.
+SurfacePoint sphere_surface_point(const Sphere& s, const Ray& r, float t);
+
+/// An origin for a ray leaving sp towards w: moved along the normal, to w's side, by the error bound projected
+/// on the normal, then rounded one ulp further away. No fixed epsilon: the offset scales with the coordinates.
+Vec3 offset_ray_origin(const SurfacePoint& sp, const Vec3& w);
+
+/// A ray leaving sp in direction w that cannot re-hit sp's surface at sp.
+inline Ray spawn_ray(const SurfacePoint& sp, const Vec3& w) { return Ray{offset_ray_origin(sp, w), w, kInfinity}; }
+
+/// A shadow ray from sp towards a free point `to` (a point light); it ends just short of `to` (t < 1 - 1e-4,
+/// relative to the segment) so only occluders strictly between the two count.
+Ray spawn_ray_to(const SurfacePoint& sp, const Vec3& to);
+
+/// A shadow ray between two surface points, both ends offset past their error bounds, so that neither
+/// surface occludes the segment by rounding, whatever the coordinates' magnitude.
+Ray spawn_ray_to(const SurfacePoint& from, const SurfacePoint& to);
+
+}  // namespace tessera
