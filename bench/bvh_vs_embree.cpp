@@ -1,0 +1,684 @@
+// Tessera's BVH against Embree 3 on identical scenes and identical rays.
+//
+// One run prints, side by side:
+//   * single-threaded closest-hit and any-hit throughput (Mrays/s, best of 3) for the Tessera BVH, Embree with
+//     default scene flags and Embree with RTC_SCENE_FLAG_ROBUST, on coherent (pinhole camera) and incoherent
+//     (random origin, random direction) rays over a ~40-triangle Cornell box and a >= 1M-triangle bumpy sphere;
+//   * build times (all TBB threads, best of 3): Bvh::build against rtcCommitScene;
+//   * a cross-check: hit/miss agreement and the largest relative difference of t where both hit.
+// Embree is used through its public C API only, and only in this benchmark.
+//
+// Usage: bvh_vs_embree [--quick] [--csv]
+//   --quick  ~100k rays per set and a 200k-triangle sphere (smoke test, a few seconds)
+//   --csv    also print the results as CSV after the tables
+
+#include "core/bvh.h"
+#include "core/math.h"
+#include "core/mesh.h"
+#include "core/ray.h"
+
+#include <embree3/rtcore.h>
+#include <tbb/info.h>
+#include <xmmintrin.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cinttypes>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <string>
+#include <string_view>
+#include <thread>
+#include <vector>
+
+namespace {
+
+using namespace tessera;
+using Clock = std::chrono::steady_clock;
+
+constexpr int kReps = 3;
+
+// ------------------------------------------------------------------------------------------------------------
+// Environment: machine, commit, build configuration.
+
+std::string cpu_model() {
+  std::ifstream in("/proc/cpuinfo");
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind("model name", 0) == 0) {
+      const size_t colon = line.find(':');
+      if (colon != std::string::npos) {
+        size_t b = line.find_first_not_of(" \t", colon + 1);
+        return b == std::string::npos ? std::string() : line.substr(b);
+      }
+    }
+  }
+  return "unknown";
+}
+
+// Runs a shell command and returns its first output line (empty on failure).
+std::string first_line_of(const std::string& cmd) {
+  FILE* p = ::popen(cmd.c_str(), "r");
+  if (!p) return {};
+  char buf[512];
+  std::string out;
+  if (std::fgets(buf, sizeof buf, p)) out = buf;
+  ::pclose(p);
+  while (!out.empty() && (out.back() == '\n' || out.back() == '\r')) out.pop_back();
+  return out;
+}
+
+// The source tree's commit, asked from git at run time so it is current; falls back to the configure-time value.
+std::string commit_description() {
+  const std::string dir = TESSERA_SOURCE_DIR;
+  const std::string head = first_line_of("git -C '" + dir + "' rev-parse --short HEAD 2>/dev/null");
+  if (head.empty()) return std::string(TESSERA_CONFIGURE_COMMIT) + " (from configure time; git unavailable)";
+  const std::string dirty =
+      first_line_of("git -C '" + dir + "' status --porcelain --untracked-files=no 2>/dev/null");
+  return head + (dirty.empty() ? " (clean tracked tree)" : " (tracked files modified: -dirty)");
+}
+
+[[noreturn]] void die(const char* what) {
+  std::fflush(stdout);
+  std::fprintf(stderr, "bvh_vs_embree: %s\n", what);
+  std::exit(1);
+}
+
+const char* embree_error_name(RTCError code) {
+  switch (code) {
+    case RTC_ERROR_NONE: return "RTC_ERROR_NONE";
+    case RTC_ERROR_UNKNOWN: return "RTC_ERROR_UNKNOWN";
+    case RTC_ERROR_INVALID_ARGUMENT: return "RTC_ERROR_INVALID_ARGUMENT";
+    case RTC_ERROR_INVALID_OPERATION: return "RTC_ERROR_INVALID_OPERATION";
+    case RTC_ERROR_OUT_OF_MEMORY: return "RTC_ERROR_OUT_OF_MEMORY";
+    case RTC_ERROR_UNSUPPORTED_CPU: return "RTC_ERROR_UNSUPPORTED_CPU";
+    case RTC_ERROR_CANCELLED: return "RTC_ERROR_CANCELLED";
+  }
+  return "unrecognised RTCError";
+}
+
+// Any Embree error ends the run with a non-zero status. The callback may run on a TBB worker thread during a
+// build, so it leaves with _Exit (no static destructors racing other threads) after flushing.
+void on_embree_error(void* /*user*/, RTCError code, const char* message) {
+  std::fflush(stdout);
+  std::fprintf(stderr, "bvh_vs_embree: Embree error %s (%d): %s\n", embree_error_name(code), int(code),
+               message ? message : "");
+  std::fflush(stderr);
+  std::_Exit(3);
+}
+
+// ------------------------------------------------------------------------------------------------------------
+// Scenes.
+
+struct Camera {
+  Vec3 eye, look, up;
+  float fov_deg;  // vertical (the image is square)
+};
+
+struct Scene {
+  std::string name;
+  TriangleMesh mesh;
+  std::vector<Triangle> triangles;  // mesh.triangles(): Tessera's input, in face order (= Embree primID)
+  Bounds3 bounds;
+  Camera camera;
+};
+
+// Two triangles (a, b, c) and (a, c, d) over an existing cyclic quad of vertex indices.
+void add_quad(TriangleMesh& m, uint32_t a, uint32_t b, uint32_t c, uint32_t d) {
+  m.faces.push_back({a, b, c});
+  m.faces.push_back({a, c, d});
+}
+
+void add_quad(TriangleMesh& m, const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+  const auto i = uint32_t(m.p.size());
+  m.p.insert(m.p.end(), {a, b, c, d});
+  add_quad(m, i, i + 1, i + 2, i + 3);
+}
+
+// A closed box standing on y = 0: square footprint of half-size `half` centred at (cx, cz), rotated about y.
+void add_rotated_box(TriangleMesh& m, float cx, float cz, float half, float height, float angle_deg) {
+  const float a = angle_deg * kPi / 180.f, c = std::cos(a), s = std::sin(a);
+  const auto base = uint32_t(m.p.size());
+  for (int k = 0; k < 8; ++k) {  // bit 0: +x, bit 1: +z, bit 2: top
+    const float x = (k & 1) ? half : -half, z = (k & 2) ? half : -half, y = (k & 4) ? height : 0.f;
+    m.p.push_back(Vec3(cx + c * x + s * z, y, cz - s * x + c * z));
+  }
+  const auto q = [&](uint32_t i0, uint32_t i1, uint32_t i2, uint32_t i3) {
+    add_quad(m, base + i0, base + i1, base + i2, base + i3);
+  };
+  q(0, 1, 3, 2);  // bottom
+  q(4, 6, 7, 5);  // top
+  q(0, 2, 6, 4);  // -x
+  q(1, 5, 7, 3);  // +x
+  q(0, 4, 5, 1);  // -z
+  q(2, 3, 7, 6);  // +z
+}
+
+// Cornell box: open towards +z, walls x,z in [-1,1], y in [0,2]; proportions of the original 555-unit box.
+TriangleMesh make_cornell_box() {
+  TriangleMesh m;
+  add_quad(m, {-1, 0, -1}, {1, 0, -1}, {1, 0, 1}, {-1, 0, 1});   // floor
+  add_quad(m, {-1, 2, -1}, {-1, 2, 1}, {1, 2, 1}, {1, 2, -1});   // ceiling
+  add_quad(m, {-1, 0, -1}, {-1, 2, -1}, {1, 2, -1}, {1, 0, -1}); // back
+  add_quad(m, {-1, 0, -1}, {-1, 0, 1}, {-1, 2, 1}, {-1, 2, -1}); // left
+  add_quad(m, {1, 0, -1}, {1, 2, -1}, {1, 2, 1}, {1, 0, 1});     // right
+  add_rotated_box(m, 0.33f, 0.37f, 0.297f, 0.595f, -17.f);       // short box, front right
+  add_rotated_box(m, -0.33f, -0.27f, 0.297f, 1.19f, 17.f);       // tall box, back left
+  add_quad(m, {-0.24f, 1.98f, -0.19f}, {0.24f, 1.98f, -0.19f}, {0.24f, 1.98f, 0.19f},
+           {-0.24f, 1.98f, 0.19f});                              // light, just below the ceiling
+  return m;
+}
+
+Scene cornell_scene() {
+  Scene s;
+  s.name = "cbox";
+  s.mesh = make_cornell_box();
+  s.camera = Camera{{0.f, 1.f, 6.8f}, {0.f, 1.f, 0.f}, {0.f, 1.f, 0.f}, 19.5f};
+  return s;
+}
+
+// make_bumpy_sphere gives "about" the requested count; ask for more until there are at least min_triangles.
+Scene bumpy_sphere_scene(size_t min_triangles) {
+  Scene s;
+  s.name = "sphere";
+  size_t target = min_triangles;
+  s.mesh = make_bumpy_sphere(Vec3(0.f), 1.f, target);
+  while (s.mesh.faces.size() < min_triangles) {
+    target += target / 100 + 1;
+    s.mesh = make_bumpy_sphere(Vec3(0.f), 1.f, target);
+  }
+  // From distance 3 the silhouette subtends ~19.5 deg half-angle; a 36 deg fov fills ~88% of the square image.
+  s.camera = Camera{{0.f, 0.f, 3.f}, {0.f, 0.f, 0.f}, {0.f, 1.f, 0.f}, 36.f};
+  return s;
+}
+
+void finish_scene(Scene& s) {
+  s.triangles = s.mesh.triangles();
+  s.bounds = s.mesh.bounds();
+}
+
+// ------------------------------------------------------------------------------------------------------------
+// Rays.
+
+// SplitMix64: small, fast, and the same sequence everywhere (unlike std:: distributions).
+struct Rng {
+  uint64_t state;
+  uint64_t next() {
+    uint64_t z = (state += 0x9e3779b97f4a7c15ull);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    return z ^ (z >> 31);
+  }
+  float uniform() { return float(next() >> 40) * 0x1p-24f; }  // [0, 1)
+};
+
+// Pinhole camera, res x res pixel centres in row order (top row first), normalised directions, tmax = inf.
+std::vector<Ray> camera_rays(const Camera& cam, int res) {
+  const Vec3 f = glm::normalize(cam.look - cam.eye);
+  const Vec3 r = glm::normalize(glm::cross(f, cam.up));
+  const Vec3 u = glm::cross(r, f);
+  const float th = std::tan(0.5f * cam.fov_deg * kPi / 180.f);
+  std::vector<Ray> rays;
+  rays.reserve(size_t(res) * size_t(res));
+  for (int y = 0; y < res; ++y)
+    for (int x = 0; x < res; ++x) {
+      const float sx = (2.f * (float(x) + 0.5f) / float(res) - 1.f) * th;
+      const float sy = (1.f - 2.f * (float(y) + 0.5f) / float(res)) * th;
+      Ray ray;
+      ray.o = cam.eye;
+      ray.d = glm::normalize(f + sx * r + sy * u);
+      ray.tmax = kInfinity;
+      rays.push_back(ray);
+    }
+  return rays;
+}
+
+// Origins uniform in the box, directions uniform on the unit sphere, tmax = inf.
+std::vector<Ray> incoherent_rays(const Bounds3& b, size_t n, uint64_t seed) {
+  Rng rng{seed};
+  std::vector<Ray> rays;
+  rays.reserve(n);
+  const Vec3 ext = b.hi - b.lo;
+  for (size_t i = 0; i < n; ++i) {
+    Ray ray;
+    ray.o = b.lo + ext * Vec3(rng.uniform(), rng.uniform(), rng.uniform());
+    const float z = 1.f - 2.f * rng.uniform();
+    const float rad = std::sqrt(std::max(0.f, 1.f - z * z));
+    const float phi = 2.f * kPi * rng.uniform();
+    ray.d = Vec3(rad * std::cos(phi), rad * std::sin(phi), z);
+    ray.tmax = kInfinity;
+    rays.push_back(ray);
+  }
+  return rays;
+}
+
+// ------------------------------------------------------------------------------------------------------------
+// Embree scenes.
+
+// Geometry creation and buffer filling happen here, outside any timer; only rtcCommitScene is timed.
+RTCScene new_embree_scene(RTCDevice device, const TriangleMesh& m, bool robust) {
+  RTCScene scene = rtcNewScene(device);
+  rtcSetSceneFlags(scene, robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE);
+  RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                        3 * sizeof(float), m.p.size()));
+  for (size_t i = 0; i < m.p.size(); ++i) {
+    v[3 * i + 0] = m.p[i].x;
+    v[3 * i + 1] = m.p[i].y;
+    v[3 * i + 2] = m.p[i].z;
+  }
+  auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                             3 * sizeof(unsigned), m.faces.size()));
+  for (size_t i = 0; i < m.faces.size(); ++i) {
+    idx[3 * i + 0] = m.faces[i].x;
+    idx[3 * i + 1] = m.faces[i].y;
+    idx[3 * i + 2] = m.faces[i].z;
+  }
+  rtcCommitGeometry(geom);
+  rtcAttachGeometryByID(scene, geom, 0);
+  rtcReleaseGeometry(geom);
+  return scene;
+}
+
+// ------------------------------------------------------------------------------------------------------------
+// Query loops. Each writes one result per ray (so the cross-check sees every ray and nothing can be elided)
+// and returns a checksum: the sum of hit distances (closest hit) or the number of occluded rays (any hit).
+
+constexpr uint32_t kNoPrim = std::numeric_limits<uint32_t>::max();
+
+struct ClosestResults {
+  std::vector<float> t;        // inf on a miss
+  std::vector<uint32_t> prim;  // kNoPrim on a miss
+  void resize(size_t n) { t.resize(n); prim.resize(n); }
+};
+
+double tessera_closest(const Bvh& bvh, const std::vector<Ray>& rays, ClosestResults& out) {
+  double sum = 0.0;
+  for (size_t i = 0, n = rays.size(); i < n; ++i) {
+    const std::optional<Hit> h = bvh.intersect(rays[i]);
+    if (h) {
+      out.t[i] = h->t;
+      out.prim[i] = h->prim;
+      sum += h->t;
+    } else {
+      out.t[i] = kInfinity;
+      out.prim[i] = kNoPrim;
+    }
+  }
+  return sum;
+}
+
+double tessera_anyhit(const Bvh& bvh, const std::vector<Ray>& rays, std::vector<uint8_t>& out) {
+  uint64_t count = 0;
+  for (size_t i = 0, n = rays.size(); i < n; ++i) {
+    const bool occ = bvh.occluded(rays[i]);
+    out[i] = occ;
+    count += occ;
+  }
+  return double(count);
+}
+
+// rtcIntersect1 requires a 16-byte aligned RTCRayHit; the type carries RTC_ALIGN(16) members, and the locals
+// below are declared alignas(16) as well so the requirement is explicit.
+static_assert(alignof(RTCRayHit) >= 16 && alignof(RTCRay) >= 16);
+
+inline void fill_rtc_ray(RTCRay& er, const Ray& r) {
+  er.org_x = r.o.x;
+  er.org_y = r.o.y;
+  er.org_z = r.o.z;
+  er.tnear = 0.f;
+  er.dir_x = r.d.x;
+  er.dir_y = r.d.y;
+  er.dir_z = r.d.z;
+  er.time = 0.f;
+  er.tfar = r.tmax;
+  er.mask = 0xFFFFFFFFu;
+  er.id = 0;
+  er.flags = 0;
+}
+
+double embree_closest(RTCScene scene, const std::vector<Ray>& rays, ClosestResults& out) {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  double sum = 0.0;
+  for (size_t i = 0, n = rays.size(); i < n; ++i) {
+    alignas(16) RTCRayHit rh;
+    fill_rtc_ray(rh.ray, rays[i]);
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(scene, &ctx, &rh);
+    if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
+      out.t[i] = rh.ray.tfar;
+      out.prim[i] = rh.hit.primID;
+      sum += rh.ray.tfar;
+    } else {
+      out.t[i] = kInfinity;
+      out.prim[i] = kNoPrim;
+    }
+  }
+  return sum;
+}
+
+double embree_anyhit(RTCScene scene, const std::vector<Ray>& rays, std::vector<uint8_t>& out) {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  uint64_t count = 0;
+  for (size_t i = 0, n = rays.size(); i < n; ++i) {
+    alignas(16) RTCRay er;
+    fill_rtc_ray(er, rays[i]);
+    rtcOccluded1(scene, &ctx, &er);
+    const bool occ = er.tfar < 0.f;  // rtcOccluded1 sets tfar to -inf on a hit
+    out[i] = occ;
+    count += occ;
+  }
+  return double(count);
+}
+
+// ------------------------------------------------------------------------------------------------------------
+// Measurement.
+
+enum Impl { kTessera = 0, kEmbreeDefault = 1, kEmbreeRobust = 2, kImpls = 3 };
+constexpr std::array<const char*, kImpls> kImplNames = {"tessera", "embree_default", "embree_robust"};
+
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+struct BuildRow {
+  std::string scene;
+  size_t triangles = 0;
+  std::array<double, kImpls> best_s{};
+  BvhStats stats;
+};
+
+struct Built {
+  Bvh bvh;
+  std::array<RTCScene, 2> embree{};  // default, robust
+};
+
+// Builds everything kReps times (implementation order rotated per repetition) and keeps the last of each.
+Built build_all(RTCDevice device, const Scene& s, BuildRow& row) {
+  Built out;
+  row.scene = s.name;
+  row.triangles = s.triangles.size();
+  row.best_s.fill(std::numeric_limits<double>::infinity());
+  for (int rep = 0; rep < kReps; ++rep) {
+    for (int k = 0; k < kImpls; ++k) {
+      const int impl = (rep + k) % kImpls;
+      if (impl == kTessera) {
+        const auto t0 = Clock::now();
+        Bvh bvh = Bvh::build(s.triangles, {}, BvhOptions{});
+        row.best_s[impl] = std::min(row.best_s[impl], seconds_since(t0));
+        out.bvh = std::move(bvh);
+      } else {
+        const int e = impl - 1;
+        RTCScene scene = new_embree_scene(device, s.mesh, impl == kEmbreeRobust);
+        const auto t0 = Clock::now();
+        rtcCommitScene(scene);
+        row.best_s[impl] = std::min(row.best_s[impl], seconds_since(t0));
+        if (out.embree[e]) rtcReleaseScene(out.embree[e]);
+        out.embree[e] = scene;
+      }
+    }
+  }
+  row.stats = out.bvh.stats();
+  return out;
+}
+
+struct ThroughputRow {
+  std::string scene, rays, query;
+  size_t n = 0;
+  std::array<double, kImpls> best_s{};
+  std::array<double, kImpls> checksum{};
+  double mrays(int impl) const { return double(n) / best_s[impl] / 1e6; }
+};
+
+struct CheckRow {
+  std::string scene, rays;
+  size_t n = 0;
+  double ours_hit_frac = 0;                // fraction of rays Tessera's closest-hit query hits
+  std::array<double, 2> closest_agree{};   // hit/miss agreement, closest hit, vs default / robust
+  std::array<double, 2> max_rel_dt{};      // max |t_ours - t_embree| / t_embree over rays both hit
+  std::array<double, 2> max_abs_dt{};      // max |t_ours - t_embree| over rays both hit (scene units; |d| = 1)
+  std::array<size_t, 2> far{};            // rays both hit with |dt| > kFarDt: a different surface was hit
+  std::array<double, 2> prim_match{};      // fraction of both-hit rays reporting the same triangle
+  std::array<double, 2> anyhit_agree{};    // occluded/not agreement, any hit, vs default / robust
+  double ours_self = 0;                    // Tessera: occluded() == intersect().has_value()
+};
+
+// Scene units (both scenes span ~2): a t difference this large is not rounding but a different surface, e.g. a
+// ray that slipped through a crack between adjacent triangles and hit the far side of a closed mesh.
+constexpr double kFarDt = 1e-3;
+
+CheckRow cross_check(const std::string& scene, const std::string& rays_name,
+                     const std::array<ClosestResults, kImpls>& c, const std::array<std::vector<uint8_t>, kImpls>& a) {
+  CheckRow row;
+  row.scene = scene;
+  row.rays = rays_name;
+  const size_t n = c[kTessera].t.size();
+  row.n = n;
+  size_t ours_hits = 0, self = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const bool h = c[kTessera].prim[i] != kNoPrim;
+    ours_hits += h;
+    self += (bool(a[kTessera][i]) == h);
+  }
+  row.ours_hit_frac = double(ours_hits) / double(n);
+  row.ours_self = double(self) / double(n);
+  for (int e = 0; e < 2; ++e) {
+    const int impl = e + 1;
+    size_t agree = 0, both = 0, same_prim = 0, any_agree = 0, far = 0;
+    double max_rel = 0.0, max_abs = 0.0;
+    for (size_t i = 0; i < n; ++i) {
+      const bool ho = c[kTessera].prim[i] != kNoPrim, he = c[impl].prim[i] != kNoPrim;
+      agree += (ho == he);
+      any_agree += (a[kTessera][i] == a[impl][i]);
+      if (ho && he) {
+        ++both;
+        same_prim += (c[kTessera].prim[i] == c[impl].prim[i]);
+        const double te = c[impl].t[i], to = c[kTessera].t[i];
+        const double rel = std::abs(to - te) / std::max(std::abs(te), 1e-30);
+        max_rel = std::max(max_rel, rel);
+        max_abs = std::max(max_abs, std::abs(to - te));
+        far += std::abs(to - te) > kFarDt;
+      }
+    }
+    row.closest_agree[e] = double(agree) / double(n);
+    row.anyhit_agree[e] = double(any_agree) / double(n);
+    row.max_rel_dt[e] = max_rel;
+    row.max_abs_dt[e] = max_abs;
+    row.far[e] = far;
+    row.prim_match[e] = both ? double(same_prim) / double(both) : 1.0;
+  }
+  return row;
+}
+
+// Runs closest and any hit for all three implementations kReps times (order rotated per repetition), keeping
+// the best time of each; single thread (this one).
+void measure(const Scene& s, const Built& b, const std::string& rays_name, const std::vector<Ray>& rays,
+             std::vector<ThroughputRow>& rows, std::vector<CheckRow>& checks) {
+  ThroughputRow closest{s.name, rays_name, "closest", rays.size(), {}, {}};
+  ThroughputRow anyhit{s.name, rays_name, "any-hit", rays.size(), {}, {}};
+  closest.best_s.fill(std::numeric_limits<double>::infinity());
+  anyhit.best_s.fill(std::numeric_limits<double>::infinity());
+  std::array<ClosestResults, kImpls> cres;
+  std::array<std::vector<uint8_t>, kImpls> ares;
+  for (int i = 0; i < kImpls; ++i) {
+    cres[i].resize(rays.size());
+    ares[i].resize(rays.size());
+  }
+  for (int rep = 0; rep < kReps; ++rep) {
+    for (int k = 0; k < kImpls; ++k) {
+      const int impl = (rep + k) % kImpls;
+      auto t0 = Clock::now();
+      closest.checksum[impl] = impl == kTessera ? tessera_closest(b.bvh, rays, cres[impl])
+                                                : embree_closest(b.embree[impl - 1], rays, cres[impl]);
+      closest.best_s[impl] = std::min(closest.best_s[impl], seconds_since(t0));
+      t0 = Clock::now();
+      anyhit.checksum[impl] = impl == kTessera ? tessera_anyhit(b.bvh, rays, ares[impl])
+                                               : embree_anyhit(b.embree[impl - 1], rays, ares[impl]);
+      anyhit.best_s[impl] = std::min(anyhit.best_s[impl], seconds_since(t0));
+    }
+  }
+  rows.push_back(closest);
+  rows.push_back(anyhit);
+  checks.push_back(cross_check(s.name, rays_name, cres, ares));
+}
+
+// ------------------------------------------------------------------------------------------------------------
+
+void print_usage(std::FILE* f) {
+  std::fputs("usage: bvh_vs_embree [--quick] [--csv]\n"
+             "  --quick  ~100k rays per set and a 200k-triangle sphere (smoke test)\n"
+             "  --csv    also print the results as CSV after the tables\n",
+             f);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bool quick = false, csv = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string_view a = argv[i];
+    if (a == "--quick") {
+      quick = true;
+    } else if (a == "--csv") {
+      csv = true;
+    } else if (a == "--help" || a == "-h") {
+      print_usage(stdout);
+      return 0;
+    } else {
+      std::fprintf(stderr, "bvh_vs_embree: unknown argument '%s'\n", argv[i]);
+      print_usage(stderr);
+      return 2;
+    }
+  }
+  const auto t_start = Clock::now();
+
+  const int res = quick ? 320 : 1024;                         // camera: res x res rays
+  const size_t n_incoherent = size_t(res) * size_t(res);      // same count as the camera set
+  const size_t sphere_triangles = quick ? 200'000 : 1'000'000;  // minimum
+
+  RTCDevice device = rtcNewDevice(nullptr);  // default config: all hardware threads
+  if (!device) {
+    std::fprintf(stderr, "bvh_vs_embree: rtcNewDevice failed: %s\n", embree_error_name(rtcGetDeviceError(nullptr)));
+    return 3;
+  }
+  rtcSetDeviceErrorFunction(device, on_embree_error, nullptr);
+  const ssize_t tasking = rtcGetDeviceProperty(device, RTC_DEVICE_PROPERTY_TASKING_SYSTEM);
+  const char* tasking_name = tasking == 0 ? "internal" : tasking == 1 ? "TBB" : tasking == 2 ? "PPL" : "unknown";
+
+  std::printf("bvh_vs_embree: Tessera BVH vs Embree, same scenes, same rays\n");
+  std::printf("commit:  %s\n", commit_description().c_str());
+  std::printf("machine: %s, nproc %u, TBB default concurrency %d\n", cpu_model().c_str(),
+              std::thread::hardware_concurrency(), tbb::info::default_concurrency());
+  std::printf("build:   %s, TESSERA_NATIVE=%s (Tessera compiled for %s; Embree dispatches to the best ISA at run time)\n",
+              TESSERA_BUILD_TYPE, TESSERA_NATIVE_BUILD ? "ON" : "OFF",
+              TESSERA_NATIVE_BUILD ? "-march=native" : "baseline x86-64 (SSE2)");
+  const unsigned csr = _mm_getcsr();
+  std::printf("mxcsr:   FTZ %s, DAZ %s (left at the process default; both libraries trace under the same mode)\n",
+              (csr & 0x8000u) ? "on" : "off", (csr & 0x0040u) ? "on" : "off");
+  std::printf("embree:  %" PRId64 ".%" PRId64 ".%" PRId64 ", tasking system %s (rtcCommitScene builds on TBB worker threads)\n",
+              int64_t(rtcGetDeviceProperty(device, RTC_DEVICE_PROPERTY_VERSION_MAJOR)),
+              int64_t(rtcGetDeviceProperty(device, RTC_DEVICE_PROPERTY_VERSION_MINOR)),
+              int64_t(rtcGetDeviceProperty(device, RTC_DEVICE_PROPERTY_VERSION_PATCH)), tasking_name);
+
+  std::vector<Scene> scenes;
+  scenes.push_back(cornell_scene());
+  scenes.push_back(bumpy_sphere_scene(sphere_triangles));
+  for (auto& s : scenes) finish_scene(s);
+
+  std::printf("mode:    %s: %d x %d camera rays and %zu incoherent rays per scene; sphere %zu triangles; best of %d\n\n",
+              quick ? "--quick" : "full", res, res, n_incoherent, scenes[1].triangles.size(), kReps);
+  std::fflush(stdout);
+
+  std::vector<BuildRow> builds;
+  std::vector<ThroughputRow> rows;
+  std::vector<CheckRow> checks;
+  uint64_t seed = 0x7e55e7a2024ull;
+  for (const Scene& s : scenes) {
+    BuildRow br;
+    Built b = build_all(device, s, br);
+    builds.push_back(br);
+    measure(s, b, "coherent", camera_rays(s.camera, res), rows, checks);
+    measure(s, b, "incoherent", incoherent_rays(s.bounds, n_incoherent, seed++), rows, checks);
+    for (RTCScene e : b.embree) rtcReleaseScene(e);
+  }
+
+  // ---- Tables.
+  std::printf("Traversal: single thread, Mrays/s, best of %d. ratio = Tessera / Embree (1.00 = parity, < 1 = Tessera slower)\n",
+              kReps);
+  std::printf("%-7s %-10s %-8s %8s | %8s %8s %8s | %8s %8s\n", "scene", "rays", "query", "n", "Tessera",
+              "Emb-def", "Emb-rob", "ours/def", "ours/rob");
+  std::printf("%s\n", std::string(92, '-').c_str());
+  for (const auto& r : rows) {
+    std::printf("%-7s %-10s %-8s %8zu | %8.2f %8.2f %8.2f | %8.2f %8.2f\n", r.scene.c_str(), r.rays.c_str(),
+                r.query.c_str(), r.n, r.mrays(kTessera), r.mrays(kEmbreeDefault), r.mrays(kEmbreeRobust),
+                r.mrays(kTessera) / r.mrays(kEmbreeDefault), r.mrays(kTessera) / r.mrays(kEmbreeRobust));
+  }
+
+  std::printf("\nBuild: all %d TBB threads, ms, best of %d (Tessera: Bvh::build; Embree: rtcCommitScene only).\n"
+              "time ratio = Tessera / Embree (> 1 = Tessera slower)\n",
+              tbb::info::default_concurrency(), kReps);
+  std::printf("%-7s %9s | %9s %9s %9s | %8s %8s | %s\n", "scene", "triangles", "Tessera", "Emb-def", "Emb-rob",
+              "ours/def", "ours/rob", "Tessera tree: nodes, depth, SAH cost");
+  std::printf("%s\n", std::string(110, '-').c_str());
+  for (const auto& b : builds) {
+    std::printf("%-7s %9zu | %9.3f %9.3f %9.3f | %8.2f %8.2f | %zu, %d, %.2f\n", b.scene.c_str(), b.triangles,
+                b.best_s[kTessera] * 1e3, b.best_s[kEmbreeDefault] * 1e3, b.best_s[kEmbreeRobust] * 1e3,
+                b.best_s[kTessera] / b.best_s[kEmbreeDefault], b.best_s[kTessera] / b.best_s[kEmbreeRobust],
+                b.stats.nodes, b.stats.max_depth, b.stats.sah_cost);
+  }
+
+  std::printf("\nCross-check, Tessera vs Embree default / robust (same rays; reported, not asserted)\n");
+  std::printf("%-7s %-10s %6s | %-17s %-17s %-17s %-11s %-15s | %-17s | %s\n", "scene", "rays", "hit%",
+              "closest agree%", "max rel |dt|", "max abs |dt|", "far", "same prim%", "any-hit agree%", "self%");
+  std::printf("%s\n", std::string(142, '-').c_str());
+  for (const auto& c : checks) {
+    std::printf("%-7s %-10s %6.2f | %8.4f/%-8.4f %8.2e/%-8.2e %8.2e/%-8.2e %5zu/%-5zu %7.3f/%-7.3f | %8.4f/%-8.4f | %.4f\n",
+                c.scene.c_str(), c.rays.c_str(), 100 * c.ours_hit_frac, 100 * c.closest_agree[0],
+                100 * c.closest_agree[1], c.max_rel_dt[0], c.max_rel_dt[1], c.max_abs_dt[0], c.max_abs_dt[1],
+                c.far[0], c.far[1], 100 * c.prim_match[0], 100 * c.prim_match[1], 100 * c.anyhit_agree[0],
+                100 * c.anyhit_agree[1], 100 * c.ours_self);
+  }
+  std::printf("(x/y = vs Embree default / robust. hit%%: Tessera closest-hit hit rate. same prim%%: of rays both hit.\n"
+              " far: rays both hit whose t differ by more than %g, i.e. different surfaces were hit (on a closed mesh:\n"
+              " one ray slipped through a crack between triangles and hit the far side).\n"
+              " self%%: Tessera occluded() agrees with intersect() hit/miss. A large relative |dt| with a tiny absolute |dt|\n"
+              " means a hit very near the ray origin, where ~1e-7 of rounding in t is a large fraction of t.)\n",
+              kFarDt);
+
+  std::printf("\nChecksums (closest: sum of hit t; any-hit: occluded count), Tessera / Embree default / robust\n");
+  for (const auto& r : rows) {
+    std::printf("%-7s %-10s %-8s %.6e / %.6e / %.6e\n", r.scene.c_str(), r.rays.c_str(), r.query.c_str(),
+                r.checksum[kTessera], r.checksum[kEmbreeDefault], r.checksum[kEmbreeRobust]);
+  }
+
+  if (csv) {
+    std::printf("\n# CSV\n");
+    std::printf("section,scene,rays,query,n,impl,seconds,mrays_per_s,checksum\n");
+    for (const auto& r : rows)
+      for (int i = 0; i < kImpls; ++i)
+        std::printf("traversal,%s,%s,%s,%zu,%s,%.6f,%.4f,%.9e\n", r.scene.c_str(), r.rays.c_str(), r.query.c_str(),
+                    r.n, kImplNames[i], r.best_s[i], r.mrays(i), r.checksum[i]);
+    std::printf("section,scene,triangles,impl,seconds\n");
+    for (const auto& b : builds)
+      for (int i = 0; i < kImpls; ++i)
+        std::printf("build,%s,%zu,%s,%.6f\n", b.scene.c_str(), b.triangles, kImplNames[i], b.best_s[i]);
+    std::printf("section,scene,rays,n,embree,ours_hit_frac,closest_agree,max_rel_dt,max_abs_dt,far,prim_match,anyhit_agree\n");
+    for (const auto& c : checks)
+      for (int e = 0; e < 2; ++e)
+        std::printf("check,%s,%s,%zu,%s,%.6f,%.6f,%.3e,%.3e,%zu,%.6f,%.6f\n", c.scene.c_str(), c.rays.c_str(),
+                    c.n, kImplNames[e + 1], c.ours_hit_frac, c.closest_agree[e], c.max_rel_dt[e], c.max_abs_dt[e],
+                    c.far[e], c.prim_match[e], c.anyhit_agree[e]);
+  }
+
+  std::printf("\ntotal wall time %.1f s\n", seconds_since(t_start));
+  rtcReleaseDevice(device);
+  if (std::fflush(stdout) != 0) die("writing stdout failed");
+  return 0;
+}
