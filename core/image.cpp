@@ -1,0 +1,405 @@
+#include "core/image.h"
+
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfDoubleAttribute.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfIO.h>
+#include <OpenEXR/ImfInputFile.h>
+#include <OpenEXR/ImfIntAttribute.h>
+#include <OpenEXR/ImfOutputFile.h>
+#include <OpenEXR/ImfRgbaFile.h>
+#include <OpenEXR/ImfStdIO.h>
+#include <OpenEXR/ImfStringAttribute.h>
+#include <OpenEXR/ImfTileDescription.h>
+#include <OpenEXR/ImfVersion.h>
+#include <Imath/half.h>
+#include <png.h>
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <span>
+#include <string_view>
+#include <system_error>
+
+namespace tessera {
+namespace {
+
+constexpr int64_t kMaxSide = 65536;              // Largest data window width or height read_exr accepts.
+constexpr int64_t kMaxPixels = int64_t(1) << 28;  // Largest data window area read_exr accepts.
+
+// Header attributes that lay out the file rather than describe the picture: never metadata.
+constexpr std::array<std::string_view, 14> kLayoutAttributes = {
+    "channels", "compression", "dataWindow", "displayWindow", "lineOrder", "pixelAspectRatio", "screenWindowCenter",
+    "screenWindowWidth", "tiles", "name", "type", "version", "chunkCount", "maxSamplesPerPixel"};
+
+// Standard attributes (ImfStandardAttributes.h) whose type is not string: writing one as a string would make
+// other readers' typed accessors throw.
+constexpr std::array<std::string_view, 24> kTypedStandardAttributes = {
+    "chromaticities", "whiteLuminance", "adoptedNeutral", "xDensity", "utcOffset", "longitude", "latitude",
+    "altitude", "focus", "expTime", "aperture", "isoSpeed", "envmap", "keyCode", "timeCode", "framesPerSecond",
+    "multiView", "worldToCamera", "worldToNDC", "deepImageState", "originalDataWindow", "dwaCompressionLevel",
+    "idManifest", "preview"};
+
+bool is_one_of(std::string_view name, std::span<const std::string_view> names) {
+  return std::find(names.begin(), names.end(), name) != names.end();
+}
+
+std::string quoted(const std::filesystem::path& p) { return '"' + p.string() + '"'; }
+
+std::string errno_text(int err) { return std::error_code(err, std::generic_category()).message(); }
+
+// Runs f, turning any exception into an ImageError whose message starts with context. The *_impl functions below
+// throw whatever they meet (their own std::runtime_error reasons, OpenEXR errors, bad_alloc); the public functions
+// wrap them with this, so every error leaves as an ImageError naming the file (where there is one).
+template <class F>
+auto with_context(const std::string& context, F&& f) -> decltype(f()) {
+  try {
+    return f();
+  } catch (const std::exception& e) {
+    throw ImageError(context + ": " + e.what());
+  }
+}
+
+PixelWindow to_window(const Imath::Box2i& b) { return {b.min.x, b.min.y, b.max.x + 1, b.max.y + 1}; }
+
+Imath::Box2i to_box(const PixelWindow& w) { return Imath::Box2i({w.x0, w.y0}, {w.x1 - 1, w.y1 - 1}); }
+
+// Throws unless img.rgb holds exactly 3 * width * height floats.
+void check_rgb_shape(const Image& img) {
+  if (img.width < 0 || img.height < 0)
+    throw std::runtime_error("negative image size " + std::to_string(img.width) + "x" + std::to_string(img.height));
+  const size_t expected = 3 * size_t(img.width) * size_t(img.height);
+  if (img.rgb.size() != expected)
+    throw std::runtime_error("image " + std::to_string(img.width) + "x" + std::to_string(img.height) + " has " +
+                             std::to_string(img.rgb.size()) + " colour values, expected " + std::to_string(expected));
+}
+
+// Writes bytes to path + ".tmp", syncs it and renames it over path; on failure the temporary is removed and path
+// is left as it was.
+void write_file_atomically(const std::filesystem::path& path, std::span<const uint8_t> bytes) {
+  std::filesystem::path tmp = path;
+  tmp += ".tmp";
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+  if (fd < 0) throw std::runtime_error("cannot create " + quoted(tmp) + ": " + errno_text(errno));
+  std::string failed;  // what went wrong, empty on success
+  int err = 0;
+  for (size_t done = 0; done < bytes.size();) {
+    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      err = n < 0 ? errno : EIO;
+      failed = "cannot write " + quoted(tmp);
+      break;
+    }
+    done += size_t(n);
+  }
+  if (failed.empty() && ::fsync(fd) != 0) {
+    err = errno;
+    failed = "cannot sync " + quoted(tmp);
+  }
+  if (::close(fd) != 0 && failed.empty()) {
+    err = errno;
+    failed = "cannot close " + quoted(tmp);
+  }
+  if (failed.empty() && ::rename(tmp.c_str(), path.c_str()) != 0) {
+    err = errno;
+    failed = "cannot rename " + quoted(tmp) + " to " + quoted(path);
+  }
+  if (!failed.empty()) {
+    ::unlink(tmp.c_str());
+    throw std::runtime_error(failed + ": " + errno_text(err));
+  }
+  // Make the rename itself durable. The file is already in place, so a failure here is not reported.
+  const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
+  const int dir_fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dir_fd >= 0) {
+    ::fsync(dir_fd);
+    ::close(dir_fd);
+  }
+}
+
+// An OpenEXR output stream into memory, so write_exr can hand complete bytes to write_file_atomically.
+class MemoryOStream final : public Imf::OStream {
+ public:
+  explicit MemoryOStream(const char* name) : Imf::OStream(name) {}
+  void write(const char c[], int n) override {
+    const size_t end = pos_ + size_t(n);
+    if (end > bytes_.size()) bytes_.resize(end);
+    std::memcpy(bytes_.data() + pos_, c, size_t(n));
+    pos_ = end;
+  }
+  uint64_t tellp() override { return pos_; }
+  void seekp(uint64_t pos) override { pos_ = size_t(pos); }
+  const std::vector<uint8_t>& bytes() const { return bytes_; }
+
+ private:
+  std::vector<uint8_t> bytes_;
+  size_t pos_ = 0;
+};
+
+// Reads the first header from is (positioned just after the magic number and version field) and rejects what
+// read_exr cannot or should not load, before OpenEXR sizes any table or buffer from the header.
+void check_exr_header(Imf::IStream& is, int version) {
+  if (Imf::getVersion(version) != Imf::EXR_VERSION || !Imf::supportsFlags(Imf::getFlags(version)))
+    throw std::runtime_error("unsupported OpenEXR version field " + std::to_string(version));
+  if (Imf::isNonImage(version)) throw std::runtime_error("deep OpenEXR files are not supported");
+  Imf::Header header;
+  int flags = version;
+  header.readFrom(is, flags);  // may set the long-names flag
+  header.sanityCheck(Imf::isTiled(flags), Imf::isMultiPart(flags));
+
+  // sanityCheck has ensured non-empty windows with corners inside (-INT_MAX/2, INT_MAX/2), so neither the sizes
+  // below nor the half-open bounds (max + 1) overflow.
+  const Imath::Box2i& dw = header.dataWindow();
+  const int64_t w = int64_t(dw.max.x) - dw.min.x + 1;
+  const int64_t h = int64_t(dw.max.y) - dw.min.y + 1;
+  if (w > kMaxSide || h > kMaxSide || w * h > kMaxPixels)
+    throw std::runtime_error("data window " + std::to_string(w) + "x" + std::to_string(h) +
+                             " is outside the supported size (at most " + std::to_string(kMaxSide) +
+                             " per side and " + std::to_string(kMaxPixels) + " pixels)");
+  if (header.hasTileDescription()) {
+    const Imf::TileDescription& t = header.tileDescription();
+    if (t.xSize > kMaxSide || t.ySize > kMaxSide || int64_t(t.xSize) * t.ySize > kMaxPixels)
+      throw std::runtime_error("tile size " + std::to_string(t.xSize) + "x" + std::to_string(t.ySize) +
+                               " is outside the supported size");
+  }
+}
+
+// The header's string, int and double attributes as text, leaving out the layout attributes.
+std::map<std::string, std::string> read_metadata(const Imf::Header& header) {
+  std::map<std::string, std::string> out;
+  for (auto it = header.begin(); it != header.end(); ++it) {
+    if (is_one_of(it.name(), kLayoutAttributes)) continue;
+    const Imf::Attribute* a = &it.attribute();
+    if (const auto* s = dynamic_cast<const Imf::StringAttribute*>(a)) {
+      out[it.name()] = s->value();
+    } else if (const auto* i = dynamic_cast<const Imf::IntAttribute*>(a)) {
+      out[it.name()] = std::to_string(i->value());
+    } else if (const auto* d = dynamic_cast<const Imf::DoubleAttribute*>(a)) {
+      char buf[32];
+      const auto res = std::to_chars(buf, buf + sizeof buf, d->value());  // shortest text that reads back exactly
+      out[it.name()] = std::string(buf, res.ptr);
+    }
+  }
+  return out;
+}
+
+// Reads the colour of a luminance/chroma file (Y, RY, BY) through OpenEXR's RGBA interface, which undoes the
+// chroma subsampling.
+void read_luminance_chroma(Imf::IStream& is, const Imath::Box2i& dw, Image& img) {
+  is.seekg(0);
+  Imf::RgbaInputFile in(is);
+  std::vector<Imf::Rgba> buf(size_t(img.width) * size_t(img.height));
+  // The frame buffer base is addressed by absolute pixel coordinates (the same arithmetic as Imf::Slice::Make).
+  const intptr_t origin_offset = (intptr_t(dw.min.x) + intptr_t(dw.min.y) * img.width) * intptr_t(sizeof(Imf::Rgba));
+  in.setFrameBuffer(reinterpret_cast<Imf::Rgba*>(reinterpret_cast<intptr_t>(buf.data()) - origin_offset), 1,
+                    size_t(img.width));
+  in.readPixels(dw.min.y, dw.max.y);
+  for (size_t i = 0; i < buf.size(); ++i) {
+    img.rgb[3 * i] = buf[i].r;
+    img.rgb[3 * i + 1] = buf[i].g;
+    img.rgb[3 * i + 2] = buf[i].b;
+  }
+}
+
+ExrImage read_exr_impl(const std::filesystem::path& path) {
+  errno = 0;
+  std::ifstream file(path, std::ios::binary);
+  if (!file) throw std::runtime_error(errno != 0 ? errno_text(errno) : "cannot open file");
+  // The magic number and version field, read here so that short and foreign files get a plain message.
+  char start[8] = {};
+  file.read(start, 8);
+  if (file.bad()) throw std::runtime_error(errno != 0 ? errno_text(errno) : "read error");
+  if (file.gcount() < 4 || !Imf::isImfMagic(start)) throw std::runtime_error("not an OpenEXR file (no magic number)");
+  if (file.gcount() < 8) throw std::runtime_error("file ends inside the version field");
+  const int version = int(uint32_t(uint8_t(start[4])) | uint32_t(uint8_t(start[5])) << 8 |
+                          uint32_t(uint8_t(start[6])) << 16 | uint32_t(uint8_t(start[7])) << 24);
+  Imf::StdIFStream stream(file, path.c_str());
+  check_exr_header(stream, version);
+  stream.seekg(0);
+
+  Imf::InputFile in(stream);
+  if (!in.isComplete()) throw std::runtime_error("file is incomplete (truncated or damaged)");
+  const Imf::Header& header = in.header();
+  const Imath::Box2i dw = header.dataWindow();
+  ExrImage out;
+  out.data_window = to_window(dw);
+  out.display_window = to_window(header.displayWindow());
+  out.metadata = read_metadata(header);
+  Image& img = out.pixels;
+  img = Image::make(out.data_window.width(), out.data_window.height());
+
+  const Imf::ChannelList& channels = header.channels();
+  const auto full_resolution = [&](const char* name) {
+    const Imf::Channel* c = channels.findChannel(name);
+    return c && c->xSampling == 1 && c->ySampling == 1;
+  };
+  enum class Colour { kRgb, kGrey, kLuminanceChroma } colour;
+  std::vector<std::string_view> colour_channels;
+  if (channels.findChannel("R") && channels.findChannel("G") && channels.findChannel("B")) {
+    if (!full_resolution("R") || !full_resolution("G") || !full_resolution("B"))
+      throw std::runtime_error("subsampled R,G,B channels are not supported");
+    colour = Colour::kRgb;
+    colour_channels = {"R", "G", "B"};
+  } else if (channels.findChannel("Y") && channels.findChannel("RY") && channels.findChannel("BY")) {
+    colour = Colour::kLuminanceChroma;
+    colour_channels = {"Y", "RY", "BY"};
+  } else if (full_resolution("Y")) {
+    colour = Colour::kGrey;
+    colour_channels = {"Y"};
+  } else {
+    std::string names;
+    for (auto c = channels.begin(); c != channels.end(); ++c) names += std::string(names.empty() ? "" : ",") + c.name();
+    throw std::runtime_error("no R,G,B or full-resolution Y channels (channels: " + (names.empty() ? "none" : names) +
+                             ")");
+  }
+
+  Imf::FrameBuffer fb;
+  constexpr size_t kPixelStride = 3 * sizeof(float);
+  if (colour == Colour::kRgb || colour == Colour::kGrey) {
+    for (size_t i = 0; i < colour_channels.size(); ++i)
+      fb.insert(std::string(colour_channels[i]),
+                Imf::Slice::Make(Imf::FLOAT, img.rgb.data() + i, dw, kPixelStride, kPixelStride * size_t(img.width)));
+  }
+  for (auto c = channels.begin(); c != channels.end(); ++c) {
+    if (is_one_of(c.name(), colour_channels) || c.channel().xSampling != 1 || c.channel().ySampling != 1) continue;
+    std::vector<float>& values = img.extra[c.name()];
+    values.assign(size_t(img.width) * size_t(img.height), 0.f);
+    fb.insert(c.name(), Imf::Slice::Make(Imf::FLOAT, values.data(), dw));
+  }
+  if (fb.begin() != fb.end()) {
+    in.setFrameBuffer(fb);
+    in.readPixels(dw.min.y, dw.max.y);
+  }
+  if (colour == Colour::kGrey) {
+    for (size_t i = 0; i < img.rgb.size(); i += 3) img.rgb[i + 1] = img.rgb[i + 2] = img.rgb[i];
+  } else if (colour == Colour::kLuminanceChroma) {
+    read_luminance_chroma(stream, dw, img);
+  }
+  return out;
+}
+
+void write_exr_impl(const std::filesystem::path& path, const Image& img, const ExrWriteOptions& opt) {
+  check_rgb_shape(img);
+  if (img.width == 0 || img.height == 0) throw std::runtime_error("an EXR cannot hold an empty image");
+  const PixelWindow data = opt.data_window.empty() ? PixelWindow{0, 0, img.width, img.height} : opt.data_window;
+  if (data.width() != img.width || data.height() != img.height)
+    throw std::runtime_error("data window size " + std::to_string(data.width()) + "x" + std::to_string(data.height()) +
+                             " differs from the image size " + std::to_string(img.width) + "x" +
+                             std::to_string(img.height));
+  const PixelWindow display = opt.display_window.empty() ? data : opt.display_window;
+  const Imath::Box2i dw = to_box(data);
+
+  Imf::Header header(to_box(display), dw);
+  for (const auto& [key, value] : opt.metadata) {
+    if (is_one_of(key, kLayoutAttributes) || is_one_of(key, kTypedStandardAttributes))
+      throw std::runtime_error("metadata key \"" + key + "\" is a standard EXR attribute and cannot be a string");
+    header.insert(key, Imf::StringAttribute(value));
+  }
+
+  // OutputFile does not convert between pixel types, so half output needs a half copy of the colours.
+  std::vector<half> rgb_half;
+  if (opt.half) {
+    rgb_half.resize(img.rgb.size());
+    std::transform(img.rgb.begin(), img.rgb.end(), rgb_half.begin(), [](float v) { return half(v); });
+  }
+  const Imf::PixelType rgb_type = opt.half ? Imf::HALF : Imf::FLOAT;
+  const char* const rgb_base = opt.half ? reinterpret_cast<const char*>(rgb_half.data())
+                                        : reinterpret_cast<const char*>(img.rgb.data());
+  const size_t value_size = opt.half ? sizeof(half) : sizeof(float);
+  Imf::FrameBuffer fb;
+  const char* const rgb_names[] = {"R", "G", "B"};
+  for (size_t i = 0; i < 3; ++i) {
+    header.channels().insert(rgb_names[i], Imf::Channel(rgb_type));
+    fb.insert(rgb_names[i], Imf::Slice::Make(rgb_type, rgb_base + i * value_size, dw, 3 * value_size,
+                                             3 * value_size * size_t(img.width)));
+  }
+  if (opt.write_extra) {
+    const size_t expected = size_t(img.width) * size_t(img.height);
+    for (const auto& [name, values] : img.extra) {
+      if (name == "R" || name == "G" || name == "B")
+        throw std::runtime_error("extra channel \"" + name + "\" collides with the colour channels");
+      if (values.size() != expected)
+        throw std::runtime_error("extra channel \"" + name + "\" has " + std::to_string(values.size()) +
+                                 " values, expected " + std::to_string(expected));
+      header.channels().insert(name, Imf::Channel(Imf::FLOAT));
+      fb.insert(name, Imf::Slice::Make(Imf::FLOAT, values.data(), dw));
+    }
+  }
+
+  MemoryOStream stream(path.c_str());
+  {
+    Imf::OutputFile out(stream, header);
+    out.setFrameBuffer(fb);
+    out.writePixels(img.height);
+  }  // the destructor completes the file (its line offset table)
+  write_file_atomically(path, stream.bytes());
+}
+
+// sRGB OETF of a linear value, clamped to [0,1] (NaN -> 0), rounded to 8 bits.
+uint8_t to_srgb8(float v) {
+  if (!(v > 0.f)) return 0;
+  if (v >= 1.f) return 255;
+  const float e = v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.f / 2.4f) - 0.055f;
+  return uint8_t(std::lround(e * 255.f));
+}
+
+std::vector<uint8_t> encode_png_impl(const Image& img, float exposure) {
+  check_rgb_shape(img);
+  if (img.width == 0 || img.height == 0) throw std::runtime_error("a PNG cannot hold an empty image");
+  std::vector<uint8_t> pixels(img.rgb.size());
+  for (size_t i = 0; i < pixels.size(); ++i) pixels[i] = to_srgb8(img.rgb[i] * exposure);
+
+  png_image image;
+  std::memset(&image, 0, sizeof image);
+  image.version = PNG_IMAGE_VERSION;
+  image.width = png_uint_32(img.width);
+  image.height = png_uint_32(img.height);
+  image.format = PNG_FORMAT_RGB;  // 8-bit, non-linear: libpng tags the file sRGB
+  png_alloc_size_t size = PNG_IMAGE_PNG_SIZE_MAX(image);
+  std::vector<uint8_t> png(size);
+  if (!png_image_write_to_memory(&image, png.data(), &size, 0, pixels.data(), 0, nullptr))
+    throw std::runtime_error(std::string("libpng: ") + image.message);
+  png.resize(size);
+  return png;
+}
+
+}  // namespace
+
+Image Image::make(int width, int height) {
+  if (width < 0 || height < 0)
+    throw ImageError("Image::make: negative size " + std::to_string(width) + "x" + std::to_string(height));
+  Image img;
+  img.width = width;
+  img.height = height;
+  img.rgb.assign(3 * size_t(width) * size_t(height), 0.f);
+  return img;
+}
+
+ExrImage read_exr(const std::filesystem::path& path) {
+  return with_context("cannot read EXR " + quoted(path), [&] { return read_exr_impl(path); });
+}
+
+void write_exr(const std::filesystem::path& path, const Image& img, const ExrWriteOptions& opt) {
+  with_context("cannot write EXR " + quoted(path), [&] { write_exr_impl(path, img, opt); });
+}
+
+std::vector<uint8_t> encode_png_srgb(const Image& img, float exposure) {
+  return with_context("cannot encode PNG", [&] { return encode_png_impl(img, exposure); });
+}
+
+void write_png_srgb(const std::filesystem::path& path, const Image& img, float exposure) {
+  with_context("cannot write PNG " + quoted(path),
+               [&] { write_file_atomically(path, encode_png_impl(img, exposure)); });
+}
+
+}  // namespace tessera
