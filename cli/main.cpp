@@ -1,4 +1,6 @@
 // The single `tessera` executable: one subcommand per way of using the farm.
+#include "cli/render_command.h"
+
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
@@ -20,7 +22,8 @@ int main(int argc, char** argv) {
     app.set_version_flag("--version", std::string("tessera ") + TESSERA_VERSION);
     app.require_subcommand(0, 1);
 
-    auto* render = app.add_subcommand("render", "Render a scene to an OpenEXR file");
+    tessera::cli::RenderArgs render_args;
+    auto* render = tessera::cli::add_render_command(app, render_args);
     auto* serve = app.add_subcommand("serve", "Run the coordinator (HTTP API, tile scheduler, merge)");
     auto* worker = app.add_subcommand("worker", "Run a worker that leases and renders tiles");
     auto* submit = app.add_subcommand("submit", "Submit a scene to a coordinator and fetch the result");
@@ -28,7 +31,7 @@ int main(int argc, char** argv) {
 
     CLI11_PARSE(app, argc, argv);
 
-    if (render->parsed()) return not_yet("render");
+    if (render->parsed()) return tessera::cli::run_render(render_args);
     if (serve->parsed()) return not_yet("serve");
     if (worker->parsed()) return not_yet("worker");
     if (submit->parsed()) return not_yet("submit");

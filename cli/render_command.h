@@ -1,0 +1,38 @@
+// `tessera render`: load a scene, render it (or a crop of it) on this machine, write an OpenEXR file.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace tessera::cli {
+
+/// Options of `tessera render`.
+struct RenderArgs {
+  std::string scene;                    ///< Scene file.
+  std::string output;                   ///< EXR to write.
+  std::optional<uint32_t> spp;          ///< Samples per pixel override.
+  int threads = 0;                      ///< Threads (0: all cores).
+  uint64_t seed = 0;                    ///< Sample seed.
+  std::string integrator;               ///< "direct" renders scenes of other integrator types.
+  std::vector<int> crop;                ///< X0 Y0 X1 Y1 (half-open, row 0 = top).
+  bool half = false;                    ///< Write half floats.
+  bool variance = false;                ///< Write variance and sample-count channels.
+  std::string preview;                  ///< Also write an sRGB PNG here.
+  bool strict = false;                  ///< Unknown scene keys are errors.
+  std::string asset_root;               ///< Allow assets anywhere below this folder.
+  int tile_size = 16;                   ///< Thread tile edge.
+  bool quiet = false;                   ///< No progress bar.
+};
+
+/// Registers the subcommand's options on `app`.
+CLI::App* add_render_command(CLI::App& app, RenderArgs& args);
+
+/// Runs it; returns the process exit code (errors are reported, never thrown).
+int run_render(const RenderArgs& args);
+
+}  // namespace tessera::cli

@@ -1,0 +1,29 @@
+// The direct-lighting integrator ("intersection_test"): follows perfect-refraction chains, then gathers direct
+// light from every light at the first diffuse surface.
+#pragma once
+
+#include "core/sampler.h"
+#include "core/scene.h"
+
+#include <cstdint>
+
+namespace tessera {
+
+/// Counters a render accumulates (per thread, summed at the end).
+struct RayCounters {
+  uint64_t camera = 0;     ///< Camera rays.
+  uint64_t rays = 0;       ///< All rays traced (camera, specular, shadow, BSDF).
+  uint64_t nonfinite = 0;  ///< Samples that came out NaN or Inf and were dropped (counted as zero).
+};
+
+/// Radiance arriving along camera ray r; never NaN or Inf (such samples are counted and return zero).
+Vec3 trace_radiance(const Scene& scene, Ray r, PixelSampler& sampler, RayCounters& counters);
+
+/// Refracts w (pointing away from the surface) through normal n (unit, any orientation) for
+/// eta = n_inside / n_outside, where n points to the outside. Returns false for total internal reflection.
+bool refract(const Vec3& w, const Vec3& n, float eta, Vec3* wt);
+
+/// Mirror reflection of w (pointing away from the surface) about n.
+inline Vec3 reflect(const Vec3& w, const Vec3& n) { return 2.f * glm::dot(w, n) * n - w; }
+
+}  // namespace tessera

@@ -1,0 +1,139 @@
+#include "core/light.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace tessera {
+
+void AreaLight::finish() {
+  std::vector<float> areas;
+  for (const auto& r : rects) areas.push_back(r.area);
+  for (const auto& t : tris) areas.push_back(t.area);
+  total_area = 0.f;
+  for (float a : areas) total_area += a;
+  if (sphere) total_area = 4.f * kPi * sphere->radius * sphere->radius;
+  part_by_area = Distribution1D(areas);
+}
+
+namespace {
+
+// Converts an area-measure sample at q (normal nq, area pdf pdf_a) into a solid-angle sample seen from p.
+LightSample from_area(const Vec3& p, const Vec3& q, const Vec3& nq, float pdf_a, const Vec3& radiance) {
+  const Vec3 w = p - q;
+  const float d2 = length_squared(w);
+  const float cos_l = glm::dot(nq, w) / std::sqrt(d2);
+  if (!(cos_l > 0.f) || !(d2 > 0.f)) return {q, nq, Vec3(0.f), 0.f};
+  return {q, nq, radiance, pdf_a * d2 / cos_l};
+}
+
+}  // namespace
+
+LightSample AreaLight::sample(const Vec3& p, float u_part, Vec2 u, AreaSampling mode) const {
+  if (sphere) {
+    const Vec3 c = sphere->center;
+    const float r = sphere->radius;
+    const Vec3 pc = c - p;
+    const float d2 = length_squared(pc);
+    if (mode == AreaSampling::kSolidAngle && d2 > r * r * 1.0001f) {
+      // Uniform in the cone of directions the sphere subtends.
+      const float sin2 = r * r / d2;
+      const float cos_max = std::sqrt(std::max(0.f, 1.f - sin2));
+      const Frame f = Frame::from_z(pc / std::sqrt(d2));
+      const Vec3 w = f.to_world(sample_uniform_cone(u, cos_max));
+      const auto t = intersect_sphere(*sphere, Ray{p, w}, kInfinity);
+      const Vec3 q = t ? p + *t * w : c - r * f.n;
+      const Vec3 nq = glm::normalize(q - c);
+      const float pdf = 1.f / (2.f * kPi * (1.f - cos_max));
+      const bool faces = glm::dot(nq, p - q) > 0.f;
+      return {q, nq, faces ? radiance : Vec3(0.f), faces ? pdf : 0.f};
+    }
+    const Vec3 nq = sample_uniform_sphere(u);
+    return from_area(p, c + r * nq, nq, 1.f / total_area, radiance);
+  }
+  if (total_area <= 0.f) return {p, Vec3(0.f), Vec3(0.f), 0.f};
+  float part_pdf;
+  int part;
+  part_by_area.sample(u_part, &part_pdf, &part);
+  const int nparts = part_by_area.size();
+  const float pick = part_pdf / float(nparts);  // probability of this part
+  if (part < int(rects.size())) {
+    const Rect& rc = rects[size_t(part)];
+    if (mode == AreaSampling::kSolidAngle) {
+      SphericalRectangle sr;
+      if (glm::dot(rc.n, p - rc.corner) <= 0.f || !sr.init(p, rc.corner, rc.ex, rc.ey)) return {p, rc.n, Vec3(0.f), 0.f};
+      const RectSample s = sr.sample(u);
+      return {s.p, rc.n, radiance, s.pdf * pick};
+    }
+    const Vec3 q = rc.corner + u.x * rc.ex + u.y * rc.ey;
+    LightSample ls = from_area(p, q, rc.n, 1.f / rc.area, radiance);
+    ls.pdf *= pick;
+    return ls;
+  }
+  const Tri& t = tris[size_t(part) - rects.size()];
+  const Vec2 b = sample_uniform_triangle(u);
+  const Vec3 q = (1.f - b.x - b.y) * t.p0 + b.x * t.p1 + b.y * t.p2;
+  LightSample ls = from_area(p, q, t.n, 1.f / t.area, radiance);
+  ls.pdf *= pick;
+  return ls;
+}
+
+namespace {
+
+Vec2 direction_to_uv(const Vec3& d) {
+  const float theta = std::acos(std::clamp(d.y, -1.f, 1.f));
+  float phi = std::atan2(d.x, -d.z);
+  if (phi < 0.f) phi += 2.f * kPi;
+  return {phi / (2.f * kPi), theta / kPi};
+}
+
+Vec3 uv_to_direction(Vec2 uv, float* sin_theta) {
+  const float theta = uv.y * kPi, phi = uv.x * 2.f * kPi;
+  const float st = std::sin(theta);
+  *sin_theta = st;
+  // Inverse of direction_to_uv: d.x = sin(theta) sin(phi), d.z = -sin(theta) cos(phi).
+  return {st * std::sin(phi), std::cos(theta), -st * std::cos(phi)};
+}
+
+}  // namespace
+
+void Environment::finish() {
+  if (constant()) return;
+  const Image& img = *texture.image;
+  std::vector<float> w(size_t(img.width) * size_t(img.height));
+  for (int y = 0; y < img.height; ++y) {
+    const float st = std::sin(kPi * (float(y) + 0.5f) / float(img.height));
+    for (int x = 0; x < img.width; ++x) w[size_t(y) * size_t(img.width) + size_t(x)] = luminance(img.at(x, y)) * st;
+  }
+  dist = Distribution2D(w, img.width, img.height);
+}
+
+Vec3 Environment::radiance(const Vec3& d) const {
+  if (constant()) return scale * texture.color;
+  return scale * texture.lookup(direction_to_uv(to_local * d));
+}
+
+LightSample Environment::sample(Vec2 u) const {
+  if (constant()) {
+    const Vec3 d = sample_uniform_sphere(u);
+    return {d, Vec3(0.f), scale * texture.color, 1.f / (4.f * kPi)};
+  }
+  float pdf_uv;
+  const Vec2 uv = dist.sample(u, &pdf_uv);
+  float st;
+  const Vec3 local = uv_to_direction(uv, &st);
+  if (!(st > 0.f) || !(pdf_uv > 0.f)) return {local, Vec3(0.f), Vec3(0.f), 0.f};
+  const Vec3 d = to_world * local;
+  // The map's pixel (not a bilinear blend) is what the distribution was built from; radiance() filters.
+  return {d, Vec3(0.f), radiance(d), pdf_uv / (2.f * kPi * kPi * st)};
+}
+
+float Environment::pdf(const Vec3& d) const {
+  if (constant()) return 1.f / (4.f * kPi);
+  const Vec3 local = to_local * d;
+  const Vec2 uv = direction_to_uv(local);
+  const float st = std::sqrt(std::max(0.f, 1.f - local.y * local.y));
+  if (!(st > 0.f)) return 0.f;
+  return dist.pdf(uv) / (2.f * kPi * kPi * st);
+}
+
+}  // namespace tessera

@@ -1,0 +1,99 @@
+// Light sources: the integrator's point light, area emitters (rectangles, triangle sets, spheres) and the
+// environment map, each able to produce direct-lighting samples at a shading point.
+#pragma once
+
+#include "core/math.h"
+#include "core/sampling.h"
+#include "core/sphere.h"
+#include "core/texture.h"
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+namespace tessera {
+
+/// A point light emitting `flux` (radiant power, RGB) equally in all directions: intensity = flux / (4 pi).
+struct PointLight {
+  Vec3 position{0.f, 5.f, 0.f};  ///< Position.
+  Vec3 flux{1.f};                ///< Radiant flux.
+};
+
+/// How area lights are sampled (issue 5's comparisons select the baseline).
+enum class AreaSampling {
+  kSolidAngle,  ///< Spherical rectangles for rectangles, uniform cones for spheres (default).
+  kArea,        ///< Uniform points by area (the baseline).
+};
+
+/// How the environment is sampled at a diffuse point.
+enum class EnvSampling {
+  kMis,         ///< Importance sampling of the map and cosine sampling, power heuristic (default).
+  kImportance,  ///< Importance sampling of the map only.
+  kCosine,      ///< Cosine-weighted hemisphere only.
+  kUniform,     ///< Uniform sphere directions (the baseline).
+};
+
+/// A light sample as seen from a shading point.
+struct LightSample {
+  Vec3 p;         ///< Point on the light (for area lights) or the light position.
+  Vec3 n;         ///< Light surface normal at p (zero for point lights).
+  Vec3 radiance;  ///< Emitted radiance towards the shading point (0 if it faces away).
+  float pdf;      ///< Density with respect to solid angle at the shading point (0: no sample).
+};
+
+/// An emitting object: radiance `radiance` leaves the side its normal faces. Its shape is a set of rectangles
+/// (sampled by solid angle), a set of other triangles (sampled by area), or a sphere.
+struct AreaLight {
+  /// A rectangle: corner + s*ex + t*ey, s,t in [0,1]; normal n = the emitting side.
+  struct Rect {
+    Vec3 corner, ex, ey, n;
+    float area;
+  };
+  /// A triangle with its emitting normal.
+  struct Tri {
+    Vec3 p0, p1, p2, n;
+    float area;
+  };
+  Vec3 radiance{0.f};            ///< Emitted radiance.
+  std::vector<Rect> rects;       ///< Rectangular parts.
+  std::vector<Tri> tris;         ///< Remaining triangles.
+  Distribution1D part_by_area;   ///< Chooses a part (rects first, then tris) proportionally to area.
+  std::optional<Sphere> sphere;  ///< Set for a spherical emitter (then rects and tris are empty).
+  float total_area = 0.f;        ///< Sum of areas.
+
+  /// Finalises the part distribution; call after filling rects/tris/sphere.
+  void finish();
+  /// One direct-lighting sample towards point p (u selects the part, u2 the point).
+  LightSample sample(const Vec3& p, float u_part, Vec2 u, AreaSampling mode) const;
+};
+
+}  // namespace tessera
+
+namespace tessera {
+
+/// The environment: an equirectangular map (or a constant) around the scene, +y the pole. A direction d is
+/// looked up at u = phi/(2 pi), v = theta/pi with theta = acos(d.y), phi = atan2(d.x, -d.z) in [0, 2 pi);
+/// v = 0 is the image's top row. `to_local` rotates world directions into the map's frame first.
+struct Environment {
+  Texture texture;            ///< Constant or image texture.
+  float scale = 1.f;          ///< Radiance multiplier.
+  glm::mat3 to_local{1.f};    ///< World-to-map rotation (inverse of the scene's transform).
+  glm::mat3 to_world{1.f};    ///< Map-to-world rotation.
+  Distribution2D dist;        ///< Luminance x sin(theta) over the map's pixels (image maps only).
+
+  /// Builds the importance distribution (no-op for constant maps).
+  void finish();
+  /// True when the map is a constant colour (no importance sampling needed).
+  bool constant() const { return texture.image == nullptr; }
+  /// Radiance arriving from direction d (unit, world space).
+  Vec3 radiance(const Vec3& d) const;
+  /// Samples a direction by the map's importance; returns direction, radiance and solid-angle pdf.
+  LightSample sample(Vec2 u) const;
+  /// Solid-angle density of sample() for direction d.
+  float pdf(const Vec3& d) const;
+};
+
+/// Luminance of linear Rec.709 RGB.
+inline float luminance(const Vec3& c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+
+}  // namespace tessera

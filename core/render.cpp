@@ -1,0 +1,96 @@
+#include "core/render.h"
+
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <chrono>
+#include <mutex>
+
+namespace tessera {
+
+PixelEstimate render_pixel(const Scene& scene, int px, int row, uint64_t seed, uint32_t spp, RayCounters& counters) {
+  // Double accumulators in sample order: the sum does not depend on anything but the pixel and its samples.
+  glm::dvec3 sum(0.0), sum2(0.0);
+  for (uint32_t s = 0; s < spp; ++s) {
+    PixelSampler sampler(seed, px, row, s);
+    const Ray r = scene.camera.generate_pixel(px, row, sampler.next_2d(), scene.width, scene.height);
+    const glm::dvec3 L(trace_radiance(scene, r, sampler, counters));
+    sum += L;
+    sum2 += L * L;
+  }
+  const double n = double(spp);
+  const glm::dvec3 mean = sum / n;
+  glm::dvec3 var(0.0);
+  if (spp > 1) var = glm::max(glm::dvec3(0.0), (sum2 - n * mean * mean) / (n - 1.0)) / n;
+  return {Vec3(mean), Vec3(var)};
+}
+
+RenderResult render(const Scene& scene, const RenderOptions& opt) {
+  const auto t0 = std::chrono::steady_clock::now();
+  RenderResult res;
+  res.window = opt.window.empty() ? PixelWindow{0, 0, scene.width, scene.height} : opt.window;
+  const PixelWindow w = res.window;
+  const uint32_t spp = opt.spp ? opt.spp : scene.settings.spp;
+  res.image = Image::make(w.width(), w.height());
+  if (opt.variance) {
+    for (const char* c : {"variance.R", "variance.G", "variance.B", "samples"})
+      res.image.extra[c].assign(size_t(w.width()) * size_t(w.height()), 0.f);
+  }
+  // Channel pointers taken once: threads write disjoint pixels and never touch the map itself.
+  float* var_ch[4] = {nullptr, nullptr, nullptr, nullptr};
+  if (opt.variance) {
+    int k = 0;
+    for (const char* c : {"variance.R", "variance.G", "variance.B", "samples"}) var_ch[k++] = res.image.extra[c].data();
+  }
+  const int ts = std::max(1, opt.tile_size);
+  const int tx = (w.width() + ts - 1) / ts, ty = (w.height() + ts - 1) / ts;
+  const int ntiles = tx * ty;
+  tbb::enumerable_thread_specific<RayCounters> counters;
+  std::mutex progress_mutex;
+  std::atomic<int> done{0};
+  std::atomic<uint64_t> rays_done{0};
+  std::atomic<bool> cancelled{false};
+
+  tbb::parallel_for(tbb::blocked_range<int>(0, ntiles, 1), [&](const tbb::blocked_range<int>& range) {
+    RayCounters& c = counters.local();
+    for (int t = range.begin(); t != range.end(); ++t) {
+      if (opt.cancel && opt.cancel->load(std::memory_order_relaxed)) {
+        cancelled = true;
+        return;
+      }
+      const uint64_t before = c.rays;
+      const int x0 = w.x0 + (t % tx) * ts, y0 = w.y0 + (t / tx) * ts;
+      const int x1 = std::min(x0 + ts, w.x1), y1 = std::min(y0 + ts, w.y1);
+      for (int y = y0; y < y1; ++y)
+        for (int x = x0; x < x1; ++x) {
+          const PixelEstimate e = render_pixel(scene, x, y, opt.seed, spp, c);
+          const int lx = x - w.x0, ly = y - w.y0;
+          res.image.set(lx, ly, e.mean);
+          if (opt.variance) {
+            const size_t i = size_t(ly) * size_t(w.width()) + size_t(lx);
+            var_ch[0][i] = e.var_mean.x;
+            var_ch[1][i] = e.var_mean.y;
+            var_ch[2][i] = e.var_mean.z;
+            var_ch[3][i] = float(spp);
+          }
+        }
+      const int d = ++done;
+      const uint64_t rays = rays_done += c.rays - before;
+      if (opt.progress) {
+        std::lock_guard<std::mutex> lock(progress_mutex);
+        opt.progress(RenderProgress{d, ntiles, rays,
+                                    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()});
+      }
+    }
+  });
+  for (const RayCounters& c : counters) {
+    res.counters.camera += c.camera;
+    res.counters.rays += c.rays;
+    res.counters.nonfinite += c.nonfinite;
+  }
+  res.cancelled = cancelled;
+  res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return res;
+}
+
+}  // namespace tessera

@@ -1,0 +1,184 @@
+#include "core/sampling.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace tessera {
+
+Frame Frame::from_z(const Vec3& n) {
+  const float sign = std::copysign(1.f, n.z);
+  const float a = -1.f / (sign + n.z);
+  const float b = n.x * n.y * a;
+  return Frame{Vec3(1.f + sign * n.x * n.x * a, sign * b, -sign * n.x), Vec3(b, sign + n.y * n.y * a, -n.y), n};
+}
+
+Vec3 sample_cosine_hemisphere(Vec2 u) {
+  // Concentric disk mapping (Shirley-Chiu), then lift to the hemisphere.
+  const Vec2 o = 2.f * u - Vec2(1.f);
+  Vec2 d(0.f);
+  if (o.x != 0.f || o.y != 0.f) {
+    float r, theta;
+    if (std::abs(o.x) > std::abs(o.y)) {
+      r = o.x;
+      theta = (kPi / 4.f) * (o.y / o.x);
+    } else {
+      r = o.y;
+      theta = kPi / 2.f - (kPi / 4.f) * (o.x / o.y);
+    }
+    d = r * Vec2(std::cos(theta), std::sin(theta));
+  }
+  const float z = std::sqrt(std::max(0.f, 1.f - d.x * d.x - d.y * d.y));
+  return {d.x, d.y, z};
+}
+
+Vec3 sample_uniform_sphere(Vec2 u) {
+  const float z = 1.f - 2.f * u.x;
+  const float r = std::sqrt(std::max(0.f, 1.f - z * z));
+  const float phi = 2.f * kPi * u.y;
+  return {r * std::cos(phi), r * std::sin(phi), z};
+}
+
+Vec3 sample_uniform_cone(Vec2 u, float cos_max) {
+  const float cos_t = (1.f - u.x) + u.x * cos_max;
+  const float sin_t = std::sqrt(std::max(0.f, 1.f - cos_t * cos_t));
+  const float phi = 2.f * kPi * u.y;
+  return {sin_t * std::cos(phi), sin_t * std::sin(phi), cos_t};
+}
+
+Vec2 sample_uniform_triangle(Vec2 u) {
+  // Area-preserving square-to-triangle map without a fold (Heitz 2019's low-distortion variant).
+  float b0, b1;
+  if (u.x < u.y) {
+    b0 = u.x / 2.f;
+    b1 = u.y - b0;
+  } else {
+    b1 = u.y / 2.f;
+    b0 = u.x - b1;
+  }
+  return {b1, 1.f - b0 - b1};
+}
+
+bool SphericalRectangle::init(const Vec3& o, const Vec3& corner, const Vec3& ex, const Vec3& ey) {
+  o_ = o;
+  const float exl = glm::length(ex), eyl = glm::length(ey);
+  x_ = ex / exl;
+  y_ = ey / eyl;
+  z_ = glm::cross(x_, y_);
+  const Vec3 d = corner - o;
+  z0 = glm::dot(d, z_);
+  if (z0 > 0.f) {  // orient z away from the rectangle
+    z_ = -z_;
+    z0 = -z0;
+  }
+  if (!(z0 < 0.f)) return false;
+  x0 = glm::dot(d, x_);
+  y0 = glm::dot(d, y_);
+  x1 = x0 + exl;
+  y1 = y0 + eyl;
+  z0sq = z0 * z0;
+  y0sq = y0 * y0;
+  y1sq = y1 * y1;
+  // Normals of the four planes through o and the rectangle's edges.
+  const Vec3 v00(x0, y0, z0), v01(x0, y1, z0), v10(x1, y0, z0), v11(x1, y1, z0);
+  const Vec3 n0 = glm::normalize(glm::cross(v00, v10));
+  const Vec3 n1 = glm::normalize(glm::cross(v10, v11));
+  const Vec3 n2 = glm::normalize(glm::cross(v11, v01));
+  const Vec3 n3 = glm::normalize(glm::cross(v01, v00));
+  // Internal angles of the spherical rectangle.
+  const float g0 = std::acos(std::clamp(-glm::dot(n0, n1), -1.f, 1.f));
+  const float g1 = std::acos(std::clamp(-glm::dot(n1, n2), -1.f, 1.f));
+  const float g2 = std::acos(std::clamp(-glm::dot(n2, n3), -1.f, 1.f));
+  const float g3 = std::acos(std::clamp(-glm::dot(n3, n0), -1.f, 1.f));
+  b0 = n0.z;
+  b1 = n2.z;
+  k = 2.f * kPi - g2 - g3;
+  S = g0 + g1 - k;
+  return S > 0.f && std::isfinite(S);
+}
+
+RectSample SphericalRectangle::sample(Vec2 u) const {
+  // Invert the solid angle along x: pick the spherical-rectangle slice au, then the height within it.
+  const float au = u.x * S + k;
+  const float fu = (std::cos(au) * b0 - b1) / std::sin(au);
+  float cu = std::copysign(1.f, fu) / std::sqrt(fu * fu + b0 * b0);
+  cu = std::clamp(cu, -1.f, 1.f);
+  float xu = -(cu * z0) / std::sqrt(std::max(0.f, 1.f - cu * cu));
+  xu = std::clamp(xu, x0, x1);
+  const float dd = std::sqrt(xu * xu + z0sq);
+  const float h0 = y0 / std::sqrt(dd * dd + y0sq);
+  const float h1 = y1 / std::sqrt(dd * dd + y1sq);
+  const float hv = h0 + u.y * (h1 - h0), hv2 = hv * hv;
+  const float yv = (hv2 < 1.f - 1e-6f) ? (hv * dd) / std::sqrt(1.f - hv2) : y1;
+  const Vec3 p = o_ + xu * x_ + std::clamp(yv, y0, y1) * y_ + z0 * z_;
+  return {p, 1.f / S};
+}
+
+Distribution1D::Distribution1D(std::span<const float> weights) {
+  const size_t n = std::max<size_t>(1, weights.size());
+  func_.assign(n, 0.f);
+  for (size_t i = 0; i < weights.size(); ++i) func_[i] = (weights[i] > 0.f && std::isfinite(weights[i])) ? weights[i] : 0.f;
+  cdf_.assign(n + 1, 0.f);
+  double acc = 0.0;
+  for (size_t i = 0; i < n; ++i) {
+    acc += double(func_[i]) / double(n);
+    cdf_[i + 1] = float(acc);
+  }
+  integral_ = float(acc);
+  if (!(acc > 0.0)) {
+    std::fill(func_.begin(), func_.end(), 1.f);
+    for (size_t i = 0; i <= n; ++i) cdf_[i] = float(i) / float(n);
+    integral_ = 0.f;
+    return;
+  }
+  for (size_t i = 1; i <= n; ++i) cdf_[i] = float(double(cdf_[i]) / acc);
+  cdf_[n] = 1.f;
+}
+
+float Distribution1D::sample(float u, float* pdf, int* bin) const {
+  const int n = int(func_.size());
+  // Last index i with cdf[i] <= u.
+  const auto it = std::upper_bound(cdf_.begin(), cdf_.end(), u);
+  int i = std::clamp(int(it - cdf_.begin()) - 1, 0, n - 1);
+  while (i < n - 1 && func_[i] == 0.f) ++i;  // never land in an empty bin through rounding
+  const float width = cdf_[i + 1] - cdf_[i];
+  float du = width > 0.f ? (u - cdf_[i]) / width : 0.5f;
+  du = std::clamp(du, 0.f, 0x1.fffffep-1f);
+  const float norm = integral_ > 0.f ? integral_ : 1.f;
+  if (pdf) *pdf = func_[i] / norm;
+  if (bin) *bin = i;
+  return std::min((float(i) + du) / float(n), 0x1.fffffep-1f);
+}
+
+float Distribution1D::pdf(float x) const {
+  const int n = int(func_.size());
+  const int i = std::clamp(int(x * float(n)), 0, n - 1);
+  const float norm = integral_ > 0.f ? integral_ : 1.f;
+  return func_[i] / norm;
+}
+
+Distribution2D::Distribution2D(std::span<const float> weights, int w, int h) {
+  conditional_.reserve(size_t(h));
+  std::vector<float> row_integrals(static_cast<size_t>(h));
+  for (int y = 0; y < h; ++y) {
+    conditional_.emplace_back(weights.subspan(size_t(y) * size_t(w), size_t(w)));
+    row_integrals[size_t(y)] = conditional_.back().integral();
+  }
+  marginal_ = Distribution1D(row_integrals);
+}
+
+Vec2 Distribution2D::sample(Vec2 u, float* pdf) const {
+  float pdf_v, pdf_u;
+  int row;
+  const float v = marginal_.sample(u.y, &pdf_v, &row);
+  const float x = conditional_[size_t(row)].sample(u.x, &pdf_u, nullptr);
+  *pdf = pdf_u * pdf_v;
+  return {x, v};
+}
+
+float Distribution2D::pdf(Vec2 uv) const {
+  const int h = int(conditional_.size());
+  const int row = std::clamp(int(uv.y * float(h)), 0, h - 1);
+  return marginal_.pdf(uv.y) * conditional_[size_t(row)].pdf(uv.x);
+}
+
+}  // namespace tessera

@@ -1,0 +1,90 @@
+// A loaded, render-ready scene: camera, film, materials, geometry with its BVH, and lights.
+#pragma once
+
+#include "core/bvh.h"
+#include "core/camera.h"
+#include "core/light.h"
+#include "core/spawn.h"
+#include "core/texture.h"
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace tessera {
+
+/// The two materials of basic ray tracing.
+enum class MaterialKind {
+  kNone,        ///< An emitter without a material: black apart from its emission.
+  kDiffuse,     ///< Lambertian, BRDF = albedo / pi.
+  kRefraction,  ///< Perfect refraction by Snell's law, total internal reflection turns into reflection.
+};
+
+/// A material instance.
+struct Material {
+  MaterialKind kind = MaterialKind::kNone;  ///< Kind.
+  uint32_t texture = 0;                     ///< Albedo texture index (diffuse).
+  bool twosided = false;                    ///< Diffuse reflects on both sides (otherwise only the normal's side).
+  float eta = 1.5f;                         ///< Inside / outside index of refraction (refraction).
+};
+
+/// Per-primitive shading data.
+struct PrimAttr {
+  uint32_t material = 0;  ///< Material index.
+  int32_t light = -1;     ///< Area light index, -1 when not emitting.
+  bool flip = false;      ///< The authored normals point against the triangle's winding normal.
+  int32_t shading = -1;   ///< Index into triangle_shading (triangles with normals or uvs), -1 if none.
+};
+
+/// Vertex normals and uvs of one triangle.
+struct TriangleShading {
+  std::array<Vec3, 3> n{};  ///< Vertex normals (zero when absent).
+  std::array<Vec2, 3> uv{};  ///< Texture coordinates (zero when absent).
+  bool has_normals = false;  ///< n is valid.
+};
+
+/// Integrator settings from the scene file (and overrides).
+struct IntegratorSettings {
+  uint32_t spp = 8;                   ///< Samples per pixel.
+  int max_depth = 16;                 ///< Maximum specular bounces.
+  int light_samples = 1;              ///< Area-light samples per camera sample.
+  AreaSampling area_sampling = AreaSampling::kSolidAngle;  ///< Area light strategy.
+  EnvSampling env_sampling = EnvSampling::kMis;           ///< Environment strategy.
+};
+
+/// Everything the integrator needs to know about a surface point it hit.
+struct SurfaceHit {
+  SurfacePoint sp;      ///< Position, error bound and geometric normal (oriented as the primitive defines).
+  Vec3 ns;              ///< Shading normal (interpolated vertex normals, or the geometric normal).
+  Vec2 uv;              ///< Texture coordinates.
+  const Material* material;  ///< Material.
+  int32_t light;        ///< Area light index or -1.
+};
+
+/// A render-ready scene.
+struct Scene {
+  int width = 600, height = 600;          ///< Film resolution.
+  Camera camera;                           ///< Camera.
+  IntegratorSettings settings;             ///< Integrator settings.
+  std::vector<Texture> textures;           ///< Textures in use.
+  std::vector<Material> materials;         ///< Materials in use (index 0 is kNone).
+  std::vector<Triangle> triangles;         ///< World-space triangles.
+  std::vector<PrimAttr> triangle_attr;     ///< Per triangle.
+  std::vector<TriangleShading> triangle_shading;  ///< Shading data of triangles that have some.
+  std::vector<Sphere> spheres;             ///< Spheres.
+  std::vector<PrimAttr> sphere_attr;       ///< Per sphere.
+  Bvh bvh;                                 ///< Acceleration structure over triangles and spheres.
+  std::optional<PointLight> point_light;   ///< The integrator's point light (absent when its flux is zero).
+  std::vector<AreaLight> area_lights;      ///< Emitting objects.
+  std::optional<Environment> environment;  ///< Environment map.
+  std::string hash;                        ///< Content hash of the scene file and every asset it uses.
+
+  /// Builds the BVH and finalises light distributions; call once geometry and lights are filled in.
+  void finish();
+  /// Shading information at a BVH hit of ray r.
+  SurfaceHit surface(const Ray& r, const Hit& h) const;
+};
+
+}  // namespace tessera

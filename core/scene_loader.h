@@ -1,0 +1,55 @@
+// Loading scenes in the course format (../shared/compat/rdr171/FORMAT.md) into render-ready Scenes.
+#pragma once
+
+#include "core/scene.h"
+
+#include <nlohmann/json_fwd.hpp>
+
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace tessera {
+
+/// A scene that cannot be loaded; the message names the file and the JSON path of the offending value.
+struct SceneError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// How strictly and from where to load.
+struct LoadOptions {
+  bool strict = false;                           ///< Unknown keys are errors instead of warnings.
+  bool force_direct = false;                     ///< Render other integrator types with the direct integrator.
+  std::optional<std::filesystem::path> asset_root;  ///< Assets may lie anywhere below this folder (default: the scene's folder).
+  std::optional<uint32_t> spp;                   ///< Overrides integrator.spp.
+};
+
+/// Maps an asset path as written in the scene (and the JSON path naming it) to a readable file.
+using AssetResolver = std::function<std::filesystem::path(const std::string& path, const std::string& json_path)>;
+
+/// A loaded scene with what the loader had to say about it.
+struct LoadedScene {
+  Scene scene;                        ///< The scene, BVH built.
+  std::vector<std::string> warnings;  ///< Unknown keys and degenerate input that was skipped.
+  std::vector<std::string> notes;     ///< Settings of other integrators that were ignored.
+  std::vector<std::string> assets;    ///< Asset paths the scene uses, as written in it.
+};
+
+/// Loads a scene file; assets resolve against its folder and must stay inside it (or inside asset_root).
+LoadedScene load_scene_file(const std::filesystem::path& path, const LoadOptions& options = {});
+
+/// Loads a parsed scene; `name` prefixes messages, `resolve` finds assets.
+LoadedScene load_scene_json(const nlohmann::json& scene, const std::string& name, const AssetResolver& resolve,
+                            const LoadOptions& options = {});
+
+/// The asset paths a scene uses (meshes, textures referenced by used materials or the environment), as written.
+std::vector<std::string> scene_asset_paths(const nlohmann::json& scene);
+
+/// Resolves `rel` against `base` and checks it stays inside `root`; throws SceneError naming json_path.
+std::filesystem::path resolve_inside(const std::filesystem::path& base, const std::filesystem::path& root,
+                                     const std::string& rel, const std::string& json_path);
+
+}  // namespace tessera

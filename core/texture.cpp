@@ -1,0 +1,24 @@
+#include "core/texture.h"
+
+#include <cmath>
+
+namespace tessera {
+
+Vec3 Texture::lookup(Vec2 st) const {
+  const int w = image->width, h = image->height;
+  if (w <= 0 || h <= 0) return Vec3(0.f);
+  if (!std::isfinite(st.x) || !std::isfinite(st.y)) return image->at(0, 0);
+  const float x = st.x * float(w) - 0.5f, y = st.y * float(h) - 0.5f;
+  const float fx = std::floor(x), fy = std::floor(y);
+  const float tx = x - fx, ty = y - fy;
+  auto wrap = [](float v, int n) {
+    const double m = std::fmod(double(v), double(n));
+    int i = int(m < 0 ? m + n : m);
+    return i >= n ? 0 : i;
+  };
+  const int x0 = wrap(fx, w), x1 = wrap(fx + 1.f, w), y0 = wrap(fy, h), y1 = wrap(fy + 1.f, h);
+  return (1.f - tx) * (1.f - ty) * image->at(x0, y0) + tx * (1.f - ty) * image->at(x1, y0) +
+         (1.f - tx) * ty * image->at(x0, y1) + tx * ty * image->at(x1, y1);
+}
+
+}  // namespace tessera

@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# Installs what is missing, builds Tessera, and runs the whole test suite: the release build's tests, then the
+# unit tests again under AddressSanitizer + UndefinedBehaviorSanitizer. Exits non-zero on any failure.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash deploy/install-deps.sh
+
+JOBS=$(nproc)
+echo "== release build"
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DTESSERA_WERROR=ON >/dev/null
+cmake --build build -j "$JOBS"
+echo "== release tests"
+ctest --test-dir build --output-on-failure -j "$JOBS"
+
+echo "== sanitizer build (ASan + UBSan, unit tests, 1/20 of the randomised cases)"
+cmake -S . -B build-san -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTESSERA_WERROR=ON -DTESSERA_SANITIZE=ON \
+  -DTESSERA_ONLY_UNIT_TESTS=ON -DTESSERA_TEST_SCALE_DIVISOR=20 >/dev/null
+cmake --build build-san -j "$JOBS"
+echo "== sanitizer tests"
+ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+  ctest --test-dir build-san --output-on-failure -j "$JOBS"
