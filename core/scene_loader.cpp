@@ -590,6 +590,23 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
       ctx.fail(op + ".type", "'" + type + "' is not supported (supported: mesh, sphere)");
     }
   }
+  // Textures and materials nothing uses are never loaded (their files are not even opened), but a misspelt key in
+  // them still deserves a warning.
+  for (auto it = materials.begin(); it != materials.end(); ++it) {
+    if (material_index.count(it.key()) || !it->is_object() || !it->contains("type") || !(*it)["type"].is_string()) continue;
+    const std::string type = (*it)["type"].get<std::string>(), mp = "materials." + it.key();
+    if (type == "diffuse") ctx.check_keys(*it, mp, {"type", "texture_name", "twosided"});
+    else if (type == "refraction") ctx.check_keys(*it, mp, {"type", "eta"});
+  }
+  for (auto it = textures.begin(); it != textures.end(); ++it) {
+    const bool env_texture = j.contains("environment_map") && j["environment_map"].is_object() &&
+                             j["environment_map"].contains("texture_name") && j["environment_map"]["texture_name"] == it.key();
+    if (texture_index.count(it.key()) || env_texture || !it->is_object() || !it->contains("type") || !(*it)["type"].is_string()) continue;
+    const std::string type = (*it)["type"].get<std::string>(), tp = "textures." + it.key();
+    if (type == "constant") ctx.check_keys(*it, tp, {"type", "color"});
+    else if (type == "image") ctx.check_keys(*it, tp, {"type", "path", "tex_coordinate_generator"});
+  }
+
   // Drop emitters that ended up without geometry (all triangles degenerate).
   for (size_t i = 0; i < s.area_lights.size(); ++i) {
     const AreaLight& l = s.area_lights[i];

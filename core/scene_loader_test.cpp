@@ -190,6 +190,26 @@ TEST_F(SceneLoader, UnknownKeysWarnAndStrictMakesThemErrors) {
   expect_error(s, {"camera.aperture", "unknown key"}, strict);
 }
 
+TEST_F(SceneLoader, UnknownKeysInUnusedTexturesAndMaterialsWarnToo) {
+  json s = testing::minimal_scene();
+  s["textures"]["spare"] = {{"type", "image"}, {"path", "never/read.exr"}, {"scael", {1, 1}}};
+  s["materials"]["spare"] = {{"type", "refraction"}, {"etta", 1.3}};
+  const LoadedScene l = load_scene_file(write_scene("scene.json", s));
+  ASSERT_EQ(l.warnings.size(), 2u);
+  const std::string all = l.warnings[0] + "\n" + l.warnings[1];
+  EXPECT_NE(all.find("textures.spare.scael"), std::string::npos) << all;
+  EXPECT_NE(all.find("materials.spare.etta"), std::string::npos) << all;
+}
+
+TEST_F(SceneLoader, TypeMismatchesAreSceneErrors) {
+  for (const char* bad : {R"({"objects": {}})", R"({"objects": [{"type": 5}]})", R"({"objects": [{"type": "sphere", "radius": "big", "material_name": "m"}]})",
+                          R"({"film": {"resolution": [4]}, "objects": []})", R"({"camera": {"fov": [1]}, "objects": []})", R"([1, 2])"}) {
+    write("scene.json", bad);
+    EXPECT_THROW(load_scene_file(file("scene.json")), SceneError) << bad;
+    EXPECT_NO_THROW(scene_asset_paths(json::parse(bad))) << bad;
+  }
+}
+
 TEST_F(SceneLoader, AssetPathsMustStayInsideTheSceneFolder) {
   write("outside.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
   // The scene lives one level down; "../outside.obj" escapes its folder.
