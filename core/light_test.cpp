@@ -181,5 +181,37 @@ TEST(SphericalRectangleSampling, BothStrategiesAreUnbiasedAndSolidAngleHasLowerV
   EXPECT_GT(worst_ratio, 1.5);
 }
 
+TEST(AreaLightSampling, TrianglesAndSpheresAreUnbiased) {
+  // A lone (non-rectangular) triangle is sampled by area; compare with Lambert's polygon formula.
+  AreaLight tri;
+  tri.radiance = Vec3(1.f);
+  const Vec3 a(-0.5f, 1.f, -0.4f), b(0.7f, 1.f, 0.1f), c(-0.2f, 1.f, 0.6f);
+  const Vec3 n = glm::normalize(glm::cross(b - a, c - a));  // faces down
+  ASSERT_LT(n.y, 0.f);
+  tri.tris.push_back({a, b, c, n, 0.5f * glm::length(glm::cross(b - a, c - a))});
+  tri.finish();
+  const int k = 1 << 14;
+  for (const Vec3 p : {Vec3(0.f), Vec3(0.1f, 0.8f, 0.f), Vec3(2.f, 0.f, 1.f)}) {
+    const double ref = testing::polygon_irradiance(Vec3d(p), Vec3d(0, 1, 0), {Vec3d(a), Vec3d(b), Vec3d(c)}, 1.0);
+    for (AreaSampling mode : {AreaSampling::kSolidAngle, AreaSampling::kArea}) {
+      const MeanVar m = mean_var(irradiance_samples(tri, p, mode, k, 3));
+      EXPECT_NEAR(m.mean, ref, 5.0 * std::sqrt(m.var / k) + 1e-6 * ref) << "triangle, y=" << p.y;
+    }
+  }
+  // A sphere of radius r at distance d straight above: E = pi L (r/d)^2 on a surface facing it.
+  AreaLight sph;
+  sph.radiance = Vec3(1.f);
+  sph.sphere = Sphere{Vec3(0.f, 2.f, 0.f), 0.5f};
+  sph.finish();
+  const double ref = std::numbers::pi * 0.25 / 4.0;
+  for (AreaSampling mode : {AreaSampling::kSolidAngle, AreaSampling::kArea}) {
+    const MeanVar m = mean_var(irradiance_samples(sph, Vec3(0.f), mode, k, 4));
+    EXPECT_NEAR(m.mean, ref, 5.0 * std::sqrt(m.var / k) + 1e-6 * ref) << "sphere";
+    if (mode == AreaSampling::kSolidAngle) {
+      EXPECT_LT(m.var, 0.05 * ref * ref);  // cone sampling: only the cosine varies
+    }
+  }
+}
+
 }  // namespace
 }  // namespace tessera
