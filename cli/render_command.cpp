@@ -3,6 +3,7 @@
 #include "core/render.h"
 #include "core/scene_loader.h"
 
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 #include <tbb/global_control.h>
 
@@ -74,6 +75,10 @@ class ProgressBar {
 
 int run_render(const RenderArgs& a) {
   try {
+    // Warnings and errors go to stderr with the progress bar and the summary; stdout stays free for data.
+    auto logger = spdlog::get("render");
+    if (!logger) logger = spdlog::stderr_color_mt("render");
+    spdlog::set_default_logger(logger);
     std::unique_ptr<tbb::global_control> limit;
     if (a.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(a.threads));
     LoadOptions lo;

@@ -14,10 +14,11 @@ bool refract(const Vec3& w, const Vec3& n, float eta, Vec3* wt) {
     cos_i = -cos_i;
     nn = -n;
   }
-  const float sin2_i = std::max(0.f, 1.f - cos_i * cos_i);
-  const float sin2_t = rel * rel * sin2_i;
-  if (sin2_t >= 1.f) return false;
-  const float cos_t = std::sqrt(1.f - sin2_t);
+  // cos_t^2 = 1 - rel^2 (1 - cos_i^2), written without the cancellation of 1 - (1 - ...): for rel = 1 it is cos_i^2
+  // exactly, so an index-matched surface passes rays through unbent, and grazing angles keep their precision.
+  const float cos2_t = (1.f - rel * rel) + rel * rel * (cos_i * cos_i);
+  if (!(cos2_t > 0.f)) return false;  // total internal reflection
+  const float cos_t = std::sqrt(cos2_t);
   *wt = -rel * w + (rel * cos_i - cos_t) * nn;
   return true;
 }

@@ -80,7 +80,8 @@ LightSample AreaLight::sample(const Vec3& p, float u_part, Vec2 u, AreaSampling 
 namespace {
 
 Vec2 direction_to_uv(const Vec3& d) {
-  const float theta = std::acos(std::clamp(d.y, -1.f, 1.f));
+  // theta = acos(d.y) for a unit d, computed as atan2(sin, cos): acos loses half the digits near the poles.
+  const float theta = std::atan2(std::sqrt(d.x * d.x + d.z * d.z), d.y);
   float phi = std::atan2(d.x, -d.z);
   if (phi < 0.f) phi += 2.f * kPi;
   return {phi / (2.f * kPi), theta / kPi};
@@ -109,7 +110,7 @@ void Environment::finish() {
 
 Vec3 Environment::radiance(const Vec3& d) const {
   if (constant()) return scale * texture.color;
-  return scale * texture.lookup(direction_to_uv(to_local * d));
+  return scale * texture.lookup_latlong(direction_to_uv(to_local * d));
 }
 
 LightSample Environment::sample(Vec2 u) const {
@@ -131,7 +132,7 @@ float Environment::pdf(const Vec3& d) const {
   if (constant()) return 1.f / (4.f * kPi);
   const Vec3 local = to_local * d;
   const Vec2 uv = direction_to_uv(local);
-  const float st = std::sqrt(std::max(0.f, 1.f - local.y * local.y));
+  const float st = std::sqrt(local.x * local.x + local.z * local.z);  // sin(theta) without 1 - cos^2 cancellation
   if (!(st > 0.f)) return 0.f;
   return dist.pdf(uv) / (2.f * kPi * kPi * st);
 }

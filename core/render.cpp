@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <chrono>
+#include <limits>
 #include <mutex>
 
 namespace tessera {
@@ -22,7 +23,9 @@ PixelEstimate render_pixel(const Scene& scene, int px, int row, uint64_t seed, u
   const glm::dvec3 mean = sum / n;
   glm::dvec3 var(0.0);
   if (spp > 1) var = glm::max(glm::dvec3(0.0), (sum2 - n * mean * mean) / (n - 1.0)) / n;
-  return {Vec3(mean), Vec3(var)};
+  // Samples are finite floats, so their mean is too; the variance of the mean can exceed the float range.
+  const glm::dvec3 kMax(std::numeric_limits<float>::max());
+  return {Vec3(mean), Vec3(glm::min(var, kMax))};
 }
 
 RenderResult render(const Scene& scene, const RenderOptions& opt) {

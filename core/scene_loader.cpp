@@ -63,13 +63,18 @@ struct Ctx {
     }
   }
 
+  // A number the renderer can hold: finite, and finite again once rounded to float (1e39 is not).
+  double checked(double d, const std::string& path) const {
+    if (!std::isfinite(d)) fail(path, "must be finite");
+    if (!std::isfinite(float(d))) fail(path, "is out of the float range (|value| > 3.4e38)");
+    return d;
+  }
+
   double number(const json& j, const char* key, const std::string& path, double def) const {
     if (!j.contains(key)) return def;
     const json& v = j.at(key);
     if (!v.is_number()) fail(path + "." + key, std::string("expected a number, got ") + v.type_name());
-    const double d = v.get<double>();
-    if (!std::isfinite(d)) fail(path + "." + key, "must be finite");
-    return d;
+    return checked(v.get<double>(), path + "." + key);
   }
 
   std::string string(const json& j, const char* key, const std::string& path, const char* def = nullptr) const {
@@ -87,9 +92,7 @@ struct Ctx {
     std::vector<double> out;
     for (size_t i = 0; i < n; ++i) {
       if (!v[i].is_number()) fail(path + "[" + std::to_string(i) + "]", "expected a number");
-      const double d = v[i].get<double>();
-      if (!std::isfinite(d)) fail(path + "[" + std::to_string(i) + "]", "must be finite");
-      out.push_back(d);
+      out.push_back(checked(v[i].get<double>(), path + "[" + std::to_string(i) + "]"));
     }
     return out;
   }
@@ -250,12 +253,15 @@ const std::vector<std::string> kSupportedMaterials = {"diffuse", "refraction"};
 
 }  // namespace
 
-fs::path resolve_inside(const fs::path& base, const fs::path& root, const std::string& rel, const std::string& json_path) {
+fs::path resolve_inside(const fs::path& base, const fs::path& root, const std::string& rel, const std::string& json_path,
+                        bool allow_absolute) {
   if (rel.empty()) throw SceneError(json_path + ": empty path");
   const fs::path p(rel);
-  if (p.is_absolute()) throw SceneError(json_path + ": absolute path '" + rel + "' (paths are relative to the scene file; pass --asset-root to allow others)");
-  const fs::path full = fs::weakly_canonical(base / p);
-  const fs::path croot = fs::weakly_canonical(root);
+  if (p.is_absolute() && !allow_absolute)
+    throw SceneError(json_path + ": absolute path '" + rel + "' (paths are relative to the scene file; pass --asset-root to allow others)");
+  const fs::path full = fs::weakly_canonical(base / p);  // base / absolute = absolute
+  fs::path croot = fs::weakly_canonical(root);
+  if (croot.filename().empty()) croot = croot.parent_path();  // "root/" has an empty last component
   auto [r, f] = std::mismatch(croot.begin(), croot.end(), full.begin(), full.end());
   if (r != croot.end()) throw SceneError(json_path + ": '" + rel + "' leaves " + croot.string() + " (pass --asset-root to allow it)");
   return full;
@@ -272,7 +278,7 @@ std::vector<std::string> scene_asset_paths(const json& j) {
   if (j.contains("objects") && j["objects"].is_array())
     for (const auto& o : j["objects"]) {
       if (!o.is_object()) continue;
-      if (o.value("type", "") == "mesh" && o.contains("path") && o["path"].is_string()) add(o["path"].get<std::string>());
+      if (o.contains("type") && o["type"] == "mesh" && o.contains("path") && o["path"].is_string()) add(o["path"].get<std::string>());
       if (mats && o.contains("material_name") && o["material_name"].is_string()) {
         const std::string m = o["material_name"];
         if (mats->contains(m) && (*mats)[m].is_object() && (*mats)[m].contains("texture_name") && (*mats)[m]["texture_name"].is_string())
@@ -284,7 +290,8 @@ std::vector<std::string> scene_asset_paths(const json& j) {
     used_textures.insert(j["environment_map"]["texture_name"].get<std::string>());
   if (j.contains("textures") && j["textures"].is_object())
     for (const auto& name : used_textures)
-      if (j["textures"].contains(name) && j["textures"][name].is_object() && j["textures"][name].value("type", "") == "image" &&
+      if (j["textures"].contains(name) && j["textures"][name].is_object() && j["textures"][name].contains("type") &&
+          j["textures"][name]["type"] == "image" &&
           j["textures"][name].contains("path") && j["textures"][name]["path"].is_string())
         add(j["textures"][name]["path"].get<std::string>());
   return out;
@@ -300,14 +307,14 @@ LoadedScene load_scene_file(const fs::path& path, const LoadOptions& options) {
   json j;
   try {
     j = json::parse(text);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse errors, and numbers beyond the double range (out_of_range)
     throw SceneError(path.string() + ": invalid JSON: " + e.what());
   }
   const fs::path base = path.parent_path().empty() ? fs::path(".") : path.parent_path();
   const fs::path root = options.asset_root ? *options.asset_root : base;
   return load_scene_json(j, path.string(), [&](const std::string& rel, const std::string& jp) {
     try {
-      const fs::path p = resolve_inside(base, root, rel, jp);
+      const fs::path p = resolve_inside(base, root, rel, jp, options.asset_root.has_value());
       if (!fs::is_regular_file(p)) throw SceneError(jp + ": file '" + rel + "' not found (looked at " + p.string() + ")");
       return p;
     } catch (const SceneError& e) {
@@ -316,7 +323,27 @@ LoadedScene load_scene_file(const fs::path& path, const LoadOptions& options) {
   }, options);
 }
 
+namespace {
+
+LoadedScene load_checked(const json& j, const std::string& name, const AssetResolver& resolve, const LoadOptions& options);
+
+}  // namespace
+
 LoadedScene load_scene_json(const json& j, const std::string& name, const AssetResolver& resolve, const LoadOptions& options) {
+  // Whatever goes wrong below (a JSON type mismatch we did not foresee, a filesystem or hashing error) leaves this
+  // function as a SceneError that names the scene.
+  try {
+    return load_checked(j, name, resolve, options);
+  } catch (const SceneError&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw SceneError(name + ": " + e.what());
+  }
+}
+
+namespace {
+
+LoadedScene load_checked(const json& j, const std::string& name, const AssetResolver& resolve, const LoadOptions& options) {
   LoadedScene out;
   Ctx ctx{name, options, out};
   Scene& s = out.scene;
@@ -563,6 +590,23 @@ LoadedScene load_scene_json(const json& j, const std::string& name, const AssetR
       ctx.fail(op + ".type", "'" + type + "' is not supported (supported: mesh, sphere)");
     }
   }
+  // Textures and materials nothing uses are never loaded (their files are not even opened), but a misspelt key in
+  // them still deserves a warning.
+  for (auto it = materials.begin(); it != materials.end(); ++it) {
+    if (material_index.count(it.key()) || !it->is_object() || !it->contains("type") || !(*it)["type"].is_string()) continue;
+    const std::string type = (*it)["type"].get<std::string>(), mp = "materials." + it.key();
+    if (type == "diffuse") ctx.check_keys(*it, mp, {"type", "texture_name", "twosided"});
+    else if (type == "refraction") ctx.check_keys(*it, mp, {"type", "eta"});
+  }
+  for (auto it = textures.begin(); it != textures.end(); ++it) {
+    const bool env_texture = j.contains("environment_map") && j["environment_map"].is_object() &&
+                             j["environment_map"].contains("texture_name") && j["environment_map"]["texture_name"] == it.key();
+    if (texture_index.count(it.key()) || env_texture || !it->is_object() || !it->contains("type") || !(*it)["type"].is_string()) continue;
+    const std::string type = (*it)["type"].get<std::string>(), tp = "textures." + it.key();
+    if (type == "constant") ctx.check_keys(*it, tp, {"type", "color"});
+    else if (type == "image") ctx.check_keys(*it, tp, {"type", "path", "tex_coordinate_generator"});
+  }
+
   // Drop emitters that ended up without geometry (all triangles degenerate).
   for (size_t i = 0; i < s.area_lights.size(); ++i) {
     const AreaLight& l = s.area_lights[i];
@@ -593,5 +637,7 @@ LoadedScene load_scene_json(const json& j, const std::string& name, const AssetR
   s.hash = hash.hex();
   return out;
 }
+
+}  // namespace
 
 }  // namespace tessera

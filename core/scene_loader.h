@@ -48,8 +48,9 @@ LoadedScene load_scene_json(const nlohmann::json& scene, const std::string& name
 /// The asset paths a scene uses (meshes, textures referenced by used materials or the environment), as written.
 std::vector<std::string> scene_asset_paths(const nlohmann::json& scene);
 
-/// Resolves `rel` against `base` and checks it stays inside `root`; throws SceneError naming json_path.
+/// Resolves `rel` against `base` and checks it stays inside `root`; absolute paths are refused unless
+/// allow_absolute (an explicit asset root); throws SceneError naming json_path.
 std::filesystem::path resolve_inside(const std::filesystem::path& base, const std::filesystem::path& root,
-                                     const std::string& rel, const std::string& json_path);
+                                     const std::string& rel, const std::string& json_path, bool allow_absolute = false);
 
 }  // namespace tessera

@@ -6,6 +6,12 @@ SurfacePoint triangle_surface_point(const Triangle& tri, float b0, float b1, flo
   SurfacePoint sp;
   sp.p = b0 * tri.p0 + b1 * tri.p1 + b2 * tri.p2;
   sp.p_error = gamma(7) * (glm::abs(b0 * tri.p0) + glm::abs(b1 * tri.p1) + glm::abs(b2 * tri.p2));
+  // The watertight test computes a ray's distance to the triangle's plane from vertex differences (p_i - origin),
+  // rounded relative to the triangle's extent, with no "t > deltaT" rejection: an origin closer to the plane than
+  // that error can re-hit the triangle (or a coplanar neighbour) at t > 0. The point error alone can be zero (a
+  // plane at y = 0 has exact y coordinates), so the bound also covers the extent's rounding.
+  const Vec3 extent = glm::max(glm::abs(tri.p1 - tri.p0), glm::max(glm::abs(tri.p2 - tri.p0), glm::abs(tri.p2 - tri.p1)));
+  sp.p_error += Vec3(gamma(12) * max_component(extent));
   const Vec3d n = glm::cross(Vec3d(tri.p1) - Vec3d(tri.p0), Vec3d(tri.p2) - Vec3d(tri.p0));
   const double len = glm::length(n);
   sp.n = len > 0.0 ? Vec3(n / len) : Vec3(0.f, 0.f, 1.f);

@@ -15,7 +15,8 @@ struct SurfacePoint {
   Vec3 n;        ///< Unit geometric normal (orientation as the primitive defines it).
 };
 
-/// The point on a triangle at barycentrics (b0, b1, b2), with the interpolation's error bound gamma(7)*sum|bi*pi|.
+/// The point on a triangle at barycentrics (b0, b1, b2), with the error bound gamma(7)*sum|bi*pi| plus gamma(12)
+/// times the triangle's extent (the rounding of the ray/triangle test), so rays spawned from it clear its plane.
 SurfacePoint triangle_surface_point(const Triangle& tri, float b0, float b1, float b2);
 
 /// The point where ray r meets sphere s at t, re-projected onto the sphere in double precision.

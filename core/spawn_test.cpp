@@ -97,6 +97,32 @@ TEST(Spawn, NoSelfIntersectionNearOrigin) {
   EXPECT_EQ(c.self_hits, 0u) << "of " << c.spawned;
 }
 
+TEST(Spawn, NoSelfIntersectionOnLargePlaneThroughOrigin) {
+  // A 100 x 100 plane at y = 0 has exact y coordinates, so the interpolation error along its normal is zero; shallow
+  // rays leaving it must still clear it (the ray/triangle test's rounding scales with the triangle's extent).
+  for (float y : {0.f, 1e-3f}) {
+    const Vec3 a(-50, y, -50), b(50, y, -50), c(50, y, 50), d(-50, y, 50);
+    const std::vector<Triangle> tris{{a, b, c}, {a, c, d}};
+    const Bvh bvh = Bvh::build(tris, {});
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> u(0.f, 1.f);
+    size_t hits = 0, n = testing::scaled(20000);
+    for (size_t i = 0; i < n; ++i) {
+      float b1 = u(rng), b2 = u(rng);
+      if (b1 + b2 > 1.f) { b1 = 1 - b1; b2 = 1 - b2; }
+      const Triangle& tri = tris[i % 2];
+      const SurfacePoint sp = triangle_surface_point(tri, 1 - b1 - b2, b1, b2);
+      // A point light 0.01 to 2 above the plane, up to 40 away: grazing shadow rays.
+      const Vec3 light(u(rng) * 80 - 40, y + 0.01f + 2.f * u(rng), u(rng) * 80 - 40);
+      hits += bvh.occluded(spawn_ray_to(sp, light));
+      Vec3 w = random_direction(rng);
+      if (w.y < 0.f) w.y = -w.y;
+      hits += bvh.occluded(spawn_ray(sp, w));
+    }
+    EXPECT_EQ(hits, 0u) << "plane at y = " << y << ", " << 2 * n << " rays";
+  }
+}
+
 TEST(Spawn, ShadowRayBetweenSurfacesIgnoresBothEnds) {
   // Two facing triangles far from the origin: a shadow ray between them sees neither.
   const Vec3 off(1e5f, -1e5f, 1e5f);

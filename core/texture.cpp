@@ -4,7 +4,7 @@
 
 namespace tessera {
 
-Vec3 Texture::lookup(Vec2 st) const {
+Vec3 Texture::lookup(Vec2 st, bool clamp_t) const {
   const int w = image->width, h = image->height;
   if (w <= 0 || h <= 0) return Vec3(0.f);
   if (!std::isfinite(st.x) || !std::isfinite(st.y)) return image->at(0, 0);
@@ -16,7 +16,9 @@ Vec3 Texture::lookup(Vec2 st) const {
     int i = int(m < 0 ? m + n : m);
     return i >= n ? 0 : i;
   };
-  const int x0 = wrap(fx, w), x1 = wrap(fx + 1.f, w), y0 = wrap(fy, h), y1 = wrap(fy + 1.f, h);
+  auto clamp = [](float v, int n) { return v < 0.f ? 0 : (v >= float(n - 1) ? n - 1 : int(v)); };
+  const int x0 = wrap(fx, w), x1 = wrap(fx + 1.f, w);
+  const int y0 = clamp_t ? clamp(fy, h) : wrap(fy, h), y1 = clamp_t ? clamp(fy + 1.f, h) : wrap(fy + 1.f, h);
   return (1.f - tx) * (1.f - ty) * image->at(x0, y0) + tx * (1.f - ty) * image->at(x1, y0) +
          (1.f - tx) * ty * image->at(x0, y1) + tx * ty * image->at(x1, y1);
 }

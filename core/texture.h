@@ -19,7 +19,14 @@ struct Texture {
   Vec3 evaluate(Vec2 uv) const { return image ? lookup(scale * uv + delta) : color; }
 
   /// Bilinear lookup at st (repeat wrap); pixel centres sit at (i + 0.5)/w, (j + 0.5)/h, v = 0 is the top row.
-  Vec3 lookup(Vec2 st) const;
+  Vec3 lookup(Vec2 st) const { return lookup(st, false); }
+
+  /// Bilinear lookup for an equirectangular map: repeat in s (longitude), clamp in t, so that texels near one
+  /// pole never blend with the other pole's row.
+  Vec3 lookup_latlong(Vec2 st) const { return lookup(st, true); }
+
+ private:
+  Vec3 lookup(Vec2 st, bool clamp_t) const;
 };
 
 }  // namespace tessera

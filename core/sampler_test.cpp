@@ -1,0 +1,90 @@
+// Sampler tests: a pixel's samples are a pure function of (seed, x, y, sample index, dimension), and any
+// power-of-two count of a pixel's samples is stratified: one point per elementary interval in every 2D draw.
+#include "core/sampler.h"
+
+#include <gtest/gtest.h>
+
+#include <set>
+#include <vector>
+
+namespace tessera {
+namespace {
+
+// The first `dims` values (2D draws flattened) of sample `index` of pixel (x, y).
+std::vector<float> stream(uint64_t seed, int x, int y, uint32_t index, int draws) {
+  PixelSampler s(seed, x, y, index);
+  std::vector<float> v;
+  for (int d = 0; d < draws; ++d) {
+    const Vec2 u = s.next_2d();
+    v.push_back(u.x);
+    v.push_back(u.y);
+    v.push_back(s.next_1d());
+  }
+  return v;
+}
+
+TEST(PixelSampler, PureFunctionOfSeedPixelIndexAndDimension) {
+  const auto a = stream(42, 3, 5, 7, 4);
+  EXPECT_EQ(a, stream(42, 3, 5, 7, 4));
+  // Interleaving other streams in between does not matter (no hidden state).
+  PixelSampler other(1, 2, 3, 4);
+  other.next_2d();
+  EXPECT_EQ(a, stream(42, 3, 5, 7, 4));
+  // Each argument changes the stream.
+  EXPECT_NE(a, stream(43, 3, 5, 7, 4));
+  EXPECT_NE(a, stream(42, 4, 5, 7, 4));
+  EXPECT_NE(a, stream(42, 3, 6, 7, 4));
+  EXPECT_NE(a, stream(42, 3, 5, 8, 4));
+  EXPECT_NE(a, stream(42 + (uint64_t(1) << 32), 3, 5, 7, 4));  // the seed's high word counts too
+  for (float v : a) {
+    EXPECT_GE(v, 0.f);
+    EXPECT_LT(v, 1.f);
+  }
+}
+
+// True when the points form a (0, m, 2)-net: every elementary box of area 1/n holds exactly one point.
+bool is_net(const std::vector<Vec2>& pts) {
+  const size_t n = pts.size();
+  int m = 0;
+  while ((size_t(1) << m) < n) ++m;
+  for (int a = 0; a <= m; ++a) {
+    const uint32_t nx = 1u << a, ny = 1u << (m - a);
+    std::set<uint32_t> cells;
+    for (const Vec2& p : pts) cells.insert(uint32_t(p.x * float(nx)) * ny + uint32_t(p.y * float(ny)));
+    if (cells.size() != n) return false;
+  }
+  return true;
+}
+
+TEST(PixelSampler, PowerOfTwoSampleCountsAreStratifiedInEveryDraw) {
+  for (uint32_t spp : {4u, 16u, 64u, 256u}) {
+    for (int px : {0, 17}) {
+      constexpr int kDraws = 4;
+      std::vector<std::vector<Vec2>> draws(kDraws);
+      std::vector<std::vector<float>> ones(kDraws);
+      for (uint32_t i = 0; i < spp; ++i) {
+        PixelSampler s(9, px, 3, i);
+        for (int d = 0; d < kDraws; ++d) {
+          draws[size_t(d)].push_back(s.next_2d());
+          ones[size_t(d)].push_back(s.next_1d());
+        }
+      }
+      for (int d = 0; d < kDraws; ++d) {
+        EXPECT_TRUE(is_net(draws[size_t(d)])) << "spp " << spp << " draw " << d;
+        std::set<uint32_t> strata;
+        for (float v : ones[size_t(d)]) strata.insert(uint32_t(v * float(spp)));
+        EXPECT_EQ(strata.size(), spp) << "1D draw " << d;
+      }
+    }
+  }
+}
+
+TEST(PixelSampler, DrawsAreDecorrelated) {
+  // The 2D draws of one pixel are scrambled independently: the same sample index gives different points per draw.
+  PixelSampler s(1, 0, 0, 0);
+  const Vec2 a = s.next_2d(), b = s.next_2d();
+  EXPECT_NE(a, b);
+}
+
+}  // namespace
+}  // namespace tessera

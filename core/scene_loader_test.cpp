@@ -1,0 +1,304 @@
+// Scene loader tests: every error names the scene file and the JSON path of the offending value; unknown keys warn
+// (or fail under strict); assets stay inside the scene's folder unless an asset root is given; unsupported
+// integrators and materials are refused with the list of supported ones; unreferenced textures are never read.
+#include "core/scene_loader.h"
+
+#include "core/test_files.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <limits>
+#include <string>
+
+namespace tessera {
+namespace {
+
+using json = nlohmann::json;
+namespace fs = std::filesystem;
+
+class SceneLoader : public testing::TempDirTest {
+ protected:
+  // Loads `scene` written as scene.json and returns the SceneError message ("" when it loads).
+  std::string error_of(const json& scene, const LoadOptions& opt = {}) {
+    const fs::path p = write_scene("scene.json", scene);
+    try {
+      load_scene_file(p, opt);
+    } catch (const SceneError& e) {
+      return e.what();
+    }
+    return "";
+  }
+  // Expects loading to fail with a message that names the scene file and contains every string in `parts`.
+  void expect_error(const json& scene, std::initializer_list<std::string> parts, const LoadOptions& opt = {}) {
+    const std::string msg = error_of(scene, opt);
+    ASSERT_FALSE(msg.empty()) << "the scene loaded";
+    EXPECT_NE(msg.find(file("scene.json").string()), std::string::npos) << msg;
+    for (const auto& part : parts) EXPECT_NE(msg.find(part), std::string::npos) << "'" << part << "' not in: " << msg;
+  }
+  json mesh_scene(const std::string& path) {
+    json s = testing::minimal_scene();
+    s["objects"].push_back({{"type", "mesh"}, {"path", path}, {"material_name", "white_diffuse"}});
+    return s;
+  }
+};
+
+TEST_F(SceneLoader, MinimalSceneLoads) {
+  const LoadedScene l = load_scene_file(write_scene("scene.json", testing::minimal_scene()));
+  EXPECT_EQ(l.scene.width, 4);
+  EXPECT_EQ(l.scene.height, 3);
+  EXPECT_EQ(l.scene.spheres.size(), 1u);
+  EXPECT_TRUE(l.warnings.empty());
+  EXPECT_EQ(l.scene.hash.size(), 64u);
+}
+
+TEST_F(SceneLoader, MissingMeshFileNamesFileAndJsonPath) {
+  expect_error(mesh_scene("meshes/nothere.obj"), {"objects[1].path", "nothere.obj", "not found"});
+}
+
+TEST_F(SceneLoader, MissingSceneFileIsAnError) {
+  EXPECT_THROW(load_scene_file(file("absent.json")), SceneError);
+}
+
+TEST_F(SceneLoader, ObjWithPolygonFacesIsTriangulated) {
+  write("quad.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n");
+  const LoadedScene l = load_scene_file(write_scene("scene.json", mesh_scene("quad.obj")));
+  EXPECT_EQ(l.scene.triangles.size(), 2u);
+}
+
+TEST_F(SceneLoader, BadObjVertexIndexNamesJsonPath) {
+  write("bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n");
+  expect_error(mesh_scene("bad.obj"), {"objects[1].path", "bad.obj", "vertex 7"});
+}
+
+TEST_F(SceneLoader, BadObjNormalIndexNamesJsonPath) {
+  write("badn.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//5\n");
+  expect_error(mesh_scene("badn.obj"), {"objects[1].path", "badn.obj", "normal 5"});
+}
+
+TEST_F(SceneLoader, UnreadableExrNamesTextureAndJsonPath) {
+  write("tex/broken.exr", "this is not an OpenEXR file");
+  json s = testing::minimal_scene();
+  s["textures"]["img"] = {{"type", "image"}, {"path", "tex/broken.exr"}};
+  s["materials"]["white_diffuse"]["texture_name"] = "img";
+  expect_error(s, {"textures.img.path", "broken.exr"});
+}
+
+TEST_F(SceneLoader, ReadableExrTextureLoads) {
+  Image img = Image::make(2, 2);
+  img.set(1, 0, Vec3(0.5f));
+  write_image("tex/ok.exr", img);
+  json s = testing::minimal_scene();
+  s["textures"]["img"] = {{"type", "image"}, {"path", "tex/ok.exr"},
+                          {"tex_coordinate_generator", {{"type", "uvmapping2d"}, {"scale", {2, 2}}, {"delta", {0.5, 0}}}}};
+  s["materials"]["white_diffuse"]["texture_name"] = "img";
+  const LoadedScene l = load_scene_file(write_scene("scene.json", s));
+  ASSERT_EQ(l.scene.textures.size(), 1u);
+  ASSERT_NE(l.scene.textures[0].image, nullptr);
+  EXPECT_EQ(l.scene.textures[0].scale, Vec2(2.f));
+  EXPECT_EQ(l.scene.textures[0].delta, Vec2(0.5f, 0.f));
+  EXPECT_EQ(l.assets, (std::vector<std::string>{"tex/ok.exr"}));
+}
+
+TEST_F(SceneLoader, UnreferencedTexturesAreNeverRead) {
+  json s = testing::minimal_scene();
+  s["textures"]["unused"] = {{"type", "image"}, {"path", "does/not/exist.exr"}};
+  const LoadedScene l = load_scene_file(write_scene("scene.json", s));
+  EXPECT_TRUE(l.assets.empty());
+  EXPECT_EQ(l.scene.textures.size(), 1u);
+  EXPECT_EQ(scene_asset_paths(s), std::vector<std::string>{});
+  // Referencing it makes it an error, naming its JSON path.
+  s["materials"]["white_diffuse"]["texture_name"] = "unused";
+  expect_error(s, {"textures.unused.path", "exist.exr"});
+}
+
+TEST_F(SceneLoader, NanSizeNamesJsonPath) {
+  // JSON text cannot hold NaN; a parsed document built in memory can.
+  json s = testing::minimal_scene();
+  s["objects"][0]["radius"] = std::numeric_limits<double>::quiet_NaN();
+  try {
+    load_scene_json(s, "mem.json", [](const std::string& p, const std::string&) { return fs::path(p); });
+    FAIL() << "NaN radius accepted";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("mem.json: objects[0].radius"), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(SceneLoader, NumberOverflowingDoubleIsASceneError) {
+  // The JSON parser itself refuses 1e999 (it names the byte offset, not a JSON path); it must still be a SceneError.
+  std::string text = testing::minimal_scene().dump();
+  const std::string key = "\"radius\":1";
+  text.replace(text.find(key), key.size(), "\"radius\":1e999");
+  write("scene.json", text);
+  try {
+    load_scene_file(file("scene.json"));
+    FAIL() << "1e999 accepted";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find(file("scene.json").string()), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(SceneLoader, FloatOverflowingNumbersNameJsonPath) {
+  // 1e39 is finite as a double but overflows a float.
+  for (const char* v : {"1e39", "-1e39"}) {
+    std::string text = testing::minimal_scene().dump();
+    const std::string key = "\"radius\":1";
+    text.replace(text.find(key), key.size(), std::string("\"radius\":") + v);
+    write("scene.json", text);
+    try {
+      load_scene_file(file("scene.json"));
+      ADD_FAILURE() << "radius " << v << " accepted";
+    } catch (const SceneError& e) {
+      EXPECT_NE(std::string(e.what()).find("objects[0].radius"), std::string::npos) << e.what();
+    }
+  }
+  json s = testing::minimal_scene();
+  s["integrator"]["point_light_flux"] = {1e39, 1, 1};
+  expect_error(s, {"integrator.point_light_flux[0]"});
+}
+
+TEST_F(SceneLoader, NegativeSizesNameJsonPath) {
+  json s = testing::minimal_scene();
+  s["objects"][0]["radius"] = -0.5;
+  expect_error(s, {"objects[0].radius", "negative"});
+  s = testing::minimal_scene();
+  s["film"]["resolution"] = {-4, 3};
+  expect_error(s, {"film.resolution[0]"});
+  s = testing::minimal_scene();
+  s["textures"]["white"]["color"] = {1, -1, 1};
+  expect_error(s, {"textures.white.color"});
+}
+
+TEST_F(SceneLoader, ZeroResolutionNamesJsonPath) {
+  json s = testing::minimal_scene();
+  s["film"]["resolution"] = {4, 0};
+  expect_error(s, {"film.resolution[1]"});
+}
+
+TEST_F(SceneLoader, UnknownKeysWarnAndStrictMakesThemErrors) {
+  json s = testing::minimal_scene();
+  s["objects"][0]["colour"] = "red";
+  s["camera"]["aperture"] = 0.1;
+  const LoadedScene l = load_scene_file(write_scene("scene.json", s));
+  ASSERT_EQ(l.warnings.size(), 2u);
+  std::string all = l.warnings[0] + "\n" + l.warnings[1];
+  EXPECT_NE(all.find("objects[0].colour"), std::string::npos) << all;
+  EXPECT_NE(all.find("camera.aperture"), std::string::npos) << all;
+  LoadOptions strict;
+  strict.strict = true;
+  expect_error(s, {"camera.aperture", "unknown key"}, strict);
+}
+
+TEST_F(SceneLoader, UnknownKeysInUnusedTexturesAndMaterialsWarnToo) {
+  json s = testing::minimal_scene();
+  s["textures"]["spare"] = {{"type", "image"}, {"path", "never/read.exr"}, {"scael", {1, 1}}};
+  s["materials"]["spare"] = {{"type", "refraction"}, {"etta", 1.3}};
+  const LoadedScene l = load_scene_file(write_scene("scene.json", s));
+  ASSERT_EQ(l.warnings.size(), 2u);
+  const std::string all = l.warnings[0] + "\n" + l.warnings[1];
+  EXPECT_NE(all.find("textures.spare.scael"), std::string::npos) << all;
+  EXPECT_NE(all.find("materials.spare.etta"), std::string::npos) << all;
+}
+
+TEST_F(SceneLoader, TypeMismatchesAreSceneErrors) {
+  for (const char* bad : {R"({"objects": {}})", R"({"objects": [{"type": 5}]})", R"({"objects": [{"type": "sphere", "radius": "big", "material_name": "m"}]})",
+                          R"({"film": {"resolution": [4]}, "objects": []})", R"({"camera": {"fov": [1]}, "objects": []})", R"([1, 2])"}) {
+    write("scene.json", bad);
+    EXPECT_THROW(load_scene_file(file("scene.json")), SceneError) << bad;
+    EXPECT_NO_THROW(scene_asset_paths(json::parse(bad))) << bad;
+  }
+}
+
+TEST_F(SceneLoader, AssetPathsMustStayInsideTheSceneFolder) {
+  write("outside.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  // The scene lives one level down; "../outside.obj" escapes its folder.
+  json s = mesh_scene("../outside.obj");
+  write_scene("sub/scene.json", s);
+  try {
+    load_scene_file(file("sub/scene.json"));
+    FAIL() << "escaping path accepted";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("objects[1].path"), std::string::npos) << e.what();
+  }
+  // The same with an explicit asset root above both loads.
+  LoadOptions opt;
+  opt.asset_root = dir_;
+  EXPECT_EQ(load_scene_file(file("sub/scene.json"), opt).scene.triangles.size(), 1u);
+  opt.asset_root = fs::path(dir_.string() + "/");  // a trailing separator changes nothing
+  EXPECT_EQ(load_scene_file(file("sub/scene.json"), opt).scene.triangles.size(), 1u);
+  // Escaping through a folder that exists and back out is still caught.
+  write("sub/inner/keep.txt", "");
+  write_scene("sub/scene.json", mesh_scene("inner/../../outside.obj"));
+  EXPECT_THROW(load_scene_file(file("sub/scene.json")), SceneError);
+}
+
+TEST_F(SceneLoader, AbsoluteAssetPathsNeedAnAssetRoot) {
+  const fs::path obj = write("abs.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  write_scene("sub/scene.json", mesh_scene(obj.string()));
+  try {
+    load_scene_file(file("sub/scene.json"));
+    FAIL() << "absolute path accepted";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("objects[1].path"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("absolute"), std::string::npos) << e.what();
+  }
+  LoadOptions opt;
+  opt.asset_root = dir_;
+  EXPECT_EQ(load_scene_file(file("sub/scene.json"), opt).scene.triangles.size(), 1u);
+  // An absolute path outside the asset root stays an error.
+  opt.asset_root = dir_ / "sub";
+  EXPECT_THROW(load_scene_file(file("sub/scene.json"), opt), SceneError);
+}
+
+TEST_F(SceneLoader, OtherIntegratorsAreRefusedUnlessForcedDirect) {
+  for (const char* type : {"path", "bdpt"}) {
+    json s = testing::minimal_scene();
+    s["integrator"]["type"] = type;
+    s["integrator"]["rr_threshold"] = 0.1;
+    expect_error(s, {"integrator.type", type, "intersection_test", "--integrator direct"});
+    LoadOptions direct;
+    direct.force_direct = true;
+    const LoadedScene l = load_scene_file(write_scene("scene.json", s), direct);
+    EXPECT_EQ(l.scene.spheres.size(), 1u);
+    EXPECT_FALSE(l.notes.empty());
+  }
+}
+
+TEST_F(SceneLoader, OtherMaterialsAreRefusedEvenWhenForcedDirect) {
+  for (const char* type : {"glass", "microfacet"}) {
+    json s = testing::minimal_scene();
+    s["materials"]["white_diffuse"] = {{"type", type}, {"texture_name", "white"}};
+    expect_error(s, {"materials.white_diffuse.type", type, "diffuse, refraction"});
+    s["integrator"]["type"] = "path";
+    LoadOptions direct;
+    direct.force_direct = true;
+    expect_error(s, {"materials.white_diffuse.type", type, "diffuse, refraction"}, direct);
+  }
+}
+
+TEST_F(SceneLoader, RectangleEmitterBecomesASphericalRectangleLight) {
+  write("light.obj", testing::rect_obj(Vec3(-0.5f, 1.f, -0.5f), Vec3(1.f, 0.f, 0.f), Vec3(0.f, 0.f, 1.f)));
+  json s = testing::minimal_scene();
+  s["objects"].push_back({{"type", "mesh"}, {"path", "light.obj"}, {"light", {{"type", "area"}, {"radiance", {2, 2, 2}}}}});
+  const LoadedScene l = load_scene_file(write_scene("scene.json", s));
+  ASSERT_EQ(l.scene.area_lights.size(), 1u);
+  const AreaLight& a = l.scene.area_lights[0];
+  EXPECT_EQ(a.rects.size(), 1u);
+  EXPECT_TRUE(a.tris.empty());
+  EXPECT_NEAR(a.total_area, 1.f, 1e-6f);
+  EXPECT_NEAR(a.rects[0].n.y, -1.f, 1e-6f);  // cross(x, z) = -y: the winding faces down
+}
+
+TEST_F(SceneLoader, CourseScenesLoad) {
+  for (const char* name : {"cbox.json", "cbox_no_light.json", "cbox_no_light_refract.json", "cbox_refract_textured.json"}) {
+    LoadOptions opt;
+    opt.force_direct = true;
+    const LoadedScene l = load_scene_file(fs::path(TESSERA_SHARED_DIR) / "compat/rdr171" / name, opt);
+    EXPECT_GT(l.scene.triangles.size(), 0u) << name;
+    EXPECT_TRUE(l.warnings.empty()) << name << ": " << (l.warnings.empty() ? "" : l.warnings[0]);
+  }
+}
+
+}  // namespace
+}  // namespace tessera
