@@ -1,5 +1,7 @@
 #include "cli/render_command.h"
 
+#include "cli/progress_bar.h"
+
 #include "core/render.h"
 #include "core/scene_loader.h"
 
@@ -31,46 +33,6 @@ CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
   c->add_flag("-q,--quiet", a.quiet, "No progress bar");
   return c;
 }
-
-namespace {
-
-std::string format_duration(double s) {
-  char buf[64];
-  if (s < 60) std::snprintf(buf, sizeof buf, "%.1fs", s);
-  else if (s < 3600) std::snprintf(buf, sizeof buf, "%dm%02ds", int(s) / 60, int(s) % 60);
-  else std::snprintf(buf, sizeof buf, "%dh%02dm", int(s) / 3600, (int(s) / 60) % 60);
-  return buf;
-}
-
-// A one-line progress bar on a terminal; on a pipe, a line at every 10% instead.
-class ProgressBar {
- public:
-  explicit ProgressBar(bool enabled) : enabled_(enabled), tty_(isatty(STDERR_FILENO)) {}
-  void update(const RenderProgress& p) {
-    if (!enabled_ || p.tiles_total == 0) return;
-    const double frac = double(p.tiles_done) / p.tiles_total;
-    const double eta = frac > 0 ? p.seconds * (1 - frac) / frac : 0;
-    const double mrays = p.seconds > 0 ? double(p.rays) / p.seconds * 1e-6 : 0;
-    if (tty_) {
-      constexpr int kWidth = 30;
-      const int filled = int(frac * kWidth);
-      std::fprintf(stderr, "\r[%.*s%*s] %d/%d tiles  %.1f Mrays/s  ETA %s   ", filled,
-                   "##############################", kWidth - filled, "", p.tiles_done, p.tiles_total, mrays,
-                   format_duration(eta).c_str());
-      if (p.tiles_done == p.tiles_total) std::fputc('\n', stderr);
-    } else if (int(frac * 10) > last_decile_ || p.tiles_done == p.tiles_total) {
-      last_decile_ = int(frac * 10);
-      std::fprintf(stderr, "%3d%%  %d/%d tiles  %.1f Mrays/s  ETA %s\n", int(frac * 100), p.tiles_done, p.tiles_total,
-                   mrays, format_duration(eta).c_str());
-    }
-  }
-
- private:
-  bool enabled_, tty_;
-  int last_decile_ = -1;
-};
-
-}  // namespace
 
 int run_render(const RenderArgs& a) {
   try {
