@@ -1,6 +1,7 @@
 #include "cli/render_command.h"
 
 #include "cli/progress_bar.h"
+#include "cli/render_farm.h"
 
 #include "core/render.h"
 #include "core/scene_loader.h"
@@ -31,10 +32,15 @@ CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
   c->add_option("--asset-root", a.asset_root, "Allow asset paths anywhere below this folder");
   c->add_option("--tile", a.tile_size, "Tile edge in pixels for the thread scheduler")->check(CLI::Range(1, 4096));
   c->add_flag("-q,--quiet", a.quiet, "No progress bar");
+  c->add_option("--workers", a.workers,
+                "Render through a private coordinator and N worker processes on this machine (0: in this process)")
+      ->check(CLI::Range(0, 256));
+  c->add_option("--farm-tile", a.farm_tile, "Farm tile edge in pixels (with --workers)")->check(CLI::Range(1, 4096));
   return c;
 }
 
 int run_render(const RenderArgs& a) {
+  if (a.workers > 0) return run_render_farm(a);
   try {
     std::unique_ptr<tbb::global_control> limit;
     if (a.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(a.threads));

@@ -94,7 +94,7 @@ TEST(ParseHttpUrl, RejectsWhatItCannotUse) {
 TEST(HttpResponse, ErrorTextPrefersTheJsonErrorField) {
   HttpResponse r;
   r.status = 400;
-  r.body = R"({"error": "scene: objects[3].radius: must not be negative (got -1)"})";
+  r.body = R"j({"error": "scene: objects[3].radius: must not be negative (got -1)"})j";
   EXPECT_EQ(r.error_text(), "scene: objects[3].radius: must not be negative (got -1)");
   r.body = "plain words\n";
   EXPECT_EQ(r.error_text(), "plain words");

@@ -13,6 +13,8 @@
 
 #include <unistd.h>
 
+#include <csignal>
+#include <cstdlib>
 #include <condition_variable>
 #include <memory>
 #include <mutex>
@@ -348,6 +350,12 @@ class Worker {
     req.body.assign(bytes.begin(), bytes.end());
     req.content_type = "image/x-exr";
     req.headers["X-Tessera-Rays"] = std::to_string(res.counters.rays);
+    if (!stopped_for_test_ && std::getenv("TESSERA_WORKER_STOP_BEFORE_UPLOAD")) {
+      // Test hook (tests/farm/late_upload.sh): freeze between render and upload, as a stalled machine would.
+      stopped_for_test_ = true;
+      spdlog::info("{}: TESSERA_WORKER_STOP_BEFORE_UPLOAD: stopping myself before the upload", pfx);
+      std::raise(SIGSTOP);
+    }
     Backoff backoff(200ms, opt_.max_retry_wait);
     for (int attempt = 1;; ++attempt) {
       try {
@@ -433,6 +441,7 @@ class Worker {
   int threads_ = 1;
   std::chrono::milliseconds heartbeat_period_{5000};
   bool down_ = false;
+  bool stopped_for_test_ = false;
   WorkerStats stats_;
 };
 
