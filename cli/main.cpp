@@ -1,5 +1,6 @@
 // The single `tessera` executable: one subcommand per way of using the farm.
 #include "cli/render_command.h"
+#include "cli/serve_command.h"
 
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
@@ -24,7 +25,8 @@ int main(int argc, char** argv) {
 
     tessera::cli::RenderArgs render_args;
     auto* render = tessera::cli::add_render_command(app, render_args);
-    auto* serve = app.add_subcommand("serve", "Run the coordinator (HTTP API, tile scheduler, merge)");
+    tessera::cli::ServeArgs serve_args;
+    auto* serve = tessera::cli::add_serve_command(app, serve_args);
     auto* worker = app.add_subcommand("worker", "Run a worker that leases and renders tiles");
     auto* submit = app.add_subcommand("submit", "Submit a scene to a coordinator and fetch the result");
     auto* merge = app.add_subcommand("merge", "Assemble cropped EXR tiles into one image");
@@ -32,7 +34,7 @@ int main(int argc, char** argv) {
     CLI11_PARSE(app, argc, argv);
 
     if (render->parsed()) return tessera::cli::run_render(render_args);
-    if (serve->parsed()) return not_yet("serve");
+    if (serve->parsed()) return tessera::cli::run_serve(serve_args);
     if (worker->parsed()) return not_yet("worker");
     if (submit->parsed()) return not_yet("submit");
     if (merge->parsed()) return not_yet("merge");

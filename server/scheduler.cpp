@@ -30,15 +30,21 @@ std::string Scheduler::next_id(char kind) {
   return std::string(1, kind) + "-" + (config_.id_tag.empty() ? "" : config_.id_tag + "-") + std::to_string(next_seq_++);
 }
 
-std::string Scheduler::add_job(const JobParams& p) {
+std::string Scheduler::new_job_id() {
+  std::lock_guard lock(mu_);
+  return next_id('j');
+}
+
+std::string Scheduler::add_job(const JobParams& p, const std::string& id_in) {
   const TileGrid grid(p.width, p.height, p.tile_size);  // validates sizes
   if (p.spp == 0) throw std::invalid_argument("spp must be positive");
   std::lock_guard lock(mu_);
   const int64_t now = clock_();
   expire_locked(now);
   auto rec = std::make_unique<JobRec>();
-  rec->seq = next_seq_;
-  rec->status.id = next_id('j');
+  rec->seq = next_seq_++;
+  rec->status.id = id_in.empty() ? next_id('j') : id_in;
+  if (jobs_.count(rec->status.id)) throw std::invalid_argument("job id " + rec->status.id + " is already in use");
   rec->status.params = p;
   rec->status.created_ms = now;
   rec->status.tiles.total = grid.count();

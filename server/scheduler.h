@@ -148,8 +148,11 @@ class Scheduler {
   /// The configuration it runs with.
   const SchedulerConfig& config() const { return config_; }
 
-  /// Adds a queued job and returns its id; throws std::invalid_argument for bad sizes.
-  std::string add_job(const JobParams& params);
+  /// A fresh job id for add_job (so the caller can store the job's record before the job becomes leasable).
+  std::string new_job_id();
+  /// Adds a queued job under `id` (empty: a fresh one) and returns the id; throws std::invalid_argument for bad
+  /// sizes or an id already in use.
+  std::string add_job(const JobParams& params, const std::string& id = "");
   /// A job's snapshot, or nothing for an unknown id.
   std::optional<JobStatus> job(const std::string& id);
   /// All jobs, newest first.
