@@ -1,6 +1,7 @@
 // The single `tessera` executable: one subcommand per way of using the farm.
 #include "cli/merge_command.h"
 #include "cli/render_command.h"
+#include "cli/serve_command.h"
 #include "cli/submit_command.h"
 #include "cli/worker_command.h"
 
@@ -10,15 +11,6 @@
 #include <cstdio>
 #include <exception>
 
-namespace {
-
-int not_yet(const char* what) {
-  spdlog::error("'tessera {}' is not implemented yet in this version", what);
-  return 2;
-}
-
-}  // namespace
-
 int main(int argc, char** argv) {
   try {
     CLI::App app{"Tessera: a render-farm tile service"};
@@ -27,7 +19,8 @@ int main(int argc, char** argv) {
 
     tessera::cli::RenderArgs render_args;
     auto* render = tessera::cli::add_render_command(app, render_args);
-    auto* serve = app.add_subcommand("serve", "Run the coordinator (HTTP API, tile scheduler, merge)");
+    tessera::cli::ServeArgs serve_args;
+    auto* serve = tessera::cli::add_serve_command(app, serve_args);
     tessera::cli::WorkerArgs worker_args;
     auto* worker = tessera::cli::add_worker_command(app, worker_args);
     tessera::cli::SubmitArgs submit_args;
@@ -38,7 +31,7 @@ int main(int argc, char** argv) {
     CLI11_PARSE(app, argc, argv);
 
     if (render->parsed()) return tessera::cli::run_render(render_args);
-    if (serve->parsed()) return not_yet("serve");
+    if (serve->parsed()) return tessera::cli::run_serve(serve_args);
     if (worker->parsed()) return tessera::cli::run_worker_command(worker_args);
     if (submit->parsed()) return tessera::cli::run_submit(submit_args);
     if (merge->parsed()) return tessera::cli::run_merge(merge_args);
