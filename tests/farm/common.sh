@@ -43,7 +43,8 @@ start_serve() {
     >>"$WORK/serve.log" 2>&1 &
   SERVE_PID=$!
   PIDS+=("$SERVE_PID")
-  wait_for test -s "$WORK/ready" || fail "the coordinator did not become ready"
+  serve_ready() { test -s "$WORK/ready" || ! kill -0 "$SERVE_PID" 2>/dev/null; }
+  wait_for serve_ready && test -s "$WORK/ready" || fail "the coordinator did not become ready"
   URL="http://$(head -n1 "$WORK/ready")"
 }
 
@@ -61,6 +62,9 @@ log_has() { grep -Eq -- "$2" "$1" 2>/dev/null; }
 
 # process_state PID: the one-letter state from /proc (T when stopped).
 process_state() { awk '{print $3}' "/proc/$1/stat" 2>/dev/null; }
+
+# is_stopped PID: true when the process is stopped (SIGSTOP).
+is_stopped() { [ "$(process_state "$1")" = T ]; }
 
 # write_sphere_scene FILE WIDTH HEIGHT SPP: a small analytic scene (no assets).
 write_sphere_scene() {

@@ -6,14 +6,14 @@ source "$(dirname "$0")/common.sh"
 
 write_sphere_scene "$WORK/s.json" 24 16 4
 "$TESSERA" render "$WORK/s.json" -o "$WORK/ref.exr" -q
-start_serve --lease-seconds 1 --heartbeat-seconds 0.25
+start_serve --lease-seconds 2 --heartbeat-seconds 1
 "$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 8 -o "$WORK/out.exr" -q >"$WORK/submit.log" 2>&1 &
 SUBMIT_PID=$!
 PIDS+=("$SUBMIT_PID")
 
 TESSERA_WORKER_STOP_BEFORE_UPLOAD=1 start_worker late --threads 1
 LATE=$WORKER_PID
-wait_for test "$(process_state "$LATE")" = T || fail "the late worker never stopped itself"
+wait_for is_stopped "$LATE" || fail "the late worker never stopped itself"
 TILE=$(grep -Eo "tile=[0-9]+ lease=[^:]+: TESSERA_WORKER_STOP" "$WORK/late.log" | head -n1 | grep -Eo "tile=[0-9]+")
 
 start_worker prompt --threads 1

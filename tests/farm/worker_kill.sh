@@ -3,9 +3,9 @@
 # job completes bitwise identical to the single-process render. The surviving worker exits 0 on SIGTERM.
 source "$(dirname "$0")/common.sh"
 
-write_sphere_scene "$WORK/s.json" 48 32 48
+write_sphere_scene "$WORK/s.json" 32 32 1024
 "$TESSERA" render "$WORK/s.json" -o "$WORK/ref.exr" -q --threads 1
-start_serve --lease-seconds 2 --heartbeat-seconds 0.5
+start_serve --lease-seconds 2 --heartbeat-seconds 1
 "$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 16 -o "$WORK/out.exr" -q >"$WORK/submit.log" 2>&1 &
 SUBMIT_PID=$!
 PIDS+=("$SUBMIT_PID")
