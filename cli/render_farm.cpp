@@ -131,14 +131,21 @@ int run_render_farm(const RenderArgs& a) {
       spdlog::warn("interrupted");
       rc = 130;
     }
-    show_logs = rc != 0 && rc != 130;
+    show_logs = rc == 1;  // 2: the coordinator refused the job and said why; 130: interrupted
   } catch (const std::exception& e) {
     spdlog::error("render --workers: {}", e.what());
     rc = 1;
     show_logs = true;
   }
-  const auto killed = farm::stop_children(children, 5s);
+  // Workers first (told twice when the render did not finish, so they drop their tile at once), then the coordinator.
+  std::vector<farm::ChildProcess> workers(children.begin() + std::min<size_t>(1, children.size()), children.end());
+  std::vector<farm::ChildProcess> serve(children.begin(), children.begin() + std::min<size_t>(1, children.size()));
+  auto killed = farm::stop_children(workers, 5s, rc == 0 ? 1 : 2);
+  const auto killed_serve = farm::stop_children(serve, 5s);
+  killed.insert(killed.end(), killed_serve.begin(), killed_serve.end());
   for (const auto& name : killed) spdlog::warn("{} did not stop within 5 s and was killed", name);
+  children = serve;
+  children.insert(children.end(), workers.begin(), workers.end());
   if (show_logs) {
     for (const auto& c : children)
       spdlog::error("{} ({}), last lines of {}:\n{}", c.name, farm::describe_exit(c), c.log.string(),

@@ -69,9 +69,13 @@ bool child_exited(ChildProcess& c) {
   return false;
 }
 
-std::vector<std::string> stop_children(std::vector<ChildProcess>& children, std::chrono::milliseconds grace) {
-  for (auto& c : children)
-    if (!child_exited(c)) ::kill(c.pid, SIGTERM);
+std::vector<std::string> stop_children(std::vector<ChildProcess>& children, std::chrono::milliseconds grace,
+                                       int terms) {
+  for (int i = 0; i < terms; ++i) {
+    if (i > 0) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    for (auto& c : children)
+      if (!child_exited(c)) ::kill(c.pid, SIGTERM);
+  }
   const auto deadline = std::chrono::steady_clock::now() + grace;
   while (std::chrono::steady_clock::now() < deadline) {
     bool all = true;

@@ -26,9 +26,11 @@ ChildProcess spawn_child(const std::vector<std::string>& argv, const std::string
 /// True (and status recorded) when the child has exited; never blocks.
 bool child_exited(ChildProcess& child);
 
-/// Sends SIGTERM to every running child, waits up to `grace` for them to exit, then SIGKILLs and reaps the rest.
-/// Returns the names of children that had to be killed.
-std::vector<std::string> stop_children(std::vector<ChildProcess>& children, std::chrono::milliseconds grace);
+/// Sends SIGTERM (`terms` times, 20 ms apart: a worker told twice hands its tile back at once) to every running
+/// child, waits up to `grace` for them to exit, then SIGKILLs and reaps the rest. Returns the names of children that
+/// had to be killed.
+std::vector<std::string> stop_children(std::vector<ChildProcess>& children, std::chrono::milliseconds grace,
+                                       int terms = 1);
 
 /// "exited with status N" or "killed by signal N" for a reaped child.
 std::string describe_exit(const ChildProcess& child);
