@@ -1,20 +1,15 @@
 // The single `tessera` executable: one subcommand per way of using the farm.
+#include "cli/merge_command.h"
 #include "cli/render_command.h"
+#include "cli/serve_command.h"
+#include "cli/submit_command.h"
+#include "cli/worker_command.h"
 
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
 #include <cstdio>
 #include <exception>
-
-namespace {
-
-int not_yet(const char* what) {
-  spdlog::error("'tessera {}' is not implemented yet in this version", what);
-  return 2;
-}
-
-}  // namespace
 
 int main(int argc, char** argv) {
   try {
@@ -24,18 +19,22 @@ int main(int argc, char** argv) {
 
     tessera::cli::RenderArgs render_args;
     auto* render = tessera::cli::add_render_command(app, render_args);
-    auto* serve = app.add_subcommand("serve", "Run the coordinator (HTTP API, tile scheduler, merge)");
-    auto* worker = app.add_subcommand("worker", "Run a worker that leases and renders tiles");
-    auto* submit = app.add_subcommand("submit", "Submit a scene to a coordinator and fetch the result");
-    auto* merge = app.add_subcommand("merge", "Assemble cropped EXR tiles into one image");
+    tessera::cli::ServeArgs serve_args;
+    auto* serve = tessera::cli::add_serve_command(app, serve_args);
+    tessera::cli::WorkerArgs worker_args;
+    auto* worker = tessera::cli::add_worker_command(app, worker_args);
+    tessera::cli::SubmitArgs submit_args;
+    auto* submit = tessera::cli::add_submit_command(app, submit_args);
+    tessera::cli::MergeArgs merge_args;
+    auto* merge = tessera::cli::add_merge_command(app, merge_args);
 
     CLI11_PARSE(app, argc, argv);
 
     if (render->parsed()) return tessera::cli::run_render(render_args);
-    if (serve->parsed()) return not_yet("serve");
-    if (worker->parsed()) return not_yet("worker");
-    if (submit->parsed()) return not_yet("submit");
-    if (merge->parsed()) return not_yet("merge");
+    if (serve->parsed()) return tessera::cli::run_serve(serve_args);
+    if (worker->parsed()) return tessera::cli::run_worker_command(worker_args);
+    if (submit->parsed()) return tessera::cli::run_submit(submit_args);
+    if (merge->parsed()) return tessera::cli::run_merge(merge_args);
     std::fputs(app.help().c_str(), stdout);
     return 0;
   } catch (const std::exception& e) {

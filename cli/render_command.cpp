@@ -1,5 +1,8 @@
 #include "cli/render_command.h"
 
+#include "cli/progress_bar.h"
+#include "cli/render_farm.h"
+
 #include "core/render.h"
 #include "core/scene_loader.h"
 
@@ -30,50 +33,15 @@ CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
   c->add_option("--asset-root", a.asset_root, "Allow asset paths anywhere below this folder");
   c->add_option("--tile", a.tile_size, "Tile edge in pixels for the thread scheduler")->check(CLI::Range(1, 4096));
   c->add_flag("-q,--quiet", a.quiet, "No progress bar");
+  c->add_option("--workers", a.workers,
+                "Render through a private coordinator and N worker processes on this machine (0: in this process)")
+      ->check(CLI::Range(0, 256));
+  c->add_option("--farm-tile", a.farm_tile, "Farm tile edge in pixels (with --workers)")->check(CLI::Range(1, 4096));
   return c;
 }
 
-namespace {
-
-std::string format_duration(double s) {
-  char buf[64];
-  if (s < 60) std::snprintf(buf, sizeof buf, "%.1fs", s);
-  else if (s < 3600) std::snprintf(buf, sizeof buf, "%dm%02ds", int(s) / 60, int(s) % 60);
-  else std::snprintf(buf, sizeof buf, "%dh%02dm", int(s) / 3600, (int(s) / 60) % 60);
-  return buf;
-}
-
-// A one-line progress bar on a terminal; on a pipe, a line at every 10% instead.
-class ProgressBar {
- public:
-  explicit ProgressBar(bool enabled) : enabled_(enabled), tty_(isatty(STDERR_FILENO)) {}
-  void update(const RenderProgress& p) {
-    if (!enabled_ || p.tiles_total == 0) return;
-    const double frac = double(p.tiles_done) / p.tiles_total;
-    const double eta = frac > 0 ? p.seconds * (1 - frac) / frac : 0;
-    const double mrays = p.seconds > 0 ? double(p.rays) / p.seconds * 1e-6 : 0;
-    if (tty_) {
-      constexpr int kWidth = 30;
-      const int filled = int(frac * kWidth);
-      std::fprintf(stderr, "\r[%.*s%*s] %d/%d tiles  %.1f Mrays/s  ETA %s   ", filled,
-                   "##############################", kWidth - filled, "", p.tiles_done, p.tiles_total, mrays,
-                   format_duration(eta).c_str());
-      if (p.tiles_done == p.tiles_total) std::fputc('\n', stderr);
-    } else if (int(frac * 10) > last_decile_ || p.tiles_done == p.tiles_total) {
-      last_decile_ = int(frac * 10);
-      std::fprintf(stderr, "%3d%%  %d/%d tiles  %.1f Mrays/s  ETA %s\n", int(frac * 100), p.tiles_done, p.tiles_total,
-                   mrays, format_duration(eta).c_str());
-    }
-  }
-
- private:
-  bool enabled_, tty_;
-  int last_decile_ = -1;
-};
-
-}  // namespace
-
 int run_render(const RenderArgs& a) {
+  if (a.workers > 0) return run_render_farm(a);
   try {
     // Warnings and errors go to stderr with the progress bar and the summary; stdout stays free for data.
     auto logger = spdlog::get("render");

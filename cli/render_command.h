@@ -27,6 +27,8 @@ struct RenderArgs {
   std::string asset_root;               ///< Allow assets anywhere below this folder.
   int tile_size = 16;                   ///< Thread tile edge.
   bool quiet = false;                   ///< No progress bar.
+  int workers = 0;                      ///< >0: render through a local coordinator and this many worker processes.
+  int farm_tile = 64;                   ///< Farm tile edge (with --workers).
 };
 
 /// Registers the subcommand's options on `app`.

@@ -288,7 +288,7 @@ ExrImage read_exr_impl(const std::filesystem::path& path) {
   return out;
 }
 
-void write_exr_impl(const std::filesystem::path& path, const Image& img, const ExrWriteOptions& opt) {
+std::vector<uint8_t> encode_exr_impl(const char* name, const Image& img, const ExrWriteOptions& opt) {
   check_rgb_shape(img);
   if (img.width == 0 || img.height == 0) throw std::runtime_error("an EXR cannot hold an empty image");
   const PixelWindow data = opt.data_window.empty() ? PixelWindow{0, 0, img.width, img.height} : opt.data_window;
@@ -336,13 +336,13 @@ void write_exr_impl(const std::filesystem::path& path, const Image& img, const E
     }
   }
 
-  MemoryOStream stream(path.c_str());
+  MemoryOStream stream(name);
   {
     Imf::OutputFile out(stream, header);
     out.setFrameBuffer(fb);
     out.writePixels(img.height);
   }  // the destructor completes the file (its line offset table)
-  write_file_atomically(path, stream.bytes());
+  return stream.bytes();
 }
 
 // sRGB OETF of a linear value, clamped to [0,1] (NaN -> 0), rounded to 8 bits.
@@ -390,7 +390,12 @@ ExrImage read_exr(const std::filesystem::path& path) {
 }
 
 void write_exr(const std::filesystem::path& path, const Image& img, const ExrWriteOptions& opt) {
-  with_context("cannot write EXR " + quoted(path), [&] { write_exr_impl(path, img, opt); });
+  with_context("cannot write EXR " + quoted(path),
+               [&] { write_file_atomically(path, encode_exr_impl(path.c_str(), img, opt)); });
+}
+
+std::vector<uint8_t> encode_exr(const Image& img, const ExrWriteOptions& opt) {
+  return with_context("cannot encode EXR", [&] { return encode_exr_impl("memory", img, opt); });
 }
 
 std::vector<uint8_t> encode_png_srgb(const Image& img, float exposure) {

@@ -101,6 +101,9 @@ struct ExrWriteOptions {
 /// ImageError naming the file; on failure path is untouched and no .tmp file is left.
 void write_exr(const std::filesystem::path& path, const Image& img, const ExrWriteOptions& opt = {});
 
+/// The bytes write_exr would write, in memory (e.g. for an HTTP upload); throws ImageError.
+std::vector<uint8_t> encode_exr(const Image& img, const ExrWriteOptions& opt = {});
+
 /// The bytes of an 8-bit sRGB PNG of img: each value times exposure, clamped to [0,1] (NaN -> 0), sRGB-encoded and
 /// rounded. Throws ImageError for an empty or malformed image.
 std::vector<uint8_t> encode_png_srgb(const Image& img, float exposure = 1.f);

@@ -1,0 +1,53 @@
+#include "cli/merge_command.h"
+
+#include "core/image.h"
+#include "core/merge.h"
+
+#include <spdlog/spdlog.h>
+
+#include <cstdio>
+
+namespace tessera::cli {
+
+CLI::App* add_merge_command(CLI::App& app, MergeArgs& a) {
+  auto* c = app.add_subcommand("merge", "Assemble cropped EXR tiles into one image");
+  c->add_option("tiles", a.inputs, "Tile EXRs written by 'tessera render --crop' (same display window)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  c->add_option("-o,--output", a.output, "Output EXR file (written atomically)")->required();
+  c->add_flag("--half", a.half, "Write half floats instead of float32");
+  c->footer(
+      "Every pixel of the display window must come from some tile. Tiles may overlap only where their R,G,B values "
+      "are bitwise identical (as re-rendered tiles are); any other overlap, and any gap, is an error listing the "
+      "pixel rectangles concerned. Extra channels are not merged.");
+  return c;
+}
+
+int run_merge(const MergeArgs& a) {
+  try {
+    std::vector<MergeInput> inputs;
+    inputs.reserve(a.inputs.size());
+    for (const auto& path : a.inputs) inputs.push_back({path, read_exr(path)});
+    const MergeResult merged = merge_tiles(inputs);
+    ExrWriteOptions wo;
+    wo.half = a.half;
+    wo.data_window = merged.display_window;
+    wo.display_window = merged.display_window;
+    wo.metadata = merged.metadata;
+    write_exr(a.output, merged.image, wo);
+    std::fprintf(stderr, "%s: %dx%d px from %zu tiles", a.output.c_str(), merged.display_window.width(),
+                 merged.display_window.height(), inputs.size());
+    if (merged.overlap_pixels > 0)
+      std::fprintf(stderr, " (%lld overlapping pixels, identical)", static_cast<long long>(merged.overlap_pixels));
+    std::fputc('\n', stderr);
+    return 0;
+  } catch (const MergeError& e) {
+    spdlog::error("{}", e.what());
+    return 1;
+  } catch (const std::exception& e) {
+    spdlog::error("merge failed: {}", e.what());
+    return 1;
+  }
+}
+
+}  // namespace tessera::cli

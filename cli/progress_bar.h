@@ -1,0 +1,52 @@
+// The progress display shared by `tessera render` (local or farm) and `tessera submit`.
+#pragma once
+
+#include "core/render.h"
+
+#include <cstdio>
+#include <string>
+
+#include <unistd.h>
+
+namespace tessera::cli {
+
+/// "12.3s", "4m05s" or "1h02m".
+inline std::string format_duration(double s) {
+  char buf[64];
+  if (s < 60) std::snprintf(buf, sizeof buf, "%.1fs", s);
+  else if (s < 3600) std::snprintf(buf, sizeof buf, "%dm%02ds", int(s) / 60, int(s) % 60);
+  else std::snprintf(buf, sizeof buf, "%dh%02dm", int(s) / 3600, (int(s) / 60) % 60);
+  return buf;
+}
+
+/// A one-line progress bar on a terminal; on a pipe, a line at every 10% instead. Ray rates are shown when known.
+class ProgressBar {
+ public:
+  /// A bar that prints nothing unless enabled.
+  explicit ProgressBar(bool enabled) : enabled_(enabled), tty_(isatty(STDERR_FILENO)) {}
+  /// Shows p (tiles done of total, rays and elapsed time).
+  void update(const RenderProgress& p) {
+    if (!enabled_ || p.tiles_total == 0) return;
+    const double frac = double(p.tiles_done) / p.tiles_total;
+    const double eta = frac > 0 ? p.seconds * (1 - frac) / frac : 0;
+    char rate[48] = "";
+    if (p.rays > 0 && p.seconds > 0) std::snprintf(rate, sizeof rate, "  %.1f Mrays/s", double(p.rays) / p.seconds * 1e-6);
+    if (tty_) {
+      constexpr int kWidth = 30;
+      const int filled = int(frac * kWidth);
+      std::fprintf(stderr, "\r[%.*s%*s] %d/%d tiles%s  ETA %s   ", filled, "##############################",
+                   kWidth - filled, "", p.tiles_done, p.tiles_total, rate, format_duration(eta).c_str());
+      if (p.tiles_done == p.tiles_total) std::fputc('\n', stderr);
+    } else if (int(frac * 10) > last_decile_ || p.tiles_done == p.tiles_total) {
+      last_decile_ = int(frac * 10);
+      std::fprintf(stderr, "%3d%%  %d/%d tiles%s  ETA %s\n", int(frac * 100), p.tiles_done, p.tiles_total, rate,
+                   format_duration(eta).c_str());
+    }
+  }
+
+ private:
+  bool enabled_, tty_;
+  int last_decile_ = -1;
+};
+
+}  // namespace tessera::cli

@@ -1,0 +1,161 @@
+#include "cli/render_farm.h"
+
+#include "cli/submit_command.h"
+#include "core/image.h"
+#include "worker/child_process.h"
+#include "worker/http_client.h"
+
+#include <spdlog/spdlog.h>
+
+#include <atomic>
+#include <csignal>
+#include <cstdlib>
+#include <fstream>
+#include <thread>
+
+namespace tessera::cli {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+namespace {
+
+std::atomic<int> g_interrupts{0};
+extern "C" void on_interrupt(int) { g_interrupts.fetch_add(1); }
+
+// Installs the Ctrl-C/SIGTERM handler for the lifetime of the object and restores the previous ones after.
+class InterruptGuard {
+ public:
+  InterruptGuard() {
+    struct sigaction sa {};
+    sa.sa_handler = on_interrupt;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = SA_RESTART;
+    sigaction(SIGINT, &sa, &old_int_);
+    sigaction(SIGTERM, &sa, &old_term_);
+  }
+  ~InterruptGuard() {
+    sigaction(SIGINT, &old_int_, nullptr);
+    sigaction(SIGTERM, &old_term_, nullptr);
+  }
+  InterruptGuard(const InterruptGuard&) = delete;
+  InterruptGuard& operator=(const InterruptGuard&) = delete;
+
+ private:
+  struct sigaction old_int_ {}, old_term_ {};
+};
+
+fs::path make_temp_dir() {
+  const char* base = std::getenv("TMPDIR");
+  std::string pattern = std::string(base && *base ? base : "/tmp") + "/tessera-render-XXXXXX";
+  if (!::mkdtemp(pattern.data())) throw std::runtime_error("cannot create a temporary folder: " + std::string(std::strerror(errno)));
+  return pattern;
+}
+
+// Waits for the coordinator's ready file (host:port) while checking that it is still running.
+std::string wait_for_ready(const fs::path& ready, farm::ChildProcess& serve) {
+  const auto deadline = std::chrono::steady_clock::now() + 30s;
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (g_interrupts.load() > 0) throw std::runtime_error("interrupted while the coordinator was starting");
+    std::ifstream in(ready);
+    std::string address;
+    if (in && std::getline(in, address) && address.find(':') != std::string::npos) return address;
+    if (farm::child_exited(serve))
+      throw std::runtime_error("the coordinator " + farm::describe_exit(serve) + " before it was ready; its log:\n" +
+                               farm::tail_of_file(serve.log, 20));
+    std::this_thread::sleep_for(20ms);
+  }
+  throw std::runtime_error("the coordinator did not write " + ready.string() + " within 30 s; its log:\n" +
+                           farm::tail_of_file(serve.log, 20));
+}
+
+}  // namespace
+
+int run_render_farm(const RenderArgs& a) {
+  if (!a.crop.empty() || a.variance) {
+    spdlog::error("--workers renders whole images without variance channels: drop --crop/--variance");
+    return 2;
+  }
+  InterruptGuard guard;
+  g_interrupts.store(0);
+  std::vector<farm::ChildProcess> children;
+  fs::path dir;
+  int rc = 1;
+  bool show_logs = false;
+  try {
+    dir = make_temp_dir();
+    const std::string self = fs::read_symlink("/proc/self/exe").string();
+    const fs::path ready = dir / "ready";
+    children.push_back(farm::spawn_child({self, "serve", "--listen", "127.0.0.1:0", "--ready-file", ready.string(),
+                                          "--data", (dir / "data").string()},
+                                         "coordinator", dir / "serve.log"));
+    const std::string address = wait_for_ready(ready, children[0]);
+    const std::string url = "http://" + address;
+    const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+    const int threads = a.threads > 0 ? a.threads : std::max(1, int(cores) / a.workers);
+    for (int i = 0; i < a.workers; ++i)
+      children.push_back(farm::spawn_child({self, "worker", "--coordinator", url, "--threads", std::to_string(threads),
+                                            "--cache", (dir / "cache").string(), "--name", "local-" + std::to_string(i)},
+                                           "worker " + std::to_string(i), dir / ("worker-" + std::to_string(i) + ".log")));
+    if (!a.quiet)
+      std::fprintf(stderr, "coordinator on %s, %d worker(s) with %d thread(s) each\n", url.c_str(), a.workers, threads);
+
+    farm::HttpClient http(farm::parse_http_url(url));
+    farm::SubmitOptions o;
+    o.scene = a.scene;
+    o.spp = a.spp;
+    o.seed = a.seed;
+    o.tile_size = a.farm_tile;
+    o.force_direct = !a.integrator.empty();
+    if (!a.asset_root.empty()) o.asset_root = a.asset_root;
+    rc = submit_and_wait(http, o, a.output, a.quiet, [&] {
+      if (g_interrupts.load() > 0) return true;
+      // Every worker gone means no progress is possible.
+      bool all_workers_gone = true;
+      for (size_t i = 1; i < children.size(); ++i) all_workers_gone &= farm::child_exited(children[i]);
+      return all_workers_gone || farm::child_exited(children[0]);
+    });
+    if (rc == 0 && (a.half || !a.preview.empty())) {
+      const ExrImage img = read_exr(a.output);
+      if (a.half) {
+        ExrWriteOptions wo;
+        wo.half = true;
+        wo.data_window = img.data_window;
+        wo.display_window = img.display_window;
+        wo.metadata = img.metadata;
+        write_exr(a.output, img.pixels, wo);
+      }
+      if (!a.preview.empty()) write_png_srgb(a.preview, img.pixels);
+    }
+    if (g_interrupts.load() > 0) {
+      spdlog::warn("interrupted");
+      rc = 130;
+    }
+    show_logs = rc == 1;  // 2: the coordinator refused the job and said why; 130: interrupted
+  } catch (const std::exception& e) {
+    spdlog::error("render --workers: {}", e.what());
+    rc = 1;
+    show_logs = true;
+  }
+  // Workers first (told twice when the render did not finish, so they drop their tile at once), then the coordinator.
+  std::vector<farm::ChildProcess> workers(children.begin() + std::min<size_t>(1, children.size()), children.end());
+  std::vector<farm::ChildProcess> serve(children.begin(), children.begin() + std::min<size_t>(1, children.size()));
+  auto killed = farm::stop_children(workers, 5s, rc == 0 ? 1 : 2);
+  const auto killed_serve = farm::stop_children(serve, 5s);
+  killed.insert(killed.end(), killed_serve.begin(), killed_serve.end());
+  for (const auto& name : killed) spdlog::warn("{} did not stop within 5 s and was killed", name);
+  children = serve;
+  children.insert(children.end(), workers.begin(), workers.end());
+  if (show_logs) {
+    for (const auto& c : children)
+      spdlog::error("{} ({}), last lines of {}:\n{}", c.name, farm::describe_exit(c), c.log.string(),
+                    farm::tail_of_file(c.log, 8));
+    if (!dir.empty()) spdlog::error("logs kept in {}", dir.string());
+  } else if (!dir.empty()) {
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+  }
+  return rc;
+}
+
+}  // namespace tessera::cli

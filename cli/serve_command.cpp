@@ -1,0 +1,50 @@
+#include "cli/serve_command.h"
+
+#include "server/coordinator.h"
+#include "server/storage.h"
+
+#include <spdlog/spdlog.h>
+
+namespace tessera::cli {
+
+CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
+  auto* c = app.add_subcommand("serve", "Run the coordinator (HTTP API, tile scheduler, merge)");
+  c->add_option("--listen", a.listen, "HOST:PORT to listen on (loopback only; port 0 picks a free one)")->capture_default_str();
+  c->add_option("--data", a.data, "Data folder: blobs/, jobs/<id>/ (created if missing)")->required();
+  c->add_option("--ready-file", a.ready_file, "Write the bound host:port here once listening");
+  c->add_option("--lease-seconds", a.lease_seconds, "Lease length in seconds")->check(CLI::Range(0.05, 86400.0))->capture_default_str();
+  c->add_option("--heartbeat-seconds", a.heartbeat_seconds, "Heartbeat interval announced to workers")
+      ->check(CLI::Range(1, 3600))->capture_default_str();
+  c->add_option("--read-timeout-seconds", a.read_timeout_seconds, "A whole request must arrive within this time")
+      ->check(CLI::Range(0.1, 3600.0))->capture_default_str();
+  c->add_option("--threads", a.threads, "Request handler threads (0: all cores)")->check(CLI::Range(0, 1024));
+  c->add_flag("-v,--verbose", a.verbose, "Log every lease and connection event");
+  return c;
+}
+
+int run_serve(const ServeArgs& a) {
+  try {
+    if (a.verbose) spdlog::set_level(spdlog::level::debug);
+    server::CoordinatorOptions o;
+    std::tie(o.host, o.port) = server::parse_listen_address(a.listen);
+    o.data_dir = a.data;
+    o.lease_seconds = a.lease_seconds;
+    o.heartbeat_seconds = a.heartbeat_seconds;
+    o.read_timeout = std::chrono::milliseconds(int64_t(a.read_timeout_seconds * 1000));
+    o.handler_threads = a.threads;
+    o.handle_signals = true;
+    server::Coordinator coordinator(o);
+    const auto ep = coordinator.endpoint();
+    const std::string bound = ep.address().to_string() + ":" + std::to_string(ep.port());
+    if (!a.ready_file.empty()) server::write_file_atomic(a.ready_file, bound + "\n");
+    spdlog::info("coordinator listening on http://{} (data in {}, leases {}s, heartbeats {}s)", bound, a.data,
+                 a.lease_seconds, a.heartbeat_seconds);
+    coordinator.run();
+    return 0;
+  } catch (const std::exception& e) {
+    spdlog::error("serve: {}", e.what());
+    return 1;
+  }
+}
+
+}  // namespace tessera::cli

@@ -1,0 +1,28 @@
+// `tessera serve`: run the farm coordinator (HTTP API, tile scheduler, merge) on this machine.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <string>
+
+namespace tessera::cli {
+
+/// Options of `tessera serve`.
+struct ServeArgs {
+  std::string listen = "127.0.0.1:8470";  ///< HOST:PORT to bind (port 0: ephemeral).
+  std::string data;                       ///< Data folder (blobs, jobs).
+  std::string ready_file;                 ///< Written with the bound host:port once listening.
+  double lease_seconds = 30;              ///< Lease length.
+  int heartbeat_seconds = 5;              ///< Heartbeat interval announced to workers.
+  double read_timeout_seconds = 30;       ///< Whole-request read timeout.
+  int threads = 0;                        ///< Request handler threads (0: cores).
+  bool verbose = false;                   ///< Debug logging.
+};
+
+/// Registers the subcommand's options on `app`.
+CLI::App* add_serve_command(CLI::App& app, ServeArgs& args);
+
+/// Runs the coordinator until SIGINT/SIGTERM; returns the process exit code (errors are reported, never thrown).
+int run_serve(const ServeArgs& args);
+
+}  // namespace tessera::cli

@@ -1,0 +1,116 @@
+#include "cli/submit_command.h"
+
+#include "cli/progress_bar.h"
+#include "core/scene_loader.h"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <cstdio>
+
+namespace tessera::cli {
+
+CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
+  auto* c = app.add_subcommand("submit", "Submit a scene to a coordinator and fetch the result");
+  c->add_option("scene", a.scene, "Scene file (course JSON format)")->required()->check(CLI::ExistingFile);
+  c->add_option("--coordinator", a.coordinator, "Coordinator URL, e.g. http://127.0.0.1:8470")->required();
+  c->add_option("-o,--output", a.output, "Download the finished image to this EXR file");
+  c->add_option("--spp", a.spp, "Samples per pixel (default: the scene's)")->check(CLI::Range(1u, 1u << 20));
+  c->add_option("--tile", a.tile_size, "Tile edge in pixels")->check(CLI::Range(1, 4096));
+  c->add_option("--priority", a.priority, "Job priority (higher first)");
+  c->add_option("--seed", a.seed, "Sample seed");
+  c->add_option("--name", a.name, "Job label (default: the scene's file name)");
+  c->add_option("--integrator", a.integrator, "Render with this integrator whatever the scene says")
+      ->check(CLI::IsMember({"direct"}));
+  c->add_option("--asset-root", a.asset_root, "Allow asset paths anywhere below this folder");
+  c->add_flag("--detach", a.detach, "Print the job id and return without waiting");
+  c->add_flag("-q,--quiet", a.quiet, "No progress bar");
+  return c;
+}
+
+int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& o, const std::string& output, bool quiet,
+                    const std::function<bool()>& stop) {
+  std::string job;
+  try {
+    const auto t0 = std::chrono::steady_clock::now();
+    const farm::SubmitResult sub = farm::submit_job(http, o);
+    job = sub.job_id;
+    if (!quiet)
+      std::fprintf(stderr, "submitted %s as %s (%d assets, %d uploaded)\n", o.scene.c_str(), job.c_str(),
+                   sub.assets_total, sub.assets_uploaded);
+    ProgressBar bar(!quiet);
+    const farm::JobStatus end = farm::wait_for_job(
+        http, job,
+        [&](const farm::JobStatus& s) {
+          const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+          bar.update(RenderProgress{int(s.tiles_done), int(s.tiles_total), 0, secs});
+        },
+        stop);
+    if (!end.finished()) {
+      spdlog::warn("interrupted: cancelling {}", job);
+      try {
+        farm::cancel_job(http, job);
+      } catch (const std::exception& e) {
+        spdlog::warn("cannot cancel {}: {}", job, e.what());
+      }
+      return 1;
+    }
+    if (end.state == "failed") {
+      spdlog::error("job {} failed: {}", job, end.error.empty() ? "(no reason given)" : end.error);
+      return 1;
+    }
+    if (end.state == "cancelled") {
+      spdlog::error("job {} was cancelled", job);
+      return 1;
+    }
+    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (!output.empty()) {
+      const uint64_t bytes = farm::download_result(http, job, output);
+      if (!quiet)
+        std::fprintf(stderr, "%s: %dx%d px, %lld tiles, %.2fs (%.2fs of worker render time), %llu bytes\n",
+                     output.c_str(), end.width, end.height, static_cast<long long>(end.tiles_total), secs,
+                     end.render_seconds, static_cast<unsigned long long>(bytes));
+    } else if (!quiet) {
+      std::fprintf(stderr, "%s done in %.2fs\n", job.c_str(), secs);
+    }
+    return 0;
+  } catch (const farm::SubmitError& e) {
+    spdlog::error("{}", e.what());
+    return job.empty() ? 2 : 1;
+  } catch (const SceneError& e) {
+    spdlog::error("{}", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    spdlog::error("{}{}", job.empty() ? "" : "job " + job + ": ", e.what());
+    return 1;
+  }
+}
+
+int run_submit(const SubmitArgs& a) {
+  try {
+    farm::HttpClient http(farm::parse_http_url(a.coordinator));
+    farm::SubmitOptions o;
+    o.scene = a.scene;
+    o.spp = a.spp;
+    o.seed = a.seed;
+    o.tile_size = a.tile_size;
+    o.priority = a.priority;
+    o.name = a.name;
+    o.force_direct = !a.integrator.empty();
+    if (!a.asset_root.empty()) o.asset_root = a.asset_root;
+    if (a.detach) {
+      const farm::SubmitResult sub = farm::submit_job(http, o);
+      std::printf("%s\n", sub.job_id.c_str());
+      return 0;
+    }
+    return submit_and_wait(http, o, a.output, a.quiet, {});
+  } catch (const farm::SubmitError& e) {
+    spdlog::error("{}", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    spdlog::error("submit: {}", e.what());
+    return 1;
+  }
+}
+
+}  // namespace tessera::cli

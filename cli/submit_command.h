@@ -1,0 +1,44 @@
+// `tessera submit`: send a scene to a coordinator, follow its progress, download the result.
+#pragma once
+
+#include "worker/http_client.h"
+#include "worker/job_client.h"
+
+#include <CLI/CLI.hpp>
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+
+namespace tessera::cli {
+
+/// Options of `tessera submit`.
+struct SubmitArgs {
+  std::string scene;                ///< Scene file.
+  std::string coordinator;          ///< Coordinator URL.
+  std::string output;               ///< Where to write result.exr (empty: do not download).
+  std::optional<uint32_t> spp;      ///< Samples per pixel override.
+  int tile_size = 64;               ///< Tile edge.
+  int priority = 0;                 ///< Job priority.
+  uint64_t seed = 0;                ///< Sample seed.
+  std::string name;                 ///< Job label.
+  std::string integrator;           ///< "direct": submit scenes of other integrator types.
+  std::string asset_root;           ///< Allow assets anywhere below this folder.
+  bool detach = false;              ///< Print the job id and return without waiting.
+  bool quiet = false;               ///< No progress bar.
+};
+
+/// Registers the subcommand's options on `app`.
+CLI::App* add_submit_command(CLI::App& app, SubmitArgs& args);
+
+/// Runs it; returns the process exit code: 0 done (and downloaded), 1 failed/cancelled or transport errors, 2 refused.
+int run_submit(const SubmitArgs& args);
+
+/// Submits, shows progress until the job ends and downloads the result to `output` (when not empty); the shared
+/// core of `submit` and `render --workers`. stop() interrupts the wait (the job is then cancelled). Returns the exit
+/// code as run_submit does; reports errors itself.
+int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& options, const std::string& output, bool quiet,
+                    const std::function<bool()>& stop);
+
+}  // namespace tessera::cli

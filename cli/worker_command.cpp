@@ -1,0 +1,57 @@
+#include "cli/worker_command.h"
+
+#include "worker/worker.h"
+
+#include <spdlog/spdlog.h>
+
+#include <atomic>
+#include <csignal>
+
+namespace tessera::cli {
+
+namespace {
+
+std::atomic<int> g_stop_requests{0};
+static_assert(std::atomic<int>::is_always_lock_free, "the signal handler needs a lock-free counter");
+
+extern "C" void on_stop_signal(int) { g_stop_requests.fetch_add(1); }
+
+}  // namespace
+
+CLI::App* add_worker_command(CLI::App& app, WorkerArgs& a) {
+  auto* c = app.add_subcommand("worker", "Run a worker that leases and renders tiles");
+  c->add_option("--coordinator", a.coordinator, "Coordinator URL, e.g. http://127.0.0.1:8470")->required();
+  c->add_option("--threads", a.threads, "Render threads (default: all cores)")->check(CLI::Range(0, 4096));
+  c->add_option("--cache", a.cache, "Asset cache folder (default: $XDG_CACHE_HOME/tessera or ~/.cache/tessera)");
+  c->add_option("--name", a.name, "Name reported to the coordinator (default: host name and process id)");
+  c->add_flag("-v,--verbose", a.verbose, "Debug logging");
+  c->footer("SIGTERM or SIGINT: finish and upload the current tile, then exit 0. A second one: stop rendering, hand "
+            "the tile back, exit 0.");
+  return c;
+}
+
+int run_worker_command(const WorkerArgs& a) {
+  try {
+    if (a.verbose) spdlog::set_level(spdlog::level::debug);
+    struct sigaction sa {};
+    sa.sa_handler = on_stop_signal;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = SA_RESTART;
+    sigaction(SIGTERM, &sa, nullptr);
+    sigaction(SIGINT, &sa, nullptr);
+    std::signal(SIGPIPE, SIG_IGN);
+
+    farm::WorkerOptions o;
+    o.coordinator = a.coordinator;
+    o.threads = a.threads;
+    o.cache_dir = a.cache;
+    o.name = a.name;
+    farm::run_worker(o, g_stop_requests);
+    return 0;
+  } catch (const std::exception& e) {
+    spdlog::error("worker: {}", e.what());
+    return 2;
+  }
+}
+
+}  // namespace tessera::cli

@@ -1,0 +1,25 @@
+// `tessera worker`: lease tiles from a coordinator, render them, upload them.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <string>
+
+namespace tessera::cli {
+
+/// Options of `tessera worker`.
+struct WorkerArgs {
+  std::string coordinator;  ///< Coordinator URL.
+  int threads = 0;          ///< Render threads (0: all cores).
+  std::string cache;        ///< Asset cache folder (empty: the default).
+  std::string name;         ///< Worker name (empty: host-pid).
+  bool verbose = false;     ///< Debug logging.
+};
+
+/// Registers the subcommand's options on `app`.
+CLI::App* add_worker_command(CLI::App& app, WorkerArgs& args);
+
+/// Runs the worker until SIGTERM/SIGINT; returns the process exit code (0 after a clean stop).
+int run_worker_command(const WorkerArgs& args);
+
+}  // namespace tessera::cli

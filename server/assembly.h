@@ -1,0 +1,47 @@
+// Merging tiles into a job's image: validating uploaded tile EXRs, copying them in, writing the result and previews.
+#pragma once
+
+#include "core/image.h"
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace tessera::server {
+
+/// An uploaded tile after validation: its pixels, or why it was refused.
+struct TileCheck {
+  std::optional<std::string> error;  ///< Why the tile is invalid (nothing when valid).
+  Image pixels;                      ///< The tile's RGB pixels (window-sized) when valid.
+};
+
+/// Reads a tile EXR and checks it: float32 R, G, B channels, display window exactly [0,width) x [0,height), data
+/// window exactly `window`, every value finite. Never throws for bad input; the error says what is wrong.
+TileCheck check_tile_exr(const std::filesystem::path& file, const PixelWindow& window, int width, int height);
+
+/// One job's float image, filled tile by tile. Thread-safe.
+class JobImage {
+ public:
+  /// A black width x height image; its memory is allocated on the first paste.
+  JobImage(int width, int height);
+  /// Copies a window-sized tile into the image; throws std::invalid_argument when it does not fit.
+  void paste(const Image& tile, const PixelWindow& window);
+  /// An sRGB PNG of the image as far as it is filled (black elsewhere).
+  std::vector<uint8_t> preview_png();
+  /// Writes the image atomically as a float32 EXR with string metadata; throws ImageError naming the file.
+  void write_exr(const std::filesystem::path& path, const std::map<std::string, std::string>& metadata);
+  /// Frees the pixels (after the result is written).
+  void release();
+
+ private:
+  void allocate_locked();
+  int width_, height_;
+  std::mutex mu_;
+  Image image_;
+};
+
+}  // namespace tessera::server

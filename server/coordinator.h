@@ -1,0 +1,54 @@
+// The coordinator process: storage, scheduler, API and HTTP transport wired together, with graceful shutdown.
+#pragma once
+
+#include "server/api.h"
+
+#include <boost/asio/ip/tcp.hpp>
+
+#include <chrono>
+#include <cstddef>
+#include <filesystem>
+#include <memory>
+#include <string>
+
+namespace tessera::server {
+
+/// Everything `tessera serve` can be told.
+struct CoordinatorOptions {
+  std::string host = "127.0.0.1";              ///< Address to bind (loopback only: access tokens are not implemented).
+  unsigned short port = 8470;                  ///< Port (0: an ephemeral one).
+  std::filesystem::path data_dir;              ///< Holds blobs/, jobs/ and tmp/.
+  double lease_seconds = 30;                   ///< Lease length.
+  int heartbeat_seconds = 5;                   ///< Heartbeat interval announced to workers.
+  ApiOptions limits;                           ///< Body size limits.
+  std::chrono::milliseconds read_timeout{30'000};  ///< Whole-request read timeout.
+  int io_threads = 1;                          ///< Network threads.
+  int handler_threads = 0;                     ///< Request handler threads (0: max(2, cores)).
+  bool handle_signals = false;                 ///< Stop gracefully on SIGINT/SIGTERM.
+};
+
+/// A running coordinator. Construction binds the port; run() serves until stop() (or a signal).
+class Coordinator {
+ public:
+  /// Opens the stores under data_dir and binds; throws std::runtime_error with context on failure.
+  explicit Coordinator(CoordinatorOptions options);
+  ~Coordinator();
+  Coordinator(const Coordinator&) = delete;
+  Coordinator& operator=(const Coordinator&) = delete;
+
+  /// The bound address.
+  boost::asio::ip::tcp::endpoint endpoint() const;
+  /// Serves on this thread (plus io_threads - 1 more) until stopped; in-flight requests finish first.
+  void run();
+  /// Asks run() to stop gracefully; callable from any thread, more than once.
+  void stop();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Splits "HOST:PORT" (or ":PORT", or "PORT") into host and port; throws std::invalid_argument naming the text.
+std::pair<std::string, unsigned short> parse_listen_address(const std::string& text);
+
+}  // namespace tessera::server

@@ -1,0 +1,250 @@
+#include "server/http_server.h"
+
+#include <boost/asio/dispatch.hpp>
+#include <boost/asio/executor_work_guard.hpp>
+#include <boost/asio/post.hpp>
+#include <boost/asio/strand.hpp>
+#include <boost/beast/core.hpp>
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include <array>
+#include <atomic>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <optional>
+
+namespace tessera::server {
+
+namespace asio = boost::asio;
+namespace beast = boost::beast;
+using tcp = asio::ip::tcp;
+
+HttpResponse json_error(http::status status, const std::string& text, unsigned version) {
+  HttpResponse res{status, version};
+  res.set(http::field::content_type, "application/json");
+  res.body() = nlohmann::json{{"error", text}}.dump();
+  res.prepare_payload();
+  return res;
+}
+
+class Session;
+
+struct HttpServer::State {
+  State(asio::io_context& i, asio::thread_pool& p, HttpHandler& h, HttpServerOptions o)
+      : ioc(i), pool(p), handler(h), opt(std::move(o)), acceptor(asio::make_strand(i)) {}
+  asio::io_context& ioc;
+  asio::thread_pool& pool;
+  HttpHandler& handler;
+  HttpServerOptions opt;
+  tcp::acceptor acceptor;
+  std::atomic<bool> stopping{false};
+  std::mutex mu;
+  std::map<uint64_t, std::weak_ptr<Session>> sessions;
+  uint64_t next_session = 1;
+};
+
+// One connection: reads a request header, picks the body limit, reads the body, hands the request to the handler
+// pool and writes the answer, all on the connection's strand; keep-alive loops back to the next header.
+class Session : public std::enable_shared_from_this<Session> {
+ public:
+  Session(tcp::socket&& socket, std::shared_ptr<HttpServer::State> st, uint64_t id)
+      : stream_(std::move(socket)), st_(std::move(st)), id_(id) {}
+
+  ~Session() {
+    std::lock_guard lock(st_->mu);
+    st_->sessions.erase(id_);
+  }
+
+  void run() { asio::dispatch(stream_.get_executor(), beast::bind_front_handler(&Session::read_header, shared_from_this())); }
+
+  // Called at shutdown: a connection waiting for its next request is closed now; a busy one closes after answering.
+  void stop_if_idle() {
+    asio::dispatch(stream_.get_executor(), [self = shared_from_this()] {
+      if (self->waiting_ && self->parser_ && !self->parser_->got_some()) self->stream_.cancel();
+    });
+  }
+
+ private:
+  void read_header() {
+    if (st_->stopping) return close();
+    parser_.emplace();
+    parser_->header_limit(std::uint32_t(st_->opt.header_limit));
+    parser_->body_limit(std::numeric_limits<std::uint64_t>::max());
+    waiting_ = true;
+    stream_.expires_after(st_->opt.read_timeout);  // covers the whole request, body included
+    http::async_read_header(stream_, buffer_, *parser_, beast::bind_front_handler(&Session::on_header, shared_from_this()));
+  }
+
+  void on_header(beast::error_code ec, std::size_t) {
+    waiting_ = false;
+    if (ec) return on_read_error(ec);
+    const auto& req = parser_->get();
+    const std::size_t limit = st_->handler.body_limit(req.base());
+    parser_->body_limit(limit);
+    if (const auto len = parser_->content_length(); len && *len > limit)
+      return too_large(limit);
+    if (beast::iequals(req[http::field::expect], "100-continue")) {
+      auto cont = std::make_shared<http::response<http::empty_body>>(http::status::continue_, req.version());
+      http::async_write(stream_, *cont, [self = shared_from_this(), cont](beast::error_code wec, std::size_t) {
+        if (wec) return self->close();
+        self->read_body();
+      });
+      return;
+    }
+    read_body();
+  }
+
+  void read_body() {
+    http::async_read(stream_, buffer_, *parser_, beast::bind_front_handler(&Session::on_body, shared_from_this()));
+  }
+
+  void on_read_error(beast::error_code ec) {
+    if (ec == http::error::body_limit) return too_large(std::size_t(-1));
+    if (ec == http::error::end_of_stream || ec == beast::error::timeout || ec == asio::error::operation_aborted ||
+        ec == asio::error::eof || ec == asio::error::connection_reset) {
+      if (ec == beast::error::timeout) spdlog::debug("connection {}: read timeout, closed", id_);
+      return close();
+    }
+    if (ec == http::error::header_limit) return reply_and_close(json_error(http::status::bad_request, "request header too large"));
+    reply_and_close(json_error(http::status::bad_request, "malformed HTTP request: " + ec.message()));
+  }
+
+  void too_large(std::size_t limit) {
+    const std::string what = limit == std::size_t(-1) ? std::string("request body is larger than the limit")
+                                                      : "request body is larger than the limit of " + std::to_string(limit) + " bytes";
+    reply_and_close(json_error(http::status::payload_too_large, what));
+  }
+
+  void on_body(beast::error_code ec, std::size_t) {
+    if (ec) return on_read_error(ec);
+    stream_.expires_never();  // the handler may take a while; the write sets its own deadline
+    HttpRequest req = parser_->release();
+    const bool keep_alive = req.keep_alive();
+    auto work = asio::make_work_guard(stream_.get_executor());  // keeps run() going while the pool works
+    asio::post(st_->pool, [self = shared_from_this(), req = std::move(req), keep_alive, work = std::move(work)]() mutable {
+      HttpResponse res = self->st_->handler.handle(std::move(req));
+      asio::post(self->stream_.get_executor(), [self, res = std::move(res), keep_alive, work = std::move(work)]() mutable {
+        self->write(std::move(res), keep_alive && !self->st_->stopping);
+      });
+    });
+  }
+
+  void reply_and_close(HttpResponse res) { write(std::move(res), false); }
+
+  void write(HttpResponse res, bool keep_alive) {
+    res.keep_alive(keep_alive);
+    if (!res.has_content_length() && !res.chunked()) res.prepare_payload();
+    auto sp = std::make_shared<HttpResponse>(std::move(res));
+    stream_.expires_after(st_->opt.read_timeout);
+    http::async_write(stream_, *sp, [self = shared_from_this(), sp](beast::error_code ec, std::size_t) {
+      if (ec) {
+        spdlog::debug("connection {}: write failed: {}", self->id_, ec.message());
+        return self->close();
+      }
+      if (!sp->keep_alive()) return self->close();
+      self->read_header();
+    });
+  }
+
+  // Half-closes, then reads and discards what the client still sends (for at most a second) before closing, so an
+  // unread request body does not turn the close into a reset that destroys the response in flight.
+  void close() {
+    if (closing_) return;
+    closing_ = true;
+    waiting_ = false;
+    beast::error_code ec;
+    stream_.socket().shutdown(tcp::socket::shutdown_send, ec);
+    if (ec) {
+      stream_.socket().close(ec);
+      return;
+    }
+    stream_.expires_after(std::chrono::seconds(1));
+    drain();
+  }
+
+  void drain() {
+    stream_.async_read_some(asio::buffer(drain_), [self = shared_from_this()](beast::error_code ec, std::size_t) {
+      if (!ec) return self->drain();
+      beast::error_code ignored;
+      self->stream_.socket().close(ignored);
+    });
+  }
+
+  beast::tcp_stream stream_;
+  beast::flat_buffer buffer_;
+  std::optional<http::request_parser<http::string_body>> parser_;
+  std::shared_ptr<HttpServer::State> st_;
+  uint64_t id_;
+  bool waiting_ = false;
+  bool closing_ = false;
+  std::array<char, 4096> drain_;
+};
+
+namespace {
+
+void accept_next(const std::shared_ptr<HttpServer::State>& st) {
+  st->acceptor.async_accept(asio::make_strand(st->ioc), [st](beast::error_code ec, tcp::socket socket) {
+    if (ec == asio::error::operation_aborted || !st->acceptor.is_open() || st->stopping) return;
+    if (ec) {
+      spdlog::warn("accept failed: {}", ec.message());
+    } else {
+      std::shared_ptr<Session> s;
+      {
+        std::lock_guard lock(st->mu);
+        const uint64_t id = st->next_session++;
+        s = std::make_shared<Session>(std::move(socket), st, id);
+        st->sessions.emplace(id, s);
+      }
+      s->run();
+    }
+    accept_next(st);
+  });
+}
+
+}  // namespace
+
+HttpServer::HttpServer(asio::io_context& ioc, asio::thread_pool& handlers, HttpHandler& handler, HttpServerOptions options)
+    : state_(std::make_shared<State>(ioc, handlers, handler, std::move(options))) {
+  const std::string where = state_->opt.host + ":" + std::to_string(state_->opt.port);
+  beast::error_code ec;
+  const auto addr = asio::ip::make_address(state_->opt.host, ec);
+  if (ec) throw std::runtime_error("cannot listen on " + where + ": bad address: " + ec.message());
+  const tcp::endpoint ep{addr, state_->opt.port};
+  auto& a = state_->acceptor;
+  if (a.open(ep.protocol(), ec); ec) throw std::runtime_error("cannot listen on " + where + ": open: " + ec.message());
+  if (a.set_option(asio::socket_base::reuse_address(true), ec); ec)
+    throw std::runtime_error("cannot listen on " + where + ": SO_REUSEADDR: " + ec.message());
+  if (a.bind(ep, ec); ec) throw std::runtime_error("cannot listen on " + where + ": bind: " + ec.message());
+  if (a.listen(asio::socket_base::max_listen_connections, ec); ec)
+    throw std::runtime_error("cannot listen on " + where + ": listen: " + ec.message());
+}
+
+HttpServer::~HttpServer() = default;
+
+tcp::endpoint HttpServer::endpoint() const {
+  beast::error_code ec;
+  return state_->acceptor.local_endpoint(ec);
+}
+
+void HttpServer::start() {
+  asio::dispatch(state_->acceptor.get_executor(), [st = state_] { accept_next(st); });
+}
+
+void HttpServer::shutdown() {
+  state_->stopping = true;
+  asio::post(state_->acceptor.get_executor(), [st = state_] {
+    beast::error_code ec;
+    st->acceptor.close(ec);
+  });
+  std::vector<std::shared_ptr<Session>> live;
+  {
+    std::lock_guard lock(state_->mu);
+    for (auto& [id, w] : state_->sessions)
+      if (auto s = w.lock()) live.push_back(std::move(s));
+  }
+  for (auto& s : live) s->stop_if_idle();
+}
+
+}  // namespace tessera::server

@@ -1,0 +1,67 @@
+// HTTP transport: an async Boost.Beast listener and per-connection sessions that hand whole requests to a handler.
+#pragma once
+
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/thread_pool.hpp>
+#include <boost/beast/http.hpp>
+
+#include <chrono>
+#include <cstddef>
+#include <memory>
+#include <string>
+
+namespace tessera::server {
+
+namespace http = boost::beast::http;
+
+/// A whole HTTP request as the handler sees it.
+using HttpRequest = http::request<http::string_body>;
+/// A whole HTTP response.
+using HttpResponse = http::response<http::string_body>;
+
+/// A JSON error response `{"error": text}` with the given status.
+HttpResponse json_error(http::status status, const std::string& text, unsigned version = 11);
+
+/// The application behind the transport.
+class HttpHandler {
+ public:
+  virtual ~HttpHandler() = default;
+  /// The largest body accepted for a request with this header (larger ones get 413).
+  virtual std::size_t body_limit(const http::request_header<>& header) = 0;
+  /// Answers a request; runs on the handler pool and must not throw.
+  virtual HttpResponse handle(HttpRequest&& request) noexcept = 0;
+};
+
+/// Transport settings.
+struct HttpServerOptions {
+  std::string host = "127.0.0.1";                      ///< Address to bind.
+  unsigned short port = 0;                             ///< Port (0: any free one).
+  std::chrono::milliseconds read_timeout{30'000};      ///< A whole request (or keep-alive idle time) must fit in it.
+  std::size_t header_limit = 64 * 1024;                ///< Largest request header.
+};
+
+/// Accepts connections and runs one session per connection (each on its own strand); requests are answered on a
+/// separate handler pool so slow handlers never block the network threads.
+class HttpServer {
+ public:
+  /// Binds and listens (throws std::runtime_error naming the address on failure); call start() to accept.
+  HttpServer(boost::asio::io_context& ioc, boost::asio::thread_pool& handlers, HttpHandler& handler, HttpServerOptions options);
+  ~HttpServer();
+  HttpServer(const HttpServer&) = delete;
+  HttpServer& operator=(const HttpServer&) = delete;
+
+  /// The bound address (with the real port when 0 was asked for).
+  boost::asio::ip::tcp::endpoint endpoint() const;
+  /// Starts accepting connections.
+  void start();
+  /// Stops accepting, closes idle connections, and lets in-flight requests finish (their connections then close).
+  void shutdown();
+
+  struct State;  ///< Shared with sessions (opaque).
+
+ private:
+  std::shared_ptr<State> state_;
+};
+
+}  // namespace tessera::server

@@ -1,0 +1,504 @@
+// The coordinator over real HTTP on a loopback ephemeral port, driven by a small synchronous Beast client.
+#include "server/coordinator.h"
+
+#include "core/render.h"
+#include "core/scene_loader.h"
+#include "core/sha256.h"
+#include "core/tiles.h"
+
+#include <boost/asio/connect.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+namespace tessera::server {
+namespace {
+
+namespace asio = boost::asio;
+namespace beast = boost::beast;
+namespace fs = std::filesystem;
+using nlohmann::json;
+using tcp = asio::ip::tcp;
+
+const fs::path kShared = TESSERA_SHARED_DIR "/compat/rdr171";
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// One response as the client saw it.
+struct Reply {
+  unsigned status = 0;
+  std::string body;
+  http::response<http::string_body> msg;
+  json js() const { return json::parse(body); }
+};
+
+// A synchronous HTTP/1.1 client that can reuse its connection.
+class Client {
+ public:
+  explicit Client(tcp::endpoint ep) : ep_(ep) {}
+  Reply send(http::verb method, const std::string& target, std::string body = {},
+             std::vector<std::pair<std::string, std::string>> headers = {}) {
+    if (!stream_) {
+      stream_.emplace(ioc_);
+      stream_->connect(ep_);
+    }
+    http::request<http::string_body> req{method, target, 11};
+    req.set(http::field::host, "127.0.0.1");
+    for (auto& [k, v] : headers) req.set(k, v);
+    req.body() = std::move(body);
+    req.prepare_payload();
+    http::write(*stream_, req);
+    beast::flat_buffer buf;
+    http::response_parser<http::string_body> parser;
+    parser.body_limit(1u << 30);
+    if (method == http::verb::head) parser.skip(true);
+    http::read(*stream_, buf, parser);
+    Reply r;
+    r.msg = parser.release();
+    r.status = r.msg.result_int();
+    r.body = r.msg.body();
+    if (!r.msg.keep_alive()) close();
+    return r;
+  }
+  void close() {
+    if (!stream_) return;
+    beast::error_code ec;
+    stream_->socket().shutdown(tcp::socket::shutdown_both, ec);
+    stream_.reset();
+  }
+
+ private:
+  asio::io_context ioc_;
+  tcp::endpoint ep_;
+  std::optional<beast::tcp_stream> stream_;
+};
+
+// A coordinator on 127.0.0.1:0 with a fresh data folder, served on a background thread.
+class HttpTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    spdlog::set_level(spdlog::level::warn);
+    dir_ = fs::temp_directory_path() / ("tessera-http-test-" + random_hex(6));
+    CoordinatorOptions o;
+    o.port = 0;
+    o.data_dir = dir_;
+    o.limits.json_limit = 256 * 1024;
+    o.limits.blob_limit = 1 << 20;
+    o.limits.result_limit = 4 << 20;
+    o.handler_threads = 2;
+    coord_ = std::make_unique<Coordinator>(o);
+    thread_ = std::thread([this] { coord_->run(); });
+  }
+  void TearDown() override {
+    coord_->stop();
+    thread_.join();
+    coord_.reset();
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+  }
+  Reply call(http::verb m, const std::string& target, std::string body = {},
+             std::vector<std::pair<std::string, std::string>> headers = {}) {
+    Client c(coord_->endpoint());
+    return c.send(m, target, std::move(body), std::move(headers));
+  }
+  std::string put_blob(const fs::path& file) {
+    const std::string bytes = slurp(file);
+    const std::string h = sha256_hex(bytes);
+    const Reply r = call(http::verb::put, "/v1/blobs/" + h, bytes);
+    EXPECT_TRUE(r.status == 201 || r.status == 200) << r.body;
+    return h;
+  }
+  // Uploads every asset of a sample scene and returns the job body for it.
+  json job_for(const std::string& scene_file) {
+    const json scene = json::parse(slurp(kShared / scene_file));
+    json assets = json::object();
+    for (const std::string& p : scene_asset_paths(scene)) assets[p] = put_blob(kShared / p);
+    return {{"scene", scene}, {"assets", assets}};
+  }
+  std::string submit(const json& body) {
+    const Reply r = call(http::verb::post, "/v1/jobs", body.dump(), {{"Content-Type", "application/json"}});
+    EXPECT_EQ(r.status, 201u) << r.body;
+    return r.js().value("id", "");
+  }
+  std::string register_worker(const std::string& name = "test") {
+    const Reply r = call(http::verb::post, "/v1/workers", json{{"name", name}, {"threads", 1}, {"version", "0"}}.dump());
+    EXPECT_EQ(r.status, 201u) << r.body;
+    return r.js().value("id", "");
+  }
+
+  fs::path dir_;
+  std::unique_ptr<Coordinator> coord_;
+  std::thread thread_;
+};
+
+// A small job on the intersection_test Cornell box: 40x30 pixels, 2 spp, 16-pixel tiles (3x2 tiles, ragged edges).
+json small_cbox(json job) {
+  job["scene"]["film"]["resolution"] = {40, 30};
+  job["spp"] = 2;
+  job["seed"] = 7;
+  job["tile_size"] = 16;
+  return job;
+}
+
+// The Cornell box loaded straight from the sample folder, as the CLI would.
+LoadedScene load_local(const json& scene, uint32_t spp) {
+  LoadOptions lo;
+  lo.spp = spp;
+  return load_scene_json(scene, "scene", [](const std::string& rel, const std::string&) { return kShared / rel; }, lo);
+}
+
+std::string tile_exr(const fs::path& dir, const Image& img, const PixelWindow& window, int w, int h) {
+  const fs::path p = dir / ("tile-" + random_hex(4) + ".exr");
+  ExrWriteOptions o;
+  o.data_window = window;
+  o.display_window = PixelWindow{0, 0, w, h};
+  write_exr(p, img, o);
+  std::string bytes = slurp(p);
+  fs::remove(p);
+  return bytes;
+}
+
+TEST_F(HttpTest, HealthAndMetrics) {
+  Reply r = call(http::verb::get, "/healthz");
+  EXPECT_EQ(r.status, 200u);
+  EXPECT_EQ(r.js()["status"], "ok");
+  r = call(http::verb::get, "/metrics");
+  EXPECT_EQ(r.status, 200u);
+  EXPECT_NE(r.body.find("tessera_jobs{state=\"queued\"} 0"), std::string::npos) << r.body;
+  EXPECT_NE(r.body.find("tessera_http_request_duration_seconds_count{route=\"GET /healthz\"} 1"), std::string::npos) << r.body;
+  EXPECT_EQ(r.msg[http::field::content_type], "text/plain; version=0.0.4");
+}
+
+TEST_F(HttpTest, BlobUploadGoodBadAndRepeat) {
+  const std::string bytes = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  const std::string h = sha256_hex(bytes);
+  EXPECT_EQ(call(http::verb::head, "/v1/blobs/" + h).status, 404u);
+  Reply r = call(http::verb::put, "/v1/blobs/" + h, bytes);
+  EXPECT_EQ(r.status, 201u) << r.body;
+  EXPECT_EQ(r.js()["sha256"], h);
+  EXPECT_EQ(r.js()["size"], bytes.size());
+  r = call(http::verb::put, "/v1/blobs/" + h, bytes);
+  EXPECT_EQ(r.status, 200u) << r.body;
+  EXPECT_EQ(call(http::verb::head, "/v1/blobs/" + h).status, 200u);
+  r = call(http::verb::get, "/v1/blobs/" + h);
+  EXPECT_EQ(r.status, 200u);
+  EXPECT_EQ(r.body, bytes);
+  // Wrong hash: refused, names both hashes, nothing stored.
+  const std::string other = sha256_hex("something else");
+  r = call(http::verb::put, "/v1/blobs/" + other, bytes);
+  EXPECT_EQ(r.status, 400u);
+  EXPECT_EQ(r.js()["error"], "body hashes to " + h + ", not " + other);
+  EXPECT_EQ(call(http::verb::get, "/v1/blobs/" + other).status, 404u);
+  r = call(http::verb::put, "/v1/blobs/NOTAHASH", bytes);
+  EXPECT_EQ(r.status, 400u);
+  EXPECT_NE(r.js()["error"].get<std::string>().find("64"), std::string::npos);
+  // Above the blob limit (1 MiB in this fixture).
+  const std::string big(size_t(1) << 21, 'x');
+  r = call(http::verb::put, "/v1/blobs/" + sha256_hex(big), big);
+  EXPECT_EQ(r.status, 413u);
+}
+
+TEST_F(HttpTest, SubmitValidJobAndListIt) {
+  const json body = small_cbox(job_for("cbox_no_light.json"));
+  const Reply r = call(http::verb::post, "/v1/jobs", body.dump());
+  ASSERT_EQ(r.status, 201u) << r.body;
+  const std::string id = r.js()["id"];
+  EXPECT_EQ(r.msg[http::field::location], "/v1/jobs/" + id);
+  const Reply g = call(http::verb::get, "/v1/jobs/" + id);
+  ASSERT_EQ(g.status, 200u);
+  const json j = g.js();
+  EXPECT_EQ(j["state"], "queued");
+  EXPECT_EQ(j["width"], 40);
+  EXPECT_EQ(j["height"], 30);
+  EXPECT_EQ(j["spp"], 2);
+  EXPECT_EQ(j["tiles"]["total"], 6);
+  EXPECT_EQ(j["tiles"]["pending"], 6);
+  EXPECT_TRUE(j["finished_ms"].is_null());
+  EXPECT_EQ(j["scene_hash"].get<std::string>().size(), 64u);
+  const Reply list = call(http::verb::get, "/v1/jobs");
+  ASSERT_EQ(list.status, 200u);
+  ASSERT_EQ(list.js()["jobs"].size(), 1u);
+  EXPECT_EQ(list.js()["jobs"][0]["id"], id);
+  const Reply spec = call(http::verb::get, "/v1/jobs/" + id + "/spec");
+  ASSERT_EQ(spec.status, 200u);
+  EXPECT_EQ(spec.js()["scene"], body["scene"]);
+  EXPECT_EQ(spec.js()["assets"], body["assets"]);
+  EXPECT_EQ(spec.js()["width"], 40);
+  EXPECT_EQ(spec.js()["seed"], 7);
+  EXPECT_EQ(call(http::verb::get, "/v1/jobs/" + id + "/result.exr").status, 409u);
+  EXPECT_EQ(call(http::verb::get, "/v1/jobs/" + id + "/preview.png").status, 200u);
+}
+
+TEST_F(HttpTest, SubmitWithMissingAssetsNamesThem) {
+  json body = job_for("cbox_no_light.json");
+  const std::string first = body["assets"].begin().key();
+  body["assets"].erase(first);
+  const std::string second = body["assets"].begin().key();
+  body["assets"][second] = sha256_hex("never uploaded");
+  const Reply r = call(http::verb::post, "/v1/jobs", body.dump());
+  ASSERT_EQ(r.status, 400u) << r.body;
+  const std::string e = r.js()["error"];
+  EXPECT_EQ(e.rfind("missing assets: ", 0), 0u) << e;
+  EXPECT_NE(e.find(first + " (not in \"assets\")"), std::string::npos) << e;
+  EXPECT_NE(e.find(second + " (not uploaded)"), std::string::npos) << e;
+}
+
+TEST_F(HttpTest, SceneErrorsCarryTheLoaderMessageWithTheJsonPath) {
+  json scene = {{"integrator", {{"type", "intersection_test"}}},
+                {"film", {{"resolution", {8, 8}}}},
+                {"textures", {{"t", {{"type", "constant"}, {"color", {1, 1, 1}}}}}},
+                {"materials", {{"m", {{"type", "diffuse"}, {"texture_name", "t"}}}}},
+                {"objects", json::array({{{"type", "sphere"}, {"radius", 1}, {"material_name", "m"}},
+                                         {{"type", "sphere"}, {"radius", -1}, {"material_name", "m"}}})}};
+  Reply r = call(http::verb::post, "/v1/jobs", json{{"scene", scene}}.dump());
+  ASSERT_EQ(r.status, 400u) << r.body;
+  EXPECT_EQ(r.js()["error"].get<std::string>().rfind("scene: objects[1].radius: must not be negative", 0), 0u) << r.body;
+  // A scene the loader accepts works without assets.
+  scene["objects"].erase(1);
+  r = call(http::verb::post, "/v1/jobs", json{{"scene", scene}}.dump());
+  EXPECT_EQ(r.status, 201u) << r.body;
+  // The bdpt box needs integrator "direct", as `tessera render --integrator direct`.
+  json bdpt = job_for("cbox.json");
+  r = call(http::verb::post, "/v1/jobs", bdpt.dump());
+  ASSERT_EQ(r.status, 400u) << r.body;
+  EXPECT_NE(r.js()["error"].get<std::string>().find("integrator.type"), std::string::npos) << r.body;
+  bdpt["integrator"] = "direct";
+  EXPECT_EQ(call(http::verb::post, "/v1/jobs", bdpt.dump()).status, 201u);
+}
+
+TEST_F(HttpTest, MalformedUnknownKeysAndOversizedBodies) {
+  Reply r = call(http::verb::post, "/v1/jobs", "{\"scene\": ");
+  ASSERT_EQ(r.status, 400u);
+  EXPECT_EQ(r.js()["error"].get<std::string>().rfind("malformed JSON", 0), 0u) << r.body;
+  r = call(http::verb::post, "/v1/jobs", "[1, 2]");
+  EXPECT_EQ(r.status, 400u);
+  json body = small_cbox(job_for("cbox_no_light.json"));
+  body["spps"] = 4;
+  r = call(http::verb::post, "/v1/jobs", body.dump());
+  ASSERT_EQ(r.status, 400u);
+  EXPECT_EQ(r.js()["error"].get<std::string>().rfind("unknown key 'spps'", 0), 0u) << r.body;
+  body.erase("spps");
+  body["tile_size"] = 0;
+  r = call(http::verb::post, "/v1/jobs", body.dump());
+  ASSERT_EQ(r.status, 400u);
+  EXPECT_NE(r.js()["error"].get<std::string>().find("tile_size"), std::string::npos) << r.body;
+  r = call(http::verb::post, "/v1/workers", R"({"name": "a", "thread": 2})");
+  EXPECT_EQ(r.status, 400u);
+  // Above the JSON limit (256 KiB in this fixture).
+  body["name"] = std::string(300 * 1024, 'n');
+  r = call(http::verb::post, "/v1/jobs", body.dump());
+  EXPECT_EQ(r.status, 413u) << r.body;
+  EXPECT_TRUE(r.js().contains("error"));
+}
+
+TEST_F(HttpTest, UnknownTargetsAndWrongMethods) {
+  Reply r = call(http::verb::get, "/v1/jobs/j-nope");
+  EXPECT_EQ(r.status, 404u);
+  EXPECT_TRUE(r.js().contains("error"));
+  EXPECT_EQ(call(http::verb::get, "/v1/jobs/j-nope/result.exr").status, 404u);
+  EXPECT_EQ(call(http::verb::get, "/v1/jobs/j-nope/preview.png").status, 404u);
+  EXPECT_EQ(call(http::verb::get, "/v1/jobs/j-nope/spec").status, 404u);
+  EXPECT_EQ(call(http::verb::delete_, "/v1/jobs/j-nope").status, 404u);
+  EXPECT_EQ(call(http::verb::get, "/v2/jobs").status, 404u);
+  EXPECT_EQ(call(http::verb::get, "/v1/jobs/").status, 404u);
+  EXPECT_EQ(call(http::verb::post, "/v1/leases/l-nope/heartbeat").status, 404u);
+  EXPECT_EQ(call(http::verb::put, "/v1/leases/l-nope/result", "x").status, 404u);
+  EXPECT_EQ(call(http::verb::post, "/v1/leases/l-nope/fail", R"({"error":"x"})").status, 404u);
+  EXPECT_EQ(call(http::verb::post, "/v1/leases/l-nope/release").status, 404u);
+  r = call(http::verb::delete_, "/v1/blobs/" + sha256_hex("x"));
+  EXPECT_EQ(r.status, 405u);
+  EXPECT_EQ(r.msg[http::field::allow], "PUT, HEAD, GET");
+  EXPECT_TRUE(r.js().contains("error"));
+  r = call(http::verb::get, "/v1/workers");
+  EXPECT_EQ(r.status, 405u);
+  EXPECT_EQ(r.msg[http::field::allow], "POST");
+  r = call(http::verb::put, "/v1/jobs");
+  EXPECT_EQ(r.status, 405u);
+  EXPECT_EQ(r.msg[http::field::allow], "GET, POST");
+}
+
+TEST_F(HttpTest, KeepAliveServesSeveralRequestsOnOneConnection) {
+  Client c(coord_->endpoint());
+  for (int i = 0; i < 3; ++i) {
+    const Reply r = c.send(http::verb::get, "/healthz");
+    EXPECT_EQ(r.status, 200u);
+    EXPECT_TRUE(r.msg.keep_alive());
+  }
+  EXPECT_EQ(c.send(http::verb::get, "/nope").status, 404u);
+  EXPECT_EQ(c.send(http::verb::get, "/healthz").status, 200u);
+}
+
+TEST_F(HttpTest, RegisterLeaseAndEmptyQueue) {
+  const Reply reg = call(http::verb::post, "/v1/workers", R"({"name":"w","threads":2,"version":"0.1.0"})");
+  ASSERT_EQ(reg.status, 201u) << reg.body;
+  const std::string w = reg.js()["id"];
+  EXPECT_EQ(reg.js()["lease_seconds"], 30);
+  EXPECT_EQ(reg.js()["heartbeat_seconds"], 5);
+  Reply r = call(http::verb::post, "/v1/workers/" + w + "/lease");
+  EXPECT_EQ(r.status, 204u);
+  EXPECT_TRUE(r.body.empty());
+  EXPECT_EQ(call(http::verb::post, "/v1/workers/w-nobody/lease").status, 404u);
+  const std::string id = submit(small_cbox(job_for("cbox_no_light.json")));
+  r = call(http::verb::post, "/v1/workers/" + w + "/lease");
+  ASSERT_EQ(r.status, 200u) << r.body;
+  const json l = r.js();
+  EXPECT_EQ(l["job"], id);
+  EXPECT_EQ(l["tile"], 0);
+  EXPECT_EQ(l["window"], json::array({0, 0, 16, 16}));
+  EXPECT_EQ(l["spp"], 2);
+  EXPECT_EQ(l["seed"], 7);
+  const std::string lease = l["lease"];
+  r = call(http::verb::post, "/v1/leases/" + lease + "/heartbeat", R"({"rays": 1000})");
+  ASSERT_EQ(r.status, 200u) << r.body;
+  EXPECT_GE(r.js()["deadline_ms"].get<int64_t>(), l["deadline_ms"].get<int64_t>());
+  EXPECT_EQ(call(http::verb::post, "/v1/leases/" + lease + "/heartbeat", R"({"ray": 1})").status, 400u);
+  EXPECT_EQ(call(http::verb::get, "/v1/jobs/" + id).js()["state"], "running");
+  // Release hands it back; the next lease gets the same tile.
+  r = call(http::verb::post, "/v1/leases/" + lease + "/release");
+  EXPECT_EQ(r.status, 200u);
+  EXPECT_EQ(r.js()["status"], "released");
+  r = call(http::verb::post, "/v1/workers/" + w + "/lease");
+  EXPECT_EQ(r.js()["tile"], 0);
+  const std::string lease2 = r.js()["lease"];
+  // Cancel revokes: heartbeat 410, upload 410 discarded, DELETE again 409.
+  r = call(http::verb::delete_, "/v1/jobs/" + id);
+  ASSERT_EQ(r.status, 200u);
+  EXPECT_EQ(r.js()["state"], "cancelled");
+  EXPECT_EQ(call(http::verb::post, "/v1/leases/" + lease2 + "/heartbeat").status, 410u);
+  r = call(http::verb::put, "/v1/leases/" + lease2 + "/result", "not even an exr");
+  EXPECT_EQ(r.status, 410u);
+  EXPECT_EQ(r.js()["status"], "discarded");
+  EXPECT_EQ(call(http::verb::delete_, "/v1/jobs/" + id).status, 409u);
+  EXPECT_EQ(call(http::verb::get, "/v1/jobs/" + id + "/result.exr").status, 409u);
+  EXPECT_EQ(call(http::verb::post, "/v1/workers/" + w + "/lease").status, 204u);
+}
+
+TEST_F(HttpTest, FullTileRoundTripIsBitwiseIdenticalToOneRender) {
+  const json body = small_cbox(job_for("cbox_no_light.json"));
+  const std::string id = submit(body);
+  const LoadedScene local = load_local(body["scene"], 2);
+  const int W = local.scene.width, H = local.scene.height;
+  const std::string w1 = register_worker("one"), w2 = register_worker("two");
+  const fs::path scratch = dir_ / "client";
+  fs::create_directories(scratch);
+
+  bool tried_invalid = false, tried_duplicate = false;
+  int accepted = 0;
+  for (int round = 0; round < 20; ++round) {
+    const std::string w = round % 2 ? w2 : w1;
+    Reply r = call(http::verb::post, "/v1/workers/" + w + "/lease");
+    if (r.status == 204) break;
+    ASSERT_EQ(r.status, 200u) << r.body;
+    const json l = r.js();
+    const std::string lease = l["lease"];
+    const PixelWindow win{l["window"][0], l["window"][1], l["window"][2], l["window"][3]};
+    EXPECT_EQ(win, TileGrid(W, H, 16).window(l["tile"].get<int64_t>()));
+    RenderOptions ro;
+    ro.seed = l["seed"];
+    ro.spp = l["spp"];
+    ro.window = win;
+    const RenderResult res = render(local.scene, ro);
+    EXPECT_EQ(call(http::verb::post, "/v1/leases/" + lease + "/heartbeat", json{{"rays", res.counters.rays}}.dump()).status, 200u);
+    if (!tried_invalid) {
+      // A tile placed at the wrong window is refused (422) and counts as this worker's failure; the tile is re-leased.
+      tried_invalid = true;
+      PixelWindow wrong = win;
+      wrong.x0 += 1;
+      wrong.x1 += 1;
+      Image shifted = res.image;
+      if (wrong.x1 > W) {
+        wrong = {0, 0, 1, 1};
+        shifted = Image::make(1, 1);
+      }
+      r = call(http::verb::put, "/v1/leases/" + lease + "/result", tile_exr(scratch, shifted, wrong, W, H));
+      EXPECT_EQ(r.status, 422u) << r.body;
+      EXPECT_NE(r.js()["error"].get<std::string>().find("window"), std::string::npos) << r.body;
+      r = call(http::verb::put, "/v1/leases/" + lease + "/result", "garbage");
+      EXPECT_EQ(r.status, 422u) << r.body;
+      continue;
+    }
+    const std::string exr = tile_exr(scratch, res.image, win, W, H);
+    r = call(http::verb::put, "/v1/leases/" + lease + "/result", exr, {{"X-Tessera-Rays", std::to_string(res.counters.rays)}});
+    ASSERT_EQ(r.status, 200u) << r.body;
+    EXPECT_EQ(r.js()["status"], "accepted");
+    ++accepted;
+    if (!tried_duplicate) {
+      tried_duplicate = true;
+      r = call(http::verb::put, "/v1/leases/" + lease + "/result", exr);
+      ASSERT_EQ(r.status, 200u) << r.body;
+      EXPECT_EQ(r.js()["status"], "duplicate");
+      EXPECT_EQ(call(http::verb::post, "/v1/leases/" + lease + "/heartbeat").status, 410u);
+      // The preview shows the partial image.
+      r = call(http::verb::get, "/v1/jobs/" + id + "/preview.png");
+      ASSERT_EQ(r.status, 200u);
+      EXPECT_EQ(r.body.substr(1, 3), "PNG");
+      EXPECT_EQ(call(http::verb::get, "/v1/jobs/" + id + "/result.exr").status, 409u);
+    }
+  }
+  EXPECT_EQ(accepted, 6);
+  const json job = call(http::verb::get, "/v1/jobs/" + id).js();
+  ASSERT_EQ(job["state"], "done") << job.dump();
+  EXPECT_EQ(job["tiles"]["done"], 6);
+  EXPECT_FALSE(job["finished_ms"].is_null());
+
+  const Reply exr = call(http::verb::get, "/v1/jobs/" + id + "/result.exr");
+  ASSERT_EQ(exr.status, 200u);
+  EXPECT_EQ(exr.msg[http::field::content_type], "image/x-exr");
+  {
+    std::ofstream out(scratch / "result.exr", std::ios::binary);
+    out << exr.body;
+  }
+  const ExrImage merged = read_exr(scratch / "result.exr");
+  EXPECT_EQ(merged.data_window, (PixelWindow{0, 0, W, H}));
+  EXPECT_EQ(merged.display_window, (PixelWindow{0, 0, W, H}));
+  EXPECT_EQ(merged.metadata.at("tessera:sceneHash"), job["scene_hash"]);
+  EXPECT_EQ(merged.metadata.at("tessera:spp"), "2");
+  EXPECT_EQ(merged.metadata.at("tessera:seed"), "7");
+  EXPECT_EQ(merged.metadata.at("tessera:tileSize"), "16");
+  RenderOptions whole;
+  whole.seed = 7;
+  whole.spp = 2;
+  const RenderResult ref = render(local.scene, whole);
+  ASSERT_EQ(merged.pixels.rgb.size(), ref.image.rgb.size());
+  EXPECT_EQ(std::memcmp(merged.pixels.rgb.data(), ref.image.rgb.data(), ref.image.rgb.size() * sizeof(float)), 0);
+  EXPECT_EQ(call(http::verb::get, "/v1/jobs/" + id + "/preview.png").status, 200u);
+  EXPECT_EQ(call(http::verb::delete_, "/v1/jobs/" + id).status, 409u);
+  const std::string metrics = call(http::verb::get, "/metrics").body;
+  EXPECT_NE(metrics.find("tessera_tiles_rendered_total 6"), std::string::npos) << metrics;
+  EXPECT_NE(metrics.find("tessera_jobs{state=\"done\"} 1"), std::string::npos) << metrics;
+}
+
+TEST_F(HttpTest, ThreeWorkersFailingATileFailTheJob) {
+  const std::string id = submit(small_cbox(job_for("cbox_no_light.json")));
+  for (const char* name : {"a", "b", "c"}) {
+    const std::string w = register_worker(name);
+    const Reply l = call(http::verb::post, "/v1/workers/" + w + "/lease");
+    ASSERT_EQ(l.status, 200u);
+    EXPECT_EQ(l.js()["tile"], 0);
+    const Reply f = call(http::verb::post, "/v1/leases/" + l.js()["lease"].get<std::string>() + "/fail",
+                         json{{"error", std::string("no memory on ") + name}}.dump());
+    EXPECT_EQ(f.status, 200u);
+    EXPECT_EQ(f.js()["status"], "recorded");
+  }
+  const json job = call(http::verb::get, "/v1/jobs/" + id).js();
+  EXPECT_EQ(job["state"], "failed");
+  EXPECT_NE(job["error"].get<std::string>().find("no memory on c"), std::string::npos) << job.dump();
+  EXPECT_EQ(call(http::verb::get, "/v1/jobs/" + id + "/result.exr").status, 409u);
+}
+
+}  // namespace
+}  // namespace tessera::server

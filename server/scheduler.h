@@ -1,0 +1,240 @@
+// The farm's job/tile/lease state machine: no I/O, an injected clock, every operation one atomic step.
+#pragma once
+
+#include "core/image.h"
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <string>
+#include <tuple>
+#include <vector>
+
+namespace tessera::server {
+
+/// Milliseconds since the Unix epoch (or any fixed origin in tests); injected so tests control time.
+using ClockMs = std::function<int64_t()>;
+
+/// Life cycle of a job (docs/protocol.md, "Jobs, tiles and leases").
+enum class JobState { queued, running, done, failed, cancelled };
+
+/// The protocol's lowercase name of a job state.
+const char* to_string(JobState s);
+
+/// True for states a job never leaves (done, failed, cancelled).
+inline bool is_final(JobState s) { return s == JobState::done || s == JobState::failed || s == JobState::cancelled; }
+
+/// Scheduler tunables.
+struct SchedulerConfig {
+  int64_t lease_ms = 30'000;       ///< Lease length; every heartbeat moves the deadline to now + lease_ms.
+  int tile_failure_workers = 3;    ///< Distinct workers failing one tile that fail the job.
+  int worker_failure_limit = 2;    ///< Failures after which a worker is blocklisted for a job.
+  std::string id_tag;              ///< Inserted into generated ids ("j-<tag>-1") so ids differ between runs.
+};
+
+/// What a job renders, fixed at submission.
+struct JobParams {
+  std::string name;         ///< Optional label.
+  int priority = 0;         ///< Higher is scheduled first.
+  int width = 0;            ///< Image columns.
+  int height = 0;           ///< Image rows.
+  int tile_size = 64;       ///< Tile edge in pixels.
+  uint32_t spp = 1;         ///< Samples per pixel.
+  uint64_t seed = 0;        ///< Sample seed.
+  std::string scene_hash;   ///< The loader's content hash of scene and assets.
+};
+
+/// Tile counts of a job.
+struct TileCounts {
+  int64_t total = 0;    ///< Tiles in the job.
+  int64_t done = 0;     ///< Merged tiles.
+  int64_t leased = 0;   ///< Tiles under a live lease or being merged.
+  int64_t pending = 0;  ///< Tiles waiting for a worker.
+};
+
+/// A snapshot of one job.
+struct JobStatus {
+  std::string id;                       ///< Job id.
+  JobParams params;                     ///< What it renders.
+  JobState state = JobState::queued;    ///< Where it is in its life cycle.
+  TileCounts tiles;                     ///< Tile counts.
+  int64_t created_ms = 0;               ///< Submission time.
+  std::optional<int64_t> started_ms;    ///< First lease.
+  std::optional<int64_t> finished_ms;   ///< Entered a final state.
+  std::optional<std::string> error;     ///< Why it failed.
+  uint64_t rays = 0;                    ///< Rays reported by workers.
+  std::vector<std::string> workers;     ///< Workers whose tiles were merged, in order of first merge.
+};
+
+/// A granted lease: everything a worker needs to render the tile.
+struct Lease {
+  std::string id;           ///< Lease id.
+  std::string job;          ///< Job id.
+  std::string worker;       ///< Worker holding it.
+  int64_t tile = 0;         ///< Tile index.
+  PixelWindow window;       ///< Tile pixels.
+  uint32_t spp = 0;         ///< Samples per pixel.
+  uint64_t seed = 0;        ///< Sample seed.
+  std::string scene_hash;   ///< Scene content hash.
+  int64_t deadline_ms = 0;  ///< Expiry unless extended.
+};
+
+/// Outcome of asking for work.
+struct AcquireResult {
+  enum Status { granted, no_work, unknown_worker } status = no_work;  ///< What happened.
+  Lease lease;  ///< The lease when granted.
+};
+
+/// Outcome of a heartbeat.
+struct HeartbeatResult {
+  enum Status { ok, gone, unknown } status = unknown;  ///< ok: extended; gone: revoked/expired/ended (410).
+  int64_t deadline_ms = 0;  ///< New deadline when ok.
+};
+
+/// Outcome of checking or claiming a lease's result upload.
+struct ResultClaim {
+  /// proceed: merge it; duplicate: tile already done (200); discarded: job ended (410); unknown: no such lease (404).
+  enum Status { proceed, duplicate, discarded, unknown } status = unknown;
+  std::string job;      ///< Job id.
+  std::string worker;   ///< Worker that held the lease.
+  int64_t tile = 0;     ///< Tile index.
+  PixelWindow window;   ///< Tile pixels.
+  int width = 0;        ///< Full image columns.
+  int height = 0;       ///< Full image rows.
+};
+
+/// Outcome of finishing a claimed result.
+struct FinishResult {
+  bool last = false;  ///< Every tile of the job is now merged: write the final image, then call complete_job.
+};
+
+/// Outcome of a failure report.
+struct FailResult {
+  enum Status { recorded, unknown } status = unknown;  ///< unknown: no such lease.
+  bool blocklisted = false;  ///< The worker is now blocklisted for the job.
+  bool job_failed = false;   ///< The job failed because of this report.
+};
+
+/// Outcome of cancelling a job.
+struct CancelResult {
+  enum Status { cancelled, already_ended, unknown } status = unknown;  ///< What happened.
+  int revoked_leases = 0;  ///< Leases revoked.
+};
+
+/// Counters for /metrics.
+struct SchedulerCounters {
+  std::map<JobState, int64_t> jobs;   ///< Jobs by state.
+  uint64_t tiles_rendered = 0;        ///< Tiles merged.
+  uint64_t lease_expiries = 0;        ///< Leases that expired.
+  uint64_t rays = 0;                  ///< Rays reported by workers.
+  int64_t workers = 0;                ///< Registered workers.
+  int64_t active_leases = 0;          ///< Live leases.
+};
+
+/// The job/tile/lease state machine. Thread-safe: each call takes one lock and is one atomic step. Expired leases are
+/// reclaimed at the start of every call, so behaviour depends only on the injected clock.
+class Scheduler {
+ public:
+  /// A scheduler reading time from `clock`.
+  Scheduler(SchedulerConfig config, ClockMs clock);
+  ~Scheduler();
+  Scheduler(const Scheduler&) = delete;
+  Scheduler& operator=(const Scheduler&) = delete;
+
+  /// The configuration it runs with.
+  const SchedulerConfig& config() const { return config_; }
+
+  /// A fresh job id for add_job (so the caller can store the job's record before the job becomes leasable).
+  std::string new_job_id();
+  /// Adds a queued job under `id` (empty: a fresh one) and returns the id; throws std::invalid_argument for bad
+  /// sizes or an id already in use.
+  std::string add_job(const JobParams& params, const std::string& id = "");
+  /// A job's snapshot, or nothing for an unknown id.
+  std::optional<JobStatus> job(const std::string& id);
+  /// All jobs, newest first.
+  std::vector<JobStatus> jobs();
+
+  /// Registers a worker and returns its id.
+  std::string register_worker(const std::string& name);
+  /// True when the worker id is registered.
+  bool has_worker(const std::string& id);
+
+  /// Leases the lowest pending tile of the highest-priority (then oldest) job the worker is not blocklisted for.
+  AcquireResult acquire(const std::string& worker);
+  /// Extends a live lease to now + lease_ms and adds `rays` to the job's count.
+  HeartbeatResult heartbeat(const std::string& lease, uint64_t rays = 0);
+
+  /// Read-only look at what an upload for this lease would do (no state change), to skip parsing duplicates.
+  ResultClaim check_result(const std::string& lease);
+  /// Claims the lease's tile for merging: on proceed the tile is reserved (no other upload merges it) until
+  /// finish_result or abandon_result. Other live leases on the tile are revoked.
+  ResultClaim claim_result(const std::string& lease);
+  /// Marks a claimed tile done after its pixels were copied in; `rays` adds to the job's count.
+  FinishResult finish_result(const std::string& lease, uint64_t rays = 0);
+  /// Returns a claimed tile to pending (its merge failed for a reason that is not the worker's).
+  void abandon_result(const std::string& lease);
+
+  /// Records that the lease's worker could not render its tile; see docs/protocol.md for blocklists and job failure.
+  FailResult fail(const std::string& lease, const std::string& error);
+  /// Hands a live lease's tile back without counting a failure; false for an unknown lease.
+  bool release(const std::string& lease);
+
+  /// Cancels a queued or running job and revokes its leases.
+  CancelResult cancel(const std::string& job);
+  /// Marks a job whose tiles are all merged done (after its image was written).
+  void complete_job(const std::string& job);
+  /// Marks an unfinished job failed with a reason.
+  void fail_job(const std::string& job, const std::string& error);
+
+  /// Reclaims expired leases now (also done at the start of every other call).
+  void expire();
+  /// Current counters.
+  SchedulerCounters counters();
+
+ private:
+  enum class TileState { pending, leased, merging, done };
+  enum class LeaseState { live, expired, revoked, completed, released, failed };
+  struct Tile {
+    TileState state = TileState::pending;
+    std::string lease;                               // live lease or claiming lease
+    std::map<std::string, std::string> failures;     // worker -> last error text
+  };
+  struct JobRec {
+    JobStatus status;
+    uint64_t seq = 0;
+    std::vector<Tile> tiles;
+    std::set<int64_t> pending;
+    std::map<std::string, int> worker_failures;
+  };
+  struct LeaseRec {
+    Lease lease;
+    LeaseState state = LeaseState::live;
+  };
+  using QueueKey = std::tuple<int, int64_t, uint64_t>;  // (-priority, created_ms, seq)
+
+  void expire_locked(int64_t now);
+  void end_lease_locked(LeaseRec& l, LeaseState to);
+  void finish_job_locked(JobRec& j, JobState to, int64_t now, std::optional<std::string> error);
+  ResultClaim claim_view_locked(const std::string& lease, JobRec** job_out, LeaseRec** lease_out);
+  JobStatus snapshot_locked(const JobRec& j, int64_t now) const;
+  std::string next_id(char kind);
+
+  SchedulerConfig config_;
+  ClockMs clock_;
+  std::mutex mu_;
+  uint64_t next_seq_ = 1;
+  std::map<std::string, std::unique_ptr<JobRec>> jobs_;
+  std::map<QueueKey, JobRec*> queue_;                 // active (queued/running) jobs in scheduling order
+  std::map<std::string, LeaseRec> leases_;            // every lease ever granted (answers 410 vs 404)
+  std::set<std::string> live_leases_;
+  std::map<std::string, std::string> workers_;        // id -> name
+  uint64_t tiles_rendered_ = 0;
+  uint64_t lease_expiries_ = 0;
+  uint64_t rays_ = 0;
+};
+
+}  // namespace tessera::server

@@ -1,0 +1,370 @@
+#include "server/scheduler.h"
+
+#include <gtest/gtest.h>
+
+#include <memory>
+
+namespace tessera::server {
+namespace {
+
+// A scheduler on a manual clock with 10 s leases; a 2x2-tile job is 128x128 at tile size 64.
+struct SchedulerTest : ::testing::Test {
+  int64_t now = 1'000'000;
+  Scheduler s{SchedulerConfig{10'000, 3, 2, ""}, [this] { return now; }};
+
+  std::string job(int priority = 0, int w = 128, int h = 128, int ts = 64) {
+    JobParams p;
+    p.priority = priority;
+    p.width = w;
+    p.height = h;
+    p.tile_size = ts;
+    p.spp = 4;
+    p.scene_hash = "abc";
+    return s.add_job(p);
+  }
+  Lease lease(const std::string& worker) {
+    const AcquireResult r = s.acquire(worker);
+    EXPECT_EQ(r.status, AcquireResult::granted);
+    return r.lease;
+  }
+  // Uploads a result the way the HTTP layer does: claim, copy (nothing here), finish.
+  ResultClaim::Status upload(const std::string& lease_id, bool* last = nullptr) {
+    const ResultClaim c = s.claim_result(lease_id);
+    if (c.status == ResultClaim::proceed) {
+      const FinishResult f = s.finish_result(lease_id, 10);
+      if (last) *last = f.last;
+    }
+    return c.status;
+  }
+};
+
+TEST_F(SchedulerTest, EmptyQueueIsNoWorkNotAnError) {
+  const std::string w = s.register_worker("a");
+  EXPECT_EQ(s.acquire(w).status, AcquireResult::no_work);
+  EXPECT_EQ(s.acquire("w-nobody").status, AcquireResult::unknown_worker);
+  EXPECT_FALSE(s.has_worker("w-nobody"));
+  EXPECT_TRUE(s.has_worker(w));
+}
+
+TEST_F(SchedulerTest, TilesLeasedInRowMajorOrderWithWindows) {
+  const std::string j = job(0, 100, 70, 64);  // 2 columns x 2 rows; last column 36 wide, last row 6 high
+  const std::string w = s.register_worker("a");
+  const Lease l0 = lease(w), l1 = lease(w), l2 = lease(w), l3 = lease(w);
+  EXPECT_EQ(l0.tile, 0);
+  EXPECT_EQ(l1.tile, 1);
+  EXPECT_EQ(l2.tile, 2);
+  EXPECT_EQ(l3.tile, 3);
+  EXPECT_EQ(l1.window, (PixelWindow{64, 0, 100, 64}));
+  EXPECT_EQ(l3.window, (PixelWindow{64, 64, 100, 70}));
+  EXPECT_EQ(l0.job, j);
+  EXPECT_EQ(l0.spp, 4u);
+  EXPECT_EQ(l0.scene_hash, "abc");
+  EXPECT_EQ(l0.deadline_ms, now + 10'000);
+  EXPECT_EQ(s.acquire(w).status, AcquireResult::no_work);
+  const JobStatus st = *s.job(j);
+  EXPECT_EQ(st.state, JobState::running);
+  EXPECT_EQ(st.started_ms, now);
+  EXPECT_EQ(st.tiles.total, 4);
+  EXPECT_EQ(st.tiles.leased, 4);
+  EXPECT_EQ(st.tiles.pending, 0);
+}
+
+TEST_F(SchedulerTest, PriorityThenAgeOrder) {
+  const std::string low = job(0);
+  now += 1;
+  const std::string high_old = job(5);
+  now += 1;
+  const std::string high_new = job(5);
+  const std::string w = s.register_worker("a");
+  for (int i = 0; i < 4; ++i) EXPECT_EQ(lease(w).job, high_old);
+  for (int i = 0; i < 4; ++i) EXPECT_EQ(lease(w).job, high_new);
+  for (int i = 0; i < 4; ++i) EXPECT_EQ(lease(w).job, low);
+  EXPECT_EQ(s.job(low)->state, JobState::running);
+  // Same priority and same millisecond: submission order decides.
+  const std::string a = job(9), b = job(9);
+  EXPECT_EQ(lease(w).job, a);
+  (void)b;
+}
+
+TEST_F(SchedulerTest, NewestFirstListing) {
+  const std::string a = job(), b = job(7), c = job();
+  const auto all = s.jobs();
+  ASSERT_EQ(all.size(), 3u);
+  EXPECT_EQ(all[0].id, c);
+  EXPECT_EQ(all[1].id, b);
+  EXPECT_EQ(all[2].id, a);
+  EXPECT_FALSE(s.job("j-none"));
+}
+
+TEST_F(SchedulerTest, LeaseExpiresAndTileIsReleasedToTheNextWorker) {
+  const std::string j = job();
+  const std::string a = s.register_worker("a"), b = s.register_worker("b");
+  const Lease la = lease(a);
+  now += 10'000;  // exactly at the deadline: still live
+  EXPECT_EQ(s.heartbeat(la.id).status, HeartbeatResult::ok);
+  now += 10'001;  // past the extended deadline
+  EXPECT_EQ(s.heartbeat(la.id).status, HeartbeatResult::gone);
+  EXPECT_EQ(s.counters().lease_expiries, 1u);
+  const Lease lb = lease(b);
+  EXPECT_EQ(lb.tile, la.tile);
+  EXPECT_NE(lb.id, la.id);
+  EXPECT_EQ(s.job(j)->tiles.leased, 1);
+  EXPECT_EQ(s.heartbeat("l-none").status, HeartbeatResult::unknown);
+}
+
+TEST_F(SchedulerTest, HeartbeatExtendsTheDeadline) {
+  job();
+  const std::string a = s.register_worker("a");
+  const Lease l = lease(a);
+  for (int i = 0; i < 5; ++i) {
+    now += 6'000;  // longer than a lease in total, never longer than one between heartbeats
+    const HeartbeatResult h = s.heartbeat(l.id, 100);
+    ASSERT_EQ(h.status, HeartbeatResult::ok);
+    EXPECT_EQ(h.deadline_ms, now + 10'000);
+  }
+  EXPECT_EQ(s.counters().lease_expiries, 0u);
+  EXPECT_EQ(s.counters().rays, 500u);
+}
+
+TEST_F(SchedulerTest, CompletionMakesTheLastTileReportLast) {
+  const std::string j = job();
+  const std::string a = s.register_worker("a");
+  std::vector<Lease> ls;
+  for (int i = 0; i < 4; ++i) ls.push_back(lease(a));
+  bool last = true;
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(upload(ls[size_t(i)].id, &last), ResultClaim::proceed);
+    EXPECT_FALSE(last);
+  }
+  EXPECT_EQ(s.job(j)->tiles.done, 3);
+  EXPECT_EQ(upload(ls[3].id, &last), ResultClaim::proceed);
+  EXPECT_TRUE(last);
+  EXPECT_EQ(s.job(j)->state, JobState::running);  // done only once the image is written
+  s.complete_job(j);
+  const JobStatus st = *s.job(j);
+  EXPECT_EQ(st.state, JobState::done);
+  EXPECT_EQ(st.finished_ms, now);
+  EXPECT_EQ(st.rays, 40u);
+  EXPECT_EQ(st.workers, std::vector<std::string>{a});
+  EXPECT_EQ(s.counters().tiles_rendered, 4u);
+  EXPECT_EQ(s.counters().jobs[JobState::done], 1);
+  // Heartbeats on completed leases tell the worker to stop; a repeat upload is a duplicate.
+  EXPECT_EQ(s.heartbeat(ls[0].id).status, HeartbeatResult::gone);
+  EXPECT_EQ(upload(ls[0].id), ResultClaim::duplicate);
+  EXPECT_EQ(s.cancel(j).status, CancelResult::already_ended);
+}
+
+TEST_F(SchedulerTest, DuplicateUploadIsAcknowledgedAndNotMergedTwice) {
+  const std::string j = job(0, 64, 64, 64);  // one tile
+  const std::string a = s.register_worker("a");
+  const Lease l = lease(a);
+  EXPECT_EQ(s.check_result(l.id).status, ResultClaim::proceed);
+  EXPECT_EQ(s.claim_result(l.id).status, ResultClaim::proceed);
+  // A retry arriving while the first upload is being merged is a duplicate.
+  EXPECT_EQ(s.claim_result(l.id).status, ResultClaim::duplicate);
+  EXPECT_TRUE(s.finish_result(l.id).last);
+  EXPECT_EQ(upload(l.id), ResultClaim::duplicate);
+  EXPECT_EQ(s.check_result(l.id).status, ResultClaim::duplicate);
+  EXPECT_EQ(s.job(j)->tiles.done, 1);
+  EXPECT_EQ(s.counters().tiles_rendered, 1u);
+  EXPECT_EQ(s.check_result("l-none").status, ResultClaim::unknown);
+}
+
+TEST_F(SchedulerTest, LateUploadOfAnExpiredLeaseIsAcceptedAndRevokesTheNewLease) {
+  const std::string j = job(0, 64, 64, 64);
+  const std::string a = s.register_worker("a"), b = s.register_worker("b");
+  const Lease la = lease(a);
+  now += 20'000;
+  const Lease lb = lease(b);
+  ASSERT_EQ(lb.tile, la.tile);
+  bool last = false;
+  EXPECT_EQ(upload(la.id, &last), ResultClaim::proceed);  // the pixels are the same whoever rendered them
+  EXPECT_TRUE(last);
+  EXPECT_EQ(s.heartbeat(lb.id).status, HeartbeatResult::gone);
+  EXPECT_EQ(upload(lb.id), ResultClaim::duplicate);
+  EXPECT_EQ(s.job(j)->tiles.done, 1);
+  EXPECT_EQ(s.counters().tiles_rendered, 1u);
+}
+
+TEST_F(SchedulerTest, LateUploadWhileTileIsPendingIsAccepted) {
+  const std::string j = job(0, 64, 64, 64);
+  const std::string a = s.register_worker("a");
+  const Lease la = lease(a);
+  now += 20'000;
+  s.expire();
+  EXPECT_EQ(s.job(j)->tiles.pending, 1);
+  EXPECT_EQ(upload(la.id), ResultClaim::proceed);
+  EXPECT_EQ(s.job(j)->tiles.done, 1);
+  EXPECT_EQ(s.job(j)->tiles.pending, 0);
+  EXPECT_EQ(s.acquire(a).status, AcquireResult::no_work);
+}
+
+TEST_F(SchedulerTest, AbandonedMergeReturnsTheTile) {
+  const std::string j = job(0, 64, 64, 64);
+  const std::string a = s.register_worker("a");
+  const Lease l = lease(a);
+  ASSERT_EQ(s.claim_result(l.id).status, ResultClaim::proceed);
+  EXPECT_EQ(s.job(j)->tiles.leased, 1);
+  s.abandon_result(l.id);
+  EXPECT_EQ(s.job(j)->tiles.pending, 1);
+  // The worker retries the upload: accepted.
+  EXPECT_EQ(upload(l.id), ResultClaim::proceed);
+  EXPECT_EQ(s.job(j)->tiles.done, 1);
+  EXPECT_THROW(s.finish_result(l.id), std::logic_error);
+}
+
+TEST_F(SchedulerTest, ReleaseHandsTheTileBackWithoutAFailure) {
+  const std::string j = job();
+  const std::string a = s.register_worker("a");
+  const Lease l = lease(a);
+  EXPECT_TRUE(s.release(l.id));
+  EXPECT_TRUE(s.release(l.id));  // idempotent
+  EXPECT_FALSE(s.release("l-none"));
+  EXPECT_EQ(s.heartbeat(l.id).status, HeartbeatResult::gone);
+  EXPECT_EQ(lease(a).tile, l.tile);
+  EXPECT_EQ(s.counters().lease_expiries, 0u);
+  // Releasing never blocklists, however often.
+  for (int i = 0; i < 5; ++i) {
+    const Lease again = s.acquire(a).lease;
+    EXPECT_TRUE(s.release(again.id));
+  }
+  EXPECT_EQ(s.acquire(a).status, AcquireResult::granted);
+  EXPECT_EQ(s.job(j)->state, JobState::running);
+}
+
+TEST_F(SchedulerTest, WorkerFailingTwiceIsBlocklistedForThatJobOnly) {
+  const std::string j1 = job(5), j2 = job(0);
+  const std::string a = s.register_worker("a"), b = s.register_worker("b");
+  Lease l = lease(a);
+  ASSERT_EQ(l.job, j1);
+  FailResult f = s.fail(l.id, "out of memory");
+  EXPECT_EQ(f.status, FailResult::recorded);
+  EXPECT_FALSE(f.blocklisted);
+  l = lease(a);
+  EXPECT_EQ(l.job, j1);
+  EXPECT_EQ(l.tile, 0);  // the failed tile went back to pending and is the lowest
+  f = s.fail(l.id, "out of memory");
+  EXPECT_TRUE(f.blocklisted);
+  EXPECT_FALSE(f.job_failed);
+  // a skips j1 and gets j2; b still gets j1.
+  EXPECT_EQ(lease(a).job, j2);
+  EXPECT_EQ(lease(b).job, j1);
+  // A second report on the same lease counts nothing.
+  EXPECT_EQ(s.fail(l.id, "again").status, FailResult::recorded);
+  EXPECT_EQ(s.job(j1)->state, JobState::running);
+  EXPECT_EQ(s.fail("l-none", "x").status, FailResult::unknown);
+}
+
+TEST_F(SchedulerTest, TileFailingOnThreeWorkersFailsTheJobWithTheirErrors) {
+  const std::string j = job(0, 64, 64, 64);
+  const std::string a = s.register_worker("a"), b = s.register_worker("b"), c = s.register_worker("c");
+  // Two failures from one worker count once towards the three distinct workers.
+  EXPECT_FALSE(s.fail(lease(a).id, "boom a1").job_failed);
+  EXPECT_FALSE(s.fail(lease(b).id, "boom b").job_failed);
+  EXPECT_EQ(s.job(j)->state, JobState::running);
+  const Lease lc = lease(c);
+  const FailResult f = s.fail(lc.id, "boom c");
+  EXPECT_TRUE(f.job_failed);
+  const JobStatus st = *s.job(j);
+  EXPECT_EQ(st.state, JobState::failed);
+  ASSERT_TRUE(st.error);
+  EXPECT_NE(st.error->find("tile 0 failed on 3 workers"), std::string::npos) << *st.error;
+  EXPECT_NE(st.error->find("boom a1"), std::string::npos);
+  EXPECT_NE(st.error->find("boom b"), std::string::npos);
+  EXPECT_NE(st.error->find("boom c"), std::string::npos);
+  EXPECT_EQ(s.acquire(a).status, AcquireResult::no_work);
+  EXPECT_EQ(upload(lc.id), ResultClaim::discarded);
+  EXPECT_EQ(s.cancel(j).status, CancelResult::already_ended);
+}
+
+TEST_F(SchedulerTest, SameWorkerFailingOneTileRepeatedlyDoesNotFailTheJob) {
+  const std::string j = job(0, 64, 64, 64);
+  const std::string a = s.register_worker("a"), b = s.register_worker("b");
+  s.fail(lease(a).id, "x");
+  s.fail(lease(a).id, "y");  // a is now blocklisted
+  EXPECT_EQ(s.acquire(a).status, AcquireResult::no_work);
+  s.fail(lease(b).id, "z");
+  EXPECT_EQ(s.job(j)->state, JobState::running);  // 2 distinct workers only
+}
+
+TEST_F(SchedulerTest, FailureOnExpiredLeaseCountsButDoesNotDisturbTheNewHolder) {
+  const std::string j = job(0, 64, 64, 64);
+  const std::string a = s.register_worker("a"), b = s.register_worker("b");
+  const Lease la = lease(a);
+  now += 20'000;
+  const Lease lb = lease(b);
+  s.fail(la.id, "late");
+  EXPECT_EQ(s.heartbeat(lb.id).status, HeartbeatResult::ok);
+  EXPECT_EQ(s.job(j)->tiles.leased, 1);
+}
+
+TEST_F(SchedulerTest, CancelRevokesLeasesAndDiscardsUploads) {
+  const std::string j = job();
+  const std::string a = s.register_worker("a");
+  const Lease l1 = lease(a), l2 = lease(a);
+  const CancelResult c = s.cancel(j);
+  EXPECT_EQ(c.status, CancelResult::cancelled);
+  EXPECT_EQ(c.revoked_leases, 2);
+  EXPECT_EQ(s.heartbeat(l1.id).status, HeartbeatResult::gone);
+  EXPECT_EQ(s.check_result(l2.id).status, ResultClaim::discarded);
+  EXPECT_EQ(upload(l2.id), ResultClaim::discarded);
+  EXPECT_EQ(s.acquire(a).status, AcquireResult::no_work);
+  const JobStatus st = *s.job(j);
+  EXPECT_EQ(st.state, JobState::cancelled);
+  EXPECT_EQ(st.finished_ms, now);
+  EXPECT_EQ(s.cancel(j).status, CancelResult::already_ended);
+  EXPECT_EQ(s.cancel("j-none").status, CancelResult::unknown);
+  EXPECT_EQ(s.counters().active_leases, 0);
+}
+
+TEST_F(SchedulerTest, CancelQueuedJob) {
+  const std::string j = job();
+  EXPECT_EQ(s.cancel(j).status, CancelResult::cancelled);
+  const std::string a = s.register_worker("a");
+  EXPECT_EQ(s.acquire(a).status, AcquireResult::no_work);
+  EXPECT_FALSE(s.job(j)->started_ms);
+}
+
+TEST_F(SchedulerTest, CancelDuringMergeNeverCompletes) {
+  const std::string j = job(0, 64, 64, 64);
+  const std::string a = s.register_worker("a");
+  const Lease l = lease(a);
+  ASSERT_EQ(s.claim_result(l.id).status, ResultClaim::proceed);
+  s.cancel(j);
+  EXPECT_FALSE(s.finish_result(l.id).last);
+  s.complete_job(j);
+  EXPECT_EQ(s.job(j)->state, JobState::cancelled);
+}
+
+TEST_F(SchedulerTest, FailJobAfterWriteError) {
+  const std::string j = job(0, 64, 64, 64);
+  const std::string a = s.register_worker("a");
+  ASSERT_EQ(upload(lease(a).id), ResultClaim::proceed);
+  s.fail_job(j, "writing result.exr: disk full");
+  EXPECT_EQ(s.job(j)->state, JobState::failed);
+  EXPECT_EQ(*s.job(j)->error, "writing result.exr: disk full");
+}
+
+TEST_F(SchedulerTest, CountersByState) {
+  const std::string a = job(), b = job();
+  s.cancel(a);
+  const SchedulerCounters c = s.counters();
+  EXPECT_EQ(c.jobs.at(JobState::queued), 1);
+  EXPECT_EQ(c.jobs.at(JobState::cancelled), 1);
+  EXPECT_EQ(c.jobs.at(JobState::running), 0);
+  (void)b;
+}
+
+TEST_F(SchedulerTest, RejectsBadJobs) {
+  EXPECT_THROW(job(0, 0, 10, 4), std::invalid_argument);
+  EXPECT_THROW(job(0, 10, 10, 0), std::invalid_argument);
+}
+
+TEST(SchedulerIds, CarryTheTag) {
+  Scheduler s{SchedulerConfig{1000, 3, 2, "x7"}, [] { return int64_t(0); }};
+  const std::string w = s.register_worker("a");
+  EXPECT_EQ(w.rfind("w-x7-", 0), 0u) << w;
+}
+
+}  // namespace
+}  // namespace tessera::server

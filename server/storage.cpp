@@ -1,0 +1,155 @@
+#include "server/storage.h"
+
+#include "core/sha256.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+namespace fs = std::filesystem;
+
+namespace tessera::server {
+
+namespace {
+
+std::string errno_text() { return std::strerror(errno); }
+
+void fsync_dir(const fs::path& dir) {
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);
+  if (fd < 0) return;  // best effort: some file systems refuse directory fds
+  ::fsync(fd);
+  ::close(fd);
+}
+
+void make_dirs(const fs::path& dir) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) throw StorageError("cannot create " + dir.string() + ": " + ec.message());
+}
+
+}  // namespace
+
+std::string random_hex(int bytes) {
+  thread_local std::mt19937_64 rng{std::random_device{}()};
+  static const char* digits = "0123456789abcdef";
+  std::string out;
+  for (int i = 0; i < bytes; ++i) {
+    const unsigned v = unsigned(rng() & 0xff);
+    out += digits[v >> 4];
+    out += digits[v & 15];
+  }
+  return out;
+}
+
+void write_file_atomic(const fs::path& path, std::string_view bytes) {
+  const fs::path tmp = path.string() + "." + random_hex(6) + ".tmp";
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  if (fd < 0) throw StorageError("cannot create " + tmp.string() + ": " + errno_text());
+  size_t off = 0;
+  while (off < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + off, bytes.size() - off);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      const std::string why = errno_text();
+      ::close(fd);
+      ::unlink(tmp.c_str());
+      throw StorageError("cannot write " + tmp.string() + ": " + why);
+    }
+    off += size_t(n);
+  }
+  if (::fsync(fd) != 0 || ::close(fd) != 0) {
+    const std::string why = errno_text();
+    ::unlink(tmp.c_str());
+    throw StorageError("cannot sync " + tmp.string() + ": " + why);
+  }
+  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+    const std::string why = errno_text();
+    ::unlink(tmp.c_str());
+    throw StorageError("cannot rename " + tmp.string() + " to " + path.string() + ": " + why);
+  }
+  fsync_dir(path.parent_path());
+}
+
+std::string read_file_bytes(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw StorageError("cannot open " + path.string());
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  if (in.bad()) throw StorageError("cannot read " + path.string());
+  return ss.str();
+}
+
+DiskBlobStore::DiskBlobStore(fs::path dir) : dir_(std::move(dir)) { make_dirs(dir_); }
+
+fs::path DiskBlobStore::path_of(const std::string& sha) const { return dir_ / sha.substr(0, 2) / sha; }
+
+PutBlobResult DiskBlobStore::put(const std::string& sha, std::string_view bytes) {
+  if (!is_sha256_hex(sha)) throw std::invalid_argument("not a SHA-256: " + sha);
+  PutBlobResult r;
+  r.size = bytes.size();
+  r.actual = sha256_hex(bytes);
+  if (r.actual != sha) {
+    r.status = PutBlobResult::mismatch;
+    return r;
+  }
+  const fs::path p = path_of(sha);
+  std::error_code ec;
+  // Blobs are immutable and were verified when written: a repeat upload writes nothing.
+  if (fs::is_regular_file(p, ec)) {
+    r.status = PutBlobResult::existed;
+    return r;
+  }
+  make_dirs(p.parent_path());
+  write_file_atomic(p, bytes);
+  r.status = PutBlobResult::created;
+  return r;
+}
+
+bool DiskBlobStore::has(const std::string& sha) {
+  if (!is_sha256_hex(sha)) return false;
+  std::error_code ec;
+  return fs::is_regular_file(path_of(sha), ec);
+}
+
+std::optional<fs::path> DiskBlobStore::file(const std::string& sha) {
+  if (!has(sha)) return std::nullopt;
+  return path_of(sha);
+}
+
+std::optional<std::string> DiskBlobStore::read(const std::string& sha) {
+  if (!has(sha)) return std::nullopt;
+  return read_file_bytes(path_of(sha));
+}
+
+DiskJobStore::DiskJobStore(fs::path jobs_dir, fs::path scratch_dir) : dir_(std::move(jobs_dir)), scratch_(std::move(scratch_dir)) {
+  make_dirs(dir_);
+  make_dirs(scratch_);
+}
+
+void DiskJobStore::save_record(const std::string& job, const nlohmann::json& record) {
+  make_dirs(dir_ / job);
+  write_file_atomic(dir_ / job / "job.json", record.dump(2));
+}
+
+std::optional<nlohmann::json> DiskJobStore::load_record(const std::string& job) {
+  const fs::path p = dir_ / job / "job.json";
+  std::error_code ec;
+  if (!fs::is_regular_file(p, ec)) return std::nullopt;
+  try {
+    return nlohmann::json::parse(read_file_bytes(p));
+  } catch (const nlohmann::json::exception& e) {
+    throw StorageError(p.string() + ": " + e.what());
+  }
+}
+
+fs::path DiskJobStore::result_path(const std::string& job) {
+  make_dirs(dir_ / job);
+  return dir_ / job / "result.exr";
+}
+
+}  // namespace tessera::server

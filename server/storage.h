@@ -1,0 +1,93 @@
+// The coordinator's storage behind interfaces: a content-addressed blob store and per-job records and results.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+
+namespace tessera::server {
+
+/// A storage operation that failed for a reason other than the caller's input (disk full, permissions).
+struct StorageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// Outcome of storing a blob.
+struct PutBlobResult {
+  enum Status { created, existed, mismatch } status = created;  ///< mismatch: the bytes hash to `actual`.
+  std::string actual;  ///< SHA-256 of the bytes (hex).
+  uint64_t size = 0;   ///< Byte count.
+};
+
+/// Immutable blobs addressed by the SHA-256 of their bytes.
+class BlobStore {
+ public:
+  virtual ~BlobStore() = default;
+  /// Stores bytes under `sha256` (64 lowercase hex) after checking they hash to it; repeats are cheap no-ops.
+  virtual PutBlobResult put(const std::string& sha256, std::string_view bytes) = 0;
+  /// True when the blob is stored.
+  virtual bool has(const std::string& sha256) = 0;
+  /// A readable file holding the blob, or nothing when it is not stored.
+  virtual std::optional<std::filesystem::path> file(const std::string& sha256) = 0;
+  /// The blob's bytes, or nothing when it is not stored; throws StorageError on read errors.
+  virtual std::optional<std::string> read(const std::string& sha256) = 0;
+};
+
+/// Blobs as files DIR/<2 hex>/<64 hex>, written to a temp file, fsynced and renamed into place.
+class DiskBlobStore final : public BlobStore {
+ public:
+  /// A store rooted at `dir` (created if missing); throws StorageError when it cannot be created.
+  explicit DiskBlobStore(std::filesystem::path dir);
+  PutBlobResult put(const std::string& sha256, std::string_view bytes) override;
+  bool has(const std::string& sha256) override;
+  std::optional<std::filesystem::path> file(const std::string& sha256) override;
+  std::optional<std::string> read(const std::string& sha256) override;
+
+ private:
+  std::filesystem::path path_of(const std::string& sha256) const;
+  std::filesystem::path dir_;
+};
+
+/// Job records (the submitted spec and derived facts) and job outputs.
+class JobStore {
+ public:
+  virtual ~JobStore() = default;
+  /// Durably stores a job's record, replacing an older one; throws StorageError.
+  virtual void save_record(const std::string& job, const nlohmann::json& record) = 0;
+  /// The job's record, or nothing when there is none; throws StorageError on unreadable records.
+  virtual std::optional<nlohmann::json> load_record(const std::string& job) = 0;
+  /// Where the job's merged image is (to be) written.
+  virtual std::filesystem::path result_path(const std::string& job) = 0;
+  /// A folder for short-lived files (uploads being validated) on the same file system.
+  virtual std::filesystem::path scratch_dir() = 0;
+};
+
+/// Job records as DIR/<job>/job.json, results as DIR/<job>/result.exr; scratch files under DIR/../tmp.
+class DiskJobStore final : public JobStore {
+ public:
+  /// A store rooted at `jobs_dir` with scratch space `scratch_dir` (both created if missing).
+  DiskJobStore(std::filesystem::path jobs_dir, std::filesystem::path scratch_dir);
+  void save_record(const std::string& job, const nlohmann::json& record) override;
+  std::optional<nlohmann::json> load_record(const std::string& job) override;
+  std::filesystem::path result_path(const std::string& job) override;
+  std::filesystem::path scratch_dir() override { return scratch_; }
+
+ private:
+  std::filesystem::path dir_, scratch_;
+};
+
+/// Writes bytes to `path` atomically: a temp file beside it, fsync, rename, fsync of the folder. Throws StorageError.
+void write_file_atomic(const std::filesystem::path& path, std::string_view bytes);
+
+/// Reads a whole file; throws StorageError naming it.
+std::string read_file_bytes(const std::filesystem::path& path);
+
+/// A fresh unique name (for temp files), e.g. "3f9a1c0d2b4e5f60".
+std::string random_hex(int bytes);
+
+}  // namespace tessera::server

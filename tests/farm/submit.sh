@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# tessera submit end to end: a scene with OBJ and EXR assets is uploaded once (a second submission uploads nothing),
+# rendered by two workers and downloaded identical to the single-process render; the coordinator's 400 message is
+# printed with exit status 2; an unreachable coordinator is a clear error.
+source "$(dirname "$0")/common.sh"
+
+write_cbox_scene "$WORK/cbox" 32 24 2
+"$TESSERA" render "$WORK/cbox/scene.json" -o "$WORK/ref.exr" -q --seed 3
+start_serve
+start_worker w1 --threads 1
+start_worker w2 --threads 1
+"$TESSERA" submit "$WORK/cbox/scene.json" --coordinator "$URL" --tile 10 --seed 3 -o "$WORK/out.exr" \
+  >"$WORK/submit1.log" 2>&1 || fail "submit failed"
+log_has "$WORK/submit1.log" "\(10 assets, 10 uploaded\)|\([0-9]+ assets, [1-9][0-9]* uploaded\)" || fail "assets were not uploaded"
+"$EXR_COMPARE" "$WORK/ref.exr" "$WORK/out.exr" || fail "result differs"
+"$TESSERA" submit "$WORK/cbox/scene.json" --coordinator "$URL" --tile 10 --seed 3 --priority 5 -o "$WORK/out2.exr" \
+  >"$WORK/submit2.log" 2>&1 || fail "second submit failed"
+log_has "$WORK/submit2.log" "assets, 0 uploaded\)" || fail "the second submission uploaded assets again"
+"$EXR_COMPARE" "$WORK/ref.exr" "$WORK/out2.exr" || fail "second result differs"
+
+write_sphere_scene "$WORK/bad.json" 8 8 1
+sed -i 's/"radius": 0.7/"radius": -1/' "$WORK/bad.json"
+set +e
+"$TESSERA" submit "$WORK/bad.json" --coordinator "$URL" -o "$WORK/bad.exr" >"$WORK/submit-bad.log" 2>&1
+rc=$?
+set -e
+[ $rc = 2 ] || fail "a refused scene exited with $rc, not 2"
+log_has "$WORK/submit-bad.log" "answered 400: .*radius" || fail "the coordinator's message was not printed"
+
+kill -TERM "$SERVE_PID"
+wait "$SERVE_PID" || true
+set +e
+"$TESSERA" submit "$WORK/cbox/scene.json" --coordinator "$URL" -o "$WORK/none.exr" >"$WORK/submit-down.log" 2>&1
+rc=$?
+set -e
+[ $rc = 1 ] || fail "submit to a stopped coordinator exited with $rc"
+log_has "$WORK/submit-down.log" "cannot connect" || fail "no clear message for an unreachable coordinator"
+echo "PASS"

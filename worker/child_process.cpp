@@ -1,0 +1,120 @@
+#include "worker/child_process.h"
+
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <deque>
+#include <fstream>
+#include <stdexcept>
+#include <thread>
+
+namespace tessera::farm {
+
+ChildProcess spawn_child(const std::vector<std::string>& argv, const std::string& name, const std::filesystem::path& log) {
+  if (argv.empty()) throw std::runtime_error("cannot start " + name + ": empty command line");
+  // Everything the child needs is prepared before fork: after it, only async-signal-safe calls.
+  std::vector<char*> args;
+  for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  const int log_fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+  if (log_fd < 0) throw std::runtime_error("cannot start " + name + ": cannot open " + log.string() + ": " + std::strerror(errno));
+  const pid_t parent = ::getpid();
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    const int err = errno;
+    ::close(log_fd);
+    throw std::runtime_error("cannot start " + name + ": fork: " + std::strerror(err));
+  }
+  if (pid == 0) {
+    ::setpgid(0, 0);
+    ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+    if (::getppid() != parent) ::_exit(127);  // the parent died before prctl took effect
+    // Signals ignored or blocked by the parent stay so across exec: restore the defaults the child expects.
+    sigset_t none;
+    sigemptyset(&none);
+    ::sigprocmask(SIG_SETMASK, &none, nullptr);
+    ::signal(SIGINT, SIG_DFL);
+    ::signal(SIGTERM, SIG_DFL);
+    ::signal(SIGPIPE, SIG_DFL);
+    const int null_fd = ::open("/dev/null", O_RDONLY);
+    if (null_fd >= 0) ::dup2(null_fd, STDIN_FILENO);
+    ::dup2(log_fd, STDOUT_FILENO);
+    ::dup2(log_fd, STDERR_FILENO);
+    ::execv(args[0], args.data());
+    ::_exit(127);
+  }
+  ::close(log_fd);
+  ChildProcess c;
+  c.pid = pid;
+  c.name = name;
+  c.log = log;
+  return c;
+}
+
+bool child_exited(ChildProcess& c) {
+  if (c.reaped) return true;
+  if (c.pid <= 0) return true;
+  int status = 0;
+  const pid_t r = ::waitpid(c.pid, &status, WNOHANG);
+  if (r == c.pid || (r < 0 && errno == ECHILD)) {
+    c.reaped = true;
+    c.exit_status = r == c.pid ? status : -1;
+    return true;
+  }
+  return false;
+}
+
+std::vector<std::string> stop_children(std::vector<ChildProcess>& children, std::chrono::milliseconds grace,
+                                       int terms) {
+  for (int i = 0; i < terms; ++i) {
+    if (i > 0) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    for (auto& c : children)
+      if (!child_exited(c)) ::kill(c.pid, SIGTERM);
+  }
+  const auto deadline = std::chrono::steady_clock::now() + grace;
+  while (std::chrono::steady_clock::now() < deadline) {
+    bool all = true;
+    for (auto& c : children) all &= child_exited(c);
+    if (all) return {};
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  std::vector<std::string> killed;
+  for (auto& c : children) {
+    if (child_exited(c)) continue;
+    ::kill(c.pid, SIGKILL);
+    int status = 0;
+    while (::waitpid(c.pid, &status, 0) < 0 && errno == EINTR) {
+    }
+    c.reaped = true;
+    c.exit_status = status;
+    killed.push_back(c.name);
+  }
+  return killed;
+}
+
+std::string describe_exit(const ChildProcess& c) {
+  if (!c.reaped) return "still running";
+  if (c.exit_status < 0) return "exit status unknown";
+  if (WIFEXITED(c.exit_status)) return "exited with status " + std::to_string(WEXITSTATUS(c.exit_status));
+  if (WIFSIGNALED(c.exit_status)) return "killed by signal " + std::to_string(WTERMSIG(c.exit_status));
+  return "stopped";
+}
+
+std::string tail_of_file(const std::filesystem::path& path, int max_lines) {
+  std::ifstream in(path);
+  std::deque<std::string> lines;
+  for (std::string line; std::getline(in, line);) {
+    lines.push_back(line);
+    if (int(lines.size()) > max_lines) lines.pop_front();
+  }
+  std::string out;
+  for (const auto& l : lines) out += "    " + l + "\n";
+  return out;
+}
+
+}  // namespace tessera::farm

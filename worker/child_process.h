@@ -1,0 +1,41 @@
+// Starting and stopping helper processes (`tessera serve`, `tessera worker`) owned by `tessera render --workers`.
+#pragma once
+
+#include <chrono>
+#include <filesystem>
+#include <string>
+#include <sys/types.h>
+#include <vector>
+
+namespace tessera::farm {
+
+/// A child process started by spawn_child; stopping is explicit (stop_children), never in a destructor.
+struct ChildProcess {
+  pid_t pid = -1;              ///< Process id (-1: not running).
+  std::string name;            ///< For messages, e.g. "worker 2".
+  std::filesystem::path log;   ///< Where its stdout and stderr go.
+  int exit_status = -1;        ///< waitpid status once reaped.
+  bool reaped = false;         ///< True once waited for.
+};
+
+/// Starts argv[0] with argv (fork + exec), stdout and stderr appended to log, in its own process group (so a
+/// terminal's Ctrl-C reaches only the parent, which stops it in order) and killed if the parent dies. Throws
+/// std::runtime_error naming the program when it cannot start.
+ChildProcess spawn_child(const std::vector<std::string>& argv, const std::string& name, const std::filesystem::path& log);
+
+/// True (and status recorded) when the child has exited; never blocks.
+bool child_exited(ChildProcess& child);
+
+/// Sends SIGTERM (`terms` times, 20 ms apart: a worker told twice hands its tile back at once) to every running
+/// child, waits up to `grace` for them to exit, then SIGKILLs and reaps the rest. Returns the names of children that
+/// had to be killed.
+std::vector<std::string> stop_children(std::vector<ChildProcess>& children, std::chrono::milliseconds grace,
+                                       int terms = 1);
+
+/// "exited with status N" or "killed by signal N" for a reaped child.
+std::string describe_exit(const ChildProcess& child);
+
+/// The last max_lines lines of a text file ("" when unreadable), for error reports.
+std::string tail_of_file(const std::filesystem::path& path, int max_lines);
+
+}  // namespace tessera::farm

@@ -1,0 +1,212 @@
+#include "worker/http_client.h"
+
+#include <boost/asio/connect.hpp>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/beast/core/error.hpp>
+#include <boost/beast/core/flat_buffer.hpp>
+#include <boost/beast/core/tcp_stream.hpp>
+#include <boost/beast/http/empty_body.hpp>
+#include <boost/beast/http/parser.hpp>
+#include <boost/beast/http/read.hpp>
+#include <boost/beast/http/string_body.hpp>
+#include <boost/beast/http/write.hpp>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+
+namespace tessera::farm {
+
+namespace asio = boost::asio;
+namespace beast = boost::beast;
+namespace http = boost::beast::http;
+using tcp = asio::ip::tcp;
+using boost::system::error_code;
+
+std::string HttpUrl::to_string() const { return "http://" + host + ":" + port + base_path; }
+
+HttpUrl parse_http_url(std::string_view url) {
+  const std::string original(url);
+  if (url.starts_with("https://")) throw std::invalid_argument("'" + original + "': https is not supported, use http://");
+  if (url.starts_with("http://")) url.remove_prefix(7);
+  else if (url.find("://") != std::string_view::npos)
+    throw std::invalid_argument("'" + original + "': only http:// URLs are supported");
+  HttpUrl out;
+  const size_t slash = url.find('/');
+  std::string_view authority = url.substr(0, slash);
+  if (slash != std::string_view::npos) {
+    std::string_view path = url.substr(slash);
+    while (!path.empty() && path.back() == '/') path.remove_suffix(1);
+    out.base_path = std::string(path);
+  }
+  std::string_view host = authority;
+  if (!authority.empty() && authority.front() == '[') {  // [v6]:port
+    const size_t close = authority.find(']');
+    if (close == std::string_view::npos) throw std::invalid_argument("'" + original + "': unterminated IPv6 address");
+    host = authority.substr(1, close - 1);
+    authority.remove_prefix(close + 1);
+    if (!authority.empty() && authority.front() != ':')
+      throw std::invalid_argument("'" + original + "': unexpected text after the IPv6 address");
+    if (!authority.empty()) out.port = std::string(authority.substr(1));
+  } else if (const size_t colon = authority.rfind(':'); colon != std::string_view::npos) {
+    host = authority.substr(0, colon);
+    out.port = std::string(authority.substr(colon + 1));
+  }
+  if (host.empty()) throw std::invalid_argument("'" + original + "': no host");
+  out.host = std::string(host);
+  int port = 0;
+  const auto [end, ec] = std::from_chars(out.port.data(), out.port.data() + out.port.size(), port);
+  if (out.port.empty() || ec != std::errc() || end != out.port.data() + out.port.size() || port < 1 || port > 65535)
+    throw std::invalid_argument("'" + original + "': bad port '" + out.port + "'");
+  return out;
+}
+
+std::string HttpResponse::header(std::string_view name) const {
+  std::string key(name);
+  std::transform(key.begin(), key.end(), key.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  const auto it = headers.find(key);
+  return it == headers.end() ? std::string() : it->second;
+}
+
+std::string HttpResponse::error_text() const {
+  const auto j = nlohmann::json::parse(body, nullptr, /*allow_exceptions=*/false);
+  if (j.is_object() && j.contains("error") && j["error"].is_string()) return j["error"].get<std::string>();
+  if (!body.empty() && !j.is_discarded()) return body.size() > 300 ? body.substr(0, 300) + "..." : body;
+  std::string text = body.size() > 300 ? body.substr(0, 300) + "..." : body;
+  text.erase(std::remove_if(text.begin(), text.end(), [](unsigned char c) { return c < 0x20 && c != ' '; }), text.end());
+  return text.empty() ? "HTTP " + std::to_string(status) : text;
+}
+
+struct HttpClient::Impl {
+  asio::io_context ioc;
+  beast::tcp_stream stream{ioc};
+  beast::flat_buffer buffer;
+  bool connected = false;
+  HttpTimeouts timeouts;
+  uint64_t max_response_bytes = 0;
+
+  // Starts one asynchronous operation with `start(handler)` and runs the context until it completes; the stream's
+  // expiry (set by the caller) turns a stalled operation into beast::error::timeout.
+  template <class Start>
+  error_code run(Start&& start) {
+    error_code result = asio::error::would_block;
+    ioc.restart();
+    start([&result](error_code ec, auto&&...) { result = ec; });
+    ioc.run();
+    return result;
+  }
+
+  void close() {
+    error_code ignored;
+    stream.socket().shutdown(tcp::socket::shutdown_both, ignored);
+    stream.close();
+    buffer.clear();
+    connected = false;
+  }
+};
+
+namespace {
+
+std::string describe(const error_code& ec, std::chrono::milliseconds limit) {
+  if (ec == beast::error::timeout) return "timed out after " + std::to_string(limit.count()) + " ms";
+  return ec.message();
+}
+
+// Errors that mean a kept-alive connection had been closed by the server before our request reached it.
+bool is_stale_connection(const error_code& ec) {
+  return ec == http::error::end_of_stream || ec == asio::error::eof || ec == asio::error::connection_reset ||
+         ec == asio::error::broken_pipe || ec == asio::error::connection_aborted;
+}
+
+}  // namespace
+
+HttpClient::HttpClient(HttpUrl url, HttpTimeouts timeouts, uint64_t max_response_bytes)
+    : url_(std::move(url)), impl_(std::make_unique<Impl>()) {
+  impl_->timeouts = timeouts;
+  impl_->max_response_bytes = max_response_bytes;
+}
+
+HttpClient::~HttpClient() { impl_->close(); }
+
+void HttpClient::close() { impl_->close(); }
+
+HttpResponse HttpClient::send(std::string method, std::string target, std::string body, std::string content_type) {
+  HttpRequest r;
+  r.method = std::move(method);
+  r.target = std::move(target);
+  r.body = std::move(body);
+  if (!r.body.empty()) r.content_type = std::move(content_type);
+  return send(r);
+}
+
+HttpResponse HttpClient::send(const HttpRequest& request) {
+  Impl& im = *impl_;
+  const std::string what = request.method + " " + url_.to_string() + request.target;
+  const http::verb verb = http::string_to_verb(request.method);
+  if (verb == http::verb::unknown) throw HttpError(what + ": unknown method");
+
+  http::request<http::string_body> req{verb, url_.base_path + request.target, 11};
+  req.set(http::field::host, url_.host + ":" + url_.port);
+  req.set(http::field::user_agent, "tessera/" TESSERA_VERSION);
+  if (!request.content_type.empty()) req.set(http::field::content_type, request.content_type);
+  for (const auto& [k, v] : request.headers) req.set(k, v);
+  req.body() = request.body;
+  req.keep_alive(true);
+  req.prepare_payload();
+
+  for (int attempt = 0;; ++attempt) {
+    const bool reused = im.connected;
+    if (!im.connected) {
+      error_code ec;
+      tcp::resolver resolver(im.ioc);
+      const auto endpoints = resolver.resolve(url_.host, url_.port, ec);
+      if (ec) throw HttpError(what + ": cannot resolve " + url_.host + ": " + ec.message());
+      im.stream.expires_after(im.timeouts.connect);
+      ec = im.run([&](auto handler) { im.stream.async_connect(endpoints, std::move(handler)); });
+      if (ec) {
+        im.close();
+        throw HttpError(what + ": cannot connect: " + describe(ec, im.timeouts.connect));
+      }
+      im.connected = true;
+    }
+
+    im.stream.expires_after(im.timeouts.write);
+    error_code ec = im.run([&](auto handler) { http::async_write(im.stream, req, std::move(handler)); });
+    if (ec) {
+      im.close();
+      if (reused && attempt == 0 && ec != beast::error::timeout) continue;
+      throw HttpError(what + ": cannot send the request: " + describe(ec, im.timeouts.write));
+    }
+
+    http::response_parser<http::string_body> parser;
+    parser.body_limit(im.max_response_bytes);
+    if (verb == http::verb::head) parser.skip(true);
+    im.stream.expires_after(im.timeouts.read);
+    ec = im.run([&](auto handler) { http::async_read(im.stream, im.buffer, parser, std::move(handler)); });
+    if (ec) {
+      const bool got_some = parser.got_some();
+      im.close();
+      if (reused && attempt == 0 && !got_some && is_stale_connection(ec)) continue;
+      if (ec == http::error::body_limit)
+        throw HttpError(what + ": response body larger than " + std::to_string(im.max_response_bytes) + " bytes");
+      throw HttpError(what + ": cannot read the response: " + describe(ec, im.timeouts.read));
+    }
+    im.stream.expires_never();
+
+    auto res = parser.release();
+    HttpResponse out;
+    out.status = int(res.result_int());
+    out.body = std::move(res.body());
+    for (const auto& field : res) {
+      std::string name(field.name_string());
+      std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+      out.headers[name] = std::string(field.value());
+    }
+    if (!res.keep_alive()) im.close();
+    return out;
+  }
+}
+
+}  // namespace tessera::farm

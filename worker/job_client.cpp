@@ -1,0 +1,154 @@
+#include "worker/job_client.h"
+
+#include "core/scene_loader.h"
+#include "core/sha256.h"
+#include "worker/backoff.h"
+
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+namespace tessera::farm {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+std::string read_file(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw SubmitError("cannot open " + path.string() + ": " + std::strerror(errno));
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  if (in.bad()) throw SubmitError("cannot read " + path.string());
+  return ss.str();
+}
+
+void write_atomically(const fs::path& path, const std::string& bytes) {
+  fs::path tmp = path;
+  tmp += ".tmp";
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+  if (fd < 0) throw SubmitError("cannot create " + tmp.string() + ": " + std::strerror(errno));
+  size_t done = 0;
+  int err = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      err = n < 0 ? errno : EIO;
+      break;
+    }
+    done += size_t(n);
+  }
+  if (!err && ::fsync(fd) != 0) err = errno;
+  if (::close(fd) != 0 && !err) err = errno;
+  if (!err && ::rename(tmp.c_str(), path.c_str()) != 0) err = errno;
+  if (err) {
+    ::unlink(tmp.c_str());
+    throw SubmitError("cannot write " + path.string() + ": " + std::strerror(err));
+  }
+}
+
+[[noreturn]] void refuse(const std::string& what, const HttpResponse& r) {
+  throw SubmitError(what + ": the coordinator answered " + std::to_string(r.status) + ": " + r.error_text());
+}
+
+}  // namespace
+
+SubmitResult submit_job(HttpClient& http, const SubmitOptions& o) {
+  json scene;
+  try {
+    scene = json::parse(read_file(o.scene));
+  } catch (const json::parse_error& e) {
+    throw SceneError(o.scene.string() + ": not valid JSON: " + e.what());
+  }
+  if (o.force_direct && scene.is_object()) {
+    if (!scene.contains("integrator") || !scene["integrator"].is_object()) scene["integrator"] = json::object();
+    scene["integrator"]["type"] = "direct";
+  }
+  const fs::path base = o.scene.has_parent_path() ? o.scene.parent_path() : fs::path(".");
+  const fs::path root = o.asset_root ? *o.asset_root : base;
+
+  SubmitResult out;
+  json assets = json::object();
+  for (const std::string& rel : scene_asset_paths(scene)) {
+    const fs::path file = resolve_inside(base, root, rel, "asset '" + rel + "'");
+    const std::string hash = sha256_file(file);
+    assets[rel] = hash;
+    ++out.assets_total;
+    const HttpResponse head = http.send("HEAD", "/v1/blobs/" + hash);
+    if (head.status == 200) continue;
+    if (head.status != 404) refuse("HEAD /v1/blobs/" + hash + " (" + rel + ")", head);
+    const HttpResponse put = http.send("PUT", "/v1/blobs/" + hash, read_file(file), "application/octet-stream");
+    if (put.status != 201 && put.status != 200) refuse("uploading " + rel, put);
+    ++out.assets_uploaded;
+  }
+
+  json job = {{"scene", scene}, {"assets", assets}, {"seed", o.seed}, {"tile_size", o.tile_size},
+              {"priority", o.priority}, {"name", o.name.empty() ? o.scene.filename().string() : o.name}};
+  if (o.spp) job["spp"] = *o.spp;
+  const HttpResponse r = http.send("POST", "/v1/jobs", job.dump());
+  if (r.status != 201 && r.status != 200) refuse("submitting " + o.scene.string(), r);
+  const json j = parse_body(r.body, "job submission");
+  if (!j.is_object() || !j.contains("id") || !j["id"].is_string())
+    throw ProtocolError("job submission: the answer has no \"id\"");
+  out.job_id = j["id"].get<std::string>();
+  return out;
+}
+
+JobStatus get_job(HttpClient& http, const std::string& id) {
+  const HttpResponse r = http.send("GET", "/v1/jobs/" + id);
+  if (r.status != 200) refuse("GET /v1/jobs/" + id, r);
+  return parse_job_status(parse_body(r.body, "job " + id));
+}
+
+JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::function<void(const JobStatus&)>& progress,
+                       const std::function<bool()>& stop, std::chrono::milliseconds poll, std::chrono::seconds give_up) {
+  JobStatus last;
+  Backoff backoff(poll, std::chrono::milliseconds(5000));
+  auto failing_since = std::chrono::steady_clock::time_point{};
+  while (true) {
+    try {
+      const JobStatus s = get_job(http, id);
+      failing_since = {};
+      backoff.reset();
+      if (progress && (s.tiles_done != last.tiles_done || s.state != last.state || s.tiles_total != last.tiles_total))
+        progress(s);
+      last = s;
+      if (s.finished()) return s;
+      if (!sleep_unless(poll, stop)) return last;
+    } catch (const HttpError& e) {
+      const auto now = std::chrono::steady_clock::now();
+      if (failing_since == std::chrono::steady_clock::time_point{}) {
+        failing_since = now;
+        spdlog::warn("job {}: coordinator unreachable ({}); retrying", id, e.what());
+      } else if (now - failing_since > give_up) {
+        throw;
+      }
+      if (!sleep_unless(backoff.next(), stop)) return last;
+    }
+  }
+}
+
+uint64_t download_result(HttpClient& http, const std::string& id, const fs::path& path) {
+  const HttpResponse r = http.send("GET", "/v1/jobs/" + id + "/result.exr");
+  if (r.status != 200) refuse("downloading the result of " + id, r);
+  write_atomically(path, r.body);
+  return r.body.size();
+}
+
+bool cancel_job(HttpClient& http, const std::string& id) {
+  const HttpResponse r = http.send("DELETE", "/v1/jobs/" + id);
+  if (r.status == 200) return true;
+  if (r.status == 409) return false;
+  refuse("cancelling " + id, r);
+}
+
+}  // namespace tessera::farm

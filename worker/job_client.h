@@ -1,0 +1,62 @@
+// The client side of jobs: upload a scene's assets, submit it, follow its progress, download the result.
+#pragma once
+
+#include "worker/http_client.h"
+#include "worker/protocol.h"
+
+#include <atomic>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+namespace tessera::farm {
+
+/// The coordinator refused a request with a definitive answer; the message carries its explanation.
+struct SubmitError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// What to submit.
+struct SubmitOptions {
+  std::filesystem::path scene;         ///< Scene file (course JSON format).
+  std::optional<uint32_t> spp;         ///< Samples per pixel (default: the scene's).
+  uint64_t seed = 0;                   ///< Sample seed.
+  int tile_size = 64;                  ///< Tile edge in pixels.
+  int priority = 0;                    ///< Higher runs first.
+  std::string name;                    ///< Job label (default: the scene's file name).
+  bool force_direct = false;           ///< Rewrite integrator.type to "direct" (like `render --integrator direct`).
+  std::optional<std::filesystem::path> asset_root;  ///< Assets may lie anywhere below this folder.
+};
+
+/// Counts of a submission's asset uploads.
+struct SubmitResult {
+  std::string job_id;      ///< The new job's id.
+  int assets_total = 0;    ///< Assets the scene uses.
+  int assets_uploaded = 0; ///< Assets that were missing and uploaded.
+};
+
+/// Hashes the scene's assets, uploads the missing ones (HEAD, then PUT), and POSTs the job. Throws SubmitError with
+/// the coordinator's message for 4xx answers, HttpError when it is unreachable, SceneError for unreadable scenes.
+SubmitResult submit_job(HttpClient& http, const SubmitOptions& options);
+
+/// GET /v1/jobs/{id}; throws SubmitError (404 or other errors) or HttpError.
+JobStatus get_job(HttpClient& http, const std::string& id);
+
+/// Polls the job every poll interval until it is done, failed or cancelled, calling progress on each change;
+/// transport errors are retried with backoff (the coordinator may be restarting) up to `give_up` in a row.
+/// Returns early (with the last status) when stop() says true.
+JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::function<void(const JobStatus&)>& progress,
+                       const std::function<bool()>& stop, std::chrono::milliseconds poll = std::chrono::milliseconds(200),
+                       std::chrono::seconds give_up = std::chrono::seconds(120));
+
+/// Downloads the finished job's result.exr to path atomically (temporary file, fsync, rename); throws SubmitError
+/// or HttpError. Returns the number of bytes.
+uint64_t download_result(HttpClient& http, const std::string& id, const std::filesystem::path& path);
+
+/// DELETE /v1/jobs/{id}; true when cancelled, false when it had already ended (409). Throws for other answers.
+bool cancel_job(HttpClient& http, const std::string& id);
+
+}  // namespace tessera::farm

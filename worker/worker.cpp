@@ -1,0 +1,458 @@
+#include "worker/worker.h"
+
+#include "core/image.h"
+#include "core/render.h"
+#include "core/scene_loader.h"
+#include "worker/asset_cache.h"
+#include "worker/backoff.h"
+#include "worker/protocol.h"
+#include "worker/scene_cache.h"
+
+#include <spdlog/spdlog.h>
+#include <tbb/global_control.h>
+
+#include <unistd.h>
+
+#include <csignal>
+#include <cstdlib>
+#include <condition_variable>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <thread>
+
+namespace tessera::farm {
+
+using nlohmann::json;
+using namespace std::chrono_literals;
+
+namespace {
+
+// Why a tile's render was stopped early.
+enum class Stop : int { kNone = 0, kRevoked = 1, kShutdown = 2 };
+
+// The coordinator no longer knows the job or lease: nothing to report, the tile is dropped.
+struct Gone : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// A tile's preparation was interrupted by a cancel (lease revoked or second stop request).
+struct Interrupted : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+std::string default_name() {
+  char host[256] = {};
+  if (::gethostname(host, sizeof host - 1) != 0) std::snprintf(host, sizeof host, "worker");
+  return std::string(host) + "-" + std::to_string(::getpid());
+}
+
+bool retryable_status(int status) { return status >= 500 || status == 408 || status == 429; }
+
+// Heartbeats one lease from its own thread every `period` until stopped; on 410/404 it sets the render's cancel flag,
+// and on a second stop request it cancels for shutdown.
+class Heartbeat {
+ public:
+  Heartbeat(HttpClient& http, std::string prefix, std::string lease, std::chrono::milliseconds period,
+            std::atomic<bool>& cancel, std::atomic<int>& reason, const std::atomic<uint64_t>& rays,
+            const std::atomic<int>& stop_requests)
+      : http_(http), prefix_(std::move(prefix)), lease_(std::move(lease)), period_(period), cancel_(cancel),
+        reason_(reason), rays_(rays), stop_requests_(stop_requests), thread_([this] { run(); }) {}
+  ~Heartbeat() {
+    {
+      std::lock_guard lock(mutex_);
+      done_ = true;
+    }
+    cv_.notify_all();
+    thread_.join();
+  }
+  Heartbeat(const Heartbeat&) = delete;
+  Heartbeat& operator=(const Heartbeat&) = delete;
+
+ private:
+  void run() noexcept {
+    try {
+      auto next = std::chrono::steady_clock::now() + period_;
+      uint64_t sent_rays = 0;
+      std::unique_lock lock(mutex_);
+      while (!done_) {
+        cv_.wait_for(lock, 100ms, [&] { return done_; });
+        if (done_) break;
+        if (stop_requests_.load() >= 2 && !cancel_.load()) {
+          reason_.store(int(Stop::kShutdown));
+          cancel_.store(true);
+          spdlog::info("{}: asked to stop again, cancelling the render to hand the tile back", prefix_);
+        }
+        if (cancel_.load() || std::chrono::steady_clock::now() < next) continue;
+        lock.unlock();
+        const uint64_t rays = rays_.load();
+        beat(json{{"rays", rays - sent_rays}}.dump());
+        sent_rays = rays;
+        next = std::chrono::steady_clock::now() + period_;
+        lock.lock();
+      }
+    } catch (const std::exception& e) {
+      spdlog::error("{}: heartbeat thread stopped: {}", prefix_, e.what());
+    } catch (...) {
+      spdlog::error("{}: heartbeat thread stopped by an unknown exception", prefix_);
+    }
+  }
+
+  void beat(const std::string& body) {
+    try {
+      const HttpResponse r = http_.send("POST", "/v1/leases/" + lease_ + "/heartbeat", body);
+      if (r.status == 200) return;
+      if (r.status == 410 || r.status == 404) {
+        spdlog::info("{}: heartbeat answered {} ({}), cancelling the render", prefix_, r.status, r.error_text());
+        reason_.store(int(Stop::kRevoked));
+        cancel_.store(true);
+        return;
+      }
+      spdlog::warn("{}: heartbeat answered {}: {}", prefix_, r.status, r.error_text());
+    } catch (const HttpError& e) {
+      spdlog::warn("{}: heartbeat failed (keeps rendering): {}", prefix_, e.what());
+    }
+  }
+
+  HttpClient& http_;
+  const std::string prefix_, lease_;
+  const std::chrono::milliseconds period_;
+  std::atomic<bool>& cancel_;
+  std::atomic<int>& reason_;
+  const std::atomic<uint64_t>& rays_;
+  const std::atomic<int>& stop_requests_;
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  bool done_ = false;
+  std::thread thread_;  // last: starts after every other member is ready
+};
+
+class Worker {
+ public:
+  Worker(const WorkerOptions& opt, const std::atomic<int>& stop)
+      : opt_(opt), stop_(stop), url_(parse_http_url(opt.coordinator)), http_(url_, opt.timeouts),
+        heartbeat_http_(url_, HttpTimeouts{2000ms, 5000ms, 5000ms}),
+        cache_(opt.cache_dir.empty() ? default_cache_dir() : opt.cache_dir), scenes_(opt.scene_cache_jobs),
+        idle_(100ms, opt.max_idle_wait), retry_(200ms, opt.max_retry_wait) {
+    name_ = opt.name.empty() ? default_name() : opt.name;
+    threads_ = opt.threads > 0 ? opt.threads : int(std::max(1u, std::thread::hardware_concurrency()));
+  }
+
+  WorkerStats run() {
+    spdlog::info("worker {} starting: coordinator {}, {} threads, cache {}", name_, url_.to_string(), threads_,
+                 cache_.dir().string());
+    while (!stopping()) {
+      try {
+        if (id_.empty() && !register_worker()) continue;
+        std::optional<Lease> lease = request_lease();
+        if (!lease) continue;
+        if (stopping()) {
+          release(*lease, prefix(*lease));
+          break;
+        }
+        process(*lease);
+      } catch (const std::exception& e) {
+        // Unexpected (a bug or resource exhaustion): log it, wait, carry on rather than die.
+        spdlog::error("worker {}: {}", id_.empty() ? name_ : id_, e.what());
+        sleep_unless(retry_.next(), [&] { return stopping(); });
+      }
+    }
+    spdlog::info("worker {} stopping: {} tiles uploaded, {} dropped, {} failed, {} released", id_.empty() ? name_ : id_,
+                 stats_.tiles_uploaded, stats_.tiles_dropped, stats_.tiles_failed, stats_.tiles_released);
+    return stats_;
+  }
+
+ private:
+  bool stopping() const { return stop_.load() > 0; }
+
+  // Notes a transport failure (loudly for the first of an outage) and waits before the next attempt.
+  void coordinator_down(const std::string& what, const HttpError& e) {
+    if (!down_) spdlog::warn("worker {}: coordinator unreachable ({}): {}; retrying with backoff", name_, what, e.what());
+    else spdlog::debug("worker {}: still unreachable: {}", name_, e.what());
+    down_ = true;
+    sleep_unless(retry_.next(), [&] { return stopping(); });
+  }
+  void coordinator_up() {
+    if (down_) spdlog::info("worker {}: coordinator reachable again", name_);
+    down_ = false;
+    retry_.reset();
+  }
+
+  bool register_worker() {
+    const json body = {{"name", name_}, {"threads", threads_}, {"version", TESSERA_VERSION}};
+    try {
+      const HttpResponse r = http_.send("POST", "/v1/workers", body.dump());
+      coordinator_up();
+      if (r.status == 201 || r.status == 200) {
+        const Registration reg = parse_registration(parse_body(r.body, "registration"));
+        id_ = reg.id;
+        heartbeat_period_ = std::chrono::milliseconds(std::max<int64_t>(100, int64_t(reg.heartbeat_seconds * 1000)));
+        spdlog::info("worker {} registered as {} (lease {}s, heartbeat {}s)", name_, id_, reg.lease_seconds,
+                     reg.heartbeat_seconds);
+        return true;
+      }
+      spdlog::error("worker {}: registration refused with {}: {}", name_, r.status, r.error_text());
+    } catch (const HttpError& e) {
+      coordinator_down("register", e);
+      return false;
+    }
+    sleep_unless(retry_.next(), [&] { return stopping(); });
+    return false;
+  }
+
+  std::optional<Lease> request_lease() {
+    HttpResponse r;
+    try {
+      r = http_.send("POST", "/v1/workers/" + id_ + "/lease");
+    } catch (const HttpError& e) {
+      coordinator_down("lease", e);
+      return std::nullopt;
+    }
+    coordinator_up();
+    if (r.status == 200) {
+      idle_.reset();
+      return parse_lease(parse_body(r.body, "lease"));
+    }
+    if (r.status == 204) {
+      sleep_unless(idle_.next(), [&] { return stopping(); });
+      return std::nullopt;
+    }
+    if (r.status == 404) {
+      spdlog::info("worker {}: the coordinator does not know this worker, registering again", id_);
+      id_.clear();
+      return std::nullopt;
+    }
+    spdlog::warn("worker {}: lease request answered {}: {}", id_, r.status, r.error_text());
+    sleep_unless(retry_.next(), [&] { return stopping(); });
+    return std::nullopt;
+  }
+
+  std::string prefix(const Lease& l) const {
+    return "worker=" + id_ + " job=" + l.job + " tile=" + std::to_string(l.tile) + " lease=" + l.id;
+  }
+
+  // GETs target, retrying transport errors and 5xx until it succeeds or `interrupted` says to give up; 404 is Gone.
+  std::string fetch(const std::string& target, const std::function<bool()>& interrupted) {
+    Backoff backoff(200ms, opt_.max_retry_wait);
+    while (true) {
+      if (interrupted()) throw Interrupted("interrupted while fetching " + target);
+      try {
+        const HttpResponse r = http_.send("GET", target);
+        if (r.status == 200) return r.body;
+        if (r.status == 404) throw Gone("GET " + target + ": not found (" + r.error_text() + ")");
+        if (!retryable_status(r.status))
+          throw std::runtime_error("GET " + target + " answered " + std::to_string(r.status) + ": " + r.error_text());
+        spdlog::warn("GET {} answered {}: {}; retrying", target, r.status, r.error_text());
+      } catch (const HttpError& e) {
+        spdlog::warn("{}; retrying", e.what());
+      }
+      sleep_unless(backoff.next(), interrupted);
+    }
+  }
+
+  // The job's scene, built once and kept for its later tiles.
+  std::shared_ptr<const LoadedScene> scene_for(const Lease& l, const std::string& pfx,
+                                               const std::function<bool()>& interrupted) {
+    if (auto s = scenes_.find(l.job)) return s;
+    const auto t0 = std::chrono::steady_clock::now();
+    const JobSpec spec = parse_job_spec(parse_body(fetch("/v1/jobs/" + l.job + "/spec", interrupted), "job spec"));
+    std::map<std::string, std::filesystem::path> files;
+    for (const auto& [path, hash] : spec.assets) {
+      try {
+        files[path] = cache_.get(hash, [&](const std::string& h) { return fetch("/v1/blobs/" + h, interrupted); });
+      } catch (const Gone& e) {
+        throw AssetError("asset " + path + " (" + hash + ") is not on the coordinator: " + e.what());
+      }
+    }
+    const AssetResolver resolve = [&files](const std::string& path, const std::string& json_path) {
+      const auto it = files.find(path);
+      if (it == files.end()) throw SceneError(json_path + ": asset '" + path + "' is not listed in the job's assets");
+      return it->second;
+    };
+    LoadOptions lo;
+    lo.force_direct = true;  // the coordinator accepted the job; render what it accepted
+    auto loaded = std::make_shared<LoadedScene>(load_scene_json(spec.scene, "job " + l.job, resolve, lo));
+    if (loaded->scene.width != spec.width || loaded->scene.height != spec.height)
+      throw SceneError("job " + l.job + ": the scene is " + std::to_string(loaded->scene.width) + "x" +
+                       std::to_string(loaded->scene.height) + " but the job spec says " + std::to_string(spec.width) +
+                       "x" + std::to_string(spec.height));
+    spdlog::info("{}: built the job's scene in {:.2f}s ({} assets)", pfx,
+                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), spec.assets.size());
+    scenes_.put(l.job, loaded);
+    return loaded;
+  }
+
+  void process(const Lease& l) {
+    const std::string pfx = prefix(l);
+    spdlog::info("{}: leased window [{},{})x[{},{}) at {} spp", pfx, l.window.x0, l.window.x1, l.window.y0, l.window.y1,
+                 l.spp);
+    std::atomic<bool> cancel{false};
+    std::atomic<int> reason{int(Stop::kNone)};
+    std::atomic<uint64_t> rays{0};
+    std::optional<RenderResult> result;
+    std::string failure;  // error to report through /fail
+    int width = 0, height = 0;
+    {
+      Heartbeat heartbeat(heartbeat_http_, pfx, l.id, heartbeat_period_, cancel, reason, rays, stop_);
+      try {
+        const auto scene = scene_for(l, pfx, [&] { return cancel.load(); });
+        width = scene->scene.width;
+        height = scene->scene.height;
+        if (!PixelWindow{0, 0, width, height}.contains(l.window))
+          throw std::runtime_error("tile window lies outside the " + std::to_string(width) + "x" +
+                                   std::to_string(height) + " image");
+        RenderOptions ro;
+        ro.seed = l.seed;
+        ro.spp = l.spp;
+        ro.window = l.window;
+        ro.cancel = &cancel;
+        ro.progress = [&rays](const RenderProgress& p) { rays.store(p.rays); };
+        result = render(scene->scene, ro);
+        if (result->cancelled) result.reset();
+      } catch (const Interrupted&) {
+        result.reset();
+      } catch (const Gone& e) {
+        spdlog::warn("{}: dropping the tile: {}", pfx, e.what());
+        ++stats_.tiles_dropped;
+        return;
+      } catch (const std::exception& e) {
+        failure = e.what();
+      }
+    }  // heartbeats stop here
+
+    if (!failure.empty()) {
+      spdlog::error("{}: cannot render the tile: {}", pfx, failure);
+      report_failure(l, pfx, failure);
+      return;
+    }
+    if (!result) {
+      if (reason.load() == int(Stop::kShutdown)) {
+        release(l, pfx);
+      } else {
+        spdlog::info("{}: lease revoked, tile dropped", pfx);
+        ++stats_.tiles_dropped;
+      }
+      return;
+    }
+    spdlog::info("{}: rendered in {:.3f}s ({} rays)", pfx, result->seconds, result->counters.rays);
+    upload(l, pfx, *result, width, height);
+  }
+
+  void upload(const Lease& l, const std::string& pfx, const RenderResult& res, int width, int height) {
+    ExrWriteOptions wo;
+    wo.data_window = l.window;
+    wo.display_window = PixelWindow{0, 0, width, height};
+    wo.write_extra = false;
+    const std::vector<uint8_t> bytes = encode_exr(res.image, wo);
+    HttpRequest req;
+    req.method = "PUT";
+    req.target = "/v1/leases/" + l.id + "/result";
+    req.body.assign(bytes.begin(), bytes.end());
+    req.content_type = "image/x-exr";
+    req.headers["X-Tessera-Rays"] = std::to_string(res.counters.rays);
+    if (!stopped_for_test_ && std::getenv("TESSERA_WORKER_STOP_BEFORE_UPLOAD")) {
+      // Test hook (tests/farm/late_upload.sh): freeze between render and upload, as a stalled machine would.
+      stopped_for_test_ = true;
+      spdlog::info("{}: TESSERA_WORKER_STOP_BEFORE_UPLOAD: stopping myself before the upload", pfx);
+      std::raise(SIGSTOP);
+    }
+    Backoff backoff(200ms, opt_.max_retry_wait);
+    for (int attempt = 1;; ++attempt) {
+      try {
+        const HttpResponse r = http_.send(req);
+        if (r.status == 200) {
+          const json j = json::parse(r.body, nullptr, false);
+          const std::string status = j.is_object() ? j.value("status", "") : "";
+          spdlog::info("{}: upload {}", pfx, status.empty() ? "acknowledged" : status);
+          ++stats_.tiles_uploaded;
+          return;
+        }
+        if (r.status == 410) {
+          spdlog::info("{}: upload discarded (job cancelled or failed)", pfx);
+          ++stats_.tiles_dropped;
+          return;
+        }
+        if (r.status == 422) {
+          spdlog::error("{}: the coordinator refused the result as invalid: {}", pfx, r.error_text());
+          ++stats_.tiles_failed;
+          return;
+        }
+        if (r.status == 404) {
+          spdlog::warn("{}: the coordinator does not know the lease any more; tile dropped", pfx);
+          ++stats_.tiles_dropped;
+          return;
+        }
+        if (!retryable_status(r.status)) {
+          spdlog::error("{}: upload answered {}: {}; tile dropped", pfx, r.status, r.error_text());
+          ++stats_.tiles_dropped;
+          return;
+        }
+        spdlog::warn("{}: upload attempt {} answered {}: {}; retrying", pfx, attempt, r.status, r.error_text());
+      } catch (const HttpError& e) {
+        spdlog::warn("{}: upload attempt {} failed: {}; retrying", pfx, attempt, e.what());
+      }
+      if (!sleep_unless(backoff.next(), [&] { return stop_.load() >= 2; })) {
+        spdlog::warn("{}: asked to stop again while the coordinator is unreachable; abandoning the upload", pfx);
+        ++stats_.tiles_dropped;
+        return;
+      }
+    }
+  }
+
+  // Posts a small JSON message about a lease, retrying briefly; the lease expires anyway if this never arrives.
+  bool post_lease_message(const Lease& l, const std::string& pfx, const std::string& action, const json& body,
+                          int attempts) {
+    Backoff backoff(100ms, 1000ms);
+    for (int i = 0; i < attempts; ++i) {
+      try {
+        const HttpResponse r = http_.send("POST", "/v1/leases/" + l.id + "/" + action, body.dump());
+        if (r.status == 200) return true;
+        if (!retryable_status(r.status)) {
+          spdlog::warn("{}: {} answered {}: {}", pfx, action, r.status, r.error_text());
+          return false;
+        }
+      } catch (const HttpError& e) {
+        spdlog::warn("{}: {} failed: {}", pfx, action, e.what());
+      }
+      std::this_thread::sleep_for(backoff.next());
+    }
+    return false;
+  }
+
+  void report_failure(const Lease& l, const std::string& pfx, const std::string& error) {
+    ++stats_.tiles_failed;
+    if (post_lease_message(l, pfx, "fail", json{{"error", error}}, 10)) spdlog::info("{}: failure reported", pfx);
+  }
+
+  void release(const Lease& l, const std::string& pfx) {
+    ++stats_.tiles_released;
+    if (post_lease_message(l, pfx, "release", json::object(), 3)) spdlog::info("{}: tile handed back", pfx);
+  }
+
+  const WorkerOptions& opt_;
+  const std::atomic<int>& stop_;
+  HttpUrl url_;
+  HttpClient http_;
+  HttpClient heartbeat_http_;  // used only by the heartbeat thread
+  AssetCache cache_;
+  LruCache<LoadedScene> scenes_;
+  Backoff idle_, retry_;
+  std::string name_, id_;
+  int threads_ = 1;
+  std::chrono::milliseconds heartbeat_period_{5000};
+  bool down_ = false;
+  bool stopped_for_test_ = false;
+  WorkerStats stats_;
+};
+
+}  // namespace
+
+WorkerStats run_worker(const WorkerOptions& options, const std::atomic<int>& stop_requests) {
+  std::unique_ptr<tbb::global_control> limit;
+  if (options.threads > 0)
+    limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(options.threads));
+  Worker worker(options, stop_requests);
+  return worker.run();
+}
+
+}  // namespace tessera::farm

@@ -1,0 +1,39 @@
+// `tessera worker`: registers with a coordinator, leases tiles, renders them and uploads the results.
+#pragma once
+
+#include "worker/http_client.h"
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+
+namespace tessera::farm {
+
+/// How a worker runs.
+struct WorkerOptions {
+  std::string coordinator;             ///< Coordinator URL, e.g. http://127.0.0.1:8470.
+  int threads = 0;                     ///< Render threads (0: all cores).
+  std::filesystem::path cache_dir;     ///< Asset cache folder (empty: default_cache_dir()).
+  std::string name;                    ///< Name sent at registration (empty: host name and pid).
+  size_t scene_cache_jobs = 3;         ///< Built scenes kept, one per job.
+  std::chrono::milliseconds max_idle_wait{2000};   ///< Longest wait between lease requests when there is no work.
+  std::chrono::milliseconds max_retry_wait{5000};  ///< Longest wait between retries when the coordinator is down.
+  HttpTimeouts timeouts{};             ///< Timeouts of lease, spec, blob and upload requests.
+};
+
+/// What a worker did, for its exit log and for tests.
+struct WorkerStats {
+  int64_t tiles_uploaded = 0;   ///< Results the coordinator accepted (or acknowledged as duplicates).
+  int64_t tiles_dropped = 0;    ///< Tiles abandoned because the lease was revoked, unknown or the job ended.
+  int64_t tiles_failed = 0;     ///< Tiles reported through /fail (or refused with 422).
+  int64_t tiles_released = 0;   ///< Tiles handed back on shutdown.
+};
+
+/// Runs the worker until *stop_requests becomes non-zero: the first request lets the current tile finish and upload,
+/// a second one cancels the render and hands the tile back. Never returns because the coordinator is unreachable
+/// (it retries with backoff and jitter); throws only for bad options (URL, cache folder).
+WorkerStats run_worker(const WorkerOptions& options, const std::atomic<int>& stop_requests);
+
+}  // namespace tessera::farm

@@ -1,0 +1,136 @@
+#include "core/sha256.h"
+#include "worker/asset_cache.h"
+#include "worker/backoff.h"
+#include "worker/protocol.h"
+#include "worker/scene_cache.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+namespace tessera::farm {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path temp_dir(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / ("tessera-worker-test-" + name + "-" + std::to_string(::getpid()));
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+TEST(Backoff, GrowsToTheCapWithJitterAndResets) {
+  Backoff b(std::chrono::milliseconds(100), std::chrono::milliseconds(1000));
+  const long long expected_base[] = {100, 200, 400, 800, 1000, 1000};
+  for (long long base : expected_base) {
+    const auto d = b.next().count();
+    EXPECT_GE(d, base / 2);
+    EXPECT_LE(d, base);
+  }
+  b.reset();
+  EXPECT_LE(b.next().count(), 100);
+}
+
+TEST(LruCache, EvictsTheLeastRecentlyUsed) {
+  LruCache<int> c(2);
+  c.put("a", std::make_shared<int>(1));
+  c.put("b", std::make_shared<int>(2));
+  ASSERT_TRUE(c.find("a"));  // a is now newer than b
+  c.put("c", std::make_shared<int>(3));
+  EXPECT_EQ(c.size(), 2u);
+  EXPECT_FALSE(c.find("b"));
+  EXPECT_EQ(*c.find("a"), 1);
+  EXPECT_EQ(*c.find("c"), 3);
+}
+
+TEST(AssetCache, FetchesOnceAndVerifies) {
+  AssetCache cache(temp_dir("once"));
+  const std::string bytes = "v 0 0 0\n";
+  const std::string hash = sha256_hex(bytes);
+  int fetches = 0;
+  const auto fetch = [&](const std::string& h) {
+    EXPECT_EQ(h, hash);
+    ++fetches;
+    return bytes;
+  };
+  const fs::path p = cache.get(hash, fetch);
+  EXPECT_EQ(cache.get(hash, fetch), p);
+  EXPECT_EQ(fetches, 1);
+  std::ifstream in(p, std::ios::binary);
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), bytes);
+
+  // A second process (a fresh cache object on the same folder) finds the file and does not fetch.
+  AssetCache again(cache.dir());
+  EXPECT_EQ(again.get(hash, fetch), p);
+  EXPECT_EQ(fetches, 1);
+}
+
+TEST(AssetCache, RefusesBytesThatHashToSomethingElse) {
+  AssetCache cache(temp_dir("mismatch"));
+  const std::string hash = sha256_hex("the real bytes");
+  try {
+    cache.get(hash, [](const std::string&) { return std::string("tampered"); });
+    FAIL();
+  } catch (const AssetError& e) {
+    EXPECT_NE(std::string(e.what()).find("hashing to " + sha256_hex("tampered")), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(cache.path_of(hash)));
+  EXPECT_THROW(cache.get("not-a-hash", [](const std::string&) { return std::string(); }), AssetError);
+}
+
+TEST(AssetCache, ReplacesACorruptFile) {
+  AssetCache cache(temp_dir("corrupt"));
+  const std::string bytes = "good";
+  const std::string hash = sha256_hex(bytes);
+  fs::create_directories(cache.path_of(hash).parent_path());
+  std::ofstream(cache.path_of(hash)) << "bad";
+  int fetches = 0;
+  cache.get(hash, [&](const std::string&) {
+    ++fetches;
+    return bytes;
+  });
+  EXPECT_EQ(fetches, 1);
+  EXPECT_EQ(sha256_file(cache.path_of(hash)), hash);
+}
+
+TEST(Protocol, ParsesALease) {
+  const Lease l = parse_lease(nlohmann::json::parse(
+      R"({"lease": "l-1", "job": "j-2", "tile": 7, "window": [64, 0, 128, 64], "spp": 32, "seed": 5,
+          "scene_hash": "ab", "deadline_ms": 0})"));
+  EXPECT_EQ(l.id, "l-1");
+  EXPECT_EQ(l.job, "j-2");
+  EXPECT_EQ(l.tile, 7);
+  EXPECT_EQ(l.window, (PixelWindow{64, 0, 128, 64}));
+  EXPECT_EQ(l.spp, 32u);
+  EXPECT_EQ(l.seed, 5u);
+}
+
+TEST(Protocol, NamesTheFieldThatIsWrong) {
+  try {
+    parse_lease(nlohmann::json::parse(R"({"lease": "l-1", "job": "j-2", "tile": 7, "window": [1, 2, 3], "spp": 1})"));
+    FAIL();
+  } catch (const ProtocolError& e) {
+    EXPECT_STREQ(e.what(), "lease: \"window\" must hold 4 numbers");
+  }
+  try {
+    parse_job_status(nlohmann::json::parse(R"({"id": "j-1"})"));
+    FAIL();
+  } catch (const ProtocolError& e) {
+    EXPECT_STREQ(e.what(), "job: missing \"state\"");
+  }
+  EXPECT_THROW(parse_body("<html>", "lease"), ProtocolError);
+}
+
+TEST(Protocol, ParsesAJobWithNullError) {
+  const JobStatus s = parse_job_status(nlohmann::json::parse(
+      R"({"id": "j-1", "state": "running", "width": 8, "height": 4, "tiles": {"total": 4, "done": 1, "leased": 2,
+          "pending": 1}, "render_seconds": 1.5, "error": null, "finished_ms": null})"));
+  EXPECT_EQ(s.tiles_total, 4);
+  EXPECT_EQ(s.tiles_done, 1);
+  EXPECT_FALSE(s.finished());
+  EXPECT_EQ(s.error, "");
+}
+
+}  // namespace
+}  // namespace tessera::farm
