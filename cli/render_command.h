@@ -27,6 +27,13 @@ struct RenderArgs {
   std::string asset_root;               ///< Allow assets anywhere below this folder.
   int tile_size = 16;                   ///< Thread tile edge.
   bool quiet = false;                   ///< No progress bar.
+  float target_error = 0.f;             ///< Adaptive sampling target (relative standard error); 0: off.
+  uint32_t min_spp = 16;                ///< Adaptive sampling: first round and minimum.
+  uint32_t max_spp = 1024;              ///< Adaptive sampling: cap.
+  float error_floor = 0.01f;            ///< Adaptive sampling: luminance floor of the relative error.
+  std::string area_sampling;            ///< Overrides integrator.area_sampling (solid_angle or area).
+  std::string env_sampling;             ///< Overrides integrator.env_sampling (mis, importance, cosine, uniform).
+  std::string bvh;                      ///< Overrides integrator.bvh (sah or median).
 };
 
 /// Registers the subcommand's options on `app`.

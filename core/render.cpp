@@ -3,26 +3,43 @@
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <chrono>
 #include <mutex>
 
 namespace tessera {
 
-PixelEstimate render_pixel(const Scene& scene, int px, int row, uint64_t seed, uint32_t spp, RayCounters& counters) {
-  // Double accumulators in sample order: the sum does not depend on anything but the pixel and its samples.
-  glm::dvec3 sum(0.0), sum2(0.0);
-  for (uint32_t s = 0; s < spp; ++s) {
+namespace {
+
+// Adds samples [acc.count(), end) of pixel (px, row) to acc, in order.
+void add_samples(const Scene& scene, int px, int row, uint64_t seed, uint32_t end, PixelAccumulator& acc,
+                 RayCounters& counters) {
+  for (uint32_t s = acc.count(); s < end; ++s) {
     PixelSampler sampler(seed, px, row, s);
     const Ray r = scene.camera.generate_pixel(px, row, sampler.next_2d(), scene.width, scene.height);
-    const glm::dvec3 L(trace_radiance(scene, r, sampler, counters));
-    sum += L;
-    sum2 += L * L;
+    acc.add(trace_radiance(scene, r, sampler, counters));
   }
-  const double n = double(spp);
-  const glm::dvec3 mean = sum / n;
-  glm::dvec3 var(0.0);
-  if (spp > 1) var = glm::max(glm::dvec3(0.0), (sum2 - n * mean * mean) / (n - 1.0)) / n;
-  return {Vec3(mean), Vec3(var)};
+}
+
+}  // namespace
+
+PixelEstimate render_pixel(const Scene& scene, int px, int row, uint64_t seed, uint32_t spp, RayCounters& counters) {
+  // Double accumulators in sample order: the sum does not depend on anything but the pixel and its samples.
+  PixelAccumulator acc;
+  add_samples(scene, px, row, seed, spp, acc, counters);
+  return acc.estimate();
+}
+
+PixelEstimate render_pixel_adaptive(const Scene& scene, int px, int row, uint64_t seed, const AdaptiveOptions& opt,
+                                    RayCounters& counters) {
+  const uint32_t max_spp = std::max<uint32_t>(1, opt.max_spp);
+  const uint32_t min_spp = std::clamp<uint32_t>(opt.min_spp, std::min<uint32_t>(2, max_spp), max_spp);
+  PixelAccumulator acc;
+  for (uint32_t n = min_spp;; n = next_round(n, max_spp)) {
+    add_samples(scene, px, row, seed, n, acc, counters);
+    if (n >= max_spp || acc.relative_error(opt.error_floor) <= opt.target_error) break;
+  }
+  return acc.estimate();
 }
 
 RenderResult render(const Scene& scene, const RenderOptions& opt) {
@@ -31,6 +48,8 @@ RenderResult render(const Scene& scene, const RenderOptions& opt) {
   res.window = opt.window.empty() ? PixelWindow{0, 0, scene.width, scene.height} : opt.window;
   const PixelWindow w = res.window;
   const uint32_t spp = opt.spp ? opt.spp : scene.settings.spp;
+  const bool adaptive = opt.target_error > 0.f;
+  const AdaptiveOptions ao{opt.target_error, opt.min_spp, opt.max_spp, opt.error_floor};
   res.image = Image::make(w.width(), w.height());
   if (opt.variance) {
     for (const char* c : {"variance.R", "variance.G", "variance.B", "samples"})
@@ -63,7 +82,8 @@ RenderResult render(const Scene& scene, const RenderOptions& opt) {
       const int x1 = std::min(x0 + ts, w.x1), y1 = std::min(y0 + ts, w.y1);
       for (int y = y0; y < y1; ++y)
         for (int x = x0; x < x1; ++x) {
-          const PixelEstimate e = render_pixel(scene, x, y, opt.seed, spp, c);
+          const PixelEstimate e = adaptive ? render_pixel_adaptive(scene, x, y, opt.seed, ao, c)
+                                           : render_pixel(scene, x, y, opt.seed, spp, c);
           const int lx = x - w.x0, ly = y - w.y0;
           res.image.set(lx, ly, e.mean);
           if (opt.variance) {
@@ -71,7 +91,7 @@ RenderResult render(const Scene& scene, const RenderOptions& opt) {
             var_ch[0][i] = e.var_mean.x;
             var_ch[1][i] = e.var_mean.y;
             var_ch[2][i] = e.var_mean.z;
-            var_ch[3][i] = float(spp);
+            var_ch[3][i] = float(e.spp);
           }
         }
       const int d = ++done;
