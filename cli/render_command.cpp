@@ -40,6 +40,11 @@ CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
   c->add_option("--error-floor", a.error_floor,
                 "With --target-error: luminance below which absolute error is measured (default 0.01)")
       ->check(CLI::Range(0.f, 1e6f));
+  c->add_option("--replicates", a.replicates,
+                "Split each pixel's samples into K independently scrambled sequences so the variance channels and "
+                "--target-error use an unbiased error estimate (default 1: one stratified sequence, conservative "
+                "estimate)")
+      ->check(CLI::Range(1u, kMaxReplicates));
   c->add_option("--area-sampling", a.area_sampling, "Area-light strategy (overrides the scene)")
       ->check(CLI::IsMember({"solid_angle", "area"}));
   c->add_option("--env-sampling", a.env_sampling, "Environment strategy (overrides the scene)")
@@ -135,6 +140,10 @@ int run_render(const RenderArgs& a) {
     ro.min_spp = a.min_spp;
     ro.max_spp = a.max_spp;
     ro.error_floor = a.error_floor;
+    ro.replicates = a.replicates;
+    if (a.replicates > 1 && ro.target_error <= 0.f && (a.spp ? *a.spp : scene.settings.spp) % a.replicates != 0)
+      spdlog::warn("--replicates {} does not divide the sample count; the variance channels will be zero",
+                   a.replicates);
     if (!a.crop.empty()) {
       ro.window = PixelWindow{a.crop[0], a.crop[1], a.crop[2], a.crop[3]};
       const PixelWindow full{0, 0, scene.width, scene.height};
@@ -165,6 +174,7 @@ int run_render(const RenderArgs& a) {
       wo.metadata["tessera:maxSpp"] = std::to_string(ro.max_spp);
       wo.metadata["tessera:errorFloor"] = std::to_string(ro.error_floor);
     }
+    wo.metadata["tessera:replicates"] = std::to_string(ro.replicates);
     wo.metadata["tessera:areaSampling"] = scene.settings.area_sampling == AreaSampling::kArea ? "area" : "solid_angle";
     wo.metadata["tessera:envSampling"] = env_sampling_name(scene.settings.env_sampling);
     write_exr(a.output, res.image, wo);

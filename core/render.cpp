@@ -9,13 +9,20 @@
 
 namespace tessera {
 
+PixelSampler pixel_sampler(uint64_t seed, int px, int row, uint32_t s, uint32_t replicates) {
+  if (replicates <= 1) return PixelSampler(seed, px, row, s);
+  // Replicate r = s mod K is its own scrambled sequence: the seed is mixed with r, the index is s / K.
+  const uint64_t r = s % replicates;
+  return PixelSampler(seed ^ ((r + 1) * 0x9E3779B97F4A7C15ULL), px, row, s / replicates);
+}
+
 namespace {
 
 // Adds samples [acc.count(), end) of pixel (px, row) to acc, in order.
-void add_samples(const Scene& scene, int px, int row, uint64_t seed, uint32_t end, PixelAccumulator& acc,
-                 RayCounters& counters) {
+void add_samples(const Scene& scene, int px, int row, uint64_t seed, uint32_t end, uint32_t replicates,
+                 PixelAccumulator& acc, RayCounters& counters) {
   for (uint32_t s = acc.count(); s < end; ++s) {
-    PixelSampler sampler(seed, px, row, s);
+    PixelSampler sampler = pixel_sampler(seed, px, row, s, replicates);
     const Ray r = scene.camera.generate_pixel(px, row, sampler.next_2d(), scene.width, scene.height);
     acc.add(trace_radiance(scene, r, sampler, counters));
   }
@@ -23,20 +30,24 @@ void add_samples(const Scene& scene, int px, int row, uint64_t seed, uint32_t en
 
 }  // namespace
 
-PixelEstimate render_pixel(const Scene& scene, int px, int row, uint64_t seed, uint32_t spp, RayCounters& counters) {
+PixelEstimate render_pixel(const Scene& scene, int px, int row, uint64_t seed, uint32_t spp, RayCounters& counters,
+                           uint32_t replicates) {
   // Double accumulators in sample order: the sum does not depend on anything but the pixel and its samples.
-  PixelAccumulator acc;
-  add_samples(scene, px, row, seed, spp, acc, counters);
+  PixelAccumulator acc(replicates);
+  add_samples(scene, px, row, seed, spp, replicates, acc, counters);
   return acc.estimate();
 }
 
 PixelEstimate render_pixel_adaptive(const Scene& scene, int px, int row, uint64_t seed, const AdaptiveOptions& opt,
                                     RayCounters& counters) {
-  const uint32_t max_spp = std::max<uint32_t>(1, opt.max_spp);
-  const uint32_t min_spp = std::clamp<uint32_t>(opt.min_spp, std::min<uint32_t>(2, max_spp), max_spp);
-  PixelAccumulator acc;
-  for (uint32_t n = min_spp;; n = next_round(n, max_spp)) {
-    add_samples(scene, px, row, seed, n, acc, counters);
+  const uint32_t k = std::clamp<uint32_t>(opt.replicates, 1, kMaxReplicates);
+  // Rounds are multiples of the replicate count (and of 2, so a variance exists).
+  const uint32_t unit = std::max<uint32_t>(k, 2);
+  const uint32_t max_spp = std::max(unit, opt.max_spp / unit * unit);
+  const uint32_t min_spp = std::min(max_spp, std::max(unit, (opt.min_spp + unit - 1) / unit * unit));
+  PixelAccumulator acc(k);
+  for (uint32_t n = min_spp;; n = std::min(max_spp, next_round(n, max_spp) / unit * unit)) {
+    add_samples(scene, px, row, seed, n, k, acc, counters);
     if (n >= max_spp || acc.relative_error(opt.error_floor) <= opt.target_error) break;
   }
   return acc.estimate();
@@ -49,7 +60,7 @@ RenderResult render(const Scene& scene, const RenderOptions& opt) {
   const PixelWindow w = res.window;
   const uint32_t spp = opt.spp ? opt.spp : scene.settings.spp;
   const bool adaptive = opt.target_error > 0.f;
-  const AdaptiveOptions ao{opt.target_error, opt.min_spp, opt.max_spp, opt.error_floor};
+  const AdaptiveOptions ao{opt.target_error, opt.min_spp, opt.max_spp, opt.error_floor, opt.replicates};
   res.image = Image::make(w.width(), w.height());
   if (opt.variance) {
     for (const char* c : {"variance.R", "variance.G", "variance.B", "samples"})
@@ -83,7 +94,7 @@ RenderResult render(const Scene& scene, const RenderOptions& opt) {
       for (int y = y0; y < y1; ++y)
         for (int x = x0; x < x1; ++x) {
           const PixelEstimate e = adaptive ? render_pixel_adaptive(scene, x, y, opt.seed, ao, c)
-                                           : render_pixel(scene, x, y, opt.seed, spp, c);
+                                           : render_pixel(scene, x, y, opt.seed, spp, c, opt.replicates);
           const int lx = x - w.x0, ly = y - w.y0;
           res.image.set(lx, ly, e.mean);
           if (opt.variance) {

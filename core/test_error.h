@@ -10,7 +10,8 @@
 
 namespace tessera::testing {
 
-/// Sums over pixels of the squared luminance difference D = I - R and of its prediction Var(I) + Var(R).
+/// Sums over pixels of the squared relative luminance difference D^2 / (R^2 + 0.01), D = I - R, and of its
+/// prediction (Var(I) + Var(R)) / (R^2 + 0.01) (the weights of relMSE, so bright pixels do not dominate).
 struct ErrorCheck {
   double measured = 0;   ///< Sum of D^2.
   double predicted = 0;  ///< Sum of the predicted Var(I) + Var(R).
@@ -38,9 +39,10 @@ inline ErrorCheck compare_with_reference(const Image& img, const Image& ref) {
   std::vector<double> d2;
   const size_t n = size_t(img.width) * size_t(img.height);
   for (size_t i = 0; i < n; ++i) {
-    const double d = pixel_luminance(img, i) - pixel_luminance(ref, i);
-    c.predicted += luminance_variance(img, i) + luminance_variance(ref, i);
-    d2.push_back(d * d);
+    const double r = pixel_luminance(ref, i);
+    const double d = pixel_luminance(img, i) - r, w = 1.0 / (r * r + 0.01);
+    c.predicted += (luminance_variance(img, i) + luminance_variance(ref, i)) * w;
+    d2.push_back(d * d * w);
   }
   c.n = n;
   c.measured = std::accumulate(d2.begin(), d2.end(), 0.0);
