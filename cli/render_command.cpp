@@ -37,8 +37,44 @@ CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
                 "Render through a private coordinator and N worker processes on this machine (0: in this process)")
       ->check(CLI::Range(0, 256));
   c->add_option("--farm-tile", a.farm_tile, "Farm tile edge in pixels (with --workers)")->check(CLI::Range(1, 4096));
+  c->add_option("--target-error", a.target_error,
+                "Sample each pixel in doubling rounds until the relative standard error of its luminance is at most "
+                "this (e.g. 0.02); --spp is then ignored")
+      ->check(CLI::Range(0.f, 1e6f));
+  c->add_option("--min-spp", a.min_spp, "With --target-error: samples of the first round (default 16)")
+      ->check(CLI::Range(1u, 1u << 20));
+  c->add_option("--max-spp", a.max_spp, "With --target-error: most samples per pixel (default 1024)")
+      ->check(CLI::Range(1u, 1u << 20));
+  c->add_option("--error-floor", a.error_floor,
+                "With --target-error: luminance below which absolute error is measured (default 0.01)")
+      ->check(CLI::Range(0.f, 1e6f));
+  c->add_option("--replicates", a.replicates,
+                "Split each pixel's samples into K independently scrambled sequences so the variance channels and "
+                "--target-error use an unbiased error estimate (default 1: one stratified sequence, conservative "
+                "estimate)")
+      ->check(CLI::Range(1u, kMaxReplicates));
+  c->add_option("--area-sampling", a.area_sampling, "Area-light strategy (overrides the scene)")
+      ->check(CLI::IsMember({"solid_angle", "area"}));
+  c->add_option("--env-sampling", a.env_sampling, "Environment strategy (overrides the scene)")
+      ->check(CLI::IsMember({"mis", "importance", "cosine", "uniform"}));
+  c->add_option("--bvh", a.bvh, "BVH build: binned SAH or object median (overrides the scene)")
+      ->check(CLI::IsMember({"sah", "median"}));
   return c;
 }
+
+namespace {
+
+const char* env_sampling_name(EnvSampling e) {
+  switch (e) {
+    case EnvSampling::kMis: return "mis";
+    case EnvSampling::kImportance: return "importance";
+    case EnvSampling::kCosine: return "cosine";
+    case EnvSampling::kUniform: return "uniform";
+  }
+  return "mis";
+}
+
+}  // namespace
 
 int run_render(const RenderArgs& a) {
   if (a.workers > 0) return run_render_farm(a);
@@ -54,6 +90,18 @@ int run_render(const RenderArgs& a) {
     lo.force_direct = !a.integrator.empty();
     if (!a.asset_root.empty()) lo.asset_root = a.asset_root;
     lo.spp = a.spp;
+    if (a.area_sampling == "solid_angle") lo.area_sampling = AreaSampling::kSolidAngle;
+    if (a.area_sampling == "area") lo.area_sampling = AreaSampling::kArea;
+    if (a.env_sampling == "mis") lo.env_sampling = EnvSampling::kMis;
+    if (a.env_sampling == "importance") lo.env_sampling = EnvSampling::kImportance;
+    if (a.env_sampling == "cosine") lo.env_sampling = EnvSampling::kCosine;
+    if (a.env_sampling == "uniform") lo.env_sampling = EnvSampling::kUniform;
+    if (a.bvh == "sah") lo.bvh = SplitMethod::kSah;
+    if (a.bvh == "median") lo.bvh = SplitMethod::kMedian;
+    if (a.target_error > 0.f && a.min_spp > a.max_spp) {
+      spdlog::error("--min-spp {} is larger than --max-spp {}", a.min_spp, a.max_spp);
+      return 2;
+    }
     const auto t_load = std::chrono::steady_clock::now();
     LoadedScene loaded = load_scene_file(a.scene, lo);
     for (const auto& w : loaded.warnings) spdlog::warn("{}", w);
@@ -65,6 +113,14 @@ int run_render(const RenderArgs& a) {
     ro.seed = a.seed;
     ro.tile_size = a.tile_size;
     ro.variance = a.variance;
+    ro.target_error = a.target_error;
+    ro.min_spp = a.min_spp;
+    ro.max_spp = a.max_spp;
+    ro.error_floor = a.error_floor;
+    ro.replicates = a.replicates;
+    if (a.replicates > 1 && ro.target_error <= 0.f && (a.spp ? *a.spp : scene.settings.spp) % a.replicates != 0)
+      spdlog::warn("--replicates {} does not divide the sample count; the variance channels will be zero",
+                   a.replicates);
     if (!a.crop.empty()) {
       ro.window = PixelWindow{a.crop[0], a.crop[1], a.crop[2], a.crop[3]};
       const PixelWindow full{0, 0, scene.width, scene.height};
@@ -85,15 +141,33 @@ int run_render(const RenderArgs& a) {
     wo.metadata = {{"tessera:version", TESSERA_VERSION},
                    {"tessera:scene", a.scene},
                    {"tessera:sceneHash", scene.hash},
-                   {"tessera:spp", std::to_string(a.spp ? *a.spp : scene.settings.spp)},
+                   {"tessera:spp", ro.target_error > 0.f ? std::string("adaptive")
+                                                         : std::to_string(a.spp ? *a.spp : scene.settings.spp)},
                    {"tessera:seed", std::to_string(a.seed)},
                    {"tessera:renderSeconds", std::to_string(res.seconds)}};
+    if (ro.target_error > 0.f) {
+      wo.metadata["tessera:targetError"] = std::to_string(ro.target_error);
+      wo.metadata["tessera:minSpp"] = std::to_string(ro.min_spp);
+      wo.metadata["tessera:maxSpp"] = std::to_string(ro.max_spp);
+      wo.metadata["tessera:errorFloor"] = std::to_string(ro.error_floor);
+    }
+    wo.metadata["tessera:replicates"] = std::to_string(ro.replicates);
+    wo.metadata["tessera:areaSampling"] = scene.settings.area_sampling == AreaSampling::kArea ? "area" : "solid_angle";
+    wo.metadata["tessera:envSampling"] = env_sampling_name(scene.settings.env_sampling);
     write_exr(a.output, res.image, wo);
     if (!a.preview.empty()) write_png_srgb(a.preview, res.image);
     if (res.counters.nonfinite > 0)
       spdlog::warn("{} sample(s) were NaN or Inf and were counted as zero", res.counters.nonfinite);
-    std::fprintf(stderr, "%s: %dx%d px, %u spp, %.2fs load + %.2fs render, %.1f Mrays/s (%llu rays)\n",
-                 a.output.c_str(), res.window.width(), res.window.height(), a.spp ? *a.spp : scene.settings.spp, load_s,
+    const double pixels = double(res.window.width()) * double(res.window.height());
+    const double mean_spp = pixels > 0 ? double(res.counters.camera) / pixels : 0.0;
+    if (ro.target_error > 0.f)
+      std::fprintf(stderr, "adaptive: target relative error %g, %u..%u spp, %.1f spp on average\n", ro.target_error,
+                   ro.min_spp, ro.max_spp, mean_spp);
+    char spp_text[32];
+    if (ro.target_error > 0.f) std::snprintf(spp_text, sizeof spp_text, "%.1f", mean_spp);
+    else std::snprintf(spp_text, sizeof spp_text, "%u", a.spp ? *a.spp : scene.settings.spp);
+    std::fprintf(stderr, "%s: %dx%d px, %s spp, %.2fs load + %.2fs render, %.1f Mrays/s (%llu rays)\n",
+                 a.output.c_str(), res.window.width(), res.window.height(), spp_text, load_s,
                  res.seconds, res.seconds > 0 ? double(res.counters.rays) / res.seconds * 1e-6 : 0.0,
                  static_cast<unsigned long long>(res.counters.rays));
     return 0;

@@ -29,6 +29,14 @@ struct RenderArgs {
   bool quiet = false;                   ///< No progress bar.
   int workers = 0;                      ///< >0: render through a local coordinator and this many worker processes.
   int farm_tile = 64;                   ///< Farm tile edge (with --workers).
+  float target_error = 0.f;             ///< Adaptive sampling target (relative standard error); 0: off.
+  uint32_t min_spp = 16;                ///< Adaptive sampling: first round and minimum.
+  uint32_t max_spp = 1024;              ///< Adaptive sampling: cap.
+  float error_floor = 0.01f;            ///< Adaptive sampling: luminance floor of the relative error.
+  uint32_t replicates = 1;              ///< Independent replicates per pixel (unbiased error estimates when >= 2).
+  std::string area_sampling;            ///< Overrides integrator.area_sampling (solid_angle or area).
+  std::string env_sampling;             ///< Overrides integrator.env_sampling (mis, importance, cosine, uniform).
+  std::string bvh;                      ///< Overrides integrator.bvh (sah or median).
 };
 
 /// Registers the subcommand's options on `app`.

@@ -100,12 +100,29 @@ Vec3 uv_to_direction(Vec2 uv, float* sin_theta) {
 void Environment::finish() {
   if (constant()) return;
   const Image& img = *texture.image;
-  std::vector<float> w(size_t(img.width) * size_t(img.height));
-  for (int y = 0; y < img.height; ++y) {
-    const float st = std::sin(kPi * (float(y) + 0.5f) / float(img.height));
-    for (int x = 0; x < img.width; ++x) w[size_t(y) * size_t(img.width) + size_t(x)] = luminance(img.at(x, y)) * st;
+  const int W = img.width, H = img.height;
+  std::vector<float> lum(size_t(W) * size_t(H));
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) lum[size_t(y) * size_t(W) + size_t(x)] = luminance(img.at(x, y));
+  std::vector<float> w(lum.size());
+  for (int y = 0; y < H; ++y) {
+    // Largest sin(theta) over the row's band [y, y+1) / H.
+    const float t0 = kPi * float(y) / float(H), t1 = kPi * float(y + 1) / float(H);
+    const float st = (t0 <= kPi / 2 && t1 >= kPi / 2) ? 1.f : std::max(std::sin(t0), std::sin(t1));
+    for (int x = 0; x < W; ++x) {
+      float m = lum[size_t(y) * size_t(W) + size_t(x)];
+      if (!raw_pixel_distribution) {
+        // Texture::lookup wraps (repeats) in both directions, so the neighbourhood does too.
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int xx = (x + dx + W) % W, yy = (y + dy + H) % H;
+            m = std::max(m, lum[size_t(yy) * size_t(W) + size_t(xx)]);
+          }
+      }
+      w[size_t(y) * size_t(W) + size_t(x)] = m * (raw_pixel_distribution ? std::sin(kPi * (float(y) + 0.5f) / float(H)) : st);
+    }
   }
-  dist = Distribution2D(w, img.width, img.height);
+  dist = Distribution2D(w, W, H);
 }
 
 Vec3 Environment::radiance(const Vec3& d) const {
@@ -124,7 +141,6 @@ LightSample Environment::sample(Vec2 u) const {
   const Vec3 local = uv_to_direction(uv, &st);
   if (!(st > 0.f) || !(pdf_uv > 0.f)) return {local, Vec3(0.f), Vec3(0.f), 0.f};
   const Vec3 d = to_world * local;
-  // The map's pixel (not a bilinear blend) is what the distribution was built from; radiance() filters.
   return {d, Vec3(0.f), radiance(d), pdf_uv / (2.f * kPi * kPi * st)};
 }
 

@@ -1,6 +1,7 @@
 // Rendering a window of the image with the direct integrator, tile by tile on all threads.
 #pragma once
 
+#include "core/adaptive.h"
 #include "core/image.h"
 #include "core/integrator.h"
 #include "core/scene.h"
@@ -26,6 +27,17 @@ struct RenderOptions {
   PixelWindow window;                ///< Pixels to render (empty: the whole image); row 0 is the top.
   int tile_size = 16;                ///< Edge of the square tiles the window is cut into for threads.
   bool variance = false;             ///< Also write variance-of-the-mean channels and a sample count.
+  /// Adaptive sampling: when > 0, each pixel is sampled in doubling rounds (min_spp, 2 min_spp, ... up to
+  /// max_spp) until its relative standard error on luminance falls to target_error (see core/adaptive.h);
+  /// spp is then ignored. The decision uses only the pixel's own samples, so tiling never changes a bit.
+  float target_error = 0.f;
+  uint32_t min_spp = 16;             ///< First round of adaptive sampling (also the fewest samples a pixel gets).
+  uint32_t max_spp = 1024;           ///< Most samples a pixel gets with adaptive sampling.
+  float error_floor = 0.01f;         ///< Luminance below which adaptive sampling measures absolute error instead.
+  /// Independent replicates per pixel (1 = one stratified sequence, the default). K >= 2 interleaves K independently
+  /// scrambled sequences so that the variance channels and the adaptive rule use an unbiased error estimate, at
+  /// some cost in stratification (see core/adaptive.h and docs/speed-vs-error.md).
+  uint32_t replicates = 1;
   std::function<void(const RenderProgress&)> progress;  ///< Called (from worker threads, serialised) per tile.
   const std::atomic<bool>* cancel = nullptr;            ///< Stops early when set (the result is then partial).
 };
@@ -42,11 +54,15 @@ struct RenderResult {
 /// Renders options.window of the scene. Bitwise identical pixels for any window split, tile size or thread count.
 RenderResult render(const Scene& scene, const RenderOptions& options);
 
-/// Renders one pixel's samples in a fixed order; returns the mean and (optionally) the variance of the mean.
-struct PixelEstimate {
-  Vec3 mean;      ///< Average of the samples.
-  Vec3 var_mean;  ///< Sample variance divided by the sample count.
-};
-PixelEstimate render_pixel(const Scene& scene, int px, int row, uint64_t seed, uint32_t spp, RayCounters& counters);
+/// The sampler of sample s of pixel (px, row): with K replicates, sample s / K of replicate s mod K.
+PixelSampler pixel_sampler(uint64_t seed, int px, int row, uint32_t s, uint32_t replicates);
+
+/// Renders one pixel's samples 0..spp-1 in order; returns the mean, the variance of the mean and the count.
+PixelEstimate render_pixel(const Scene& scene, int px, int row, uint64_t seed, uint32_t spp, RayCounters& counters,
+                           uint32_t replicates = 1);
+
+/// Renders one pixel adaptively (samples 0, 1, 2, ... in order, in rounds; see AdaptiveOptions).
+PixelEstimate render_pixel_adaptive(const Scene& scene, int px, int row, uint64_t seed, const AdaptiveOptions& opt,
+                                    RayCounters& counters);
 
 }  // namespace tessera

@@ -5,8 +5,8 @@
 
 namespace tessera {
 
-void Scene::finish() {
-  bvh = Bvh::build(triangles, spheres);
+void Scene::finish(const BvhOptions& bvh_options) {
+  bvh = Bvh::build(triangles, spheres, bvh_options);
   for (auto& l : area_lights) l.finish();
   if (environment) environment->finish();
 }

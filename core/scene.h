@@ -81,8 +81,8 @@ struct Scene {
   std::optional<Environment> environment;  ///< Environment map.
   std::string hash;                        ///< Content hash of the scene file and every asset it uses.
 
-  /// Builds the BVH and finalises light distributions; call once geometry and lights are filled in.
-  void finish();
+  /// Builds the BVH (with `bvh_options`) and finalises light distributions; call once geometry and lights are in.
+  void finish(const BvhOptions& bvh_options = {});
   /// Shading information at a BVH hit of ray r.
   SurfaceHit surface(const Ray& r, const Hit& h) const;
 };

@@ -1,5 +1,6 @@
 #include "core/scene_loader.h"
 
+#include "core/coincident.h"
 #include "core/image.h"
 #include "core/sha256.h"
 
@@ -351,6 +352,7 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
   ctx.check_keys(j, "(top level)", {"integrator", "film", "camera", "textures", "materials", "objects", "environment_map"});
   Sha256 hash;
   hash.update(j.dump());
+  BvhOptions bvh_options;
 
   // integrator
   {
@@ -364,7 +366,7 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
     }
     ctx.check_keys(in, "integrator",
                    {"type", "spp", "max_depth", "point_light_position", "point_light_flux", "light_samples",
-                    "area_sampling", "env_sampling"},
+                    "area_sampling", "env_sampling", "bvh"},
                    {"profile", "rr_threshold", "max_path_length", "nee", "mis"});
     const double spp = ctx.number(in, "spp", "integrator", 8);
     if (!(spp >= 1 && spp <= kMaxSpp) || spp != std::floor(spp)) ctx.fail("integrator.spp", "must be an integer in [1, " + std::to_string(kMaxSpp) + "]");
@@ -385,6 +387,13 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
     else if (es == "cosine") s.settings.env_sampling = EnvSampling::kCosine;
     else if (es == "uniform") s.settings.env_sampling = EnvSampling::kUniform;
     else ctx.fail("integrator.env_sampling", "'" + es + "' is not one of: mis, importance, cosine, uniform");
+    if (options.area_sampling) s.settings.area_sampling = *options.area_sampling;
+    if (options.env_sampling) s.settings.env_sampling = *options.env_sampling;
+    const std::string bv = ctx.string(in, "bvh", "integrator", "sah");
+    if (bv == "sah") bvh_options.split = SplitMethod::kSah;
+    else if (bv == "median") bvh_options.split = SplitMethod::kMedian;
+    else ctx.fail("integrator.bvh", "'" + bv + "' is not one of: sah, median");
+    if (options.bvh) bvh_options.split = *options.bvh;
     PointLight pl;
     pl.position = ctx.vec3(in, "point_light_position", "integrator", Vec3(0.f, 5.f, 0.f));
     pl.flux = ctx.vec3(in, "point_light_flux", "integrator", Vec3(1.f));
@@ -518,6 +527,7 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
   if (!j.contains("objects")) ctx.fail("objects", "missing");
   const json& objects = j["objects"];
   if (!objects.is_array()) ctx.fail("objects", "expected an array");
+  std::vector<uint32_t> triangle_object;  // object index of each triangle, for coincident-face warnings
   for (size_t oi = 0; oi < objects.size(); ++oi) {
     const std::string op = "objects[" + std::to_string(oi) + "]";
     const json& o = ctx.object(objects[oi], op);
@@ -563,6 +573,7 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
         }
         s.triangles.push_back(mesh.tris[t]);
         s.triangle_attr.push_back(a);
+        triangle_object.push_back(uint32_t(oi));
         const Triangle& tri = mesh.tris[t];
         Vec3 n = glm::normalize(glm::cross(tri.p1 - tri.p0, tri.p2 - tri.p0));
         normals.push_back(mesh.flip[t] ? -n : n);
@@ -607,6 +618,18 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
     else if (type == "image") ctx.check_keys(*it, tp, {"type", "path", "tex_coordinate_generator"});
   }
 
+  // Exactly coincident triangles (z-fighting), one warning per pair of objects.
+  {
+    std::map<std::pair<uint32_t, uint32_t>, size_t> per_objects;
+    for (const CoincidentPair& c : find_coincident_triangles(s.triangles))
+      ++per_objects[{triangle_object[c.first], triangle_object[c.second]}];
+    for (const auto& [objs, count] : per_objects) {
+      const std::string a = "objects[" + std::to_string(objs.first) + "]", b = "objects[" + std::to_string(objs.second) + "]";
+      ctx.warn(b, std::to_string(count) + " triangle(s) coincide exactly with triangles of " +
+                      (objs.first == objs.second ? std::string("the same object") : a) +
+                      "; which one is visible there is arbitrary (is a mesh listed twice?)");
+    }
+  }
   // Drop emitters that ended up without geometry (all triangles degenerate).
   for (size_t i = 0; i < s.area_lights.size(); ++i) {
     const AreaLight& l = s.area_lights[i];
@@ -633,7 +656,7 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
     s.environment = std::move(env);
   }
 
-  s.finish();
+  s.finish(bvh_options);
   s.hash = hash.hex();
   return out;
 }

@@ -25,6 +25,9 @@ struct LoadOptions {
   bool force_direct = false;                     ///< Render other integrator types with the direct integrator.
   std::optional<std::filesystem::path> asset_root;  ///< Assets may lie anywhere below this folder (default: the scene's folder).
   std::optional<uint32_t> spp;                   ///< Overrides integrator.spp.
+  std::optional<AreaSampling> area_sampling;     ///< Overrides integrator.area_sampling.
+  std::optional<EnvSampling> env_sampling;       ///< Overrides integrator.env_sampling.
+  std::optional<SplitMethod> bvh;                ///< Overrides integrator.bvh (sah or median).
 };
 
 /// Maps an asset path as written in the scene (and the JSON path naming it) to a readable file.

@@ -296,7 +296,15 @@ TEST_F(SceneLoader, CourseScenesLoad) {
     opt.force_direct = true;
     const LoadedScene l = load_scene_file(fs::path(TESSERA_SHARED_DIR) / "compat/rdr171" / name, opt);
     EXPECT_GT(l.scene.triangles.size(), 0u) << name;
-    EXPECT_TRUE(l.warnings.empty()) << name << ": " << (l.warnings.empty() ? "" : l.warnings[0]);
+    if (std::string(name) == "cbox_refract_textured.json") {
+      // This user's scene lists two floors in the same place (objects[0] textured, objects[3] grey): exactly one
+      // warning, naming both objects.
+      ASSERT_EQ(l.warnings.size(), 1u) << name;
+      EXPECT_NE(l.warnings[0].find("objects[3]"), std::string::npos) << l.warnings[0];
+      EXPECT_NE(l.warnings[0].find("coincide exactly with triangles of objects[0]"), std::string::npos) << l.warnings[0];
+    } else {
+      EXPECT_TRUE(l.warnings.empty()) << name << ": " << (l.warnings.empty() ? "" : l.warnings[0]);
+    }
   }
 }
 

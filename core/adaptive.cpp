@@ -1,0 +1,65 @@
+#include "core/adaptive.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace tessera {
+
+namespace {
+
+// Rec.709 luminance in double precision.
+double luminance_d(const glm::dvec3& c) { return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z; }
+
+}  // namespace
+
+PixelAccumulator::PixelAccumulator(uint32_t replicates) : k_(std::clamp<uint32_t>(replicates, 1, kMaxReplicates)) {}
+
+void PixelAccumulator::add(const Vec3& L) {
+  const glm::dvec3 l(L);
+  sum_ += l;
+  sum2_ += l * l;
+  const double y = luminance_d(l);
+  y_sum_ += y;
+  y_sum2_ += y * y;
+  double* r = rep_[n_ % k_];
+  r[0] += l.x;
+  r[1] += l.y;
+  r[2] += l.z;
+  r[3] += y;
+  ++n_;
+}
+
+double PixelAccumulator::var_mean(double sum, double sum2, const double* rep) const {
+  const double n = double(n_);
+  const double mean = sum / n;
+  if (k_ == 1) return n_ > 1 ? std::max(0.0, (sum2 - n * mean * mean) / (n - 1.0)) / n : 0.0;
+  // Replicates need equally many samples each (rounds are multiples of k_); otherwise no estimate.
+  if (n_ % k_ != 0) return 0.0;
+  const double per = n / double(k_);
+  double ss = 0.0;
+  for (uint32_t r = 0; r < k_; ++r) {
+    const double d = rep[4 * r] / per - mean;
+    ss += d * d;
+  }
+  return ss / (double(k_) * double(k_ - 1));
+}
+
+PixelEstimate PixelAccumulator::estimate() const {
+  PixelEstimate e;
+  e.spp = n_;
+  if (n_ == 0) return e;
+  e.mean = Vec3(sum_ / double(n_));
+  // Samples are finite floats, so their mean is too; the variance of the mean can exceed the float range.
+  for (int c = 0; c < 3; ++c)
+    e.var_mean[c] = float(std::min(var_mean(sum_[c], sum2_[c], &rep_[0][c]), double(std::numeric_limits<float>::max())));
+  return e;
+}
+
+double PixelAccumulator::relative_error(double floor) const {
+  if (n_ < 2) return 0.0;
+  const double mean = y_sum_ / double(n_);
+  return std::sqrt(var_mean(y_sum_, y_sum2_, &rep_[0][3])) / std::max(mean, floor);
+}
+
+}  // namespace tessera

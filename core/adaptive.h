@@ -1,0 +1,64 @@
+// Per-pixel error estimates and the stopping rule of adaptive sampling (`--target-error`).
+#pragma once
+
+#include "core/math.h"
+
+#include <cstdint>
+
+namespace tessera {
+
+/// Most independent replicates a pixel's samples can be split into.
+inline constexpr uint32_t kMaxReplicates = 16;
+
+/// A pixel's estimate: mean, variance of the mean and sample count.
+struct PixelEstimate {
+  Vec3 mean{0.f};      ///< Average of the samples.
+  Vec3 var_mean{0.f};  ///< Estimated variance of the mean (see PixelAccumulator; 0 when it cannot be estimated).
+  uint32_t spp = 0;    ///< Samples taken.
+};
+
+/// When adaptive sampling stops: rounds of min_spp, 2 min_spp, 4 min_spp, ... samples (capped at max_spp) until
+/// the relative standard error of the luminance mean, sqrt(var_mean(Y)) / max(mean(Y), error_floor), is at most
+/// target_error.
+struct AdaptiveOptions {
+  float target_error = 0.05f;  ///< Relative standard error to reach (> 0).
+  uint32_t min_spp = 16;       ///< Samples of the first round (at least 2 so a variance exists).
+  uint32_t max_spp = 1024;     ///< Cap on a pixel's samples.
+  float error_floor = 0.01f;   ///< Luminance floor of the denominator (dark pixels are judged by absolute error).
+  uint32_t replicates = 1;     ///< Independent replicates (see PixelAccumulator); rounds are multiples of it.
+};
+
+/// Running sums of a pixel's samples, in double precision and in sample order (so the result is a pure function of
+/// the samples), for RGB and for luminance. With one replicate the variance of the mean is the i.i.d. estimate
+/// (sample variance / n): under the stratified (Owen-scrambled Sobol) sampler the true error is smaller, so it is a
+/// conservative bound. With K >= 2 replicates, sample s belongs to replicate s mod K, each replicate being an
+/// independently scrambled sequence (see render.h); the variance of the mean is then estimated from the spread of
+/// the K replicate means, which is unbiased for randomised QMC (K - 1 degrees of freedom per pixel).
+class PixelAccumulator {
+ public:
+  /// An accumulator for `replicates` interleaved replicates (1..kMaxReplicates).
+  explicit PixelAccumulator(uint32_t replicates = 1);
+  /// Adds the next sample (sample index count()).
+  void add(const Vec3& L);
+  /// Samples added so far.
+  uint32_t count() const { return n_; }
+  /// Mean, variance of the mean and count.
+  PixelEstimate estimate() const;
+  /// Relative standard error of the luminance mean: sqrt(var_mean(Y)) / max(mean(Y), floor); 0 below two samples.
+  double relative_error(double floor) const;
+
+ private:
+  /// Variance of the mean of the values whose sums are sum, sum2 (i.i.d.) or per replicate rep[] (replicates).
+  double var_mean(double sum, double sum2, const double* rep) const;
+
+  glm::dvec3 sum_{0.0}, sum2_{0.0};
+  double y_sum_ = 0.0, y_sum2_ = 0.0;
+  uint32_t n_ = 0;
+  uint32_t k_ = 1;
+  double rep_[kMaxReplicates][4] = {};  // per replicate: R, G, B, Y sums
+};
+
+/// The sample count of the round after one that ended with `n` samples (doubling, capped at max_spp).
+inline uint32_t next_round(uint32_t n, uint32_t max_spp) { return n >= max_spp / 2 ? max_spp : 2 * n; }
+
+}  // namespace tessera
