@@ -124,9 +124,10 @@ int run_render(const RenderArgs& a) {
     if (!a.preview.empty()) write_png_srgb(a.preview, res.image);
     if (res.counters.nonfinite > 0)
       spdlog::warn("{} sample(s) were NaN or Inf and were counted as zero", res.counters.nonfinite);
-    std::fprintf(stderr, "%s: %dx%d px, %u spp, %.2fs load + %.2fs render, %.1f Mrays/s (%llu rays)\n",
-                 a.output.c_str(), res.window.width(), res.window.height(), a.spp ? *a.spp : scene.settings.spp, load_s,
-                 res.seconds, res.seconds > 0 ? double(res.counters.rays) / res.seconds * 1e-6 : 0.0,
+    std::fprintf(stderr, "%s: %dx%d px, %u spp (%llu samples), %.2fs load + %.2fs render, %.1f Mrays/s (%llu rays)\n",
+                 a.output.c_str(), res.window.width(), res.window.height(), a.spp ? *a.spp : scene.settings.spp,
+                 static_cast<unsigned long long>(res.counters.camera), load_s, res.seconds,
+                 res.seconds > 0 ? double(res.counters.rays) / res.seconds * 1e-6 : 0.0,
                  static_cast<unsigned long long>(res.counters.rays));
     return 0;
   } catch (const SceneError& e) {
