@@ -166,9 +166,10 @@ int run_render(const RenderArgs& a) {
     char spp_text[32];
     if (ro.target_error > 0.f) std::snprintf(spp_text, sizeof spp_text, "%.1f", mean_spp);
     else std::snprintf(spp_text, sizeof spp_text, "%u", a.spp ? *a.spp : scene.settings.spp);
-    std::fprintf(stderr, "%s: %dx%d px, %s spp, %.2fs load + %.2fs render, %.1f Mrays/s (%llu rays)\n",
-                 a.output.c_str(), res.window.width(), res.window.height(), spp_text, load_s,
-                 res.seconds, res.seconds > 0 ? double(res.counters.rays) / res.seconds * 1e-6 : 0.0,
+    std::fprintf(stderr, "%s: %dx%d px, %s spp (%llu samples), %.2fs load + %.2fs render, %.1f Mrays/s (%llu rays)\n",
+                 a.output.c_str(), res.window.width(), res.window.height(), spp_text,
+                 static_cast<unsigned long long>(res.counters.camera), load_s, res.seconds,
+                 res.seconds > 0 ? double(res.counters.rays) / res.seconds * 1e-6 : 0.0,
                  static_cast<unsigned long long>(res.counters.rays));
     return 0;
   } catch (const SceneError& e) {

@@ -99,7 +99,7 @@ TEST_F(CliRender, CropWindowsMetadataAndPixelsMatchTheLibrary) {
   ASSERT_EQ(exr.pixels.rgb.size(), ref.image.rgb.size());
   EXPECT_EQ(std::memcmp(exr.pixels.rgb.data(), ref.image.rgb.data(), ref.image.rgb.size() * sizeof(float)), 0);
   // A one-line summary with time, samples and ray rate.
-  EXPECT_NE(r.err.find("11x7 px, 4 spp"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("11x7 px, 4 spp (308 samples)"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("Mrays/s"), std::string::npos) << r.err;
 }
 
