@@ -301,6 +301,8 @@ class Worker {
         if (!PixelWindow{0, 0, width, height}.contains(l.window))
           throw std::runtime_error("tile window lies outside the " + std::to_string(width) + "x" +
                                    std::to_string(height) + " image");
+        if (std::getenv("TESSERA_WORKER_FAIL_RENDER"))  // test hook (tests/farm/render_failure.sh)
+          throw std::runtime_error("injected render failure (TESSERA_WORKER_FAIL_RENDER)");
         RenderOptions ro;
         ro.seed = l.seed;
         ro.spp = l.spp;
