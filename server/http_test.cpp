@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstring>
 #include <filesystem>
@@ -501,6 +502,36 @@ TEST_F(HttpTest, ThreeWorkersFailingATileFailTheJob) {
   EXPECT_EQ(job["state"], "failed");
   EXPECT_NE(job["error"].get<std::string>().find("no memory on c"), std::string::npos) << job.dump();
   EXPECT_EQ(call(http::verb::get, "/v1/jobs/" + id + "/result.exr").status, 409u);
+}
+
+TEST_F(HttpTest, ConcurrentUploadsOfOneTileMergeItOnce) {
+  json body = small_cbox(job_for("cbox_no_light.json"));
+  body["tile_size"] = 64;  // one tile
+  const std::string id = submit(body);
+  const std::string w = register_worker();
+  const json l = call(http::verb::post, "/v1/workers/" + w + "/lease").js();
+  const LoadedScene local = load_local(body["scene"], 2);
+  RenderOptions ro;
+  ro.seed = 7;
+  ro.spp = 2;
+  const RenderResult res = render(local.scene, ro);
+  const fs::path scratch = dir_ / "client";
+  fs::create_directories(scratch);
+  const std::string exr = tile_exr(scratch, res.image, res.window, local.scene.width, local.scene.height);
+  std::vector<std::string> statuses(6);
+  std::vector<std::thread> threads;
+  for (size_t i = 0; i < statuses.size(); ++i)
+    threads.emplace_back([&, i] {
+      const Reply r = call(http::verb::put, "/v1/leases/" + l["lease"].get<std::string>() + "/result", exr);
+      statuses[i] = r.status == 200 ? r.js()["status"].get<std::string>() : std::to_string(r.status);
+    });
+  for (auto& t : threads) t.join();
+  EXPECT_EQ(std::count(statuses.begin(), statuses.end(), "accepted"), 1);
+  EXPECT_EQ(std::count(statuses.begin(), statuses.end(), "duplicate"), 5);
+  const json job = call(http::verb::get, "/v1/jobs/" + id).js();
+  EXPECT_EQ(job["state"], "done");
+  EXPECT_EQ(job["tiles"]["done"], 1);
+  EXPECT_NE(call(http::verb::get, "/metrics").body.find("tessera_tiles_rendered_total 1\n"), std::string::npos);
 }
 
 // Leases of 0.2 s: waiting on the scheduler's own deadline, not on a timing guess about the server.
