@@ -270,7 +270,7 @@ class Worker {
       return it->second;
     };
     LoadOptions lo;
-    lo.force_direct = true;  // the coordinator accepted the job; render what it accepted
+    lo.force_direct = !spec.integrator.empty();
     auto loaded = std::make_shared<LoadedScene>(load_scene_json(spec.scene, "job " + l.job, resolve, lo));
     if (loaded->scene.width != spec.width || loaded->scene.height != spec.height)
       throw SceneError("job " + l.job + ": the scene is " + std::to_string(loaded->scene.width) + "x" +
