@@ -67,7 +67,7 @@ int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& o, const 
     if (!output.empty()) {
       const uint64_t bytes = farm::download_result(http, job, output);
       if (!quiet)
-        std::fprintf(stderr, "%s: %dx%d px, %lld tiles, %.2fs (%.2fs of worker render time), %llu bytes\n",
+        std::fprintf(stderr, "%s: %dx%d px, %lld tiles, %.2fs (%.2fs from the first lease), %llu bytes\n",
                      output.c_str(), end.width, end.height, static_cast<long long>(end.tiles_total), secs,
                      end.render_seconds, static_cast<unsigned long long>(bytes));
     } else if (!quiet) {
