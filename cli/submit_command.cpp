@@ -21,7 +21,7 @@ CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
   c->add_option("--seed", a.seed, "Sample seed");
   c->add_option("--name", a.name, "Job label (default: the scene's file name)");
   c->add_option("--integrator", a.integrator, "Render with this integrator whatever the scene says")
-      ->check(CLI::IsMember({"direct"}));
+      ->check(CLI::IsMember({"direct", "intersection_test"}));
   c->add_option("--asset-root", a.asset_root, "Allow asset paths anywhere below this folder");
   c->add_flag("--detach", a.detach, "Print the job id and return without waiting");
   c->add_flag("-q,--quiet", a.quiet, "No progress bar");
@@ -43,7 +43,7 @@ int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& o, const 
         http, job,
         [&](const farm::JobStatus& s) {
           const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-          bar.update(RenderProgress{int(s.tiles_done), int(s.tiles_total), 0, secs});
+          bar.update(RenderProgress{int(s.tiles_done), int(s.tiles_total), s.rays, secs});
         },
         stop);
     if (!end.finished()) {
@@ -67,7 +67,7 @@ int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& o, const 
     if (!output.empty()) {
       const uint64_t bytes = farm::download_result(http, job, output);
       if (!quiet)
-        std::fprintf(stderr, "%s: %dx%d px, %lld tiles, %.2fs (%.2fs of worker render time), %llu bytes\n",
+        std::fprintf(stderr, "%s: %dx%d px, %lld tiles, %.2fs (%.2fs from the first lease), %llu bytes\n",
                      output.c_str(), end.width, end.height, static_cast<long long>(end.tiles_total), secs,
                      end.render_seconds, static_cast<unsigned long long>(bytes));
     } else if (!quiet) {

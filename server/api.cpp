@@ -245,8 +245,11 @@ HttpResponse Api::put_blob(const std::string& sha, HttpRequest& req) {
 }
 
 HttpResponse Api::head_blob(const std::string& sha, HttpRequest& req) {
-  HttpResponse res{blobs_.has(sha) ? http::status::ok : http::status::not_found, req.version()};
-  res.content_length(0);
+  const std::optional<fs::path> f = blobs_.file(sha);
+  HttpResponse res{f ? http::status::ok : http::status::not_found, req.version()};
+  std::error_code ec;
+  res.content_length(f ? uint64_t(fs::file_size(*f, ec)) : 0);
+  if (f) res.set(http::field::content_type, "application/octet-stream");
   return res;
 }
 
@@ -445,7 +448,9 @@ HttpResponse Api::post_worker(HttpRequest& req) {
   spdlog::info("worker {}: registered '{}' ({} threads, version {})", id, name, threads, version.empty() ? "?" : version);
   HttpResponse res = json_response(http::status::created,
                                    {{"id", id},
-                                    {"lease_seconds", double(sched_.config().lease_ms) / 1000.0},
+                                    {"lease_seconds", sched_.config().lease_ms % 1000 == 0
+                                                          ? json(sched_.config().lease_ms / 1000)
+                                                          : json(double(sched_.config().lease_ms) / 1000.0)},
                                     {"heartbeat_seconds", opt_.heartbeat_seconds}},
                                    req.version());
   res.set(http::field::location, "/v1/workers/" + id);

@@ -14,6 +14,8 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <chrono>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -100,6 +102,7 @@ class HttpTest : public ::testing::Test {
     o.limits.blob_limit = 1 << 20;
     o.limits.result_limit = 4 << 20;
     o.handler_threads = 2;
+    o.lease_seconds = lease_seconds_;
     coord_ = std::make_unique<Coordinator>(o);
     thread_ = std::thread([this] { coord_->run(); });
   }
@@ -140,6 +143,7 @@ class HttpTest : public ::testing::Test {
     return r.js().value("id", "");
   }
 
+  double lease_seconds_ = 30;
   fs::path dir_;
   std::unique_ptr<Coordinator> coord_;
   std::thread thread_;
@@ -498,6 +502,59 @@ TEST_F(HttpTest, ThreeWorkersFailingATileFailTheJob) {
   EXPECT_EQ(job["state"], "failed");
   EXPECT_NE(job["error"].get<std::string>().find("no memory on c"), std::string::npos) << job.dump();
   EXPECT_EQ(call(http::verb::get, "/v1/jobs/" + id + "/result.exr").status, 409u);
+}
+
+TEST_F(HttpTest, ConcurrentUploadsOfOneTileMergeItOnce) {
+  json body = small_cbox(job_for("cbox_no_light.json"));
+  body["tile_size"] = 64;  // one tile
+  const std::string id = submit(body);
+  const std::string w = register_worker();
+  const json l = call(http::verb::post, "/v1/workers/" + w + "/lease").js();
+  const LoadedScene local = load_local(body["scene"], 2);
+  RenderOptions ro;
+  ro.seed = 7;
+  ro.spp = 2;
+  const RenderResult res = render(local.scene, ro);
+  const fs::path scratch = dir_ / "client";
+  fs::create_directories(scratch);
+  const std::string exr = tile_exr(scratch, res.image, res.window, local.scene.width, local.scene.height);
+  std::vector<std::string> statuses(6);
+  std::vector<std::thread> threads;
+  for (size_t i = 0; i < statuses.size(); ++i)
+    threads.emplace_back([&, i] {
+      const Reply r = call(http::verb::put, "/v1/leases/" + l["lease"].get<std::string>() + "/result", exr);
+      statuses[i] = r.status == 200 ? r.js()["status"].get<std::string>() : std::to_string(r.status);
+    });
+  for (auto& t : threads) t.join();
+  EXPECT_EQ(std::count(statuses.begin(), statuses.end(), "accepted"), 1);
+  EXPECT_EQ(std::count(statuses.begin(), statuses.end(), "duplicate"), 5);
+  const json job = call(http::verb::get, "/v1/jobs/" + id).js();
+  EXPECT_EQ(job["state"], "done");
+  EXPECT_EQ(job["tiles"]["done"], 1);
+  EXPECT_NE(call(http::verb::get, "/metrics").body.find("tessera_tiles_rendered_total 1\n"), std::string::npos);
+}
+
+// Leases of 0.2 s: waiting on the scheduler's own deadline, not on a timing guess about the server.
+class ShortLeaseTest : public HttpTest {
+ protected:
+  ShortLeaseTest() { lease_seconds_ = 0.2; }
+};
+
+TEST_F(ShortLeaseTest, ExpiredLeaseIsGoneAndItsTileIsLeasedAgain) {
+  const std::string id = submit(small_cbox(job_for("cbox_no_light.json")));
+  const std::string a = register_worker("a"), b = register_worker("b");
+  const json la = call(http::verb::post, "/v1/workers/" + a + "/lease").js();
+  EXPECT_EQ(la["tile"], 0);
+  // Sleep until the wall clock is past the lease's deadline.
+  while (std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch()).count() <=
+         la["deadline_ms"].get<int64_t>() + 5)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_EQ(call(http::verb::post, "/v1/leases/" + la["lease"].get<std::string>() + "/heartbeat").status, 410u);
+  EXPECT_NE(call(http::verb::get, "/metrics").body.find("tessera_lease_expiries_total 1\n"), std::string::npos);
+  EXPECT_EQ(call(http::verb::get, "/v1/jobs/" + id).js()["tiles"]["pending"], 6);
+  const Reply lb = call(http::verb::post, "/v1/workers/" + b + "/lease");
+  ASSERT_EQ(lb.status, 200u);
+  EXPECT_EQ(lb.js()["tile"], 0);
 }
 
 }  // namespace

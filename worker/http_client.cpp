@@ -73,9 +73,9 @@ std::string HttpResponse::header(std::string_view name) const {
 std::string HttpResponse::error_text() const {
   const auto j = nlohmann::json::parse(body, nullptr, /*allow_exceptions=*/false);
   if (j.is_object() && j.contains("error") && j["error"].is_string()) return j["error"].get<std::string>();
-  if (!body.empty() && !j.is_discarded()) return body.size() > 300 ? body.substr(0, 300) + "..." : body;
   std::string text = body.size() > 300 ? body.substr(0, 300) + "..." : body;
-  text.erase(std::remove_if(text.begin(), text.end(), [](unsigned char c) { return c < 0x20 && c != ' '; }), text.end());
+  std::replace_if(text.begin(), text.end(), [](unsigned char c) { return c < 0x20; }, ' ');
+  while (!text.empty() && text.back() == ' ') text.pop_back();
   return text.empty() ? "HTTP " + std::to_string(status) : text;
 }
 

@@ -69,10 +69,6 @@ SubmitResult submit_job(HttpClient& http, const SubmitOptions& o) {
   } catch (const json::parse_error& e) {
     throw SceneError(o.scene.string() + ": not valid JSON: " + e.what());
   }
-  if (o.force_direct && scene.is_object()) {
-    if (!scene.contains("integrator") || !scene["integrator"].is_object()) scene["integrator"] = json::object();
-    scene["integrator"]["type"] = "direct";
-  }
   const fs::path base = o.scene.has_parent_path() ? o.scene.parent_path() : fs::path(".");
   const fs::path root = o.asset_root ? *o.asset_root : base;
 
@@ -94,6 +90,7 @@ SubmitResult submit_job(HttpClient& http, const SubmitOptions& o) {
   json job = {{"scene", scene}, {"assets", assets}, {"seed", o.seed}, {"tile_size", o.tile_size},
               {"priority", o.priority}, {"name", o.name.empty() ? o.scene.filename().string() : o.name}};
   if (o.spp) job["spp"] = *o.spp;
+  if (o.force_direct) job["integrator"] = "direct";
   const HttpResponse r = http.send("POST", "/v1/jobs", job.dump());
   if (r.status != 201 && r.status != 200) refuse("submitting " + o.scene.string(), r);
   const json j = parse_body(r.body, "job submission");

@@ -27,7 +27,7 @@ struct SubmitOptions {
   int tile_size = 64;                  ///< Tile edge in pixels.
   int priority = 0;                    ///< Higher runs first.
   std::string name;                    ///< Job label (default: the scene's file name).
-  bool force_direct = false;           ///< Rewrite integrator.type to "direct" (like `render --integrator direct`).
+  bool force_direct = false;           ///< Send "integrator": "direct" (like `render --integrator direct`).
   std::optional<std::filesystem::path> asset_root;  ///< Assets may lie anywhere below this folder.
 };
 

@@ -67,6 +67,7 @@ JobSpec parse_job_spec(const json& j) {
   s.seed = optional_field<uint64_t>(j, "seed", "job spec", 0);
   s.width = field<int>(j, "width", "job spec");
   s.height = field<int>(j, "height", "job spec");
+  s.integrator = optional_field<std::string>(j, "integrator", "job spec", "");
   return s;
 }
 
@@ -83,6 +84,7 @@ JobStatus parse_job_status(const json& j) {
     s.tiles_leased = optional_field<int64_t>(t, "leased", "job tiles", 0);
   }
   s.render_seconds = optional_field<double>(j, "render_seconds", "job", 0);
+  s.rays = optional_field<uint64_t>(j, "rays", "job", 0);
   s.error = optional_field<std::string>(j, "error", "job", "");
   return s;
 }

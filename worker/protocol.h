@@ -51,6 +51,7 @@ struct JobSpec {
   uint64_t seed = 0;                          ///< Seed.
   int width = 0;                              ///< Image width.
   int height = 0;                             ///< Image height.
+  std::string integrator;                     ///< "direct" when the job was submitted with it, else empty.
 };
 /// Parses a job spec; throws ProtocolError.
 JobSpec parse_job_spec(const nlohmann::json& j);
@@ -64,7 +65,8 @@ struct JobStatus {
   int64_t tiles_total = 0;   ///< Tiles in the job.
   int64_t tiles_done = 0;    ///< Tiles merged.
   int64_t tiles_leased = 0;  ///< Tiles being rendered.
-  double render_seconds = 0; ///< Worker render time so far.
+  double render_seconds = 0; ///< Wall time from the first lease to the end (or to now).
+  uint64_t rays = 0;         ///< Rays reported by workers so far.
   std::string error;  ///< Failure reason (failed jobs).
   /// True for done, failed and cancelled.
   bool finished() const { return state == "done" || state == "failed" || state == "cancelled"; }

@@ -270,7 +270,7 @@ class Worker {
       return it->second;
     };
     LoadOptions lo;
-    lo.force_direct = true;  // the coordinator accepted the job; render what it accepted
+    lo.force_direct = !spec.integrator.empty();
     auto loaded = std::make_shared<LoadedScene>(load_scene_json(spec.scene, "job " + l.job, resolve, lo));
     if (loaded->scene.width != spec.width || loaded->scene.height != spec.height)
       throw SceneError("job " + l.job + ": the scene is " + std::to_string(loaded->scene.width) + "x" +
@@ -301,6 +301,8 @@ class Worker {
         if (!PixelWindow{0, 0, width, height}.contains(l.window))
           throw std::runtime_error("tile window lies outside the " + std::to_string(width) + "x" +
                                    std::to_string(height) + " image");
+        if (std::getenv("TESSERA_WORKER_FAIL_RENDER"))  // test hook (tests/farm/render_failure.sh)
+          throw std::runtime_error("injected render failure (TESSERA_WORKER_FAIL_RENDER)");
         RenderOptions ro;
         ro.seed = l.seed;
         ro.spp = l.spp;

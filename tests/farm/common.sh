@@ -83,11 +83,12 @@ write_sphere_scene() {
 JSON
 }
 
-# write_cbox_scene DIR WIDTH HEIGHT SPP: the course's textured Cornell box (OBJ and EXR assets) at a small size.
+# write_cbox_scene DIR WIDTH HEIGHT SPP [COURSE_SCENE]: a course scene (default: the textured Cornell box, with OBJ
+# and EXR assets) at a small size.
 write_cbox_scene() {
   mkdir -p "$1"
   cp -r "$SHARED/compat/rdr171/assets" "$1/"
-  python3 - "$SHARED/compat/rdr171/cbox_refract_textured.json" "$1/scene.json" "$2" "$3" "$4" <<'PY'
+  python3 - "$SHARED/compat/rdr171/${5:-cbox_refract_textured.json}" "$1/scene.json" "$2" "$3" "$4" <<'PY'
 import json, sys
 src, dst, w, h, spp = sys.argv[1:]
 scene = json.load(open(src))

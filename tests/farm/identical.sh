@@ -25,4 +25,10 @@ write_cbox_scene "$WORK/cbox" 30 22 4
 "$TESSERA" render "$WORK/cbox/scene.json" -o "$WORK/cbox-farm.exr" --spp 2 --seed 9 --workers 2 --farm-tile 8 -q \
   >"$WORK/render-cbox.log" 2>&1 || fail "cbox render --workers failed"
 "$EXR_COMPARE" "$WORK/cbox-ref.exr" "$WORK/cbox-farm.exr" || fail "cbox differs"
+# The course's bdpt box, rendered with the direct integrator on request (the job's "integrator" key).
+write_cbox_scene "$WORK/bdpt" 20 20 2 cbox.json
+"$TESSERA" render "$WORK/bdpt/scene.json" -o "$WORK/bdpt-ref.exr" --integrator direct -q
+"$TESSERA" render "$WORK/bdpt/scene.json" -o "$WORK/bdpt-farm.exr" --integrator direct --workers 1 --farm-tile 9 -q \
+  >"$WORK/render-bdpt.log" 2>&1 || fail "bdpt box with --integrator direct failed"
+"$EXR_COMPARE" "$WORK/bdpt-ref.exr" "$WORK/bdpt-farm.exr" || fail "bdpt box differs"
 echo "PASS"

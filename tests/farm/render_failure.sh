@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# Workers that cannot render report it through /fail: once the same tile failed on 3 different workers the job is
+# failed, and submit prints the reason and exits 1. The workers keep running.
+source "$(dirname "$0")/common.sh"
+
+write_sphere_scene "$WORK/s.json" 16 16 1
+start_serve
+for w in a b c; do TESSERA_WORKER_FAIL_RENDER=1 start_worker "$w" --threads 1; done
+set +e
+"$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 8 -o "$WORK/out.exr" >"$WORK/submit.log" 2>&1
+rc=$?
+set -e
+[ $rc = 1 ] || fail "submit of a failing job exited with $rc, not 1"
+log_has "$WORK/submit.log" "failed: .*injected render failure" || fail "the failure reason was not printed"
+[ ! -e "$WORK/out.exr" ] || fail "an output was written for a failed job"
+for w in a b c; do
+  log_has "$WORK/$w.log" "failure reported" || fail "worker $w did not report its failure"
+done
+for p in "${PIDS[@]:1}"; do kill -0 "$p" || fail "a worker exited after its render failed"; done
+echo "PASS"
