@@ -300,6 +300,11 @@ std::vector<uint8_t> encode_exr_impl(const char* name, const Image& img, const E
   const Imath::Box2i dw = to_box(data);
 
   Imf::Header header(to_box(display), dw);
+  switch (opt.compression) {
+    case ExrCompression::kZip: header.compression() = Imf::ZIP_COMPRESSION; break;
+    case ExrCompression::kPiz: header.compression() = Imf::PIZ_COMPRESSION; break;
+    case ExrCompression::kNone: header.compression() = Imf::NO_COMPRESSION; break;
+  }
   for (const auto& [key, value] : opt.metadata) {
     if (is_one_of(key, kLayoutAttributes) || is_one_of(key, kTypedStandardAttributes))
       throw std::runtime_error("metadata key \"" + key + "\" is a standard EXR attribute and cannot be a string");

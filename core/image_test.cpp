@@ -133,6 +133,25 @@ TEST_F(ImageExr, FloatRoundTripIsBitwiseIdentical) {
   EXPECT_TRUE(back.metadata.empty());
 }
 
+TEST_F(ImageExr, EveryCompressionRoundTripsBitwiseAndIsRecordedInTheHeader) {
+  Image img = Image::make(61, 35);  // not a multiple of ZIP's 16 or PIZ's 32 scanlines
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(0.f, 1.f);
+  for (size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = 0.5f + 0.25f * std::sin(float(i) * 0.01f) + 1e-3f * u(rng);
+  const std::pair<ExrCompression, Imf::Compression> modes[] = {{ExrCompression::kZip, Imf::ZIP_COMPRESSION},
+                                                               {ExrCompression::kPiz, Imf::PIZ_COMPRESSION},
+                                                               {ExrCompression::kNone, Imf::NO_COMPRESSION}};
+  for (const auto& [mode, imf] : modes) {
+    const fs::path p = file("compression.exr");
+    write_exr(p, img, {.compression = mode});
+    {
+      Imf::InputFile in(p.c_str());
+      EXPECT_EQ(in.header().compression(), imf);
+    }
+    EXPECT_EQ(read_exr(p).pixels.rgb, img.rgb) << int(imf);
+  }
+}
+
 TEST_F(ImageExr, HalfRoundTripWithinHalfPrecision) {
   Image img = Image::make(16, 9);
   std::mt19937 rng(3);

@@ -342,6 +342,7 @@ class Worker {
 
   void upload(const Lease& l, const std::string& pfx, const RenderResult& res, int width, int height) {
     ExrWriteOptions wo;
+    wo.compression = ExrCompression::kNone;  // noisy floats barely compress; the CPU is better spent rendering
     wo.data_window = l.window;
     wo.display_window = PixelWindow{0, 0, width, height};
     wo.write_extra = false;
