@@ -12,9 +12,39 @@
 #include <bit>
 #include <cassert>
 #include <limits>
+#include <cstdlib>
 #include <stdexcept>
 
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
+
 namespace tessera {
+
+namespace detail {
+
+constexpr size_t kHugePage = size_t(2) << 20;
+
+void* allocate_large(size_t bytes, size_t align) {
+  if (bytes < kHugePage) return ::operator new(bytes, std::align_val_t(align));
+  const size_t size = (bytes + kHugePage - 1) / kHugePage * kHugePage;
+  void* p = std::aligned_alloc(kHugePage, size);
+  if (!p) throw std::bad_alloc();
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+  ::madvise(p, size, MADV_HUGEPAGE);  // advice only: failure leaves ordinary pages
+#endif
+  return p;
+}
+
+void deallocate_large(void* p, size_t bytes, size_t align) noexcept {
+  if (bytes < kHugePage) {
+    ::operator delete(p, bytes, std::align_val_t(align));
+  } else {
+    std::free(p);
+  }
+}
+
+}  // namespace detail
 
 namespace {
 

@@ -46,6 +46,12 @@ struct BvhStats {
 };
 
 namespace detail {
+/// Allocates bytes aligned to align; blocks of 2 MiB or more are 2 MiB aligned and, on Linux, advised to use
+/// transparent huge pages (random BVH traversal would otherwise miss the TLB on most node visits).
+void* allocate_large(size_t bytes, size_t align);
+/// Releases a block from allocate_large() with the same size and alignment.
+void deallocate_large(void* p, size_t bytes, size_t align) noexcept;
+
 /// A std::allocator replacement that leaves trivially constructible elements uninitialised on resize().
 template <class T>
 struct UninitAllocator {
@@ -55,9 +61,9 @@ struct UninitAllocator {
   template <class U>
   UninitAllocator(const UninitAllocator<U>&) noexcept {}
   /// Storage for n elements, aligned for T.
-  T* allocate(size_t n) { return static_cast<T*>(::operator new(n * sizeof(T), std::align_val_t(alignof(T)))); }
+  T* allocate(size_t n) { return static_cast<T*>(allocate_large(n * sizeof(T), alignof(T))); }
   /// Releases storage from allocate().
-  void deallocate(T* p, size_t n) noexcept { ::operator delete(p, n * sizeof(T), std::align_val_t(alignof(T))); }
+  void deallocate(T* p, size_t n) noexcept { deallocate_large(p, n * sizeof(T), alignof(T)); }
   /// Default-initialises (does not zero) an element.
   template <class U>
   void construct(U* p) noexcept { ::new (static_cast<void*>(p)) U; }
