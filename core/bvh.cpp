@@ -3,6 +3,7 @@
 #include <emmintrin.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 #include <tbb/parallel_reduce.h>
 #include <tbb/task_group.h>
 
@@ -62,40 +63,90 @@ constexpr float kPacketCost = 1.f;
 
 inline uint32_t packets_for(uint32_t prims) { return (prims + kWidth - 1) / kWidth; }
 
-struct BuildRef {
-  Bounds3 box;
-  Vec3 c;  // box centroid
+// A build reference: the primitive's box with its id in lo's fourth lane, 32 bytes, loaded as two SSE vectors.
+// Its "centroid" is lo + hi (twice the centre; only compared and binned, so the factor does not matter).
+struct alignas(16) BuildRef {
+  float lo[3];
   uint32_t id;
+  float hi[3];
+  uint32_t pad;
+  __m128 vlo() const { return _mm_load_ps(lo); }
+  __m128 vhi() const { return _mm_load_ps(hi); }
+  __m128 c2() const { return _mm_add_ps(vlo(), vhi()); }
 };
+static_assert(sizeof(BuildRef) == 32);
 
-struct Bin {
-  Bounds3 box;
-  uint32_t count = 0;
+using RefVector = std::vector<BuildRef, detail::UninitAllocator<BuildRef>>;
+
+// An SSE box; only lanes 0-2 mean anything. Trivially constructible (bin arrays are not initialised twice): start
+// from Box4::empty().
+struct Box4 {
+  __m128 lo, hi;
+  static Box4 empty() { return Box4{_mm_set1_ps(kInfinity), _mm_set1_ps(-kInfinity)}; }
+  void extend(__m128 l, __m128 h) {
+    lo = _mm_min_ps(lo, l);
+    hi = _mm_max_ps(hi, h);
+  }
+  void extend(const Box4& b) { extend(b.lo, b.hi); }
+  void extend(__m128 p) { extend(p, p); }
+  Bounds3 bounds() const {
+    alignas(16) float l[4], h[4];
+    _mm_store_ps(l, lo);
+    _mm_store_ps(h, hi);
+    return Bounds3{Vec3(l[0], l[1], l[2]), Vec3(h[0], h[1], h[2])};
+  }
+  float area() const {
+    alignas(16) float d[4];
+    _mm_store_ps(d, _mm_max_ps(_mm_sub_ps(hi, lo), _mm_setzero_ps()));  // 0 for an empty box
+    return 2.f * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0]);
+  }
 };
 
 struct Bins {
-  std::array<std::array<Bin, kMaxBins>, 3> b{};
-  void merge(const Bins& o, int nb) {
+  int nb;
+  Box4 box[3][kMaxBins];
+  uint32_t count[3][kMaxBins];
+  explicit Bins(int n) : nb(n) {
     for (int a = 0; a < 3; ++a)
       for (int i = 0; i < nb; ++i) {
-        b[a][i].box.extend(o.b[a][i].box);
-        b[a][i].count += o.b[a][i].count;
+        box[a][i] = Box4::empty();
+        count[a][i] = 0;
+      }
+  }
+  void merge(const Bins& o) {
+    for (int a = 0; a < 3; ++a)
+      for (int i = 0; i < nb; ++i) {
+        box[a][i].extend(o.box[a][i]);
+        count[a][i] += o.count[a][i];
       }
   }
 };
 
-// Maps a centroid coordinate to its bin; identical arithmetic in binning and partitioning.
+// Maps a centroid to its bin on each axis: trunc(clamp((c - lo) * scale, 0, nb - 1)), scale = nb / extent (0 on
+// flat axes). Binning and partitioning both use this one function, so they agree exactly.
 struct BinMapper {
-  Vec3 lo;
-  Vec3 scale;  // nb / extent, 0 on flat axes
-  int nb;
-  int bin(const Vec3& c, int axis) const {
-    const int k = int((c[axis] - lo[axis]) * scale[axis]);
-    return std::clamp(k, 0, nb - 1);
+  __m128 lo, scale, top;
+  BinMapper(const Bounds3& cbox, int nb) {
+    const Vec3 ext = cbox.diagonal();
+    alignas(16) float s[4] = {0.f, 0.f, 0.f, 0.f};
+    for (int a = 0; a < 3; ++a) s[a] = ext[a] > 0.f ? float(nb) / ext[a] * (1.f - 1e-6f) : 0.f;
+    lo = _mm_setr_ps(cbox.lo.x, cbox.lo.y, cbox.lo.z, 0.f);
+    scale = _mm_load_ps(s);
+    top = _mm_set1_ps(float(nb - 1));
+  }
+  __m128i bins(__m128 c2) const {
+    const __m128 f = _mm_mul_ps(_mm_sub_ps(c2, lo), scale);
+    return _mm_cvttps_epi32(_mm_min_ps(_mm_max_ps(f, _mm_setzero_ps()), top));
+  }
+  int bin(__m128 c2, int axis) const {
+    alignas(16) int k[4];
+    _mm_store_si128(reinterpret_cast<__m128i*>(k), bins(c2));
+    return k[axis];
   }
 };
 
-// A contiguous run of build references with its bounds, the bounds of its centroids and its binary split depth.
+// A contiguous run of build references with its bounds, the bounds of its centroids (lo + hi) and its binary split
+// depth.
 struct Range {
   uint32_t begin = 0, end = 0;
   Bounds3 box, cbox;
@@ -107,45 +158,56 @@ struct Range {
 
 struct Bvh::Builder {
   const BvhOptions& opt;
-  std::vector<BuildRef>& refs;
+  RefVector& refs;
   std::span<const Triangle> triangles;
   std::span<const Sphere> spheres;
   Bvh& bvh;
   std::atomic<uint32_t> next_node{0};
   std::atomic<uint32_t> next_packet{0};
 
-  Builder(const BvhOptions& o, std::vector<BuildRef>& r, std::span<const Triangle> t, std::span<const Sphere> s,
-          Bvh& b)
+  Builder(const BvhOptions& o, RefVector& r, std::span<const Triangle> t, std::span<const Sphere> s, Bvh& b)
       : opt(o), refs(r), triangles(t), spheres(s), bvh(b) {}
 
   uint32_t leaf_limit() const { return uint32_t(std::clamp(opt.max_leaf_prims, 1, 255)); }
 
-  Bins bin_range(const BinMapper& m, size_t begin, size_t end) const {
-    auto body = [&](const tbb::blocked_range<size_t>& r, Bins acc) {
-      for (size_t i = r.begin(); i != r.end(); ++i) {
-        const BuildRef& ref = refs[i];
-        for (int a = 0; a < 3; ++a) {
-          Bin& bin = acc.b[a][m.bin(ref.c, a)];
-          bin.box.extend(ref.box);
-          ++bin.count;
-        }
+  void bin_into(Bins& acc, const BinMapper& m, size_t begin, size_t end) const {
+    alignas(16) int k[4];
+    for (size_t i = begin; i != end; ++i) {
+      const BuildRef& ref = refs[i];
+      const __m128 lo = ref.vlo(), hi = ref.vhi();
+      _mm_store_si128(reinterpret_cast<__m128i*>(k), m.bins(_mm_add_ps(lo, hi)));
+      for (int a = 0; a < 3; ++a) {
+        acc.box[a][k[a]].extend(lo, hi);
+        ++acc.count[a][k[a]];
       }
+    }
+  }
+
+  Bins bin_range(const BinMapper& m, int nb, size_t begin, size_t end) const {
+    if (end - begin < kParallelBinThreshold) {
+      Bins acc(nb);
+      bin_into(acc, m, begin, end);
       return acc;
-    };
-    if (end - begin < kParallelBinThreshold) return body(tbb::blocked_range<size_t>(begin, end), Bins{});
+    }
     return tbb::parallel_reduce(
-        tbb::blocked_range<size_t>(begin, end, 8 * 1024), Bins{}, body,
-        [&](Bins x, const Bins& y) { x.merge(y, m.nb); return x; });
+        tbb::blocked_range<size_t>(begin, end, 16 * 1024), Bins(nb),
+        [&](const tbb::blocked_range<size_t>& r, Bins acc) {
+          bin_into(acc, m, r.begin(), r.end());
+          return acc;
+        },
+        [](Bins x, const Bins& y) { x.merge(y); return x; });
   }
 
   // Bounds and centroid bounds of refs[begin, end).
   void bound(Range& r) const {
-    r.box = Bounds3{};
-    r.cbox = Bounds3{};
+    Box4 box = Box4::empty(), cbox = Box4::empty();
     for (uint32_t i = r.begin; i < r.end; ++i) {
-      r.box.extend(refs[i].box);
-      r.cbox.extend(refs[i].c);
+      const __m128 lo = refs[i].vlo(), hi = refs[i].vhi();
+      box.extend(lo, hi);
+      cbox.extend(_mm_add_ps(lo, hi));
     }
+    r.box = box.bounds();
+    r.cbox = cbox.bounds();
   }
 
   // Splits r at mid into l and rr (refs already ordered), computing both sides' bounds.
@@ -179,39 +241,41 @@ struct Bvh::Builder {
       if (n <= max_leaf) return false;
       const uint32_t mid = r.begin + n / 2;
       std::nth_element(refs.begin() + r.begin, refs.begin() + mid, refs.begin() + r.end,
-                       [axis](const BuildRef& x, const BuildRef& y) { return x.c[axis] < y.c[axis]; });
+                       [axis](const BuildRef& x, const BuildRef& y) {
+                         return x.lo[axis] + x.hi[axis] < y.lo[axis] + y.hi[axis];
+                       });
       halves(r, mid, l, rr);
       return true;
     }
 
-    const int nb = std::clamp(opt.bins, 2, kMaxBins);
-    BinMapper m{r.cbox.lo, Vec3(0.f), nb};
-    for (int a = 0; a < 3; ++a) m.scale[a] = ext[a] > 0.f ? float(nb) / ext[a] * (1.f - 1e-6f) : 0.f;
-    const Bins bins = bin_range(m, r.begin, r.end);
+    // No more bins than references: small ranges are the most numerous, and their cost is mostly per bin.
+    const int nb = std::clamp(std::min(opt.bins, int(n)), 2, kMaxBins);
+    const BinMapper m(r.cbox, nb);
+    const Bins bins = bin_range(m, nb, r.begin, r.end);
 
     // Cost of a side: area times packets, so that a leaf's partly filled packet counts as a whole test.
     float best_cost = kInfinity;
     int best_axis = -1, best_split = 0;
-    Bounds3 best_lbox, best_rbox;
+    Box4 best_lbox = Box4::empty(), best_rbox = Box4::empty();
     for (int a = 0; a < 3; ++a) {
       if (!(ext[a] > 0.f)) continue;
-      std::array<float, kMaxBins> right_cost{};
-      std::array<Bounds3, kMaxBins> right_box{};
-      Bounds3 acc;
+      std::array<float, kMaxBins> right_cost;
+      std::array<Box4, kMaxBins> right_box;
+      Box4 acc = Box4::empty();
       uint32_t cnt = 0;
       for (int i = nb - 1; i > 0; --i) {
-        acc.extend(bins.b[a][i].box);
-        cnt += bins.b[a][i].count;
-        right_cost[i] = float(packets_for(cnt)) * acc.surface_area();
+        acc.extend(bins.box[a][i]);
+        cnt += bins.count[a][i];
+        right_cost[i] = cnt ? float(packets_for(cnt)) * acc.area() : 0.f;
         right_box[i] = acc;
       }
-      acc = Bounds3{};
+      acc = Box4::empty();
       cnt = 0;
       for (int i = 0; i < nb - 1; ++i) {
-        acc.extend(bins.b[a][i].box);
-        cnt += bins.b[a][i].count;
+        acc.extend(bins.box[a][i]);
+        cnt += bins.count[a][i];
         if (cnt == 0 || cnt == n) continue;
-        const float cost = float(packets_for(cnt)) * acc.surface_area() + right_cost[i + 1];
+        const float cost = float(packets_for(cnt)) * acc.area() + right_cost[i + 1];
         if (cost < best_cost) {
           best_cost = cost;
           best_axis = a;
@@ -232,24 +296,33 @@ struct Bvh::Builder {
     if (n <= max_leaf && leaf_cost <= split_cost) return false;
 
     // Partition by bin, gathering both sides' centroid bounds on the way; the boxes come from the bins.
-    Bounds3 lc, rc;
+    Box4 lc = Box4::empty(), rc = Box4::empty();
     BuildRef* lo = refs.data() + r.begin;
     BuildRef* hi = refs.data() + r.end;
     for (;;) {
-      while (lo < hi && m.bin(lo->c, best_axis) < best_split) lc.extend((lo++)->c);
-      while (lo < hi && m.bin((hi - 1)->c, best_axis) >= best_split) rc.extend((--hi)->c);
+      __m128 c;
+      while (lo < hi && m.bin(c = lo->c2(), best_axis) < best_split) {
+        lc.extend(c);
+        ++lo;
+      }
+      while (lo < hi && m.bin(c = (hi - 1)->c2(), best_axis) >= best_split) {
+        rc.extend(c);
+        --hi;
+      }
       if (lo >= hi) break;
       std::swap(*lo, *(hi - 1));
-      lc.extend((lo++)->c);
-      rc.extend((--hi)->c);
+      lc.extend(lo->c2());
+      rc.extend((hi - 1)->c2());
+      ++lo;
+      --hi;
     }
     const uint32_t mid = uint32_t(lo - refs.data());
     if (mid == r.begin || mid == r.end) {  // unreachable with exact binning; stay safe
       halves(r, r.begin + n / 2, l, rr);
       return true;
     }
-    l = Range{r.begin, mid, best_lbox, lc, r.depth + 1};
-    rr = Range{mid, r.end, best_rbox, rc, r.depth + 1};
+    l = Range{r.begin, mid, best_lbox.bounds(), lc.bounds(), r.depth + 1};
+    rr = Range{mid, r.end, best_rbox.bounds(), rc.bounds(), r.depth + 1};
     return true;
   }
 
@@ -299,6 +372,7 @@ struct Bvh::Builder {
     Range l, rr;  // halves when split
     enum State : uint8_t { kUnknown, kLeaf, kSplit } state = kUnknown;
     float area() const { return r.box.surface_area(); }
+    void decide(Builder& b) { state = b.split(r, l, rr) ? kSplit : kLeaf; }
   };
 
   // Builds the node at index idx over a range already split into a and b: opens the child with the largest area
@@ -308,6 +382,10 @@ struct Bvh::Builder {
     c[0].r = a;
     c[1].r = b;
     int nc = 2;
+    if (a.size() > kParallelTaskThreshold && b.size() > kParallelTaskThreshold) {
+      // Both halves will be opened: split them side by side (near the root, partitions are serial otherwise).
+      tbb::parallel_invoke([&] { c[0].decide(*this); }, [&] { c[1].decide(*this); });
+    }
     while (nc < kWidth) {
       int best = -1;
       float best_area = -1.f;
@@ -319,7 +397,7 @@ struct Bvh::Builder {
       if (best < 0) break;
       Child& ch = c[best];
       if (ch.state == Child::kUnknown) {
-        ch.state = split(ch.r, ch.l, ch.rr) ? Child::kSplit : Child::kLeaf;
+        ch.decide(*this);
         if (ch.state == Child::kLeaf) continue;
       }
       const Range l = ch.l, rr = ch.rr;
@@ -330,7 +408,7 @@ struct Bvh::Builder {
       ++nc;
     }
     for (int k = 0; k < nc; ++k)
-      if (c[k].state == Child::kUnknown) c[k].state = split(c[k].r, c[k].l, c[k].rr) ? Child::kSplit : Child::kLeaf;
+      if (c[k].state == Child::kUnknown) c[k].decide(*this);
 
     int interior = 0;
     for (int k = 0; k < nc; ++k) interior += c[k].state == Child::kSplit;
@@ -381,50 +459,67 @@ Bvh Bvh::build(std::span<const Triangle> triangles, std::span<const Sphere> sphe
   bvh.num_spheres_ = uint32_t(spheres.size());
 
   // Degenerate triangles and empty spheres can never be hit; leaving them out keeps boxes tight. References are
-  // made in parallel with an id of kNoPrim for the ones left out, then compacted in order.
+  // made in parallel with an id of kNoPrim for the ones left out (compacted afterwards, in order, if any), and
+  // the root's bounds are reduced on the way.
   const size_t total = triangles.size() + spheres.size();
-  std::vector<BuildRef> refs(total);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, total, 16 * 1024), [&](const tbb::blocked_range<size_t>& range) {
-    for (size_t i = range.begin(); i != range.end(); ++i) {
-      BuildRef& r = refs[i];
-      r.box = Bounds3{};
-      if (i < triangles.size()) {
-        const Triangle& t = triangles[i];
-        if (is_degenerate(t)) {
-          r.id = kNoPrim;
-          continue;
+  RefVector refs(total);
+  struct Acc {
+    Box4 box = Box4::empty(), cbox = Box4::empty();
+    size_t dropped = 0;
+  };
+  const Acc acc = tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, total, 16 * 1024), Acc{},
+      [&](const tbb::blocked_range<size_t>& range, Acc a) {
+        for (size_t i = range.begin(); i != range.end(); ++i) {
+          BuildRef& r = refs[i];
+          Bounds3 box;
+          bool ok;
+          if (i < triangles.size()) {
+            const Triangle& t = triangles[i];
+            ok = !is_degenerate(t);
+            box.extend(t.p0);
+            box.extend(t.p1);
+            box.extend(t.p2);
+          } else {
+            const Sphere& s = spheres[i - triangles.size()];
+            ok = s.radius > 0.f && std::isfinite(s.radius) && is_finite(s.center);
+            box = Bounds3{s.center - Vec3(s.radius), s.center + Vec3(s.radius)};
+          }
+          for (int k = 0; k < 3; ++k) {
+            r.lo[k] = box.lo[k];
+            r.hi[k] = box.hi[k];
+          }
+          r.pad = 0;
+          if (!ok) {
+            r.id = kNoPrim;
+            ++a.dropped;
+            continue;
+          }
+          r.id = uint32_t(i);
+          const __m128 lo = r.vlo(), hi = r.vhi();
+          a.box.extend(lo, hi);
+          a.cbox.extend(_mm_add_ps(lo, hi));
         }
-        r.box.extend(t.p0);
-        r.box.extend(t.p1);
-        r.box.extend(t.p2);
-        r.c = r.box.centroid();
-      } else {
-        const Sphere& s = spheres[i - triangles.size()];
-        if (!(s.radius > 0.f) || !std::isfinite(s.radius) || !is_finite(s.center)) {
-          r.id = kNoPrim;
-          continue;
-        }
-        r.box = Bounds3{s.center - Vec3(s.radius), s.center + Vec3(s.radius)};
-        r.c = s.center;
-      }
-      r.id = uint32_t(i);
-    }
-  });
-  Range root;
-  {
+        return a;
+      },
+      [](Acc x, const Acc& y) {
+        x.box.extend(y.box);
+        x.cbox.extend(y.cbox);
+        x.dropped += y.dropped;
+        return x;
+      });
+  if (acc.dropped > 0) {
     size_t w = 0;
-    for (size_t i = 0; i < total; ++i) {
-      if (refs[i].id == kNoPrim) continue;
-      if (w != i) refs[w] = refs[i];
-      root.box.extend(refs[w].box);
-      root.cbox.extend(refs[w].c);
-      ++w;
-    }
+    for (size_t i = 0; i < total; ++i)
+      if (refs[i].id != kNoPrim) refs[w++] = refs[i];
     refs.resize(w);
   }
   if (refs.empty()) return bvh;
+  Range root;
   root.begin = 0;
   root.end = uint32_t(refs.size());
+  root.box = acc.box.bounds();
+  root.cbox = acc.cbox.bounds();
   bvh.bounds_ = root.box;
 
   // Upper bounds: every node but the root has at least two children and every leaf at least one primitive, so
