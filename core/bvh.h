@@ -1,4 +1,5 @@
-// Bounding volume hierarchy over triangles and spheres: binned-SAH build, closest-hit and any-hit queries.
+// Bounding volume hierarchy over triangles and spheres: binned-SAH build of a 4-wide tree with SSE2 node and
+// 4-triangle leaf tests, closest-hit and any-hit queries.
 #pragma once
 
 #include "core/bounds.h"
