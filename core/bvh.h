@@ -1,4 +1,5 @@
-// Bounding volume hierarchy over triangles and spheres: binned-SAH build, closest-hit and any-hit queries.
+// Bounding volume hierarchy over triangles and spheres: binned-SAH build of a 4-wide tree with SSE2 node and
+// 4-triangle leaf tests, closest-hit and any-hit queries.
 #pragma once
 
 #include "core/bounds.h"
@@ -6,9 +7,12 @@
 #include "core/sphere.h"
 #include "core/triangle.h"
 
+#include <cstddef>
 #include <cstdint>
+#include <new>
 #include <optional>
 #include <span>
+#include <utility>
 #include <vector>
 
 namespace tessera {
@@ -34,13 +38,43 @@ struct BvhOptions {
   int bins = 16;                          ///< SAH bins per axis.
 };
 
-/// Shape of a built hierarchy.
+/// Shape of a built hierarchy (the traced tree is 4-wide: each interior node holds up to four child boxes).
 struct BvhStats {
-  size_t nodes = 0;         ///< Total nodes.
+  size_t nodes = 0;         ///< Total nodes: 4-wide interior nodes plus leaves.
   size_t leaves = 0;        ///< Leaf nodes.
   int max_depth = 0;        ///< Deepest leaf (root = 0).
-  double sah_cost = 0.0;    ///< Expected cost per ray (traversal 1, intersection 1), relative to the root area.
+  double sah_cost = 0.0;    ///< Expected cost per ray (4-wide node visit 1, one primitive 1), relative to the root area.
 };
+
+namespace detail {
+/// Allocates bytes aligned to align; blocks of 2 MiB or more are 2 MiB aligned and, on Linux, advised to use
+/// transparent huge pages (random BVH traversal would otherwise miss the TLB on most node visits).
+void* allocate_large(size_t bytes, size_t align);
+/// Releases a block from allocate_large() with the same size and alignment.
+void deallocate_large(void* p, size_t bytes, size_t align) noexcept;
+
+/// A std::allocator replacement that leaves trivially constructible elements uninitialised on resize().
+template <class T>
+struct UninitAllocator {
+  using value_type = T;  ///< Allocated type.
+  UninitAllocator() = default;
+  /// Rebinding constructor.
+  template <class U>
+  UninitAllocator(const UninitAllocator<U>&) noexcept {}
+  /// Storage for n elements, aligned for T.
+  T* allocate(size_t n) { return static_cast<T*>(allocate_large(n * sizeof(T), alignof(T))); }
+  /// Releases storage from allocate().
+  void deallocate(T* p, size_t n) noexcept { deallocate_large(p, n * sizeof(T), alignof(T)); }
+  /// Default-initialises (does not zero) an element.
+  template <class U>
+  void construct(U* p) noexcept { ::new (static_cast<void*>(p)) U; }
+  /// Constructs an element from arguments.
+  template <class U, class... A>
+  void construct(U* p, A&&... a) { ::new (static_cast<void*>(p)) U(std::forward<A>(a)...); }
+  /// All instances are interchangeable.
+  friend bool operator==(const UninitAllocator&, const UninitAllocator&) { return true; }
+};
+}  // namespace detail
 
 /// An immutable BVH. Thread-safe for concurrent queries once built.
 class Bvh {
@@ -65,33 +99,42 @@ class Bvh {
   /// Number of spheres (ids [triangle_count(), triangle_count() + sphere_count())).
   uint32_t sphere_count() const { return num_spheres_; }
   /// Bounds of everything in the hierarchy.
-  Bounds3 bounds() const { return nodes_.empty() ? Bounds3{} : Bounds3{nodes_[0].lo, nodes_[0].hi}; }
+  Bounds3 bounds() const { return bounds_; }
   /// Node count, depth and SAH cost of the built tree.
   BvhStats stats() const;
 
  private:
-  // 32 bytes. Interior: first child follows the node, `offset` is the second child. Leaf: `count` > 0
-  // primitives from `offset` in prims_.
-  struct Node {
-    Vec3 lo;
-    uint32_t offset;
-    Vec3 hi;
-    uint16_t count;
-    uint8_t axis;
-    uint8_t pad;
-  };
-  static_assert(sizeof(Node) == 32);
+  // Child references: an interior child is the index of its node; a leaf child has kLeafBit set and the index of
+  // its first packet below it (the leaf's packets run to the one flagged kLastPacket).
+  static constexpr uint32_t kLeafBit = 0x80000000u;
+  static constexpr uint32_t kLastPacket = 0x80000000u;  // set in id[0] of a leaf's last packet
+  static constexpr uint32_t kNoPrim = 0xffffffffu;      // id of an unused packet lane
 
-  // Leaf-ordered primitive geometry: a triangle's vertices, or a sphere's centre in a and radius in b.x.
-  struct PrimData {
-    Vec3 a, b, c;
+  // 4-wide interior node, 128 bytes (two cache lines): the child boxes as structure of arrays so four slab tests
+  // run at once. box[2a][k] / box[2a+1][k] are the low / high planes of child k on axis a. Unused slots hold an
+  // empty box (lo = +inf, hi = -inf), which no ray enters.
+  struct alignas(64) Node {
+    float box[6][4];
+    uint32_t child[4];
+    uint32_t pad[4];
   };
+  static_assert(sizeof(Node) == 128);
+
+  // Four primitives of one kind, structure of arrays. Triangles: v[vertex][axis][lane]. Spheres: v[0][axis][lane]
+  // is the centre and v[1][0][lane] the radius. id[lane] is the primitive id (kNoPrim if unused; lane 0 is always
+  // used); id[0] also carries kLastPacket.
+  struct alignas(16) Packet {
+    float v[3][3][4];
+    uint32_t id[4];
+  };
+  static_assert(sizeof(Packet) == 160);
 
   struct Builder;
 
-  std::vector<Node> nodes_;
-  std::vector<PrimData> prims_;
-  std::vector<uint32_t> prim_ids_;
+  // Sized by an upper bound during the parallel build and trimmed after; pages past the used part stay untouched.
+  std::vector<Node, detail::UninitAllocator<Node>> nodes_;
+  std::vector<Packet, detail::UninitAllocator<Packet>> packets_;
+  Bounds3 bounds_;
   uint32_t num_triangles_ = 0;
   uint32_t num_spheres_ = 0;
 };

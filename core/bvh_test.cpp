@@ -122,6 +122,43 @@ TEST(Bvh, ParallelBuildOfLargeInputMatchesBruteForce) {
   }
 }
 
+TEST(Bvh, MultiPacketAndMixedLeavesMatchBruteForce) {
+  // Primitives sharing one centroid cannot be split apart, so with a large leaf limit they form one leaf that spans
+  // several 4-wide packets and mixes triangles with spheres; a leaf limit of 1 leaves most packet lanes unused.
+  // The triangles lie in distinct planes: overlapping coplanar triangles in different leaves can report a hit one
+  // rounding step farther than brute force (a box is culled when its computed entry distance rounds above the
+  // closest t so far), which this bitwise comparison would flag.
+  Soup s = random_soup(400, 12);
+  const Vec3 c(1.f, -2.f, 0.5f);
+  for (int i = 0; i < 7; ++i) {
+    const float a = 0.3f + 0.2f * float(i), b = 0.15f * float(i - 3) * a;
+    const Vec3 p[3] = {{-a, -a, -b}, {a, -a, b}, {0.f, a, 0.f}};  // box centred on the origin, tilted by i
+    auto rot = [&](const Vec3& v) { return i % 3 == 0 ? v : i % 3 == 1 ? Vec3(v.z, v.x, v.y) : Vec3(v.y, v.z, v.x); };
+    s.tris.push_back({c + rot(p[0]), c + rot(p[1]), c + rot(p[2])});
+  }
+  for (int i = 0; i < 5; ++i) s.spheres.push_back({c, 0.05f + 0.04f * float(i)});
+  for (int max_leaf : {1, 16, 64}) {
+    BvhOptions opt;
+    opt.max_leaf_prims = max_leaf;
+    const Bvh bvh = Bvh::build(s.tris, s.spheres, opt);
+    compare(s, bvh, testing::scaled(3000), 40u + uint32_t(max_leaf));
+    // Rays aimed into the cluster from all sides.
+    std::mt19937 rng{uint32_t(max_leaf)};
+    std::uniform_real_distribution<float> u(-1.f, 1.f);
+    for (size_t i = 0; i < testing::scaled(3000); ++i) {
+      const Vec3 o = c + Vec3(u(rng), u(rng), u(rng)) * 5.f;
+      const Ray r{o, c + Vec3(u(rng), u(rng), u(rng)) * 0.4f - o};
+      const auto expect = brute_force(s, r);
+      const auto got = bvh.intersect(r);
+      ASSERT_EQ(expect.has_value(), got.has_value()) << "max_leaf " << max_leaf << " ray " << i;
+      if (expect) {
+        ASSERT_EQ(expect->t, got->t) << "max_leaf " << max_leaf << " ray " << i;
+      }
+      ASSERT_EQ(bvh.occluded(r), expect.has_value());
+    }
+  }
+}
+
 TEST(Bvh, ManyCoincidentPrimitivesKeepDepthBounded) {
   // 100k copies of one triangle: centroids coincide, no split separates them.
   std::vector<Triangle> tris(100000, Triangle{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}});
