@@ -77,12 +77,12 @@ const char* env_sampling_name(EnvSampling e) {
 }  // namespace
 
 int run_render(const RenderArgs& a) {
+  // Warnings and errors go to stderr with the progress bar and the summary; stdout stays free for data.
+  auto logger = spdlog::get("render");
+  if (!logger) logger = spdlog::stderr_color_mt("render");
+  spdlog::set_default_logger(logger);
   if (a.workers > 0) return run_render_farm(a);
   try {
-    // Warnings and errors go to stderr with the progress bar and the summary; stdout stays free for data.
-    auto logger = spdlog::get("render");
-    if (!logger) logger = spdlog::stderr_color_mt("render");
-    spdlog::set_default_logger(logger);
     std::unique_ptr<tbb::global_control> limit;
     if (a.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(a.threads));
     LoadOptions lo;

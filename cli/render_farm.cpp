@@ -11,7 +11,9 @@
 #include <csignal>
 #include <cstdlib>
 #include <fstream>
+#include <string>
 #include <thread>
+#include <vector>
 
 namespace tessera::cli {
 
@@ -74,6 +76,22 @@ std::string wait_for_ready(const fs::path& ready, farm::ChildProcess& serve) {
 int run_render_farm(const RenderArgs& a) {
   if (!a.crop.empty() || a.variance) {
     spdlog::error("--workers renders whole images without variance channels: drop --crop/--variance");
+    return 2;
+  }
+  // Options the farm's job API does not carry yet: refused, never silently dropped.
+  std::vector<std::string> unsupported;
+  if (a.target_error > 0.f) unsupported.push_back("--target-error");
+  if (!a.area_sampling.empty()) unsupported.push_back("--area-sampling");
+  if (!a.env_sampling.empty()) unsupported.push_back("--env-sampling");
+  if (!a.bvh.empty()) unsupported.push_back("--bvh");
+  if (a.replicates > 1) unsupported.push_back("--replicates");
+  if (a.strict) unsupported.push_back("--strict");
+  if (!unsupported.empty()) {
+    std::string list;
+    for (const auto& u : unsupported) list += (list.empty() ? "" : ", ") + u;
+    spdlog::error("--workers does not pass on {} yet: set the sampling strategies in the scene's \"integrator\" block "
+                  "(area_sampling, env_sampling, bvh), or render without --workers",
+                  list);
     return 2;
   }
   InterruptGuard guard;

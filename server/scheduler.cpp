@@ -277,11 +277,30 @@ FailResult Scheduler::fail(const std::string& lease, const std::string& error) {
   const std::string& w = l.lease.worker;
   t.failures[w] = error;
   const int n = ++j.worker_failures[w];
+  j.worker_last_error[w] = error;
   r.blocklisted = n == config_.worker_failure_limit;
   if (int(t.failures.size()) >= config_.tile_failure_workers) {
     std::string why = "tile " + std::to_string(l.lease.tile) + " failed on " + std::to_string(t.failures.size()) + " workers: ";
     bool first = true;
     for (const auto& [wid, text] : t.failures) {
+      why += (first ? "" : "; ") + wid + ": " + text;
+      first = false;
+    }
+    finish_job_locked(j, JobState::failed, now, why);
+    r.job_failed = true;
+    return r;
+  }
+  // Failures spread over several tiles can blocklist every worker before any one tile fails on enough of them; the
+  // job could then never finish, so it fails, with each worker's last error.
+  const bool all_blocklisted = std::all_of(workers_.begin(), workers_.end(), [&](const auto& wk) {
+    const auto f = j.worker_failures.find(wk.first);
+    return f != j.worker_failures.end() && f->second >= config_.worker_failure_limit;
+  });
+  if (all_blocklisted) {
+    std::string why = "every registered worker (" + std::to_string(workers_.size()) + ") failed " +
+                      std::to_string(config_.worker_failure_limit) + " tiles of this job and is blocklisted for it: ";
+    bool first = true;
+    for (const auto& [wid, text] : j.worker_last_error) {
       why += (first ? "" : "; ") + wid + ": " + text;
       first = false;
     }

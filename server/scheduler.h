@@ -209,6 +209,7 @@ class Scheduler {
     std::vector<Tile> tiles;
     std::set<int64_t> pending;
     std::map<std::string, int> worker_failures;
+    std::map<std::string, std::string> worker_last_error;  // worker -> the latest error it reported on this job
   };
   struct LeaseRec {
     Lease lease;

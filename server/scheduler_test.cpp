@@ -277,6 +277,34 @@ TEST_F(SchedulerTest, TileFailingOnThreeWorkersFailsTheJobWithTheirErrors) {
   EXPECT_EQ(s.cancel(j).status, CancelResult::already_ended);
 }
 
+// Failures spread over different tiles blocklist every worker before any tile fails on three of them: the job must
+// fail with their errors rather than wait forever.
+TEST_F(SchedulerTest, JobFailsWhenEveryRegisteredWorkerIsBlocklisted) {
+  const std::string j = job();  // 4 tiles
+  const std::string a = s.register_worker("a"), b = s.register_worker("b"), c = s.register_worker("c");
+  const Lease la = lease(a), lb = lease(b), lc = lease(c);  // tiles 0, 1, 2
+  EXPECT_FALSE(s.fail(la.id, "err a").job_failed);
+  EXPECT_FALSE(s.fail(lb.id, "err b").job_failed);
+  EXPECT_FALSE(s.fail(lc.id, "err c").job_failed);
+  // Second round, leased before any report so each worker gets another tile: c -> 0, a -> 1, b -> 2. Afterwards
+  // every tile has failed on at most two workers and every worker twice.
+  const Lease lc2 = lease(c), la2 = lease(a), lb2 = lease(b);
+  ASSERT_EQ(lc2.tile, 0);
+  ASSERT_EQ(la2.tile, 1);
+  ASSERT_EQ(lb2.tile, 2);
+  FailResult f = s.fail(la2.id, "err a2");
+  EXPECT_TRUE(f.blocklisted);
+  EXPECT_FALSE(f.job_failed);  // b and c can still work
+  EXPECT_FALSE(s.fail(lb2.id, "err b2").job_failed);
+  EXPECT_EQ(s.job(j)->state, JobState::running);
+  f = s.fail(lc2.id, "err c2");
+  EXPECT_TRUE(f.job_failed);
+  const auto st = s.job(j);
+  EXPECT_EQ(st->state, JobState::failed);
+  ASSERT_TRUE(st->error.has_value());
+  for (const char* text : {"blocklisted", "err a2", "err b2", "err c2"}) EXPECT_NE(st->error->find(text), std::string::npos) << *st->error;
+}
+
 TEST_F(SchedulerTest, SameWorkerFailingOneTileRepeatedlyDoesNotFailTheJob) {
   const std::string j = job(0, 64, 64, 64);
   const std::string a = s.register_worker("a"), b = s.register_worker("b");

@@ -153,6 +153,16 @@ TEST_F(CliRender, ProgressReportsTilesRaysAndEta) {
   EXPECT_NE(r.err.find("ETA"), std::string::npos) << r.err;
 }
 
+// Options the farm path cannot carry are refused before any process starts, naming each one: never silently dropped.
+TEST_F(CliRender, WorkersRefuseOptionsTheFarmDoesNotCarry) {
+  const CliRun r = tessera({scene().string(), "-o", f("w.exr"), "-q", "--workers", "1", "--target-error", "0.1",
+                            "--env-sampling", "uniform", "--bvh", "median"});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  for (const char* opt : {"--target-error", "--env-sampling", "--bvh"}) EXPECT_NE(r.err.find(opt), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("--area-sampling"), std::string::npos) << r.err;  // not given, not named
+  EXPECT_FALSE(fs::exists(file("w.exr")));
+}
+
 TEST_F(CliRender, BadInputFailsWithTheJsonPath) {
   json s = testing::minimal_scene();
   s["objects"][0]["radius"] = -1;
