@@ -13,6 +13,7 @@
 #include <tbb/global_control.h>
 
 #include <algorithm>
+#include <ctime>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -114,44 +115,70 @@ Scene load(const std::string& scene_name, const Variant& v, double scale) {
 }
 
 struct Run {
-  double seconds = 0;  // median wall time
+  double seconds = 0;      // median wall time
+  double cpu_seconds = 0;  // median process CPU time (all threads), less sensitive to other jobs on the machine
   Metrics m;
   double mean_spp = 0;
   RenderResult last;
 };
 
-Run run(const Scene& s, RenderOptions o, const Image& ref, int repeats) {
-  std::vector<double> t;
-  Run r;
-  for (int k = 0; k < repeats; ++k) {
-    r.last = render(s, o);
-    t.push_back(r.last.seconds);
+double cpu_now() {
+  timespec ts;
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+// Renders every (scene, options) pair `repeats` times, interleaved (pair 0, pair 1, ..., then again), so slow
+// phases of a shared machine hit all of them alike; times are medians, metrics those of the last render.
+std::vector<Run> run_interleaved(const std::vector<const Scene*>& scenes, const std::vector<RenderOptions>& opts,
+                                 const std::vector<const Image*>& refs, int repeats) {
+  const size_t n = scenes.size();
+  std::vector<Run> runs(n);
+  std::vector<std::vector<double>> wall(n), cpu(n);
+  for (int r = 0; r < repeats; ++r)
+    for (size_t i = 0; i < n; ++i) {
+      const double c0 = cpu_now();
+      runs[i].last = render(*scenes[i], opts[i]);
+      cpu[i].push_back(cpu_now() - c0);
+      wall[i].push_back(runs[i].last.seconds);
+    }
+  for (size_t i = 0; i < n; ++i) {
+    runs[i].seconds = median(wall[i]);
+    runs[i].cpu_seconds = median(cpu[i]);
+    runs[i].m = metrics(runs[i].last.image, *refs[i]);
+    runs[i].mean_spp = double(runs[i].last.counters.camera) / (double(scenes[i]->width) * double(scenes[i]->height));
   }
-  std::sort(t.begin(), t.end());
-  r.seconds = t[t.size() / 2];
-  r.m = metrics(r.last.image, ref);
-  r.mean_spp = double(r.last.counters.camera) / (double(s.width) * double(s.height) * repeats);
-  return r;
+  return runs;
+}
+
+Run run(const Scene& s, RenderOptions o, const Image& ref, int repeats) {
+  return run_interleaved({&s}, {o}, {&ref}, repeats)[0];
 }
 
 struct Point {
   uint32_t spp;
-  double seconds, rel_mse, rmse, p99, mean_spp;
+  double seconds, rel_mse, rmse, p99, mean_spp, cpu_seconds;
 };
 
 // Time at which a curve (sorted by time, relMSE decreasing) reaches relMSE `target`: interpolated in log-log between
 // the bracketing points, or extrapolated from the nearest end with the ideal relMSE ~ 1/time slope.
-double time_to_reach(const std::vector<Point>& c, double target) {
+double time_to_reach(const std::vector<Point>& c, double target, bool cpu) {
+  auto t = [cpu](const Point& p) { return cpu ? p.cpu_seconds : p.seconds; };
   for (size_t i = 0; i + 1 < c.size(); ++i) {
     const Point &a = c[i], &b = c[i + 1];
     if ((a.rel_mse >= target && b.rel_mse <= target) || (a.rel_mse <= target && b.rel_mse >= target)) {
-      if (a.rel_mse == b.rel_mse) return a.seconds;
+      if (a.rel_mse == b.rel_mse) return t(a);
       const double f = std::log(target / a.rel_mse) / std::log(b.rel_mse / a.rel_mse);
-      return std::exp(std::log(a.seconds) + f * (std::log(b.seconds) - std::log(a.seconds)));
+      return std::exp(std::log(t(a)) + f * (std::log(t(b)) - std::log(t(a))));
     }
   }
   const Point& e = (target < c.back().rel_mse) ? c.back() : c.front();
-  return e.seconds * e.rel_mse / target;
+  return t(e) * e.rel_mse / target;
 }
 
 std::string fmt(const char* f, double v) {
@@ -251,7 +278,7 @@ int main(int argc, char** argv) {
   std::map<std::string, double> ref_err;
   std::map<std::string, std::vector<Point>> curves;
   md << "## Error against time, default strategies\n\n"
-     << "| scene | pixels | reference relMSE (own estimate) | spp | time (s) | relMSE | RMSE | p99 |\n|---|---|---|---|---|---|---|---|\n";
+     << "| scene | pixels | reference relMSE (own estimate) | spp | wall (s) | CPU (s) | relMSE | RMSE | p99 |\n|---|---|---|---|---|---|---|---|---|\n";
   std::ostringstream pred_md;
   pred_md << "## Predicted against measured error\n\n"
           << "Predicted relMSE = mean over pixels of (Var(I) + Var(R)) / (R^2 + 0.01) from the variance channels; "
@@ -276,17 +303,18 @@ int main(int argc, char** argv) {
       o.spp = spp;
       o.seed = 1;
       const Run r = run(s, o, ref.image, a.repeats);
-      c.push_back({spp, r.seconds, r.m.rel_mse, r.m.rmse, r.m.p99, r.mean_spp});
+      c.push_back({spp, r.seconds, r.m.rel_mse, r.m.rmse, r.m.p99, r.mean_spp, r.cpu_seconds});
       md << "| " << name << " | " << s.width << "x" << s.height << " | " << fmt("%.2e", ref_err[name]) << " | " << spp
-         << " | " << fmt("%.4f", r.seconds) << " | " << fmt("%.4g", r.m.rel_mse) << " | " << fmt("%.4g", r.m.rmse)
+         << " | " << fmt("%.4f", r.seconds) << " | " << fmt("%.4f", r.cpu_seconds) << " | " << fmt("%.4g", r.m.rel_mse) << " | " << fmt("%.4g", r.m.rmse)
          << " | " << fmt("%.4g", r.m.p99) << " |\n";
     }
     std::ofstream dat(data / (name + ".dat"));
-    dat << "# spp seconds relMSE RMSE p99\n";
-    for (const Point& p : c) dat << p.spp << ' ' << p.seconds << ' ' << p.rel_mse << ' ' << p.rmse << ' ' << p.p99 << '\n';
-    // Predicted vs measured at two sample counts, one sequence and 4 replicates.
+    dat << "# spp wall_seconds relMSE RMSE p99 cpu_seconds\n";
+    for (const Point& p : c)
+      dat << p.spp << ' ' << p.seconds << ' ' << p.rel_mse << ' ' << p.rmse << ' ' << p.p99 << ' ' << p.cpu_seconds << '\n';
+    // Predicted vs measured at two sample counts, one sequence and 4 or 8 replicates.
     for (uint32_t spp : {16u, 64u})
-      for (uint32_t k : {1u, 4u}) {
+      for (uint32_t k : {1u, 4u, 8u}) {
         RenderOptions o;
         o.spp = spp;
         o.seed = 7;
@@ -332,7 +360,9 @@ int main(int argc, char** argv) {
      << "Each strategy renders the sweep (1.." << a.max_spp << " spp, all strategies at one count before the next "
      << "count); the table gives the time each needs to reach the relMSE the default reaches at "
      << std::min<uint32_t>(64, a.max_spp) << " spp (log-log interpolation; beyond a curve's end, extrapolated with "
-     << "the ideal relMSE ~ 1/time), and the ratio to the default (> 1: slower than the default).\n\n";
+     << "the ideal relMSE ~ 1/time), and the ratio to the default (> 1: slower than the default). Times are process "
+     << "CPU seconds (all threads; less disturbed by the other jobs on this shared machine than wall time), with "
+     << "the wall-time ratio beside them. Plots: sqrt(relMSE) against CPU seconds.\n\n";
   int plot_id = 0;
   std::vector<std::pair<std::string, std::vector<std::string>>> comp_plots;
   for (const Comparison& cmp : comps) {
@@ -340,36 +370,49 @@ int main(int argc, char** argv) {
     std::vector<Scene> ss;
     for (const Variant& v : cmp.variants) ss.push_back(load(cmp.scene, v, a.scale));
     std::vector<std::vector<Point>> cs(ss.size());
-    for (uint32_t spp : sweep)
-      for (size_t k = 0; k < ss.size(); ++k) {
+    for (uint32_t spp : sweep) {
+      std::vector<const Scene*> sp;
+      std::vector<RenderOptions> os;
+      std::vector<const Image*> rs;
+      for (const Scene& sc : ss) {
         RenderOptions o;
         o.spp = spp;
         o.seed = 1;
-        const Run r = run(ss[k], o, refs[cmp.scene], a.repeats);
-        cs[k].push_back({spp, r.seconds, r.m.rel_mse, r.m.rmse, r.m.p99, r.mean_spp});
+        sp.push_back(&sc);
+        os.push_back(o);
+        rs.push_back(&refs[cmp.scene]);
       }
+      const std::vector<Run> runs = run_interleaved(sp, os, rs, a.repeats);
+      for (size_t k = 0; k < ss.size(); ++k) {
+        const Run& r = runs[k];
+        cs[k].push_back({spp, r.seconds, r.m.rel_mse, r.m.rmse, r.m.p99, r.mean_spp, r.cpu_seconds});
+      }
+    }
     const uint32_t at = std::min<uint32_t>(64, a.max_spp);
     double target = 0;
     for (const Point& p : cs[0])
       if (p.spp == at) target = p.rel_mse;
-    const double t0 = time_to_reach(cs[0], target);
-    md << "### " << cmp.title << "\n\n| strategy | relMSE at " << at << " spp | time at " << at
-       << " spp (s) | time to relMSE " << fmt("%.3g", target) << " (s) | ratio to default |\n|---|---|---|---|---|\n";
+    const double t0 = time_to_reach(cs[0], target, true), w0 = time_to_reach(cs[0], target, false);
+    md << "### " << cmp.title << "\n\n| strategy | relMSE at " << at << " spp | CPU s at " << at
+       << " spp | CPU s to relMSE " << fmt("%.3g", target) << " | ratio to default (CPU) | ratio to default (wall) |\n"
+       << "|---|---|---|---|---|---|\n";
     std::vector<std::string> files;
     for (size_t k = 0; k < ss.size(); ++k) {
       double rm = 0, tm = 0;
       for (const Point& p : cs[k])
         if (p.spp == at) {
           rm = p.rel_mse;
-          tm = p.seconds;
+          tm = p.cpu_seconds;
         }
-      const double t = time_to_reach(cs[k], target);
+      const double t = time_to_reach(cs[k], target, true), w = time_to_reach(cs[k], target, false);
       md << "| " << cmp.variants[k].name << (k == 0 ? " (default)" : "") << " | " << fmt("%.4g", rm) << " | "
-         << fmt("%.4f", tm) << " | " << fmt("%.4f", t) << " | " << fmt("%.2f", t / t0) << " |\n";
+         << fmt("%.4f", tm) << " | " << fmt("%.4f", t) << " | " << fmt("%.2f", t / t0) << " | " << fmt("%.2f", w / w0)
+         << " |\n";
       const std::string file = "cmp" + std::to_string(plot_id) + "_" + std::to_string(k) + ".dat";
       std::ofstream dat(data / file);
-      dat << "# " << cmp.variants[k].name << "\n# spp seconds relMSE RMSE p99\n";
-      for (const Point& p : cs[k]) dat << p.spp << ' ' << p.seconds << ' ' << p.rel_mse << ' ' << p.rmse << ' ' << p.p99 << '\n';
+      dat << "# " << cmp.variants[k].name << "\n# spp wall_seconds relMSE RMSE p99 cpu_seconds\n";
+      for (const Point& p : cs[k])
+        dat << p.spp << ' ' << p.seconds << ' ' << p.rel_mse << ' ' << p.rmse << ' ' << p.p99 << ' ' << p.cpu_seconds << '\n';
       files.push_back(file + "|" + cmp.variants[k].name);
     }
     md << "\n![" << cmp.title << "](speed-vs-error/cmp" << plot_id << ".svg)\n\n";
@@ -381,12 +424,13 @@ int main(int argc, char** argv) {
   md << "## --target-error against uniform spp at equal relMSE\n\n"
      << "Adaptive runs: `--target-error E --min-spp 8 --max-spp " << 4 * a.max_spp << " --error-floor 0.1` (the floor "
      << "matches relMSE's +0.01, i.e. both judge pixels darker than 0.1 by absolute error), one stratified "
-     << "sequence per pixel (the default; its error estimate is conservative). The uniform time is what the uniform "
-     << "sweep above needs for the same relMSE (interpolated); saved = 1 - adaptive / uniform.\n\n"
-     << "| scene | target E | mean spp | time (s) | relMSE | uniform time at that relMSE (s) | time saved |\n"
+     << "sequence per pixel (the default; its error estimate is conservative). Times are CPU seconds (median of "
+     << a.repeats << "); the uniform time is what the uniform sweep above needs for the same relMSE (interpolated); "
+     << "saved = 1 - adaptive / uniform.\n\n"
+     << "| scene | target E | mean spp | CPU (s) | relMSE | uniform CPU s at that relMSE | time saved |\n"
      << "|---|---|---|---|---|---|---|\n";
   std::ofstream adat(data / "adaptive.dat");
-  adat << "# scene E mean_spp seconds relMSE uniform_seconds\n";
+  adat << "# scene E mean_spp cpu_seconds relMSE uniform_cpu_seconds\n";
   for (const auto& name : scenes) {
     const Scene s = load(name, {}, a.scale);
     for (float e : {0.2f, 0.1f, 0.05f, 0.025f}) {
@@ -398,11 +442,11 @@ int main(int argc, char** argv) {
       o.max_spp = 4 * a.max_spp;
       o.error_floor = 0.1f;
       const Run r = run(s, o, refs[name], a.repeats);
-      const double tu = time_to_reach(curves[name], r.m.rel_mse);
-      md << "| " << name << " | " << e << " | " << fmt("%.1f", r.mean_spp) << " | " << fmt("%.4f", r.seconds) << " | "
-         << fmt("%.4g", r.m.rel_mse) << " | " << fmt("%.4f", tu) << " | " << fmt("%.0f%%", 100.0 * (1.0 - r.seconds / tu))
+      const double tu = time_to_reach(curves[name], r.m.rel_mse, true);
+      md << "| " << name << " | " << e << " | " << fmt("%.1f", r.mean_spp) << " | " << fmt("%.4f", r.cpu_seconds) << " | "
+         << fmt("%.4g", r.m.rel_mse) << " | " << fmt("%.4f", tu) << " | " << fmt("%.0f%%", 100.0 * (1.0 - r.cpu_seconds / tu))
          << " |\n";
-      adat << name << ' ' << e << ' ' << r.mean_spp << ' ' << r.seconds << ' ' << r.m.rel_mse << ' ' << tu << '\n';
+      adat << name << ' ' << e << ' ' << r.mean_spp << ' ' << r.cpu_seconds << ' ' << r.m.rel_mse << ' ' << tu << '\n';
     }
   }
   md << "\n";
@@ -420,12 +464,13 @@ int main(int argc, char** argv) {
          << "  " << std::sqrt(p0.rel_mse) << "*sqrt(" << p0.seconds << "/x) with lines dt 2 lc " << i + 1
          << " notitle" << (i + 1 < scenes.size() ? ", \\\n" : "\n");
     }
+    gp << "set xlabel 'CPU seconds (all threads), " << machine << "'\n";
     for (size_t c = 0; c < comp_plots.size(); ++c) {
       gp << "set output 'cmp" << c << ".svg'\nset title '" << comp_plots[c].first << "' noenhanced\nplot \\\n";
       const auto& files = comp_plots[c].second;
       for (size_t k = 0; k < files.size(); ++k) {
         const std::string f = files[k].substr(0, files[k].find('|')), t = files[k].substr(files[k].find('|') + 1);
-        gp << "  '" << f << "' using 2:(sqrt($3)) with linespoints lw 2 title '" << t << "' noenhanced"
+        gp << "  '" << f << "' using 6:(sqrt($3)) with linespoints lw 2 title '" << t << "' noenhanced"
            << (k + 1 < files.size() ? ", \\\n" : "\n");
       }
     }
