@@ -57,9 +57,11 @@ PixelEstimate PixelAccumulator::estimate() const {
 }
 
 double PixelAccumulator::relative_error(double floor) const {
-  if (n_ < 2) return 0.0;
-  const double mean = y_sum_ / double(n_);
-  return std::sqrt(var_mean(y_sum_, y_sum2_, &rep_[0][3])) / std::max(mean, floor);
+  if (n_ < 2) return std::numeric_limits<double>::infinity();
+  const double n = double(n_);
+  const double scale = std::max(y_sum_ / n, floor);
+  const double unseen = scale / n;
+  return std::sqrt(var_mean(y_sum_, y_sum2_, &rep_[0][3]) + unseen * unseen) / scale;
 }
 
 }  // namespace tessera

@@ -18,8 +18,8 @@ struct PixelEstimate {
 };
 
 /// When adaptive sampling stops: rounds of min_spp, 2 min_spp, 4 min_spp, ... samples (capped at max_spp) until
-/// the relative standard error of the luminance mean, sqrt(var_mean(Y)) / max(mean(Y), error_floor), is at most
-/// target_error.
+/// the pixel's relative error (PixelAccumulator::relative_error) is at most target_error. Because that error is
+/// never below 1/n, a pixel takes at least 1/target_error samples even when all of them agree.
 struct AdaptiveOptions {
   float target_error = 0.05f;  ///< Relative standard error to reach (> 0).
   uint32_t min_spp = 16;       ///< Samples of the first round (at least 2 so a variance exists).
@@ -44,7 +44,10 @@ class PixelAccumulator {
   uint32_t count() const { return n_; }
   /// Mean, variance of the mean and count.
   PixelEstimate estimate() const;
-  /// Relative standard error of the luminance mean: sqrt(var_mean(Y)) / max(mean(Y), floor); 0 below two samples.
+  /// Relative error of the luminance mean: sqrt(var_mean(Y) + (s / n)^2) / s with s = max(mean(Y), floor). The
+  /// (s / n)^2 term stands for what n samples cannot see: an event of probability about 1/n (rule of succession)
+  /// at the pixel's own scale moves the mean by about s / n. Without it, a pixel whose first samples all happen
+  /// to miss a small light (zero sample variance) would stop at once, however wrong. Infinite below two samples.
   double relative_error(double floor) const;
 
  private:

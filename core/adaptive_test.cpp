@@ -4,6 +4,7 @@
 #include "core/render.h"
 #include "core/scene_loader.h"
 #include "core/test_error.h"
+#include "core/test_scale.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -55,18 +56,23 @@ void expect_same_bits(const Image& whole, const PixelWindow& ww, const Image& cr
 
 TEST(PixelAccumulator, MeanVarianceAndRelativeError) {
   PixelAccumulator acc;
-  EXPECT_EQ(0.0, acc.relative_error(0.01));
+  EXPECT_TRUE(std::isinf(acc.relative_error(0.01)));
   for (float v : {1.f, 2.f, 3.f, 4.f}) acc.add(Vec3(v));
   const PixelEstimate e = acc.estimate();
   EXPECT_EQ(4u, e.spp);
   EXPECT_FLOAT_EQ(2.5f, e.mean.x);
-  // Sample variance of 1..4 is 5/3; of the mean, 5/12. Grey: luminance = value (weights sum to 1).
+  // Sample variance of 1..4 is 5/3; of the mean, 5/12. Grey: luminance = value (weights sum to 1). The unseen-event
+  // term adds (mean / n)^2.
   EXPECT_NEAR(5.0 / 12.0, e.var_mean.y, 1e-6);
-  EXPECT_NEAR(std::sqrt(5.0 / 12.0) / 2.5, acc.relative_error(0.01), 1e-6);
+  EXPECT_NEAR(std::sqrt(5.0 / 12.0 + (2.5 / 4) * (2.5 / 4)) / 2.5, acc.relative_error(0.01), 1e-6);
   // Below the floor the error is measured against the floor.
   PixelAccumulator dark;
   for (float v : {0.f, 0.002f}) dark.add(Vec3(v));
-  EXPECT_NEAR(0.001 / 0.01, dark.relative_error(0.01), 1e-6);
+  EXPECT_NEAR(std::sqrt(0.001 * 0.001 + 0.005 * 0.005) / 0.01, dark.relative_error(0.01), 1e-6);
+  // Identical samples: the error is 1/n, never 0, so a pixel that saw nothing happen keeps sampling until n >= 1/E.
+  PixelAccumulator flat;
+  for (int i = 0; i < 8; ++i) flat.add(Vec3(0.f));
+  EXPECT_NEAR(1.0 / 8, flat.relative_error(0.01), 1e-12);
 }
 
 TEST(PixelAccumulator, RoundsDoubleUpToTheCap) {
@@ -79,7 +85,7 @@ TEST(PixelAccumulator, RoundsDoubleUpToTheCap) {
 TEST(AdaptiveSampling, WholeRenderAndOddCropsAreBitwiseIdentical) {
   const Scene scene = penumbra_scene(41, 29);
   RenderOptions o;
-  o.target_error = 0.05f;
+  o.target_error = 0.2f;
   o.min_spp = 4;
   o.max_spp = 64;
   o.variance = true;
@@ -94,10 +100,11 @@ TEST(AdaptiveSampling, WholeRenderAndOddCropsAreBitwiseIdentical) {
     const RenderResult crop = render(scene, oc);
     expect_same_bits(whole.image, full, crop.image, w);
   }
-  // The samples channel holds each pixel's own count, between the bounds, and varies over the picture.
+  // The samples channel holds each pixel's own count, between the bounds, and varies over the picture: background
+  // pixels (all samples zero) stop at the first round with n >= 1/E = 5, i.e. 8.
   const auto& spp = whole.image.extra.at("samples");
   const auto [lo, hi] = std::minmax_element(spp.begin(), spp.end());
-  EXPECT_EQ(4.f, *lo);
+  EXPECT_EQ(8.f, *lo);
   EXPECT_EQ(64.f, *hi);
 }
 
@@ -136,6 +143,7 @@ testing::ErrorCheck error_check(const Scene& scene, uint32_t spp, uint32_t repli
 
 // With independent replicates the predicted variance is unbiased: the aggregate matches within 20%.
 TEST(ErrorEstimates, ReplicatePredictionMatchesMeasuredErrorAgainstAnIndependentReference) {
+  if (testing::kScaleDivisor > 1) GTEST_SKIP() << "statistical test at full size: main build only";
   const Scene scene = penumbra_scene(48, 36);
   for (uint32_t k : {4u, 8u}) {
     const testing::ErrorCheck c = error_check(scene, 32, k);
@@ -145,12 +153,14 @@ TEST(ErrorEstimates, ReplicatePredictionMatchesMeasuredErrorAgainstAnIndependent
 
 // With one stratified sequence the i.i.d. estimate (sample variance / n) over-predicts: an upper bound, not a match.
 TEST(ErrorEstimates, SingleSequencePredictionIsAConservativeBound) {
+  if (testing::kScaleDivisor > 1) GTEST_SKIP() << "statistical test at full size: main build only";
   const Scene scene = penumbra_scene(48, 36);
   const testing::ErrorCheck c = error_check(scene, 32, 1);
   EXPECT_LE(c.measured, c.predicted + 3 * c.sd);
 }
 
 TEST(AdaptiveSampling, HardPixelsGetMoreSamplesAndTheAchievedErrorIsNearTheTarget) {
+  if (testing::kScaleDivisor > 1) GTEST_SKIP() << "statistical test at full size: main build only";
   const int W = 48, H = 36;
   const Scene scene = penumbra_scene(W, H);
   RenderOptions o;

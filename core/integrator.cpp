@@ -53,7 +53,7 @@ Vec3 direct_lighting(const Scene& scene, const SurfaceHit& h, const Vec3& n, con
       const float cos_s = glm::dot(n, wi) / dist;
       if (!(cos_s > 0.f) || glm::dot(h.sp.n, wi) * glm::dot(h.sp.n, n) <= 0.f) continue;
       ++counters.rays;
-      const SurfacePoint target{ls.p, gamma(7) * glm::abs(ls.p), ls.n};
+      const SurfacePoint target{ls.p, ls.p_error, ls.n};
       if (scene.bvh.occluded(spawn_ray_to(h.sp, target))) continue;
       sum += f * ls.radiance * cos_s / ls.pdf;
     }

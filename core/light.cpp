@@ -17,6 +17,15 @@ void AreaLight::finish() {
 
 namespace {
 
+// The point corner + a ex + b ey, rounded once from double precision: within half an ulp per axis of the exact
+// parallelogram's plane, whatever the coordinates' magnitude (a float expression at 1e5 may stray several ulps).
+Vec3 on_plane(const Vec3& corner, const Vec3& ex, const Vec3& ey, double a, double b) {
+  return Vec3(Vec3d(corner) + a * Vec3d(ex) + b * Vec3d(ey));
+}
+
+// Error bound of a point rounded once from an exact value (one ulp per axis, twice the half-ulp for safety).
+Vec3 rounded_once_error(const Vec3& p) { return 2.f * kMachineEpsilon * glm::abs(p); }
+
 // Converts an area-measure sample at q (normal nq, area pdf pdf_a) into a solid-angle sample seen from p.
 LightSample from_area(const Vec3& p, const Vec3& q, const Vec3& nq, float pdf_a, const Vec3& radiance) {
   const Vec3 w = p - q;
@@ -45,10 +54,12 @@ LightSample AreaLight::sample(const Vec3& p, float u_part, Vec2 u, AreaSampling 
       const Vec3 nq = glm::normalize(q - c);
       const float pdf = 1.f / (2.f * kPi * (1.f - cos_max));
       const bool faces = glm::dot(nq, p - q) > 0.f;
-      return {q, nq, faces ? radiance : Vec3(0.f), faces ? pdf : 0.f};
+      return {q, nq, faces ? radiance : Vec3(0.f), faces ? pdf : 0.f, gamma(7) * glm::abs(q)};
     }
     const Vec3 nq = sample_uniform_sphere(u);
-    return from_area(p, c + r * nq, nq, 1.f / total_area, radiance);
+    LightSample ls = from_area(p, c + r * nq, nq, 1.f / total_area, radiance);
+    ls.p_error = gamma(7) * glm::abs(ls.p);
+    return ls;
   }
   if (total_area <= 0.f) return {p, Vec3(0.f), Vec3(0.f), 0.f};
   float part_pdf;
@@ -62,18 +73,25 @@ LightSample AreaLight::sample(const Vec3& p, float u_part, Vec2 u, AreaSampling 
       SphericalRectangle sr;
       if (glm::dot(rc.n, p - rc.corner) <= 0.f || !sr.init(p, rc.corner, rc.ex, rc.ey)) return {p, rc.n, Vec3(0.f), 0.f};
       const RectSample s = sr.sample(u);
-      return {s.p, rc.n, radiance, s.pdf * pick};
+      // Re-projected onto the rectangle in double precision so the point's error bound is one rounding.
+      const Vec3d d = Vec3d(s.p) - Vec3d(rc.corner);
+      const double a = std::clamp(glm::dot(d, Vec3d(rc.ex)) / glm::dot(Vec3d(rc.ex), Vec3d(rc.ex)), 0.0, 1.0);
+      const double b = std::clamp(glm::dot(d, Vec3d(rc.ey)) / glm::dot(Vec3d(rc.ey), Vec3d(rc.ey)), 0.0, 1.0);
+      const Vec3 q = on_plane(rc.corner, rc.ex, rc.ey, a, b);
+      return {q, rc.n, radiance, s.pdf * pick, rounded_once_error(q) + gamma(2) * (glm::abs(rc.ex) + glm::abs(rc.ey))};
     }
-    const Vec3 q = rc.corner + u.x * rc.ex + u.y * rc.ey;
+    const Vec3 q = on_plane(rc.corner, rc.ex, rc.ey, u.x, u.y);
     LightSample ls = from_area(p, q, rc.n, 1.f / rc.area, radiance);
     ls.pdf *= pick;
+    ls.p_error = rounded_once_error(q) + gamma(2) * (glm::abs(rc.ex) + glm::abs(rc.ey));
     return ls;
   }
   const Tri& t = tris[size_t(part) - rects.size()];
   const Vec2 b = sample_uniform_triangle(u);
-  const Vec3 q = (1.f - b.x - b.y) * t.p0 + b.x * t.p1 + b.y * t.p2;
+  const Vec3 q = on_plane(t.p0, t.p1 - t.p0, t.p2 - t.p0, b.x, b.y);
   LightSample ls = from_area(p, q, t.n, 1.f / t.area, radiance);
   ls.pdf *= pick;
+  ls.p_error = rounded_once_error(q) + gamma(2) * glm::abs(t.p1 - t.p0) + gamma(2) * glm::abs(t.p2 - t.p0);
   return ls;
 }
 

@@ -39,6 +39,7 @@ struct LightSample {
   Vec3 n;         ///< Light surface normal at p (zero for point lights).
   Vec3 radiance;  ///< Emitted radiance towards the shading point (0 if it faces away).
   float pdf;      ///< Density with respect to solid angle at the shading point (0: no sample).
+  Vec3 p_error{0.f};  ///< Per-axis bound on the distance from p to the light's exact surface (area lights).
 };
 
 /// An emitting object: radiance `radiance` leaves the side its normal faces. Its shape is a set of rectangles

@@ -4,8 +4,13 @@ namespace tessera {
 
 SurfacePoint triangle_surface_point(const Triangle& tri, float b0, float b1, float b2) {
   SurfacePoint sp;
-  sp.p = b0 * tri.p0 + b1 * tri.p1 + b2 * tri.p2;
-  sp.p_error = gamma(7) * (glm::abs(b0 * tri.p0) + glm::abs(b1 * tri.p1) + glm::abs(b2 * tri.p2));
+  // Interpolated in double with the weights renormalised (b0 = 1 - b1 - b2 was rounded), so the point lies on the
+  // triangle's plane up to one final rounding: the error bound stays an ulp even 1e5 units from the origin, where
+  // the float expression's gamma(7) bound would push spawned rays several ulps (centimetres) off the surface.
+  const double sum = double(b0) + double(b1) + double(b2);
+  const double w0 = double(b0) / sum, w1 = double(b1) / sum, w2 = double(b2) / sum;
+  sp.p = Vec3(w0 * Vec3d(tri.p0) + w1 * Vec3d(tri.p1) + w2 * Vec3d(tri.p2));
+  sp.p_error = 2.f * kMachineEpsilon * glm::abs(sp.p);
   // The watertight test computes a ray's distance to the triangle's plane from vertex differences (p_i - origin),
   // rounded relative to the triangle's extent, with no "t > deltaT" rejection: an origin closer to the plane than
   // that error can re-hit the triangle (or a coplanar neighbour) at t > 0. The point error alone can be zero (a

@@ -1,0 +1,484 @@
+// Speed against error (issue 5): for each project scene, error against a reference as a function of render time,
+// equal-error comparisons of the sampling strategies and BVH builds, adaptive sampling (--target-error) against
+// uniform sample counts, the environment-map fix before/after, and predicted against measured error. Writes
+// docs/speed-vs-error.md, its data files and a gnuplot script, and runs gnuplot on it.
+//
+//   ./build/bench/speed_vs_error [--out DIR] [--scale F] [--max-spp N] [--ref-spp N] [--repeats N] [--threads N]
+//
+// Runs being compared are interleaved (every strategy at one sample count, then the next count) and each timing is
+// the median of --repeats runs, because the machine is shared.
+#include "core/render.h"
+#include "core/scene_loader.h"
+
+#include <tbb/global_control.h>
+
+#include <algorithm>
+#include <ctime>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace fs = std::filesystem;
+using namespace tessera;
+
+namespace {
+
+struct Args {
+  fs::path out = fs::path(TESSERA_SOURCE_DIR) / "docs";
+  double scale = 0.25;      // resolution factor applied to every scene
+  uint32_t max_spp = 256;   // sweep 1, 2, 4, ... max_spp
+  uint32_t ref_spp = 4096;  // reference sample count
+  int repeats = 3;          // timing repeats (median)
+  int threads = 0;
+  std::string command;
+};
+
+// ---- metrics -------------------------------------------------------------------------------------------------
+
+struct Metrics {
+  double rel_mse = 0;  // mean over pixels and channels of (I - R)^2 / (R^2 + 0.01)
+  double rmse = 0;     // sqrt of mean (I - R)^2
+  double p99 = 0;      // 99th percentile over pixels of sqrt(mean over channels of (I - R)^2 / (R^2 + 0.01))
+};
+
+Metrics metrics(const Image& img, const Image& ref) {
+  Metrics m;
+  const size_t n = size_t(img.width) * size_t(img.height);
+  std::vector<double> per(n);
+  double se = 0, rse = 0;
+  for (size_t i = 0; i < n; ++i) {
+    double pr = 0;
+    for (int c = 0; c < 3; ++c) {
+      const double r = ref.rgb[3 * i + size_t(c)], d = double(img.rgb[3 * i + size_t(c)]) - r;
+      se += d * d;
+      pr += d * d / (r * r + 0.01);
+    }
+    rse += pr;
+    per[i] = std::sqrt(pr / 3);
+  }
+  m.rel_mse = rse / (3.0 * double(n));
+  m.rmse = std::sqrt(se / (3.0 * double(n)));
+  std::nth_element(per.begin(), per.begin() + ptrdiff_t(0.99 * double(n - 1)), per.end());
+  m.p99 = per[size_t(0.99 * double(n - 1))];
+  return m;
+}
+
+// Predicted relMSE of img against ref from the variance channels: mean of (Var(I) + Var(R)) / (R^2 + 0.01).
+double predicted_rel_mse(const Image& img, const Image* ref_for_weights, bool include_ref_var) {
+  const Image& ref = ref_for_weights ? *ref_for_weights : img;
+  const size_t n = size_t(img.width) * size_t(img.height);
+  double s = 0;
+  const char* names[3] = {"variance.R", "variance.G", "variance.B"};
+  for (size_t i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c) {
+      const double r = ref.rgb[3 * i + size_t(c)];
+      double v = img.extra.at(names[c])[i];
+      if (include_ref_var) v += ref.extra.at(names[c])[i];
+      s += v / (r * r + 0.01);
+    }
+  return s / (3.0 * double(n));
+}
+
+// ---- scenes and runs -----------------------------------------------------------------------------------------
+
+struct Variant {
+  std::string name;
+  std::optional<AreaSampling> area;
+  std::optional<EnvSampling> env;
+  std::optional<SplitMethod> bvh;
+  bool raw_env_distribution = false;
+};
+
+Scene load(const std::string& scene_name, const Variant& v, double scale) {
+  LoadOptions lo;
+  lo.area_sampling = v.area;
+  lo.env_sampling = v.env;
+  lo.bvh = v.bvh;
+  Scene s = load_scene_file(fs::path(TESSERA_SOURCE_DIR) / "scenes" / (scene_name + ".json"), lo).scene;
+  s.width = std::max(1, int(std::lround(s.width * scale)));
+  s.height = std::max(1, int(std::lround(s.height * scale)));
+  if (v.raw_env_distribution && s.environment) {
+    s.environment->raw_pixel_distribution = true;
+    s.environment->finish();
+  }
+  return s;
+}
+
+struct Run {
+  double seconds = 0;      // median wall time
+  double cpu_seconds = 0;  // median process CPU time (all threads), less sensitive to other jobs on the machine
+  Metrics m;
+  double mean_spp = 0;
+  RenderResult last;
+};
+
+double cpu_now() {
+  timespec ts;
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+// Renders every (scene, options) pair `repeats` times, interleaved (pair 0, pair 1, ..., then again), so slow
+// phases of a shared machine hit all of them alike; times are medians, metrics those of the last render.
+std::vector<Run> run_interleaved(const std::vector<const Scene*>& scenes, const std::vector<RenderOptions>& opts,
+                                 const std::vector<const Image*>& refs, int repeats) {
+  const size_t n = scenes.size();
+  std::vector<Run> runs(n);
+  std::vector<std::vector<double>> wall(n), cpu(n);
+  for (int r = 0; r < repeats; ++r)
+    for (size_t i = 0; i < n; ++i) {
+      const double c0 = cpu_now();
+      runs[i].last = render(*scenes[i], opts[i]);
+      cpu[i].push_back(cpu_now() - c0);
+      wall[i].push_back(runs[i].last.seconds);
+    }
+  for (size_t i = 0; i < n; ++i) {
+    runs[i].seconds = median(wall[i]);
+    runs[i].cpu_seconds = median(cpu[i]);
+    runs[i].m = metrics(runs[i].last.image, *refs[i]);
+    runs[i].mean_spp = double(runs[i].last.counters.camera) / (double(scenes[i]->width) * double(scenes[i]->height));
+  }
+  return runs;
+}
+
+Run run(const Scene& s, RenderOptions o, const Image& ref, int repeats) {
+  return run_interleaved({&s}, {o}, {&ref}, repeats)[0];
+}
+
+struct Point {
+  uint32_t spp;
+  double seconds, rel_mse, rmse, p99, mean_spp, cpu_seconds;
+};
+
+// Time at which a curve (sorted by time, relMSE decreasing) reaches relMSE `target`: interpolated in log-log between
+// the bracketing points, or extrapolated from the nearest end with the ideal relMSE ~ 1/time slope.
+double time_to_reach(const std::vector<Point>& c, double target, bool cpu) {
+  auto t = [cpu](const Point& p) { return cpu ? p.cpu_seconds : p.seconds; };
+  for (size_t i = 0; i + 1 < c.size(); ++i) {
+    const Point &a = c[i], &b = c[i + 1];
+    if ((a.rel_mse >= target && b.rel_mse <= target) || (a.rel_mse <= target && b.rel_mse >= target)) {
+      if (a.rel_mse == b.rel_mse) return t(a);
+      const double f = std::log(target / a.rel_mse) / std::log(b.rel_mse / a.rel_mse);
+      return std::exp(std::log(t(a)) + f * (std::log(t(b)) - std::log(t(a))));
+    }
+  }
+  const Point& e = (target < c.back().rel_mse) ? c.back() : c.front();
+  return t(e) * e.rel_mse / target;
+}
+
+std::string fmt(const char* f, double v) {
+  char b[64];
+  std::snprintf(b, sizeof b, f, v);
+  return b;
+}
+
+std::string shell(const std::string& cmd) {
+  std::string out;
+  if (FILE* p = popen(cmd.c_str(), "r")) {
+    char buf[256];
+    while (fgets(buf, sizeof buf, p)) out += buf;
+    pclose(p);
+  }
+  while (!out.empty() && (out.back() == '\n' || out.back() == ' ')) out.pop_back();
+  return out;
+}
+
+std::string cpu_model() {
+  std::ifstream in("/proc/cpuinfo");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
+  return "unknown";
+}
+
+void log(const std::string& s) {
+  std::fprintf(stderr, "%s\n", s.c_str());
+  std::fflush(stderr);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Args a;
+  for (int i = 0; i < argc; ++i) {
+    if (i) a.command += ' ';
+    a.command += argv[i];
+  }
+  for (int i = 1; i < argc; ++i) {
+    const std::string k = argv[i];
+    auto next = [&]() -> std::string {
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "%s needs a value\n", k.c_str());
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (k == "--out") a.out = next();
+    else if (k == "--scale") a.scale = std::stod(next());
+    else if (k == "--max-spp") a.max_spp = uint32_t(std::stoul(next()));
+    else if (k == "--ref-spp") a.ref_spp = uint32_t(std::stoul(next()));
+    else if (k == "--repeats") a.repeats = std::stoi(next());
+    else if (k == "--threads") a.threads = std::stoi(next());
+    else {
+      std::fprintf(stderr, "usage: %s [--out DIR] [--scale F] [--max-spp N] [--ref-spp N] [--repeats N] [--threads N]\n", argv[0]);
+      return 2;
+    }
+  }
+  std::unique_ptr<tbb::global_control> limit;
+  if (a.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(a.threads));
+  const fs::path data = a.out / "speed-vs-error";
+  fs::create_directories(data);
+  const std::string commit = shell("git -C " TESSERA_SOURCE_DIR " rev-parse --short HEAD 2>/dev/null");
+  const std::string dirty = shell("git -C " TESSERA_SOURCE_DIR " status --porcelain --untracked-files=no 2>/dev/null");
+  const std::string machine = cpu_model() + ", " + std::to_string(std::thread::hardware_concurrency()) + " threads";
+  std::string stamp = "commit ";
+  stamp += commit.empty() ? std::string("unknown") : commit;
+  if (!dirty.empty()) stamp += " (+ local changes)";
+  stamp += ", ";
+  stamp += machine;
+
+  const std::vector<std::string> scenes = {"cbox_no_light", "cbox_no_light_refraction", "cbox_area_light",
+                                           "cbox_env_light", "sky_sun"};
+  std::vector<uint32_t> sweep;
+  for (uint32_t s = 1; s <= a.max_spp; s *= 2) sweep.push_back(s);
+
+  std::ostringstream md;
+  md << "# Speed against error\n\n"
+     << "Regenerated by `" << a.command << "` (" << "bench/speed_vs_error.cpp"
+     << "; plots by gnuplot from `docs/speed-vs-error/plots.gp`).\n\n"
+     << "- Machine: " << machine << " (`/proc/cpuinfo`, `nproc`); shared with other jobs, so runs being compared are "
+     << "interleaved and every time is the median of " << a.repeats << " runs.\n"
+     << "- Code: " << stamp << ".\n"
+     << "- Resolution: every scene at " << a.scale << " x its own resolution (reduced so the whole report runs in "
+     << "minutes on this machine).\n"
+     << "- Error metrics, against the reference, over pixels and RGB channels: relMSE = mean (I-R)^2/(R^2+0.01); RMSE;"
+     << " p99 = 99th percentile over pixels of the per-pixel relative error sqrt(mean_c (I-R)^2/(R^2+0.01)).\n"
+     << "- References: none of the five scenes has a closed-form pixel value (every pixel integrates over its area "
+     << "across edges, and light over occluded area lights or maps), so each reference is a " << a.ref_spp
+     << " spp render with 8 independent replicates (unbiased error estimate; core/adaptive.h), with its own "
+     << "estimated relMSE stated.\n\n";
+
+  // ---- 1. error against time per scene, and predicted vs measured --------------------------------------------
+  std::map<std::string, Image> refs;
+  std::map<std::string, double> ref_err;
+  std::map<std::string, std::vector<Point>> curves;
+  md << "## Error against time, default strategies\n\n"
+     << "| scene | pixels | reference relMSE (own estimate) | spp | wall (s) | CPU (s) | relMSE | RMSE | p99 |\n|---|---|---|---|---|---|---|---|---|\n";
+  std::ostringstream pred_md;
+  pred_md << "## Predicted against measured error\n\n"
+          << "Predicted relMSE = mean over pixels of (Var(I) + Var(R)) / (R^2 + 0.01) from the variance channels; "
+          << "measured = relMSE against the reference. With one stratified sequence per pixel (the default) the "
+          << "variance channel is the i.i.d. estimate sample variance / n, which the Owen-scrambled Sobol sampler "
+          << "beats; with K independent replicates (`--replicates K`) it is unbiased.\n\n"
+          << "| scene | spp | replicates | predicted | measured | measured / predicted |\n|---|---|---|---|---|---|\n";
+  for (const auto& name : scenes) {
+    const Scene s = load(name, {}, a.scale);
+    log("reference " + name);
+    RenderOptions ro;
+    ro.spp = a.ref_spp;
+    ro.seed = 1000;
+    ro.variance = true;
+    ro.replicates = 8;
+    const RenderResult ref = render(s, ro);
+    refs[name] = ref.image;
+    ref_err[name] = predicted_rel_mse(ref.image, nullptr, false);
+    std::vector<Point>& c = curves[name];
+    for (uint32_t spp : sweep) {
+      RenderOptions o;
+      o.spp = spp;
+      o.seed = 1;
+      const Run r = run(s, o, ref.image, a.repeats);
+      c.push_back({spp, r.seconds, r.m.rel_mse, r.m.rmse, r.m.p99, r.mean_spp, r.cpu_seconds});
+      md << "| " << name << " | " << s.width << "x" << s.height << " | " << fmt("%.2e", ref_err[name]) << " | " << spp
+         << " | " << fmt("%.4f", r.seconds) << " | " << fmt("%.4f", r.cpu_seconds) << " | " << fmt("%.4g", r.m.rel_mse) << " | " << fmt("%.4g", r.m.rmse)
+         << " | " << fmt("%.4g", r.m.p99) << " |\n";
+    }
+    std::ofstream dat(data / (name + ".dat"));
+    dat << "# spp wall_seconds relMSE RMSE p99 cpu_seconds\n";
+    for (const Point& p : c)
+      dat << p.spp << ' ' << p.seconds << ' ' << p.rel_mse << ' ' << p.rmse << ' ' << p.p99 << ' ' << p.cpu_seconds << '\n';
+    // Predicted vs measured at two sample counts, one sequence and 4 or 8 replicates.
+    for (uint32_t spp : {16u, 64u})
+      for (uint32_t k : {1u, 4u, 8u}) {
+        RenderOptions o;
+        o.spp = spp;
+        o.seed = 7;
+        o.variance = true;
+        o.replicates = k;
+        const RenderResult r = render(s, o);
+        const double pred = predicted_rel_mse(r.image, &ref.image, true);
+        const double meas = metrics(r.image, ref.image).rel_mse;
+        pred_md << "| " << name << " | " << spp << " | " << k << " | " << fmt("%.4g", pred) << " | " << fmt("%.4g", meas)
+                << " | " << fmt("%.3f", meas / pred) << " |\n";
+      }
+  }
+  md << "\n![error against time](speed-vs-error/error_vs_time.svg)\n\n"
+     << "Plotted: relative RMS error sqrt(relMSE) against median wall time, log-log, with the ideal 1/sqrt(time) "
+     << "slope drawn through each scene's 1-spp point.\n\n";
+  md << pred_md.str() << "\n";
+
+  // ---- 2. strategies at equal error ---------------------------------------------------------------------------
+  struct Comparison {
+    std::string title, scene;
+    std::vector<Variant> variants;  // first = default
+  };
+  const std::vector<Comparison> comps = {
+      {"Area light: solid angle (default) vs area", "cbox_area_light",
+       {{"solid_angle", AreaSampling::kSolidAngle, {}, {}}, {"area", AreaSampling::kArea, {}, {}}}},
+      {"Environment on sky_sun: MIS (default) vs importance vs cosine vs uniform", "sky_sun",
+       {{"mis", {}, EnvSampling::kMis, {}}, {"importance", {}, EnvSampling::kImportance, {}},
+        {"cosine", {}, EnvSampling::kCosine, {}}, {"uniform", {}, EnvSampling::kUniform, {}}}},
+      {"Environment on cbox_env_light (constant map: MIS and importance fall back to cosine)", "cbox_env_light",
+       {{"mis", {}, EnvSampling::kMis, {}}, {"cosine", {}, EnvSampling::kCosine, {}},
+        {"uniform", {}, EnvSampling::kUniform, {}}}},
+      {"Environment distribution on sky_sun: bilinear support (fixed) vs raw pixels (before the fix), MIS", "sky_sun",
+       {{"bilinear-support mis", {}, EnvSampling::kMis, {}}, {"raw-pixel mis", {}, EnvSampling::kMis, {}, true}}},
+      {"Environment distribution on sky_sun: bilinear support (fixed) vs raw pixels, importance only", "sky_sun",
+       {{"bilinear-support importance", {}, EnvSampling::kImportance, {}},
+        {"raw-pixel importance", {}, EnvSampling::kImportance, {}, true}}},
+      {"BVH: SAH (default) vs median split, cbox_area_light (36 triangles)", "cbox_area_light",
+       {{"sah", {}, {}, SplitMethod::kSah}, {"median", {}, {}, SplitMethod::kMedian}}},
+      {"BVH: SAH (default) vs median split, sky_sun", "sky_sun",
+       {{"sah", {}, {}, SplitMethod::kSah}, {"median", {}, {}, SplitMethod::kMedian}}},
+  };
+  md << "## Strategies at equal error\n\n"
+     << "Each strategy renders the sweep (1.." << a.max_spp << " spp, all strategies at one count before the next "
+     << "count); the table gives the time each needs to reach the relMSE the default reaches at "
+     << std::min<uint32_t>(64, a.max_spp) << " spp (log-log interpolation; beyond a curve's end, extrapolated with "
+     << "the ideal relMSE ~ 1/time), and the ratio to the default (> 1: slower than the default). Times are process "
+     << "CPU seconds (all threads; less disturbed by the other jobs on this shared machine than wall time), with "
+     << "the wall-time ratio beside them. Plots: sqrt(relMSE) against CPU seconds.\n\n";
+  int plot_id = 0;
+  std::vector<std::pair<std::string, std::vector<std::string>>> comp_plots;
+  for (const Comparison& cmp : comps) {
+    log("comparison: " + cmp.title);
+    std::vector<Scene> ss;
+    for (const Variant& v : cmp.variants) ss.push_back(load(cmp.scene, v, a.scale));
+    std::vector<std::vector<Point>> cs(ss.size());
+    for (uint32_t spp : sweep) {
+      std::vector<const Scene*> sp;
+      std::vector<RenderOptions> os;
+      std::vector<const Image*> rs;
+      for (const Scene& sc : ss) {
+        RenderOptions o;
+        o.spp = spp;
+        o.seed = 1;
+        sp.push_back(&sc);
+        os.push_back(o);
+        rs.push_back(&refs[cmp.scene]);
+      }
+      const std::vector<Run> runs = run_interleaved(sp, os, rs, a.repeats);
+      for (size_t k = 0; k < ss.size(); ++k) {
+        const Run& r = runs[k];
+        cs[k].push_back({spp, r.seconds, r.m.rel_mse, r.m.rmse, r.m.p99, r.mean_spp, r.cpu_seconds});
+      }
+    }
+    const uint32_t at = std::min<uint32_t>(64, a.max_spp);
+    double target = 0;
+    for (const Point& p : cs[0])
+      if (p.spp == at) target = p.rel_mse;
+    const double t0 = time_to_reach(cs[0], target, true), w0 = time_to_reach(cs[0], target, false);
+    md << "### " << cmp.title << "\n\n| strategy | relMSE at " << at << " spp | CPU s at " << at
+       << " spp | CPU s to relMSE " << fmt("%.3g", target) << " | ratio to default (CPU) | ratio to default (wall) |\n"
+       << "|---|---|---|---|---|---|\n";
+    std::vector<std::string> files;
+    for (size_t k = 0; k < ss.size(); ++k) {
+      double rm = 0, tm = 0;
+      for (const Point& p : cs[k])
+        if (p.spp == at) {
+          rm = p.rel_mse;
+          tm = p.cpu_seconds;
+        }
+      const double t = time_to_reach(cs[k], target, true), w = time_to_reach(cs[k], target, false);
+      md << "| " << cmp.variants[k].name << (k == 0 ? " (default)" : "") << " | " << fmt("%.4g", rm) << " | "
+         << fmt("%.4f", tm) << " | " << fmt("%.4f", t) << " | " << fmt("%.2f", t / t0) << " | " << fmt("%.2f", w / w0)
+         << " |\n";
+      const std::string file = "cmp" + std::to_string(plot_id) + "_" + std::to_string(k) + ".dat";
+      std::ofstream dat(data / file);
+      dat << "# " << cmp.variants[k].name << "\n# spp wall_seconds relMSE RMSE p99 cpu_seconds\n";
+      for (const Point& p : cs[k])
+        dat << p.spp << ' ' << p.seconds << ' ' << p.rel_mse << ' ' << p.rmse << ' ' << p.p99 << ' ' << p.cpu_seconds << '\n';
+      files.push_back(file + "|" + cmp.variants[k].name);
+    }
+    md << "\n![" << cmp.title << "](speed-vs-error/cmp" << plot_id << ".svg)\n\n";
+    comp_plots.push_back({cmp.title, files});
+    ++plot_id;
+  }
+
+  // ---- 3. adaptive sampling against uniform spp ---------------------------------------------------------------
+  md << "## --target-error against uniform spp at equal relMSE\n\n"
+     << "Adaptive runs: `--target-error E --min-spp 8 --max-spp " << 4 * a.max_spp << " --error-floor 0.1` (the floor "
+     << "matches relMSE's +0.01, i.e. both judge pixels darker than 0.1 by absolute error), one stratified "
+     << "sequence per pixel (the default; its error estimate is conservative). Times are CPU seconds (median of "
+     << a.repeats << "); the uniform time is what the uniform sweep above needs for the same relMSE (interpolated); "
+     << "saved = 1 - adaptive / uniform.\n\n"
+     << "| scene | target E | mean spp | CPU (s) | relMSE | uniform CPU s at that relMSE | time saved |\n"
+     << "|---|---|---|---|---|---|---|\n";
+  std::ofstream adat(data / "adaptive.dat");
+  adat << "# scene E mean_spp cpu_seconds relMSE uniform_cpu_seconds\n";
+  for (const auto& name : scenes) {
+    const Scene s = load(name, {}, a.scale);
+    for (float e : {0.2f, 0.1f, 0.05f, 0.025f}) {
+      log("adaptive " + name + " " + fmt("%g", e));
+      RenderOptions o;
+      o.seed = 1;
+      o.target_error = e;
+      o.min_spp = 8;
+      o.max_spp = 4 * a.max_spp;
+      o.error_floor = 0.1f;
+      const Run r = run(s, o, refs[name], a.repeats);
+      const double tu = time_to_reach(curves[name], r.m.rel_mse, true);
+      md << "| " << name << " | " << e << " | " << fmt("%.1f", r.mean_spp) << " | " << fmt("%.4f", r.cpu_seconds) << " | "
+         << fmt("%.4g", r.m.rel_mse) << " | " << fmt("%.4f", tu) << " | " << fmt("%.0f%%", 100.0 * (1.0 - r.cpu_seconds / tu))
+         << " |\n";
+      adat << name << ' ' << e << ' ' << r.mean_spp << ' ' << r.cpu_seconds << ' ' << r.m.rel_mse << ' ' << tu << '\n';
+    }
+  }
+  md << "\n";
+
+  // ---- plots --------------------------------------------------------------------------------------------------
+  {
+    std::ofstream gp(data / "plots.gp");
+    gp << "# Written by bench/speed_vs_error; run from docs/speed-vs-error/: gnuplot plots.gp\n"
+       << "set terminal svg size 900,600 dynamic font 'sans,12'\nset logscale xy\nset grid\nset key outside right\n"
+       << "set xlabel 'wall time (s), " << machine << "'\nset ylabel 'relative RMS error sqrt(relMSE)'\n";
+    gp << "set output 'error_vs_time.svg'\nset title 'Error against time, default strategies (" << stamp << ")' noenhanced\nplot \\\n";
+    for (size_t i = 0; i < scenes.size(); ++i) {
+      const Point& p0 = curves[scenes[i]].front();
+      gp << "  '" << scenes[i] << ".dat' using 2:(sqrt($3)) with linespoints lw 2 title '" << scenes[i] << "' noenhanced, \\\n"
+         << "  " << std::sqrt(p0.rel_mse) << "*sqrt(" << p0.seconds << "/x) with lines dt 2 lc " << i + 1
+         << " notitle" << (i + 1 < scenes.size() ? ", \\\n" : "\n");
+    }
+    gp << "set xlabel 'CPU seconds (all threads), " << machine << "'\n";
+    for (size_t c = 0; c < comp_plots.size(); ++c) {
+      gp << "set output 'cmp" << c << ".svg'\nset title '" << comp_plots[c].first << "' noenhanced\nplot \\\n";
+      const auto& files = comp_plots[c].second;
+      for (size_t k = 0; k < files.size(); ++k) {
+        const std::string f = files[k].substr(0, files[k].find('|')), t = files[k].substr(files[k].find('|') + 1);
+        gp << "  '" << f << "' using 6:(sqrt($3)) with linespoints lw 2 title '" << t << "' noenhanced"
+           << (k + 1 < files.size() ? ", \\\n" : "\n");
+      }
+    }
+  }
+  const int rc = std::system(("cd '" + data.string() + "' && gnuplot plots.gp").c_str());
+  if (rc != 0) log("gnuplot failed (is gnuplot-nox installed?)");
+
+  std::ofstream(a.out / "speed-vs-error.md") << md.str();
+  log("wrote " + (a.out / "speed-vs-error.md").string());
+  return 0;
+}
