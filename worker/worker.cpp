@@ -307,6 +307,9 @@ class Worker {
         ro.seed = l.seed;
         ro.spp = l.spp;
         ro.window = l.window;
+        // Small thread tiles: a farm tile is one worker's whole unit of work, so its last thread tile is a tail in
+        // which the other threads idle (pixels do not depend on this split).
+        ro.tile_size = 8;
         ro.cancel = &cancel;
         ro.progress = [&rays](const RenderProgress& p) { rays.store(p.rays); };
         result = render(scene->scene, ro);
