@@ -190,6 +190,9 @@ void accept_next(const std::shared_ptr<HttpServer::State>& st) {
     if (ec) {
       spdlog::warn("accept failed: {}", ec.message());
     } else {
+      // Responses are small writes a client waits for: no Nagle delay (see worker/http_client.cpp).
+      beast::error_code nodelay_ec;
+      socket.set_option(tcp::no_delay(true), nodelay_ec);
       std::shared_ptr<Session> s;
       {
         std::lock_guard lock(st->mu);

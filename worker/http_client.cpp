@@ -169,6 +169,9 @@ HttpResponse HttpClient::send(const HttpRequest& request) {
         im.close();
         throw HttpError(what + ": cannot connect: " + describe(ec, im.timeouts.connect));
       }
+      // Requests are small writes answered at once: without TCP_NODELAY, Nagle's algorithm holds a request's last
+      // segment until the server's delayed ACK (tens of milliseconds per request on loopback).
+      im.stream.socket().set_option(tcp::no_delay(true), ec);
       im.connected = true;
     }
 
