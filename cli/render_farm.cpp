@@ -80,7 +80,6 @@ int run_render_farm(const RenderArgs& a) {
   }
   // Options the farm's job API does not carry yet: refused, never silently dropped.
   std::vector<std::string> unsupported;
-  if (a.target_error > 0.f) unsupported.push_back("--target-error");
   if (!a.area_sampling.empty()) unsupported.push_back("--area-sampling");
   if (!a.env_sampling.empty()) unsupported.push_back("--env-sampling");
   if (!a.bvh.empty()) unsupported.push_back("--bvh");
@@ -126,6 +125,9 @@ int run_render_farm(const RenderArgs& a) {
     o.tile_size = a.farm_tile;
     o.force_direct = !a.integrator.empty();
     if (!a.asset_root.empty()) o.asset_root = a.asset_root;
+    o.target_error = a.target_error;
+    o.min_spp = a.min_spp;
+    o.max_spp = a.max_spp;
     rc = submit_and_wait(http, o, a.output, a.quiet, [&] {
       if (g_interrupts.load() > 0) return true;
       // Every worker gone means no progress is possible.

@@ -23,6 +23,13 @@ CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
   c->add_option("--integrator", a.integrator, "Render with this integrator whatever the scene says")
       ->check(CLI::IsMember({"direct", "intersection_test"}));
   c->add_option("--asset-root", a.asset_root, "Allow asset paths anywhere below this folder");
+  c->add_option("--target-error", a.target_error,
+                "Adaptive sampling: sample each pixel until its relative standard error is at most this")
+      ->check(CLI::Range(0.0, 1e6));
+  c->add_option("--min-spp", a.min_spp, "With --target-error: samples of the first round (default 16)")
+      ->check(CLI::Range(1u, 1u << 20));
+  c->add_option("--max-spp", a.max_spp, "With --target-error: most samples per pixel (default 1024)")
+      ->check(CLI::Range(1u, 1u << 20));
   c->add_flag("--detach", a.detach, "Print the job id and return without waiting");
   c->add_flag("-q,--quiet", a.quiet, "No progress bar");
   return c;
@@ -98,6 +105,9 @@ int run_submit(const SubmitArgs& a) {
     o.name = a.name;
     o.force_direct = !a.integrator.empty();
     if (!a.asset_root.empty()) o.asset_root = a.asset_root;
+    o.target_error = a.target_error;
+    o.min_spp = a.min_spp;
+    o.max_spp = a.max_spp;
     if (a.detach) {
       const farm::SubmitResult sub = farm::submit_job(http, o);
       std::printf("%s\n", sub.job_id.c_str());

@@ -25,6 +25,9 @@ struct SubmitArgs {
   std::string name;                 ///< Job label.
   std::string integrator;           ///< "direct": submit scenes of other integrator types.
   std::string asset_root;           ///< Allow assets anywhere below this folder.
+  double target_error = 0.0;        ///< Adaptive sampling target (0: off).
+  uint32_t min_spp = 16;            ///< Adaptive sampling: first round.
+  uint32_t max_spp = 1024;          ///< Adaptive sampling: most samples per pixel.
   bool detach = false;              ///< Print the job id and return without waiting.
   bool quiet = false;               ///< No progress bar.
 };

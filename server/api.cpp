@@ -286,7 +286,8 @@ json Api::job_json(const JobStatus& s) const {
 }
 
 HttpResponse Api::post_job(HttpRequest& req) {
-  const json j = parse_object(req, {"scene", "assets", "spp", "seed", "tile_size", "priority", "name", "integrator"}, false);
+  const json j = parse_object(req, {"scene", "assets", "spp", "seed", "tile_size", "priority", "name", "integrator",
+                                    "target_error", "min_spp", "max_spp"}, false);
   if (!j.contains("scene")) throw HttpError(http::status::bad_request, "'scene' is missing");
   const json& scene = j["scene"];
   if (!scene.is_object()) throw HttpError(http::status::bad_request, std::string("'scene' must be a JSON object, got ") + scene.type_name());
@@ -305,6 +306,22 @@ HttpResponse Api::post_job(HttpRequest& req) {
   const int priority = int(get_int(j, "priority", 0, std::numeric_limits<int>::min() + 1, std::numeric_limits<int>::max()));
   const std::string name = get_string(j, "name", "");
   const std::string integrator = get_string(j, "integrator", "");
+  // Adaptive sampling (like `tessera render --target-error`): each pixel's sample count depends only on its own
+  // samples, so any tile split still gives the same bits.
+  double target_error = 0.0;
+  if (j.contains("target_error")) {
+    const json& v = j["target_error"];
+    if (!v.is_number() || !(v.get<double>() > 0.0) || !(v.get<double>() <= 1e6))
+      throw HttpError(http::status::bad_request, "'target_error' must be a number in (0, 1e6] (got " + v.dump() + ")");
+    target_error = v.get<double>();
+  }
+  const int64_t min_spp = get_int(j, "min_spp", 16, 1, int64_t(1) << 20);
+  const int64_t max_spp = get_int(j, "max_spp", 1024, 1, int64_t(1) << 20);
+  if (target_error == 0.0 && (j.contains("min_spp") || j.contains("max_spp")))
+    throw HttpError(http::status::bad_request, "'min_spp' and 'max_spp' apply only with 'target_error'");
+  if (min_spp > max_spp)
+    throw HttpError(http::status::bad_request, "'min_spp' (" + std::to_string(min_spp) + ") is larger than 'max_spp' (" +
+                                                   std::to_string(max_spp) + ")");
   if (!integrator.empty() && integrator != "direct" && integrator != "intersection_test")
     throw HttpError(http::status::bad_request, "'integrator' must be \"direct\" or \"intersection_test\" (got \"" + integrator + "\")");
 
@@ -349,6 +366,11 @@ HttpResponse Api::post_job(HttpRequest& req) {
   json spec = {{"scene", scene}, {"assets", assets}, {"spp", p.spp}, {"seed", p.seed}, {"width", p.width},
                {"height", p.height}, {"tile_size", p.tile_size}};
   if (!integrator.empty()) spec["integrator"] = integrator;
+  if (target_error > 0.0) {
+    spec["target_error"] = target_error;
+    spec["min_spp"] = min_spp;
+    spec["max_spp"] = max_spp;
+  }
   const std::string id = sched_.new_job_id();
   json record = spec;
   record["id"] = id;
@@ -432,7 +454,8 @@ HttpResponse Api::get_spec(const std::string& id, HttpRequest& req) {
   std::optional<json> rec = jobs_.load_record(id);
   if (!rec) throw HttpError(http::status::not_found, "no record for job " + id);
   json spec;
-  for (const char* k : {"scene", "assets", "spp", "seed", "width", "height", "tile_size", "integrator"})
+  for (const char* k : {"scene", "assets", "spp", "seed", "width", "height", "tile_size", "integrator", "target_error",
+                        "min_spp", "max_spp"})
     if (rec->contains(k)) spec[k] = (*rec)[k];
   return json_response(http::status::ok, spec, req.version());
 }

@@ -309,6 +309,31 @@ TEST_F(HttpTest, MalformedUnknownKeysAndOversizedBodies) {
   EXPECT_TRUE(r.js().contains("error"));
 }
 
+// Adaptive sampling is a job option: valid settings reach the spec workers read; invalid ones are 400 naming the key.
+TEST_F(HttpTest, TargetErrorIsAJobOptionCheckedAndPassedToWorkers) {
+  json body = small_cbox(job_for("cbox_no_light.json"));
+  const std::pair<json, const char*> bad[] = {
+      {json{{"target_error", 0}}, "target_error"},          {json{{"target_error", -1}}, "target_error"},
+      {json{{"target_error", "0.1"}}, "target_error"},      {json{{"min_spp", 4}}, "only with 'target_error'"},
+      {json{{"target_error", 0.1}, {"min_spp", 64}, {"max_spp", 8}}, "larger than 'max_spp'"},
+      {json{{"target_error", 0.1}, {"max_spp", 0}}, "max_spp"}};
+  for (const auto& [extra, says] : bad) {
+    json b = body;
+    b.update(extra);
+    const Reply r = call(http::verb::post, "/v1/jobs", b.dump());
+    ASSERT_EQ(r.status, 400u) << extra.dump();
+    EXPECT_NE(r.js()["error"].get<std::string>().find(says), std::string::npos) << r.body;
+  }
+  body.update(json{{"target_error", 0.05}, {"min_spp", 4}, {"max_spp", 32}});
+  const Reply r = call(http::verb::post, "/v1/jobs", body.dump());
+  ASSERT_EQ(r.status, 201u) << r.body;
+  const Reply spec = call(http::verb::get, "/v1/jobs/" + r.js()["id"].get<std::string>() + "/spec", "");
+  ASSERT_EQ(spec.status, 200u);
+  EXPECT_EQ(spec.js()["target_error"].get<double>(), 0.05);
+  EXPECT_EQ(spec.js()["min_spp"].get<int>(), 4);
+  EXPECT_EQ(spec.js()["max_spp"].get<int>(), 32);
+}
+
 TEST_F(HttpTest, UnknownTargetsAndWrongMethods) {
   Reply r = call(http::verb::get, "/v1/jobs/j-nope");
   EXPECT_EQ(r.status, 404u);

@@ -155,10 +155,10 @@ TEST_F(CliRender, ProgressReportsTilesRaysAndEta) {
 
 // Options the farm path cannot carry are refused before any process starts, naming each one: never silently dropped.
 TEST_F(CliRender, WorkersRefuseOptionsTheFarmDoesNotCarry) {
-  const CliRun r = tessera({scene().string(), "-o", f("w.exr"), "-q", "--workers", "1", "--target-error", "0.1",
+  const CliRun r = tessera({scene().string(), "-o", f("w.exr"), "-q", "--workers", "1", "--replicates", "2",
                             "--env-sampling", "uniform", "--bvh", "median"});
   EXPECT_EQ(r.exit_code, 2) << r.err;
-  for (const char* opt : {"--target-error", "--env-sampling", "--bvh"}) EXPECT_NE(r.err.find(opt), std::string::npos) << r.err;
+  for (const char* opt : {"--replicates", "--env-sampling", "--bvh"}) EXPECT_NE(r.err.find(opt), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find("--area-sampling"), std::string::npos) << r.err;  // not given, not named
   EXPECT_FALSE(fs::exists(file("w.exr")));
 }

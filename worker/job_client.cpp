@@ -91,6 +91,11 @@ SubmitResult submit_job(HttpClient& http, const SubmitOptions& o) {
               {"priority", o.priority}, {"name", o.name.empty() ? o.scene.filename().string() : o.name}};
   if (o.spp) job["spp"] = *o.spp;
   if (o.force_direct) job["integrator"] = "direct";
+  if (o.target_error > 0.0) {
+    job["target_error"] = o.target_error;
+    job["min_spp"] = o.min_spp;
+    job["max_spp"] = o.max_spp;
+  }
   const HttpResponse r = http.send("POST", "/v1/jobs", job.dump());
   if (r.status != 201 && r.status != 200) refuse("submitting " + o.scene.string(), r);
   const json j = parse_body(r.body, "job submission");

@@ -29,6 +29,9 @@ struct SubmitOptions {
   std::string name;                    ///< Job label (default: the scene's file name).
   bool force_direct = false;           ///< Send "integrator": "direct" (like `render --integrator direct`).
   std::optional<std::filesystem::path> asset_root;  ///< Assets may lie anywhere below this folder.
+  double target_error = 0.0;           ///< Adaptive sampling target (0: off); see `tessera render --target-error`.
+  uint32_t min_spp = 16;               ///< Adaptive sampling: first round (sent only with target_error).
+  uint32_t max_spp = 1024;             ///< Adaptive sampling: most samples per pixel (sent only with target_error).
 };
 
 /// Counts of a submission's asset uploads.

@@ -68,6 +68,11 @@ JobSpec parse_job_spec(const json& j) {
   s.width = field<int>(j, "width", "job spec");
   s.height = field<int>(j, "height", "job spec");
   s.integrator = optional_field<std::string>(j, "integrator", "job spec", "");
+  s.target_error = optional_field<double>(j, "target_error", "job spec", 0.0);
+  s.min_spp = optional_field<uint32_t>(j, "min_spp", "job spec", 16);
+  s.max_spp = optional_field<uint32_t>(j, "max_spp", "job spec", 1024);
+  if (!(s.target_error >= 0.0) || s.min_spp < 1 || s.min_spp > s.max_spp)
+    throw ProtocolError("job spec: bad adaptive sampling settings (target_error, min_spp, max_spp)");
   return s;
 }
 

@@ -52,6 +52,9 @@ struct JobSpec {
   int width = 0;                              ///< Image width.
   int height = 0;                             ///< Image height.
   std::string integrator;                     ///< "direct" when the job was submitted with it, else empty.
+  double target_error = 0.0;                  ///< Adaptive sampling target (0: every pixel gets spp samples).
+  uint32_t min_spp = 16;                      ///< Adaptive sampling: first round.
+  uint32_t max_spp = 1024;                    ///< Adaptive sampling: most samples per pixel.
 };
 /// Parses a job spec; throws ProtocolError.
 JobSpec parse_job_spec(const nlohmann::json& j);

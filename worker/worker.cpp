@@ -51,6 +51,14 @@ bool retryable_status(int status) { return status >= 500 || status == 408 || sta
 
 // Heartbeats one lease from its own thread every `period` until stopped; on 410/404 it sets the render's cancel flag,
 // and on a second stop request it cancels for shutdown.
+// A job's built scene and the sampling settings of its spec, cached per job id.
+struct PreparedJob {
+  LoadedScene loaded;        // scene and BVH
+  double target_error = 0.0; // adaptive sampling target (0: fixed spp)
+  uint32_t min_spp = 16;     // adaptive: first round
+  uint32_t max_spp = 1024;   // adaptive: most samples per pixel
+};
+
 class Heartbeat {
  public:
   Heartbeat(HttpClient& http, std::string prefix, std::string lease, std::chrono::milliseconds period,
@@ -251,7 +259,7 @@ class Worker {
   }
 
   // The job's scene, built once and kept for its later tiles.
-  std::shared_ptr<const LoadedScene> scene_for(const Lease& l, const std::string& pfx,
+  std::shared_ptr<const PreparedJob> scene_for(const Lease& l, const std::string& pfx,
                                                const std::function<bool()>& interrupted) {
     if (auto s = scenes_.find(l.job)) return s;
     const auto t0 = std::chrono::steady_clock::now();
@@ -271,11 +279,16 @@ class Worker {
     };
     LoadOptions lo;
     lo.force_direct = !spec.integrator.empty();
-    auto loaded = std::make_shared<LoadedScene>(load_scene_json(spec.scene, "job " + l.job, resolve, lo));
-    if (loaded->scene.width != spec.width || loaded->scene.height != spec.height)
-      throw SceneError("job " + l.job + ": the scene is " + std::to_string(loaded->scene.width) + "x" +
-                       std::to_string(loaded->scene.height) + " but the job spec says " + std::to_string(spec.width) +
-                       "x" + std::to_string(spec.height));
+    auto loaded = std::make_shared<PreparedJob>();
+    loaded->loaded = load_scene_json(spec.scene, "job " + l.job, resolve, lo);
+    loaded->target_error = spec.target_error;
+    loaded->min_spp = spec.min_spp;
+    loaded->max_spp = spec.max_spp;
+    const Scene& built = loaded->loaded.scene;
+    if (built.width != spec.width || built.height != spec.height)
+      throw SceneError("job " + l.job + ": the scene is " + std::to_string(built.width) + "x" +
+                       std::to_string(built.height) + " but the job spec says " + std::to_string(spec.width) + "x" +
+                       std::to_string(spec.height));
     spdlog::info("{}: built the job's scene in {:.2f}s ({} assets)", pfx,
                  std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), spec.assets.size());
     scenes_.put(l.job, loaded);
@@ -296,8 +309,8 @@ class Worker {
       Heartbeat heartbeat(heartbeat_http_, pfx, l.id, heartbeat_period_, cancel, reason, rays, stop_);
       try {
         const auto scene = scene_for(l, pfx, [&] { return cancel.load(); });
-        width = scene->scene.width;
-        height = scene->scene.height;
+        width = scene->loaded.scene.width;
+        height = scene->loaded.scene.height;
         if (!PixelWindow{0, 0, width, height}.contains(l.window))
           throw std::runtime_error("tile window lies outside the " + std::to_string(width) + "x" +
                                    std::to_string(height) + " image");
@@ -310,9 +323,12 @@ class Worker {
         // Small thread tiles: a farm tile is one worker's whole unit of work, so its last thread tile is a tail in
         // which the other threads idle (pixels do not depend on this split).
         ro.tile_size = 8;
+        ro.target_error = float(scene->target_error);
+        ro.min_spp = scene->min_spp;
+        ro.max_spp = scene->max_spp;
         ro.cancel = &cancel;
         ro.progress = [&rays](const RenderProgress& p) { rays.store(p.rays); };
-        result = render(scene->scene, ro);
+        result = render(scene->loaded.scene, ro);
         if (result->cancelled) result.reset();
       } catch (const Interrupted&) {
         result.reset();
@@ -441,7 +457,7 @@ class Worker {
   HttpClient http_;
   HttpClient heartbeat_http_;  // used only by the heartbeat thread
   AssetCache cache_;
-  LruCache<LoadedScene> scenes_;
+  LruCache<PreparedJob> scenes_;
   Backoff idle_, retry_;
   std::string name_, id_;
   int threads_ = 1;

@@ -12,6 +12,14 @@ for case in "1 64" "2 7" "2 16" "3 10"; do
   "$EXR_COMPARE" "$WORK/ref.exr" "$WORK/farm-$1-$2.exr" || fail "workers $1 tile $2 differs from the single-process render"
 done
 
+# Adaptive sampling (a job option): each pixel's sample count depends on its own samples only, so odd farm tiles
+# still give the single-process bits, samples channel aside.
+"$TESSERA" render "$WORK/spheres.json" -o "$WORK/adaptive-ref.exr" --target-error 0.05 --min-spp 2 --max-spp 64 -q
+"$TESSERA" render "$WORK/spheres.json" -o "$WORK/adaptive-farm.exr" --target-error 0.05 --min-spp 2 --max-spp 64 \
+  --workers 2 --farm-tile 7 -q >"$WORK/render-adaptive.log" 2>&1 || fail "render --workers --target-error failed"
+"$EXR_COMPARE" "$WORK/adaptive-ref.exr" "$WORK/adaptive-farm.exr" || fail "adaptive farm render differs"
+"$EXR_COMPARE" "$WORK/ref.exr" "$WORK/adaptive-ref.exr" >/dev/null 2>&1 && fail "--target-error changed nothing"
+
 # 1-pixel tiles on a tiny image: 20 tiles.
 write_sphere_scene "$WORK/tiny.json" 5 4 2
 "$TESSERA" render "$WORK/tiny.json" -o "$WORK/tiny-ref.exr" -q
