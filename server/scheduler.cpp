@@ -7,6 +7,17 @@
 
 namespace tessera::server {
 
+namespace {
+
+// "w-1: text; w-2: text": the error texts of a job's failing workers, for its failure reason.
+std::string join_worker_errors(const std::map<std::string, std::string>& errors) {
+  std::string out;
+  for (const auto& [worker, text] : errors) out += (out.empty() ? "" : "; ") + worker + ": " + text;
+  return out;
+}
+
+}  // namespace
+
 const char* to_string(JobState s) {
   switch (s) {
     case JobState::queued: return "queued";
@@ -280,13 +291,9 @@ FailResult Scheduler::fail(const std::string& lease, const std::string& error) {
   j.worker_last_error[w] = error;
   r.blocklisted = n == config_.worker_failure_limit;
   if (int(t.failures.size()) >= config_.tile_failure_workers) {
-    std::string why = "tile " + std::to_string(l.lease.tile) + " failed on " + std::to_string(t.failures.size()) + " workers: ";
-    bool first = true;
-    for (const auto& [wid, text] : t.failures) {
-      why += (first ? "" : "; ") + wid + ": " + text;
-      first = false;
-    }
-    finish_job_locked(j, JobState::failed, now, why);
+    finish_job_locked(j, JobState::failed, now,
+                      "tile " + std::to_string(l.lease.tile) + " failed on " + std::to_string(t.failures.size()) +
+                          " workers: " + join_worker_errors(t.failures));
     r.job_failed = true;
     return r;
   }
@@ -297,14 +304,10 @@ FailResult Scheduler::fail(const std::string& lease, const std::string& error) {
     return f != j.worker_failures.end() && f->second >= config_.worker_failure_limit;
   });
   if (all_blocklisted) {
-    std::string why = "every registered worker (" + std::to_string(workers_.size()) + ") failed " +
-                      std::to_string(config_.worker_failure_limit) + " tiles of this job and is blocklisted for it: ";
-    bool first = true;
-    for (const auto& [wid, text] : j.worker_last_error) {
-      why += (first ? "" : "; ") + wid + ": " + text;
-      first = false;
-    }
-    finish_job_locked(j, JobState::failed, now, why);
+    finish_job_locked(j, JobState::failed, now,
+                      "every registered worker (" + std::to_string(workers_.size()) + ") failed " +
+                          std::to_string(config_.worker_failure_limit) + " tiles of this job and is blocklisted for it: " +
+                          join_worker_errors(j.worker_last_error));
     r.job_failed = true;
   }
   return r;
