@@ -2,10 +2,14 @@
 
 #include "cli/submit_command.h"
 #include "core/image.h"
+#include "server/auth.h"
 #include "worker/child_process.h"
 #include "worker/http_client.h"
 
 #include <spdlog/spdlog.h>
+
+#include <fcntl.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <csignal>
@@ -46,6 +50,18 @@ class InterruptGuard {
  private:
   struct sigaction old_int_ {}, old_term_ {};
 };
+
+// Writes a fresh random token to a file only this user can read and returns the token.
+std::string write_token_file(const fs::path& path) {
+  const std::string token = server::generate_token();
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+  if (fd < 0) throw std::runtime_error("cannot create " + path.string());
+  const std::string line = token + "\n";
+  const bool ok = ::write(fd, line.data(), line.size()) == ssize_t(line.size());
+  ::close(fd);
+  if (!ok) throw std::runtime_error("cannot write " + path.string());
+  return token;
+}
 
 fs::path make_temp_dir() {
   const char* base = std::getenv("TMPDIR");
@@ -103,8 +119,13 @@ int run_render_farm(const RenderArgs& a) {
     dir = make_temp_dir();
     const std::string self = fs::read_symlink("/proc/self/exe").string();
     const fs::path ready = dir / "ready";
+    // Fresh tokens per render: other users of this machine cannot submit to or pose as workers of this farm.
+    const std::string client_token = write_token_file(dir / "client.token");
+    write_token_file(dir / "worker.token");
     children.push_back(farm::spawn_child({self, "serve", "--listen", "127.0.0.1:0", "--ready-file", ready.string(),
-                                          "--data", (dir / "data").string()},
+                                          "--data", (dir / "data").string(), "--client-token-file",
+                                          (dir / "client.token").string(), "--worker-token-file",
+                                          (dir / "worker.token").string()},
                                          "coordinator", dir / "serve.log"));
     const std::string address = wait_for_ready(ready, children[0]);
     const std::string url = "http://" + address;
@@ -112,12 +133,14 @@ int run_render_farm(const RenderArgs& a) {
     const int threads = a.threads > 0 ? a.threads : std::max(1, int(cores) / a.workers);
     for (int i = 0; i < a.workers; ++i)
       children.push_back(farm::spawn_child({self, "worker", "--coordinator", url, "--threads", std::to_string(threads),
-                                            "--cache", (dir / "cache").string(), "--name", "local-" + std::to_string(i)},
+                                            "--cache", (dir / "cache").string(), "--name", "local-" + std::to_string(i),
+                                            "--token-file", (dir / "worker.token").string()},
                                            "worker " + std::to_string(i), dir / ("worker-" + std::to_string(i) + ".log")));
     if (!a.quiet)
       std::fprintf(stderr, "coordinator on %s, %d worker(s) with %d thread(s) each\n", url.c_str(), a.workers, threads);
 
     farm::HttpClient http(farm::parse_http_url(url));
+    http.set_bearer_token(client_token);
     farm::SubmitOptions o;
     o.scene = a.scene;
     o.spp = a.spp;

@@ -1,5 +1,7 @@
 #include "cli/serve_command.h"
 
+#include "cli/token.h"
+
 #include "server/coordinator.h"
 #include "server/storage.h"
 
@@ -9,7 +11,7 @@ namespace tessera::cli {
 
 CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
   auto* c = app.add_subcommand("serve", "Run the coordinator (HTTP API, tile scheduler, merge)");
-  c->add_option("--listen", a.listen, "HOST:PORT to listen on (loopback only; port 0 picks a free one)")->capture_default_str();
+  c->add_option("--listen", a.listen, "HOST:PORT to listen on (beyond loopback only with both tokens; port 0 picks a free one)")->capture_default_str();
   c->add_option("--data", a.data, "Data folder: blobs/, jobs/<id>/ (created if missing)")->required();
   c->add_option("--ready-file", a.ready_file, "Write the bound host:port here once listening");
   c->add_option("--lease-seconds", a.lease_seconds, "Lease length in seconds")->check(CLI::Range(0.05, 86400.0))->capture_default_str();
@@ -18,6 +20,10 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
   c->add_option("--read-timeout-seconds", a.read_timeout_seconds, "A whole request must arrive within this time")
       ->check(CLI::Range(0.1, 3600.0))->capture_default_str();
   c->add_option("--threads", a.threads, "Request handler threads (0: all cores)")->check(CLI::Range(0, 1024));
+  c->add_option("--client-token-file", a.client_token_file,
+                "File holding the bearer token clients must send (default: $TESSERA_CLIENT_TOKEN)");
+  c->add_option("--worker-token-file", a.worker_token_file,
+                "File holding the bearer token workers must send (default: $TESSERA_WORKER_TOKEN)");
   c->add_flag("-v,--verbose", a.verbose, "Log every lease and connection event");
   return c;
 }
@@ -33,12 +39,16 @@ int run_serve(const ServeArgs& a) {
     o.read_timeout = std::chrono::milliseconds(int64_t(a.read_timeout_seconds * 1000));
     o.handler_threads = a.threads;
     o.handle_signals = true;
+    o.limits.tokens.client = load_token(a.client_token_file, "TESSERA_CLIENT_TOKEN");
+    o.limits.tokens.worker = load_token(a.worker_token_file, "TESSERA_WORKER_TOKEN");
     server::Coordinator coordinator(o);
     const auto ep = coordinator.endpoint();
     const std::string bound = ep.address().to_string() + ":" + std::to_string(ep.port());
     if (!a.ready_file.empty()) server::write_file_atomic(a.ready_file, bound + "\n");
-    spdlog::info("coordinator listening on http://{} (data in {}, leases {}s, heartbeats {}s)", bound, a.data,
-                 a.lease_seconds, a.heartbeat_seconds);
+    const auto& t = o.limits.tokens;
+    spdlog::info("coordinator listening on http://{} (data in {}, leases {}s, heartbeats {}s, tokens: {})", bound,
+                 a.data, a.lease_seconds, a.heartbeat_seconds,
+                 t.complete() ? "client and worker" : t.client.empty() ? (t.worker.empty() ? "none" : "worker only") : "client only");
     coordinator.run();
     return 0;
   } catch (const std::exception& e) {

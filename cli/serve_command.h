@@ -16,6 +16,8 @@ struct ServeArgs {
   int heartbeat_seconds = 5;              ///< Heartbeat interval announced to workers.
   double read_timeout_seconds = 30;       ///< Whole-request read timeout.
   int threads = 0;                        ///< Request handler threads (0: cores).
+  std::string client_token_file;          ///< File holding the client token (else $TESSERA_CLIENT_TOKEN).
+  std::string worker_token_file;          ///< File holding the worker token (else $TESSERA_WORKER_TOKEN).
   bool verbose = false;                   ///< Debug logging.
 };
 

@@ -1,6 +1,7 @@
 #include "cli/submit_command.h"
 
 #include "cli/progress_bar.h"
+#include "cli/token.h"
 #include "core/scene_loader.h"
 
 #include <spdlog/spdlog.h>
@@ -30,6 +31,7 @@ CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
       ->check(CLI::Range(1u, 1u << 20));
   c->add_option("--max-spp", a.max_spp, "With --target-error: most samples per pixel (default 1024)")
       ->check(CLI::Range(1u, 1u << 20));
+  c->add_option("--token-file", a.token_file, "File holding the client token (default: $TESSERA_CLIENT_TOKEN)");
   c->add_flag("--detach", a.detach, "Print the job id and return without waiting");
   c->add_flag("-q,--quiet", a.quiet, "No progress bar");
   return c;
@@ -96,6 +98,7 @@ int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& o, const 
 int run_submit(const SubmitArgs& a) {
   try {
     farm::HttpClient http(farm::parse_http_url(a.coordinator));
+    http.set_bearer_token(load_token(a.token_file, "TESSERA_CLIENT_TOKEN"));
     farm::SubmitOptions o;
     o.scene = a.scene;
     o.spp = a.spp;

@@ -28,6 +28,7 @@ struct SubmitArgs {
   double target_error = 0.0;        ///< Adaptive sampling target (0: off).
   uint32_t min_spp = 16;            ///< Adaptive sampling: first round.
   uint32_t max_spp = 1024;          ///< Adaptive sampling: most samples per pixel.
+  std::string token_file;           ///< File holding the client token (else $TESSERA_CLIENT_TOKEN).
   bool detach = false;              ///< Print the job id and return without waiting.
   bool quiet = false;               ///< No progress bar.
 };

@@ -1,5 +1,7 @@
 #include "cli/worker_command.h"
 
+#include "cli/token.h"
+
 #include "worker/worker.h"
 
 #include <spdlog/spdlog.h>
@@ -24,6 +26,7 @@ CLI::App* add_worker_command(CLI::App& app, WorkerArgs& a) {
   c->add_option("--threads", a.threads, "Render threads (default: all cores)")->check(CLI::Range(0, 4096));
   c->add_option("--cache", a.cache, "Asset cache folder (default: $XDG_CACHE_HOME/tessera or ~/.cache/tessera)");
   c->add_option("--name", a.name, "Name reported to the coordinator (default: host name and process id)");
+  c->add_option("--token-file", a.token_file, "File holding the worker token (default: $TESSERA_WORKER_TOKEN)");
   c->add_flag("-v,--verbose", a.verbose, "Debug logging");
   c->footer("SIGTERM or SIGINT: finish and upload the current tile, then exit 0. A second one: stop rendering, hand "
             "the tile back, exit 0.");
@@ -46,6 +49,7 @@ int run_worker_command(const WorkerArgs& a) {
     o.threads = a.threads;
     o.cache_dir = a.cache;
     o.name = a.name;
+    o.token = load_token(a.token_file, "TESSERA_WORKER_TOKEN");
     farm::run_worker(o, g_stop_requests);
     return 0;
   } catch (const std::exception& e) {

@@ -13,6 +13,7 @@ struct WorkerArgs {
   int threads = 0;          ///< Render threads (0: all cores).
   std::string cache;        ///< Asset cache folder (empty: the default).
   std::string name;         ///< Worker name (empty: host-pid).
+  std::string token_file;   ///< File holding the worker token (else $TESSERA_WORKER_TOKEN).
   bool verbose = false;     ///< Debug logging.
 };
 

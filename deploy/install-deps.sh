@@ -4,7 +4,7 @@
 set -euo pipefail
 
 PACKAGES=(
-  build-essential cmake ninja-build pkg-config git curl ca-certificates
+  build-essential cmake ninja-build pkg-config git curl ca-certificates python3
   clang libclang-rt-14-dev
   libboost1.81-dev nlohmann-json3-dev libopenexr-dev libimath-dev libglm-dev
   libspdlog-dev libfmt-dev libtinyobjloader-dev libtbb-dev libcli11-dev

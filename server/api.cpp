@@ -148,6 +148,27 @@ Route match_route(std::string_view target) {
   return r;
 }
 
+Access route_access(RouteId route, http::verb method) {
+  switch (route) {
+    case RouteId::healthz: return Access::open;
+    case RouteId::metrics: return Access::either;
+    case RouteId::blob: return method == http::verb::get ? Access::either : Access::client;  // HEAD/PUT: submitting
+    case RouteId::job_spec: return Access::either;
+    case RouteId::jobs:
+    case RouteId::job:
+    case RouteId::job_result:
+    case RouteId::job_preview: return Access::client;
+    case RouteId::workers:
+    case RouteId::worker_lease:
+    case RouteId::lease_heartbeat:
+    case RouteId::lease_result:
+    case RouteId::lease_fail:
+    case RouteId::lease_release: return Access::worker;
+    case RouteId::none: break;
+  }
+  return Access::client;  // unreachable for matched routes; the strictest answer otherwise
+}
+
 Api::Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock, ApiOptions options)
     : sched_(scheduler), blobs_(blobs), jobs_(jobs), metrics_(metrics), clock_(std::move(clock)), opt_(options) {}
 
@@ -156,6 +177,33 @@ std::size_t Api::body_limit(const http::request_header<>& h) {
   if (r.id == RouteId::blob && h.method() == http::verb::put) return opt_.blob_limit;
   if (r.id == RouteId::lease_result && h.method() == http::verb::put) return opt_.result_limit;
   return opt_.json_limit;
+}
+
+std::optional<HttpResponse> Api::check_access(const Route& route, const http::request_header<>& h) {
+  const AuthDecision d = authorize(route_access(route.id, h.method()), h[http::field::authorization], opt_.tokens);
+  if (d.status == AuthDecision::allowed) return std::nullopt;
+  const bool forbidden = d.status == AuthDecision::wrong_role;
+  HttpResponse res = json_error(forbidden ? http::status::forbidden : http::status::unauthorized, d.reason, h.version());
+  if (!forbidden)
+    res.set(http::field::www_authenticate,
+            d.status == AuthDecision::missing ? "Bearer realm=\"tessera\"" : "Bearer realm=\"tessera\", error=\"invalid_token\"");
+  // The reason names roles, never the presented or configured token.
+  spdlog::warn("{} {}: {} {}", std::string(h.method_string()), route.name, forbidden ? 403 : 401, d.reason);
+  return res;
+}
+
+std::optional<HttpResponse> Api::early_response(const http::request_header<>& h) noexcept {
+  try {
+    const Route route = match_route(h.target());
+    if (route.id == RouteId::none ||
+        std::find(route.methods.begin(), route.methods.end(), h.method()) == route.methods.end())
+      return std::nullopt;  // handle() answers 404/405 (after the body, which is small or refused by its limit)
+    std::optional<HttpResponse> res = check_access(route, h);
+    if (res) metrics_.observe_request(std::string(h.method_string()) + " " + route.name, 0.0);
+    return res;
+  } catch (...) {
+    return json_error(http::status::internal_server_error, "internal error", h.version());
+  }
 }
 
 HttpResponse Api::handle(HttpRequest&& req) noexcept {
@@ -177,6 +225,8 @@ HttpResponse Api::handle(HttpRequest&& req) noexcept {
           res = json_error(http::status::method_not_allowed,
                            std::string(req.method_string()) + " is not allowed on " + route.name + " (allowed: " + allow + ")", version);
           res.set(http::field::allow, allow);
+        } else if (auto denied = check_access(route, req.base())) {
+          res = std::move(*denied);
         } else {
           res = dispatch(route, req);
         }

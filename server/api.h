@@ -3,6 +3,7 @@
 #pragma once
 
 #include "server/assembly.h"
+#include "server/auth.h"
 #include "server/http_server.h"
 #include "server/metrics.h"
 #include "server/scheduler.h"
@@ -14,6 +15,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -26,6 +28,7 @@ struct ApiOptions {
   std::size_t blob_limit = std::size_t(256) << 20;   ///< Blob uploads.
   std::size_t result_limit = std::size_t(64) << 20;  ///< Tile result uploads.
   int heartbeat_seconds = 5;                         ///< Heartbeat interval announced to workers.
+  AccessTokens tokens;                               ///< Bearer tokens (empty: that side's endpoints are open).
 };
 
 /// The endpoints a request target can name.
@@ -45,15 +48,20 @@ struct Route {
 /// Matches a request target (query string ignored) to an endpoint.
 Route match_route(std::string_view target);
 
+/// The token an endpoint needs for a method (see docs/protocol.md, "Access").
+Access route_access(RouteId route, http::verb method);
+
 /// The HTTP handler implementing docs/protocol.md.
 class Api final : public HttpHandler {
  public:
   /// An API over the given state; all references must outlive it.
   Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock, ApiOptions options);
   std::size_t body_limit(const http::request_header<>& header) override;
+  std::optional<HttpResponse> early_response(const http::request_header<>& header) noexcept override;
   HttpResponse handle(HttpRequest&& request) noexcept override;
 
  private:
+  std::optional<HttpResponse> check_access(const Route& route, const http::request_header<>& header);
   HttpResponse dispatch(const Route& route, HttpRequest& req);
   HttpResponse put_blob(const std::string& sha, HttpRequest& req);
   HttpResponse head_blob(const std::string& sha, HttpRequest& req);

@@ -41,13 +41,22 @@ int64_t wall_ms() {
   return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
-void require_loopback(const std::string& host) {
+// Without both tokens anyone who can connect could submit jobs or pose as a worker, so only loopback is allowed.
+void check_access_setup(const std::string& host, const AccessTokens& tokens) {
+  for (const auto& [token, what] : {std::pair{&tokens.client, "client"}, std::pair{&tokens.worker, "worker"}}) {
+    if (token->empty()) continue;
+    if (const std::string problem = token_problem(*token); !problem.empty())
+      throw std::runtime_error(std::string("the ") + what + " token is not usable: " + problem);
+  }
+  if (!tokens.client.empty() && constant_time_equal(tokens.client, tokens.worker))
+    throw std::runtime_error("the client and worker tokens must differ (a worker could otherwise submit and cancel jobs)");
   boost::system::error_code ec;
   const auto addr = asio::ip::make_address(host, ec);
   if (ec) throw std::runtime_error("cannot listen on '" + host + "': not an IP address");
-  if (!addr.is_loopback())
+  if (!addr.is_loopback() && !tokens.complete())
     throw std::runtime_error("refusing to listen on " + host +
-                             ": access tokens are not implemented yet, so the coordinator only listens on loopback");
+                             " without access tokens: set both --client-token-file and --worker-token-file (or "
+                             "TESSERA_CLIENT_TOKEN and TESSERA_WORKER_TOKEN), or listen on 127.0.0.1");
 }
 
 }  // namespace
@@ -99,7 +108,7 @@ struct Coordinator::Impl {
 Coordinator::Coordinator(CoordinatorOptions options) {
   if (options.data_dir.empty()) throw std::runtime_error("the coordinator needs a data folder (--data)");
   if (options.lease_seconds <= 0) throw std::runtime_error("--lease-seconds must be positive");
-  require_loopback(options.host);
+  check_access_setup(options.host, options.limits.tokens);
   impl_ = std::make_unique<Impl>(std::move(options));
 }
 

@@ -15,12 +15,12 @@ namespace tessera::server {
 
 /// Everything `tessera serve` can be told.
 struct CoordinatorOptions {
-  std::string host = "127.0.0.1";              ///< Address to bind (loopback only: access tokens are not implemented).
+  std::string host = "127.0.0.1";              ///< Address to bind (beyond loopback only with both tokens set).
   unsigned short port = 8470;                  ///< Port (0: an ephemeral one).
   std::filesystem::path data_dir;              ///< Holds blobs/, jobs/ and tmp/.
   double lease_seconds = 30;                   ///< Lease length.
   int heartbeat_seconds = 5;                   ///< Heartbeat interval announced to workers.
-  ApiOptions limits;                           ///< Body size limits.
+  ApiOptions limits;                           ///< Body size limits and access tokens.
   std::chrono::milliseconds read_timeout{30'000};  ///< Whole-request read timeout.
   int io_threads = 1;                          ///< Network threads.
   int handler_threads = 0;                     ///< Request handler threads (0: max(2, cores)).

@@ -81,6 +81,7 @@ class Session : public std::enable_shared_from_this<Session> {
     waiting_ = false;
     if (ec) return on_read_error(ec);
     const auto& req = parser_->get();
+    if (auto early = st_->handler.early_response(req.base())) return reply_and_close(std::move(*early));
     const std::size_t limit = st_->handler.body_limit(req.base());
     parser_->body_limit(limit);
     if (const auto len = parser_->content_length(); len && *len > limit)

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cstddef>
 #include <memory>
+#include <optional>
 #include <string>
 
 namespace tessera::server {
@@ -29,6 +30,8 @@ class HttpHandler {
   virtual ~HttpHandler() = default;
   /// The largest body accepted for a request with this header (larger ones get 413).
   virtual std::size_t body_limit(const http::request_header<>& header) = 0;
+  /// An answer to send at once, before the body is read (e.g. 401 for a missing token), or nothing to read on.
+  virtual std::optional<HttpResponse> early_response(const http::request_header<>& /*header*/) noexcept { return std::nullopt; }
   /// Answers a request; runs on the handler pool and must not throw.
   virtual HttpResponse handle(HttpRequest&& request) noexcept = 0;
 };

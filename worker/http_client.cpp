@@ -152,6 +152,7 @@ HttpResponse HttpClient::send(const HttpRequest& request) {
   req.set(http::field::user_agent, "tessera/" TESSERA_VERSION);
   if (!request.content_type.empty()) req.set(http::field::content_type, request.content_type);
   for (const auto& [k, v] : request.headers) req.set(k, v);
+  if (!token_.empty()) req.set(http::field::authorization, "Bearer " + token_);
   req.body() = request.body;
   req.keep_alive(true);
   req.prepare_payload();

@@ -76,6 +76,8 @@ class HttpClient {
   /// Shorthand for send() with a method, target and optional JSON body.
   HttpResponse send(std::string method, std::string target, std::string body = {},
                     std::string content_type = "application/json");
+  /// Sends "Authorization: Bearer <token>" with every request from now on ("" sends none).
+  void set_bearer_token(std::string token) { token_ = std::move(token); }
   /// Closes the connection (the next request opens a new one).
   void close();
   /// The server this client talks to.
@@ -84,6 +86,7 @@ class HttpClient {
  private:
   struct Impl;
   HttpUrl url_;
+  std::string token_;
   std::unique_ptr<Impl> impl_;
 };
 

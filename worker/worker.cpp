@@ -36,6 +36,11 @@ struct Gone : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// The coordinator refused the worker token (401/403): retrying cannot help, the worker stops with this message.
+struct AccessDenied : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
 // A tile's preparation was interrupted by a cancel (lease revoked or second stop request).
 struct Interrupted : std::runtime_error {
   using std::runtime_error::runtime_error;
@@ -144,6 +149,8 @@ class Worker {
         idle_(100ms, opt.max_idle_wait), retry_(200ms, opt.max_retry_wait) {
     name_ = opt.name.empty() ? default_name() : opt.name;
     threads_ = opt.threads > 0 ? opt.threads : int(std::max(1u, std::thread::hardware_concurrency()));
+    http_.set_bearer_token(opt.token);
+    heartbeat_http_.set_bearer_token(opt.token);
   }
 
   WorkerStats run() {
@@ -159,6 +166,8 @@ class Worker {
           break;
         }
         process(*lease);
+      } catch (const AccessDenied&) {
+        throw;
       } catch (const std::exception& e) {
         // Unexpected (a bug or resource exhaustion): log it, wait, carry on rather than die.
         spdlog::error("worker {}: {}", id_.empty() ? name_ : id_, e.what());
@@ -186,6 +195,14 @@ class Worker {
     retry_.reset();
   }
 
+  // Throws AccessDenied for 401/403: the token is missing or wrong, which no retry fixes.
+  void refuse_if_denied(const HttpResponse& r, const char* what) const {
+    if (r.status == 401 || r.status == 403)
+      throw AccessDenied(std::string(what) + " refused with " + std::to_string(r.status) + ": " + r.error_text() +
+                         (opt_.token.empty() ? " (no token given: use --token-file or TESSERA_WORKER_TOKEN)"
+                                             : " (check --token-file or TESSERA_WORKER_TOKEN)"));
+  }
+
   bool register_worker() {
     const json body = {{"name", name_}, {"threads", threads_}, {"version", TESSERA_VERSION}};
     try {
@@ -199,6 +216,7 @@ class Worker {
                      reg.heartbeat_seconds);
         return true;
       }
+      refuse_if_denied(r, "registration");
       spdlog::error("worker {}: registration refused with {}: {}", name_, r.status, r.error_text());
     } catch (const HttpError& e) {
       coordinator_down("register", e);
@@ -225,6 +243,7 @@ class Worker {
       sleep_unless(idle_.next(), [&] { return stopping(); });
       return std::nullopt;
     }
+    refuse_if_denied(r, "lease request");
     if (r.status == 404) {
       spdlog::info("worker {}: the coordinator does not know this worker, registering again", id_);
       id_.clear();

@@ -17,6 +17,7 @@ struct WorkerOptions {
   int threads = 0;                     ///< Render threads (0: all cores).
   std::filesystem::path cache_dir;     ///< Asset cache folder (empty: default_cache_dir()).
   std::string name;                    ///< Name sent at registration (empty: host name and pid).
+  std::string token;                   ///< Worker token sent as "Authorization: Bearer" (empty: none).
   size_t scene_cache_jobs = 3;         ///< Built scenes kept, one per job.
   std::chrono::milliseconds max_idle_wait{2000};   ///< Longest wait between lease requests when there is no work.
   std::chrono::milliseconds max_retry_wait{5000};  ///< Longest wait between retries when the coordinator is down.
@@ -35,7 +36,8 @@ struct WorkerStats {
 /// and its upload; TESSERA_WORKER_FAIL_RENDER makes every tile fail (reported through /fail).
 /// Runs the worker until *stop_requests becomes non-zero: the first request lets the current tile finish and upload,
 /// a second one cancels the render and hands the tile back. Never returns because the coordinator is unreachable
-/// (it retries with backoff and jitter); throws only for bad options (URL, cache folder).
+/// (it retries with backoff and jitter); throws for bad options (URL, cache folder) and when the coordinator refuses
+/// the worker token (401/403).
 WorkerStats run_worker(const WorkerOptions& options, const std::atomic<int>& stop_requests);
 
 }  // namespace tessera::farm
