@@ -207,17 +207,27 @@ TEST_F(DatabaseTest, ABatchIsStoredWhollyOrNotAtAll) {
   EXPECT_EQ(sched->job(j)->tiles.pending, 1);
 }
 
-TEST_F(DatabaseTest, AMergeInterruptedByACrashIsPendingAgain) {
-  const std::string j = job(64, 64, 64);
+TEST_F(DatabaseTest, AMergeInterruptedByACrashIsRetriedOrPendingAgain) {
+  const std::string j = job(128, 64, 64);
   const std::string w = sched->register_worker("w");
-  const Lease l = lease(w);
-  ASSERT_EQ(sched->claim_result(l.id).status, ResultClaim::proceed);  // stored as merging, then the process "dies"
+  const Lease l0 = lease(w), l1 = lease(w);
+  // Killed right after the claim: the claim was not stored on its own, so the lease is still live and the worker's
+  // retried upload goes through.
+  ASSERT_EQ(sched->claim_result(l0.id).status, ResultClaim::proceed);
+  reopen();
+  EXPECT_EQ(sched->job(j)->tiles.leased, 2);
+  ASSERT_EQ(sched->claim_result(l0.id).status, ResultClaim::proceed);
+  sched->finish_result(l0.id, 1, tile_bytes(pixels_for(l0.window, 1.0f)));
+  // Killed while the merging state was stored by another operation: the tile is pending again.
+  ASSERT_EQ(sched->claim_result(l1.id).status, ResultClaim::proceed);
+  sched->register_worker("other");
   reopen();
   EXPECT_EQ(sched->job(j)->tiles.pending, 1);
+  EXPECT_EQ(sched->job(j)->tiles.done, 1);
   EXPECT_EQ(sched->counters().active_leases, 0);
   const Lease again = lease(w);
-  EXPECT_EQ(again.tile, 0);
-  EXPECT_NE(again.id, l.id);
+  EXPECT_EQ(again.tile, 1);
+  EXPECT_NE(again.id, l1.id);
 }
 
 TEST_F(DatabaseTest, RefusesANewerSchema) {

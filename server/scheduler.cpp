@@ -92,9 +92,10 @@ Scheduler::Scheduler(SchedulerConfig config, ClockMs clock, SchedulerStore& stor
 Scheduler::~Scheduler() = default;
 
 // Runs one operation under the lock: expired leases are reclaimed first, and everything the operation (and the
-// reclaiming) changed goes to the store as one batch before the lock is released.
+// reclaiming) changed goes to the store as one batch before the lock is released (with store_now false, the changes
+// wait for the next operation that stores: for changes a restart may safely forget).
 template <class F>
-auto Scheduler::transact(F&& f) {
+auto Scheduler::transact(F&& f, bool store_now) {
   std::lock_guard lock(mu_);
   const int64_t now = clock_();
   using R = std::invoke_result_t<F&, int64_t>;
@@ -109,7 +110,7 @@ auto Scheduler::transact(F&& f) {
     }
     throw;
   }
-  flush_locked();
+  if (store_now) flush_locked();
   return std::move(*r);
 }
 
@@ -459,7 +460,7 @@ ResultClaim Scheduler::claim_result(const std::string& lease) {
     t.lease = lease;
     touch_tile(*j, c.tile);
     return c;
-  });
+  }, /*store_now=*/false);  // stored with finish_result: a restart before it finds the tile as it was, which is the same
 }
 
 FinishResult Scheduler::finish_result(const std::string& lease, uint64_t rays, std::string_view pixels) {

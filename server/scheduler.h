@@ -318,7 +318,7 @@ class Scheduler {
   using QueueKey = std::tuple<int, int64_t, uint64_t>;  // (-priority, created_ms, seq)
 
   template <class F>
-  auto transact(F&& f);
+  auto transact(F&& f, bool store_now = true);
   void restore_locked(SchedulerSnapshot snap, int64_t now);
   void flush_locked();
   void touch_job(const JobRec& j) { dirty_jobs_.insert(j.status.id); }
