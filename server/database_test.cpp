@@ -3,6 +3,7 @@
 #include "server/database.h"
 
 #include "server/assembly.h"
+#include "server/coordinator.h"
 
 #include <gtest/gtest.h>
 #include <sqlite3.h>
@@ -173,6 +174,34 @@ TEST_F(DatabaseTest, JobFinishedAcrossARestartKeepsItsImage) {
   reopen();
   EXPECT_EQ(sched->job(j)->state, JobState::done);
   EXPECT_TRUE(sched->unfinalized_jobs().empty());
+}
+
+// The coordinator died between storing a job's last tile and writing its result: starting it again writes the result
+// from the stored tiles and marks the job done.
+TEST_F(DatabaseTest, CoordinatorStartFinishesAJobWhoseTilesWereAllStored) {
+  const std::string j = job(128, 64, 64);
+  const std::string w = sched->register_worker("w");
+  const Lease a = lease(w), b = lease(w);
+  upload(a, 2.0f);
+  upload(b, 3.0f);
+  sched.reset();
+  store.reset();
+  CoordinatorOptions o;
+  o.port = 0;
+  o.data_dir = dir;
+  Coordinator c(o);  // recovers in its constructor, before serving
+  const fs::path result = dir / "jobs" / j / "result.exr";
+  ASSERT_TRUE(fs::exists(result));
+  const ExrImage exr = read_exr(result);
+  ASSERT_EQ(exr.pixels.width, 128);
+  for (const auto& [l, base] : {std::pair{a, 2.0f}, std::pair{b, 3.0f}}) {
+    const Image want = pixels_for(l.window, base);
+    for (int y = 0; y < 64; ++y)
+      for (int x = 0; x < 64; ++x) ASSERT_EQ(exr.pixels.at(l.window.x0 + x, y), want.at(x, y)) << x << "," << y;
+  }
+  DurableStore reread(dir);
+  Scheduler after(SchedulerConfig{10'000, 3, 2, "b"}, [this] { return now; }, reread);
+  EXPECT_EQ(after.job(j)->state, JobState::done);
 }
 
 TEST_F(DatabaseTest, ATileIsNeverDoneWithoutItsPixels) {
