@@ -478,14 +478,8 @@ HttpResponse Api::get_preview(const std::string& id, HttpRequest& req) {
   const auto s = sched_.job(id);
   if (!s) throw HttpError(http::status::not_found, "no job " + id);
   std::vector<uint8_t> png;
-  std::shared_ptr<JobImage> img;
-  {
-    std::lock_guard lock(mu_);
-    const auto it = images_.find(id);
-    if (it != images_.end()) img = it->second;
-  }
-  if (img) {
-    png = img->preview_png();
+  if (!is_final(s->state)) {
+    png = image_for(id, s->params.width, s->params.height)->preview_png();
   } else if (s->state == JobState::done) {
     png = encode_png_srgb(read_exr(jobs_.result_path(id)).pixels);
   } else {
@@ -560,8 +554,28 @@ HttpResponse Api::post_heartbeat(const std::string& lease, HttpRequest& req) {
 std::shared_ptr<JobImage> Api::image_for(const std::string& job, int width, int height) {
   std::lock_guard lock(mu_);
   auto& slot = images_[job];
-  if (!slot) slot = std::make_shared<JobImage>(width, height);
+  if (!slot) {
+    // First use since the coordinator started: the done tiles are in the store. Holding the lock while reading them
+    // means an upload finishing meanwhile either is among them or pastes into this image afterwards.
+    auto img = std::make_shared<JobImage>(width, height);
+    const auto s = sched_.job(job);
+    if (s) {
+      const TileGrid grid(s->params.width, s->params.height, s->params.tile_size);
+      for (const auto& [index, bytes] : jobs_.tile_pixels(job)) {
+        const PixelWindow w = grid.window(index);
+        img->paste(tile_from_bytes(bytes, w.width(), w.height()), w);
+      }
+    }
+    slot = std::move(img);
+  }
   return slot;
+}
+
+void Api::recover() {
+  for (const std::string& job : sched_.unfinalized_jobs()) {
+    spdlog::info("job {}: every tile was done before the restart; writing the result", job);
+    finalize(job);
+  }
 }
 
 void Api::drop_image(const std::string& job) {
@@ -614,8 +628,11 @@ HttpResponse Api::put_result(const std::string& lease, HttpRequest& req) {
   if (auto r = settled(c)) return std::move(*r);
   bool last = false;
   try {
-    image_for(c.job, c.width, c.height)->paste(check.pixels, c.window);
-    last = sched_.finish_result(lease, rays).last;
+    // Pasted before the tile counts as done: the upload that finishes the job writes the image, and every other
+    // tile's pixels must be in it by then (pasting identical pixels twice is harmless if the store then fails).
+    image_for(c.job, c.width, c.height)->paste(check.pixels, c.window);  // after a restart, rebuilt from the store first
+    // Durable before acknowledged: the pixels and the tile's done state go to the store in one transaction.
+    last = sched_.finish_result(lease, rays, tile_bytes(check.pixels)).last;
   } catch (...) {
     sched_.abandon_result(lease);
     throw;

@@ -59,6 +59,8 @@ class Api final : public HttpHandler {
   std::size_t body_limit(const http::request_header<>& header) override;
   std::optional<HttpResponse> early_response(const http::request_header<>& header) noexcept override;
   HttpResponse handle(HttpRequest&& request) noexcept override;
+  /// After a restart: finishes jobs whose every tile was stored but whose result was not written yet.
+  void recover();
 
  private:
   std::optional<HttpResponse> check_access(const Route& route, const http::request_header<>& header);
@@ -92,7 +94,7 @@ class Api final : public HttpHandler {
   ClockMs clock_;
   ApiOptions opt_;
   std::mutex mu_;
-  std::map<std::string, std::shared_ptr<JobImage>> images_;  // running jobs' images
+  std::map<std::string, std::shared_ptr<JobImage>> images_;  // running jobs' images (a cache of the stored tiles)
   std::map<std::string, nlohmann::json> specs_;              // job id -> what workers need to build the scene
 };
 

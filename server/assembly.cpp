@@ -71,6 +71,20 @@ TileCheck check_tile_exr(const std::filesystem::path& file, const PixelWindow& w
   return r;
 }
 
+std::string_view tile_bytes(const Image& tile) {
+  return std::string_view(reinterpret_cast<const char*>(tile.rgb.data()), tile.rgb.size() * sizeof(float));
+}
+
+Image tile_from_bytes(std::string_view bytes, int width, int height) {
+  Image img = Image::make(width, height);
+  if (bytes.size() != img.rgb.size() * sizeof(float))
+    throw std::invalid_argument("stored tile has " + std::to_string(bytes.size()) + " bytes, expected " +
+                                std::to_string(img.rgb.size() * sizeof(float)) + " for " + std::to_string(width) + "x" +
+                                std::to_string(height) + " float32 RGB");
+  std::memcpy(img.rgb.data(), bytes.data(), bytes.size());
+  return img;
+}
+
 JobImage::JobImage(int width, int height) : width_(width), height_(height) {
   if (width <= 0 || height <= 0) throw std::invalid_argument("job image needs a positive size");
 }

@@ -9,6 +9,7 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace tessera::server {
@@ -22,6 +23,13 @@ struct TileCheck {
 /// Reads a tile EXR and checks it: float32 R, G, B channels, display window exactly [0,width) x [0,height), data
 /// window exactly `window`, every value finite. Never throws for bad input; the error says what is wrong.
 TileCheck check_tile_exr(const std::filesystem::path& file, const PixelWindow& window, int width, int height);
+
+/// A validated tile's pixels as stored bytes: its float32 RGB rows in native byte order (little-endian on every
+/// machine the farm runs on), width x height x 12 bytes.
+std::string_view tile_bytes(const Image& tile);
+
+/// The inverse of tile_bytes for a width x height tile; throws std::invalid_argument when the size does not match.
+Image tile_from_bytes(std::string_view bytes, int width, int height);
 
 /// One job's float image, filled tile by tile. Thread-safe.
 class JobImage {

@@ -1,5 +1,6 @@
 #include "server/coordinator.h"
 
+#include "server/database.h"
 #include "server/http_server.h"
 
 #include <boost/asio/io_context.hpp>
@@ -65,9 +66,9 @@ struct Coordinator::Impl {
   explicit Impl(CoordinatorOptions o)
       : opt(std::move(o)),
         blobs(opt.data_dir / "blobs"),
-        jobs(opt.data_dir / "jobs", opt.data_dir / "tmp"),
-        sched(SchedulerConfig{int64_t(opt.lease_seconds * 1000.0), 3, 2, random_hex(3)}, wall_ms),
-        api(sched, blobs, jobs, metrics, wall_ms, with_heartbeat(opt)),
+        store(opt.data_dir),
+        sched(SchedulerConfig{int64_t(opt.lease_seconds * 1000.0), 3, 2, random_hex(3)}, wall_ms, store),
+        api(sched, blobs, store, metrics, wall_ms, with_heartbeat(opt)),
         pool(std::size_t(opt.handler_threads > 0 ? opt.handler_threads : std::max(2u, std::thread::hardware_concurrency()))),
         server(ioc, pool, api, HttpServerOptions{opt.host, opt.port, opt.read_timeout, 64 * 1024}),
         tick(ioc),
@@ -92,7 +93,7 @@ struct Coordinator::Impl {
 
   CoordinatorOptions opt;
   DiskBlobStore blobs;
-  DiskJobStore jobs;
+  DurableStore store;  // jobs, tiles, leases, workers and job records in DIR/tessera.db
   Scheduler sched;
   Metrics metrics;
   Api api;
@@ -109,7 +110,16 @@ Coordinator::Coordinator(CoordinatorOptions options) {
   if (options.data_dir.empty()) throw std::runtime_error("the coordinator needs a data folder (--data)");
   if (options.lease_seconds <= 0) throw std::runtime_error("--lease-seconds must be positive");
   check_access_setup(options.host, options.limits.tokens);
-  impl_ = std::make_unique<Impl>(std::move(options));
+  try {
+    impl_ = std::make_unique<Impl>(std::move(options));
+  } catch (const StorageError& e) {
+    throw std::runtime_error(std::string("cannot open the coordinator's state: ") + e.what());
+  }
+  SchedulerCounters c = impl_->sched.counters();
+  if (c.jobs[JobState::queued] + c.jobs[JobState::running] > 0)
+    spdlog::info("resuming {} queued and {} running job(s) with {} live lease(s) from {}", c.jobs[JobState::queued],
+                 c.jobs[JobState::running], c.active_leases, impl_->store.database_file().string());
+  impl_->api.recover();
 }
 
 Coordinator::~Coordinator() {

@@ -17,7 +17,7 @@ namespace tessera::server {
 struct CoordinatorOptions {
   std::string host = "127.0.0.1";              ///< Address to bind (beyond loopback only with both tokens set).
   unsigned short port = 8470;                  ///< Port (0: an ephemeral one).
-  std::filesystem::path data_dir;              ///< Holds blobs/, jobs/ and tmp/.
+  std::filesystem::path data_dir;              ///< Holds tessera.db, blobs/, jobs/ and tmp/.
   double lease_seconds = 30;                   ///< Lease length.
   int heartbeat_seconds = 5;                   ///< Heartbeat interval announced to workers.
   ApiOptions limits;                           ///< Body size limits and access tokens.

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <stdexcept>
+#include <type_traits>
 
 namespace tessera::server {
 
@@ -14,6 +15,13 @@ std::string join_worker_errors(const std::map<std::string, std::string>& errors)
   std::string out;
   for (const auto& [worker, text] : errors) out += (out.empty() ? "" : "; ") + worker + ": " + text;
   return out;
+}
+
+template <class E, size_t N>
+E parse_state(std::string_view s, const E (&all)[N], const char* what) {
+  for (E e : all)
+    if (s == to_string(e)) return e;
+  throw std::invalid_argument(std::string("unknown ") + what + " state '" + std::string(s) + "'");
 }
 
 }  // namespace
@@ -29,43 +37,232 @@ const char* to_string(JobState s) {
   return "unknown";
 }
 
+const char* to_string(TileState s) {
+  switch (s) {
+    case TileState::pending: return "pending";
+    case TileState::leased: return "leased";
+    case TileState::merging: return "merging";
+    case TileState::done: return "done";
+  }
+  return "unknown";
+}
+
+const char* to_string(LeaseState s) {
+  switch (s) {
+    case LeaseState::live: return "live";
+    case LeaseState::expired: return "expired";
+    case LeaseState::revoked: return "revoked";
+    case LeaseState::completed: return "completed";
+    case LeaseState::released: return "released";
+    case LeaseState::failed: return "failed";
+  }
+  return "unknown";
+}
+
+JobState job_state_from_string(std::string_view s) {
+  static constexpr JobState all[] = {JobState::queued, JobState::running, JobState::done, JobState::failed,
+                                     JobState::cancelled};
+  return parse_state(s, all, "job");
+}
+
+TileState tile_state_from_string(std::string_view s) {
+  static constexpr TileState all[] = {TileState::pending, TileState::leased, TileState::merging, TileState::done};
+  return parse_state(s, all, "tile");
+}
+
+LeaseState lease_state_from_string(std::string_view s) {
+  static constexpr LeaseState all[] = {LeaseState::live, LeaseState::expired, LeaseState::revoked,
+                                       LeaseState::completed, LeaseState::released, LeaseState::failed};
+  return parse_state(s, all, "lease");
+}
+
 Scheduler::Scheduler(SchedulerConfig config, ClockMs clock) : config_(std::move(config)), clock_(std::move(clock)) {
   if (!clock_) throw std::invalid_argument("scheduler needs a clock");
   if (config_.lease_ms <= 0) throw std::invalid_argument("lease length must be positive");
 }
 
+Scheduler::Scheduler(SchedulerConfig config, ClockMs clock, SchedulerStore& store)
+    : Scheduler(std::move(config), std::move(clock)) {
+  store_ = &store;
+  std::lock_guard lock(mu_);
+  restore_locked(store.load(), clock_());
+  flush_locked();
+}
+
 Scheduler::~Scheduler() = default;
 
+// Runs one operation under the lock: expired leases are reclaimed first, and everything the operation (and the
+// reclaiming) changed goes to the store as one batch before the lock is released (with store_now false, the changes
+// wait for the next operation that stores: for changes a restart may safely forget).
+template <class F>
+auto Scheduler::transact(F&& f, bool store_now) {
+  std::lock_guard lock(mu_);
+  const int64_t now = clock_();
+  using R = std::invoke_result_t<F&, int64_t>;
+  std::optional<R> r;
+  try {
+    expire_locked(now);
+    r.emplace(f(now));
+  } catch (...) {
+    try {
+      flush_locked();  // what changed before the failure still has to be stored
+    } catch (...) {
+    }
+    throw;
+  }
+  if (store_now) flush_locked();
+  return std::move(*r);
+}
+
+void Scheduler::flush_locked() {
+  const CounterRow counters{next_seq_, tiles_rendered_, lease_expiries_, rays_};
+  auto pixels = std::move(done_pixels_);
+  done_pixels_.reset();
+  if (!store_) {
+    dirty_jobs_.clear();
+    dirty_tiles_.clear();
+    dirty_leases_.clear();
+    new_workers_.clear();
+    return;
+  }
+  if (dirty_jobs_.empty() && dirty_tiles_.empty() && dirty_leases_.empty() && new_workers_.empty() &&
+      counters == flushed_counters_)
+    return;
+  SchedulerChanges c;
+  c.counters = counters;
+  for (const std::string& id : dirty_jobs_) {
+    const auto it = jobs_.find(id);
+    if (it == jobs_.end()) continue;
+    const JobRec& j = *it->second;
+    c.jobs.push_back(JobRow{snapshot_locked(j, 0), j.seq, j.worker_failures, j.worker_last_error});
+  }
+  for (const auto& key : dirty_tiles_) {
+    const auto it = jobs_.find(key.first);
+    if (it == jobs_.end()) continue;
+    const Tile& t = it->second->tiles[size_t(key.second)];
+    TileRow row{key.first, key.second, t.state, t.lease, t.failures, std::nullopt};
+    if (pixels && pixels->first == key && !pixels->second.empty()) row.pixels = pixels->second;
+    c.tiles.push_back(std::move(row));
+  }
+  for (const std::string& id : dirty_leases_) {
+    const auto it = leases_.find(id);
+    if (it != leases_.end()) c.leases.push_back(LeaseRow{it->second.lease, it->second.state});
+  }
+  for (const std::string& id : new_workers_) {
+    const auto it = workers_.find(id);
+    if (it != workers_.end()) c.workers.push_back(WorkerRow{id, it->second.name});
+  }
+  // On failure the dirty sets stay, so the next operation writes these rows again.
+  store_->apply(c);
+  dirty_jobs_.clear();
+  dirty_tiles_.clear();
+  dirty_leases_.clear();
+  new_workers_.clear();
+  flushed_counters_ = counters;
+}
+
+void Scheduler::restore_locked(SchedulerSnapshot snap, int64_t now) {
+  next_seq_ = std::max<uint64_t>(1, snap.counters.next_seq);
+  tiles_rendered_ = snap.counters.tiles_rendered;
+  lease_expiries_ = snap.counters.lease_expiries;
+  rays_ = snap.counters.rays;
+  flushed_counters_ = snap.counters;
+  for (const WorkerRow& w : snap.workers) workers_[w.id] = WorkerRec{w.name, now};  // downtime counts against nobody
+  for (JobRow& row : snap.jobs) {
+    auto rec = std::make_unique<JobRec>();
+    const JobParams& p = row.status.params;
+    const TileGrid grid(p.width, p.height, p.tile_size);
+    rec->status = std::move(row.status);
+    rec->status.tiles = TileCounts{grid.count(), 0, 0, 0};
+    rec->seq = row.seq;
+    rec->worker_failures = std::move(row.worker_failures);
+    rec->worker_last_error = std::move(row.worker_last_error);
+    rec->tiles.resize(size_t(grid.count()));
+    const std::string id = rec->status.id;
+    jobs_.emplace(id, std::move(rec));
+  }
+  for (TileRow& row : snap.tiles) {
+    const auto it = jobs_.find(row.job);
+    if (it == jobs_.end() || row.index < 0 || row.index >= it->second->status.tiles.total)
+      throw std::invalid_argument("stored tile " + std::to_string(row.index) + " of job " + row.job +
+                                  " belongs to no stored job");
+    Tile& t = it->second->tiles[size_t(row.index)];
+    t.state = row.state;
+    t.lease = std::move(row.lease);
+    t.failures = std::move(row.failures);
+  }
+  for (LeaseRow& row : snap.leases) {
+    const auto jt = jobs_.find(row.lease.job);
+    if (jt == jobs_.end()) throw std::invalid_argument("stored lease " + row.lease.id + " belongs to no stored job");
+    const JobParams& p = jt->second->status.params;
+    const TileGrid grid(p.width, p.height, p.tile_size);
+    if (row.lease.tile < 0 || row.lease.tile >= grid.count())
+      throw std::invalid_argument("stored lease " + row.lease.id + " names tile " + std::to_string(row.lease.tile) +
+                                  " outside its job");
+    row.lease.window = grid.window(row.lease.tile);
+    row.lease.spp = p.spp;
+    row.lease.seed = p.seed;
+    row.lease.scene_hash = p.scene_hash;
+    LeaseRec rec{row.lease, row.state};
+    if (rec.state == LeaseState::live) {
+      const Tile& t = jt->second->tiles[size_t(rec.lease.tile)];
+      if (is_final(jt->second->status.state) || t.state != TileState::leased || t.lease != rec.lease.id) {
+        rec.state = LeaseState::revoked;  // cannot happen in a consistent store; repaired rather than trusted
+        dirty_leases_.insert(rec.lease.id);
+      } else {
+        rec.lease.deadline_ms = now + config_.lease_ms;  // the worker gets a whole lease to come back
+        live_leases_.insert(rec.lease.id);
+      }
+    }
+    leases_.emplace(rec.lease.id, std::move(rec));
+  }
+  for (auto& [id, j] : jobs_) {
+    for (int64_t i = 0; i < j->status.tiles.total; ++i) {
+      Tile& t = j->tiles[size_t(i)];
+      if (t.state == TileState::merging || (t.state == TileState::leased && !live_leases_.count(t.lease))) {
+        // An upload that was being stored was never acknowledged: its worker sends it again, or another renders it.
+        t.state = TileState::pending;
+        t.lease.clear();
+        touch_tile(*j, i);
+      }
+      if (t.state == TileState::done) ++j->status.tiles.done;
+      if (t.state == TileState::pending) j->pending.insert(j->pending.end(), i);
+    }
+    if (!is_final(j->status.state)) queue_.emplace(QueueKey{-j->status.params.priority, j->status.created_ms, j->seq}, j.get());
+  }
+}
+
 std::string Scheduler::next_id(char kind) {
-  static_assert(sizeof(uint64_t) == 8);
   return std::string(1, kind) + "-" + (config_.id_tag.empty() ? "" : config_.id_tag + "-") + std::to_string(next_seq_++);
 }
 
 std::string Scheduler::new_job_id() {
-  std::lock_guard lock(mu_);
-  return next_id('j');
+  return transact([&](int64_t) { return next_id('j'); });
 }
 
 std::string Scheduler::add_job(const JobParams& p, const std::string& id_in) {
   const TileGrid grid(p.width, p.height, p.tile_size);  // validates sizes
   if (p.spp == 0) throw std::invalid_argument("spp must be positive");
-  std::lock_guard lock(mu_);
-  const int64_t now = clock_();
-  expire_locked(now);
-  auto rec = std::make_unique<JobRec>();
-  rec->seq = next_seq_++;
-  rec->status.id = id_in.empty() ? next_id('j') : id_in;
-  if (jobs_.count(rec->status.id)) throw std::invalid_argument("job id " + rec->status.id + " is already in use");
-  rec->status.params = p;
-  rec->status.created_ms = now;
-  rec->status.tiles.total = grid.count();
-  rec->tiles.resize(size_t(grid.count()));
-  for (int64_t i = 0; i < grid.count(); ++i) rec->pending.insert(rec->pending.end(), i);
-  JobRec* raw = rec.get();
-  const std::string id = rec->status.id;
-  jobs_.emplace(id, std::move(rec));
-  queue_.emplace(QueueKey{-p.priority, now, raw->seq}, raw);
-  return id;
+  return transact([&](int64_t now) {
+    auto rec = std::make_unique<JobRec>();
+    rec->seq = next_seq_++;
+    rec->status.id = id_in.empty() ? next_id('j') : id_in;
+    if (jobs_.count(rec->status.id)) throw std::invalid_argument("job id " + rec->status.id + " is already in use");
+    rec->status.params = p;
+    rec->status.created_ms = now;
+    rec->status.tiles.total = grid.count();
+    rec->tiles.resize(size_t(grid.count()));
+    for (int64_t i = 0; i < grid.count(); ++i) {
+      rec->pending.insert(rec->pending.end(), i);
+      touch_tile(*rec, i);
+    }
+    touch_job(*rec);
+    JobRec* raw = rec.get();
+    const std::string id = rec->status.id;
+    jobs_.emplace(id, std::move(rec));
+    queue_.emplace(QueueKey{-p.priority, now, raw->seq}, raw);
+    return id;
+  });
 }
 
 JobStatus Scheduler::snapshot_locked(const JobRec& j, int64_t) const {
@@ -76,33 +273,32 @@ JobStatus Scheduler::snapshot_locked(const JobRec& j, int64_t) const {
 }
 
 std::optional<JobStatus> Scheduler::job(const std::string& id) {
-  std::lock_guard lock(mu_);
-  const int64_t now = clock_();
-  expire_locked(now);
-  const auto it = jobs_.find(id);
-  if (it == jobs_.end()) return std::nullopt;
-  return snapshot_locked(*it->second, now);
+  return transact([&](int64_t now) -> std::optional<JobStatus> {
+    const auto it = jobs_.find(id);
+    if (it == jobs_.end()) return std::nullopt;
+    return snapshot_locked(*it->second, now);
+  });
 }
 
 std::vector<JobStatus> Scheduler::jobs() {
-  std::lock_guard lock(mu_);
-  const int64_t now = clock_();
-  expire_locked(now);
-  std::vector<const JobRec*> recs;
-  for (const auto& [id, j] : jobs_) recs.push_back(j.get());
-  std::sort(recs.begin(), recs.end(), [](const JobRec* a, const JobRec* b) { return a->seq > b->seq; });
-  std::vector<JobStatus> out;
-  out.reserve(recs.size());
-  for (const JobRec* j : recs) out.push_back(snapshot_locked(*j, now));
-  return out;
+  return transact([&](int64_t now) {
+    std::vector<const JobRec*> recs;
+    for (const auto& [id, j] : jobs_) recs.push_back(j.get());
+    std::sort(recs.begin(), recs.end(), [](const JobRec* a, const JobRec* b) { return a->seq > b->seq; });
+    std::vector<JobStatus> out;
+    out.reserve(recs.size());
+    for (const JobRec* j : recs) out.push_back(snapshot_locked(*j, now));
+    return out;
+  });
 }
 
 std::string Scheduler::register_worker(const std::string& name) {
-  std::lock_guard lock(mu_);
-  expire_locked(clock_());
-  const std::string id = next_id('w');
-  workers_.emplace(id, name);
-  return id;
+  return transact([&](int64_t now) {
+    const std::string id = next_id('w');
+    workers_.emplace(id, WorkerRec{name, now});
+    new_workers_.insert(id);
+    return id;
+  });
 }
 
 bool Scheduler::has_worker(const std::string& id) {
@@ -110,67 +306,107 @@ bool Scheduler::has_worker(const std::string& id) {
   return workers_.count(id) > 0;
 }
 
+void Scheduler::seen_locked(const std::string& worker, int64_t now) {
+  const auto it = workers_.find(worker);
+  if (it != workers_.end()) it->second.last_seen_ms = std::max(it->second.last_seen_ms, now);
+}
+
+bool Scheduler::all_present_blocklisted_locked(const JobRec& j, int64_t now, size_t* present) const {
+  const int64_t gone_ms = config_.worker_gone_ms > 0 ? config_.worker_gone_ms : 3 * config_.lease_ms;
+  *present = 0;
+  for (const auto& [id, w] : workers_) {
+    if (now - w.last_seen_ms > gone_ms) continue;  // died or left: it will not take this job's tiles
+    ++*present;
+    const auto f = j.worker_failures.find(id);
+    if (f == j.worker_failures.end() || f->second < config_.worker_failure_limit) return false;
+  }
+  return *present > 0;
+}
+
+bool Scheduler::fail_if_all_blocklisted_locked(JobRec& j, int64_t now) {
+  size_t present = 0;
+  if (is_final(j.status.state) || !all_present_blocklisted_locked(j, now, &present)) return false;
+  // Failures spread over several tiles can blocklist every worker before any one tile fails on enough of them; the
+  // job could then never finish, so it fails, with each worker's last error.
+  finish_job_locked(j, JobState::failed, now,
+                    "every registered worker that is still present (" + std::to_string(present) + ") failed " +
+                        std::to_string(config_.worker_failure_limit) + " tiles of this job and is blocklisted for it: " +
+                        join_worker_errors(j.worker_last_error));
+  return true;
+}
+
 AcquireResult Scheduler::acquire(const std::string& worker) {
-  std::lock_guard lock(mu_);
-  const int64_t now = clock_();
-  expire_locked(now);
-  AcquireResult r;
-  if (!workers_.count(worker)) {
-    r.status = AcquireResult::unknown_worker;
-    return r;
-  }
-  for (auto& [key, j] : queue_) {
-    if (j->pending.empty()) continue;
-    const auto wf = j->worker_failures.find(worker);
-    if (wf != j->worker_failures.end() && wf->second >= config_.worker_failure_limit) continue;
-    const int64_t tile = *j->pending.begin();
-    j->pending.erase(j->pending.begin());
-    const JobParams& p = j->status.params;
-    LeaseRec rec;
-    rec.lease.id = next_id('l');
-    rec.lease.job = j->status.id;
-    rec.lease.worker = worker;
-    rec.lease.tile = tile;
-    rec.lease.window = TileGrid(p.width, p.height, p.tile_size).window(tile);
-    rec.lease.spp = p.spp;
-    rec.lease.seed = p.seed;
-    rec.lease.scene_hash = p.scene_hash;
-    rec.lease.deadline_ms = now + config_.lease_ms;
-    j->tiles[size_t(tile)].state = TileState::leased;
-    j->tiles[size_t(tile)].lease = rec.lease.id;
-    if (j->status.state == JobState::queued) {
-      j->status.state = JobState::running;
-      j->status.started_ms = now;
+  return transact([&](int64_t now) {
+    AcquireResult r;
+    if (!workers_.count(worker)) {
+      r.status = AcquireResult::unknown_worker;
+      return r;
     }
-    live_leases_.insert(rec.lease.id);
-    r.status = AcquireResult::granted;
-    r.lease = rec.lease;
-    leases_.emplace(rec.lease.id, std::move(rec));
+    seen_locked(worker, now);
+    std::vector<JobRec*> stuck;  // jobs this worker may not take: fail them if no present worker may
+    for (auto& [key, j] : queue_) {
+      if (j->pending.empty()) continue;
+      const auto wf = j->worker_failures.find(worker);
+      if (wf != j->worker_failures.end() && wf->second >= config_.worker_failure_limit) {
+        stuck.push_back(j);
+        continue;
+      }
+      const int64_t tile = *j->pending.begin();
+      j->pending.erase(j->pending.begin());
+      const JobParams& p = j->status.params;
+      LeaseRec rec;
+      rec.lease.id = next_id('l');
+      rec.lease.job = j->status.id;
+      rec.lease.worker = worker;
+      rec.lease.tile = tile;
+      rec.lease.window = TileGrid(p.width, p.height, p.tile_size).window(tile);
+      rec.lease.spp = p.spp;
+      rec.lease.seed = p.seed;
+      rec.lease.scene_hash = p.scene_hash;
+      rec.lease.deadline_ms = now + config_.lease_ms;
+      j->tiles[size_t(tile)].state = TileState::leased;
+      j->tiles[size_t(tile)].lease = rec.lease.id;
+      touch_tile(*j, tile);
+      if (j->status.state == JobState::queued) {
+        j->status.state = JobState::running;
+        j->status.started_ms = now;
+        touch_job(*j);
+      }
+      live_leases_.insert(rec.lease.id);
+      dirty_leases_.insert(rec.lease.id);
+      r.status = AcquireResult::granted;
+      r.lease = rec.lease;
+      leases_.emplace(rec.lease.id, std::move(rec));
+      break;
+    }
+    for (JobRec* j : stuck) fail_if_all_blocklisted_locked(*j, now);  // after the loop: this erases from queue_
+    if (r.status != AcquireResult::granted) r.status = AcquireResult::no_work;
     return r;
-  }
-  r.status = AcquireResult::no_work;
-  return r;
+  });
 }
 
 HeartbeatResult Scheduler::heartbeat(const std::string& lease, uint64_t rays) {
-  std::lock_guard lock(mu_);
-  const int64_t now = clock_();
-  expire_locked(now);
-  HeartbeatResult r;
-  const auto it = leases_.find(lease);
-  if (it == leases_.end()) return r;
-  if (it->second.state != LeaseState::live) {
-    r.status = HeartbeatResult::gone;
+  return transact([&](int64_t now) {
+    HeartbeatResult r;
+    const auto it = leases_.find(lease);
+    if (it == leases_.end()) return r;
+    seen_locked(it->second.lease.worker, now);
+    if (it->second.state != LeaseState::live) {
+      r.status = HeartbeatResult::gone;
+      return r;
+    }
+    // The new deadline is not stored: a restarted coordinator gives every live lease a fresh one anyway.
+    it->second.lease.deadline_ms = now + config_.lease_ms;
+    if (rays) {
+      JobRec& j = *jobs_.at(it->second.lease.job);
+      j.status.rays += rays;
+      rays_ += rays;
+      touch_job(j);
+    }
+    r.status = HeartbeatResult::ok;
+    r.deadline_ms = it->second.lease.deadline_ms;
     return r;
-  }
-  it->second.lease.deadline_ms = now + config_.lease_ms;
-  if (rays) {
-    jobs_.at(it->second.lease.job)->status.rays += rays;
-    rays_ += rays;
-  }
-  r.status = HeartbeatResult::ok;
-  r.deadline_ms = it->second.lease.deadline_ms;
-  return r;
+  });
 }
 
 ResultClaim Scheduler::claim_view_locked(const std::string& lease, JobRec** job_out, LeaseRec** lease_out) {
@@ -197,193 +433,211 @@ ResultClaim Scheduler::claim_view_locked(const std::string& lease, JobRec** job_
 }
 
 ResultClaim Scheduler::check_result(const std::string& lease) {
-  std::lock_guard lock(mu_);
-  expire_locked(clock_());
-  JobRec* j = nullptr;
-  LeaseRec* l = nullptr;
-  return claim_view_locked(lease, &j, &l);
+  return transact([&](int64_t) {
+    JobRec* j = nullptr;
+    LeaseRec* l = nullptr;
+    return claim_view_locked(lease, &j, &l);
+  });
 }
 
 ResultClaim Scheduler::claim_result(const std::string& lease) {
-  std::lock_guard lock(mu_);
-  expire_locked(clock_());
-  JobRec* j = nullptr;
-  LeaseRec* l = nullptr;
-  ResultClaim c = claim_view_locked(lease, &j, &l);
-  if (c.status != ResultClaim::proceed) return c;
-  Tile& t = j->tiles[size_t(c.tile)];
-  if (t.state == TileState::leased && t.lease != lease) {
-    // Another worker holds the tile (this lease expired and it was re-leased): its work is no longer needed.
-    const auto other = leases_.find(t.lease);
-    if (other != leases_.end() && other->second.state == LeaseState::live) end_lease_locked(other->second, LeaseState::revoked);
-  }
-  if (t.state == TileState::pending) j->pending.erase(c.tile);
-  if (l->state == LeaseState::live) end_lease_locked(*l, LeaseState::completed);
-  t.state = TileState::merging;
-  t.lease = lease;
-  return c;
+  return transact([&](int64_t now) {
+    JobRec* j = nullptr;
+    LeaseRec* l = nullptr;
+    ResultClaim c = claim_view_locked(lease, &j, &l);
+    if (c.status == ResultClaim::unknown) return c;
+    seen_locked(c.worker, now);
+    if (c.status != ResultClaim::proceed) return c;
+    Tile& t = j->tiles[size_t(c.tile)];
+    if (t.state == TileState::leased && t.lease != lease) {
+      // Another worker holds the tile (this lease expired and it was re-leased): its work is no longer needed.
+      const auto other = leases_.find(t.lease);
+      if (other != leases_.end() && other->second.state == LeaseState::live) end_lease_locked(other->second, LeaseState::revoked);
+    }
+    if (t.state == TileState::pending) j->pending.erase(c.tile);
+    if (l->state == LeaseState::live) end_lease_locked(*l, LeaseState::completed);
+    t.state = TileState::merging;
+    t.lease = lease;
+    touch_tile(*j, c.tile);
+    return c;
+  }, /*store_now=*/false);  // stored with finish_result: a restart before it finds the tile as it was, which is the same
 }
 
-FinishResult Scheduler::finish_result(const std::string& lease, uint64_t rays) {
-  std::lock_guard lock(mu_);
-  expire_locked(clock_());
-  FinishResult r;
-  const auto it = leases_.find(lease);
-  if (it == leases_.end()) throw std::logic_error("finish_result: unknown lease " + lease);
-  JobRec& j = *jobs_.at(it->second.lease.job);
-  Tile& t = j.tiles[size_t(it->second.lease.tile)];
-  if (t.state != TileState::merging || t.lease != lease)
-    throw std::logic_error("finish_result: tile " + std::to_string(it->second.lease.tile) + " of " + j.status.id +
-                           " is not claimed by lease " + lease);
-  t.state = TileState::done;
-  t.lease.clear();
-  ++j.status.tiles.done;
-  ++tiles_rendered_;
-  j.status.rays += rays;
-  rays_ += rays;
-  const std::string& w = it->second.lease.worker;
-  if (std::find(j.status.workers.begin(), j.status.workers.end(), w) == j.status.workers.end()) j.status.workers.push_back(w);
-  r.last = j.status.state == JobState::running && j.status.tiles.done == j.status.tiles.total;
-  return r;
+FinishResult Scheduler::finish_result(const std::string& lease, uint64_t rays, std::string_view pixels) {
+  return transact([&](int64_t) {
+    FinishResult r;
+    const auto it = leases_.find(lease);
+    if (it == leases_.end()) throw std::logic_error("finish_result: unknown lease " + lease);
+    JobRec& j = *jobs_.at(it->second.lease.job);
+    const int64_t tile = it->second.lease.tile;
+    Tile& t = j.tiles[size_t(tile)];
+    if (t.state != TileState::merging || t.lease != lease)
+      throw std::logic_error("finish_result: tile " + std::to_string(tile) + " of " + j.status.id +
+                             " is not claimed by lease " + lease);
+    const JobStatus before = j.status;
+    const uint64_t rays_before = rays_, rendered_before = tiles_rendered_;
+    t.state = TileState::done;
+    t.lease.clear();
+    ++j.status.tiles.done;
+    ++tiles_rendered_;
+    j.status.rays += rays;
+    rays_ += rays;
+    const std::string& w = it->second.lease.worker;
+    if (std::find(j.status.workers.begin(), j.status.workers.end(), w) == j.status.workers.end()) j.status.workers.push_back(w);
+    touch_tile(j, tile);
+    touch_job(j);
+    done_pixels_.emplace(std::make_pair(j.status.id, tile), pixels);
+    try {
+      flush_locked();  // here rather than after: a tile the store did not take must not look done
+    } catch (...) {
+      t.state = TileState::merging;
+      t.lease = lease;
+      j.status = before;
+      rays_ = rays_before;
+      tiles_rendered_ = rendered_before;
+      throw;
+    }
+    r.last = j.status.state == JobState::running && j.status.tiles.done == j.status.tiles.total;
+    return r;
+  });
 }
 
 void Scheduler::abandon_result(const std::string& lease) {
-  std::lock_guard lock(mu_);
-  expire_locked(clock_());
-  const auto it = leases_.find(lease);
-  if (it == leases_.end()) return;
-  JobRec& j = *jobs_.at(it->second.lease.job);
-  Tile& t = j.tiles[size_t(it->second.lease.tile)];
-  if (t.state != TileState::merging || t.lease != lease) return;
-  t.state = TileState::pending;
-  t.lease.clear();
-  j.pending.insert(it->second.lease.tile);
+  transact([&](int64_t) {
+    const auto it = leases_.find(lease);
+    if (it == leases_.end()) return 0;
+    JobRec& j = *jobs_.at(it->second.lease.job);
+    Tile& t = j.tiles[size_t(it->second.lease.tile)];
+    if (t.state != TileState::merging || t.lease != lease) return 0;
+    t.state = TileState::pending;
+    t.lease.clear();
+    j.pending.insert(it->second.lease.tile);
+    touch_tile(j, it->second.lease.tile);
+    return 0;
+  });
 }
 
 FailResult Scheduler::fail(const std::string& lease, const std::string& error) {
-  std::lock_guard lock(mu_);
-  const int64_t now = clock_();
-  expire_locked(now);
-  FailResult r;
-  const auto it = leases_.find(lease);
-  if (it == leases_.end()) return r;
-  r.status = FailResult::recorded;
-  LeaseRec& l = it->second;
-  JobRec& j = *jobs_.at(l.lease.job);
-  Tile& t = j.tiles[size_t(l.lease.tile)];
-  // Only a lease that was live (or expired before the report arrived) can fail, and only once; a report on an ended
-  // job or a finished tile changes nothing.
-  if (l.state != LeaseState::live && l.state != LeaseState::expired) return r;
-  if (is_final(j.status.state) || t.state == TileState::done || t.state == TileState::merging) {
-    if (l.state == LeaseState::live) end_lease_locked(l, LeaseState::failed);
+  return transact([&](int64_t now) {
+    FailResult r;
+    const auto it = leases_.find(lease);
+    if (it == leases_.end()) return r;
+    r.status = FailResult::recorded;
+    LeaseRec& l = it->second;
+    JobRec& j = *jobs_.at(l.lease.job);
+    Tile& t = j.tiles[size_t(l.lease.tile)];
+    seen_locked(l.lease.worker, now);
+    // Only a lease that was live (or expired before the report arrived) can fail, and only once; a report on an ended
+    // job or a finished tile changes nothing.
+    if (l.state != LeaseState::live && l.state != LeaseState::expired) return r;
+    if (is_final(j.status.state) || t.state == TileState::done || t.state == TileState::merging) {
+      if (l.state == LeaseState::live) end_lease_locked(l, LeaseState::failed);
+      return r;
+    }
+    const bool was_live = l.state == LeaseState::live;
+    end_lease_locked(l, LeaseState::failed);
+    if (was_live && t.lease == lease) {
+      t.state = TileState::pending;
+      t.lease.clear();
+      j.pending.insert(l.lease.tile);
+    }
+    const std::string& w = l.lease.worker;
+    t.failures[w] = error;
+    const int n = ++j.worker_failures[w];
+    j.worker_last_error[w] = error;
+    touch_tile(j, l.lease.tile);
+    touch_job(j);
+    r.blocklisted = n == config_.worker_failure_limit;
+    if (int(t.failures.size()) >= config_.tile_failure_workers) {
+      finish_job_locked(j, JobState::failed, now,
+                        "tile " + std::to_string(l.lease.tile) + " failed on " + std::to_string(t.failures.size()) +
+                            " workers: " + join_worker_errors(t.failures));
+      r.job_failed = true;
+      return r;
+    }
+    r.job_failed = fail_if_all_blocklisted_locked(j, now);
     return r;
-  }
-  const bool was_live = l.state == LeaseState::live;
-  end_lease_locked(l, LeaseState::failed);
-  if (was_live && t.lease == lease) {
-    t.state = TileState::pending;
-    t.lease.clear();
-    j.pending.insert(l.lease.tile);
-  }
-  const std::string& w = l.lease.worker;
-  t.failures[w] = error;
-  const int n = ++j.worker_failures[w];
-  j.worker_last_error[w] = error;
-  r.blocklisted = n == config_.worker_failure_limit;
-  if (int(t.failures.size()) >= config_.tile_failure_workers) {
-    finish_job_locked(j, JobState::failed, now,
-                      "tile " + std::to_string(l.lease.tile) + " failed on " + std::to_string(t.failures.size()) +
-                          " workers: " + join_worker_errors(t.failures));
-    r.job_failed = true;
-    return r;
-  }
-  // Failures spread over several tiles can blocklist every worker before any one tile fails on enough of them; the
-  // job could then never finish, so it fails, with each worker's last error.
-  const bool all_blocklisted = std::all_of(workers_.begin(), workers_.end(), [&](const auto& wk) {
-    const auto f = j.worker_failures.find(wk.first);
-    return f != j.worker_failures.end() && f->second >= config_.worker_failure_limit;
   });
-  if (all_blocklisted) {
-    finish_job_locked(j, JobState::failed, now,
-                      "every registered worker (" + std::to_string(workers_.size()) + ") failed " +
-                          std::to_string(config_.worker_failure_limit) + " tiles of this job and is blocklisted for it: " +
-                          join_worker_errors(j.worker_last_error));
-    r.job_failed = true;
-  }
-  return r;
 }
 
 bool Scheduler::release(const std::string& lease) {
-  std::lock_guard lock(mu_);
-  expire_locked(clock_());
-  const auto it = leases_.find(lease);
-  if (it == leases_.end()) return false;
-  LeaseRec& l = it->second;
-  if (l.state != LeaseState::live) return true;
-  end_lease_locked(l, LeaseState::released);
-  JobRec& j = *jobs_.at(l.lease.job);
-  Tile& t = j.tiles[size_t(l.lease.tile)];
-  if (t.state == TileState::leased && t.lease == lease) {
-    t.state = TileState::pending;
-    t.lease.clear();
-    j.pending.insert(l.lease.tile);
-  }
-  return true;
+  return transact([&](int64_t) {
+    const auto it = leases_.find(lease);
+    if (it == leases_.end()) return false;
+    LeaseRec& l = it->second;
+    if (l.state != LeaseState::live) return true;
+    end_lease_locked(l, LeaseState::released);
+    JobRec& j = *jobs_.at(l.lease.job);
+    Tile& t = j.tiles[size_t(l.lease.tile)];
+    if (t.state == TileState::leased && t.lease == lease) {
+      t.state = TileState::pending;
+      t.lease.clear();
+      j.pending.insert(l.lease.tile);
+      touch_tile(j, l.lease.tile);
+    }
+    return true;
+  });
 }
 
 CancelResult Scheduler::cancel(const std::string& job) {
-  std::lock_guard lock(mu_);
-  const int64_t now = clock_();
-  expire_locked(now);
-  CancelResult r;
-  const auto it = jobs_.find(job);
-  if (it == jobs_.end()) return r;
-  if (is_final(it->second->status.state)) {
-    r.status = CancelResult::already_ended;
+  return transact([&](int64_t now) {
+    CancelResult r;
+    const auto it = jobs_.find(job);
+    if (it == jobs_.end()) return r;
+    if (is_final(it->second->status.state)) {
+      r.status = CancelResult::already_ended;
+      return r;
+    }
+    const size_t before = live_leases_.size();
+    finish_job_locked(*it->second, JobState::cancelled, now, std::nullopt);
+    r.revoked_leases = int(before - live_leases_.size());
+    r.status = CancelResult::cancelled;
     return r;
-  }
-  const size_t before = live_leases_.size();
-  finish_job_locked(*it->second, JobState::cancelled, now, std::nullopt);
-  r.revoked_leases = int(before - live_leases_.size());
-  r.status = CancelResult::cancelled;
-  return r;
+  });
 }
 
 void Scheduler::complete_job(const std::string& job) {
-  std::lock_guard lock(mu_);
-  const int64_t now = clock_();
-  expire_locked(now);
-  JobRec& j = *jobs_.at(job);
-  if (j.status.state != JobState::running || j.status.tiles.done != j.status.tiles.total) return;
-  finish_job_locked(j, JobState::done, now, std::nullopt);
+  transact([&](int64_t now) {
+    JobRec& j = *jobs_.at(job);
+    if (j.status.state != JobState::running || j.status.tiles.done != j.status.tiles.total) return 0;
+    finish_job_locked(j, JobState::done, now, std::nullopt);
+    return 0;
+  });
 }
 
 void Scheduler::fail_job(const std::string& job, const std::string& error) {
-  std::lock_guard lock(mu_);
-  const int64_t now = clock_();
-  expire_locked(now);
-  JobRec& j = *jobs_.at(job);
-  if (is_final(j.status.state)) return;
-  finish_job_locked(j, JobState::failed, now, error);
+  transact([&](int64_t now) {
+    JobRec& j = *jobs_.at(job);
+    if (!is_final(j.status.state)) finish_job_locked(j, JobState::failed, now, error);
+    return 0;
+  });
 }
 
 void Scheduler::expire() {
-  std::lock_guard lock(mu_);
-  expire_locked(clock_());
+  transact([](int64_t) { return 0; });
 }
 
 SchedulerCounters Scheduler::counters() {
-  std::lock_guard lock(mu_);
-  expire_locked(clock_());
-  SchedulerCounters c;
-  for (JobState s : {JobState::queued, JobState::running, JobState::done, JobState::failed, JobState::cancelled}) c.jobs[s] = 0;
-  for (const auto& [id, j] : jobs_) ++c.jobs[j->status.state];
-  c.tiles_rendered = tiles_rendered_;
-  c.lease_expiries = lease_expiries_;
-  c.rays = rays_;
-  c.workers = int64_t(workers_.size());
-  c.active_leases = int64_t(live_leases_.size());
-  return c;
+  return transact([&](int64_t) {
+    SchedulerCounters c;
+    for (JobState s : {JobState::queued, JobState::running, JobState::done, JobState::failed, JobState::cancelled}) c.jobs[s] = 0;
+    for (const auto& [id, j] : jobs_) ++c.jobs[j->status.state];
+    c.tiles_rendered = tiles_rendered_;
+    c.lease_expiries = lease_expiries_;
+    c.rays = rays_;
+    c.workers = int64_t(workers_.size());
+    c.active_leases = int64_t(live_leases_.size());
+    return c;
+  });
+}
+
+std::vector<std::string> Scheduler::unfinalized_jobs() {
+  return transact([&](int64_t) {
+    std::vector<std::string> out;
+    for (const auto& [key, j] : queue_)
+      if (j->status.state == JobState::running && j->status.tiles.done == j->status.tiles.total) out.push_back(j->status.id);
+    return out;
+  });
 }
 
 void Scheduler::expire_locked(int64_t now) {
@@ -399,6 +653,7 @@ void Scheduler::expire_locked(int64_t now) {
       t.state = TileState::pending;
       t.lease.clear();
       j.pending.insert(l.lease.tile);
+      touch_tile(j, l.lease.tile);
     }
   }
 }
@@ -406,6 +661,7 @@ void Scheduler::expire_locked(int64_t now) {
 void Scheduler::end_lease_locked(LeaseRec& l, LeaseState to) {
   l.state = to;
   live_leases_.erase(l.lease.id);
+  touch_lease(l);
 }
 
 void Scheduler::finish_job_locked(JobRec& j, JobState to, int64_t now, std::optional<std::string> error) {
@@ -413,6 +669,7 @@ void Scheduler::finish_job_locked(JobRec& j, JobState to, int64_t now, std::opti
   j.status.state = to;
   j.status.finished_ms = now;
   j.status.error = std::move(error);
+  touch_job(j);
   for (auto it = live_leases_.begin(); it != live_leases_.end();) {
     LeaseRec& l = leases_.at(*it);
     ++it;
@@ -423,6 +680,7 @@ void Scheduler::finish_job_locked(JobRec& j, JobState to, int64_t now, std::opti
       t.state = TileState::pending;
       t.lease.clear();
       j.pending.insert(l.lease.tile);
+      touch_tile(j, l.lease.tile);
     }
   }
 }

@@ -1,4 +1,5 @@
-// The farm's job/tile/lease state machine: no I/O, an injected clock, every operation one atomic step.
+// The farm's job/tile/lease state machine: no I/O, an injected clock, every operation one atomic step, whose changes
+// go to an injected SchedulerStore as one batch (one transaction when the store is a database).
 #pragma once
 
 #include "core/image.h"
@@ -11,6 +12,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <string_view>
 #include <tuple>
 #include <vector>
 
@@ -34,6 +36,7 @@ struct SchedulerConfig {
   int tile_failure_workers = 3;    ///< Distinct workers failing one tile that fail the job.
   int worker_failure_limit = 2;    ///< Failures after which a worker is blocklisted for a job.
   std::string id_tag;              ///< Inserted into generated ids ("j-<tag>-1") so ids differ between runs.
+  int64_t worker_gone_ms = 0;      ///< A worker not seen for this long no longer counts as present (0: 3 leases).
 };
 
 /// What a job renders, fixed at submission.
@@ -135,12 +138,104 @@ struct SchedulerCounters {
   int64_t active_leases = 0;          ///< Live leases.
 };
 
+/// Where a tile is: pending (waiting), leased (a worker renders it), merging (an upload is being stored), done.
+enum class TileState { pending, leased, merging, done };
+
+/// Where a lease is: live until it expires, is revoked (cancel, re-lease), completes, is released or fails.
+enum class LeaseState { live, expired, revoked, completed, released, failed };
+
+/// The lowercase name of a tile state (as stored).
+const char* to_string(TileState s);
+/// The lowercase name of a lease state (as stored).
+const char* to_string(LeaseState s);
+/// Parses a stored job state name; throws std::invalid_argument for unknown names.
+JobState job_state_from_string(std::string_view s);
+/// Parses a stored tile state name; throws std::invalid_argument for unknown names.
+TileState tile_state_from_string(std::string_view s);
+/// Parses a stored lease state name; throws std::invalid_argument for unknown names.
+LeaseState lease_state_from_string(std::string_view s);
+
+/// A job as the store keeps it: its snapshot (tile counts are derived from the tiles) and its failure bookkeeping.
+struct JobRow {
+  JobStatus status;                                       ///< Params, state, times, error, rays, workers.
+  uint64_t seq = 0;                                       ///< Submission order (ties in the queue).
+  std::map<std::string, int> worker_failures;             ///< Worker -> failures on this job.
+  std::map<std::string, std::string> worker_last_error;   ///< Worker -> its latest error on this job.
+};
+
+/// A tile as the store keeps it; `pixels` is set only in the change that makes it done.
+struct TileRow {
+  std::string job;                                ///< Job id.
+  int64_t index = 0;                              ///< Tile number.
+  TileState state = TileState::pending;           ///< Where it is.
+  std::string lease;                              ///< The live or claiming lease.
+  std::map<std::string, std::string> failures;    ///< Worker -> last error text on this tile.
+  std::optional<std::string_view> pixels;         ///< The validated tile's bytes (float32 RGB rows), when it became done.
+};
+
+/// A lease as the store keeps it.
+struct LeaseRow {
+  Lease lease;                             ///< What was granted (window, spp, seed are derived from the job on load).
+  LeaseState state = LeaseState::live;     ///< Where it is.
+};
+
+/// A registered worker.
+struct WorkerRow {
+  std::string id;    ///< Worker id.
+  std::string name;  ///< Its self-reported name.
+};
+
+/// Counters and the id sequence, kept so a restarted coordinator continues them.
+struct CounterRow {
+  uint64_t next_seq = 1;        ///< Next number in generated ids.
+  uint64_t tiles_rendered = 0;  ///< Tiles merged.
+  uint64_t lease_expiries = 0;  ///< Leases that expired.
+  uint64_t rays = 0;            ///< Rays reported by workers.
+  /// Field-wise equality (to skip writing unchanged counters).
+  bool operator==(const CounterRow&) const = default;
+};
+
+/// What one scheduler operation changed: rows to insert or replace, in one batch.
+struct SchedulerChanges {
+  std::vector<JobRow> jobs;        ///< Changed jobs.
+  std::vector<TileRow> tiles;      ///< Changed tiles.
+  std::vector<LeaseRow> leases;    ///< Changed leases.
+  std::vector<WorkerRow> workers;  ///< New workers.
+  CounterRow counters;             ///< Counters after the operation.
+  /// True when nothing but the counters changed.
+  bool empty() const { return jobs.empty() && tiles.empty() && leases.empty() && workers.empty(); }
+};
+
+/// Everything a store holds, for a scheduler starting over it (tile pixels are not loaded).
+struct SchedulerSnapshot {
+  std::vector<JobRow> jobs;        ///< Every job.
+  std::vector<TileRow> tiles;      ///< Every tile of every job (pixels unset).
+  std::vector<LeaseRow> leases;    ///< Every lease ever granted.
+  std::vector<WorkerRow> workers;  ///< Every registered worker.
+  CounterRow counters;             ///< Counters and id sequence.
+};
+
+/// Durable home of the scheduler's state. apply() is all-or-nothing: after it returns, the changes survive a crash;
+/// when it throws, none of them were stored.
+class SchedulerStore {
+ public:
+  virtual ~SchedulerStore() = default;
+  /// Stores one operation's changes atomically; throws StorageError (or another std::exception) on failure.
+  virtual void apply(const SchedulerChanges& changes) = 0;
+  /// Everything stored so far.
+  virtual SchedulerSnapshot load() = 0;
+};
+
 /// The job/tile/lease state machine. Thread-safe: each call takes one lock and is one atomic step. Expired leases are
 /// reclaimed at the start of every call, so behaviour depends only on the injected clock.
 class Scheduler {
  public:
-  /// A scheduler reading time from `clock`.
+  /// A scheduler reading time from `clock`, keeping its state in memory only.
   Scheduler(SchedulerConfig config, ClockMs clock);
+  /// A scheduler whose every operation is applied to `store` (which must outlive it), starting from what the store
+  /// holds: leases that were live stay live with their deadline moved to now + lease_ms (their workers may come back),
+  /// tiles that were being merged are pending again, and every stored worker counts as seen now.
+  Scheduler(SchedulerConfig config, ClockMs clock, SchedulerStore& store);
   ~Scheduler();
   Scheduler(const Scheduler&) = delete;
   Scheduler& operator=(const Scheduler&) = delete;
@@ -173,8 +268,9 @@ class Scheduler {
   /// Claims the lease's tile for merging: on proceed the tile is reserved (no other upload merges it) until
   /// finish_result or abandon_result. Other live leases on the tile are revoked.
   ResultClaim claim_result(const std::string& lease);
-  /// Marks a claimed tile done after its pixels were copied in; `rays` adds to the job's count.
-  FinishResult finish_result(const std::string& lease, uint64_t rays = 0);
+  /// Marks a claimed tile done with its validated `pixels` (stored with the tile in the same change, so a tile is never
+  /// done without them); `rays` adds to the job's count. When the store fails, the tile stays claimed and this throws.
+  FinishResult finish_result(const std::string& lease, uint64_t rays = 0, std::string_view pixels = {});
   /// Returns a claimed tile to pending (its merge failed for a reason that is not the worker's).
   void abandon_result(const std::string& lease);
 
@@ -194,10 +290,10 @@ class Scheduler {
   void expire();
   /// Current counters.
   SchedulerCounters counters();
+  /// Ids of jobs that are running with every tile done (a restart came between the last tile and the result file).
+  std::vector<std::string> unfinalized_jobs();
 
  private:
-  enum class TileState { pending, leased, merging, done };
-  enum class LeaseState { live, expired, revoked, completed, released, failed };
   struct Tile {
     TileState state = TileState::pending;
     std::string lease;                               // live lease or claiming lease
@@ -215,8 +311,22 @@ class Scheduler {
     Lease lease;
     LeaseState state = LeaseState::live;
   };
+  struct WorkerRec {
+    std::string name;
+    int64_t last_seen_ms = 0;  // register, lease request, heartbeat, upload or failure report
+  };
   using QueueKey = std::tuple<int, int64_t, uint64_t>;  // (-priority, created_ms, seq)
 
+  template <class F>
+  auto transact(F&& f, bool store_now = true);
+  void restore_locked(SchedulerSnapshot snap, int64_t now);
+  void flush_locked();
+  void touch_job(const JobRec& j) { dirty_jobs_.insert(j.status.id); }
+  void touch_tile(const JobRec& j, int64_t tile) { dirty_tiles_.emplace(j.status.id, tile); }
+  void touch_lease(const LeaseRec& l) { dirty_leases_.insert(l.lease.id); }
+  void seen_locked(const std::string& worker, int64_t now);
+  bool all_present_blocklisted_locked(const JobRec& j, int64_t now, size_t* present) const;
+  bool fail_if_all_blocklisted_locked(JobRec& j, int64_t now);
   void expire_locked(int64_t now);
   void end_lease_locked(LeaseRec& l, LeaseState to);
   void finish_job_locked(JobRec& j, JobState to, int64_t now, std::optional<std::string> error);
@@ -232,7 +342,12 @@ class Scheduler {
   std::map<QueueKey, JobRec*> queue_;                 // active (queued/running) jobs in scheduling order
   std::map<std::string, LeaseRec> leases_;            // every lease ever granted (answers 410 vs 404)
   std::set<std::string> live_leases_;
-  std::map<std::string, std::string> workers_;        // id -> name
+  std::map<std::string, WorkerRec> workers_;
+  SchedulerStore* store_ = nullptr;                   // nullptr: memory only
+  std::set<std::string> dirty_jobs_, dirty_leases_, new_workers_;
+  std::set<std::pair<std::string, int64_t>> dirty_tiles_;
+  std::optional<std::pair<std::pair<std::string, int64_t>, std::string_view>> done_pixels_;  // tile -> pixels
+  CounterRow flushed_counters_;                       // counters as last stored
   uint64_t tiles_rendered_ = 0;
   uint64_t lease_expiries_ = 0;
   uint64_t rays_ = 0;

@@ -305,6 +305,38 @@ TEST_F(SchedulerTest, JobFailsWhenEveryRegisteredWorkerIsBlocklisted) {
   for (const char* text : {"blocklisted", "err a2", "err b2", "err c2"}) EXPECT_NE(st->error->find(text), std::string::npos) << *st->error;
 }
 
+// A worker that died or left (not seen for three lease lengths) no longer keeps a job alive: when every worker that is
+// still present is blocklisted, the job fails, whether the last failure report or a lease request notices it.
+TEST_F(SchedulerTest, WorkersNotSeenForAFewLeasesDoNotCountAgainstFailingTheJob) {
+  const std::string j = job();  // 4 tiles, 10 s leases
+  const std::string a = s.register_worker("a"), gone = s.register_worker("gone");
+  EXPECT_FALSE(s.fail(lease(a).id, "err 1").job_failed);
+  EXPECT_FALSE(s.fail(lease(a).id, "err 2").job_failed);  // a blocklisted; "gone" was seen just now
+  now += 29'000;
+  EXPECT_EQ(s.acquire(a).status, AcquireResult::no_work);
+  EXPECT_EQ(s.job(j)->state, JobState::running);  // 29 s < 3 leases: "gone" may still come back
+  now += 2'000;
+  EXPECT_EQ(s.acquire(a).status, AcquireResult::no_work);
+  const auto st = s.job(j);
+  EXPECT_EQ(st->state, JobState::failed);
+  ASSERT_TRUE(st->error.has_value());
+  EXPECT_NE(st->error->find("still present (1)"), std::string::npos) << *st->error;
+  EXPECT_NE(st->error->find("err 2"), std::string::npos) << *st->error;
+
+  // The same through a failure report: b stays in touch by heartbeats while a and c stay silent for 36 s.
+  const std::string j2 = job();
+  const std::string b = s.register_worker("b"), c = s.register_worker("c");
+  const Lease lb = lease(b);
+  EXPECT_FALSE(s.fail(lease(b).id, "b 1").job_failed);
+  for (int i = 0; i < 4; ++i) {
+    now += 9'000;
+    ASSERT_EQ(s.heartbeat(lb.id).status, HeartbeatResult::ok);
+  }
+  EXPECT_TRUE(s.fail(lb.id, "b 2").job_failed);  // a and c are registered but gone
+  EXPECT_EQ(s.job(j2)->state, JobState::failed);
+  (void)c;
+}
+
 TEST_F(SchedulerTest, SameWorkerFailingOneTileRepeatedlyDoesNotFailTheJob) {
   const std::string j = job(0, 64, 64, 64);
   const std::string a = s.register_worker("a"), b = s.register_worker("b");

@@ -26,13 +26,13 @@ void fsync_dir(const fs::path& dir) {
   ::close(fd);
 }
 
+}  // namespace
+
 void make_dirs(const fs::path& dir) {
   std::error_code ec;
   fs::create_directories(dir, ec);
   if (ec) throw StorageError("cannot create " + dir.string() + ": " + ec.message());
 }
-
-}  // namespace
 
 std::string random_hex(int bytes) {
   thread_local std::mt19937_64 rng{std::random_device{}()};
@@ -124,32 +124,6 @@ std::optional<fs::path> DiskBlobStore::file(const std::string& sha) {
 std::optional<std::string> DiskBlobStore::read(const std::string& sha) {
   if (!has(sha)) return std::nullopt;
   return read_file_bytes(path_of(sha));
-}
-
-DiskJobStore::DiskJobStore(fs::path jobs_dir, fs::path scratch_dir) : dir_(std::move(jobs_dir)), scratch_(std::move(scratch_dir)) {
-  make_dirs(dir_);
-  make_dirs(scratch_);
-}
-
-void DiskJobStore::save_record(const std::string& job, const nlohmann::json& record) {
-  make_dirs(dir_ / job);
-  write_file_atomic(dir_ / job / "job.json", record.dump(2));
-}
-
-std::optional<nlohmann::json> DiskJobStore::load_record(const std::string& job) {
-  const fs::path p = dir_ / job / "job.json";
-  std::error_code ec;
-  if (!fs::is_regular_file(p, ec)) return std::nullopt;
-  try {
-    return nlohmann::json::parse(read_file_bytes(p));
-  } catch (const nlohmann::json::exception& e) {
-    throw StorageError(p.string() + ": " + e.what());
-  }
-}
-
-fs::path DiskJobStore::result_path(const std::string& job) {
-  make_dirs(dir_ / job);
-  return dir_ / job / "result.exr";
 }
 
 }  // namespace tessera::server

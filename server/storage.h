@@ -9,6 +9,8 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <utility>
+#include <vector>
 
 namespace tessera::server {
 
@@ -65,21 +67,12 @@ class JobStore {
   virtual std::filesystem::path result_path(const std::string& job) = 0;
   /// A folder for short-lived files (uploads being validated) on the same file system.
   virtual std::filesystem::path scratch_dir() = 0;
+  /// The stored pixels of the job's done tiles as (tile number, float32 RGB rows); throws StorageError.
+  virtual std::vector<std::pair<int64_t, std::string>> tile_pixels(const std::string& job) = 0;
 };
 
-/// Job records as DIR/<job>/job.json, results as DIR/<job>/result.exr; scratch files under DIR/../tmp.
-class DiskJobStore final : public JobStore {
- public:
-  /// A store rooted at `jobs_dir` with scratch space `scratch_dir` (both created if missing).
-  DiskJobStore(std::filesystem::path jobs_dir, std::filesystem::path scratch_dir);
-  void save_record(const std::string& job, const nlohmann::json& record) override;
-  std::optional<nlohmann::json> load_record(const std::string& job) override;
-  std::filesystem::path result_path(const std::string& job) override;
-  std::filesystem::path scratch_dir() override { return scratch_; }
-
- private:
-  std::filesystem::path dir_, scratch_;
-};
+/// Creates a folder and its parents; throws StorageError naming it.
+void make_dirs(const std::filesystem::path& dir);
 
 /// Writes bytes to `path` atomically: a temp file beside it, fsync, rename, fsync of the folder. Throws StorageError.
 void write_file_atomic(const std::filesystem::path& path, std::string_view bytes);

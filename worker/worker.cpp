@@ -15,6 +15,7 @@
 
 #include <csignal>
 #include <cstdlib>
+#include <limits>
 #include <condition_variable>
 #include <memory>
 #include <mutex>
@@ -384,7 +385,19 @@ class Worker {
     wo.data_window = l.window;
     wo.display_window = PixelWindow{0, 0, width, height};
     wo.write_extra = false;
-    const std::vector<uint8_t> bytes = encode_exr(res.image, wo);
+    std::vector<uint8_t> bytes;
+    const char* corrupt = std::getenv("TESSERA_WORKER_CORRUPT_UPLOAD");
+    const std::string how = corrupt ? corrupt : "";
+    const bool always = how.size() > 7 && how.compare(how.size() - 7, 7, "-always") == 0;
+    if (corrupt && (always || !corrupted_for_test_)) {
+      // Test hook (tests/farm/bad_upload.sh): the first upload (every one with "-always") is a tile the coordinator
+      // must refuse.
+      corrupted_for_test_ = true;
+      bytes = corrupt_tile(res.image, wo, always ? how.substr(0, how.size() - 7) : how);
+      spdlog::info("{}: TESSERA_WORKER_CORRUPT_UPLOAD={}: uploading a corrupted tile", pfx, corrupt);
+    } else {
+      bytes = encode_exr(res.image, wo);
+    }
     HttpRequest req;
     req.method = "PUT";
     req.target = "/v1/leases/" + l.id + "/result";
@@ -406,6 +419,12 @@ class Worker {
           const std::string status = j.is_object() ? j.value("status", "") : "";
           spdlog::info("{}: upload {}", pfx, status.empty() ? "acknowledged" : status);
           ++stats_.tiles_uploaded;
+          if (std::getenv("TESSERA_WORKER_UPLOAD_TWICE") && !uploaded_twice_for_test_) {
+            // Test hook (tests/farm/bad_upload.sh): send the same result again, as a worker that missed the answer would.
+            uploaded_twice_for_test_ = true;
+            spdlog::info("{}: TESSERA_WORKER_UPLOAD_TWICE: uploading the same result again", pfx);
+            continue;
+          }
           return;
         }
         if (r.status == 410) {
@@ -438,6 +457,25 @@ class Worker {
         return;
       }
     }
+  }
+
+  // The test hooks' corrupted tile: "nan" puts a NaN in the first pixel, "size" drops the last column (or row).
+  static std::vector<uint8_t> corrupt_tile(const Image& image, ExrWriteOptions wo, const std::string& how) {
+    if (how == "nan") {
+      Image bad = image;
+      bad.extra.clear();
+      bad.rgb[0] = std::numeric_limits<float>::quiet_NaN();
+      return encode_exr(bad, wo);
+    }
+    if (how != "size")
+      throw std::runtime_error("TESSERA_WORKER_CORRUPT_UPLOAD must be nan, size, nan-always or size-always (got '" +
+                               how + "')");
+    const bool narrower = image.width > 1;
+    Image bad = Image::make(image.width - (narrower ? 1 : 0), image.height - (narrower ? 0 : 1));
+    for (int y = 0; y < bad.height; ++y)
+      for (int x = 0; x < bad.width; ++x) bad.set(x, y, image.at(x, y));
+    (narrower ? wo.data_window.x1 : wo.data_window.y1) -= 1;
+    return encode_exr(bad, wo);
   }
 
   // Posts a small JSON message about a lease, retrying briefly; the lease expires anyway if this never arrives.
@@ -483,6 +521,8 @@ class Worker {
   std::chrono::milliseconds heartbeat_period_{5000};
   bool down_ = false;
   bool stopped_for_test_ = false;
+  bool corrupted_for_test_ = false;
+  bool uploaded_twice_for_test_ = false;
   WorkerStats stats_;
 };
 

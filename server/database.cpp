@@ -1,0 +1,401 @@
+#include "server/database.h"
+
+#include <sqlite3.h>
+
+#include <algorithm>
+#include <cstring>
+#include <stdexcept>
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace tessera::server {
+
+namespace {
+
+// The first line of a statement, for error messages.
+std::string sql_head(const std::string& sql) {
+  std::string s = sql.substr(0, std::min(sql.find('\n'), size_t(120)));
+  if (s.size() == 120) s.replace(117, 3, "...");
+  return s;
+}
+
+[[noreturn]] void fail(sqlite3* db, const std::string& what) {
+  throw StorageError(what + ": " + (db ? sqlite3_errmsg(db) : "out of memory"));
+}
+
+json map_json(const std::map<std::string, std::string>& m) { return json(m); }
+
+template <class T>
+std::map<std::string, T> json_map(const std::string& text, const char* what) {
+  try {
+    return json::parse(text).get<std::map<std::string, T>>();
+  } catch (const json::exception& e) {
+    throw StorageError(std::string("stored ") + what + " is not a JSON object: " + e.what());
+  }
+}
+
+// The schema (version 1). A tile can only be done with its pixels: the database itself refuses anything else.
+constexpr const char* kSchema = R"sql(
+CREATE TABLE IF NOT EXISTS meta(key TEXT PRIMARY KEY, value INTEGER NOT NULL);
+CREATE TABLE IF NOT EXISTS jobs(
+  id TEXT PRIMARY KEY, seq INTEGER NOT NULL, name TEXT NOT NULL, priority INTEGER NOT NULL,
+  width INTEGER NOT NULL, height INTEGER NOT NULL, tile_size INTEGER NOT NULL, spp INTEGER NOT NULL,
+  seed INTEGER NOT NULL, scene_hash TEXT NOT NULL, state TEXT NOT NULL, created_ms INTEGER NOT NULL,
+  started_ms INTEGER, finished_ms INTEGER, error TEXT, rays INTEGER NOT NULL, workers TEXT NOT NULL,
+  worker_failures TEXT NOT NULL, worker_last_error TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS tiles(
+  job TEXT NOT NULL REFERENCES jobs(id), idx INTEGER NOT NULL, state TEXT NOT NULL, lease TEXT NOT NULL,
+  failures TEXT NOT NULL, pixels BLOB,
+  PRIMARY KEY(job, idx),
+  CHECK(state <> 'done' OR pixels IS NOT NULL));
+CREATE TABLE IF NOT EXISTS leases(
+  id TEXT PRIMARY KEY, job TEXT NOT NULL REFERENCES jobs(id), tile INTEGER NOT NULL, worker TEXT NOT NULL,
+  deadline_ms INTEGER NOT NULL, state TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS workers(id TEXT PRIMARY KEY, name TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS job_records(id TEXT PRIMARY KEY, record TEXT NOT NULL);
+)sql";
+
+}  // namespace
+
+// ---- Statement
+
+Statement::Statement(sqlite3* db, sqlite3_stmt* stmt, std::string sql) : db_(db), stmt_(stmt), sql_(std::move(sql)) {}
+
+Statement::~Statement() { sqlite3_finalize(stmt_); }
+
+Statement& Statement::bind(int i, int64_t v) {
+  if (sqlite3_bind_int64(stmt_, i, v) != SQLITE_OK) fail(db_, "binding parameter " + std::to_string(i) + " of '" + sql_head(sql_) + "'");
+  return *this;
+}
+
+Statement& Statement::bind_text(int i, std::string_view v) {
+  if (sqlite3_bind_text64(stmt_, i, v.data(), v.size(), SQLITE_TRANSIENT, SQLITE_UTF8) != SQLITE_OK)
+    fail(db_, "binding parameter " + std::to_string(i) + " of '" + sql_head(sql_) + "'");
+  return *this;
+}
+
+Statement& Statement::bind_blob(int i, std::string_view v) {
+  // A zero-length blob must still be a blob, not NULL: bind a non-null pointer.
+  static const char empty = 0;
+  if (sqlite3_bind_blob64(stmt_, i, v.empty() ? &empty : v.data(), v.size(), SQLITE_TRANSIENT) != SQLITE_OK)
+    fail(db_, "binding parameter " + std::to_string(i) + " of '" + sql_head(sql_) + "'");
+  return *this;
+}
+
+Statement& Statement::bind_null(int i) {
+  if (sqlite3_bind_null(stmt_, i) != SQLITE_OK) fail(db_, "binding parameter " + std::to_string(i) + " of '" + sql_head(sql_) + "'");
+  return *this;
+}
+
+bool Statement::step() {
+  const int rc = sqlite3_step(stmt_);
+  if (rc == SQLITE_ROW) return true;
+  if (rc == SQLITE_DONE) return false;
+  std::string what = "running '";  // built by appending: GCC 12 flags "'" + string as an overlapping copy
+  what += sql_head(sql_);
+  what += "'";
+  sqlite3_reset(stmt_);
+  fail(db_, what);
+}
+
+void Statement::run() {
+  while (step()) {
+  }
+}
+
+int64_t Statement::integer(int i) const { return sqlite3_column_int64(stmt_, i); }
+
+std::string Statement::text(int i) const {
+  const auto* p = reinterpret_cast<const char*>(sqlite3_column_text(stmt_, i));
+  return p ? std::string(p, size_t(sqlite3_column_bytes(stmt_, i))) : std::string();
+}
+
+std::string Statement::blob(int i) const {
+  const void* p = sqlite3_column_blob(stmt_, i);
+  return p ? std::string(static_cast<const char*>(p), size_t(sqlite3_column_bytes(stmt_, i))) : std::string();
+}
+
+bool Statement::is_null(int i) const { return sqlite3_column_type(stmt_, i) == SQLITE_NULL; }
+
+void Statement::reset() {
+  sqlite3_reset(stmt_);
+  sqlite3_clear_bindings(stmt_);
+}
+
+// ---- Database
+
+Database::Database(const fs::path& file) : file_(file) {
+  const int rc = sqlite3_open_v2(file.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr);
+  if (rc != SQLITE_OK) {
+    const std::string why = db_ ? sqlite3_errmsg(db_) : sqlite3_errstr(rc);
+    sqlite3_close(db_);
+    db_ = nullptr;
+    throw StorageError("cannot open database " + file.string() + ": " + why);
+  }
+  try {
+    sqlite3_busy_timeout(db_, 10'000);
+    exec("PRAGMA journal_mode=WAL");
+    exec("PRAGMA synchronous=FULL");
+    exec("PRAGMA foreign_keys=ON");
+  } catch (...) {
+    sqlite3_close(db_);
+    throw;
+  }
+}
+
+Database::~Database() {
+  cache_.clear();  // statements before the connection
+  sqlite3_close(db_);
+}
+
+void Database::exec(const std::string& sql) {
+  char* err = nullptr;
+  if (sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &err) != SQLITE_OK) {
+    const std::string why = err ? err : sqlite3_errmsg(db_);
+    sqlite3_free(err);
+    throw StorageError(file_.string() + ": '" + sql_head(sql) + "': " + why);
+  }
+}
+
+Statement& Database::statement(const std::string& sql) {
+  auto& slot = cache_[sql];
+  if (!slot) {
+    sqlite3_stmt* stmt = nullptr;
+    if (sqlite3_prepare_v3(db_, sql.c_str(), int(sql.size()), SQLITE_PREPARE_PERSISTENT, &stmt, nullptr) != SQLITE_OK) {
+      cache_.erase(sql);
+      fail(db_, file_.string() + ": preparing '" + sql_head(sql) + "'");
+    }
+    slot = std::make_unique<Statement>(db_, stmt, sql);
+  }
+  slot->reset();
+  return *slot;
+}
+
+int64_t Database::changes() const { return sqlite3_changes64(db_); }
+
+Transaction::Transaction(Database& db) : db_(db) { db_.exec("BEGIN IMMEDIATE"); }
+
+Transaction::~Transaction() {
+  if (done_) return;
+  try {
+    db_.exec("ROLLBACK");
+  } catch (...) {
+    // Nothing more to do: SQLite rolls back an open transaction when the connection closes.
+  }
+}
+
+void Transaction::commit() {
+  db_.exec("COMMIT");
+  done_ = true;
+}
+
+// ---- DurableStore
+
+DurableStore::DurableStore(const fs::path& dir)
+    : jobs_dir_(dir / "jobs"), scratch_(dir / "tmp"), db_((make_dirs(dir), dir / "tessera.db")) {
+  make_dirs(jobs_dir_);
+  make_dirs(scratch_);
+  Transaction tx(db_);
+  db_.exec(kSchema);
+  Statement& get = db_.statement("SELECT value FROM meta WHERE key = 'schema_version'");
+  if (get.step()) {
+    const int64_t v = get.integer(0);
+    get.reset();
+    if (v != kSchemaVersion)
+      throw StorageError(db_.file().string() + " has schema version " + std::to_string(v) + "; this build reads version " +
+                         std::to_string(kSchemaVersion));
+  } else {
+    get.reset();
+    db_.statement("INSERT INTO meta(key, value) VALUES('schema_version', ?)").bind(1, int64_t(kSchemaVersion)).run();
+  }
+  tx.commit();
+}
+
+DurableStore::~DurableStore() = default;
+
+void DurableStore::apply(const SchedulerChanges& c) {
+  std::lock_guard lock(mu_);
+  Transaction tx(db_);
+  for (const JobRow& r : c.jobs) {
+    const JobStatus& s = r.status;
+    const JobParams& p = s.params;
+    Statement& st = db_.statement(
+        "INSERT INTO jobs(id, seq, name, priority, width, height, tile_size, spp, seed, scene_hash, state, created_ms,"
+        " started_ms, finished_ms, error, rays, workers, worker_failures, worker_last_error)"
+        " VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)"
+        " ON CONFLICT(id) DO UPDATE SET state = excluded.state, started_ms = excluded.started_ms,"
+        " finished_ms = excluded.finished_ms, error = excluded.error, rays = excluded.rays, workers = excluded.workers,"
+        " worker_failures = excluded.worker_failures, worker_last_error = excluded.worker_last_error");
+    st.bind_text(1, s.id).bind(2, int64_t(r.seq)).bind_text(3, p.name).bind(4, int64_t(p.priority));
+    st.bind(5, int64_t(p.width)).bind(6, int64_t(p.height)).bind(7, int64_t(p.tile_size)).bind(8, int64_t(p.spp));
+    st.bind(9, int64_t(p.seed)).bind_text(10, p.scene_hash).bind_text(11, to_string(s.state)).bind(12, s.created_ms);
+    st.bind(13, s.started_ms).bind(14, s.finished_ms);
+    if (s.error) st.bind_text(15, *s.error);
+    st.bind(16, int64_t(s.rays)).bind_text(17, json(s.workers).dump()).bind_text(18, json(r.worker_failures).dump());
+    st.bind_text(19, map_json(r.worker_last_error).dump());
+    st.run();
+  }
+  for (const TileRow& r : c.tiles) {
+    const std::string failures = map_json(r.failures).dump();
+    Statement& up = db_.statement(
+        "UPDATE tiles SET state = ?, lease = ?, failures = ?, pixels = coalesce(?, pixels) WHERE job = ? AND idx = ?");
+    up.bind_text(1, to_string(r.state)).bind_text(2, r.lease).bind_text(3, failures);
+    if (r.pixels) up.bind_blob(4, *r.pixels);
+    up.bind_text(5, r.job).bind(6, r.index);
+    up.run();
+    if (db_.changes() > 0) continue;
+    Statement& ins = db_.statement("INSERT INTO tiles(job, idx, state, lease, failures, pixels) VALUES(?,?,?,?,?,?)");
+    ins.bind_text(1, r.job).bind(2, r.index).bind_text(3, to_string(r.state)).bind_text(4, r.lease).bind_text(5, failures);
+    if (r.pixels) ins.bind_blob(6, *r.pixels);
+    ins.run();
+  }
+  for (const LeaseRow& r : c.leases) {
+    Statement& st = db_.statement(
+        "INSERT INTO leases(id, job, tile, worker, deadline_ms, state) VALUES(?,?,?,?,?,?)"
+        " ON CONFLICT(id) DO UPDATE SET deadline_ms = excluded.deadline_ms, state = excluded.state");
+    st.bind_text(1, r.lease.id).bind_text(2, r.lease.job).bind(3, r.lease.tile).bind_text(4, r.lease.worker);
+    st.bind(5, r.lease.deadline_ms).bind_text(6, to_string(r.state));
+    st.run();
+  }
+  for (const WorkerRow& r : c.workers)
+    db_.statement("INSERT OR REPLACE INTO workers(id, name) VALUES(?,?)").bind_text(1, r.id).bind_text(2, r.name).run();
+  const std::pair<const char*, uint64_t> counters[] = {{"next_seq", c.counters.next_seq},
+                                                       {"tiles_rendered", c.counters.tiles_rendered},
+                                                       {"lease_expiries", c.counters.lease_expiries},
+                                                       {"rays", c.counters.rays}};
+  for (const auto& [key, value] : counters)
+    db_.statement("INSERT OR REPLACE INTO meta(key, value) VALUES(?,?)").bind_text(1, key).bind(2, int64_t(value)).run();
+  tx.commit();
+}
+
+SchedulerSnapshot DurableStore::load() {
+  std::lock_guard lock(mu_);
+  SchedulerSnapshot snap;
+  Transaction tx(db_);  // one consistent view
+  {
+    Statement& st = db_.statement("SELECT key, value FROM meta");
+    while (st.step()) {
+      const std::string key = st.text(0);
+      const uint64_t v = uint64_t(st.integer(1));
+      if (key == "next_seq") snap.counters.next_seq = v;
+      else if (key == "tiles_rendered") snap.counters.tiles_rendered = v;
+      else if (key == "lease_expiries") snap.counters.lease_expiries = v;
+      else if (key == "rays") snap.counters.rays = v;
+    }
+  }
+  {
+    Statement& st = db_.statement(
+        "SELECT id, seq, name, priority, width, height, tile_size, spp, seed, scene_hash, state, created_ms, started_ms,"
+        " finished_ms, error, rays, workers, worker_failures, worker_last_error FROM jobs ORDER BY seq");
+    while (st.step()) {
+      JobRow r;
+      JobStatus& s = r.status;
+      s.id = st.text(0);
+      r.seq = uint64_t(st.integer(1));
+      s.params.name = st.text(2);
+      s.params.priority = int(st.integer(3));
+      s.params.width = int(st.integer(4));
+      s.params.height = int(st.integer(5));
+      s.params.tile_size = int(st.integer(6));
+      s.params.spp = uint32_t(st.integer(7));
+      s.params.seed = uint64_t(st.integer(8));
+      s.params.scene_hash = st.text(9);
+      try {
+        s.state = job_state_from_string(st.text(10));
+      } catch (const std::invalid_argument& e) {
+        throw StorageError("job " + s.id + ": " + e.what());
+      }
+      s.created_ms = st.integer(11);
+      if (!st.is_null(12)) s.started_ms = st.integer(12);
+      if (!st.is_null(13)) s.finished_ms = st.integer(13);
+      if (!st.is_null(14)) s.error = st.text(14);
+      s.rays = uint64_t(st.integer(15));
+      try {
+        s.workers = json::parse(st.text(16)).get<std::vector<std::string>>();
+      } catch (const json::exception& e) {
+        throw StorageError("job " + s.id + ": stored workers are not a JSON list: " + e.what());
+      }
+      r.worker_failures = json_map<int>(st.text(17), "worker failures");
+      r.worker_last_error = json_map<std::string>(st.text(18), "worker errors");
+      snap.jobs.push_back(std::move(r));
+    }
+  }
+  {
+    Statement& st = db_.statement("SELECT job, idx, state, lease, failures FROM tiles");
+    while (st.step()) {
+      TileRow r;
+      r.job = st.text(0);
+      r.index = st.integer(1);
+      try {
+        r.state = tile_state_from_string(st.text(2));
+      } catch (const std::invalid_argument& e) {
+        throw StorageError("job " + r.job + " tile " + std::to_string(r.index) + ": " + e.what());
+      }
+      r.lease = st.text(3);
+      r.failures = json_map<std::string>(st.text(4), "tile failures");
+      snap.tiles.push_back(std::move(r));
+    }
+  }
+  {
+    Statement& st = db_.statement("SELECT id, job, tile, worker, deadline_ms, state FROM leases");
+    while (st.step()) {
+      LeaseRow r;
+      r.lease.id = st.text(0);
+      r.lease.job = st.text(1);
+      r.lease.tile = st.integer(2);
+      r.lease.worker = st.text(3);
+      r.lease.deadline_ms = st.integer(4);
+      try {
+        r.state = lease_state_from_string(st.text(5));
+      } catch (const std::invalid_argument& e) {
+        throw StorageError("lease " + r.lease.id + ": " + e.what());
+      }
+      snap.leases.push_back(std::move(r));
+    }
+  }
+  {
+    Statement& st = db_.statement("SELECT id, name FROM workers");
+    while (st.step()) snap.workers.push_back(WorkerRow{st.text(0), st.text(1)});
+  }
+  tx.commit();
+  return snap;
+}
+
+void DurableStore::save_record(const std::string& job, const json& record) {
+  std::lock_guard lock(mu_);
+  db_.statement("INSERT OR REPLACE INTO job_records(id, record) VALUES(?,?)").bind_text(1, job).bind_text(2, record.dump()).run();
+}
+
+std::optional<json> DurableStore::load_record(const std::string& job) {
+  std::string text;
+  {
+    std::lock_guard lock(mu_);
+    Statement& st = db_.statement("SELECT record FROM job_records WHERE id = ?");
+    st.bind_text(1, job);
+    if (!st.step()) return std::nullopt;
+    text = st.text(0);
+    st.reset();
+  }
+  try {
+    return json::parse(text);
+  } catch (const json::exception& e) {
+    throw StorageError("job " + job + ": stored record is not JSON: " + e.what());
+  }
+}
+
+fs::path DurableStore::result_path(const std::string& job) {
+  make_dirs(jobs_dir_ / job);
+  return jobs_dir_ / job / "result.exr";
+}
+
+std::vector<std::pair<int64_t, std::string>> DurableStore::tile_pixels(const std::string& job) {
+  std::lock_guard lock(mu_);
+  std::vector<std::pair<int64_t, std::string>> out;
+  Statement& st = db_.statement("SELECT idx, pixels FROM tiles WHERE job = ? AND state = 'done' ORDER BY idx");
+  st.bind_text(1, job);
+  while (st.step()) out.emplace_back(st.integer(0), st.blob(1));
+  return out;
+}
+
+}  // namespace tessera::server

@@ -1,0 +1,132 @@
+// The coordinator's durable state in one SQLite file (WAL, synchronous=FULL): a small RAII wrapper over the C API and
+// the store that keeps jobs, tiles (with the pixels of done tiles), leases, workers and job records in it.
+#pragma once
+
+#include "server/scheduler.h"
+#include "server/storage.h"
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+struct sqlite3;
+struct sqlite3_stmt;
+
+namespace tessera::server {
+
+/// One prepared statement of a Database; reset and its bindings cleared whenever it is handed out again.
+class Statement {
+ public:
+  /// Wraps a prepared statement of `db`; `sql` is kept for error messages.
+  Statement(sqlite3* db, sqlite3_stmt* stmt, std::string sql);
+  ~Statement();
+  Statement(const Statement&) = delete;
+  Statement& operator=(const Statement&) = delete;
+
+  /// Binds an integer to parameter `i` (1-based).
+  Statement& bind(int i, int64_t v);
+  /// Binds text (copied) to parameter `i`.
+  Statement& bind_text(int i, std::string_view v);
+  /// Binds a blob (copied) to parameter `i`.
+  Statement& bind_blob(int i, std::string_view v);
+  /// Binds NULL to parameter `i`.
+  Statement& bind_null(int i);
+  /// Binds an integer or NULL.
+  Statement& bind(int i, const std::optional<int64_t>& v) { return v ? bind(i, *v) : bind_null(i); }
+  /// Steps once: true when a row is available; throws StorageError with the SQL on errors.
+  bool step();
+  /// Steps to completion (for statements that return no rows).
+  void run();
+  /// Column `i` (0-based) of the current row as an integer.
+  int64_t integer(int i) const;
+  /// Column `i` as text ("" for NULL).
+  std::string text(int i) const;
+  /// Column `i` as bytes ("" for NULL).
+  std::string blob(int i) const;
+  /// True when column `i` is NULL.
+  bool is_null(int i) const;
+  /// Resets the statement and clears its bindings.
+  void reset();
+
+ private:
+  sqlite3* db_;
+  sqlite3_stmt* stmt_;
+  std::string sql_;
+};
+
+/// An open SQLite database file. Not thread-safe: callers serialize access.
+class Database {
+ public:
+  /// Opens (creating if missing) `file` in WAL mode with synchronous=FULL and a busy timeout; throws StorageError.
+  explicit Database(const std::filesystem::path& file);
+  ~Database();
+  Database(const Database&) = delete;
+  Database& operator=(const Database&) = delete;
+
+  /// Runs one or more statements without results; throws StorageError naming the SQL.
+  void exec(const std::string& sql);
+  /// The cached prepared statement for `sql`, reset and unbound.
+  Statement& statement(const std::string& sql);
+  /// Rows changed by the last INSERT, UPDATE or DELETE.
+  int64_t changes() const;
+  /// The file it was opened from.
+  const std::filesystem::path& file() const { return file_; }
+
+ private:
+  std::filesystem::path file_;
+  sqlite3* db_ = nullptr;
+  std::map<std::string, std::unique_ptr<Statement>> cache_;
+};
+
+/// BEGIN IMMEDIATE ... COMMIT; rolls back when destroyed uncommitted.
+class Transaction {
+ public:
+  /// Begins a write transaction on `db`.
+  explicit Transaction(Database& db);
+  ~Transaction();
+  Transaction(const Transaction&) = delete;
+  Transaction& operator=(const Transaction&) = delete;
+  /// Commits; when it returns, the transaction is durable.
+  void commit();
+
+ private:
+  Database& db_;
+  bool done_ = false;
+};
+
+/// The coordinator's state under DIR: DIR/tessera.db holds jobs, tiles, leases, workers and job records, DIR/jobs/<id>/
+/// the merged results, DIR/tmp/ scratch files. Thread-safe (one connection behind a mutex).
+class DurableStore final : public SchedulerStore, public JobStore {
+ public:
+  /// The schema version this build reads and writes.
+  static constexpr int kSchemaVersion = 1;
+
+  /// Opens or creates the store under `dir`; throws StorageError (unreadable file, newer schema).
+  explicit DurableStore(const std::filesystem::path& dir);
+  ~DurableStore() override;
+
+  void apply(const SchedulerChanges& changes) override;
+  SchedulerSnapshot load() override;
+
+  void save_record(const std::string& job, const nlohmann::json& record) override;
+  std::optional<nlohmann::json> load_record(const std::string& job) override;
+  std::filesystem::path result_path(const std::string& job) override;
+  std::filesystem::path scratch_dir() override { return scratch_; }
+  std::vector<std::pair<int64_t, std::string>> tile_pixels(const std::string& job) override;
+
+  /// The database file.
+  std::filesystem::path database_file() const { return db_.file(); }
+
+ private:
+  std::mutex mu_;
+  std::filesystem::path jobs_dir_, scratch_;
+  Database db_;
+};
+
+}  // namespace tessera::server

@@ -1,0 +1,307 @@
+// The durable store: every piece of scheduler state survives closing and reopening the database, a tile is never
+// done without its pixels, and a restarted scheduler resumes where the old one stopped.
+#include "server/database.h"
+
+#include "server/assembly.h"
+#include "server/coordinator.h"
+
+#include <gtest/gtest.h>
+#include <sqlite3.h>
+
+#include <filesystem>
+#include <memory>
+#include <random>
+#include <set>
+
+namespace tessera::server {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A data folder with a scheduler over a DurableStore on a manual clock; reopen() simulates a restart.
+struct DatabaseTest : ::testing::Test {
+  fs::path dir;
+  int64_t now = 5'000'000;
+  std::unique_ptr<DurableStore> store;
+  std::unique_ptr<Scheduler> sched;
+
+  void SetUp() override {
+    dir = fs::temp_directory_path() / ("tessera-db-test-" + random_hex(6));
+    open();
+  }
+  void TearDown() override {
+    sched.reset();
+    store.reset();
+    fs::remove_all(dir);
+  }
+  void open(const std::string& tag = "a") {
+    store = std::make_unique<DurableStore>(dir);
+    sched = std::make_unique<Scheduler>(SchedulerConfig{10'000, 3, 2, tag}, [this] { return now; }, *store);
+  }
+  void reopen(const std::string& tag = "a") {
+    sched.reset();
+    store.reset();
+    open(tag);
+  }
+  std::string job(int w = 128, int h = 64, int ts = 64, const std::string& name = "n") {
+    JobParams p;
+    p.name = name;
+    p.priority = 3;
+    p.width = w;
+    p.height = h;
+    p.tile_size = ts;
+    p.spp = 7;
+    p.seed = 0xfedcba9876543210ull;  // above INT64_MAX: stored as its bit pattern
+    p.scene_hash = "hash";
+    return sched->add_job(p);
+  }
+  Lease lease(const std::string& worker) {
+    const AcquireResult r = sched->acquire(worker);
+    EXPECT_EQ(r.status, AcquireResult::granted);
+    return r.lease;
+  }
+  // A tile's pixels, distinct per tile.
+  static Image pixels_for(const PixelWindow& w, float base) {
+    Image img = Image::make(w.width(), w.height());
+    for (size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = base + float(i) * 0.25f;
+    return img;
+  }
+  void upload(const Lease& l, float base) {
+    ASSERT_EQ(sched->claim_result(l.id).status, ResultClaim::proceed);
+    sched->finish_result(l.id, 100, tile_bytes(pixels_for(l.window, base)));
+  }
+};
+
+TEST_F(DatabaseTest, EveryPieceOfStateSurvivesAReopen) {
+  const std::string j = job(192, 64, 64);  // 3 tiles
+  const std::string other = job(64, 64, 64, "other");
+  ASSERT_EQ(sched->cancel(other).status, CancelResult::cancelled);
+  const std::string wa = sched->register_worker("alpha"), wb = sched->register_worker("beta");
+  const Lease l0 = lease(wa);
+  upload(l0, 1.0f);
+  const Lease l1 = lease(wb);
+  ASSERT_EQ(sched->heartbeat(l1.id, 55).status, HeartbeatResult::ok);
+  const Lease l2 = lease(wa);
+  ASSERT_EQ(sched->fail(l2.id, "boom").status, FailResult::recorded);
+  const JobStatus before = *sched->job(j);
+  const JobStatus other_before = *sched->job(other);
+  const SchedulerCounters cb = sched->counters();
+
+  now += 60'000;  // far past every deadline: a restart must not expire the live lease
+  reopen();
+  const auto after = sched->job(j);
+  ASSERT_TRUE(after);
+  EXPECT_EQ(after->params.name, "n");
+  EXPECT_EQ(after->params.priority, 3);
+  EXPECT_EQ(after->params.width, 192);
+  EXPECT_EQ(after->params.spp, 7u);
+  EXPECT_EQ(after->params.seed, 0xfedcba9876543210ull);
+  EXPECT_EQ(after->params.scene_hash, "hash");
+  EXPECT_EQ(after->state, JobState::running);
+  EXPECT_EQ(after->created_ms, before.created_ms);
+  EXPECT_EQ(after->started_ms, before.started_ms);
+  EXPECT_EQ(after->rays, before.rays);
+  EXPECT_EQ(after->rays, 155u);
+  EXPECT_EQ(after->workers, before.workers);
+  EXPECT_EQ(after->tiles.total, 3);
+  EXPECT_EQ(after->tiles.done, 1);
+  EXPECT_EQ(after->tiles.leased, 1);
+  EXPECT_EQ(after->tiles.pending, 1);
+  const auto ob = sched->job(other);
+  ASSERT_TRUE(ob);
+  EXPECT_EQ(ob->state, JobState::cancelled);
+  EXPECT_EQ(ob->finished_ms, other_before.finished_ms);
+  const SchedulerCounters ca = sched->counters();
+  EXPECT_EQ(ca.tiles_rendered, cb.tiles_rendered);
+  EXPECT_EQ(ca.rays, cb.rays);
+  EXPECT_EQ(ca.workers, 2);
+  EXPECT_EQ(ca.active_leases, 1);
+  EXPECT_EQ(ca.jobs.at(JobState::running), 1);
+  EXPECT_EQ(ca.jobs.at(JobState::cancelled), 1);
+
+  // The live lease is still live, with a fresh deadline; the ended ones still answer as ended.
+  const HeartbeatResult h = sched->heartbeat(l1.id);
+  EXPECT_EQ(h.status, HeartbeatResult::ok);
+  EXPECT_EQ(h.deadline_ms, now + 10'000);
+  EXPECT_EQ(sched->heartbeat(l0.id).status, HeartbeatResult::gone);
+  EXPECT_EQ(sched->check_result(l0.id).status, ResultClaim::duplicate);
+  // The failure count survived: one more failure of alpha blocklists it for the job.
+  EXPECT_TRUE(sched->has_worker(wa));
+  const Lease l3 = lease(wa);
+  EXPECT_EQ(l3.tile, 2);
+  EXPECT_EQ(l3.window, (PixelWindow{128, 0, 192, 64}));
+  EXPECT_EQ(l3.spp, 7u);
+  EXPECT_TRUE(sched->fail(l3.id, "boom again").blocklisted);
+  EXPECT_EQ(sched->acquire(wa).status, AcquireResult::no_work);
+
+  // The stored pixels are exactly the uploaded ones.
+  const auto px = store->tile_pixels(j);
+  ASSERT_EQ(px.size(), 1u);
+  EXPECT_EQ(px[0].first, 0);
+  const Image img = tile_from_bytes(px[0].second, 64, 64);
+  EXPECT_EQ(img.rgb, pixels_for(l0.window, 1.0f).rgb);
+}
+
+TEST_F(DatabaseTest, IdsNeverRepeatAfterARestart) {
+  std::set<std::string> ids;
+  const std::string j = job();
+  ids.insert(j);
+  const std::string w = sched->register_worker("w");
+  ids.insert(w);
+  ids.insert(lease(w).id);
+  ids.insert(sched->new_job_id());
+  reopen("a");  // the same tag on purpose: the stored sequence alone keeps ids apart
+  EXPECT_TRUE(ids.insert(job()).second);
+  const std::string w2 = sched->register_worker("w2");
+  EXPECT_TRUE(ids.insert(w2).second);
+  EXPECT_TRUE(ids.insert(lease(w2).id).second);
+}
+
+TEST_F(DatabaseTest, JobFinishedAcrossARestartKeepsItsImage) {
+  const std::string j = job(128, 64, 64);
+  const std::string w = sched->register_worker("w");
+  const Lease a = lease(w), b = lease(w);
+  upload(a, 2.0f);
+  reopen();
+  upload(b, 3.0f);
+  EXPECT_EQ(sched->unfinalized_jobs(), std::vector<std::string>{j});  // what Api::recover would finalize
+  reopen();
+  EXPECT_EQ(sched->unfinalized_jobs(), std::vector<std::string>{j});
+  const auto px = store->tile_pixels(j);
+  ASSERT_EQ(px.size(), 2u);
+  EXPECT_EQ(tile_from_bytes(px[1].second, 64, 64).rgb, pixels_for(b.window, 3.0f).rgb);
+  sched->complete_job(j);
+  reopen();
+  EXPECT_EQ(sched->job(j)->state, JobState::done);
+  EXPECT_TRUE(sched->unfinalized_jobs().empty());
+}
+
+// The coordinator died between storing a job's last tile and writing its result: starting it again writes the result
+// from the stored tiles and marks the job done.
+TEST_F(DatabaseTest, CoordinatorStartFinishesAJobWhoseTilesWereAllStored) {
+  const std::string j = job(128, 64, 64);
+  const std::string w = sched->register_worker("w");
+  const Lease a = lease(w), b = lease(w);
+  upload(a, 2.0f);
+  upload(b, 3.0f);
+  sched.reset();
+  store.reset();
+  CoordinatorOptions o;
+  o.port = 0;
+  o.data_dir = dir;
+  Coordinator c(o);  // recovers in its constructor, before serving
+  const fs::path result = dir / "jobs" / j / "result.exr";
+  ASSERT_TRUE(fs::exists(result));
+  const ExrImage exr = read_exr(result);
+  ASSERT_EQ(exr.pixels.width, 128);
+  for (const auto& [l, base] : {std::pair{a, 2.0f}, std::pair{b, 3.0f}}) {
+    const Image want = pixels_for(l.window, base);
+    for (int y = 0; y < 64; ++y)
+      for (int x = 0; x < 64; ++x) ASSERT_EQ(exr.pixels.at(l.window.x0 + x, y), want.at(x, y)) << x << "," << y;
+  }
+  DurableStore reread(dir);
+  Scheduler after(SchedulerConfig{10'000, 3, 2, "b"}, [this] { return now; }, reread);
+  EXPECT_EQ(after.job(j)->state, JobState::done);
+}
+
+TEST_F(DatabaseTest, ATileIsNeverDoneWithoutItsPixels) {
+  const std::string j = job(64, 64, 64);
+  const std::string w = sched->register_worker("w");
+  const Lease l = lease(w);
+  ASSERT_EQ(sched->claim_result(l.id).status, ResultClaim::proceed);
+  // No pixels: the database refuses, and the scheduler does not pretend the tile is done.
+  EXPECT_THROW(sched->finish_result(l.id, 5), StorageError);
+  EXPECT_EQ(sched->job(j)->tiles.done, 0);
+  EXPECT_EQ(sched->counters().tiles_rendered, 0u);
+  reopen();
+  // The unacknowledged upload's tile is pending again, and the same lease can still deliver it.
+  EXPECT_EQ(sched->job(j)->tiles.pending, 1);
+  EXPECT_TRUE(store->tile_pixels(j).empty());
+  ASSERT_EQ(sched->claim_result(l.id).status, ResultClaim::proceed);
+  EXPECT_TRUE(sched->finish_result(l.id, 5, tile_bytes(pixels_for(l.window, 1.0f))).last);
+  reopen();
+  EXPECT_EQ(sched->job(j)->tiles.done, 1);
+}
+
+TEST_F(DatabaseTest, ABatchIsStoredWhollyOrNotAtAll) {
+  const std::string j = job(64, 64, 64);
+  JobRow row{*sched->job(j), 99, {}, {}};
+  row.status.state = JobState::failed;
+  SchedulerChanges c;
+  c.jobs.push_back(row);
+  c.tiles.push_back(TileRow{j, 0, TileState::done, "", {}, std::nullopt});  // done without pixels
+  EXPECT_THROW(store->apply(c), StorageError);
+  reopen();
+  EXPECT_EQ(sched->job(j)->state, JobState::queued);
+  EXPECT_EQ(sched->job(j)->tiles.pending, 1);
+}
+
+TEST_F(DatabaseTest, AMergeInterruptedByACrashIsRetriedOrPendingAgain) {
+  const std::string j = job(128, 64, 64);
+  const std::string w = sched->register_worker("w");
+  const Lease l0 = lease(w), l1 = lease(w);
+  // Killed right after the claim: the claim was not stored on its own, so the lease is still live and the worker's
+  // retried upload goes through.
+  ASSERT_EQ(sched->claim_result(l0.id).status, ResultClaim::proceed);
+  reopen();
+  EXPECT_EQ(sched->job(j)->tiles.leased, 2);
+  ASSERT_EQ(sched->claim_result(l0.id).status, ResultClaim::proceed);
+  sched->finish_result(l0.id, 1, tile_bytes(pixels_for(l0.window, 1.0f)));
+  // Killed while the merging state was stored by another operation: the tile is pending again.
+  ASSERT_EQ(sched->claim_result(l1.id).status, ResultClaim::proceed);
+  sched->register_worker("other");
+  reopen();
+  EXPECT_EQ(sched->job(j)->tiles.pending, 1);
+  EXPECT_EQ(sched->job(j)->tiles.done, 1);
+  EXPECT_EQ(sched->counters().active_leases, 0);
+  const Lease again = lease(w);
+  EXPECT_EQ(again.tile, 1);
+  EXPECT_NE(again.id, l1.id);
+}
+
+TEST_F(DatabaseTest, RefusesANewerSchema) {
+  sched.reset();
+  store.reset();
+  {
+    Database db(dir / "tessera.db");
+    db.exec("UPDATE meta SET value = 99 WHERE key = 'schema_version'");
+  }
+  try {
+    DurableStore s(dir);
+    FAIL() << "opened a database of schema version 99";
+  } catch (const StorageError& e) {
+    EXPECT_NE(std::string(e.what()).find("schema version 99"), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(DatabaseTest, JobRecordsRoundTrip) {
+  EXPECT_FALSE(store->load_record("j-x"));
+  const nlohmann::json rec = {{"scene", {{"a", 1}}}, {"spp", 4}};
+  store->save_record("j-x", rec);
+  reopen();
+  EXPECT_EQ(store->load_record("j-x"), rec);
+  EXPECT_EQ(store->result_path("j-x"), dir / "jobs" / "j-x" / "result.exr");
+}
+
+TEST_F(DatabaseTest, DatabaseErrorsNameTheStatement) {
+  Database db(dir / "other.db");
+  try {
+    db.exec("SELECT * FROM no_such_table");
+    FAIL() << "no error";
+  } catch (const StorageError& e) {
+    EXPECT_NE(std::string(e.what()).find("no_such_table"), std::string::npos) << e.what();
+  }
+  Statement& st = db.statement("PRAGMA journal_mode");
+  ASSERT_TRUE(st.step());
+  EXPECT_EQ(st.text(0), "wal");
+}
+
+TEST(TileBytes, RoundTripAndSizeCheck) {
+  Image img = Image::make(3, 2);
+  for (size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = float(i) - 2.5f;
+  EXPECT_EQ(tile_from_bytes(tile_bytes(img), 3, 2).rgb, img.rgb);
+  EXPECT_THROW(tile_from_bytes(tile_bytes(img), 2, 2), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace tessera::server
