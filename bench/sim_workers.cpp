@@ -263,7 +263,8 @@ void feeder(Farm& farm, WorkerTally& tally) {
       const HttpResponse r = http.send("GET", "/v1/jobs");
       int unfinished = 0;
       if (r.status == 200) {
-        for (const json& j : json::parse(r.body).at("jobs")) {
+        const json listing = json::parse(r.body);  // named: a range-for over a temporary's member would dangle
+        for (const json& j : listing.at("jobs")) {
           const std::string state = j.at("state").get<std::string>();
           if (state == "queued" || state == "running") ++unfinished;
         }
