@@ -3,8 +3,9 @@
 // its own keep-alive connection doing what `tessera worker` does, minus the rendering: register, ask for a lease
 // (backing off 100 ms .. 2 s with jitter on 204), fetch the job's spec once per job, "render" by sleeping the tile
 // time while heartbeating every heartbeat period, then upload a valid precomputed tile EXR of the leased window
-// (uncompressed float32, as workers send it). A feeder keeps two jobs queued. For every N it prints request latency
-// p50/p99 per route, the coordinator's CPU use (from /proc/<pid>/stat), the tile rate and the bytes uploaded.
+// (uncompressed float32, as workers send it). A feeder keeps at least two jobs and 2N pending tiles queued. For
+// every N it prints request latency p50/p99 per route, the coordinator's CPU use (from /proc/<pid>/stat) and the
+// tile rate.
 //
 //   ./build/bench/sim_workers --tessera build/cli/tessera [--workers 10,50,200,500] [--seconds 15] [--warmup 4]
 //       [--tile-seconds 2] [--heartbeat-seconds 1] [--image 2048] [--tile 64] [--data-dir DIR]
@@ -147,6 +148,7 @@ struct Farm {
   const Options& opt;
   const TileBank& bank;
   tessera::farm::HttpUrl url;
+  int workers = 0;  ///< N, for the feeder's supply of pending tiles.
   std::atomic<bool> stop{false};
   Clock::time_point window_start, window_end;  ///< Measurements count only between these.
 };
@@ -262,16 +264,24 @@ void feeder(Farm& farm, WorkerTally& tally) {
     try {
       const HttpResponse r = http.send("GET", "/v1/jobs");
       int unfinished = 0;
+      int64_t pending = 0;
       if (r.status == 200) {
         const json listing = json::parse(r.body);  // named: a range-for over a temporary's member would dangle
         for (const json& j : listing.at("jobs")) {
           const std::string state = j.at("state").get<std::string>();
-          if (state == "queued" || state == "running") ++unfinished;
+          if (state != "queued" && state != "running") continue;
+          ++unfinished;
+          pending += j.at("tiles").at("pending").get<int64_t>();
         }
       }
-      for (; unfinished < 2; ++unfinished) {
+      // At least two unfinished jobs, and enough pending tiles that no worker waits for the next check.
+      const int64_t per_job = int64_t((farm.opt.image + farm.opt.tile - 1) / farm.opt.tile) *
+                              ((farm.opt.image + farm.opt.tile - 1) / farm.opt.tile);
+      while (unfinished < 2 || pending < 2 * int64_t(farm.workers)) {
         const HttpResponse s = http.send("POST", "/v1/jobs", body);
         if (s.status != 201) throw std::runtime_error("POST /v1/jobs answered " + s.error_text());
+        ++unfinished;
+        pending += per_job;
       }
     } catch (const std::exception& e) {
       ++tally.errors;
@@ -310,6 +320,7 @@ RunResult run_farm(const Options& opt, const TileBank& bank, const fs::path& bas
   }
 
   Farm farm{opt, bank, tessera::farm::parse_http_url("http://" + hostport)};
+  farm.workers = n;
   const auto start = Clock::now();
   farm.window_start = start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(opt.warmup));
   farm.window_end = farm.window_start +
