@@ -142,7 +142,7 @@ wait_until 30 "the node to register idle with slurmctld" node_idle
 # --- the coordinator as a Slurm job, then the workers as a job array pointing at it.
 sbatch_job() { sbatch --parsable --chdir="$WORK" "$@" | cut -d';' -f1; }
 COORD=$(TESSERA_BIN="$TESSERA" TESSERA_DATA="$WORK/data" TESSERA_LISTEN=127.0.0.1:0 TESSERA_URL_FILE="$WORK/url" \
-  sbatch_job --output="$WORK/coordinator.log" "$SRC/deploy/slurm/coordinator.sbatch") || fail "sbatch coordinator"
+  sbatch_job --cpus-per-task=1 --output="$WORK/coordinator.log" "$SRC/deploy/slurm/coordinator.sbatch") || fail "sbatch coordinator"
 JOBS+=("$COORD")
 WORKERS=$(TESSERA_BIN="$TESSERA" TESSERA_COORDINATOR_FILE="$WORK/url" TESSERA_CACHE="$WORK/cache" \
   sbatch_job --array=0-2 --output="$WORK/worker-%a.log" "$SRC/deploy/slurm/workers.sbatch") || fail "sbatch workers"
