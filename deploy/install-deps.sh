@@ -11,6 +11,7 @@ PACKAGES=(
   libsqlite3-dev libpng-dev zlib1g-dev libssl-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libembree-dev gnuplot-nox
+  slurm-wlm munge python3-yaml python3-kubernetes systemd
 )
 
 missing=()

@@ -1,0 +1,439 @@
+// Capacity of one coordinator (issue 7): N simulated workers drive the real farm protocol against a real
+// `tessera serve` on loopback and we measure what the coordinator spends. Each simulated worker is one thread with
+// its own keep-alive connection doing what `tessera worker` does, minus the rendering: register, ask for a lease
+// (backing off 100 ms .. 2 s with jitter on 204), fetch the job's spec once per job, "render" by sleeping the tile
+// time while heartbeating every heartbeat period, then upload a valid precomputed tile EXR of the leased window
+// (uncompressed float32, as workers send it). A feeder keeps at least two jobs and 2N pending tiles queued. For
+// every N it prints request latency p50/p99 per route, the coordinator's CPU use (from /proc/<pid>/stat) and the
+// tile rate.
+//
+//   ./build/bench/sim_workers --tessera build/cli/tessera [--workers 10,50,200,500] [--seconds 15] [--warmup 4]
+//       [--tile-seconds 2] [--heartbeat-seconds 1] [--image 2048] [--tile 64] [--data-dir DIR]
+//
+// The simulated workers share the machine with the coordinator; their own CPU use is printed too, so a row where
+// the clients starve the coordinator can be told apart from one where the coordinator is the limit.
+#include "core/image.h"
+#include "worker/child_process.h"
+#include "worker/http_client.h"
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <random>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+using Clock = std::chrono::steady_clock;
+using namespace std::chrono_literals;
+using tessera::farm::HttpClient;
+using tessera::farm::HttpError;
+using tessera::farm::HttpResponse;
+
+namespace {
+
+/// The run's settings (command line).
+struct Options {
+  fs::path tessera;                                 ///< The tessera binary (runs `serve`).
+  std::vector<int> worker_counts{10, 50, 200, 500};  ///< Simulated farm sizes, one coordinator run each.
+  double seconds = 15;           ///< Measured window per farm size.
+  double warmup = 4;             ///< Unmeasured time before the window (registration, first leases).
+  double tile_seconds = 2;       ///< Simulated render time per tile (jittered +-20%).
+  int heartbeat_seconds = 1;     ///< Heartbeat period announced by the coordinator (--heartbeat-seconds).
+  int image = 2048;              ///< Square image edge of each job, in pixels.
+  int tile = 64;                 ///< Tile edge, in pixels.
+  fs::path data_dir;             ///< Where coordinator data folders go (default: a temporary folder).
+};
+
+/// The request kinds we time separately.
+enum Route { kRegister, kLease, kLease204, kSpec, kHeartbeat, kUpload, kRouteCount };
+const char* const kRouteNames[kRouteCount] = {"register", "lease 200", "lease 204", "spec", "heartbeat", "upload"};
+
+/// One simulated worker's measurements inside the window.
+struct WorkerTally {
+  std::vector<float> latency_ms[kRouteCount];  ///< Per-route request latencies (ms).
+  int64_t tiles_accepted = 0;  ///< Uploads answered accepted or duplicate.
+  int64_t upload_bytes = 0;    ///< Bytes of those uploads.
+  int64_t errors = 0;          ///< Transport failures or unexpected statuses.
+  std::string first_error;     ///< The first of them, for the report.
+};
+
+/// What the whole farm did in one window.
+struct RunResult {
+  int workers = 0;                    ///< N.
+  double window_seconds = 0;          ///< Measured wall time.
+  double coordinator_cpu_seconds = 0; ///< utime + stime of `tessera serve` over the window.
+  double client_cpu_seconds = 0;      ///< This process's CPU over the window.
+  WorkerTally total;                  ///< All workers' tallies merged.
+};
+
+/// A tile EXR for every window of the job geometry, encoded once and shared by all simulated workers.
+class TileBank {
+ public:
+  /// Encodes every tile of an image x image job cut into tile x tile squares (uncompressed float32, constant grey).
+  TileBank(int image, int tile) {
+    for (int y0 = 0; y0 < image; y0 += tile) {
+      for (int x0 = 0; x0 < image; x0 += tile) {
+        const tessera::PixelWindow w{x0, y0, std::min(x0 + tile, image), std::min(y0 + tile, image)};
+        tessera::Image img = tessera::Image::make(w.width(), w.height());
+        std::fill(img.rgb.begin(), img.rgb.end(), 0.25f);
+        tessera::ExrWriteOptions wo;
+        wo.compression = tessera::ExrCompression::kNone;
+        wo.display_window = {0, 0, image, image};
+        wo.data_window = w;
+        const std::vector<uint8_t> bytes = tessera::encode_exr(img, wo);
+        tiles_[key(w)] = std::string(bytes.begin(), bytes.end());
+      }
+    }
+  }
+  /// The encoded tile for a leased window; throws std::out_of_range for a window of another geometry.
+  const std::string& at(const std::array<int, 4>& window) const { return tiles_.at(key({window[0], window[1], window[2], window[3]})); }
+
+ private:
+  static int64_t key(const tessera::PixelWindow& w) { return (int64_t(w.y0) << 32) | int64_t(w.x0); }
+  std::map<int64_t, std::string> tiles_;
+};
+
+/// CPU seconds (user + system) that process pid has used, from /proc/<pid>/stat; -1 when unreadable.
+double process_cpu_seconds(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const size_t close = text.rfind(')');  // the command name may contain spaces; fields follow its ')'
+  if (close == std::string::npos) return -1;
+  std::istringstream fields(text.substr(close + 2));
+  std::string skip;
+  for (int i = 3; i < 14; ++i) fields >> skip;  // fields 3..13
+  long long utime = 0, stime = 0;
+  fields >> utime >> stime;                      // fields 14 and 15, in clock ticks
+  return double(utime + stime) / double(sysconf(_SC_CLK_TCK));
+}
+
+/// CPU seconds this process has used.
+double self_cpu_seconds() {
+  rusage ru{};
+  getrusage(RUSAGE_SELF, &ru);
+  return double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) + 1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+}
+
+/// A small sphere scene (no assets) of the given size: the coordinator validates it like any submission.
+json job_body(int image, int tile) {
+  json scene = {
+      {"integrator", {{"type", "intersection_test"}, {"spp", 1}, {"point_light_position", {0, 3, 3}},
+                      {"point_light_flux", {40, 40, 40}}}},
+      {"film", {{"resolution", {image, image}}}},
+      {"camera", {{"position", {0, 0.3, 4}}, {"look_at", {0, 0, 0}}, {"fov", 45}}},
+      {"textures", {{"white", {{"type", "constant"}, {"color", {0.8, 0.7, 0.6}}}}}},
+      {"materials", {{"m", {{"type", "diffuse"}, {"texture_name", "white"}}}}},
+      {"objects", {{{"type", "sphere"}, {"center", {0, 0, 0}}, {"radius", 0.7}, {"material_name", "m"}}}}};
+  return {{"scene", scene}, {"assets", json::object()}, {"tile_size", tile}, {"name", "sim_workers"}};
+}
+
+/// Shared state of one run.
+struct Farm {
+  /// A farm for these settings and tiles, talking to the coordinator at url.
+  Farm(const Options& o, const TileBank& b, tessera::farm::HttpUrl u) : opt(o), bank(b), url(std::move(u)) {}
+  const Options& opt;
+  const TileBank& bank;
+  tessera::farm::HttpUrl url;
+  int workers = 0;  ///< N, for the feeder's supply of pending tiles.
+  std::atomic<bool> stop{false};
+  Clock::time_point window_start, window_end;  ///< Measurements count only between these.
+};
+
+/// Sleeps d unless the farm stops first; false when stopped.
+bool nap(const Farm& farm, Clock::duration d) {
+  const auto end = Clock::now() + d;
+  while (!farm.stop.load()) {
+    const auto now = Clock::now();
+    if (now >= end) return true;
+    std::this_thread::sleep_for(std::min<Clock::duration>(end - now, 50ms));
+  }
+  return false;
+}
+
+/// One simulated worker: the protocol loop of `tessera worker` with sleeps in place of rendering.
+void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
+  HttpClient http(farm.url);
+  std::mt19937_64 rng(0x5eed0000u + unsigned(index));
+  auto timed = [&](Route route, auto&& call) -> HttpResponse {
+    const auto t0 = Clock::now();
+    HttpResponse r = call();
+    const auto t1 = Clock::now();
+    if (t0 >= farm.window_start && t1 <= farm.window_end) {
+      tally.latency_ms[route == kLease && r.status == 204 ? kLease204 : route].push_back(
+          std::chrono::duration<float, std::milli>(t1 - t0).count());
+    }
+    return r;
+  };
+  auto error = [&](const std::string& what) {
+    ++tally.errors;
+    if (tally.first_error.empty()) tally.first_error = what;
+  };
+
+  std::string id;
+  int heartbeat_seconds = 5;
+  std::string spec_job;  // the job whose spec we have "cached"
+  std::chrono::milliseconds idle{100};
+  while (!farm.stop.load()) {
+    try {
+      if (id.empty()) {
+        const json reg = {{"name", "sim-" + std::to_string(index)}, {"threads", 1}, {"version", "sim"}};
+        const HttpResponse r = timed(kRegister, [&] { return http.send("POST", "/v1/workers", reg.dump()); });
+        if (r.status != 201) { error("register answered " + r.error_text()); nap(farm, 1s); continue; }
+        const json j = json::parse(r.body);
+        id = j.at("id").get<std::string>();
+        heartbeat_seconds = j.at("heartbeat_seconds").get<int>();
+      }
+      const HttpResponse r = timed(kLease, [&] { return http.send("POST", "/v1/workers/" + id + "/lease"); });
+      if (r.status == 204) {
+        std::uniform_int_distribution<long long> pick(idle.count() / 2, idle.count());
+        nap(farm, std::chrono::milliseconds(pick(rng)));
+        idle = std::min<std::chrono::milliseconds>(idle * 2, 2000ms);
+        continue;
+      }
+      if (r.status == 404) { id.clear(); continue; }
+      if (r.status != 200) { error("lease answered " + r.error_text()); nap(farm, 1s); continue; }
+      idle = 100ms;
+      const json lease = json::parse(r.body);
+      const std::string lease_id = lease.at("lease").get<std::string>();
+      const std::string job = lease.at("job").get<std::string>();
+      const auto window = lease.at("window").get<std::array<int, 4>>();
+      if (job != spec_job) {
+        const HttpResponse s = timed(kSpec, [&] { return http.send("GET", "/v1/jobs/" + job + "/spec"); });
+        if (s.status != 200) { error("spec answered " + s.error_text()); continue; }
+        spec_job = job;
+      }
+      // "Render": the tile time (+-20%), heartbeating every heartbeat period.
+      std::uniform_real_distribution<double> jitter(0.8, 1.2);
+      const auto done = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                           std::chrono::duration<double>(farm.opt.tile_seconds * jitter(rng)));
+      bool revoked = false;
+      while (!farm.stop.load() && Clock::now() < done) {
+        const auto next = std::min(done, Clock::now() + std::chrono::seconds(heartbeat_seconds));
+        if (!nap(farm, next - Clock::now())) break;
+        if (Clock::now() >= done) break;
+        const HttpResponse h = timed(kHeartbeat, [&] {
+          return http.send("POST", "/v1/leases/" + lease_id + "/heartbeat", R"({"rays": 4096})");
+        });
+        if (h.status == 410) { revoked = true; break; }
+        if (h.status != 200) error("heartbeat answered " + h.error_text());
+      }
+      if (farm.stop.load() || revoked) continue;
+      const std::string& exr = farm.bank.at(window);
+      tessera::farm::HttpRequest up;
+      up.method = "PUT";
+      up.target = "/v1/leases/" + lease_id + "/result";
+      up.body = exr;
+      up.content_type = "image/x-exr";
+      up.headers["X-Tessera-Rays"] = "4096";
+      const auto t0 = Clock::now();
+      const HttpResponse u = timed(kUpload, [&] { return http.send(up); });
+      if (u.status == 200) {
+        if (t0 >= farm.window_start && Clock::now() <= farm.window_end) {
+          ++tally.tiles_accepted;
+          tally.upload_bytes += int64_t(exr.size());
+        }
+      } else if (u.status != 410) {
+        error("upload answered " + u.error_text());
+      }
+    } catch (const std::exception& e) {
+      error(e.what());
+      nap(farm, 500ms);
+    }
+  }
+}
+
+/// Keeps at least two unfinished jobs on the coordinator so that workers always find work.
+void feeder(Farm& farm, WorkerTally& tally) {
+  HttpClient http(farm.url);
+  const std::string body = job_body(farm.opt.image, farm.opt.tile).dump();
+  while (!farm.stop.load()) {
+    try {
+      const HttpResponse r = http.send("GET", "/v1/jobs");
+      int unfinished = 0;
+      int64_t pending = 0;
+      if (r.status == 200) {
+        const json listing = json::parse(r.body);  // named: a range-for over a temporary's member would dangle
+        for (const json& j : listing.at("jobs")) {
+          const std::string state = j.at("state").get<std::string>();
+          if (state != "queued" && state != "running") continue;
+          ++unfinished;
+          pending += j.at("tiles").at("pending").get<int64_t>();
+        }
+      }
+      // At least two unfinished jobs, and enough pending tiles that no worker waits for the next check.
+      const int64_t per_job = int64_t((farm.opt.image + farm.opt.tile - 1) / farm.opt.tile) *
+                              ((farm.opt.image + farm.opt.tile - 1) / farm.opt.tile);
+      while (unfinished < 2 || pending < 2 * int64_t(farm.workers)) {
+        const HttpResponse s = http.send("POST", "/v1/jobs", body);
+        if (s.status != 201) throw std::runtime_error("POST /v1/jobs answered " + s.error_text());
+        ++unfinished;
+        pending += per_job;
+      }
+    } catch (const std::exception& e) {
+      ++tally.errors;
+      if (tally.first_error.empty()) tally.first_error = std::string("feeder: ") + e.what();
+    }
+    nap(farm, 500ms);
+  }
+}
+
+/// Waits up to 30 s for the coordinator's ready file; returns its "host:port" or "" on timeout or exit.
+std::string wait_ready(const fs::path& ready, tessera::farm::ChildProcess& serve) {
+  for (int i = 0; i < 600; ++i) {
+    std::ifstream in(ready);
+    std::string line;
+    if (in && std::getline(in, line) && !line.empty()) return line;
+    if (tessera::farm::child_exited(serve)) return {};
+    std::this_thread::sleep_for(50ms);
+  }
+  return {};
+}
+
+/// Runs one coordinator with n simulated workers; throws std::runtime_error when the coordinator does not start.
+RunResult run_farm(const Options& opt, const TileBank& bank, const fs::path& base, int n) {
+  const fs::path dir = base / ("n" + std::to_string(n));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  std::vector<tessera::farm::ChildProcess> children;
+  children.push_back(tessera::farm::spawn_child(
+      {opt.tessera.string(), "serve", "--listen", "127.0.0.1:0", "--data", (dir / "data").string(), "--ready-file",
+       (dir / "ready").string(), "--heartbeat-seconds", std::to_string(opt.heartbeat_seconds)},
+      "coordinator", dir / "serve.log"));
+  const std::string hostport = wait_ready(dir / "ready", children[0]);
+  if (hostport.empty()) {
+    tessera::farm::stop_children(children, 2s);
+    throw std::runtime_error("the coordinator did not start: " + tessera::farm::tail_of_file(dir / "serve.log", 10));
+  }
+
+  Farm farm{opt, bank, tessera::farm::parse_http_url("http://" + hostport)};
+  farm.workers = n;
+  const auto start = Clock::now();
+  farm.window_start = start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(opt.warmup));
+  farm.window_end = farm.window_start +
+                    std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(opt.seconds));
+  std::vector<WorkerTally> tallies(size_t(n) + 1);
+  std::vector<std::thread> threads;
+  threads.emplace_back(feeder, std::ref(farm), std::ref(tallies[size_t(n)]));
+  for (int i = 0; i < n; ++i) threads.emplace_back(simulated_worker, std::ref(farm), i, std::ref(tallies[size_t(i)]));
+
+  std::this_thread::sleep_until(farm.window_start);
+  const double serve_cpu0 = process_cpu_seconds(children[0].pid), self_cpu0 = self_cpu_seconds();
+  std::this_thread::sleep_until(farm.window_end);
+  const double serve_cpu1 = process_cpu_seconds(children[0].pid), self_cpu1 = self_cpu_seconds();
+  farm.stop = true;
+  for (std::thread& t : threads) t.join();
+  tessera::farm::stop_children(children, 10s);
+
+  RunResult result;
+  result.workers = n;
+  result.window_seconds = opt.seconds;
+  result.coordinator_cpu_seconds = serve_cpu1 - serve_cpu0;
+  result.client_cpu_seconds = self_cpu1 - self_cpu0;
+  for (WorkerTally& t : tallies) {
+    for (int r = 0; r < kRouteCount; ++r) {
+      result.total.latency_ms[r].insert(result.total.latency_ms[r].end(), t.latency_ms[r].begin(), t.latency_ms[r].end());
+    }
+    result.total.tiles_accepted += t.tiles_accepted;
+    result.total.upload_bytes += t.upload_bytes;
+    result.total.errors += t.errors;
+    if (result.total.first_error.empty()) result.total.first_error = t.first_error;
+  }
+  fs::remove_all(dir);
+  return result;
+}
+
+/// The q-quantile (0..1) of values (sorted in place); 0 for none.
+double quantile(std::vector<float>& values, double q) {
+  if (values.empty()) return 0;
+  std::sort(values.begin(), values.end());
+  const size_t i = std::min(values.size() - 1, size_t(q * double(values.size() - 1) + 0.5));
+  return values[i];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options opt;
+  CLI::App app{"N simulated workers against a real tessera serve: coordinator CPU, latency and tile rate"};
+  app.add_option("--tessera", opt.tessera, "The tessera binary")->required()->check(CLI::ExistingFile);
+  app.add_option("--workers", opt.worker_counts, "Simulated farm sizes")->delimiter(',');
+  app.add_option("--seconds", opt.seconds, "Measured window per farm size")->check(CLI::Range(1.0, 3600.0));
+  app.add_option("--warmup", opt.warmup, "Unmeasured seconds before each window")->check(CLI::Range(0.0, 600.0));
+  app.add_option("--tile-seconds", opt.tile_seconds, "Simulated render time per tile")->check(CLI::Range(0.01, 600.0));
+  app.add_option("--heartbeat-seconds", opt.heartbeat_seconds, "Heartbeat period (coordinator flag)")
+      ->check(CLI::Range(1, 3600));
+  app.add_option("--image", opt.image, "Job image edge in pixels")->check(CLI::Range(16, 16384));
+  app.add_option("--tile", opt.tile, "Tile edge in pixels")->check(CLI::Range(8, 4096));
+  app.add_option("--data-dir", opt.data_dir, "Folder for the coordinators' data (default: a temporary folder)");
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    fs::path base = opt.data_dir;
+    if (base.empty()) base = fs::temp_directory_path() / ("tessera-sim-workers-" + std::to_string(getpid()));
+    fs::create_directories(base);
+    const TileBank bank(opt.image, opt.tile);
+    const std::string tile_bytes = std::to_string(bank.at({0, 0, std::min(opt.tile, opt.image), std::min(opt.tile, opt.image)}).size());
+
+    std::printf("sim_workers: %d-pixel jobs in %d-pixel tiles (upload %s bytes each, uncompressed float32), "
+                "tile time %.2f s +-20%%, heartbeat every %d s, window %.0f s after %.0f s warm-up, %u cores\n",
+                opt.image, opt.tile, tile_bytes.c_str(), opt.tile_seconds, opt.heartbeat_seconds, opt.seconds,
+                opt.warmup, std::thread::hardware_concurrency());
+    {
+      std::ifstream load("/proc/loadavg");
+      std::string l1, l5, l15;
+      load >> l1 >> l5 >> l15;
+      std::printf("load average before the run: %s %s %s (other processes share these cores)\n", l1.c_str(),
+                  l5.c_str(), l15.c_str());
+    }
+    std::printf("%6s %9s %9s %10s %10s %9s %9s %9s %9s %9s %7s\n", "N", "tiles/s", "ideal/s", "coord CPU",
+                "ms/tile", "client", "lease p50", "lease p99", "upld p50", "upld p99", "errors");
+    std::vector<RunResult> results;
+    for (int n : opt.worker_counts) {
+      RunResult r = run_farm(opt, bank, base, n);
+      const double tiles_per_s = double(r.total.tiles_accepted) / r.window_seconds;
+      const double ideal = double(n) / opt.tile_seconds;
+      std::printf("%6d %9.1f %9.1f %9.1f%% %10.3f %8.1f%% %9.2f %9.2f %9.2f %9.2f %7lld\n", n, tiles_per_s, ideal,
+                  100 * r.coordinator_cpu_seconds / r.window_seconds,
+                  r.total.tiles_accepted ? 1000 * r.coordinator_cpu_seconds / double(r.total.tiles_accepted) : 0.0,
+                  100 * r.client_cpu_seconds / r.window_seconds, quantile(r.total.latency_ms[kLease], 0.5),
+                  quantile(r.total.latency_ms[kLease], 0.99), quantile(r.total.latency_ms[kUpload], 0.5),
+                  quantile(r.total.latency_ms[kUpload], 0.99), static_cast<long long>(r.total.errors));
+      std::fflush(stdout);
+      results.push_back(std::move(r));
+    }
+    std::printf("\nPer-route latency in the window (ms: count, p50, p99, max):\n");
+    for (RunResult& r : results) {
+      std::printf("N=%d:", r.workers);
+      for (int k = 0; k < kRouteCount; ++k) {
+        std::vector<float>& v = r.total.latency_ms[k];
+        if (v.empty()) continue;
+        std::printf("  %s %zu/%.2f/%.2f/%.1f", kRouteNames[k], v.size(), quantile(v, 0.5), quantile(v, 0.99),
+                    double(*std::max_element(v.begin(), v.end())));
+      }
+      std::printf("\n");
+      if (!r.total.first_error.empty()) std::printf("  first error: %s\n", r.total.first_error.c_str());
+    }
+    std::printf("\ncoord CPU: utime+stime of `tessera serve` / window (100%% = one core); ms/tile: coordinator CPU per "
+                "accepted tile, all its requests included; client: this process's CPU / window; ideal/s: N / tile "
+                "time (what the farm would do with no overhead and no 204 waits).\n");
+    fs::remove_all(base);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sim_workers: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

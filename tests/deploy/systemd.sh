@@ -1,0 +1,93 @@
+#!/usr/bin/env bash
+# deploy/systemd checked without booting anything: systemd-analyze verify (with ExecStart pointed at the built
+# binary) must print nothing, systemd-sysusers must accept the user file, every `tessera` flag in ExecStart must be
+# one the binary's --help lists (or one of the token flags being added in parallel, see docs/operations.md), every
+# variable ExecStart uses must come from the unit, its /etc/default file or a directory/credential setting of the
+# unit, and the worker must stop on a single SIGTERM with time to finish a tile. A self-test first breaks the units
+# in known ways and expects each to be caught. Arguments: TESSERA SOURCE_DIR.
+set -euo pipefail
+TESSERA=$(realpath "$1")
+SRC=$(realpath "$2")
+fail() { echo "FAIL: $*" >&2; exit 1; }
+for tool in systemd-analyze systemd-sysusers; do
+  command -v "$tool" >/dev/null || fail "'$tool' not found: install Debian's systemd"
+done
+WORK=$(mktemp -d "${TMPDIR:-/tmp}/tessera-systemd-test.XXXXXX")
+trap 'rm -rf "$WORK"' EXIT
+PENDING_FLAGS="serve:--client-token-file serve:--worker-token-file worker:--token-file"
+
+# check_units DIR: prints one line per problem with the units in DIR (nothing when they are right).
+check_units() {
+  local dir=$1 unit name sub flag var out
+  for unit in "$dir"/tessera-coordinator.service "$dir"/tessera-worker.service; do
+    name=$(basename "$unit" .service)
+    [ -f "$unit" ] || { echo "$name: missing"; continue; }
+    mkdir -p "$dir/verify"
+    sed "s#/usr/bin/tessera#$TESSERA#g" "$unit" >"$dir/verify/$name.service"
+    out=$(cd "$dir/verify" && systemd-analyze verify "$dir/verify/$name.service" 2>&1) || echo "$name: verify failed"
+    [ -z "$out" ] || echo "$name: systemd-analyze verify: $out"
+    # ExecStart as one line (continuations joined).
+    local exec
+    exec=$(sed -e ':a' -e '/\\$/N; s/\\\n//; ta' "$unit" | sed -n 's/^ExecStart=//p')
+    [ -n "$exec" ] || { echo "$name: no ExecStart"; continue; }
+    sub=$(awk '{print $2}' <<<"$exec")
+    local help
+    help=$("$TESSERA" "$sub" --help 2>/dev/null) || echo "$name: tessera $sub --help failed"
+    for flag in $(grep -oE -- '(^| )--[a-z][a-z0-9-]*' <<<"$exec"); do
+      grep -qE -- "(^|[ ,])$flag([ =,]|$)" <<<"$help" && continue
+      grep -qw -- "$sub:$flag" <<<"$PENDING_FLAGS" && continue
+      echo "$name: tessera $sub has no flag $flag"
+    done
+    local default_file="$dir/$name.default"
+    for var in $(grep -oE '\$\{?[A-Z_]+' <<<"$exec" | tr -d '${'); do
+      case $var in
+        STATE_DIRECTORY) grep -q '^StateDirectory=' "$unit" || echo "$name: uses \$STATE_DIRECTORY without StateDirectory=" ;;
+        CACHE_DIRECTORY) grep -q '^CacheDirectory=' "$unit" || echo "$name: uses \$CACHE_DIRECTORY without CacheDirectory=" ;;
+        CREDENTIALS_DIRECTORY)
+          for cred in $(grep -oE 'CREDENTIALS_DIRECTORY\}/[a-z-]+' <<<"$exec" | cut -d/ -f2); do
+            grep -q "^LoadCredential=$cred:" "$unit" || echo "$name: credential $cred is not loaded (LoadCredential=)"
+          done ;;
+        *) grep -q "^Environment=$var=" "$unit" || grep -q "^$var=" "$default_file" 2>/dev/null ||
+             echo "$name: \$$var is set neither in the unit nor in $name.default" ;;
+      esac
+    done
+  done
+  local worker=$dir/tessera-worker.service
+  grep -qx 'KillSignal=SIGTERM' "$worker" || echo "tessera-worker: KillSignal must be SIGTERM (finish the tile, exit 0)"
+  grep -qx 'KillMode=mixed' "$worker" || echo "tessera-worker: KillMode must be mixed (one SIGTERM to the worker only)"
+  local stop
+  stop=$(sed -n 's/^TimeoutStopSec=//p' "$worker")
+  [[ "$stop" =~ ^[0-9]+$ ]] && [ "$stop" -ge 120 ] || echo "tessera-worker: TimeoutStopSec ($stop) below 120 s"
+  out=$(mkdir -p "$dir/root/etc" && touch "$dir/root/etc/passwd" "$dir/root/etc/group" &&
+        systemd-sysusers --root="$dir/root" --dry-run "$dir/tessera.sysusers" 2>&1) || echo "sysusers: $out"
+  grep -q "Creating user 'tessera'" <<<"$out" || echo "sysusers: does not create the tessera user: $out"
+  grep -q '^User=tessera' "$dir/tessera-coordinator.service" || echo "tessera-coordinator: not run as tessera"
+  return 0
+}
+
+# Self-test: each mutation (file, sed expression, expected fragment) must be reported.
+mutations=(
+  "tessera-worker.service|s/^TimeoutStopSec=600/TimeoutStopSecs=600/|Unknown key"
+  "tessera-worker.service|s/^TimeoutStopSec=600/TimeoutStopSec=30/|below 120"
+  "tessera-worker.service|s/^KillMode=mixed/KillMode=control-group/|KillMode must be mixed"
+  "tessera-worker.service|s/--cache /--cache-dir /|has no flag --cache-dir"
+  "tessera-worker.service|s/^CacheDirectory=tessera/#/|without CacheDirectory"
+  "tessera-coordinator.service|s/^LoadCredential=worker-token/#/|credential worker-token is not loaded"
+  "tessera-coordinator.service|s/{TESSERA_LISTEN}/{TESSERA_LISTN}/|TESSERA_LISTN is set neither"
+  "tessera.sysusers|s/nologin/nologin extra/|sysusers"
+)
+for m in "${mutations[@]}"; do
+  IFS='|' read -r file expr expected <<<"$m"
+  rm -rf "$WORK/m" && cp -r "$SRC/deploy/systemd" "$WORK/m"
+  before=$(md5sum <"$WORK/m/$file")
+  sed -i "$expr" "$WORK/m/$file"
+  [ "$(md5sum <"$WORK/m/$file")" != "$before" ] || fail "self-test: '$expr' changed nothing in $file; update the mutation"
+  report=$(check_units "$WORK/m")
+  grep -qF -- "$expected" <<<"$report" || fail "self-test: '$expr' on $file was not caught (report: ${report:-empty})"
+done
+echo "self-test: all ${#mutations[@]} deliberate mistakes were caught"
+
+rm -rf "$WORK/real" && cp -r "$SRC/deploy/systemd" "$WORK/real"
+report=$(check_units "$WORK/real")
+[ -z "$report" ] || fail "$report"
+echo "PASS: systemd units verified (systemd $(systemd --version | awk 'NR==1{print $2}'))"
