@@ -1,8 +1,15 @@
 #include "server/database.h"
 
 #include <sqlite3.h>
+#include <spdlog/spdlog.h>
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <stdexcept>
 
@@ -196,6 +203,9 @@ DurableStore::DurableStore(const fs::path& dir)
     : jobs_dir_(dir / "jobs"), scratch_(dir / "tmp"), db_((make_dirs(dir), dir / "tessera.db")) {
   make_dirs(jobs_dir_);
   make_dirs(scratch_);
+  // Commits survive a process crash without waiting for the disk; sync() makes them survive a power cut when the
+  // scheduler acknowledges something, outside its lock (see SchedulerStore::sync).
+  db_.exec("PRAGMA synchronous=NORMAL");
   Transaction tx(db_);
   db_.exec(kSchema);
   Statement& get = db_.statement("SELECT value FROM meta WHERE key = 'schema_version'");
@@ -212,7 +222,31 @@ DurableStore::DurableStore(const fs::path& dir)
   tx.commit();
 }
 
-DurableStore::~DurableStore() = default;
+DurableStore::~DurableStore() {
+  if (wal_fd_ >= 0) ::close(wal_fd_);
+}
+
+void DurableStore::sync() {
+  int fd = -1;
+  {
+    std::lock_guard lock(wal_mu_);
+    struct stat st {};
+    if (wal_fd_ >= 0 && (::fstat(wal_fd_, &st) != 0 || st.st_nlink == 0)) {  // the log was removed and made anew
+      ::close(wal_fd_);
+      wal_fd_ = -1;
+    }
+    if (wal_fd_ < 0) wal_fd_ = ::open((db_.file().string() + "-wal").c_str(), O_RDONLY | O_CLOEXEC);
+    fd = wal_fd_;
+  }
+  // No lock held during the flush: concurrent callers wait for the same disk write instead of queueing behind a mutex.
+  if (fd >= 0 && ::fdatasync(fd) == 0) return;
+  const int err = errno;
+  // After a failed flush the kernel may have dropped the dirty pages, so retrying cannot tell whether they reached
+  // the disk: stop, and let a restart recover from what the disk holds (acknowledged results were never acknowledged).
+  spdlog::critical("cannot flush {}-wal to disk ({}); stopping the coordinator", db_.file().string(),
+                   fd < 0 ? "cannot open it" : std::strerror(err));
+  std::abort();
+}
 
 void DurableStore::apply(const SchedulerChanges& c) {
   std::lock_guard lock(mu_);

@@ -113,6 +113,10 @@ class DurableStore final : public SchedulerStore, public JobStore {
 
   void apply(const SchedulerChanges& changes) override;
   SchedulerSnapshot load() override;
+  /// fdatasync of the write-ahead log: commits run with synchronous=NORMAL (safe against a process crash), and this
+  /// makes them safe against a power cut. A failed flush aborts the process (the page cache can no longer be trusted;
+  /// a restart recovers from what is on disk).
+  void sync() override;
 
   void save_record(const std::string& job, const nlohmann::json& record) override;
   std::optional<nlohmann::json> load_record(const std::string& job) override;
@@ -125,6 +129,8 @@ class DurableStore final : public SchedulerStore, public JobStore {
 
  private:
   std::mutex mu_;
+  std::mutex wal_mu_;   // guards wal_fd_
+  int wal_fd_ = -1;     // the write-ahead log, opened for sync()
   std::filesystem::path jobs_dir_, scratch_;
   Database db_;
 };

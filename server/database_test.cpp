@@ -305,3 +305,50 @@ TEST(TileBytes, RoundTripAndSizeCheck) {
 
 }  // namespace
 }  // namespace tessera::server
+
+namespace tessera::server {
+namespace {
+
+// Records, per scheduler operation, whether it asked the store to flush to disk.
+struct RecordingStore final : SchedulerStore {
+  int applies = 0, syncs = 0;
+  void apply(const SchedulerChanges&) override { ++applies; }
+  SchedulerSnapshot load() override { return {}; }
+  void sync() override { ++syncs; }
+  // True when the last operation stored changes and flushed them; resets the counts.
+  bool flushed() {
+    const bool r = syncs > 0;
+    EXPECT_LE(syncs, applies) << "a flush without stored changes";
+    applies = syncs = 0;
+    return r;
+  }
+};
+
+TEST(SchedulerSync, OnlyAcknowledgementsWaitForTheDisk) {
+  RecordingStore store;
+  int64_t now = 1'000;
+  Scheduler s(SchedulerConfig{10'000, 3, 2, "s"}, [&] { return now; }, store);
+  const std::string w = s.register_worker("w");
+  EXPECT_FALSE(store.flushed()) << "a registration is not an acknowledgement that must survive a power cut";
+  JobParams p;
+  p.width = 8;
+  p.height = 4;
+  p.tile_size = 4;
+  p.spp = 1;
+  const std::string j = s.add_job(p);
+  EXPECT_TRUE(store.flushed()) << "a submission must be on disk before the client hears of it";
+  const Lease l = s.acquire(w).lease;
+  EXPECT_FALSE(store.flushed()) << "a lease grant";
+  s.heartbeat(l.id, 10);
+  EXPECT_FALSE(store.flushed()) << "a heartbeat";
+  ASSERT_EQ(s.claim_result(l.id).status, ResultClaim::proceed);
+  s.finish_result(l.id, 0, std::string(4 * 4 * 3 * sizeof(float), '\0'));
+  EXPECT_TRUE(store.flushed()) << "a done tile must be on disk before the worker hears 200";
+  s.acquire(w);
+  EXPECT_FALSE(store.flushed());
+  s.cancel(j);
+  EXPECT_TRUE(store.flushed()) << "a job's end";
+}
+
+}  // namespace
+}  // namespace tessera::server

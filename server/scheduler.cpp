@@ -1,5 +1,7 @@
 #include "server/scheduler.h"
 
+#include <utility>
+
 #include "core/tiles.h"
 
 #include <algorithm>
@@ -96,7 +98,7 @@ Scheduler::~Scheduler() = default;
 // wait for the next operation that stores: for changes a restart may safely forget).
 template <class F>
 auto Scheduler::transact(F&& f, bool store_now) {
-  std::lock_guard lock(mu_);
+  std::unique_lock lock(mu_);
   const int64_t now = clock_();
   using R = std::invoke_result_t<F&, int64_t>;
   std::optional<R> r;
@@ -111,6 +113,9 @@ auto Scheduler::transact(F&& f, bool store_now) {
     throw;
   }
   if (store_now) flush_locked();
+  const bool due = std::exchange(sync_due_, false);
+  lock.unlock();
+  if (due) store_->sync();  // outside the lock: other operations go on while the disk catches up
   return std::move(*r);
 }
 
@@ -123,6 +128,7 @@ void Scheduler::flush_locked() {
     dirty_tiles_.clear();
     dirty_leases_.clear();
     new_workers_.clear();
+    sync_needed_ = false;
     return;
   }
   if (dirty_jobs_.empty() && dirty_tiles_.empty() && dirty_leases_.empty() && new_workers_.empty() &&
@@ -154,6 +160,7 @@ void Scheduler::flush_locked() {
   }
   // On failure the dirty sets stay, so the next operation writes these rows again.
   store_->apply(c);
+  if (std::exchange(sync_needed_, false)) sync_due_ = true;
   dirty_jobs_.clear();
   dirty_tiles_.clear();
   dirty_leases_.clear();
@@ -252,6 +259,7 @@ std::string Scheduler::add_job(const JobParams& p, const std::string& id_in) {
     rec->status.created_ms = now;
     rec->status.tiles.total = grid.count();
     rec->tiles.resize(size_t(grid.count()));
+    sync_needed_ = true;  // the client is told the job exists
     for (int64_t i = 0; i < grid.count(); ++i) {
       rec->pending.insert(rec->pending.end(), i);
       touch_tile(*rec, i);
@@ -487,6 +495,7 @@ FinishResult Scheduler::finish_result(const std::string& lease, uint64_t rays, s
     touch_tile(j, tile);
     touch_job(j);
     done_pixels_.emplace(std::make_pair(j.status.id, tile), pixels);
+    sync_needed_ = true;  // the worker is told its result is safe
     try {
       flush_locked();  // here rather than after: a tile the store did not take must not look done
     } catch (...) {
@@ -669,6 +678,7 @@ void Scheduler::finish_job_locked(JobRec& j, JobState to, int64_t now, std::opti
   j.status.state = to;
   j.status.finished_ms = now;
   j.status.error = std::move(error);
+  sync_needed_ = true;
   touch_job(j);
   for (auto it = live_leases_.begin(); it != live_leases_.end();) {
     LeaseRec& l = leases_.at(*it);

@@ -215,8 +215,8 @@ struct SchedulerSnapshot {
   CounterRow counters;             ///< Counters and id sequence.
 };
 
-/// Durable home of the scheduler's state. apply() is all-or-nothing: after it returns, the changes survive a crash;
-/// when it throws, none of them were stored.
+/// Durable home of the scheduler's state. apply() is all-or-nothing: after it returns, the changes survive a crash of
+/// the process (when it throws, none of them were stored); after a later sync() returns they survive a power cut too.
 class SchedulerStore {
  public:
   virtual ~SchedulerStore() = default;
@@ -224,6 +224,10 @@ class SchedulerStore {
   virtual void apply(const SchedulerChanges& changes) = 0;
   /// Everything stored so far.
   virtual SchedulerSnapshot load() = 0;
+  /// Waits until every change applied so far is on the disk. The scheduler calls it without holding its lock after
+  /// operations that acknowledge something (a submission, a done tile, a job's end), so concurrent callers share one
+  /// disk flush and lease grants never wait for one.
+  virtual void sync() {}
 };
 
 /// The job/tile/lease state machine. Thread-safe: each call takes one lock and is one atomic step. Expired leases are
@@ -348,6 +352,8 @@ class Scheduler {
   std::set<std::pair<std::string, int64_t>> dirty_tiles_;
   std::optional<std::pair<std::pair<std::string, int64_t>, std::string_view>> done_pixels_;  // tile -> pixels
   CounterRow flushed_counters_;                       // counters as last stored
+  bool sync_needed_ = false;                          // the pending changes include an acknowledgement (see SchedulerStore::sync)
+  bool sync_due_ = false;                             // such changes were stored: sync() before the operation returns
   uint64_t tiles_rendered_ = 0;
   uint64_t lease_expiries_ = 0;
   uint64_t rays_ = 0;
