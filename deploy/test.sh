@@ -25,5 +25,5 @@ echo "== sanitizer tests"
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --test-dir build-san --output-on-failure -j "$JOBS"
 
-echo "== fuzzing (scene loader, OBJ reader, HTTP handler: 60 s each, two at a time)"
-bash tests/fuzz/run.sh build-san 60
+echo "== fuzzing (scene loader, OBJ reader, HTTP handler: 60 s each, all three at once)"
+FUZZ_PARALLEL=3 bash tests/fuzz/run.sh build-san 60

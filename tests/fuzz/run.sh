@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Runs the libFuzzer targets for a bounded time each, two at a time, on copies of the seed corpora (so nothing is
-# written into the repository). Usage: tests/fuzz/run.sh BUILD_DIR [SECONDS_PER_TARGET] [TARGET...]
+# Runs the libFuzzer targets for a bounded time each, FUZZ_PARALLEL (default 2) at a time, on copies of the seed
+# corpora (so nothing is written into the repository). Usage: tests/fuzz/run.sh BUILD_DIR [SECONDS_PER_TARGET] [TARGET...]
 # Exits non-zero when a target finds a crash, a sanitizer error or a leak; the input that did it is kept in
 # BUILD_DIR/fuzz-artifacts/ and its path printed.
 set -euo pipefail
@@ -36,7 +36,7 @@ pids=()
 for t in "${TARGETS[@]}"; do
   run_one "$t" &
   pids+=($!)
-  if [ ${#pids[@]} -ge 2 ]; then
+  if [ ${#pids[@]} -ge "${FUZZ_PARALLEL:-2}" ]; then
     wait "${pids[0]}" || status=1
     pids=("${pids[@]:1}")
   fi
