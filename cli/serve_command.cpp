@@ -24,6 +24,22 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
                 "File holding the bearer token clients must send (default: $TESSERA_CLIENT_TOKEN)");
   c->add_option("--worker-token-file", a.worker_token_file,
                 "File holding the bearer token workers must send (default: $TESSERA_WORKER_TOKEN)");
+  c->add_option("--max-queued-jobs", a.max_queued_jobs, "Queued plus running jobs; more submissions get 429 with Retry-After")
+      ->check(CLI::Range(int64_t(1), int64_t(1) << 40))->capture_default_str();
+  c->add_option("--max-job-pixels", a.max_job_pixels, "Largest width x height of one job (400 above it)")
+      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 28))->capture_default_str();
+  c->add_option("--max-job-samples", a.max_job_samples, "Largest width x height x spp of one job (400 above it)")
+      ->check(CLI::Range(1.0, 1e18))->capture_default_str();
+  c->add_option("--max-json-bytes", a.max_json_bytes, "Largest JSON request body (413 above it)")
+      ->check(CLI::Range(std::size_t(1024), std::size_t(1) << 32))->capture_default_str();
+  c->add_option("--max-blob-bytes", a.max_blob_bytes, "Largest asset upload (413 above it)")
+      ->check(CLI::Range(std::size_t(1), std::size_t(1) << 40))->capture_default_str();
+  c->add_option("--max-result-bytes", a.max_result_bytes, "Largest tile result upload (413 above it)")
+      ->check(CLI::Range(std::size_t(1024), std::size_t(1) << 40))->capture_default_str();
+  c->add_option("--max-header-bytes", a.max_header_bytes, "Largest request header (431 above it)")
+      ->check(CLI::Range(std::size_t(1024), std::size_t(1) << 24))->capture_default_str();
+  c->add_option("--max-connections", a.max_connections, "Open connections; more are answered 503 and closed")
+      ->check(CLI::Range(std::size_t(1), std::size_t(1) << 20))->capture_default_str();
   c->add_flag("-v,--verbose", a.verbose, "Log every lease and connection event");
   return c;
 }
@@ -38,6 +54,14 @@ int run_serve(const ServeArgs& a) {
     o.heartbeat_seconds = a.heartbeat_seconds;
     o.read_timeout = std::chrono::milliseconds(int64_t(a.read_timeout_seconds * 1000));
     o.handler_threads = a.threads;
+    o.limits.max_queued_jobs = a.max_queued_jobs;
+    o.limits.max_job_pixels = a.max_job_pixels;
+    o.limits.max_job_samples = a.max_job_samples;
+    o.limits.json_limit = a.max_json_bytes;
+    o.limits.blob_limit = a.max_blob_bytes;
+    o.limits.result_limit = a.max_result_bytes;
+    o.header_limit = a.max_header_bytes;
+    o.max_connections = a.max_connections;
     o.handle_signals = true;
     o.limits.tokens.client = load_token(a.client_token_file, "TESSERA_CLIENT_TOKEN");
     o.limits.tokens.worker = load_token(a.worker_token_file, "TESSERA_WORKER_TOKEN");

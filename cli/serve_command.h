@@ -3,6 +3,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include <cstddef>
+#include <cstdint>
 #include <string>
 
 namespace tessera::cli {
@@ -18,6 +20,14 @@ struct ServeArgs {
   int threads = 0;                        ///< Request handler threads (0: cores).
   std::string client_token_file;          ///< File holding the client token (else $TESSERA_CLIENT_TOKEN).
   std::string worker_token_file;          ///< File holding the worker token (else $TESSERA_WORKER_TOKEN).
+  int64_t max_queued_jobs = 1000;         ///< Queued plus running jobs before POST /v1/jobs answers 429.
+  uint64_t max_job_pixels = uint64_t(1) << 26;  ///< width x height of one job.
+  double max_job_samples = 4e10;          ///< width x height x spp of one job.
+  std::size_t max_json_bytes = std::size_t(16) << 20;    ///< JSON request bodies.
+  std::size_t max_blob_bytes = std::size_t(256) << 20;   ///< Blob uploads.
+  std::size_t max_result_bytes = std::size_t(64) << 20;  ///< Tile result uploads.
+  std::size_t max_header_bytes = 64 * 1024;              ///< Request headers.
+  std::size_t max_connections = 1024;     ///< Open connections.
   bool verbose = false;                   ///< Debug logging.
 };
 

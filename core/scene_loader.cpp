@@ -141,6 +141,10 @@ struct ObjMesh {
 ObjMesh load_obj(const fs::path& file, const std::string& label, const glm::mat4& xf, const Vec3& translate,
                  Ctx& ctx, const std::string& path) {
   const std::string text = read_file(file, ctx.name + ": " + path);
+  // OBJ is text; tinyobjloader skips lines it does not know, so a binary file (an EXR named .obj, say) would load
+  // as an empty mesh with only a warning.
+  if (const size_t nul = text.find('\0'); nul != std::string::npos)
+    ctx.fail(path, label + ": not a valid OBJ: binary data (a NUL byte at offset " + std::to_string(nul) + ")");
   tinyobj::ObjReaderConfig cfg;
   cfg.triangulate = true;
   cfg.vertex_color = false;
@@ -305,15 +309,9 @@ LoadedScene load_scene_file(const fs::path& path, const LoadOptions& options) {
   } catch (const SceneError&) {
     throw SceneError(path.string() + ": cannot read scene file");
   }
-  json j;
-  try {
-    j = json::parse(text);
-  } catch (const json::exception& e) {  // parse errors, and numbers beyond the double range (out_of_range)
-    throw SceneError(path.string() + ": invalid JSON: " + e.what());
-  }
   const fs::path base = path.parent_path().empty() ? fs::path(".") : path.parent_path();
   const fs::path root = options.asset_root ? *options.asset_root : base;
-  return load_scene_json(j, path.string(), [&](const std::string& rel, const std::string& jp) {
+  return load_scene_text(text, path.string(), [&](const std::string& rel, const std::string& jp) {
     try {
       const fs::path p = resolve_inside(base, root, rel, jp, options.asset_root.has_value());
       if (!fs::is_regular_file(p)) throw SceneError(jp + ": file '" + rel + "' not found (looked at " + p.string() + ")");
@@ -329,6 +327,38 @@ namespace {
 LoadedScene load_checked(const json& j, const std::string& name, const AssetResolver& resolve, const LoadOptions& options);
 
 }  // namespace
+
+int json_nesting_depth(std::string_view text) {
+  int depth = 0, deepest = 0;
+  bool in_string = false, escaped = false;
+  for (const char c : text) {
+    if (in_string) {
+      if (escaped) escaped = false;
+      else if (c == '\\') escaped = true;
+      else if (c == '"') in_string = false;
+    } else if (c == '"') {
+      in_string = true;
+    } else if (c == '[' || c == '{') {
+      deepest = std::max(deepest, ++depth);
+    } else if ((c == ']' || c == '}') && depth > 0) {
+      --depth;
+    }
+  }
+  return deepest;
+}
+
+LoadedScene load_scene_text(std::string_view text, const std::string& name, const AssetResolver& resolve,
+                            const LoadOptions& options) {
+  if (json_nesting_depth(text) > kMaxSceneJsonDepth)
+    throw SceneError(name + ": invalid JSON: arrays/objects nested deeper than " + std::to_string(kMaxSceneJsonDepth) + " levels");
+  json j;
+  try {
+    j = json::parse(text);
+  } catch (const json::exception& e) {  // parse errors, and numbers beyond the double range (out_of_range)
+    throw SceneError(name + ": invalid JSON: " + e.what());
+  }
+  return load_scene_json(j, name, resolve, options);
+}
 
 LoadedScene load_scene_json(const json& j, const std::string& name, const AssetResolver& resolve, const LoadOptions& options) {
   // Whatever goes wrong below (a JSON type mismatch we did not foresee, a filesystem or hashing error) leaves this

@@ -10,6 +10,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace tessera {
@@ -43,6 +44,18 @@ struct LoadedScene {
 
 /// Loads a scene file; assets resolve against its folder and must stay inside it (or inside asset_root).
 LoadedScene load_scene_file(const std::filesystem::path& path, const LoadOptions& options = {});
+
+/// Deepest nesting of arrays and objects in a JSON text (brackets inside strings do not count); scans without
+/// recursion, so callers can refuse deep input before parsing it (printing or copying it would recurse).
+int json_nesting_depth(std::string_view text);
+
+/// Nesting depth load_scene_text accepts (the format needs 5).
+inline constexpr int kMaxSceneJsonDepth = 64;
+
+/// Loads a scene from its JSON text (as read from a file named `name`); malformed or too deeply nested JSON is a
+/// SceneError too.
+LoadedScene load_scene_text(std::string_view text, const std::string& name, const AssetResolver& resolve,
+                            const LoadOptions& options = {});
 
 /// Loads a parsed scene; `name` prefixes messages, `resolve` finds assets.
 LoadedScene load_scene_json(const nlohmann::json& scene, const std::string& name, const AssetResolver& resolve,

@@ -72,6 +72,23 @@ TEST_F(SceneLoader, BadObjVertexIndexNamesJsonPath) {
   expect_error(mesh_scene("bad.obj"), {"objects[1].path", "bad.obj", "vertex 7"});
 }
 
+TEST_F(SceneLoader, BinaryObjIsAnErrorNotAnEmptyMesh) {
+  write("binary.obj", std::string("v/1\x01\x02\0\0\0channels\0", 18));
+  expect_error(mesh_scene("binary.obj"), {"objects[1].path", "not a valid OBJ: binary data (a NUL byte at offset 5)"});
+}
+
+TEST_F(SceneLoader, DeeplyNestedJsonIsRefusedBeforeParsing) {
+  EXPECT_EQ(json_nesting_depth(R"({"a": [1, {"b": "[[[{{{"}], "c\"[": []})"), 3);
+  const std::string deep = R"({"objects": )" + std::string(100000, '[') + std::string(100000, ']') + "}";
+  try {
+    load_scene_text(deep, "deep.json", [](const std::string&, const std::string&) { return fs::path(); });
+    FAIL() << "a scene nested 100001 levels deep loaded";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("deep.json: invalid JSON: arrays/objects nested deeper than 64 levels"),
+              std::string::npos) << e.what();
+  }
+}
+
 TEST_F(SceneLoader, BadObjNormalIndexNamesJsonPath) {
   write("badn.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//5\n");
   expect_error(mesh_scene("badn.obj"), {"objects[1].path", "badn.obj", "normal 5"});

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <chrono>
 #include <charconv>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -63,10 +64,14 @@ json parse_object(const HttpRequest& req, std::initializer_list<const char*> kno
     if (allow_empty) return json::object();
     throw HttpError(http::status::bad_request, "request body is empty; expected a JSON object");
   }
+  // Deep nesting is refused before parsing: printing, copying or destroying such a value recurses per level.
+  if (json_nesting_depth(body) > kMaxSceneJsonDepth)
+    throw HttpError(http::status::bad_request,
+                    "malformed JSON: arrays/objects nested deeper than " + std::to_string(kMaxSceneJsonDepth) + " levels");
   json j;
   try {
     j = json::parse(body);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // syntax errors, and numbers beyond the double range (out_of_range)
     throw HttpError(http::status::bad_request, std::string("malformed JSON: ") + e.what());
   }
   if (!j.is_object()) throw HttpError(http::status::bad_request, std::string("expected a JSON object, got ") + j.type_name());
@@ -336,6 +341,24 @@ json Api::job_json(const JobStatus& s) const {
 }
 
 HttpResponse Api::post_job(HttpRequest& req) {
+  // Admission: queued plus running jobs are bounded (checked again, atomically with add_job, below).
+  auto unfinished_jobs = [this] {
+    const SchedulerCounters c = sched_.counters();
+    int64_t n = 0;
+    for (const JobState st : {JobState::queued, JobState::running})
+      if (const auto it = c.jobs.find(st); it != c.jobs.end()) n += it->second;
+    return n;
+  };
+  auto queue_full = [&] {
+    HttpResponse res = json_error(http::status::too_many_requests,
+                                  "too many unfinished jobs: " + std::to_string(opt_.max_queued_jobs) +
+                                      " are queued or running (--max-queued-jobs); retry later",
+                                  req.version());
+    res.set(http::field::retry_after, std::to_string(opt_.retry_after_seconds));
+    return res;
+  };
+  if (unfinished_jobs() >= opt_.max_queued_jobs) return queue_full();
+
   const json j = parse_object(req, {"scene", "assets", "spp", "seed", "tile_size", "priority", "name", "integrator",
                                     "target_error", "min_spp", "max_spp"}, false);
   if (!j.contains("scene")) throw HttpError(http::status::bad_request, "'scene' is missing");
@@ -375,6 +398,21 @@ HttpResponse Api::post_job(HttpRequest& req) {
   if (!integrator.empty() && integrator != "direct" && integrator != "intersection_test")
     throw HttpError(http::status::bad_request, "'integrator' must be \"direct\" or \"intersection_test\" (got \"" + integrator + "\")");
 
+  // Asset paths are names for blobs (the coordinator and workers never open them as files), but a scene that renders
+  // here must render with `tessera render` too: the same paths the loader refuses are refused here.
+  auto check_path = [](const std::string& rel, const std::string& where) {
+    const fs::path p(rel);
+    if (rel.empty()) throw HttpError(http::status::bad_request, where + ": empty asset path");
+    if (rel.find('\0') != std::string::npos) throw HttpError(http::status::bad_request, where + ": asset path contains a NUL byte");
+    if (p.is_absolute() || p.has_root_name() || p.has_root_directory())
+      throw HttpError(http::status::bad_request, where + ": absolute asset path '" + rel + "' (paths are relative to the scene's folder)");
+    const fs::path n = p.lexically_normal();
+    if (n.empty() || *n.begin() == "..")
+      throw HttpError(http::status::bad_request, where + ": asset path '" + rel + "' leaves the scene's folder");
+  };
+  for (const auto& [path, sha] : assets) check_path(path, "assets[\"" + path + "\"]");
+  for (const std::string& path : scene_asset_paths(scene)) check_path(path, "scene");
+
   // Every asset the scene uses must be named and uploaded; say which are not, all at once.
   std::string missing;
   for (const std::string& path : scene_asset_paths(scene)) {
@@ -403,6 +441,21 @@ HttpResponse Api::post_job(HttpRequest& req) {
     throw HttpError(http::status::bad_request, e.what());
   }
   const Scene& s = loaded.scene;
+  // Size limits: the merged image is held in memory, and width x height x spp bounds the work one job may ask for.
+  const uint64_t pixels = uint64_t(s.width) * uint64_t(s.height);
+  if (pixels > opt_.max_job_pixels)
+    throw HttpError(http::status::bad_request, "job too large: " + std::to_string(s.width) + "x" + std::to_string(s.height) +
+                                                   " = " + std::to_string(pixels) + " pixels is over the limit of " +
+                                                   std::to_string(opt_.max_job_pixels) + " (--max-job-pixels)");
+  const uint64_t per_pixel = target_error > 0.0 ? uint64_t(max_spp) : uint64_t(s.settings.spp);
+  const double samples = double(pixels) * double(per_pixel);
+  if (samples > opt_.max_job_samples) {
+    char text[256];
+    std::snprintf(text, sizeof text, "job too large: %dx%d pixels x %llu %s = %.3g samples is over the limit of %.3g (--max-job-samples)",
+                  s.width, s.height, static_cast<unsigned long long>(per_pixel), target_error > 0.0 ? "max_spp" : "spp",
+                  samples, opt_.max_job_samples);
+    throw HttpError(http::status::bad_request, text);
+  }
   JobParams p;
   p.name = name;
   p.priority = priority;
@@ -421,6 +474,8 @@ HttpResponse Api::post_job(HttpRequest& req) {
     spec["min_spp"] = min_spp;
     spec["max_spp"] = max_spp;
   }
+  std::unique_lock admit(admit_mu_);
+  if (unfinished_jobs() >= opt_.max_queued_jobs) return queue_full();
   const std::string id = sched_.new_job_id();
   json record = spec;
   record["id"] = id;
@@ -434,6 +489,7 @@ HttpResponse Api::post_job(HttpRequest& req) {
     specs_[id] = spec;
   }
   sched_.add_job(p, id);
+  admit.unlock();
   spdlog::info("job {}: submitted '{}' {}x{} spp {} seed {} tile {} priority {} ({} tiles)", id, name, p.width, p.height,
                p.spp, p.seed, p.tile_size, p.priority, TileGrid(p.width, p.height, p.tile_size).count());
   for (const auto& w : loaded.warnings) spdlog::warn("job {}: {}", id, w);

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cstddef>
+#include <cstdint>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -29,6 +30,10 @@ struct ApiOptions {
   std::size_t result_limit = std::size_t(64) << 20;  ///< Tile result uploads.
   int heartbeat_seconds = 5;                         ///< Heartbeat interval announced to workers.
   AccessTokens tokens;                               ///< Bearer tokens (empty: that side's endpoints are open).
+  int64_t max_queued_jobs = 1000;                    ///< Queued plus running jobs; more submissions get 429.
+  int retry_after_seconds = 30;                      ///< Retry-After announced with 429.
+  uint64_t max_job_pixels = uint64_t(1) << 26;       ///< width x height of one job (the merged image lives in memory).
+  double max_job_samples = 4e10;                     ///< width x height x spp (x max_spp when adaptive) of one job.
 };
 
 /// The endpoints a request target can name.
@@ -94,6 +99,7 @@ class Api final : public HttpHandler {
   ClockMs clock_;
   ApiOptions opt_;
   std::mutex mu_;
+  std::mutex admit_mu_;                                      // makes the queued-jobs check and add_job one step
   std::map<std::string, std::shared_ptr<JobImage>> images_;  // running jobs' images (a cache of the stored tiles)
   std::map<std::string, nlohmann::json> specs_;              // job id -> what workers need to build the scene
 };

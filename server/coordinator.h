@@ -20,8 +20,10 @@ struct CoordinatorOptions {
   std::filesystem::path data_dir;              ///< Holds tessera.db, blobs/, jobs/ and tmp/.
   double lease_seconds = 30;                   ///< Lease length.
   int heartbeat_seconds = 5;                   ///< Heartbeat interval announced to workers.
-  ApiOptions limits;                           ///< Body size limits and access tokens.
+  ApiOptions limits;                           ///< Body sizes, queued jobs, job size, access tokens.
   std::chrono::milliseconds read_timeout{30'000};  ///< Whole-request read timeout.
+  std::size_t header_limit = 64 * 1024;        ///< Largest request header.
+  std::size_t max_connections = 1024;          ///< Open connections (more get 503).
   int io_threads = 1;                          ///< Network threads.
   int handler_threads = 0;                     ///< Request handler threads (0: max(2, cores)).
   bool handle_signals = false;                 ///< Stop gracefully on SIGINT/SIGTERM.

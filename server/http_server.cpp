@@ -24,7 +24,8 @@ using tcp = asio::ip::tcp;
 HttpResponse json_error(http::status status, const std::string& text, unsigned version) {
   HttpResponse res{status, version};
   res.set(http::field::content_type, "application/json");
-  res.body() = nlohmann::json{{"error", text}}.dump();
+  // The text may quote a request target or key with arbitrary bytes: replace what is not UTF-8 instead of throwing.
+  res.body() = nlohmann::json{{"error", text}}.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
   res.prepare_payload();
   return res;
 }
@@ -108,7 +109,9 @@ class Session : public std::enable_shared_from_this<Session> {
       if (ec == beast::error::timeout) spdlog::debug("connection {}: read timeout, closed", id_);
       return close();
     }
-    if (ec == http::error::header_limit) return reply_and_close(json_error(http::status::bad_request, "request header too large"));
+    if (ec == http::error::header_limit)
+      return reply_and_close(json_error(http::status::request_header_fields_too_large,
+                                        "request header is larger than the limit of " + std::to_string(st_->opt.header_limit) + " bytes"));
     reply_and_close(json_error(http::status::bad_request, "malformed HTTP request: " + ec.message()));
   }
 
@@ -185,6 +188,41 @@ class Session : public std::enable_shared_from_this<Session> {
 
 namespace {
 
+// A connection over the limit: answered 503 at once (without reading its request), half-closed, and drained for
+// at most a second so the answer is not lost to a reset.
+class Refusal : public std::enable_shared_from_this<Refusal> {
+ public:
+  Refusal(tcp::socket&& socket, std::size_t limit) : stream_(std::move(socket)) {
+    res_ = json_error(http::status::service_unavailable,
+                      "too many connections (the limit is " + std::to_string(limit) + "); retry later");
+    res_.set(http::field::retry_after, "1");
+    res_.keep_alive(false);
+  }
+
+  void run() {
+    stream_.expires_after(std::chrono::seconds(1));
+    http::async_write(stream_, res_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
+      beast::error_code ignored;
+      if (ec) return void(self->stream_.socket().close(ignored));
+      self->stream_.socket().shutdown(tcp::socket::shutdown_send, ignored);
+      self->drain();
+    });
+  }
+
+ private:
+  void drain() {
+    stream_.async_read_some(asio::buffer(buf_), [self = shared_from_this()](beast::error_code ec, std::size_t) {
+      if (!ec) return self->drain();
+      beast::error_code ignored;
+      self->stream_.socket().close(ignored);
+    });
+  }
+
+  beast::tcp_stream stream_;
+  HttpResponse res_;
+  std::array<char, 4096> buf_;
+};
+
 void accept_next(const std::shared_ptr<HttpServer::State>& st) {
   st->acceptor.async_accept(asio::make_strand(st->ioc), [st](beast::error_code ec, tcp::socket socket) {
     if (ec == asio::error::operation_aborted || !st->acceptor.is_open() || st->stopping) return;
@@ -195,13 +233,22 @@ void accept_next(const std::shared_ptr<HttpServer::State>& st) {
       beast::error_code nodelay_ec;
       socket.set_option(tcp::no_delay(true), nodelay_ec);
       std::shared_ptr<Session> s;
+      bool over_limit = false;
       {
         std::lock_guard lock(st->mu);
-        const uint64_t id = st->next_session++;
-        s = std::make_shared<Session>(std::move(socket), st, id);
-        st->sessions.emplace(id, s);
+        over_limit = st->sessions.size() >= st->opt.max_connections;
+        if (!over_limit) {
+          const uint64_t id = st->next_session++;
+          s = std::make_shared<Session>(std::move(socket), st, id);
+          st->sessions.emplace(id, s);
+        }
       }
-      s->run();
+      if (over_limit) {
+        spdlog::warn("connection refused: {} connections open (--max-connections)", st->opt.max_connections);
+        std::make_shared<Refusal>(std::move(socket), st->opt.max_connections)->run();
+      } else {
+        s->run();
+      }
     }
     accept_next(st);
   });

@@ -21,7 +21,7 @@ using HttpRequest = http::request<http::string_body>;
 /// A whole HTTP response.
 using HttpResponse = http::response<http::string_body>;
 
-/// A JSON error response `{"error": text}` with the given status.
+/// A JSON error response `{"error": text}` with the given status (bytes that are not UTF-8 become U+FFFD).
 HttpResponse json_error(http::status status, const std::string& text, unsigned version = 11);
 
 /// The application behind the transport.
@@ -41,7 +41,8 @@ struct HttpServerOptions {
   std::string host = "127.0.0.1";                      ///< Address to bind.
   unsigned short port = 0;                             ///< Port (0: any free one).
   std::chrono::milliseconds read_timeout{30'000};      ///< A whole request (or keep-alive idle time) must fit in it.
-  std::size_t header_limit = 64 * 1024;                ///< Largest request header.
+  std::size_t header_limit = 64 * 1024;                ///< Largest request header (larger ones get 431).
+  std::size_t max_connections = 1024;                  ///< Open connections; more are answered 503 and closed.
 };
 
 /// Accepts connections and runs one session per connection (each on its own strand); requests are answered on a

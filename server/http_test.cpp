@@ -103,6 +103,7 @@ class HttpTest : public ::testing::Test {
     o.limits.result_limit = 4 << 20;
     o.handler_threads = 2;
     o.lease_seconds = lease_seconds_;
+    configure(o);
     coord_ = std::make_unique<Coordinator>(o);
     thread_ = std::thread([this] { coord_->run(); });
   }
@@ -142,6 +143,9 @@ class HttpTest : public ::testing::Test {
     EXPECT_EQ(r.status, 201u) << r.body;
     return r.js().value("id", "");
   }
+
+  /// Lets a derived fixture change the options (limits) before the coordinator starts.
+  virtual void configure(CoordinatorOptions&) {}
 
   double lease_seconds_ = 30;
   fs::path dir_;
@@ -580,6 +584,99 @@ TEST_F(ShortLeaseTest, ExpiredLeaseIsGoneAndItsTileIsLeasedAgain) {
   const Reply lb = call(http::verb::post, "/v1/workers/" + b + "/lease");
   ASSERT_EQ(lb.status, 200u);
   EXPECT_EQ(lb.js()["tile"], 0);
+}
+
+// Small limits: each answers with its status and a message naming the flag.
+class LimitsTest : public HttpTest {
+ protected:
+  void configure(CoordinatorOptions& o) override {
+    o.limits.max_queued_jobs = 2;
+    o.limits.max_job_pixels = 100 * 100;
+    o.limits.max_job_samples = 40 * 30 * 64;
+    o.header_limit = 4096;
+    o.max_connections = 3;
+  }
+};
+
+TEST_F(LimitsTest, QueuedJobsPixelsAndSamples) {
+  const json body = small_cbox(job_for("cbox_no_light.json"));  // 40x30 at 2 spp
+  json big = body;
+  big["scene"]["film"]["resolution"] = {101, 100};
+  Reply r = call(http::verb::post, "/v1/jobs", big.dump());
+  ASSERT_EQ(r.status, 400u);
+  EXPECT_NE(r.js()["error"].get<std::string>().find("10100 pixels is over the limit of 10000 (--max-job-pixels)"), std::string::npos) << r.body;
+  big = body;
+  big["spp"] = 65;
+  r = call(http::verb::post, "/v1/jobs", big.dump());
+  ASSERT_EQ(r.status, 400u);
+  EXPECT_NE(r.js()["error"].get<std::string>().find("(--max-job-samples)"), std::string::npos) << r.body;
+  big = body;
+  big.update(json{{"target_error", 0.1}, {"min_spp", 4}, {"max_spp", 128}});
+  r = call(http::verb::post, "/v1/jobs", big.dump());
+  ASSERT_EQ(r.status, 400u);
+  EXPECT_NE(r.js()["error"].get<std::string>().find("x 128 max_spp"), std::string::npos) << r.body;
+  big["max_spp"] = 64;
+  const std::string first = submit(big);  // exactly at the sample limit
+  const std::string second = submit(body);
+  r = call(http::verb::post, "/v1/jobs", body.dump());
+  ASSERT_EQ(r.status, 429u) << r.body;
+  EXPECT_EQ(r.msg[http::field::retry_after], "30");
+  EXPECT_NE(r.js()["error"].get<std::string>().find("--max-queued-jobs"), std::string::npos) << r.body;
+  EXPECT_EQ(call(http::verb::delete_, "/v1/jobs/" + first).status, 200u);
+  EXPECT_EQ(call(http::verb::post, "/v1/jobs", body.dump()).status, 201u);
+}
+
+TEST_F(LimitsTest, HeaderSizeAndConnections) {
+  Reply r = call(http::verb::get, "/healthz", "", {{"X-Big", std::string(5000, 'x')}});
+  EXPECT_EQ(r.status, 431u);
+  EXPECT_NE(r.js()["error"].get<std::string>().find("limit of 4096 bytes"), std::string::npos) << r.body;
+  // Three kept-alive connections fill the limit; a fourth is answered 503 without being read.
+  std::vector<std::unique_ptr<Client>> open;
+  for (int i = 0; i < 3; ++i) {
+    open.push_back(std::make_unique<Client>(coord_->endpoint()));
+    ASSERT_EQ(open.back()->send(http::verb::get, "/healthz").status, 200u);
+  }
+  Client extra(coord_->endpoint());
+  r = extra.send(http::verb::get, "/healthz");
+  EXPECT_EQ(r.status, 503u);
+  EXPECT_EQ(r.msg[http::field::retry_after], "1");
+  EXPECT_NE(r.js()["error"].get<std::string>().find("too many connections (the limit is 3)"), std::string::npos) << r.body;
+  EXPECT_EQ(open[0]->send(http::verb::get, "/healthz").status, 200u);  // the served ones keep working
+  open.clear();
+  unsigned status = 0;
+  for (int i = 0; i < 100 && status != 200; ++i) {  // the server frees the slots once it has seen the closes
+    status = call(http::verb::get, "/healthz").status;
+    if (status != 200) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_EQ(status, 200u);
+}
+
+TEST_F(HttpTest, HostileBodiesAndAssetPathsAreClear400s) {
+  json body = small_cbox(job_for("cbox_no_light.json"));
+  const std::pair<std::string, const char*> bad[] = {
+      {R"({"scene": {}, "spp": 1e400})", "malformed JSON"},
+      {"{\"scene\": " + std::string(100000, '['), "nested deeper than 64 levels"},
+      {R"({"name": "\ud800"})", "malformed JSON"}};
+  for (const auto& [text, says] : bad) {
+    const Reply r = call(http::verb::post, "/v1/jobs", text);
+    ASSERT_EQ(r.status, 400u) << text.substr(0, 40);
+    EXPECT_NE(r.js()["error"].get<std::string>().find(says), std::string::npos) << r.body;
+  }
+  const std::string sha = body["assets"].begin().value();
+  for (const auto& [path, says] : std::vector<std::pair<std::string, std::string>>{
+           {"../floor.obj", "leaves the scene's folder"}, {"a/../../floor.obj", "leaves the scene's folder"},
+           {"/etc/passwd", "absolute asset path"}}) {
+    json b = body;
+    b["scene"]["objects"][0]["path"] = path;
+    b["assets"][path] = sha;
+    const Reply r = call(http::verb::post, "/v1/jobs", b.dump());
+    ASSERT_EQ(r.status, 400u) << path;
+    EXPECT_NE(r.js()["error"].get<std::string>().find(says), std::string::npos) << r.body;
+  }
+  // An error text quoting bytes that are not UTF-8 is still a JSON error.
+  const Reply r = call(http::verb::get, "/v1/jobs/\xff\xfe");
+  EXPECT_EQ(r.status, 404u);
+  EXPECT_NE(r.js()["error"].get<std::string>().find("no job"), std::string::npos) << r.body;
 }
 
 }  // namespace

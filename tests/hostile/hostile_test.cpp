@@ -1,0 +1,630 @@
+// Hostile and broken input against a live coordinator: starts the real `tessera serve` (small limits, a short read
+// timeout) and a real `tessera worker`, keeps a good job rendering, sends every case of tests/hostile/cases.json over
+// raw sockets and checks each answer's status and error text, then checks that the good job finished with the same
+// bits as a single-process render, that a second good job does too, and that /healthz still answers.
+// docs/hostile-inputs.md is generated from the same case list (TESSERA_UPDATE_HOSTILE_DOC=1 rewrites it) and a test
+// fails when the two differ.
+#include "core/image.h"
+#include "core/sha256.h"
+
+#include <boost/asio/buffer.hpp>
+#include <boost/beast/http.hpp>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <optional>
+#include <random>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+extern char** environ;
+
+namespace tessera {
+namespace {
+
+namespace fs = std::filesystem;
+namespace http = boost::beast::http;
+using json = nlohmann::json;
+
+const fs::path kSource = TESSERA_SOURCE_DIR;
+const fs::path kCases = kSource / "tests/hostile/cases.json";
+const fs::path kDoc = kSource / "docs/hostile-inputs.md";
+
+// The limits the coordinator under test runs with (the case list's texts quote them).
+const std::vector<std::string> kServeLimits = {
+    "--read-timeout-seconds", "1",      "--max-connections", "16",       "--max-queued-jobs", "4",
+    "--max-json-bytes",       "65536",  "--max-blob-bytes",  "1048576",  "--max-result-bytes", "4194304",
+    "--max-header-bytes",     "8192",   "--max-job-pixels",  "1048576",  "--max-job-samples",  "1e8"};
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+void spit(const fs::path& p, const std::string& bytes) {
+  std::ofstream out(p, std::ios::binary | std::ios::trunc);
+  out.write(bytes.data(), std::streamsize(bytes.size()));
+}
+
+// ---- processes
+
+// A child process with stdout and stderr in a log file; stopped with SIGTERM (then SIGKILL) when destroyed.
+class Process {
+ public:
+  Process(const std::vector<std::string>& args, const fs::path& log) {
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+    posix_spawn_file_actions_adddup2(&fa, 1, 2);
+    std::vector<char*> argv;
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    if (posix_spawn(&pid_, argv[0], &fa, nullptr, argv.data(), environ) != 0) pid_ = -1;
+    posix_spawn_file_actions_destroy(&fa);
+  }
+  ~Process() { stop(); }
+  Process(const Process&) = delete;
+  Process& operator=(const Process&) = delete;
+
+  /// True while the process has not exited.
+  bool alive() {
+    if (pid_ <= 0) return false;
+    int status = 0;
+    if (waitpid(pid_, &status, WNOHANG) == pid_) {
+      pid_ = -1;
+      return false;
+    }
+    return true;
+  }
+  /// SIGTERM, up to 10 s to exit, then SIGKILL.
+  void stop() {
+    if (pid_ <= 0) return;
+    kill(pid_, SIGTERM);
+    for (int i = 0; i < 200; ++i) {
+      if (waitpid(pid_, nullptr, WNOHANG) == pid_) {
+        pid_ = -1;
+        return;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    kill(pid_, SIGKILL);
+    waitpid(pid_, nullptr, 0);
+    pid_ = -1;
+  }
+
+ private:
+  pid_t pid_ = -1;
+};
+
+// Runs a command to completion; returns its exit status (-1 when it did not exit normally).
+int run(const std::vector<std::string>& args, const fs::path& log) {
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_adddup2(&fa, 1, 2);
+  std::vector<char*> argv;
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  pid_t pid = -1;
+  const int rc = posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&fa);
+  if (rc != 0) return -1;
+  int status = 0;
+  waitpid(pid, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// ---- raw HTTP over POSIX sockets (so a test can trickle, stall, or send bytes no client library would)
+
+// One answer as the client saw it; status 0 means the connection closed (or timed out) without an answer.
+struct Reply {
+  unsigned status = 0;
+  std::string body;
+  std::map<std::string, std::string> headers;
+  std::string error() const {
+    const json j = json::parse(body, nullptr, false);
+    return j.is_object() && j.contains("error") && j["error"].is_string() ? j["error"].get<std::string>() : std::string();
+  }
+};
+
+// A connected loopback socket with 30 s send/receive timeouts (so a broken server fails the test, never hangs it).
+class Conn {
+ public:
+  explicit Conn(int port) {
+    fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
+    timeval tv{30, 0};
+    setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+    setsockopt(fd_, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_port = htons(uint16_t(port));
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    ok_ = ::connect(fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0;
+  }
+  ~Conn() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  Conn(const Conn&) = delete;
+  Conn& operator=(const Conn&) = delete;
+
+  bool ok() const { return ok_; }
+  /// Sends everything; false when the connection is gone.
+  bool send(std::string_view bytes) {
+    while (!bytes.empty()) {
+      const ssize_t n = ::send(fd_, bytes.data(), bytes.size(), MSG_NOSIGNAL);
+      if (n <= 0) return false;
+      bytes.remove_prefix(size_t(n));
+    }
+    return true;
+  }
+  /// True when the peer has closed (or reset) the connection; reads nothing that is not an end.
+  bool closed_by_peer() {
+    pollfd p{fd_, POLLIN, 0};
+    if (::poll(&p, 1, 0) <= 0) return false;
+    char c;
+    const ssize_t n = ::recv(fd_, &c, 1, MSG_PEEK | MSG_DONTWAIT);
+    return n <= 0;
+  }
+  /// Reads one response (status 0 if the connection ends first).
+  Reply read(bool head = false) {
+    http::response_parser<http::string_body> parser;
+    parser.body_limit(std::uint64_t(1) << 30);
+    parser.eager(true);
+    if (head) parser.skip(true);
+    Reply r;
+    bool got_bytes = !pending_.empty();
+    char buf[65536];
+    for (;;) {
+      boost::beast::error_code ec;
+      while (!pending_.empty() && !parser.is_done()) {
+        const size_t used = parser.put(boost::asio::buffer(pending_), ec);
+        pending_.erase(0, used);
+        if (ec == http::error::need_more) {
+          ec = {};
+          break;
+        }
+        if (ec) return r;
+        if (used == 0) break;
+      }
+      if (parser.is_done()) break;
+      const ssize_t n = ::recv(fd_, buf, sizeof buf, 0);
+      if (n <= 0) {
+        if (!got_bytes) return r;  // closed before answering (Beast would complete an empty message here)
+        parser.put_eof(ec);
+        if (ec || !parser.is_done()) return r;
+        break;
+      }
+      pending_.append(buf, size_t(n));
+      got_bytes = true;
+    }
+    const auto& msg = parser.get();
+    r.status = msg.result_int();
+    r.body = msg.body();
+    for (const auto& f : msg) r.headers[std::string(f.name_string())] = std::string(f.value());
+    return r;
+  }
+
+ private:
+  int fd_ = -1;
+  bool ok_ = false;
+  std::string pending_;
+};
+
+// "METHOD TARGET HTTP/1.1" with Host, the given headers, Content-Length and the body.
+std::string request_bytes(const std::string& method, const std::string& target, const std::string& body,
+                          const std::map<std::string, std::string>& headers = {}, bool keep_alive = false,
+                          std::optional<uint64_t> content_length = std::nullopt) {
+  std::string s = method + " " + target + " HTTP/1.1\r\nHost: 127.0.0.1\r\n";
+  for (const auto& [k, v] : headers) s += k + ": " + v + "\r\n";
+  s += "Content-Length: " + std::to_string(content_length ? *content_length : body.size()) + "\r\n";
+  if (!keep_alive) s += "Connection: close\r\n";
+  return s + "\r\n" + body;
+}
+
+// ---- the case list
+
+// Replaces \xHH escapes (as written in cases.json for bytes JSON cannot carry) with the bytes.
+std::string unescape_bytes(const std::string& s) {
+  std::string out;
+  for (size_t i = 0; i < s.size(); ++i) {
+    if (s[i] == '\\' && i + 3 < s.size() && s[i + 1] == 'x') {
+      out += char(std::stoi(s.substr(i + 2, 2), nullptr, 16));
+      i += 3;
+    } else {
+      out += s[i];
+    }
+  }
+  return out;
+}
+
+std::string substitute(std::string s, const std::map<std::string, std::string>& vars) {
+  for (const auto& [k, v] : vars) {
+    const std::string key = "${" + k + "}";
+    for (size_t at = s.find(key); at != std::string::npos; at = s.find(key, at + v.size())) s.replace(at, key.size(), v);
+  }
+  return s;
+}
+
+json load_cases() { return json::parse(slurp(kCases))["cases"]; }
+
+// The markdown table of docs/hostile-inputs.md, generated from the case list.
+std::string doc_table(const json& cases) {
+  auto cell = [](std::string s) {
+    for (size_t at = s.find('|'); at != std::string::npos; at = s.find('|', at + 2)) s.replace(at, 1, "\\|");
+    return s;
+  };
+  std::string t = "| # | case | input | response | error text (contains) |\n|---|---|---|---|---|\n";
+  int n = 0;
+  for (const json& c : cases) {
+    const int status = c["status"].get<int>();
+    const std::string kind = c.value("kind", "");
+    std::string response = std::to_string(status);
+    if (kind == "submit_symlink") response = "`tessera submit` exits " + std::to_string(status) + ", nothing uploaded";
+    else if (status == 0) response = "connection closed after the read timeout, no answer";
+    const std::string error = c["error"].get<std::string>();
+    t += "| " + std::to_string(++n) + " | `" + c["name"].get<std::string>() + "` | " + cell(c["input"].get<std::string>()) +
+         " | " + response + " | " + (error.empty() ? std::string("(no body)") : "`" + cell(error) + "`") + " |\n";
+  }
+  return t;
+}
+
+constexpr const char* kBegin = "<!-- cases: begin (generated from tests/hostile/cases.json) -->\n";
+constexpr const char* kEnd = "<!-- cases: end -->\n";
+
+TEST(HostileDoc, TableMatchesTheCaseList) {
+  const json cases = load_cases();
+  ASSERT_GE(cases.size(), 50u);
+  std::string doc = slurp(kDoc);
+  const size_t b = doc.find(kBegin), e = doc.find(kEnd);
+  ASSERT_NE(b, std::string::npos) << kDoc << " has no begin marker";
+  ASSERT_NE(e, std::string::npos) << kDoc << " has no end marker";
+  const std::string want = doc_table(cases);
+  const std::string have = doc.substr(b + std::strlen(kBegin), e - b - std::strlen(kBegin));
+  if (have != want && std::getenv("TESSERA_UPDATE_HOSTILE_DOC")) {
+    doc.replace(b + std::strlen(kBegin), have.size(), want);
+    spit(kDoc, doc);
+    return;
+  }
+  EXPECT_EQ(have, want) << kDoc << " differs from " << kCases
+                        << "; run hostile_tests with TESSERA_UPDATE_HOSTILE_DOC=1 to regenerate it";
+}
+
+// ---- the live farm
+
+class HostileFarm : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    work_ = fs::temp_directory_path() / ("tessera-hostile-" + std::to_string(::getpid()));
+    fs::remove_all(work_);
+    fs::create_directories(work_);
+    std::vector<std::string> args = {TESSERA_BINARY, "serve", "--listen", "127.0.0.1:0", "--ready-file",
+                                     (work_ / "ready").string(), "--data", (work_ / "data").string(), "--threads", "2"};
+    args.insert(args.end(), kServeLimits.begin(), kServeLimits.end());
+    serve_ = std::make_unique<Process>(args, work_ / "serve.log");
+    for (int i = 0; i < 600 && port_ == 0; ++i) {
+      const std::string ready = slurp(work_ / "ready");
+      if (const size_t colon = ready.rfind(':'); colon != std::string::npos && ready.back() == '\n')
+        port_ = std::stoi(ready.substr(colon + 1));
+      else
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    ASSERT_NE(port_, 0) << "the coordinator did not become ready:\n" << slurp(work_ / "serve.log");
+    url_ = "http://127.0.0.1:" + std::to_string(port_);
+    worker_ = std::make_unique<Process>(std::vector<std::string>{TESSERA_BINARY, "worker", "--coordinator", url_, "--threads",
+                                                                 "1", "--cache", (work_ / "cache").string(), "--name", "good"},
+                                        work_ / "worker.log");
+  }
+
+  void TearDown() override {
+    worker_.reset();
+    serve_.reset();
+    if (!HasFailure()) fs::remove_all(work_);
+    else std::fprintf(stderr, "logs kept in %s\n", work_.c_str());
+  }
+
+  Reply call(const std::string& method, const std::string& target, const std::string& body = {},
+             const std::map<std::string, std::string>& headers = {}) {
+    Conn c(port_);
+    if (!c.ok() || !c.send(request_bytes(method, target, body, headers))) return {};
+    return c.read(method == "HEAD");
+  }
+
+  std::string put_blob(const std::string& bytes) {
+    const std::string h = sha256_hex(bytes);
+    const Reply r = call("PUT", "/v1/blobs/" + h, bytes);
+    EXPECT_TRUE(r.status == 201 || r.status == 200) << r.status << " " << r.body;
+    return h;
+  }
+
+  // Polls a job until it ends (bounded: a job that never ends fails the test instead of hanging it).
+  json wait_job(const std::string& id) {
+    json last;
+    for (int i = 0; i < 3000; ++i) {
+      const Reply r = call("GET", "/v1/jobs/" + id);
+      last = json::parse(r.body, nullptr, false);
+      if (r.status != 200) break;
+      const std::string st = last.value("state", "");
+      if (st != "queued" && st != "running") break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    return last;
+  }
+
+  // The good scene: the course's textured Cornell box (OBJ meshes and an EXR texture), small.
+  json good_scene() {
+    json scene = json::parse(slurp(fs::path(TESSERA_SHARED_DIR) / "compat/rdr171/cbox_refract_textured.json"));
+    scene["film"]["resolution"] = {128, 96};
+    scene["integrator"]["spp"] = 128;
+    return scene;
+  }
+
+  void check_case(const json& c, const std::map<std::string, std::string>& vars, const json& bases);
+
+  fs::path work_;
+  int port_ = 0;
+  std::string url_;
+  std::unique_ptr<Process> serve_, worker_;
+};
+
+// Sends one case and checks its answer.
+void HostileFarm::check_case(const json& c, const std::map<std::string, std::string>& vars, const json& bases) {
+  const std::string name = c["name"].get<std::string>(), kind = c.value("kind", "request"),
+                    want_error = c["error"].get<std::string>();
+  const unsigned want = c["status"].get<unsigned>();
+  SCOPED_TRACE("case " + name + ": " + c["input"].get<std::string>());
+  Reply r;
+  if (kind == "request") {
+    std::string bytes;
+    if (c.contains("raw")) {
+      bytes = c["raw"].get<std::string>();
+    } else {
+      std::string body;
+      if (c.contains("base")) {
+        json b = bases[c["base"].get<std::string>()];
+        b.merge_patch(c["patch"]);
+        body = b.dump();
+        if (c.contains("body_replace")) {
+          const std::string from = c["body_replace"][0].get<std::string>(), to = c["body_replace"][1].get<std::string>();
+          const size_t at = body.find(from);
+          ASSERT_NE(at, std::string::npos);
+          body.replace(at, from.size(), to);
+        }
+      } else if (c.contains("body_repeat")) {
+        const json& g = c["body_repeat"];
+        const int n = g["count"].get<int>();
+        body = g.value("prefix", "");
+        for (int i = 0; i < n; ++i) body += g["unit"].get<std::string>();
+        body += g.value("suffix", "");
+        for (int i = 0; i < n && g.contains("close"); ++i) body += g["close"].get<std::string>();
+        body += g.value("end", "");
+      } else {
+        body = c.value("body", "");
+      }
+      body = substitute(body, vars);
+      if (c.value("body_escapes", false)) body = unescape_bytes(body);
+      std::string target = substitute(c["target"].get<std::string>(), vars);
+      if (c.value("target_escapes", false)) target = unescape_bytes(target);
+      std::map<std::string, std::string> headers;
+      const json hs = c.value("headers", json::object());
+      for (auto it = hs.begin(); it != hs.end(); ++it) headers[it.key()] = substitute(it.value().get<std::string>(), vars);
+      std::optional<uint64_t> length;
+      if (c.contains("content_length")) length = c["content_length"].get<uint64_t>();
+      bytes = request_bytes(c["method"].get<std::string>(), target, body, headers, false, length);
+    }
+    Conn conn(port_);
+    ASSERT_TRUE(conn.ok());
+    conn.send(bytes);  // the server may answer (413, 431) and close before taking all of it
+    r = conn.read(c.value("method", "") == "HEAD");
+  } else if (kind == "chunked_flood") {
+    Conn conn(port_);
+    ASSERT_TRUE(conn.ok());
+    conn.send("POST /v1/jobs HTTP/1.1\r\nHost: 127.0.0.1\r\nTransfer-Encoding: chunked\r\n\r\n");
+    const std::string chunk = "4000\r\n" + std::string(0x4000, ' ') + "\r\n";
+    for (int i = 0; i < 64 && conn.send(chunk); ++i) {
+    }
+    r = conn.read();
+  } else if (kind == "slowloris" || kind == "idle") {
+    Conn conn(port_);
+    ASSERT_TRUE(conn.ok());
+    const auto t0 = std::chrono::steady_clock::now();
+    bool dropped = false;
+    if (kind == "idle") {
+      r = conn.read();  // blocks until the server closes (or the 30 s socket timeout)
+      dropped = r.status == 0;
+    } else {
+      const bool body = c["stage"].get<std::string>() == "body";
+      conn.send(body ? "POST /v1/jobs HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 100000\r\n\r\n"
+                     : "GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Slow: ");
+      // One byte every 100 ms, for at most 30 s: far longer than the 1 s read timeout.
+      for (int i = 0; i < 300 && !dropped; ++i) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        dropped = conn.closed_by_peer() || !conn.send("a");
+      }
+      if (!dropped) r = conn.read();
+    }
+    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    std::printf("  %s: dropped=%d after %.2f s (read timeout 1 s)\n", name.c_str(), int(dropped), secs);
+    EXPECT_TRUE(dropped) << "the connection was not dropped";
+    if (dropped) r = Reply{};
+  } else if (kind == "connections") {
+    // Open keep-alive connections one by one (each answers /healthz) until the server refuses one.
+    std::vector<std::unique_ptr<Conn>> open;
+    for (int i = 0; i < 40; ++i) {
+      auto conn = std::make_unique<Conn>(port_);
+      ASSERT_TRUE(conn->ok());
+      conn->send(request_bytes("GET", "/healthz", "", {}, true));
+      r = conn->read();
+      open.push_back(std::move(conn));
+      if (r.status != 200) break;
+    }
+    EXPECT_LE(open.size(), 17u) << "more connections than the limit were served";
+    EXPECT_EQ(r.headers.count("Retry-After"), 1u);
+    // Freed slots serve again once the server has seen the clients close.
+    const Reply before = r;
+    open.clear();
+    unsigned after = 0;
+    for (int i = 0; i < 100 && after != 200; ++i) {
+      after = call("GET", "/healthz").status;
+      if (after != 200) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    EXPECT_EQ(after, 200u) << "closing connections did not free their slots";
+    r = before;
+  } else if (kind == "queue_full") {
+    std::vector<std::string> fillers;
+    for (int i = 0; i < 10; ++i) {
+      r = call("POST", "/v1/jobs", bases["sphere"].dump());
+      if (r.status != 201) break;
+      fillers.push_back(json::parse(r.body)["id"].get<std::string>());
+    }
+    EXPECT_EQ(r.headers.count("Retry-After"), 1u);
+    for (const auto& id : fillers) EXPECT_EQ(call("DELETE", "/v1/jobs/" + id).status, 200u);
+    // A submission is accepted again once the queue has room.
+    const Reply again = call("POST", "/v1/jobs", bases["sphere"].dump());
+    EXPECT_EQ(again.status, 201u) << again.body;
+    if (again.status == 201) call("DELETE", "/v1/jobs/" + json::parse(again.body)["id"].get<std::string>());
+  } else if (kind == "submit_symlink") {
+    const fs::path dir = work_ / "symlink";
+    fs::create_directories(dir / "scene/assets");
+    fs::create_directories(dir / "outside");
+    spit(dir / "outside/quad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    fs::create_symlink("../../outside/quad.obj", dir / "scene/assets/link.obj");
+    json scene = bases["sphere"]["scene"];
+    scene["objects"] = json::array({{{"type", "mesh"}, {"path", "assets/link.obj"}, {"material_name", "m"}}});
+    spit(dir / "scene/scene.json", scene.dump());
+    const int rc = run({TESSERA_BINARY, "submit", (dir / "scene/scene.json").string(), "--coordinator", url_, "-q"},
+                       dir / "submit.log");
+    const std::string log = slurp(dir / "submit.log");
+    EXPECT_EQ(rc, int(want)) << log;
+    EXPECT_NE(log.find(want_error), std::string::npos) << log;
+    return;
+  } else {
+    FAIL() << "unknown kind " << kind;
+  }
+  EXPECT_EQ(r.status, want) << r.body;
+  if (!want_error.empty()) {
+    EXPECT_NE(r.error().find(want_error), std::string::npos) << r.body;
+  }
+  if (r.status >= 400 && c.value("method", "") != "HEAD") {
+    EXPECT_FALSE(r.error().empty()) << "no JSON error body: " << r.body;
+  }
+}
+
+TEST_F(HostileFarm, EveryCaseGetsItsAnswerAndTheGoodJobStillRendersRight) {
+  // The good job (and the reference it must match bit for bit).
+  const fs::path scene_dir = work_ / "good";
+  fs::create_directories(scene_dir);
+  fs::copy(fs::path(TESSERA_SHARED_DIR) / "compat/rdr171/assets", scene_dir / "assets", fs::copy_options::recursive);
+  const json scene = good_scene();
+  spit(scene_dir / "scene.json", scene.dump());
+  ASSERT_EQ(run({TESSERA_BINARY, "render", (scene_dir / "scene.json").string(), "-o", (work_ / "ref.exr").string(), "-q",
+                 "--seed", "11"},
+                work_ / "render.log"),
+            0)
+      << slurp(work_ / "render.log");
+  json good = {{"scene", scene}, {"assets", json::object()}, {"seed", 11}, {"tile_size", 8}, {"priority", 10}, {"name", "good"}};
+  for (const auto& entry : fs::recursive_directory_iterator(scene_dir / "assets")) {
+    if (!entry.is_regular_file()) continue;
+    good["assets"][fs::relative(entry.path(), scene_dir).generic_string()] = put_blob(slurp(entry.path()));
+  }
+  Reply r = call("POST", "/v1/jobs", good.dump());
+  ASSERT_EQ(r.status, 201u) << r.body;
+  const std::string good_job = json::parse(r.body)["id"].get<std::string>();
+
+  // Blobs and jobs the cases refer to.
+  std::map<std::string, std::string> vars;
+  vars["GOOD_JOB"] = good_job;
+  vars["OBJ_SHA"] = put_blob("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  vars["BAD_OBJ_SHA"] = put_blob("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n");
+  vars["INF_OBJ_SHA"] = put_blob("v 1e39 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  Image img = Image::make(16, 16);
+  for (int y = 0; y < 16; ++y)
+    for (int x = 0; x < 16; ++x) img.set(x, y, Vec3(float(x) / 16.f, float(y) / 16.f, 0.5f));
+  write_exr(work_ / "tex.exr", img);
+  const std::string exr = slurp(work_ / "tex.exr");
+  vars["EXR_SHA"] = put_blob(exr);
+  vars["TRUNCATED_EXR_SHA"] = put_blob(exr.substr(0, exr.size() / 2));
+  img.set(3, 3, Vec3(std::numeric_limits<float>::quiet_NaN(), 0.f, 0.f));
+  write_exr(work_ / "nan.exr", img);
+  vars["NAN_EXR_SHA"] = put_blob(slurp(work_ / "nan.exr"));
+  std::string garbage(4096, '\0');
+  std::mt19937 rng(5);
+  for (char& ch : garbage) ch = char(rng() & 0xff);
+  vars["GARBAGE_EXR_SHA"] = put_blob(garbage);
+  vars["MISSING_SHA"] = sha256_hex("never uploaded");
+  vars["A_SHA"] = sha256_hex("a");
+  vars["A_SHA_UPPER"] = vars["A_SHA"];
+  for (char& ch : vars["A_SHA_UPPER"]) ch = char(std::toupper(static_cast<unsigned char>(ch)));
+
+  const json sphere_scene = {
+      {"film", {{"resolution", {8, 8}}}},
+      {"integrator", {{"spp", 1}, {"point_light_position", {0, 3, 3}}, {"point_light_flux", {40, 40, 40}}}},
+      {"camera", {{"position", {0, 0.3, 4}}, {"look_at", {0, 0, 0}}, {"fov", 45}}},
+      {"textures", {{"c", {{"type", "constant"}, {"color", {0.8, 0.7, 0.6}}}}}},
+      {"materials", {{"m", {{"type", "diffuse"}, {"texture_name", "c"}}}}},
+      {"objects", {{{"type", "sphere"}, {"center", {0, 0, 0}}, {"radius", 0.7}, {"material_name", "m"}}}}};
+  const json bases = {{"sphere", {{"scene", sphere_scene}, {"seed", 1}, {"tile_size", 8}, {"priority", -1000}}}};
+  r = call("POST", "/v1/jobs", bases["sphere"].dump());
+  ASSERT_EQ(r.status, 201u) << r.body;
+  vars["CANCELLED_JOB"] = json::parse(r.body)["id"].get<std::string>();
+  ASSERT_EQ(call("DELETE", "/v1/jobs/" + vars["CANCELLED_JOB"]).status, 200u);
+
+  // Every case, while the good job renders.
+  const json cases = load_cases();
+  const json start = json::parse(call("GET", "/v1/jobs/" + good_job).body, nullptr, false);
+  std::printf("the good job is %s when the cases start\n", start.is_object() ? start.value("state", "?").c_str() : "?");
+  const auto t0 = std::chrono::steady_clock::now();
+  for (const json& c : cases) {
+    check_case(c, vars, bases);
+    ASSERT_TRUE(serve_->alive()) << "the coordinator died at case " << c["name"] << ":\n" << slurp(work_ / "serve.log");
+  }
+  const json mid = json::parse(call("GET", "/v1/jobs/" + good_job).body, nullptr, false);
+  const json tiles = mid.is_object() ? mid.value("tiles", json::object()) : json::object();
+  std::printf("%zu cases in %.1f s; the good job was %s (%s of %s tiles done) when they ended\n", cases.size(),
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
+              mid.is_object() ? mid.value("state", "?").c_str() : "?", tiles.value("done", json(0)).dump().c_str(),
+              tiles.value("total", json(0)).dump().c_str());
+
+  // The good job ends done, bitwise identical to the single-process render; so does a second one submitted now.
+  const ExrImage ref = read_exr(work_ / "ref.exr");
+  good["priority"] = 0;
+  r = call("POST", "/v1/jobs", good.dump());
+  ASSERT_EQ(r.status, 201u) << r.body;
+  const std::string second_job = json::parse(r.body)["id"].get<std::string>();
+  for (const std::string& id : {good_job, second_job}) {
+    const json end = wait_job(id);
+    ASSERT_EQ(end.value("state", ""), "done") << end.dump() << "\n" << slurp(work_ / "worker.log");
+    const Reply res = call("GET", "/v1/jobs/" + id + "/result.exr");
+    ASSERT_EQ(res.status, 200u);
+    spit(work_ / (id + ".exr"), res.body);
+    const ExrImage got = read_exr(work_ / (id + ".exr"));
+    ASSERT_EQ(got.pixels.width, ref.pixels.width);
+    ASSERT_EQ(got.pixels.height, ref.pixels.height);
+    EXPECT_EQ(std::memcmp(got.pixels.rgb.data(), ref.pixels.rgb.data(), ref.pixels.rgb.size() * sizeof(float)), 0)
+        << id << " differs from the single-process render";
+  }
+  r = call("GET", "/healthz");
+  EXPECT_EQ(r.status, 200u);
+  EXPECT_TRUE(serve_->alive());
+}
+
+}  // namespace
+}  // namespace tessera
