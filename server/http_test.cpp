@@ -1,5 +1,6 @@
 // The coordinator over real HTTP on a loopback ephemeral port, driven by a small synchronous Beast client.
 #include "server/coordinator.h"
+#include "server/test_http_client.h"
 
 #include "core/render.h"
 #include "core/scene_loader.h"
@@ -40,54 +41,8 @@ std::string slurp(const fs::path& p) {
   return ss.str();
 }
 
-// One response as the client saw it.
-struct Reply {
-  unsigned status = 0;
-  std::string body;
-  http::response<http::string_body> msg;
-  json js() const { return json::parse(body); }
-};
-
-// A synchronous HTTP/1.1 client that can reuse its connection.
-class Client {
- public:
-  explicit Client(tcp::endpoint ep) : ep_(ep) {}
-  Reply send(http::verb method, const std::string& target, std::string body = {},
-             std::vector<std::pair<std::string, std::string>> headers = {}) {
-    if (!stream_) {
-      stream_.emplace(ioc_);
-      stream_->connect(ep_);
-    }
-    http::request<http::string_body> req{method, target, 11};
-    req.set(http::field::host, "127.0.0.1");
-    for (auto& [k, v] : headers) req.set(k, v);
-    req.body() = std::move(body);
-    req.prepare_payload();
-    http::write(*stream_, req);
-    beast::flat_buffer buf;
-    http::response_parser<http::string_body> parser;
-    parser.body_limit(1u << 30);
-    if (method == http::verb::head) parser.skip(true);
-    http::read(*stream_, buf, parser);
-    Reply r;
-    r.msg = parser.release();
-    r.status = r.msg.result_int();
-    r.body = r.msg.body();
-    if (!r.msg.keep_alive()) close();
-    return r;
-  }
-  void close() {
-    if (!stream_) return;
-    beast::error_code ec;
-    stream_->socket().shutdown(tcp::socket::shutdown_both, ec);
-    stream_.reset();
-  }
-
- private:
-  asio::io_context ioc_;
-  tcp::endpoint ep_;
-  std::optional<beast::tcp_stream> stream_;
-};
+using testing::Client;
+using testing::Reply;
 
 // A coordinator on 127.0.0.1:0 with a fresh data folder, served on a background thread.
 class HttpTest : public ::testing::Test {

@@ -4,6 +4,7 @@
 // "w-fz-1", "l-fz-1"), so registering, leasing and uploading can chain. Findings: crashes, UB, leaks, and any
 // error response (>= 400) whose body is not `{"error": "..."}`.
 #include "server/api.h"
+#include "server/database.h"
 
 #include <boost/beast/core/flat_buffer.hpp>
 #include <boost/beast/http.hpp>
@@ -27,10 +28,10 @@ struct State {
   fs::path dir = fs::temp_directory_path() / ("tessera-fuzz-http-" + std::to_string(::getpid()));
   int64_t now = 1'000'000;  // a clock that advances 1 s per request, so leases expire now and then
   DiskBlobStore blobs{dir / "blobs"};
-  DiskJobStore jobs{dir / "jobs", dir / "tmp"};
-  Scheduler sched{SchedulerConfig{30'000, 3, 2, "fz"}, [this] { return now; }};
+  DurableStore store{dir};  // as the coordinator wires it: scheduler state and job records in SQLite
+  Scheduler sched{SchedulerConfig{30'000, 3, 2, "fz"}, [this] { return now; }, store};
   Metrics metrics;
-  Api api{sched, blobs, jobs, metrics, [this] { return now; }, options()};
+  Api api{sched, blobs, store, metrics, [this] { return now; }, options()};
 
   static ApiOptions options() {
     ApiOptions o;
