@@ -54,7 +54,7 @@ CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
                 "estimate)")
       ->check(CLI::Range(1u, kMaxReplicates));
   c->add_option("--area-sampling", a.area_sampling, "Area-light strategy (overrides the scene)")
-      ->check(CLI::IsMember({"solid_angle", "area"}));
+      ->check(CLI::IsMember({"auto", "solid_angle", "area"}));
   c->add_option("--env-sampling", a.env_sampling, "Environment strategy (overrides the scene)")
       ->check(CLI::IsMember({"mis", "importance", "cosine", "uniform"}));
   c->add_option("--bvh", a.bvh, "BVH build: binned SAH or object median (overrides the scene)")
@@ -74,6 +74,15 @@ const char* env_sampling_name(EnvSampling e) {
   return "mis";
 }
 
+const char* area_sampling_name(AreaSampling a) {
+  switch (a) {
+    case AreaSampling::kAuto: return "auto";
+    case AreaSampling::kSolidAngle: return "solid_angle";
+    case AreaSampling::kArea: return "area";
+  }
+  return "auto";
+}
+
 }  // namespace
 
 int run_render(const RenderArgs& a) {
@@ -90,6 +99,7 @@ int run_render(const RenderArgs& a) {
     lo.force_direct = !a.integrator.empty();
     if (!a.asset_root.empty()) lo.asset_root = a.asset_root;
     lo.spp = a.spp;
+    if (a.area_sampling == "auto") lo.area_sampling = AreaSampling::kAuto;
     if (a.area_sampling == "solid_angle") lo.area_sampling = AreaSampling::kSolidAngle;
     if (a.area_sampling == "area") lo.area_sampling = AreaSampling::kArea;
     if (a.env_sampling == "mis") lo.env_sampling = EnvSampling::kMis;
@@ -152,7 +162,7 @@ int run_render(const RenderArgs& a) {
       wo.metadata["tessera:errorFloor"] = std::to_string(ro.error_floor);
     }
     wo.metadata["tessera:replicates"] = std::to_string(ro.replicates);
-    wo.metadata["tessera:areaSampling"] = scene.settings.area_sampling == AreaSampling::kArea ? "area" : "solid_angle";
+    wo.metadata["tessera:areaSampling"] = area_sampling_name(scene.settings.area_sampling);
     wo.metadata["tessera:envSampling"] = env_sampling_name(scene.settings.env_sampling);
     write_exr(a.output, res.image, wo);
     if (!a.preview.empty()) write_png_srgb(a.preview, res.image);

@@ -34,7 +34,7 @@ struct RenderArgs {
   uint32_t max_spp = 1024;              ///< Adaptive sampling: cap.
   float error_floor = 0.01f;            ///< Adaptive sampling: luminance floor of the relative error.
   uint32_t replicates = 1;              ///< Independent replicates per pixel (unbiased error estimates when >= 2).
-  std::string area_sampling;            ///< Overrides integrator.area_sampling (solid_angle or area).
+  std::string area_sampling;            ///< Overrides integrator.area_sampling (auto, solid_angle or area).
   std::string env_sampling;             ///< Overrides integrator.env_sampling (mis, importance, cosine, uniform).
   std::string bvh;                      ///< Overrides integrator.bvh (sah or median).
 };

@@ -27,12 +27,15 @@ Vec3 on_plane(const Vec3& corner, const Vec3& ex, const Vec3& ey, double a, doub
 Vec3 rounded_once_error(const Vec3& p) { return 2.f * kMachineEpsilon * glm::abs(p); }
 
 // Converts an area-measure sample at q (normal nq, area pdf pdf_a) into a solid-angle sample seen from p.
+// The difference p - q is taken in double precision: exact for the two float points, so far from the origin (1e5,
+// where a float difference of points a unit apart keeps only ~7 bits after the point) the distance and the cosine
+// at a grazing light stay accurate.
 LightSample from_area(const Vec3& p, const Vec3& q, const Vec3& nq, float pdf_a, const Vec3& radiance) {
-  const Vec3 w = p - q;
-  const float d2 = length_squared(w);
-  const float cos_l = glm::dot(nq, w) / std::sqrt(d2);
-  if (!(cos_l > 0.f) || !(d2 > 0.f)) return {q, nq, Vec3(0.f), 0.f};
-  return {q, nq, radiance, pdf_a * d2 / cos_l};
+  const Vec3d w = Vec3d(p) - Vec3d(q);
+  const double d2 = glm::dot(w, w);
+  const double cos_l = glm::dot(Vec3d(nq), w) / std::sqrt(d2);
+  if (!(cos_l > 0.0) || !(d2 > 0.0)) return {q, nq, Vec3(0.f), 0.f};
+  return {q, nq, radiance, float(double(pdf_a) * d2 / cos_l)};
 }
 
 }  // namespace
@@ -43,7 +46,7 @@ LightSample AreaLight::sample(const Vec3& p, float u_part, Vec2 u, AreaSampling 
     const float r = sphere->radius;
     const Vec3 pc = c - p;
     const float d2 = length_squared(pc);
-    if (mode == AreaSampling::kSolidAngle && d2 > r * r * 1.0001f) {
+    if (mode != AreaSampling::kArea && d2 > r * r * 1.0001f) {
       // Uniform in the cone of directions the sphere subtends.
       const float sin2 = r * r / d2;
       const float cos_max = std::sqrt(std::max(0.f, 1.f - sin2));
@@ -69,7 +72,10 @@ LightSample AreaLight::sample(const Vec3& p, float u_part, Vec2 u, AreaSampling 
   const float pick = part_pdf / float(nparts);  // probability of this part
   if (part < int(rects.size())) {
     const Rect& rc = rects[size_t(part)];
-    if (mode == AreaSampling::kSolidAngle) {
+    const bool solid = mode == AreaSampling::kSolidAngle ||
+                       (mode == AreaSampling::kAuto &&
+                        rc.area > kAutoSolidAngleRatio * length_squared(rc.corner + 0.5f * (rc.ex + rc.ey) - p));
+    if (solid) {
       SphericalRectangle sr;
       if (glm::dot(rc.n, p - rc.corner) <= 0.f || !sr.init(p, rc.corner, rc.ex, rc.ey)) return {p, rc.n, Vec3(0.f), 0.f};
       const RectSample s = sr.sample(u);

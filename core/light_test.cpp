@@ -181,6 +181,30 @@ TEST(SphericalRectangleSampling, BothStrategiesAreUnbiasedAndSolidAngleHasLowerV
   EXPECT_GT(worst_ratio, 1.5);
 }
 
+TEST(SphericalRectangleSampling, AutoPicksSolidAngleNearAndAreaFarAndStaysUnbiased) {
+  // The 1 x 1 light at height 1: (0, 0.5, 0) is 0.5 from its centre (area 1 > 0.25: solid angle), (1.5, 0, 0.7)
+  // and (0, -1, 0) are farther than its width (area: by area). Same random numbers, so the chosen strategy's
+  // samples are reproduced bit for bit.
+  const AreaLight light = unit_rect_light(1.f);
+  const std::vector<Vec3d> poly = {{-0.5, 1, -0.5}, {0.5, 1, -0.5}, {0.5, 1, 0.5}, {-0.5, 1, 0.5}};
+  const int n = 1 << 12;
+  struct Case {
+    Vec3 p;
+    AreaSampling expected;
+  };
+  for (const Case& c : {Case{Vec3(0.f, 0.5f, 0.f), AreaSampling::kSolidAngle},
+                        Case{Vec3(0.3f, 0.9f, 0.1f), AreaSampling::kSolidAngle},
+                        Case{Vec3(1.5f, 0.f, 0.7f), AreaSampling::kArea}, Case{Vec3(0.f, -1.f, 0.f), AreaSampling::kArea}}) {
+    const std::vector<double> got = irradiance_samples(light, c.p, AreaSampling::kAuto, n, 5);
+    EXPECT_EQ(got, irradiance_samples(light, c.p, c.expected, n, 5)) << "y=" << c.p.y;
+    const AreaSampling other = c.expected == AreaSampling::kArea ? AreaSampling::kSolidAngle : AreaSampling::kArea;
+    EXPECT_NE(got, irradiance_samples(light, c.p, other, n, 5)) << "y=" << c.p.y;
+    const double ref = testing::polygon_irradiance(Vec3d(c.p), Vec3d(0, 1, 0), poly, 1.0);
+    const MeanVar m = mean_var(got);
+    EXPECT_NEAR(m.mean, ref, 5.0 * std::sqrt(m.var / n) + 1e-6 * ref) << "auto at y=" << c.p.y;
+  }
+}
+
 TEST(AreaLightSampling, TrianglesAndSpheresAreUnbiased) {
   // A lone (non-rectangular) triangle is sampled by area; compare with Lambert's polygon formula.
   AreaLight tri;
@@ -193,7 +217,7 @@ TEST(AreaLightSampling, TrianglesAndSpheresAreUnbiased) {
   const int k = 1 << 14;
   for (const Vec3 p : {Vec3(0.f), Vec3(0.1f, 0.8f, 0.f), Vec3(2.f, 0.f, 1.f)}) {
     const double ref = testing::polygon_irradiance(Vec3d(p), Vec3d(0, 1, 0), {Vec3d(a), Vec3d(b), Vec3d(c)}, 1.0);
-    for (AreaSampling mode : {AreaSampling::kSolidAngle, AreaSampling::kArea}) {
+    for (AreaSampling mode : {AreaSampling::kAuto, AreaSampling::kSolidAngle, AreaSampling::kArea}) {
       const MeanVar m = mean_var(irradiance_samples(tri, p, mode, k, 3));
       EXPECT_NEAR(m.mean, ref, 5.0 * std::sqrt(m.var / k) + 1e-6 * ref) << "triangle, y=" << p.y;
     }
@@ -204,10 +228,10 @@ TEST(AreaLightSampling, TrianglesAndSpheresAreUnbiased) {
   sph.sphere = Sphere{Vec3(0.f, 2.f, 0.f), 0.5f};
   sph.finish();
   const double ref = std::numbers::pi * 0.25 / 4.0;
-  for (AreaSampling mode : {AreaSampling::kSolidAngle, AreaSampling::kArea}) {
+  for (AreaSampling mode : {AreaSampling::kAuto, AreaSampling::kSolidAngle, AreaSampling::kArea}) {
     const MeanVar m = mean_var(irradiance_samples(sph, Vec3(0.f), mode, k, 4));
     EXPECT_NEAR(m.mean, ref, 5.0 * std::sqrt(m.var / k) + 1e-6 * ref) << "sphere";
-    if (mode == AreaSampling::kSolidAngle) {
+    if (mode != AreaSampling::kArea) {
       EXPECT_LT(m.var, 0.05 * ref * ref);  // cone sampling: only the cosine varies
     }
   }

@@ -137,6 +137,7 @@ TEST_F(RenderTest, RectangleLightOverPlaneMatchesPolygonIrradiance) {
   s["objects"].push_back(floor("grey"));
   write("light.obj", testing::rect_obj(Vec3(-0.5f, 1.f, -0.5f), Vec3(1.f, 0.f, 0.f), Vec3(0.f, 0.f, 1.f)));
   s["objects"].push_back({{"type", "mesh"}, {"path", "light.obj"}, {"light", {{"type", "area"}, {"radiance", {2, 3, 4}}}}});
+  s["integrator"]["area_sampling"] = "solid_angle";
   const Scene solid = load(s);
   ASSERT_EQ(solid.area_lights.at(0).rects.size(), 1u);
   const double v_solid = check_rect_light(solid, w, h, "spherical rectangle");

@@ -50,7 +50,7 @@ struct IntegratorSettings {
   uint32_t spp = 8;                   ///< Samples per pixel.
   int max_depth = 16;                 ///< Maximum specular bounces.
   int light_samples = 1;              ///< Area-light samples per camera sample.
-  AreaSampling area_sampling = AreaSampling::kSolidAngle;  ///< Area light strategy.
+  AreaSampling area_sampling = AreaSampling::kAuto;  ///< Area light strategy.
   EnvSampling env_sampling = EnvSampling::kMis;           ///< Environment strategy.
 };
 

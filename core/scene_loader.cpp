@@ -407,10 +407,11 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
     const double ls = ctx.number(in, "light_samples", "integrator", 1);
     if (!(ls >= 1 && ls <= 4096) || ls != std::floor(ls)) ctx.fail("integrator.light_samples", "must be an integer in [1, 4096]");
     s.settings.light_samples = int(ls);
-    const std::string as = ctx.string(in, "area_sampling", "integrator", "solid_angle");
-    if (as == "solid_angle") s.settings.area_sampling = AreaSampling::kSolidAngle;
+    const std::string as = ctx.string(in, "area_sampling", "integrator", "auto");
+    if (as == "auto") s.settings.area_sampling = AreaSampling::kAuto;
+    else if (as == "solid_angle") s.settings.area_sampling = AreaSampling::kSolidAngle;
     else if (as == "area") s.settings.area_sampling = AreaSampling::kArea;
-    else ctx.fail("integrator.area_sampling", "'" + as + "' is not one of: solid_angle, area");
+    else ctx.fail("integrator.area_sampling", "'" + as + "' is not one of: auto, solid_angle, area");
     const std::string es = ctx.string(in, "env_sampling", "integrator", "mis");
     if (es == "mis") s.settings.env_sampling = EnvSampling::kMis;
     else if (es == "importance") s.settings.env_sampling = EnvSampling::kImportance;

@@ -82,6 +82,9 @@ def main():
           "right wall, x = 1, faces -x")
     write("light.obj", [oriented([[-0.25, 1.98, -0.2], [0.25, 1.98, -0.2], [0.25, 1.98, 0.2], [-0.25, 1.98, 0.2]],
                                  [0, -1, 0])], "ceiling light, a 0.5 x 0.4 rectangle at y = 1.98 facing down")
+    write("light_large.obj", [oriented([[-0.9, 1.98, -0.9], [0.9, 1.98, -0.9], [0.9, 1.98, 0.9], [-0.9, 1.98, 0.9]],
+                                       [0, -1, 0])],
+          "large ceiling light (a softbox), a 1.8 x 1.8 rectangle at y = 1.98 facing down, 0.1 from the walls")
     write("short_box.obj", box(-0.35, 0.35, 0.6, 0.6, 0.6, -17), "short box, 0.6 high, rotated -17 degrees")
     write("tall_box.obj", box(0.33, -0.3, 0.6, 1.2, 0.6, 20), "tall box, 1.2 high, rotated 20 degrees")
 

@@ -64,6 +64,13 @@ def main():
                          "light": {"type": "area", "radiance": [40.0, 28.0, 10.0]}})
     write("cbox_area_light.json", s)
 
+    # 3b. The same box under a light covering most of the ceiling: the tops of the walls are within 0.1 of its
+    #     edge, where sampling the light by area has 1/d^2 spikes (used by the area-light strategy comparison).
+    s = copy.deepcopy(s)
+    s["objects"][-1] = {"type": "mesh", "path": "assets/cbox/light_large.obj",
+                        "light": {"type": "area", "radiance": [2.5, 1.75, 0.625]}}
+    write("cbox_large_light.json", s)
+
     # 4. Lit by a uniform white environment through the open front.
     s = copy.deepcopy(BASE)
     s["integrator"]["spp"] = 128
