@@ -6,54 +6,61 @@ set key outside right
 set xlabel 'wall time (s), AMD EPYC, 2 threads'
 set ylabel 'relative RMS error sqrt(relMSE)'
 set output 'error_vs_time.svg'
-set title 'Error against time, default strategies (commit a3f16df, AMD EPYC, 2 threads)' noenhanced
+set title 'Error against time, default strategies (commit d0386d4, AMD EPYC, 2 threads)' noenhanced
 plot \
   'cbox_no_light.dat' using 2:(sqrt($3)) with linespoints lw 2 title 'cbox_no_light' noenhanced, \
-  0.083652*sqrt(0.0227495/x) with lines dt 2 lc 1 notitle, \
+  0.0787093*sqrt(0.00376561/x) with lines dt 2 lc 1 notitle, \
   'cbox_no_light_refraction.dat' using 2:(sqrt($3)) with linespoints lw 2 title 'cbox_no_light_refraction' noenhanced, \
-  0.0933627*sqrt(0.0172718/x) with lines dt 2 lc 2 notitle, \
+  0.0906234*sqrt(0.00408896/x) with lines dt 2 lc 2 notitle, \
   'cbox_area_light.dat' using 2:(sqrt($3)) with linespoints lw 2 title 'cbox_area_light' noenhanced, \
-  0.216692*sqrt(0.00264736/x) with lines dt 2 lc 3 notitle, \
+  0.252218*sqrt(0.00170164/x) with lines dt 2 lc 3 notitle, \
   'cbox_env_light.dat' using 2:(sqrt($3)) with linespoints lw 2 title 'cbox_env_light' noenhanced, \
-  1.44634*sqrt(0.0135484/x) with lines dt 2 lc 4 notitle, \
+  1.41694*sqrt(0.0059875/x) with lines dt 2 lc 4 notitle, \
   'sky_sun.dat' using 2:(sqrt($3)) with linespoints lw 2 title 'sky_sun' noenhanced, \
-  0.840243*sqrt(0.0192648/x) with lines dt 2 lc 5 notitle
+  0.663487*sqrt(0.00768247/x) with lines dt 2 lc 5 notitle
 set xlabel 'CPU seconds (all threads), AMD EPYC, 2 threads'
 set output 'cmp0.svg'
-set title 'Area light: solid angle (default) vs area' noenhanced
+set title 'Area light on cbox_area_light (small light): auto (default) vs solid angle vs area' noenhanced
 plot \
-  'cmp0_0.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'solid_angle' noenhanced, \
-  'cmp0_1.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'area' noenhanced
+  'cmp0_0.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'auto' noenhanced, \
+  'cmp0_1.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'solid_angle' noenhanced, \
+  'cmp0_2.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'area' noenhanced
 set output 'cmp1.svg'
+set title 'Area light on cbox_large_light (light over most of the ceiling): auto (default) vs solid angle vs area' noenhanced
+plot \
+  'cmp1_0.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'auto' noenhanced, \
+  'cmp1_1.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'solid_angle' noenhanced, \
+  'cmp1_2.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'area' noenhanced
+set output 'cmp2.svg'
 set title 'Environment on sky_sun: MIS (default) vs importance vs cosine vs uniform' noenhanced
 plot \
-  'cmp1_0.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'mis' noenhanced, \
-  'cmp1_1.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'importance' noenhanced, \
-  'cmp1_2.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'cosine' noenhanced, \
-  'cmp1_3.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'uniform' noenhanced
-set output 'cmp2.svg'
+  'cmp2_0.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'mis' noenhanced, \
+  'cmp2_1.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'importance' noenhanced, \
+  'cmp2_2.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'cosine' noenhanced, \
+  'cmp2_3.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'uniform' noenhanced
+set output 'cmp3.svg'
 set title 'Environment on cbox_env_light (constant map: MIS and importance fall back to cosine)' noenhanced
 plot \
-  'cmp2_0.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'mis' noenhanced, \
-  'cmp2_1.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'cosine' noenhanced, \
-  'cmp2_2.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'uniform' noenhanced
-set output 'cmp3.svg'
+  'cmp3_0.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'mis' noenhanced, \
+  'cmp3_1.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'cosine' noenhanced, \
+  'cmp3_2.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'uniform' noenhanced
+set output 'cmp4.svg'
 set title 'Environment distribution on sky_sun: bilinear support (fixed) vs raw pixels (before the fix), MIS' noenhanced
 plot \
-  'cmp3_0.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'bilinear-support mis' noenhanced, \
-  'cmp3_1.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'raw-pixel mis' noenhanced
-set output 'cmp4.svg'
+  'cmp4_0.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'bilinear-support mis' noenhanced, \
+  'cmp4_1.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'raw-pixel mis' noenhanced
+set output 'cmp5.svg'
 set title 'Environment distribution on sky_sun: bilinear support (fixed) vs raw pixels, importance only' noenhanced
 plot \
-  'cmp4_0.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'bilinear-support importance' noenhanced, \
-  'cmp4_1.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'raw-pixel importance' noenhanced
-set output 'cmp5.svg'
-set title 'BVH: SAH (default) vs median split, cbox_area_light (36 triangles)' noenhanced
-plot \
-  'cmp5_0.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'sah' noenhanced, \
-  'cmp5_1.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'median' noenhanced
+  'cmp5_0.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'bilinear-support importance' noenhanced, \
+  'cmp5_1.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'raw-pixel importance' noenhanced
 set output 'cmp6.svg'
-set title 'BVH: SAH (default) vs median split, sky_sun' noenhanced
+set title 'BVH: SAH (default) vs median split, cbox_area_light (36 triangles)' noenhanced
 plot \
   'cmp6_0.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'sah' noenhanced, \
   'cmp6_1.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'median' noenhanced
+set output 'cmp7.svg'
+set title 'BVH: SAH (default) vs median split, sky_sun' noenhanced
+plot \
+  'cmp7_0.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'sah' noenhanced, \
+  'cmp7_1.dat' using 6:(sqrt($3)) with linespoints lw 2 title 'median' noenhanced
