@@ -12,6 +12,8 @@
 
 #include <atomic>
 #include <csignal>
+#include <pthread.h>
+#include <signal.h>
 #include <thread>
 
 namespace tessera::server {
@@ -161,6 +163,17 @@ void Coordinator::run() {
   serve();
   for (auto& t : extra) t.join();
   m.pool.join();
+  if (m.opt.handle_signals) {
+    // A supervisor often signals twice (Slurm's scancel reaches both the batch shell, which passes SIGTERM on, and
+    // this process). Destroying the signal_set restores the default action, so a late SIGTERM would kill the
+    // process while it closes its database. Only this thread is left, so blocking here defers any such signal to
+    // exit, where it is discarded: the stop already under way is the one that counts.
+    sigset_t stop_signals;
+    sigemptyset(&stop_signals);
+    sigaddset(&stop_signals, SIGINT);
+    sigaddset(&stop_signals, SIGTERM);
+    pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
+  }
   spdlog::info("coordinator stopped");
 }
 
