@@ -3,6 +3,7 @@
 #include "cli/progress_bar.h"
 #include "cli/render_farm.h"
 
+#include "core/enum_names.h"
 #include "core/render.h"
 #include "core/scene_loader.h"
 
@@ -54,36 +55,13 @@ CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
                 "estimate)")
       ->check(CLI::Range(1u, kMaxReplicates));
   c->add_option("--area-sampling", a.area_sampling, "Area-light strategy (overrides the scene)")
-      ->check(CLI::IsMember({"auto", "solid_angle", "area"}));
+      ->check(CLI::IsMember(enum_names(kAreaSamplingNames)));
   c->add_option("--env-sampling", a.env_sampling, "Environment strategy (overrides the scene)")
-      ->check(CLI::IsMember({"mis", "importance", "cosine", "uniform"}));
+      ->check(CLI::IsMember(enum_names(kEnvSamplingNames)));
   c->add_option("--bvh", a.bvh, "BVH build: binned SAH or object median (overrides the scene)")
-      ->check(CLI::IsMember({"sah", "median"}));
+      ->check(CLI::IsMember(enum_names(kSplitMethodNames)));
   return c;
 }
-
-namespace {
-
-const char* env_sampling_name(EnvSampling e) {
-  switch (e) {
-    case EnvSampling::kMis: return "mis";
-    case EnvSampling::kImportance: return "importance";
-    case EnvSampling::kCosine: return "cosine";
-    case EnvSampling::kUniform: return "uniform";
-  }
-  return "mis";
-}
-
-const char* area_sampling_name(AreaSampling a) {
-  switch (a) {
-    case AreaSampling::kAuto: return "auto";
-    case AreaSampling::kSolidAngle: return "solid_angle";
-    case AreaSampling::kArea: return "area";
-  }
-  return "auto";
-}
-
-}  // namespace
 
 int run_render(const RenderArgs& a) {
   // Warnings and errors go to stderr with the progress bar and the summary; stdout stays free for data.
@@ -99,15 +77,10 @@ int run_render(const RenderArgs& a) {
     lo.force_direct = !a.integrator.empty();
     if (!a.asset_root.empty()) lo.asset_root = a.asset_root;
     lo.spp = a.spp;
-    if (a.area_sampling == "auto") lo.area_sampling = AreaSampling::kAuto;
-    if (a.area_sampling == "solid_angle") lo.area_sampling = AreaSampling::kSolidAngle;
-    if (a.area_sampling == "area") lo.area_sampling = AreaSampling::kArea;
-    if (a.env_sampling == "mis") lo.env_sampling = EnvSampling::kMis;
-    if (a.env_sampling == "importance") lo.env_sampling = EnvSampling::kImportance;
-    if (a.env_sampling == "cosine") lo.env_sampling = EnvSampling::kCosine;
-    if (a.env_sampling == "uniform") lo.env_sampling = EnvSampling::kUniform;
-    if (a.bvh == "sah") lo.bvh = SplitMethod::kSah;
-    if (a.bvh == "median") lo.bvh = SplitMethod::kMedian;
+    // Empty when not given; otherwise CLI11 has checked the name against the same table.
+    lo.area_sampling = enum_from_name<AreaSampling>(a.area_sampling, kAreaSamplingNames);
+    lo.env_sampling = enum_from_name<EnvSampling>(a.env_sampling, kEnvSamplingNames);
+    lo.bvh = enum_from_name<SplitMethod>(a.bvh, kSplitMethodNames);
     if (a.target_error > 0.f && a.min_spp > a.max_spp) {
       spdlog::error("--min-spp {} is larger than --max-spp {}", a.min_spp, a.max_spp);
       return 2;
@@ -162,8 +135,8 @@ int run_render(const RenderArgs& a) {
       wo.metadata["tessera:errorFloor"] = std::to_string(ro.error_floor);
     }
     wo.metadata["tessera:replicates"] = std::to_string(ro.replicates);
-    wo.metadata["tessera:areaSampling"] = area_sampling_name(scene.settings.area_sampling);
-    wo.metadata["tessera:envSampling"] = env_sampling_name(scene.settings.env_sampling);
+    wo.metadata["tessera:areaSampling"] = std::string(enum_name(scene.settings.area_sampling, kAreaSamplingNames));
+    wo.metadata["tessera:envSampling"] = std::string(enum_name(scene.settings.env_sampling, kEnvSamplingNames));
     write_exr(a.output, res.image, wo);
     if (!a.preview.empty()) write_png_srgb(a.preview, res.image);
     if (res.counters.nonfinite > 0)

@@ -1,6 +1,7 @@
 #include "cli/render_farm.h"
 
 #include "cli/submit_command.h"
+#include "core/adaptive.h"
 #include "core/image.h"
 #include "server/auth.h"
 #include "worker/child_process.h"
@@ -101,6 +102,7 @@ int run_render_farm(const RenderArgs& a) {
   if (!a.bvh.empty()) unsupported.push_back("--bvh");
   if (a.replicates > 1) unsupported.push_back("--replicates");
   if (a.strict) unsupported.push_back("--strict");
+  if (a.error_floor != AdaptiveOptions{}.error_floor) unsupported.push_back("--error-floor");
   if (!unsupported.empty()) {
     std::string list;
     for (const auto& u : unsupported) list += (list.empty() ? "" : ", ") + u;
@@ -141,16 +143,8 @@ int run_render_farm(const RenderArgs& a) {
 
     farm::HttpClient http(farm::parse_http_url(url));
     http.set_bearer_token(client_token);
-    farm::SubmitOptions o;
-    o.scene = a.scene;
-    o.spp = a.spp;
-    o.seed = a.seed;
+    farm::SubmitOptions o = shared_job_options(a);
     o.tile_size = a.farm_tile;
-    o.force_direct = !a.integrator.empty();
-    if (!a.asset_root.empty()) o.asset_root = a.asset_root;
-    o.target_error = a.target_error;
-    o.min_spp = a.min_spp;
-    o.max_spp = a.max_spp;
     rc = submit_and_wait(http, o, a.output, a.quiet, [&] {
       if (g_interrupts.load() > 0) return true;
       // Every worker gone means no progress is possible.

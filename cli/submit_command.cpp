@@ -99,18 +99,10 @@ int run_submit(const SubmitArgs& a) {
   try {
     farm::HttpClient http(farm::parse_http_url(a.coordinator));
     http.set_bearer_token(load_token(a.token_file, "TESSERA_CLIENT_TOKEN"));
-    farm::SubmitOptions o;
-    o.scene = a.scene;
-    o.spp = a.spp;
-    o.seed = a.seed;
+    farm::SubmitOptions o = shared_job_options(a);
     o.tile_size = a.tile_size;
     o.priority = a.priority;
     o.name = a.name;
-    o.force_direct = !a.integrator.empty();
-    if (!a.asset_root.empty()) o.asset_root = a.asset_root;
-    o.target_error = a.target_error;
-    o.min_spp = a.min_spp;
-    o.max_spp = a.max_spp;
     if (a.detach) {
       const farm::SubmitResult sub = farm::submit_job(http, o);
       std::printf("%s\n", sub.job_id.c_str());

@@ -33,6 +33,22 @@ struct SubmitArgs {
   bool quiet = false;               ///< No progress bar.
 };
 
+/// The job settings `submit` and `render --workers` share, from either's arguments (the fields have the same names);
+/// the caller adds the tile size, priority and name.
+template <class Args>
+farm::SubmitOptions shared_job_options(const Args& a) {
+  farm::SubmitOptions o;
+  o.scene = a.scene;
+  o.spp = a.spp;
+  o.seed = a.seed;
+  o.force_direct = !a.integrator.empty();
+  if (!a.asset_root.empty()) o.asset_root = a.asset_root;
+  o.target_error = a.target_error;
+  o.min_spp = a.min_spp;
+  o.max_spp = a.max_spp;
+  return o;
+}
+
 /// Registers the subcommand's options on `app`.
 CLI::App* add_submit_command(CLI::App& app, SubmitArgs& args);
 

@@ -12,6 +12,7 @@
 #include <new>
 #include <optional>
 #include <span>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -30,6 +31,9 @@ enum class SplitMethod {
   kSah,     ///< Binned surface-area heuristic over all three axes (default).
   kMedian,  ///< Object median along the longest centroid axis (the baseline to beat).
 };
+
+/// Names of the SplitMethod values (scene key integrator.bvh, --bvh), in declaration order.
+inline constexpr std::string_view kSplitMethodNames[] = {"sah", "median"};
 
 /// Build parameters.
 struct BvhOptions {

@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <string_view>
 #include <vector>
 
 namespace tessera {
@@ -26,6 +27,9 @@ enum class AreaSampling {
   kArea,        ///< Uniform points by area (the baseline).
 };
 
+/// Names of the AreaSampling values (scene key integrator.area_sampling, --area-sampling), in declaration order.
+inline constexpr std::string_view kAreaSamplingNames[] = {"auto", "solid_angle", "area"};
+
 /// With AreaSampling::kAuto a rectangle is sampled by solid angle when its area exceeds this times the squared
 /// distance to its centre (the point is closer than about the light's width), by area otherwise. Far away the two
 /// have nearly equal variance and area sampling is ~40% cheaper; close up area sampling's 1/d^2 spikes dominate
@@ -39,6 +43,9 @@ enum class EnvSampling {
   kCosine,      ///< Cosine-weighted hemisphere only.
   kUniform,     ///< Uniform sphere directions (the baseline).
 };
+
+/// Names of the EnvSampling values (scene key integrator.env_sampling, --env-sampling), in declaration order.
+inline constexpr std::string_view kEnvSamplingNames[] = {"mis", "importance", "cosine", "uniform"};
 
 /// A light sample as seen from a shading point.
 struct LightSample {

@@ -1,6 +1,7 @@
 #include "core/scene_loader.h"
 
 #include "core/coincident.h"
+#include "core/enum_names.h"
 #include "core/image.h"
 #include "core/sha256.h"
 
@@ -86,6 +87,15 @@ struct Ctx {
     const json& v = j.at(key);
     if (!v.is_string()) fail(path + "." + key, std::string("expected a string, got ") + v.type_name());
     return v.get<std::string>();
+  }
+
+  // One of the names in `names` (an enum's table, core/enum_names.h), else `def`; other strings are errors.
+  template <class E, size_t N>
+  E choice(const json& j, const char* key, const std::string& path, E def, const std::string_view (&names)[N]) const {
+    if (!j.contains(key)) return def;
+    const std::string v = string(j, key, path);
+    if (const std::optional<E> e = enum_from_name<E>(v, names)) return *e;
+    fail(path + "." + key, "'" + v + "' is not one of: " + join(enum_names(names)));
   }
 
   std::vector<double> numbers(const json& v, const std::string& path, size_t n) const {
@@ -407,23 +417,11 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
     const double ls = ctx.number(in, "light_samples", "integrator", 1);
     if (!(ls >= 1 && ls <= 4096) || ls != std::floor(ls)) ctx.fail("integrator.light_samples", "must be an integer in [1, 4096]");
     s.settings.light_samples = int(ls);
-    const std::string as = ctx.string(in, "area_sampling", "integrator", "auto");
-    if (as == "auto") s.settings.area_sampling = AreaSampling::kAuto;
-    else if (as == "solid_angle") s.settings.area_sampling = AreaSampling::kSolidAngle;
-    else if (as == "area") s.settings.area_sampling = AreaSampling::kArea;
-    else ctx.fail("integrator.area_sampling", "'" + as + "' is not one of: auto, solid_angle, area");
-    const std::string es = ctx.string(in, "env_sampling", "integrator", "mis");
-    if (es == "mis") s.settings.env_sampling = EnvSampling::kMis;
-    else if (es == "importance") s.settings.env_sampling = EnvSampling::kImportance;
-    else if (es == "cosine") s.settings.env_sampling = EnvSampling::kCosine;
-    else if (es == "uniform") s.settings.env_sampling = EnvSampling::kUniform;
-    else ctx.fail("integrator.env_sampling", "'" + es + "' is not one of: mis, importance, cosine, uniform");
+    s.settings.area_sampling = ctx.choice(in, "area_sampling", "integrator", AreaSampling::kAuto, kAreaSamplingNames);
+    s.settings.env_sampling = ctx.choice(in, "env_sampling", "integrator", EnvSampling::kMis, kEnvSamplingNames);
+    bvh_options.split = ctx.choice(in, "bvh", "integrator", SplitMethod::kSah, kSplitMethodNames);
     if (options.area_sampling) s.settings.area_sampling = *options.area_sampling;
     if (options.env_sampling) s.settings.env_sampling = *options.env_sampling;
-    const std::string bv = ctx.string(in, "bvh", "integrator", "sah");
-    if (bv == "sah") bvh_options.split = SplitMethod::kSah;
-    else if (bv == "median") bvh_options.split = SplitMethod::kMedian;
-    else ctx.fail("integrator.bvh", "'" + bv + "' is not one of: sah, median");
     if (options.bvh) bvh_options.split = *options.bvh;
     PointLight pl;
     pl.position = ctx.vec3(in, "point_light_position", "integrator", Vec3(0.f, 5.f, 0.f));

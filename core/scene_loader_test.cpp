@@ -3,6 +3,7 @@
 // integrators and materials are refused with the list of supported ones; unreferenced textures are never read.
 #include "core/scene_loader.h"
 
+#include "core/enum_names.h"
 #include "core/test_files.h"
 
 #include <gtest/gtest.h>
@@ -225,6 +226,36 @@ TEST_F(SceneLoader, TypeMismatchesAreSceneErrors) {
     EXPECT_THROW(load_scene_file(file("scene.json")), SceneError) << bad;
     EXPECT_NO_THROW(scene_asset_paths(json::parse(bad))) << bad;
   }
+}
+
+TEST_F(SceneLoader, StrategyNamesRoundTripAndMisspellingsListTheChoices) {
+  // Every name in the tables (the CLI offers the same ones) loads as its own enumerator...
+  for (size_t i = 0; i < std::size(kAreaSamplingNames); ++i)
+    for (size_t j = 0; j < std::size(kEnvSamplingNames); ++j) {
+      json s = testing::minimal_scene();
+      s["integrator"]["area_sampling"] = kAreaSamplingNames[i];
+      s["integrator"]["env_sampling"] = kEnvSamplingNames[j];
+      const LoadedScene l = load_scene_file(write_scene("scene.json", s), {});
+      EXPECT_EQ(enum_name(l.scene.settings.area_sampling, kAreaSamplingNames), kAreaSamplingNames[i]);
+      EXPECT_EQ(enum_name(l.scene.settings.env_sampling, kEnvSamplingNames), kEnvSamplingNames[j]);
+    }
+  // ...absent keys give the defaults...
+  const LoadedScene d = load_scene_file(write_scene("scene.json", testing::minimal_scene()), {});
+  EXPECT_EQ(d.scene.settings.area_sampling, AreaSampling::kAuto);
+  EXPECT_EQ(d.scene.settings.env_sampling, EnvSampling::kMis);
+  // ...and a misspelling or a wrong type is an error naming the key and the valid names.
+  for (const char* key : {"area_sampling", "env_sampling", "bvh"}) {
+    json s = testing::minimal_scene();
+    s["integrator"][key] = "solid-angle";
+    const std::string choices = std::string(key) == "bvh" ? "sah, median"
+                                : std::string(key) == "area_sampling" ? "auto, solid_angle, area"
+                                                                      : "mis, importance, cosine, uniform";
+    expect_error(s, {std::string("integrator.") + key, "'solid-angle' is not one of: " + choices});
+    s["integrator"][key] = 1;
+    expect_error(s, {std::string("integrator.") + key, "expected a string"});
+  }
+  EXPECT_EQ(enum_from_name<SplitMethod>("median", kSplitMethodNames), SplitMethod::kMedian);
+  EXPECT_FALSE(enum_from_name<SplitMethod>("Median", kSplitMethodNames).has_value());
 }
 
 TEST_F(SceneLoader, AssetPathsMustStayInsideTheSceneFolder) {

@@ -156,9 +156,9 @@ TEST_F(CliRender, ProgressReportsTilesRaysAndEta) {
 // Options the farm path cannot carry are refused before any process starts, naming each one: never silently dropped.
 TEST_F(CliRender, WorkersRefuseOptionsTheFarmDoesNotCarry) {
   const CliRun r = tessera({scene().string(), "-o", f("w.exr"), "-q", "--workers", "1", "--replicates", "2",
-                            "--env-sampling", "uniform", "--bvh", "median"});
+                            "--env-sampling", "uniform", "--bvh", "median", "--error-floor", "0.5"});
   EXPECT_EQ(r.exit_code, 2) << r.err;
-  for (const char* opt : {"--replicates", "--env-sampling", "--bvh"}) EXPECT_NE(r.err.find(opt), std::string::npos) << r.err;
+  for (const char* opt : {"--replicates", "--env-sampling", "--bvh", "--error-floor"}) EXPECT_NE(r.err.find(opt), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find("--area-sampling"), std::string::npos) << r.err;  // not given, not named
   EXPECT_FALSE(fs::exists(file("w.exr")));
 }
