@@ -6,29 +6,10 @@
 set -euo pipefail
 BUILD=${1:?usage: farm_bench.sh BUILD_DIR [SHARED_DIR]}
 SHARED=${2:-$(cd "$(dirname "$0")/../.." && pwd)/shared}
-T="$BUILD/cli/tessera"
-WORK=$(mktemp -d "${TMPDIR:-/tmp}/tessera-farm-bench.XXXXXX")
-PIDS=()
-cleanup() {
-  for p in "${PIDS[@]}"; do kill -TERM "$p" 2>/dev/null || true; done
-  wait 2>/dev/null || true
-  rm -rf "$WORK"
-}
-trap cleanup EXIT
+# shellcheck source-path=SCRIPTDIR source=bench_common.sh
+source "$(dirname "$0")/bench_common.sh" farm
 now() { date +%s.%N; }
 secs() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.3f", b - a }'; }
-
-# The course's textured Cornell box at a chosen size and spp.
-scene() {
-  mkdir -p "$WORK/$1"
-  cp -r "$SHARED/compat/rdr171/assets" "$WORK/$1/"
-  python3 - "$SHARED/compat/rdr171/cbox_refract_textured.json" "$WORK/$1/scene.json" "$2" "$3" "$4" <<'PY'
-import json, sys
-src, dst, w, h, spp = sys.argv[1:]
-s = json.load(open(src)); s["film"]["resolution"] = [int(w), int(h)]; s["integrator"]["spp"] = int(spp)
-json.dump(s, open(dst, "w"))
-PY
-}
 
 echo "tessera farm benchmark, $(date -u +%FT%TZ), $(nproc) cores, commit $(git -C "$(dirname "$0")" rev-parse --short HEAD 2>/dev/null || echo unknown)"
 echo

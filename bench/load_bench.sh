@@ -9,26 +9,13 @@ BUILD=${1:?usage: load_bench.sh BUILD_DIR [SHARED_DIR] [CONNECTIONS] [SECONDS]}
 SHARED=${2:-$(cd "$(dirname "$0")/../.." && pwd)/shared}
 CONNS=${3:-16}
 SECS=${4:-10}
-T="$BUILD/cli/tessera"
-WORK=$(mktemp -d "${TMPDIR:-/tmp}/tessera-load-bench.XXXXXX")
-PIDS=()
-cleanup() {
-  for p in "${PIDS[@]}"; do kill -TERM "$p" 2>/dev/null || true; done
-  wait 2>/dev/null || true
-  rm -rf "$WORK"
-}
-trap cleanup EXIT
+# shellcheck source-path=SCRIPTDIR source=bench_common.sh
+source "$(dirname "$0")/bench_common.sh" load
 
 head -c 24 /dev/urandom | od -An -tx1 | tr -d ' \n' >"$WORK/client.token"
 head -c 24 /dev/urandom | od -An -tx1 | tr -d ' \n' >"$WORK/worker.token"
 chmod 600 "$WORK"/*.token
-mkdir -p "$WORK/scene"
-cp -r "$SHARED/compat/rdr171/assets" "$WORK/scene/"
-python3 - "$SHARED/compat/rdr171/cbox_refract_textured.json" "$WORK/scene/scene.json" <<'PY'
-import json, sys
-s = json.load(open(sys.argv[1])); s["film"]["resolution"] = [320, 240]; s["integrator"]["spp"] = 16
-json.dump(s, open(sys.argv[2], "w"))
-PY
+scene scene 320 240 16
 
 "$T" serve --listen 127.0.0.1:0 --ready-file "$WORK/ready" --data "$WORK/data" --client-token-file "$WORK/client.token" \
   --worker-token-file "$WORK/worker.token" >"$WORK/serve.log" 2>&1 &

@@ -7,6 +7,8 @@
 # Needs root and Debian's slurm-wlm + munge (deploy/install-deps.sh); anything missing is a failure, never a skip.
 # Arguments: TESSERA EXR_COMPARE SOURCE_DIR. Every daemon is stopped on exit, by pid.
 set -euo pipefail
+# shellcheck source-path=SCRIPTDIR source=../lib/proc.sh
+source "$(dirname "$0")/../lib/proc.sh"
 TESSERA=$(realpath "$1")
 EXR_COMPARE=$(realpath "$2")
 SRC=$(realpath "$3")
@@ -47,7 +49,7 @@ alive_in_work() {
 
 cleanup() {
   set +e
-  local p j
+  local p j i rev=()
   for j in "${JOBS[@]}"; do scancel "$j" 2>/dev/null; done
   # Let Slurm stop the jobs itself (workers finish on SIGTERM), for at most 15 s.
   for _ in $(seq 150); do
@@ -55,14 +57,9 @@ cleanup() {
     [ -z "$(squeue -h -j "$(IFS=,; echo "${JOBS[*]}")" 2>/dev/null)" ] && break
     sleep 0.1
   done
-  for ((i = ${#DAEMONS[@]} - 1; i >= 0; i--)); do kill -TERM "${DAEMONS[i]}" 2>/dev/null; done
-  for _ in $(seq 50); do
-    local alive=0
-    for p in "${DAEMONS[@]}"; do kill -0 "$p" 2>/dev/null && alive=1; done
-    [ $alive = 0 ] && break
-    sleep 0.1
-  done
-  for p in "${DAEMONS[@]}"; do kill -KILL "$p" 2>/dev/null; done
+  # The daemons in reverse start order (slurmd, slurmctld, munged): 5 s for SIGTERM, then SIGKILL.
+  for ((i = ${#DAEMONS[@]} - 1; i >= 0; i--)); do rev+=("${DAEMONS[i]}"); done
+  stop_pids 50 "${rev[@]}"
   # Anything a job left behind (it names $WORK on its command line), by pid.
   for p in $(alive_in_work); do [ "$p" != $$ ] && kill -KILL "$p" 2>/dev/null; done
   if [ "$FAILED" = 0 ]; then rm -rf "$WORK"; else echo "logs kept in $WORK" >&2; fi

@@ -4,20 +4,16 @@ set -euo pipefail
 TESSERA=$1
 EXR_COMPARE=$2
 SHARED=$3
+# shellcheck source-path=SCRIPTDIR source=../lib/proc.sh
+source "$(dirname "${BASH_SOURCE[0]}")/../lib/proc.sh"
 WORK=$(mktemp -d "${TMPDIR:-/tmp}/tessera-farm-test.XXXXXX")
 PIDS=()
 FAILED=0
 
 cleanup() {
   local p
-  for p in "${PIDS[@]}"; do kill -CONT "$p" 2>/dev/null || true; kill -TERM "$p" 2>/dev/null || true; done
-  for _ in $(seq 50); do
-    local alive=0
-    for p in "${PIDS[@]}"; do kill -0 "$p" 2>/dev/null && alive=1; done
-    [ $alive = 0 ] && break
-    sleep 0.1
-  done
-  for p in "${PIDS[@]}"; do kill -KILL "$p" 2>/dev/null || true; done
+  for p in "${PIDS[@]}"; do kill -CONT "$p" 2>/dev/null || true; done   # a stopped process could not act on SIGTERM
+  stop_pids 50 "${PIDS[@]}"
   if [ "$FAILED" = 0 ] && [ -z "${KEEP_LOGS:-}" ]; then rm -rf "$WORK"; else echo "logs kept in $WORK" >&2; fi
 }
 trap cleanup EXIT
@@ -28,6 +24,16 @@ fail() {
   local f
   for f in "$WORK"/*.log; do [ -f "$f" ] && { echo "--- $f" >&2; tail -n 25 "$f" >&2; }; done
   exit 1
+}
+
+# expect_exit CODE LOG -- COMMAND...: runs the command with its stdout and stderr to LOG; fails the test unless it
+# exits with status CODE.
+expect_exit() {
+  local want=$1 log=$2 rc=0
+  [ "${3:-}" = -- ] || fail "expect_exit: usage: expect_exit CODE LOG -- COMMAND..."
+  shift 3
+  "$@" >"$log" 2>&1 || rc=$?
+  [ "$rc" = "$want" ] || fail "exit status $rc, not $want, from: $*"
 }
 
 # wait_for COMMAND... : retries the command every 0.05 s for up to 30 s.
@@ -55,6 +61,16 @@ start_worker() {
   "$TESSERA" worker --coordinator "$URL" --cache "$WORK/cache-$name" --name "$name" "$@" >"$WORK/$name.log" 2>&1 &
   WORKER_PID=$!
   PIDS+=("$WORKER_PID")
+}
+
+# start_submit LOG SCENE [submit flags...]: starts `tessera submit SCENE` against $URL in the background, its output
+# to LOG; sets SUBMIT_PID.
+start_submit() {
+  local log=$1 scene=$2
+  shift 2
+  "$TESSERA" submit "$scene" --coordinator "$URL" "$@" >"$log" 2>&1 &
+  SUBMIT_PID=$!
+  PIDS+=("$SUBMIT_PID")
 }
 
 # log_has FILE PATTERN: true when the (extended) regex occurs in the file.

@@ -6,11 +6,7 @@ source "$(dirname "$0")/common.sh"
 write_sphere_scene "$WORK/s.json" 16 16 1
 start_serve
 for w in a b c; do TESSERA_WORKER_FAIL_RENDER=1 start_worker "$w" --threads 1; done
-set +e
-"$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 8 -o "$WORK/out.exr" >"$WORK/submit.log" 2>&1
-rc=$?
-set -e
-[ $rc = 1 ] || fail "submit of a failing job exited with $rc, not 1"
+expect_exit 1 "$WORK/submit.log" -- "$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 8 -o "$WORK/out.exr"
 log_has "$WORK/submit.log" "failed: .*injected render failure" || fail "the failure reason was not printed"
 [ ! -e "$WORK/out.exr" ] || fail "an output was written for a failed job"
 for w in a b c; do

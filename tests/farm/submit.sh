@@ -20,19 +20,11 @@ log_has "$WORK/submit2.log" "assets, 0 uploaded\)" || fail "the second submissio
 
 write_sphere_scene "$WORK/bad.json" 8 8 1
 sed -i 's/"radius": 0.7/"radius": -1/' "$WORK/bad.json"
-set +e
-"$TESSERA" submit "$WORK/bad.json" --coordinator "$URL" -o "$WORK/bad.exr" >"$WORK/submit-bad.log" 2>&1
-rc=$?
-set -e
-[ $rc = 2 ] || fail "a refused scene exited with $rc, not 2"
+expect_exit 2 "$WORK/submit-bad.log" -- "$TESSERA" submit "$WORK/bad.json" --coordinator "$URL" -o "$WORK/bad.exr"
 log_has "$WORK/submit-bad.log" "answered 400: .*radius" || fail "the coordinator's message was not printed"
 
 kill -TERM "$SERVE_PID"
 wait "$SERVE_PID" || true
-set +e
-"$TESSERA" submit "$WORK/cbox/scene.json" --coordinator "$URL" -o "$WORK/none.exr" >"$WORK/submit-down.log" 2>&1
-rc=$?
-set -e
-[ $rc = 1 ] || fail "submit to a stopped coordinator exited with $rc"
+expect_exit 1 "$WORK/submit-down.log" -- "$TESSERA" submit "$WORK/cbox/scene.json" --coordinator "$URL" -o "$WORK/none.exr"
 log_has "$WORK/submit-down.log" "cannot connect" || fail "no clear message for an unreachable coordinator"
 echo "PASS"

@@ -6,9 +6,7 @@ source "$(dirname "$0")/common.sh"
 write_sphere_scene "$WORK/s.json" 32 32 1024
 "$TESSERA" render "$WORK/s.json" -o "$WORK/ref.exr" -q --threads 1
 start_serve --lease-seconds 2 --heartbeat-seconds 1
-"$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 16 -o "$WORK/out.exr" -q >"$WORK/submit.log" 2>&1 &
-SUBMIT_PID=$!
-PIDS+=("$SUBMIT_PID")
+start_submit "$WORK/submit.log" "$WORK/s.json" --tile 16 -o "$WORK/out.exr" -q
 
 start_worker victim --threads 1
 VICTIM=$WORKER_PID

@@ -20,9 +20,7 @@ kill -0 "$PATIENT" || fail "the worker exited while the coordinator was down"
 kill -STOP "$PATIENT"   # keep it out of the shutdown checks below until they are done
 
 LISTEN=127.0.0.1:$PORT start_serve --lease-seconds 30 --heartbeat-seconds 1
-"$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 32 -o "$WORK/out.exr" -q >"$WORK/submit.log" 2>&1 &
-SUBMIT_PID=$!
-PIDS+=("$SUBMIT_PID")
+start_submit "$WORK/submit.log" "$WORK/s.json" --tile 32 -o "$WORK/out.exr" -q
 
 start_worker once --threads 1
 ONCE=$WORKER_PID
