@@ -4,6 +4,7 @@
 #include "server/api.h"
 #include "server/coordinator.h"
 #include "server/storage.h"
+#include "server/test_coordinator.h"
 #include "server/test_http_client.h"
 
 #include <gtest/gtest.h>
@@ -109,26 +110,18 @@ class TokenServerTest : public ::testing::Test {
     previous_ = spdlog::default_logger();
     spdlog::set_default_logger(std::make_shared<spdlog::logger>("capture", sink_));
     spdlog::set_level(spdlog::level::debug);
-    dir_ = fs::temp_directory_path() / ("tessera-auth-test-" + random_hex(6));
     CoordinatorOptions o;
-    o.port = 0;
-    o.data_dir = dir_;
     o.handler_threads = 2;
     o.limits.tokens = kTokens;
-    coord_ = std::make_unique<Coordinator>(o);
-    thread_ = std::thread([this] { coord_->run(); });
+    server_ = std::make_unique<testing::RunningCoordinator>(o, "auth");
   }
   void TearDown() override {
-    coord_->stop();
-    thread_.join();
-    coord_.reset();
+    server_.reset();
     spdlog::set_default_logger(previous_);
     spdlog::set_level(spdlog::level::warn);
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
   }
   Reply call(V m, const std::string& target, const std::string& token, std::string body = {}) {
-    Client c(coord_->endpoint());
+    Client c(server_->endpoint());
     std::vector<std::pair<std::string, std::string>> h;
     if (!token.empty()) h.emplace_back("Authorization", "Bearer " + token);
     return c.send(m, target, std::move(body), h);
@@ -137,9 +130,7 @@ class TokenServerTest : public ::testing::Test {
   std::ostringstream log_;
   std::shared_ptr<spdlog::sinks::ostream_sink_mt> sink_;
   std::shared_ptr<spdlog::logger> previous_;
-  fs::path dir_;
-  std::unique_ptr<Coordinator> coord_;
-  std::thread thread_;
+  std::unique_ptr<testing::RunningCoordinator> server_;
 };
 
 TEST_F(TokenServerTest, EndpointsAnswer401Or403WithoutTheRightToken) {
@@ -182,7 +173,7 @@ TEST_F(TokenServerTest, EndpointsAnswer401Or403WithoutTheRightToken) {
 TEST_F(TokenServerTest, UnauthorisedUploadIsRefusedBeforeItsBodyIsRead) {
   boost::asio::io_context ioc;
   beast::tcp_stream stream(ioc);
-  stream.connect(coord_->endpoint());
+  stream.connect(server_->endpoint());
   const std::string head = "PUT /v1/blobs/" + std::string(64, 'b') +
                            " HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 100000000\r\n\r\n";
   boost::asio::write(stream.socket(), boost::asio::buffer(head));

@@ -1,5 +1,6 @@
 // The coordinator over real HTTP on a loopback ephemeral port, driven by a small synchronous Beast client.
 #include "server/coordinator.h"
+#include "server/test_coordinator.h"
 #include "server/test_http_client.h"
 
 #include "core/render.h"
@@ -49,29 +50,19 @@ class HttpTest : public ::testing::Test {
  protected:
   void SetUp() override {
     spdlog::set_level(spdlog::level::warn);
-    dir_ = fs::temp_directory_path() / ("tessera-http-test-" + random_hex(6));
     CoordinatorOptions o;
-    o.port = 0;
-    o.data_dir = dir_;
     o.limits.json_limit = 256 * 1024;
     o.limits.blob_limit = 1 << 20;
     o.limits.result_limit = 4 << 20;
     o.handler_threads = 2;
     o.lease_seconds = lease_seconds_;
     configure(o);
-    coord_ = std::make_unique<Coordinator>(o);
-    thread_ = std::thread([this] { coord_->run(); });
+    server_ = std::make_unique<testing::RunningCoordinator>(o, "http");
   }
-  void TearDown() override {
-    coord_->stop();
-    thread_.join();
-    coord_.reset();
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-  }
+  void TearDown() override { server_.reset(); }
   Reply call(http::verb m, const std::string& target, std::string body = {},
              std::vector<std::pair<std::string, std::string>> headers = {}) {
-    Client c(coord_->endpoint());
+    Client c(server_->endpoint());
     return c.send(m, target, std::move(body), std::move(headers));
   }
   std::string put_blob(const fs::path& file) {
@@ -103,9 +94,7 @@ class HttpTest : public ::testing::Test {
   virtual void configure(CoordinatorOptions&) {}
 
   double lease_seconds_ = 30;
-  fs::path dir_;
-  std::unique_ptr<Coordinator> coord_;
-  std::thread thread_;
+  std::unique_ptr<testing::RunningCoordinator> server_;
 };
 
 // A small job on the intersection_test Cornell box: 40x30 pixels, 2 spp, 16-pixel tiles (3x2 tiles, ragged edges).
@@ -320,7 +309,7 @@ TEST_F(HttpTest, UnknownTargetsAndWrongMethods) {
 }
 
 TEST_F(HttpTest, KeepAliveServesSeveralRequestsOnOneConnection) {
-  Client c(coord_->endpoint());
+  Client c(server_->endpoint());
   for (int i = 0; i < 3; ++i) {
     const Reply r = c.send(http::verb::get, "/healthz");
     EXPECT_EQ(r.status, 200u);
@@ -381,7 +370,7 @@ TEST_F(HttpTest, FullTileRoundTripIsBitwiseIdenticalToOneRender) {
   const LoadedScene local = load_local(body["scene"], 2);
   const int W = local.scene.width, H = local.scene.height;
   const std::string w1 = register_worker("one"), w2 = register_worker("two");
-  const fs::path scratch = dir_ / "client";
+  const fs::path scratch = server_->data_dir() / "client";
   fs::create_directories(scratch);
 
   bool tried_invalid = false, tried_duplicate = false;
@@ -499,7 +488,7 @@ TEST_F(HttpTest, ConcurrentUploadsOfOneTileMergeItOnce) {
   ro.seed = 7;
   ro.spp = 2;
   const RenderResult res = render(local.scene, ro);
-  const fs::path scratch = dir_ / "client";
+  const fs::path scratch = server_->data_dir() / "client";
   fs::create_directories(scratch);
   const std::string exr = tile_exr(scratch, res.image, res.window, local.scene.width, local.scene.height);
   std::vector<std::string> statuses(6);
@@ -588,10 +577,10 @@ TEST_F(LimitsTest, HeaderSizeAndConnections) {
   // Three kept-alive connections fill the limit; a fourth is answered 503 without being read.
   std::vector<std::unique_ptr<Client>> open;
   for (int i = 0; i < 3; ++i) {
-    open.push_back(std::make_unique<Client>(coord_->endpoint()));
+    open.push_back(std::make_unique<Client>(server_->endpoint()));
     ASSERT_EQ(open.back()->send(http::verb::get, "/healthz").status, 200u);
   }
-  Client extra(coord_->endpoint());
+  Client extra(server_->endpoint());
   r = extra.send(http::verb::get, "/healthz");
   EXPECT_EQ(r.status, 503u);
   EXPECT_EQ(r.msg[http::field::retry_after], "1");

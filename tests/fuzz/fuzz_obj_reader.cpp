@@ -1,7 +1,8 @@
 // libFuzzer target: an OBJ file's bytes through the scene loader's OBJ reader (a fixed scene with one mesh object,
-// transformed and used as an emitter so the area-light split runs too). The bytes go to a per-process scratch file
-// because the loader reads assets by path. A SceneError is a clean refusal; anything else is a finding.
+// transformed and used as an emitter so the area-light split runs too). The bytes go to a file in a per-process
+// scratch folder because the loader reads assets by path. A SceneError is a clean refusal; anything else is a finding.
 #include "core/scene_loader.h"
+#include "tests/fuzz/scratch_dir.h"
 
 #include <nlohmann/json.hpp>
 
@@ -10,26 +11,12 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <unistd.h>
 
 namespace fs = std::filesystem;
 
-namespace {
-
-// The scratch file, removed when the process exits normally.
-struct Scratch {
-  fs::path file = fs::temp_directory_path() / ("tessera-fuzz-obj-" + std::to_string(::getpid()) + ".obj");
-  ~Scratch() {
-    std::error_code ec;
-    fs::remove(file, ec);
-  }
-};
-
-}  // namespace
-
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  static const Scratch scratch;
-  const fs::path& file = scratch.file;
+  static const tessera::fuzz::ScratchDir scratch("obj");
+  static const fs::path file = scratch.path / "a.obj";
   static const nlohmann::json scene = nlohmann::json::parse(R"({
     "film": {"resolution": [4, 4]},
     "textures": {"w": {"type": "constant", "color": [0.5, 0.5, 0.5]}},

@@ -3,6 +3,7 @@
 // refusal, anything else (another exception, a crash, UB, a leak) is a finding.
 #include "core/image.h"
 #include "core/scene_loader.h"
+#include "tests/fuzz/scratch_dir.h"
 
 #include <cstddef>
 #include <cstdint>
@@ -10,28 +11,21 @@
 #include <filesystem>
 #include <fstream>
 #include <string_view>
-#include <unistd.h>
 
 namespace fs = std::filesystem;
 
 namespace {
 
-// Writes the two assets once per process into a private temporary folder.
+// Writes the two assets once per process into a private scratch folder.
 struct Assets {
-  fs::path dir, obj, exr;
+  tessera::fuzz::ScratchDir scratch{"scene"};
+  fs::path obj = scratch.path / "quad.obj";
+  fs::path exr = scratch.path / "tex.exr";
   Assets() {
-    dir = fs::temp_directory_path() / ("tessera-fuzz-scene-" + std::to_string(::getpid()));
-    fs::create_directories(dir);
-    obj = dir / "quad.obj";
     std::ofstream(obj) << "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3 4/4\n";
-    exr = dir / "tex.exr";
     tessera::Image img = tessera::Image::make(2, 2);
     img.set(1, 0, tessera::Vec3(1.f, 0.5f, 0.25f));
     tessera::write_exr(exr, img);
-  }
-  ~Assets() {
-    std::error_code ec;
-    fs::remove_all(dir, ec);
   }
 };
 
