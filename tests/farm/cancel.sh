@@ -9,9 +9,7 @@ write_sphere_scene "$WORK/quick.json" 16 12 2
 "$TESSERA" render "$WORK/quick.json" -o "$WORK/quick-ref.exr" -q
 start_serve --lease-seconds 5 --heartbeat-seconds 1
 start_worker w --threads 1
-"$TESSERA" submit "$WORK/slow.json" --coordinator "$URL" --tile 32 -o "$WORK/slow.exr" >"$WORK/submit-slow.log" 2>&1 &
-SUBMIT_PID=$!
-PIDS+=("$SUBMIT_PID")
+start_submit "$WORK/submit-slow.log" "$WORK/slow.json" --tile 32 -o "$WORK/slow.exr"
 wait_for log_has "$WORK/w.log" "upload accepted" || fail "no tile finished"
 JOB=$(grep -Eo "as j-[^ ]+" "$WORK/submit-slow.log" | head -n1 | cut -c4-)
 [ -n "$JOB" ] || fail "no job id in submit's output"

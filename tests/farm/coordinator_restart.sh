@@ -10,9 +10,7 @@ write_sphere_scene "$WORK/s.json" 64 48 1024
 TILES=12  # 64x48 in 16-pixel tiles
 start_serve --lease-seconds 10 --heartbeat-seconds 1
 ADDRESS=$(head -n1 "$WORK/ready")
-"$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 16 -o "$WORK/out.exr" -q >"$WORK/submit.log" 2>&1 &
-SUBMIT_PID=$!
-PIDS+=("$SUBMIT_PID")
+start_submit "$WORK/submit.log" "$WORK/s.json" --tile 16 -o "$WORK/out.exr" -q
 start_worker w1 --threads 1
 start_worker w2 --threads 1
 

@@ -7,9 +7,7 @@ source "$(dirname "$0")/common.sh"
 write_sphere_scene "$WORK/s.json" 24 16 4
 "$TESSERA" render "$WORK/s.json" -o "$WORK/ref.exr" -q
 start_serve --lease-seconds 2 --heartbeat-seconds 1
-"$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 8 -o "$WORK/out.exr" -q >"$WORK/submit.log" 2>&1 &
-SUBMIT_PID=$!
-PIDS+=("$SUBMIT_PID")
+start_submit "$WORK/submit.log" "$WORK/s.json" --tile 8 -o "$WORK/out.exr" -q
 
 TESSERA_WORKER_STOP_BEFORE_UPLOAD=1 start_worker late --threads 1
 LATE=$WORKER_PID
