@@ -6,6 +6,7 @@
 // fails when the two differ.
 #include "core/image.h"
 #include "core/sha256.h"
+#include "worker/child_process.h"
 
 #include <boost/asio/buffer.hpp>
 #include <boost/beast/http.hpp>
@@ -17,7 +18,6 @@
 #include <netinet/in.h>
 #include <poll.h>
 #include <signal.h>
-#include <spawn.h>
 #include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -33,8 +33,6 @@
 #include <string>
 #include <thread>
 #include <vector>
-
-extern char** environ;
 
 namespace tessera {
 namespace {
@@ -67,70 +65,32 @@ void spit(const fs::path& p, const std::string& bytes) {
 
 // ---- processes
 
-// A child process with stdout and stderr in a log file; stopped with SIGTERM (then SIGKILL) when destroyed.
+// A child process (worker/child_process.h) with stdout and stderr appended to a log file; stopped with SIGTERM (then
+// SIGKILL after 10 s) when destroyed.
 class Process {
  public:
-  Process(const std::vector<std::string>& args, const fs::path& log) {
-    posix_spawn_file_actions_t fa;
-    posix_spawn_file_actions_init(&fa);
-    posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-    posix_spawn_file_actions_adddup2(&fa, 1, 2);
-    std::vector<char*> argv;
-    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    if (posix_spawn(&pid_, argv[0], &fa, nullptr, argv.data(), environ) != 0) pid_ = -1;
-    posix_spawn_file_actions_destroy(&fa);
-  }
+  Process(const std::vector<std::string>& args, const fs::path& log) : child_{farm::spawn_child(args, args[0], log)} {}
   ~Process() { stop(); }
   Process(const Process&) = delete;
   Process& operator=(const Process&) = delete;
 
   /// True while the process has not exited.
-  bool alive() {
-    if (pid_ <= 0) return false;
-    int status = 0;
-    if (waitpid(pid_, &status, WNOHANG) == pid_) {
-      pid_ = -1;
-      return false;
-    }
-    return true;
-  }
+  bool alive() { return !farm::child_exited(child_[0]); }
   /// SIGTERM, up to 10 s to exit, then SIGKILL.
-  void stop() {
-    if (pid_ <= 0) return;
-    kill(pid_, SIGTERM);
-    for (int i = 0; i < 200; ++i) {
-      if (waitpid(pid_, nullptr, WNOHANG) == pid_) {
-        pid_ = -1;
-        return;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
-    kill(pid_, SIGKILL);
-    waitpid(pid_, nullptr, 0);
-    pid_ = -1;
-  }
+  void stop() { farm::stop_children(child_, std::chrono::seconds(10)); }
 
  private:
-  pid_t pid_ = -1;
+  std::vector<farm::ChildProcess> child_;  // one element: the form stop_children takes
 };
 
-// Runs a command to completion; returns its exit status (-1 when it did not exit normally).
+// Runs a command to completion with its output in a fresh log; returns its exit status (-1 when it did not exit
+// normally).
 int run(const std::vector<std::string>& args, const fs::path& log) {
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_adddup2(&fa, 1, 2);
-  std::vector<char*> argv;
-  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-  argv.push_back(nullptr);
-  pid_t pid = -1;
-  const int rc = posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&fa);
-  if (rc != 0) return -1;
-  int status = 0;
-  waitpid(pid, &status, 0);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  std::error_code ec;
+  fs::remove(log, ec);  // spawn_child appends
+  farm::ChildProcess c = farm::spawn_child(args, args[0], log);
+  while (!farm::child_exited(c)) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  return WIFEXITED(c.exit_status) ? WEXITSTATUS(c.exit_status) : -1;
 }
 
 // ---- raw HTTP over POSIX sockets (so a test can trickle, stall, or send bytes no client library would)
