@@ -3,6 +3,7 @@
 #include "core/image.h"
 #include "core/render.h"
 #include "core/scene_loader.h"
+#include "failpoint/failpoint.h"
 #include "worker/asset_cache.h"
 #include "worker/backoff.h"
 #include "worker/protocol.h"
@@ -13,10 +14,8 @@
 
 #include <unistd.h>
 
-#include <csignal>
-#include <cstdlib>
-#include <limits>
 #include <condition_variable>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -334,8 +333,9 @@ class Worker {
         if (!PixelWindow{0, 0, width, height}.contains(l.window))
           throw std::runtime_error("tile window lies outside the " + std::to_string(width) + "x" +
                                    std::to_string(height) + " image");
-        if (std::getenv("TESSERA_WORKER_FAIL_RENDER"))  // test hook (tests/farm/render_failure.sh)
-          throw std::runtime_error("injected render failure (TESSERA_WORKER_FAIL_RENDER)");
+        // Tests fail the render here, or hold it until released (a pause ends when the tile is cancelled, as a
+        // long render would).
+        TESSERA_FAIL_POINT_CANCELLABLE("worker.render", [&] { return cancel.load(); });
         RenderOptions ro;
         ro.seed = l.seed;
         ro.spp = l.spp;
@@ -385,31 +385,16 @@ class Worker {
     wo.data_window = l.window;
     wo.display_window = PixelWindow{0, 0, width, height};
     wo.write_extra = false;
-    std::vector<uint8_t> bytes;
-    const char* corrupt = std::getenv("TESSERA_WORKER_CORRUPT_UPLOAD");
-    const std::string how = corrupt ? corrupt : "";
-    const bool always = how.size() > 7 && how.compare(how.size() - 7, 7, "-always") == 0;
-    if (corrupt && (always || !corrupted_for_test_)) {
-      // Test hook (tests/farm/bad_upload.sh): the first upload (every one with "-always") is a tile the coordinator
-      // must refuse.
-      corrupted_for_test_ = true;
-      bytes = corrupt_tile(res.image, wo, always ? how.substr(0, how.size() - 7) : how);
-      spdlog::info("{}: TESSERA_WORKER_CORRUPT_UPLOAD={}: uploading a corrupted tile", pfx, corrupt);
-    } else {
-      bytes = encode_exr(res.image, wo);
-    }
+    std::vector<uint8_t> bytes = encode_exr(res.image, wo);
+    TESSERA_FAIL_POINT_RETURN("worker.upload.corrupt",
+                              [&](const std::string& how) { bytes = corrupt_tile(res.image, wo, how); });
     HttpRequest req;
     req.method = "PUT";
     req.target = "/v1/leases/" + l.id + "/result";
     req.body.assign(bytes.begin(), bytes.end());
     req.content_type = "image/x-exr";
     req.headers["X-Tessera-Rays"] = std::to_string(res.counters.rays);
-    if (!stopped_for_test_ && std::getenv("TESSERA_WORKER_STOP_BEFORE_UPLOAD")) {
-      // Test hook (tests/farm/late_upload.sh): freeze between render and upload, as a stalled machine would.
-      stopped_for_test_ = true;
-      spdlog::info("{}: TESSERA_WORKER_STOP_BEFORE_UPLOAD: stopping myself before the upload", pfx);
-      std::raise(SIGSTOP);
-    }
+    TESSERA_FAIL_POINT("worker.upload");
     Backoff backoff(200ms, opt_.max_retry_wait);
     for (int attempt = 1;; ++attempt) {
       try {
@@ -419,12 +404,9 @@ class Worker {
           const std::string status = j.is_object() ? j.value("status", "") : "";
           spdlog::info("{}: upload {}", pfx, status.empty() ? "acknowledged" : status);
           ++stats_.tiles_uploaded;
-          if (std::getenv("TESSERA_WORKER_UPLOAD_TWICE") && !uploaded_twice_for_test_) {
-            // Test hook (tests/farm/bad_upload.sh): send the same result again, as a worker that missed the answer would.
-            uploaded_twice_for_test_ = true;
-            spdlog::info("{}: TESSERA_WORKER_UPLOAD_TWICE: uploading the same result again", pfx);
-            continue;
-          }
+          bool again = false;  // tests send the result again, as a worker that missed the answer would
+          TESSERA_FAIL_POINT_RETURN("worker.upload.repeat", [&](const std::string&) { again = true; });
+          if (again) continue;
           return;
         }
         if (r.status == 410) {
@@ -459,7 +441,9 @@ class Worker {
     }
   }
 
-  // The test hooks' corrupted tile: "nan" puts a NaN in the first pixel, "size" drops the last column (or row).
+#if defined(TESSERA_FAILPOINTS)
+  // The corrupted tile of fail point worker.upload.corrupt: "nan" puts a NaN in the first pixel, "size" drops the last
+  // column (or row).
   static std::vector<uint8_t> corrupt_tile(const Image& image, ExrWriteOptions wo, const std::string& how) {
     if (how == "nan") {
       Image bad = image;
@@ -468,8 +452,7 @@ class Worker {
       return encode_exr(bad, wo);
     }
     if (how != "size")
-      throw std::runtime_error("TESSERA_WORKER_CORRUPT_UPLOAD must be nan, size, nan-always or size-always (got '" +
-                               how + "')");
+      throw std::runtime_error("fail point worker.upload.corrupt: return(nan) or return(size), not return(" + how + ")");
     const bool narrower = image.width > 1;
     Image bad = Image::make(image.width - (narrower ? 1 : 0), image.height - (narrower ? 0 : 1));
     for (int y = 0; y < bad.height; ++y)
@@ -477,6 +460,7 @@ class Worker {
     (narrower ? wo.data_window.x1 : wo.data_window.y1) -= 1;
     return encode_exr(bad, wo);
   }
+#endif
 
   // Posts a small JSON message about a lease, retrying briefly; the lease expires anyway if this never arrives.
   bool post_lease_message(const Lease& l, const std::string& pfx, const std::string& action, const json& body,
@@ -520,9 +504,6 @@ class Worker {
   int threads_ = 1;
   std::chrono::milliseconds heartbeat_period_{5000};
   bool down_ = false;
-  bool stopped_for_test_ = false;
-  bool corrupted_for_test_ = false;
-  bool uploaded_twice_for_test_ = false;
   WorkerStats stats_;
 };
 

@@ -32,8 +32,6 @@ struct WorkerStats {
   int64_t tiles_released = 0;   ///< Tiles handed back on shutdown.
 };
 
-/// Test hooks (environment): TESSERA_WORKER_STOP_BEFORE_UPLOAD makes the worker SIGSTOP itself once between a render
-/// and its upload; TESSERA_WORKER_FAIL_RENDER makes every tile fail (reported through /fail).
 /// Runs the worker until *stop_requests becomes non-zero: the first request lets the current tile finish and upload,
 /// a second one cancels the render and hands the tile back. Never returns because the coordinator is unreachable
 /// (it retries with backoff and jitter); throws for bad options (URL, cache folder) and when the coordinator refuses

@@ -14,7 +14,7 @@ job_field() { curl -sS "$URL/v1/jobs/$1" | python3 -c "import json,sys; print(js
 
 # A lone worker whose every upload carries a NaN: blocklisted after two failures, and as the only worker present it
 # fails the job, with the reason recorded.
-TESSERA_WORKER_CORRUPT_UPLOAD=nan-always start_worker bad --threads 1
+FAIL_POINTS="worker.upload.corrupt=return(nan)" start_worker bad --threads 1
 BAD=$WORKER_PID
 "$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 8 -o "$WORK/never.exr" -q >"$WORK/submit-bad.log" 2>&1 &&
   fail "submit succeeded although every upload was corrupt"
@@ -26,13 +26,11 @@ log_has "$WORK/bad.log" "refused the result as invalid" || fail "the worker did 
 kill -TERM "$BAD"
 wait "$BAD" || fail "the bad worker exited with $?"
 
-# run_case NAME ENV=VALUE: one worker with the hook renders a fresh job, which must come out identical.
+# run_case NAME FAIL_POINTS: one worker with these fail points renders a fresh job, which must come out identical.
 run_case() {
-  local name=$1 hook=$2
-  env "$hook" "$TESSERA" worker --coordinator "$URL" --cache "$WORK/cache-$name" --name "$name" --threads 1 \
-    >"$WORK/$name.log" 2>&1 &
-  local pid=$!
-  PIDS+=("$pid")
+  local name=$1
+  FAIL_POINTS=$2 start_worker "$name" --threads 1
+  local pid=$WORKER_PID
   "$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 8 -o "$WORK/$name.exr" -q >"$WORK/submit-$name.log" 2>&1 ||
     fail "$name: submit failed"
   "$EXR_COMPARE" "$WORK/ref.exr" "$WORK/$name.exr" || fail "$name: result differs"
@@ -40,14 +38,14 @@ run_case() {
   wait "$pid" || fail "$name: worker exited with $?"
 }
 
-run_case nan TESSERA_WORKER_CORRUPT_UPLOAD=nan
+run_case nan "worker.upload.corrupt=1*return(nan)"
 log_has "$WORK/serve.log" "worker .*: invalid result: pixel \([0-9]+, [0-9]+\) is not finite" || fail "no NaN refusal logged"
 log_has "$WORK/nan.log" "refused the result as invalid: invalid result: pixel" || fail "nan: the worker did not see the 422"
 
-run_case size TESSERA_WORKER_CORRUPT_UPLOAD=size
+run_case size "worker.upload.corrupt=1*return(size)"
 log_has "$WORK/serve.log" "invalid result: data window is \[[0-9, ]+\), expected the tile's" || fail "no size refusal logged"
 
-run_case twice TESSERA_WORKER_UPLOAD_TWICE=1
+run_case twice "worker.upload.repeat=1*return"
 log_has "$WORK/twice.log" "upload accepted" || fail "twice: first upload not accepted"
 log_has "$WORK/twice.log" "upload duplicate" || fail "twice: the repeated upload was not acknowledged as a duplicate"
 [ "$(grep -c "duplicate result acknowledged" "$WORK/serve.log")" -ge 1 ] || fail "the coordinator logged no duplicate"

@@ -1,9 +1,16 @@
-# Shared helpers of the farm tests (sourced). Arguments of every test: TESSERA EXR_COMPARE SHARED_DIR.
+# Shared helpers of the farm tests (sourced). Arguments of every test: TESSERA EXR_COMPARE SHARED_DIR TESSERA_FP
+# (TESSERA_FP: the test binary tessera-failpoints, run instead of TESSERA by processes given FAIL_POINTS).
 # Every process a test starts is recorded in PIDS and stopped on exit (SIGCONT, SIGTERM, then SIGKILL), by pid.
+# A test never outlives its budget (TESSERA_TEST_BUDGET seconds, set by CMake 10 s under ctest's TIMEOUT): waits give
+# up at the deadline with their own message, and a watchdog stops whatever still runs then, with the logs.
 set -euo pipefail
 TESSERA=$1
 EXR_COMPARE=$2
 SHARED=$3
+TESSERA_FP=${4:-}
+ulimit -c 0  # processes crashed on purpose (fail point abort) leave no core files
+BUDGET=${TESSERA_TEST_BUDGET:-50}
+DEADLINE=$((SECONDS + BUDGET - 2))  # waits stop 2 s before the watchdog, so their own message is the one printed
 # shellcheck source-path=SCRIPTDIR source=../lib/proc.sh
 source "$(dirname "${BASH_SOURCE[0]}")/../lib/proc.sh"
 WORK=$(mktemp -d "${TMPDIR:-/tmp}/tessera-farm-test.XXXXXX")
@@ -12,6 +19,7 @@ FAILED=0
 
 cleanup() {
   local p
+  kill "$WATCHDOG" 2>/dev/null || true
   for p in "${PIDS[@]}"; do kill -CONT "$p" 2>/dev/null || true; done   # a stopped process could not act on SIGTERM
   stop_pids 50 "${PIDS[@]}"
   if [ "$FAILED" = 0 ] && [ -z "${KEEP_LOGS:-}" ]; then rm -rf "$WORK"; else echo "logs kept in $WORK" >&2; fi
@@ -36,16 +44,47 @@ expect_exit() {
   [ "$rc" = "$want" ] || fail "exit status $rc, not $want, from: $*"
 }
 
-# wait_for COMMAND... : retries the command every 0.05 s for up to 30 s.
+# The watchdog: at the budget's end it tells this shell (USR1, which fails the test naming the command it was in)
+# and, a second later, stops this shell's children so that a foreground command cannot hold the shell.
+trap 'fail "out of time: still running \"$BASH_COMMAND\" ${BUDGET} s in (TESSERA_TEST_BUDGET)"' USR1
+(
+  trap - USR1
+  for _ in $(seq $((BUDGET * 10))); do sleep 0.1; done
+  kill -USR1 $$ 2>/dev/null || exit 0
+  sleep 1
+  for c in $(ps -o pid= --ppid $$); do [ "$c" = "$BASHPID" ] || kill -TERM "$c" 2>/dev/null || true; done
+) >/dev/null 2>&1 &
+WATCHDOG=$!
+
+# wait_for COMMAND... : retries the command every 0.05 s until it succeeds (0) or the test's deadline passes (1).
 wait_for() {
-  for _ in $(seq 600); do "$@" && return 0; sleep 0.05; done
-  return 1
+  while [ "$SECONDS" -lt "$DEADLINE" ]; do "$@" && return 0; sleep 0.05; done
+  "$@"
 }
 
-# start_serve [serve flags...]: starts the coordinator on a free loopback port; sets SERVE_PID and URL.
+# exec_tessera ARGS...: replaces the calling (background) subshell with `tessera ARGS...`, or, when FAIL_POINTS is
+# set, with tessera-failpoints under TESSERA_FAIL_POINTS=$FAIL_POINTS (failpoint/failpoint.h describes the setting),
+# so that $! is the process itself. Only for `exec_tessera ... &`.
+exec_tessera() {
+  if [ -n "${FAIL_POINTS:-}" ]; then
+    export TESSERA_FAIL_POINTS=$FAIL_POINTS
+    exec "$TESSERA_FP" "$@"
+  else
+    exec "$TESSERA" "$@"
+  fi
+}
+
+# release NAME: creates $WORK/NAME, which a fail point set to pause($WORK/NAME) waits for.
+release() { touch "$WORK/$1"; }
+
+# paused LOG [POINT]: true when the log shows the fail point (default worker.render) paused.
+paused() { log_has "$1" "fail point ${2:-worker.render}: hit [0-9]+: paused"; }
+
+# start_serve [serve flags...]: starts the coordinator on a free loopback port (with FAIL_POINTS: the test binary);
+# sets SERVE_PID and URL.
 start_serve() {
   rm -f "$WORK/ready"
-  "$TESSERA" serve --listen "${LISTEN:-127.0.0.1:0}" --ready-file "$WORK/ready" --data "$WORK/data" "$@" \
+  exec_tessera serve --listen "${LISTEN:-127.0.0.1:0}" --ready-file "$WORK/ready" --data "$WORK/data" "$@" \
     >>"$WORK/serve.log" 2>&1 &
   SERVE_PID=$!
   PIDS+=("$SERVE_PID")
@@ -54,11 +93,12 @@ start_serve() {
   URL="http://$(head -n1 "$WORK/ready")"
 }
 
-# start_worker NAME [worker flags...]: starts a worker logging to $WORK/NAME.log; sets WORKER_PID.
+# start_worker NAME [worker flags...]: starts a worker logging to $WORK/NAME.log (with FAIL_POINTS: the test
+# binary); sets WORKER_PID.
 start_worker() {
   local name=$1
   shift
-  "$TESSERA" worker --coordinator "$URL" --cache "$WORK/cache-$name" --name "$name" "$@" >"$WORK/$name.log" 2>&1 &
+  exec_tessera worker --coordinator "$URL" --cache "$WORK/cache-$name" --name "$name" "$@" >"$WORK/$name.log" 2>&1 &
   WORKER_PID=$!
   PIDS+=("$WORKER_PID")
 }

@@ -9,10 +9,13 @@ write_sphere_scene "$WORK/s.json" 24 16 4
 start_serve --lease-seconds 2 --heartbeat-seconds 1
 start_submit "$WORK/submit.log" "$WORK/s.json" --tile 8 -o "$WORK/out.exr" -q
 
-TESSERA_WORKER_STOP_BEFORE_UPLOAD=1 start_worker late --threads 1
+FAIL_POINTS="worker.upload=1*stop" start_worker late --threads 1
 LATE=$WORKER_PID
 wait_for is_stopped "$LATE" || fail "the late worker never stopped itself"
-TILE=$(grep -Eo "tile=[0-9]+ lease=[^:]+: TESSERA_WORKER_STOP" "$WORK/late.log" | head -n1 | grep -Eo "tile=[0-9]+")
+# The tile rendered last before the stop is the one waiting for its upload.
+TILE=$(grep -Eo "tile=[0-9]+ lease=[^:]+: rendered in" "$WORK/late.log" | tail -n1 | grep -Eo "tile=[0-9]+")
+[ -n "$TILE" ] || fail "the late worker stopped before rendering a tile"
+log_has "$WORK/late.log" "fail point worker.upload: hit 1: stopping" || fail "the late worker did not stop at worker.upload"
 
 start_worker prompt --threads 1
 wait "$SUBMIT_PID" || fail "submit exited with $? while a worker was frozen"

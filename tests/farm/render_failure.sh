@@ -5,9 +5,9 @@ source "$(dirname "$0")/common.sh"
 
 write_sphere_scene "$WORK/s.json" 16 16 1
 start_serve
-for w in a b c; do TESSERA_WORKER_FAIL_RENDER=1 start_worker "$w" --threads 1; done
+for w in a b c; do FAIL_POINTS=worker.render=error start_worker "$w" --threads 1; done
 expect_exit 1 "$WORK/submit.log" -- "$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 8 -o "$WORK/out.exr"
-log_has "$WORK/submit.log" "failed: .*injected render failure" || fail "the failure reason was not printed"
+log_has "$WORK/submit.log" "failed: .*injected error at fail point worker.render" || fail "the failure reason was not printed"
 [ ! -e "$WORK/out.exr" ] || fail "an output was written for a failed job"
 for w in a b c; do
   log_has "$WORK/$w.log" "failure reported" || fail "worker $w did not report its failure"
