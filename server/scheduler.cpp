@@ -4,6 +4,8 @@
 
 #include "core/tiles.h"
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <stdexcept>
 #include <type_traits>
@@ -656,6 +658,7 @@ void Scheduler::expire_locked(int64_t now) {
     if (now <= l.lease.deadline_ms) continue;
     end_lease_locked(l, LeaseState::expired);
     ++lease_expiries_;
+    spdlog::info("job {} tile {} worker {}: lease {} expired", l.lease.job, l.lease.tile, l.lease.worker, l.lease.id);
     JobRec& j = *jobs_.at(l.lease.job);
     Tile& t = j.tiles[size_t(l.lease.tile)];
     if (t.state == TileState::leased && t.lease == l.lease.id) {

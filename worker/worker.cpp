@@ -87,10 +87,15 @@ class Heartbeat {
     try {
       auto next = std::chrono::steady_clock::now() + period_;
       uint64_t sent_rays = 0;
+      bool stop_noted = false;
       std::unique_lock lock(mutex_);
       while (!done_) {
         cv_.wait_for(lock, 100ms, [&] { return done_; });
         if (done_) break;
+        if (stop_requests_.load() == 1 && !stop_noted) {
+          stop_noted = true;
+          spdlog::info("{}: asked to stop, finishing this tile first", prefix_);
+        }
         if (stop_requests_.load() >= 2 && !cancel_.load()) {
           reason_.store(int(Stop::kShutdown));
           cancel_.store(true);

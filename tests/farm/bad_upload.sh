@@ -16,8 +16,8 @@ job_field() { curl -sS "$URL/v1/jobs/$1" | python3 -c "import json,sys; print(js
 # fails the job, with the reason recorded.
 FAIL_POINTS="worker.upload.corrupt=return(nan)" start_worker bad --threads 1
 BAD=$WORKER_PID
-"$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 8 -o "$WORK/never.exr" -q >"$WORK/submit-bad.log" 2>&1 &&
-  fail "submit succeeded although every upload was corrupt"
+expect_exit 1 "$WORK/submit-bad.log" -- "$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 8 \
+  -o "$WORK/never.exr" -q
 JOB=$(curl -sS "$URL/v1/jobs" | python3 -c "import json,sys; print(json.load(sys.stdin)['jobs'][0]['id'])")
 [ "$(job_field "$JOB" state)" = failed ] || fail "job $JOB is not failed"
 job_field "$JOB" error | grep -q "is not finite" || fail "the failure reason does not name the bad pixel: $(job_field "$JOB" error)"

@@ -20,12 +20,12 @@ R -o "$WORK/other-seed.exr" --crop 12 8 18 12 --seed 7
 log_has "$WORK/merge-ident.log" "100 overlapping pixels, identical" || fail "overlap not reported"
 "$EXR_COMPARE" "$WORK/full.exr" "$WORK/m2.exr" || fail "merge with identical overlap differs"
 
-if "$TESSERA" merge "$WORK/a.exr" "$WORK/c.exr" -o "$WORK/gap.exr" >"$WORK/merge-gap.log" 2>&1; then fail "gap accepted"; fi
+expect_exit 1 "$WORK/merge-gap.log" -- "$TESSERA" merge "$WORK/a.exr" "$WORK/c.exr" -o "$WORK/gap.exr"
 log_has "$WORK/merge-gap.log" 'pixels covered by no tile: \[16,30\) x \[0,10\) \(140 pixels\)' || fail "gap message"
 [ ! -e "$WORK/gap.exr" ] || fail "output written despite the error"
 
-if "$TESSERA" merge "$WORK/a.exr" "$WORK/b.exr" "$WORK/c.exr" "$WORK/other-seed.exr" -o "$WORK/conflict.exr" \
-  >"$WORK/merge-conflict.log" 2>&1; then fail "conflict accepted"; fi
+expect_exit 1 "$WORK/merge-conflict.log" -- "$TESSERA" merge "$WORK/a.exr" "$WORK/b.exr" "$WORK/c.exr" \
+  "$WORK/other-seed.exr" -o "$WORK/conflict.exr"
 log_has "$WORK/merge-conflict.log" "conflicting overlap of $WORK/a.exr and $WORK/other-seed.exr \(different values\): \[12,16\) x \[8,12\)" \
   || fail "conflict message (a)"
 # Where b and other-seed overlap, some pixels (in shadow) are 0 under either seed: only the differing ones are listed.
