@@ -3,6 +3,7 @@
 #include "core/render.h"
 #include "core/scene_loader.h"
 #include "core/test_files.h"
+#include "tests/spp_scale.h"
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfHeader.h>
@@ -11,6 +12,7 @@
 #include <nlohmann/json.hpp>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
@@ -61,7 +63,7 @@ class CliRender : public testing::TempDirTest {
     write("assets/light.obj", testing::rect_obj(Vec3(-0.5f, 2.f, -0.5f), Vec3(1.f, 0.f, 0.f), Vec3(0.f, 0.f, 1.f)));
     json s = testing::minimal_scene();
     s["film"]["resolution"] = {20, 12};
-    s["integrator"]["spp"] = 2;
+    s["integrator"]["spp"] = testing::scaled_spp(2);
     s["integrator"]["point_light_position"] = {1, 3, 1};
     s["camera"] = {{"position", {0, 1, 4}}, {"look_at", {0, 0.5, 0}}, {"fov", 50}};
     s["textures"]["tex"] = {{"type", "image"}, {"path", "assets/tex.exr"}};
@@ -80,12 +82,14 @@ class CliRender : public testing::TempDirTest {
 
 TEST_F(CliRender, CropWindowsMetadataAndPixelsMatchTheLibrary) {
   const fs::path sc = scene();
-  const CliRun r = tessera({sc.string(), "-o", f("out.exr"), "--crop", "3", "2", "14", "9", "--spp", "4", "--seed", "7", "--tile", "5"});
+  const uint32_t spp = testing::scaled_spp(4);
+  const CliRun r = tessera({sc.string(), "-o", f("out.exr"), "--crop", "3", "2", "14", "9", "--spp", std::to_string(spp),
+                            "--seed", "7", "--tile", "5"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const ExrImage exr = read_exr(file("out.exr"));
   EXPECT_EQ(exr.data_window, (PixelWindow{3, 2, 14, 9}));
   EXPECT_EQ(exr.display_window, (PixelWindow{0, 0, 20, 12}));
-  EXPECT_EQ(exr.metadata.at("tessera:spp"), "4");
+  EXPECT_EQ(exr.metadata.at("tessera:spp"), std::to_string(spp));
   EXPECT_EQ(exr.metadata.at("tessera:seed"), "7");
   EXPECT_GE(std::stod(exr.metadata.at("tessera:renderSeconds")), 0.0);
   const LoadedScene loaded = load_scene_file(sc);
@@ -93,20 +97,22 @@ TEST_F(CliRender, CropWindowsMetadataAndPixelsMatchTheLibrary) {
   // The binary's pixels are the library's, bit for bit (same seed, same window).
   RenderOptions ro;
   ro.seed = 7;
-  ro.spp = 4;
+  ro.spp = spp;
   ro.window = exr.data_window;
   const RenderResult ref = render(loaded.scene, ro);
   ASSERT_EQ(exr.pixels.rgb.size(), ref.image.rgb.size());
   EXPECT_EQ(std::memcmp(exr.pixels.rgb.data(), ref.image.rgb.data(), ref.image.rgb.size() * sizeof(float)), 0);
   // A one-line summary with time, samples and ray rate.
-  EXPECT_NE(r.err.find("11x7 px, 4 spp (308 samples)"), std::string::npos) << r.err;
+  const std::string summary = "11x7 px, " + std::to_string(spp) + " spp (" + std::to_string(77 * spp) + " samples)";
+  EXPECT_NE(r.err.find(summary), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("Mrays/s"), std::string::npos) << r.err;
 }
 
 TEST_F(CliRender, HalfVarianceAndPreview) {
   const fs::path sc = scene();
-  const CliRun r = tessera({sc.string(), "-o", f("half.exr"), "--half", "--variance", "--spp", "4", "--preview",
-                           f("preview.png"), "--crop", "0", "0", "9", "5"});
+  const uint32_t spp = std::max(2u, testing::scaled_spp(4));  // a variance needs two samples
+  const CliRun r = tessera({sc.string(), "-o", f("half.exr"), "--half", "--variance", "--spp", std::to_string(spp),
+                            "--preview", f("preview.png"), "--crop", "0", "0", "9", "5"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   {
     Imf::InputFile in(file("half.exr").c_str());
@@ -120,7 +126,7 @@ TEST_F(CliRender, HalfVarianceAndPreview) {
     }
   }
   const ExrImage exr = read_exr(file("half.exr"));
-  for (float s : exr.pixels.extra.at("samples")) EXPECT_EQ(s, 4.f);
+  for (float s : exr.pixels.extra.at("samples")) EXPECT_EQ(s, float(spp));
   double var_sum = 0;
   for (float v : exr.pixels.extra.at("variance.G")) {
     EXPECT_GE(v, 0.f);

@@ -10,6 +10,15 @@ SHARED=$3
 TESSERA_FP=${4:-}
 ulimit -c 0  # processes crashed on purpose (fail point abort) leave no core files
 BUDGET=${TESSERA_TEST_BUDGET:-50}
+# TESSERA_TEST_SPP_SCALE (N or 1/N, default 1) multiplies every spp these tests render with (see spp below), to show
+# that no outcome depends on how long a render takes.
+SPP_SCALE=${TESSERA_TEST_SPP_SCALE:-1}
+case $SPP_SCALE in
+  */*) SPP_NUM=${SPP_SCALE%%/*} SPP_DEN=${SPP_SCALE#*/} ;;
+  *) SPP_NUM=$SPP_SCALE SPP_DEN=1 ;;
+esac
+[[ $SPP_NUM =~ ^[1-9][0-9]*$ && $SPP_DEN =~ ^[1-9][0-9]*$ ]] ||
+  { echo "TESSERA_TEST_SPP_SCALE must be N or 1/N (got '$SPP_SCALE')" >&2; exit 2; }
 DEADLINE=$((SECONDS + BUDGET - 2))  # waits stop 2 s before the watchdog, so their own message is the one printed
 # shellcheck source-path=SCRIPTDIR source=../lib/proc.sh
 source "$(dirname "${BASH_SOURCE[0]}")/../lib/proc.sh"
@@ -122,10 +131,17 @@ process_state() { awk '{print $3}' "/proc/$1/stat" 2>/dev/null; }
 # is_stopped PID: true when the process is stopped (SIGSTOP).
 is_stopped() { [ "$(process_state "$1")" = T ]; }
 
-# write_sphere_scene FILE WIDTH HEIGHT SPP: a small analytic scene (no assets).
+# spp N [MIN]: N samples per pixel scaled by TESSERA_TEST_SPP_SCALE, at least MIN (default 1).
+spp() {
+  local n=$(($1 * SPP_NUM / SPP_DEN)) min=${2:-1}
+  echo $((n < min ? min : n))
+}
+
+# write_sphere_scene FILE WIDTH HEIGHT SPP [MIN_SPP]: a small analytic scene (no assets), at spp SPP (scaled, at least
+# MIN_SPP).
 write_sphere_scene() {
   cat >"$1" <<JSON
-{"integrator": {"type": "intersection_test", "spp": $4, "point_light_position": [0, 3, 3],
+{"integrator": {"type": "intersection_test", "spp": $(spp "$4" "${5:-1}"), "point_light_position": [0, 3, 3],
                 "point_light_flux": [40, 40, 40]},
  "film": {"resolution": [$2, $3]},
  "camera": {"position": [0, 0.3, 4], "look_at": [0, 0, 0], "fov": 45},
@@ -140,11 +156,11 @@ JSON
 }
 
 # write_cbox_scene DIR WIDTH HEIGHT SPP [COURSE_SCENE]: a course scene (default: the textured Cornell box, with OBJ
-# and EXR assets) at a small size.
+# and EXR assets) at a small size and spp SPP (scaled).
 write_cbox_scene() {
   mkdir -p "$1"
   cp -r "$SHARED/compat/rdr171/assets" "$1/"
-  python3 - "$SHARED/compat/rdr171/${5:-cbox_refract_textured.json}" "$1/scene.json" "$2" "$3" "$4" <<'PY'
+  python3 - "$SHARED/compat/rdr171/${5:-cbox_refract_textured.json}" "$1/scene.json" "$2" "$3" "$(spp "$4")" <<'PY'
 import json, sys
 src, dst, w, h, spp = sys.argv[1:]
 scene = json.load(open(src))

@@ -14,9 +14,10 @@ done
 
 # Adaptive sampling (a job option): each pixel's sample count depends on its own samples only, so odd farm tiles
 # still give the single-process bits, samples channel aside.
-"$TESSERA" render "$WORK/spheres.json" -o "$WORK/adaptive-ref.exr" --target-error 0.05 --min-spp 2 --max-spp 64 -q
-"$TESSERA" render "$WORK/spheres.json" -o "$WORK/adaptive-farm.exr" --target-error 0.05 --min-spp 2 --max-spp 64 \
-  --workers 2 --farm-tile 7 -q >"$WORK/render-adaptive.log" 2>&1 || fail "render --workers --target-error failed"
+"$TESSERA" render "$WORK/spheres.json" -o "$WORK/adaptive-ref.exr" --target-error 0.05 --min-spp "$(spp 2)" \
+  --max-spp "$(spp 64)" -q
+"$TESSERA" render "$WORK/spheres.json" -o "$WORK/adaptive-farm.exr" --target-error 0.05 --min-spp "$(spp 2)" \
+  --max-spp "$(spp 64)" --workers 2 --farm-tile 7 -q >"$WORK/render-adaptive.log" 2>&1 || fail "render --workers --target-error failed"
 "$EXR_COMPARE" "$WORK/adaptive-ref.exr" "$WORK/adaptive-farm.exr" || fail "adaptive farm render differs"
 expect_exit 1 "$WORK/compare-adaptive.log" -- "$EXR_COMPARE" "$WORK/ref.exr" "$WORK/adaptive-ref.exr"  # 1: they differ
 
@@ -29,8 +30,8 @@ write_sphere_scene "$WORK/tiny.json" 5 4 2
 
 # Assets (meshes and an EXR texture) travel by hash; another seed and spp override go through the protocol.
 write_cbox_scene "$WORK/cbox" 30 22 4
-"$TESSERA" render "$WORK/cbox/scene.json" -o "$WORK/cbox-ref.exr" --spp 2 --seed 9 -q
-"$TESSERA" render "$WORK/cbox/scene.json" -o "$WORK/cbox-farm.exr" --spp 2 --seed 9 --workers 2 --farm-tile 8 -q \
+"$TESSERA" render "$WORK/cbox/scene.json" -o "$WORK/cbox-ref.exr" --spp "$(spp 2)" --seed 9 -q
+"$TESSERA" render "$WORK/cbox/scene.json" -o "$WORK/cbox-farm.exr" --spp "$(spp 2)" --seed 9 --workers 2 --farm-tile 8 -q \
   >"$WORK/render-cbox.log" 2>&1 || fail "cbox render --workers failed"
 "$EXR_COMPARE" "$WORK/cbox-ref.exr" "$WORK/cbox-farm.exr" || fail "cbox differs"
 # The course's bdpt box, rendered with the direct integrator on request (the job's "integrator" key).
