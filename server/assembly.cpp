@@ -1,5 +1,7 @@
 #include "server/assembly.h"
 
+#include "failpoint/failpoint.h"
+
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
@@ -97,6 +99,7 @@ void JobImage::paste(const Image& tile, const PixelWindow& w) {
   if (!PixelWindow{0, 0, width_, height_}.contains(w) || w.empty() || tile.width != w.width() || tile.height != w.height())
     throw std::invalid_argument("tile " + describe(w) + " does not fit the " + std::to_string(width_) + "x" +
                                 std::to_string(height_) + " image");
+  TESSERA_FAIL_POINT("assembly.paste");
   std::lock_guard lock(mu_);
   allocate_locked();
   const size_t row_floats = 3 * size_t(w.width());
@@ -112,6 +115,7 @@ std::vector<uint8_t> JobImage::preview_png() {
 }
 
 void JobImage::write_exr(const std::filesystem::path& path, const std::map<std::string, std::string>& metadata) {
+  TESSERA_FAIL_POINT("assembly.write_result");
   std::lock_guard lock(mu_);
   allocate_locked();
   ExrWriteOptions o;

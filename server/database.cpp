@@ -1,5 +1,7 @@
 #include "server/database.h"
 
+#include "failpoint/failpoint.h"
+
 #include <sqlite3.h>
 #include <spdlog/spdlog.h>
 
@@ -238,9 +240,11 @@ void DurableStore::sync() {
     if (wal_fd_ < 0) wal_fd_ = ::open((db_.file().string() + "-wal").c_str(), O_RDONLY | O_CLOEXEC);
     fd = wal_fd_;
   }
+  bool flush_fails = false;  // set by tests to take the failure path below
+  TESSERA_FAIL_POINT_RETURN("store.sync", [&](const std::string&) { flush_fails = true; });
   // No lock held during the flush: concurrent callers wait for the same disk write instead of queueing behind a mutex.
-  if (fd >= 0 && ::fdatasync(fd) == 0) return;
-  const int err = errno;
+  if (fd >= 0 && !flush_fails && ::fdatasync(fd) == 0) return;
+  const int err = flush_fails ? EIO : errno;
   // After a failed flush the kernel may have dropped the dirty pages, so retrying cannot tell whether they reached
   // the disk: stop, and let a restart recover from what the disk holds (acknowledged results were never acknowledged).
   spdlog::critical("cannot flush {}-wal to disk ({}); stopping the coordinator", db_.file().string(),
@@ -271,6 +275,7 @@ void DurableStore::apply(const SchedulerChanges& c) {
     st.run();
   }
   for (const TileRow& r : c.tiles) {
+    if (r.pixels) TESSERA_FAIL_POINT("store.tile_commit");
     const std::string failures = map_json(r.failures).dump();
     Statement& up = db_.statement(
         "UPDATE tiles SET state = ?, lease = ?, failures = ?, pixels = coalesce(?, pixels) WHERE job = ? AND idx = ?");
