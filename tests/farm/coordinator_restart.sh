@@ -11,7 +11,9 @@ write_sphere_scene "$WORK/s.json" 64 48 16
 TILES=12  # 64x48 in 16-pixel tiles
 start_serve --lease-seconds 10 --heartbeat-seconds 1
 ADDRESS=$(head -n1 "$WORK/ready")
-start_submit "$WORK/submit.log" "$WORK/s.json" --tile 16 -o "$WORK/out.exr" -q
+start_submit "$WORK/submit.log" "$WORK/s.json" --tile 16 -o "$WORK/out.exr"
+# The workers start once submit has its answer: the kill must find the job submitted, not its submission in flight.
+wait_for log_has "$WORK/submit.log" "submitted .* as j-" || fail "the job was not submitted"
 FAIL_POINTS="worker.render=2*off->pause($WORK/go)" start_worker w1 --threads 1
 FAIL_POINTS="worker.render=1*off->pause($WORK/go)" start_worker w2 --threads 1
 

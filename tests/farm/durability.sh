@@ -35,8 +35,10 @@ write_sphere_scene "$WORK/s.json" 32 24 4
 "$TESSERA" render "$WORK/s.json" -o "$WORK/ref.exr" -q
 FAIL_POINTS=$POINTS start_serve --lease-seconds 30 --heartbeat-seconds 1
 ADDRESS=$(head -n1 "$WORK/ready")
+start_submit "$WORK/submit.log" "$WORK/s.json" --tile 8 -o "$WORK/out.exr"
+# The worker starts once submit has its answer: a crash before that would fail the submission, not an upload.
+wait_for log_has "$WORK/submit.log" "submitted .* as j-" || fail "the job was not submitted"
 start_worker w --threads 1
-start_submit "$WORK/submit.log" "$WORK/s.json" --tile 8 -o "$WORK/out.exr" -q
 
 if [ "$CRASH" = 1 ]; then
   rc=0

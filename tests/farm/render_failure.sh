@@ -9,8 +9,8 @@ for w in a b c; do FAIL_POINTS=worker.render=error start_worker "$w" --threads 1
 expect_exit 1 "$WORK/submit.log" -- "$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 8 -o "$WORK/out.exr"
 log_has "$WORK/submit.log" "failed: .*injected error at fail point worker.render" || fail "the failure reason was not printed"
 [ ! -e "$WORK/out.exr" ] || fail "an output was written for a failed job"
-for w in a b c; do
-  log_has "$WORK/$w.log" "failure reported" || fail "worker $w did not report its failure"
+for w in a b c; do  # each logs it once its /fail is answered, which may come after submit saw the job fail
+  wait_for log_has "$WORK/$w.log" "failure reported" || fail "worker $w did not report its failure"
 done
 for p in "${PIDS[@]:1}"; do kill -0 "$p" || fail "a worker exited after its render failed"; done
 echo "PASS"
