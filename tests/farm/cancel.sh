@@ -14,6 +14,8 @@ start_submit "$WORK/submit-slow.log" "$WORK/slow.json" --tile 32 -o "$WORK/slow.
 wait_for log_has "$WORK/w.log" "tile=0 .*upload accepted" || fail "no tile finished"
 wait_for paused "$WORK/w.log" || fail "the second tile was not held"
 log_has "$WORK/w.log" "tile=1 .*leased window" || fail "the held tile is not tile 1"
+# submit prints the id once the coordinator's answer arrives, which may come after the first tile was merged.
+wait_for log_has "$WORK/submit-slow.log" "as j-" || fail "submit printed no job id"
 JOB=$(grep -Eo "as j-[^ ]+" "$WORK/submit-slow.log" | head -n1 | cut -c4-)
 [ -n "$JOB" ] || fail "no job id in submit's output"
 curl -sS -f -X DELETE "$URL/v1/jobs/$JOB" >"$WORK/delete.json" || fail "DELETE failed"
