@@ -143,7 +143,9 @@ NoiseComparison compare_with_noise(const RenderResult& a, const RenderResult& b)
 // the camera (core/camera_frame.h), so the box is traced in the same small float coordinates wherever it lies. Two
 // scenes: the area light (penumbrae, contact shadows under the boxes) and the point light with a glass sphere
 // (refraction chains). Each moved render is compared with a render of the original at another seed; the reference
-// for "within noise" is the same comparison between two seeds of the original itself.
+// for "within noise" is the same comparison between two seeds of the original itself. Measured with the frame
+// disabled (origin 0, positions still computed in double): 27 (area light) and 137 (glass) outlier pixels at 1e5,
+// 721 and 967 at 1e6, over 2000 at 1e7; with it, 0 at every offset, also at 1024 spp.
 TEST(HardCases, CornellBoxFarFromTheOriginRendersLikeTheOriginal) {
   const int res = 48;
   const uint32_t spp = 64;
