@@ -1,9 +1,12 @@
 #include "cli/render_command.h"
 
+#include "cli/interrupt_guard.h"
 #include "cli/progress_bar.h"
 #include "cli/render_farm.h"
+#include "cli/render_resume.h"
 
 #include "core/enum_names.h"
+#include "core/output_file.h"
 #include "core/render.h"
 #include "core/scene_loader.h"
 
@@ -13,6 +16,7 @@
 
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <unistd.h>
 
 namespace tessera::cli {
@@ -58,18 +62,84 @@ CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
       ->check(CLI::IsMember(enum_names(kAreaSamplingNames)));
   c->add_option("--env-sampling", a.env_sampling, "Environment strategy (overrides the scene)")
       ->check(CLI::IsMember(enum_names(kEnvSamplingNames)));
-  c->add_option("--bvh", a.bvh, "BVH build: binned SAH or object median (overrides the scene)")
-      ->check(CLI::IsMember(enum_names(kSplitMethodNames)));
+  auto* bvh = c->add_option("--bvh", a.bvh, "BVH build: binned SAH or object median (overrides the scene)")
+                  ->check(CLI::IsMember(enum_names(kSplitMethodNames)));
+  c->add_flag("--resumable", a.resumable,
+              "Also write each pixel's exact sample sums, so that --resume --spp can refine the render later");
+  c->add_option("--tile-budget", a.tile_budget,
+                "Render at most N tiles, then write a partial EXR that --resume finishes (exit code 3)")
+      ->check(CLI::Range(1, 1 << 30));
+  auto* resume = c->add_option("--resume", a.resume,
+                               "Finish the partial EXR FILE (written by an interrupted render or --tile-budget), or "
+                               "refine a --resumable one to --spp; the sampling settings are taken from FILE")
+                     ->check(CLI::ExistingFile);
+  // The sampling settings come from the file: giving them again could only contradict it.
+  for (const char* name : {"--seed", "--crop", "--variance", "--target-error", "--min-spp", "--max-spp",
+                           "--error-floor", "--replicates", "--area-sampling", "--env-sampling", "--workers"})
+    resume->excludes(c->get_option(name));
+  resume->excludes(bvh);
   return c;
 }
 
-int run_render(const RenderArgs& a) {
+namespace {
+
+// The previous render --resume continues, checked against the scene.
+StoredRender load_previous(const ExrImage& file, const RenderArgs& a, const Scene& scene) {
+  const auto it = file.metadata.find("tessera:sceneHash");
+  if (it == file.metadata.end() || it->second != scene.hash)
+    throw std::runtime_error(a.resume + " was rendered from another scene (or other assets) than " + a.scene);
+  if (file.display_window != PixelWindow{0, 0, scene.width, scene.height})
+    throw std::runtime_error(a.resume + " is not a " + std::to_string(scene.width) + "x" +
+                             std::to_string(scene.height) + " picture");
+  StoredRender prev;
+  try {
+    prev = StoredRender{file.pixels, read_state_channels(file.pixels, a.replicates)};
+  } catch (const ImageError& e) {
+    throw std::runtime_error(a.resume + ": " + e.what() +
+                             "; only partial renders and --resumable ones can be resumed");
+  }
+  const uint32_t stored = recorded_spp(file);
+  if (a.target_error <= 0.f && *a.spp != stored && !prev.state.exact())
+    throw std::runtime_error(a.resume + " holds no exact sample sums (render with --resumable to refine later): it "
+                                        "can only be finished at its own " + std::to_string(stored) + " spp");
+  if (a.resumable && !prev.state.exact())
+    throw std::runtime_error(a.resume + " holds no exact sample sums, so its continuation cannot be --resumable");
+  return prev;
+}
+
+// Pixels that have samples.
+size_t rendered_pixels(const RenderState& state) {
+  size_t n = 0;
+  for (const uint32_t s : state.samples) n += s > 0 ? 1 : 0;
+  return n;
+}
+
+}  // namespace
+
+int run_render(const RenderArgs& given) {
   // Warnings and errors go to stderr with the progress bar and the summary; stdout stays free for data.
   auto logger = spdlog::get("render");
   if (!logger) logger = spdlog::stderr_color_mt("render");
   spdlog::set_default_logger(logger);
-  if (a.workers > 0) return run_render_farm(a);
+  // Before anything long: an output that cannot be written is reported now, not after the render.
   try {
+    check_output_writable(given.output, "output");
+    if (!given.preview.empty()) check_output_writable(given.preview, "preview");
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return 2;
+  }
+  if (given.workers > 0) {
+    if (given.resumable || given.tile_budget > 0) {
+      spdlog::error("--workers renders whole jobs: drop --resumable/--tile-budget");
+      return 2;
+    }
+    return run_render_farm(given);
+  }
+  try {
+    std::optional<ExrImage> resume_file;
+    if (!given.resume.empty()) resume_file = read_exr(given.resume);
+    const RenderArgs a = resume_file ? resumed_args(given, *resume_file) : given;
     std::unique_ptr<tbb::global_control> limit;
     if (a.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(a.threads));
     LoadOptions lo;
@@ -91,9 +161,16 @@ int run_render(const RenderArgs& a) {
     for (const auto& n : loaded.notes) spdlog::info("{}", n);
     const Scene& scene = loaded.scene;
     const double load_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_load).count();
+    const uint32_t spp = a.spp ? *a.spp : scene.settings.spp;
+    std::optional<StoredRender> previous;
+    if (resume_file) {
+      previous = load_previous(*resume_file, a, scene);
+      resume_file.reset();
+    }
 
     RenderOptions ro;
     ro.seed = a.seed;
+    ro.spp = spp;
     ro.tile_size = a.tile_size;
     ro.variance = a.variance;
     ro.target_error = a.target_error;
@@ -101,7 +178,11 @@ int run_render(const RenderArgs& a) {
     ro.max_spp = a.max_spp;
     ro.error_floor = a.error_floor;
     ro.replicates = a.replicates;
-    if (a.replicates > 1 && ro.target_error <= 0.f && (a.spp ? *a.spp : scene.settings.spp) % a.replicates != 0)
+    ro.tile_budget = a.tile_budget;
+    // A resumable file stays resumable when continued.
+    ro.keep_state = a.resumable || (previous && previous->state.exact());
+    ro.previous = previous ? &*previous : nullptr;
+    if (a.replicates > 1 && ro.target_error <= 0.f && spp % a.replicates != 0)
       spdlog::warn("--replicates {} does not divide the sample count; the variance channels will be zero",
                    a.replicates);
     if (!a.crop.empty()) {
@@ -115,28 +196,29 @@ int run_render(const RenderArgs& a) {
     }
     ProgressBar bar(!a.quiet);
     ro.progress = [&](const RenderProgress& p) { bar.update(p); };
-    const RenderResult res = render(scene, ro);
+    InterruptGuard interrupts;
+    ro.cancel = &InterruptGuard::flag();
+    RenderResult res = render(scene, ro);
+    previous.reset();
 
     ExrWriteOptions wo;
-    wo.half = a.half;
+    // A partial file keeps float colours: --resume copies its finished pixels bit for bit.
+    wo.half = a.half && !res.cancelled;
     wo.data_window = res.window;
     wo.display_window = PixelWindow{0, 0, scene.width, scene.height};
-    wo.metadata = {{"tessera:version", TESSERA_VERSION},
-                   {"tessera:scene", a.scene},
-                   {"tessera:sceneHash", scene.hash},
-                   {"tessera:spp", ro.target_error > 0.f ? std::string("adaptive")
-                                                         : std::to_string(a.spp ? *a.spp : scene.settings.spp)},
-                   {"tessera:seed", std::to_string(a.seed)},
-                   {"tessera:renderSeconds", std::to_string(res.seconds)}};
-    if (ro.target_error > 0.f) {
-      wo.metadata["tessera:targetError"] = std::to_string(ro.target_error);
-      wo.metadata["tessera:minSpp"] = std::to_string(ro.min_spp);
-      wo.metadata["tessera:maxSpp"] = std::to_string(ro.max_spp);
-      wo.metadata["tessera:errorFloor"] = std::to_string(ro.error_floor);
-    }
-    wo.metadata["tessera:replicates"] = std::to_string(ro.replicates);
+    wo.metadata = sampling_metadata(a, spp);
+    wo.metadata["tessera:version"] = TESSERA_VERSION;
+    wo.metadata["tessera:scene"] = a.scene;
+    wo.metadata["tessera:sceneHash"] = scene.hash;
+    wo.metadata["tessera:renderSeconds"] = std::to_string(res.seconds);
     wo.metadata["tessera:areaSampling"] = std::string(enum_name(scene.settings.area_sampling, kAreaSamplingNames));
     wo.metadata["tessera:envSampling"] = std::string(enum_name(scene.settings.env_sampling, kEnvSamplingNames));
+    const size_t done = rendered_pixels(res.state);
+    const size_t pixels_total = res.state.samples.size();
+    if (res.cancelled) {
+      wo.metadata["tessera:partial"] = std::to_string(done) + " of " + std::to_string(pixels_total) + " pixels";
+    }
+    if (res.cancelled || ro.keep_state) write_state_channels(res.state, res.image);
     write_exr(a.output, res.image, wo);
     if (!a.preview.empty()) write_png_srgb(a.preview, res.image);
     if (res.counters.nonfinite > 0)
@@ -148,13 +230,16 @@ int run_render(const RenderArgs& a) {
                    ro.min_spp, ro.max_spp, mean_spp);
     char spp_text[32];
     if (ro.target_error > 0.f) std::snprintf(spp_text, sizeof spp_text, "%.1f", mean_spp);
-    else std::snprintf(spp_text, sizeof spp_text, "%u", a.spp ? *a.spp : scene.settings.spp);
+    else std::snprintf(spp_text, sizeof spp_text, "%u", spp);
     std::fprintf(stderr, "%s: %dx%d px, %s spp (%llu samples), %.2fs load + %.2fs render, %.1f Mrays/s (%llu rays)\n",
                  a.output.c_str(), res.window.width(), res.window.height(), spp_text,
                  static_cast<unsigned long long>(res.counters.camera), load_s, res.seconds,
                  res.seconds > 0 ? double(res.counters.rays) / res.seconds * 1e-6 : 0.0,
                  static_cast<unsigned long long>(res.counters.rays));
-    return 0;
+    if (!res.cancelled) return 0;
+    std::fprintf(stderr, "%s: partial, %zu of %zu pixels rendered; finish it with: tessera render %s -o %s --resume %s\n",
+                 a.output.c_str(), done, pixels_total, a.scene.c_str(), a.output.c_str(), a.output.c_str());
+    return InterruptGuard::interrupted() ? 130 : 3;
   } catch (const SceneError& e) {
     spdlog::error("{}", e.what());
     return 1;

@@ -37,12 +37,16 @@ struct RenderArgs {
   std::string area_sampling;            ///< Overrides integrator.area_sampling (auto, solid_angle or area).
   std::string env_sampling;             ///< Overrides integrator.env_sampling (mis, importance, cosine, uniform).
   std::string bvh;                      ///< Overrides integrator.bvh (sah or median).
+  bool resumable = false;               ///< Also write each pixel's exact accumulator (for a later refinement).
+  int tile_budget = 0;                  ///< Render at most this many tiles, then write a partial EXR (0: all).
+  std::string resume;                   ///< Finish or refine this earlier render's EXR.
 };
 
 /// Registers the subcommand's options on `app`.
 CLI::App* add_render_command(CLI::App& app, RenderArgs& args);
 
-/// Runs it; returns the process exit code (errors are reported, never thrown).
+/// Runs it; returns the process exit code (errors are reported, never thrown): 0 done, 1 failed, 2 refused before
+/// rendering, 3 stopped by --tile-budget and 130 interrupted by SIGINT/SIGTERM (both after writing a partial EXR).
 int run_render(const RenderArgs& args);
 
 }  // namespace tessera::cli

@@ -1,5 +1,6 @@
 #include "cli/render_farm.h"
 
+#include "cli/interrupt_guard.h"
 #include "cli/submit_command.h"
 #include "core/adaptive.h"
 #include "core/image.h"
@@ -12,8 +13,6 @@
 #include <fcntl.h>
 #include <unistd.h>
 
-#include <atomic>
-#include <csignal>
 #include <cstdlib>
 #include <fstream>
 #include <string>
@@ -26,31 +25,6 @@ namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
 namespace {
-
-std::atomic<int> g_interrupts{0};
-extern "C" void on_interrupt(int) { g_interrupts.fetch_add(1); }
-
-// Installs the Ctrl-C/SIGTERM handler for the lifetime of the object and restores the previous ones after.
-class InterruptGuard {
- public:
-  InterruptGuard() {
-    struct sigaction sa {};
-    sa.sa_handler = on_interrupt;
-    sigemptyset(&sa.sa_mask);
-    sa.sa_flags = SA_RESTART;
-    sigaction(SIGINT, &sa, &old_int_);
-    sigaction(SIGTERM, &sa, &old_term_);
-  }
-  ~InterruptGuard() {
-    sigaction(SIGINT, &old_int_, nullptr);
-    sigaction(SIGTERM, &old_term_, nullptr);
-  }
-  InterruptGuard(const InterruptGuard&) = delete;
-  InterruptGuard& operator=(const InterruptGuard&) = delete;
-
- private:
-  struct sigaction old_int_ {}, old_term_ {};
-};
 
 // Writes a fresh random token to a file only this user can read and returns the token.
 std::string write_token_file(const fs::path& path) {
@@ -75,7 +49,7 @@ fs::path make_temp_dir() {
 std::string wait_for_ready(const fs::path& ready, farm::ChildProcess& serve) {
   const auto deadline = std::chrono::steady_clock::now() + 30s;
   while (std::chrono::steady_clock::now() < deadline) {
-    if (g_interrupts.load() > 0) throw std::runtime_error("interrupted while the coordinator was starting");
+    if (InterruptGuard::interrupted()) throw std::runtime_error("interrupted while the coordinator was starting");
     std::ifstream in(ready);
     std::string address;
     if (in && std::getline(in, address) && address.find(':') != std::string::npos) return address;
@@ -112,7 +86,6 @@ int run_render_farm(const RenderArgs& a) {
     return 2;
   }
   InterruptGuard guard;
-  g_interrupts.store(0);
   std::vector<farm::ChildProcess> children;
   fs::path dir;
   int rc = 1;
@@ -146,7 +119,7 @@ int run_render_farm(const RenderArgs& a) {
     farm::SubmitOptions o = shared_job_options(a);
     o.tile_size = a.farm_tile;
     rc = submit_and_wait(http, o, a.output, a.quiet, [&] {
-      if (g_interrupts.load() > 0) return true;
+      if (InterruptGuard::interrupted()) return true;
       // Every worker gone means no progress is possible.
       bool all_workers_gone = true;
       for (size_t i = 1; i < children.size(); ++i) all_workers_gone &= farm::child_exited(children[i]);
@@ -164,7 +137,7 @@ int run_render_farm(const RenderArgs& a) {
       }
       if (!a.preview.empty()) write_png_srgb(a.preview, img.pixels);
     }
-    if (g_interrupts.load() > 0) {
+    if (InterruptGuard::interrupted()) {
       spdlog::warn("interrupted");
       rc = 130;
     }

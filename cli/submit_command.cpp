@@ -2,6 +2,7 @@
 
 #include "cli/progress_bar.h"
 #include "cli/token.h"
+#include "core/output_file.h"
 #include "core/scene_loader.h"
 
 #include <spdlog/spdlog.h>
@@ -96,6 +97,15 @@ int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& o, const 
 }
 
 int run_submit(const SubmitArgs& a) {
+  // Before submitting: a result that could not be saved would waste the farm's work.
+  if (!a.output.empty()) {
+    try {
+      check_output_writable(a.output, "output");
+    } catch (const std::exception& e) {
+      spdlog::error("{}", e.what());
+      return 2;
+    }
+  }
   try {
     farm::HttpClient http(farm::parse_http_url(a.coordinator));
     http.set_bearer_token(load_token(a.token_file, "TESSERA_CLIENT_TOKEN"));

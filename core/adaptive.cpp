@@ -56,6 +56,44 @@ PixelEstimate PixelAccumulator::estimate() const {
   return e;
 }
 
+size_t PixelAccumulator::state_size(uint32_t replicates) {
+  const uint32_t k = std::clamp<uint32_t>(replicates, 1, kMaxReplicates);
+  return 8 + (k > 1 ? 4 * size_t(k) : 0);
+}
+
+std::vector<std::string> PixelAccumulator::state_names(uint32_t replicates) {
+  std::vector<std::string> names = {"sum.R", "sum.G", "sum.B", "sum2.R", "sum2.G", "sum2.B", "sum.Y", "sum2.Y"};
+  const uint32_t k = std::clamp<uint32_t>(replicates, 1, kMaxReplicates);
+  if (k > 1)
+    for (uint32_t r = 0; r < k; ++r)
+      for (const char* c : {".R", ".G", ".B", ".Y"}) names.push_back("rep" + std::to_string(r) + c);
+  return names;
+}
+
+void PixelAccumulator::save(double* out) const {
+  for (int c = 0; c < 3; ++c) {
+    out[c] = sum_[c];
+    out[3 + c] = sum2_[c];
+  }
+  out[6] = y_sum_;
+  out[7] = y_sum2_;
+  if (k_ > 1) std::copy(&rep_[0][0], &rep_[0][0] + 4 * size_t(k_), out + 8);
+}
+
+PixelAccumulator PixelAccumulator::restore(uint32_t replicates, uint32_t count, const double* state) {
+  PixelAccumulator acc(replicates);
+  for (int c = 0; c < 3; ++c) {
+    acc.sum_[c] = state[c];
+    acc.sum2_[c] = state[3 + c];
+  }
+  acc.y_sum_ = state[6];
+  acc.y_sum2_ = state[7];
+  // With one replicate the replicate sums are never read (var_mean uses sum_ and sum2_), so they are not stored.
+  if (acc.k_ > 1) std::copy(state + 8, state + 8 + 4 * size_t(acc.k_), &acc.rep_[0][0]);
+  acc.n_ = count;
+  return acc;
+}
+
 double PixelAccumulator::relative_error(double floor) const {
   if (n_ < 2) return std::numeric_limits<double>::infinity();
   const double n = double(n_);

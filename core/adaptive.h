@@ -3,7 +3,10 @@
 
 #include "core/math.h"
 
+#include <cstddef>
 #include <cstdint>
+#include <string>
+#include <vector>
 
 namespace tessera {
 
@@ -44,6 +47,19 @@ class PixelAccumulator {
   uint32_t count() const { return n_; }
   /// Mean, variance of the mean and count.
   PixelEstimate estimate() const;
+  /// Replicates the samples are split into.
+  uint32_t replicates() const { return k_; }
+  /// Number of doubles in the exact state of an accumulator with `replicates` replicates (see state_names).
+  static size_t state_size(uint32_t replicates);
+  /// What each double of the state is, in order: "sum.R", "sum.G", "sum.B", "sum2.R", "sum2.G", "sum2.B", "sum.Y",
+  /// "sum2.Y" (sums and sums of squares of the samples and of their luminance) and, with K >= 2 replicates,
+  /// "rep0.R", "rep0.G", "rep0.B", "rep0.Y", ... "rep<K-1>.Y" (each replicate's sums).
+  static std::vector<std::string> state_names(uint32_t replicates);
+  /// Writes the exact state (state_size(replicates()) doubles) to out.
+  void save(double* out) const;
+  /// The accumulator whose state save() wrote: adding samples count, count + 1, ... to it gives bit for bit what
+  /// adding them to the original would have.
+  static PixelAccumulator restore(uint32_t replicates, uint32_t count, const double* state);
   /// Relative error of the luminance mean: sqrt(var_mean(Y) + (s / n)^2) / s with s = max(mean(Y), floor). The
   /// (s / n)^2 term stands for what n samples cannot see: an event of probability about 1/n (rule of succession)
   /// at the pixel's own scale moves the mean by about s / n. Without it, a pixel whose first samples all happen

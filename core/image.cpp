@@ -272,6 +272,12 @@ ExrImage read_exr_impl(const std::filesystem::path& path) {
   }
   for (auto c = channels.begin(); c != channels.end(); ++c) {
     if (is_one_of(c.name(), colour_channels) || c.channel().xSampling != 1 || c.channel().ySampling != 1) continue;
+    if (c.channel().type == Imf::UINT) {
+      std::vector<uint32_t>& values = img.uint_extra[c.name()];
+      values.assign(size_t(img.width) * size_t(img.height), 0U);
+      fb.insert(c.name(), Imf::Slice::Make(Imf::UINT, values.data(), dw));
+      continue;
+    }
     std::vector<float>& values = img.extra[c.name()];
     values.assign(size_t(img.width) * size_t(img.height), 0.f);
     fb.insert(c.name(), Imf::Slice::Make(Imf::FLOAT, values.data(), dw));
@@ -330,15 +336,17 @@ std::vector<uint8_t> encode_exr_impl(const char* name, const Image& img, const E
   }
   if (opt.write_extra) {
     const size_t expected = size_t(img.width) * size_t(img.height);
-    for (const auto& [name, values] : img.extra) {
-      if (name == "R" || name == "G" || name == "B")
-        throw std::runtime_error("extra channel \"" + name + "\" collides with the colour channels");
-      if (values.size() != expected)
-        throw std::runtime_error("extra channel \"" + name + "\" has " + std::to_string(values.size()) +
-                                 " values, expected " + std::to_string(expected));
-      header.channels().insert(name, Imf::Channel(Imf::FLOAT));
-      fb.insert(name, Imf::Slice::Make(Imf::FLOAT, values.data(), dw));
-    }
+    const auto add_channel = [&](const std::string& name, size_t size, Imf::PixelType type, const void* values) {
+      if (name == "R" || name == "G" || name == "B" || header.channels().findChannel(name))
+        throw std::runtime_error("extra channel \"" + name + "\" collides with another channel");
+      if (size != expected)
+        throw std::runtime_error("extra channel \"" + name + "\" has " + std::to_string(size) + " values, expected " +
+                                 std::to_string(expected));
+      header.channels().insert(name, Imf::Channel(type));
+      fb.insert(name, Imf::Slice::Make(type, values, dw));
+    };
+    for (const auto& [name, values] : img.extra) add_channel(name, values.size(), Imf::FLOAT, values.data());
+    for (const auto& [name, values] : img.uint_extra) add_channel(name, values.size(), Imf::UINT, values.data());
   }
 
   MemoryOStream stream(name);

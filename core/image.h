@@ -47,6 +47,9 @@ struct Image {
   std::vector<float> rgb;  ///< 3 * width * height floats, RGB interleaved.
   /// Further channels (e.g. "variance.R", "samples"), each width * height floats.
   std::map<std::string, std::vector<float>> extra;
+  /// Further 32-bit unsigned integer channels (e.g. a resumable render's state, core/render_state.h), each
+  /// width * height values; written and read as EXR UINT channels, so every bit survives.
+  std::map<std::string, std::vector<uint32_t>> uint_extra;
 
   /// The colour of pixel (x, y); x, y must lie inside the image.
   Vec3 at(int x, int y) const {
@@ -79,7 +82,8 @@ struct ExrImage {
 };
 
 /// Reads the first part of an EXR (scanline or tiled, half/float/uint) with R,G,B channels, or Y (grey; with RY,BY
-/// as luminance/chroma). Other full-resolution channels go to pixels.extra; subsampled extra channels are skipped.
+/// as luminance/chroma). Other full-resolution channels go to pixels.extra (half and float ones) or pixels.uint_extra
+/// (UINT ones, exactly); subsampled extra channels are skipped.
 /// Pixel values are returned as stored, non-finite ones included. Throws ImageError (naming the file) for a missing,
 /// unreadable, truncated or non-EXR file, deep data, no colour channels, or a data window over 65536 pixels per side
 /// or 2^28 pixels in all.
@@ -102,7 +106,7 @@ struct ExrWriteOptions {
   PixelWindow data_window{};     ///< Where the pixels go; empty means [0,width) x [0,height), else its size must match.
   /// Written as string attributes; the EXR layout attributes and standard attributes of other types are refused.
   std::map<std::string, std::string> metadata{};
-  bool write_extra = true;  ///< Also write the image's extra channels (as float).
+  bool write_extra = true;  ///< Also write the image's extra channels (extra as float, uint_extra as UINT).
 };
 
 /// Writes img as a scanline EXR (compressed as opt.compression says): R,G,B (float, or half) plus the extra channels and metadata. Atomic:

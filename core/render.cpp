@@ -7,6 +7,8 @@
 #include <chrono>
 #include <limits>
 #include <mutex>
+#include <stdexcept>
+#include <string>
 
 namespace tessera {
 
@@ -39,8 +41,11 @@ PixelEstimate render_pixel(const Scene& scene, int px, int row, uint64_t seed, u
   return acc.estimate();
 }
 
-PixelEstimate render_pixel_adaptive(const Scene& scene, int px, int row, uint64_t seed, const AdaptiveOptions& opt,
-                                    RayCounters& counters) {
+namespace {
+
+// Pixel (px, row) sampled adaptively from scratch (rounds as render_pixel_adaptive describes).
+PixelAccumulator sample_adaptive(const Scene& scene, int px, int row, uint64_t seed, const AdaptiveOptions& opt,
+                                 RayCounters& counters) {
   const uint32_t k = std::clamp<uint32_t>(opt.replicates, 1, kMaxReplicates);
   // Rounds are multiples of the replicate count (and of 2, so a variance exists).
   const uint32_t unit = std::max<uint32_t>(k, 2);
@@ -51,7 +56,38 @@ PixelEstimate render_pixel_adaptive(const Scene& scene, int px, int row, uint64_
     add_samples(scene, px, row, seed, n, k, acc, counters);
     if (n >= max_spp || acc.relative_error(opt.error_floor) <= opt.target_error) break;
   }
-  return acc.estimate();
+  return acc;
+}
+
+const char* const kVarianceChannels[4] = {"variance.R", "variance.G", "variance.B", "samples"};
+
+// Refuses a previous render that cannot be continued into this one (see RenderOptions::previous).
+void check_previous(const StoredRender& p, const RenderOptions& opt, const PixelWindow& w, uint32_t spp, uint32_t k) {
+  const auto refuse = [](const std::string& why) { throw std::invalid_argument("cannot continue the render: " + why); };
+  const size_t n = size_t(w.width()) * size_t(w.height());
+  if (p.image.width != w.width() || p.image.height != w.height() || p.state.samples.size() != n)
+    refuse("its size differs from the window's");
+  if (p.state.replicates != k) refuse("it has another replicate count");
+  if (p.state.exact() && p.state.sums.size() != n * PixelAccumulator::state_size(k))
+    refuse("its accumulators do not cover the window");
+  if (opt.keep_state && !p.state.exact()) refuse("its exact accumulators were not kept");
+  if (opt.variance)
+    for (const char* c : kVarianceChannels)
+      if (!p.image.extra.count(c) || p.image.extra.at(c).size() != n) refuse(std::string("it has no ") + c + " channel");
+  if (opt.target_error > 0.f) return;  // adaptive: pixels with samples are kept as they are
+  for (const uint32_t had : p.state.samples) {
+    if (had > spp) refuse("a pixel has " + std::to_string(had) + " samples, more than " + std::to_string(spp));
+    if (had != 0 && had != spp && !p.state.exact())
+      refuse("a pixel has " + std::to_string(had) + " of " + std::to_string(spp) +
+             " samples and no exact accumulator to continue from");
+  }
+}
+
+}  // namespace
+
+PixelEstimate render_pixel_adaptive(const Scene& scene, int px, int row, uint64_t seed, const AdaptiveOptions& opt,
+                                    RayCounters& counters) {
+  return sample_adaptive(scene, px, row, seed, opt, counters).estimate();
 }
 
 RenderResult render(const Scene& scene, const RenderOptions& opt) {
@@ -62,48 +98,77 @@ RenderResult render(const Scene& scene, const RenderOptions& opt) {
   const uint32_t spp = opt.spp ? opt.spp : scene.settings.spp;
   const bool adaptive = opt.target_error > 0.f;
   const AdaptiveOptions ao{opt.target_error, opt.min_spp, opt.max_spp, opt.error_floor, opt.replicates};
+  const uint32_t k = std::clamp<uint32_t>(opt.replicates, 1, kMaxReplicates);
+  const StoredRender* prev = opt.previous;
+  if (prev) check_previous(*prev, opt, w, spp, k);
+  const size_t npix = size_t(w.width()) * size_t(w.height());
   res.image = Image::make(w.width(), w.height());
-  if (opt.variance) {
-    for (const char* c : {"variance.R", "variance.G", "variance.B", "samples"})
-      res.image.extra[c].assign(size_t(w.width()) * size_t(w.height()), 0.f);
-  }
-  // Channel pointers taken once: threads write disjoint pixels and never touch the map itself.
+  res.state.replicates = k;
+  res.state.samples.assign(npix, 0U);
+  if (opt.keep_state) res.state.sums.assign(npix * PixelAccumulator::state_size(k), 0.0);
+  // Channel pointers taken once: threads write disjoint pixels and never touch the maps themselves.
   float* var_ch[4] = {nullptr, nullptr, nullptr, nullptr};
+  const float* prev_var_ch[4] = {nullptr, nullptr, nullptr, nullptr};
   if (opt.variance) {
-    int k = 0;
-    for (const char* c : {"variance.R", "variance.G", "variance.B", "samples"}) var_ch[k++] = res.image.extra[c].data();
+    for (int c = 0; c < 4; ++c) {
+      std::vector<float>& ch = res.image.extra[kVarianceChannels[c]];
+      ch.assign(npix, 0.f);
+      var_ch[c] = ch.data();
+      if (prev) prev_var_ch[c] = prev->image.extra.at(kVarianceChannels[c]).data();
+    }
   }
+  // A pixel's result from its accumulator.
+  const auto store = [&](size_t i, int lx, int ly, const PixelAccumulator& acc) {
+    const PixelEstimate e = acc.estimate();
+    res.image.set(lx, ly, e.mean);
+    if (opt.variance) {
+      for (int c = 0; c < 3; ++c) var_ch[c][i] = e.var_mean[c];
+      var_ch[3][i] = float(e.spp);
+    }
+    if (opt.keep_state) res.state.set(i, acc);
+    else res.state.samples[i] = acc.count();
+  };
+  // A pixel copied as the previous render wrote it (its colour was written as float: see the CLI's partial files).
+  const auto copy_previous = [&](size_t i, int lx, int ly) {
+    res.image.set(lx, ly, prev->image.at(lx, ly));
+    if (opt.variance)
+      for (int c = 0; c < 4; ++c) var_ch[c][i] = prev_var_ch[c][i];
+    res.state.samples[i] = prev->state.samples[i];
+  };
   const int ts = std::max(1, opt.tile_size);
   const int tx = (w.width() + ts - 1) / ts, ty = (w.height() + ts - 1) / ts;
   const int ntiles = tx * ty;
   tbb::enumerable_thread_specific<RayCounters> counters;
   std::mutex progress_mutex;
-  std::atomic<int> done{0};
+  std::atomic<int> done{0}, started{0};
   std::atomic<uint64_t> rays_done{0};
   std::atomic<bool> cancelled{false};
 
   tbb::parallel_for(tbb::blocked_range<int>(0, ntiles, 1), [&](const tbb::blocked_range<int>& range) {
     RayCounters& c = counters.local();
     for (int t = range.begin(); t != range.end(); ++t) {
-      if (opt.cancel && opt.cancel->load(std::memory_order_relaxed)) {
-        cancelled = true;
-        return;
-      }
+      const bool over_budget = opt.tile_budget > 0 && started.fetch_add(1) >= opt.tile_budget;
       const uint64_t before = c.rays;
       const int x0 = w.x0 + (t % tx) * ts, y0 = w.y0 + (t / tx) * ts;
       const int x1 = std::min(x0 + ts, w.x1), y1 = std::min(y0 + ts, w.y1);
       for (int y = y0; y < y1; ++y)
         for (int x = x0; x < x1; ++x) {
-          const PixelEstimate e = adaptive ? render_pixel_adaptive(scene, x, y, opt.seed, ao, c)
-                                           : render_pixel(scene, x, y, opt.seed, spp, c, opt.replicates);
           const int lx = x - w.x0, ly = y - w.y0;
-          res.image.set(lx, ly, e.mean);
-          if (opt.variance) {
-            const size_t i = size_t(ly) * size_t(w.width()) + size_t(lx);
-            var_ch[0][i] = e.var_mean.x;
-            var_ch[1][i] = e.var_mean.y;
-            var_ch[2][i] = e.var_mean.z;
-            var_ch[3][i] = float(e.spp);
+          const size_t i = size_t(ly) * size_t(w.width()) + size_t(lx);
+          const bool stop = over_budget || (opt.cancel && opt.cancel->load(std::memory_order_relaxed));
+          if (stop) cancelled.store(true, std::memory_order_relaxed);
+          const uint32_t had = prev ? prev->state.samples[i] : 0U;
+          if (had > 0 && prev->state.exact()) {
+            PixelAccumulator acc = prev->state.pixel(i);
+            if (!stop && !adaptive) add_samples(scene, x, y, opt.seed, spp, k, acc, c);
+            store(i, lx, ly, acc);
+          } else if (had > 0) {
+            copy_previous(i, lx, ly);
+          } else if (!stop) {
+            PixelAccumulator acc(k);
+            if (adaptive) acc = sample_adaptive(scene, x, y, opt.seed, ao, c);
+            else add_samples(scene, x, y, opt.seed, spp, k, acc, c);
+            store(i, lx, ly, acc);
           }
         }
       const int d = ++done;

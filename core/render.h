@@ -4,6 +4,7 @@
 #include "core/adaptive.h"
 #include "core/image.h"
 #include "core/integrator.h"
+#include "core/render_state.h"
 #include "core/scene.h"
 
 #include <atomic>
@@ -39,7 +40,19 @@ struct RenderOptions {
   /// some cost in stratification (see core/adaptive.h and docs/speed-vs-error.md).
   uint32_t replicates = 1;
   std::function<void(const RenderProgress&)> progress;  ///< Called (from worker threads, serialised) per tile.
-  const std::atomic<bool>* cancel = nullptr;            ///< Stops early when set (the result is then partial).
+  /// Stops early when set, after the pixels in progress (the result is then partial: see RenderResult::state).
+  const std::atomic<bool>* cancel = nullptr;
+  /// Renders at most this many tiles (0: all), then stops as if cancelled; any tile counts, finished before or not.
+  int tile_budget = 0;
+  /// Also return every pixel's exact accumulator (RenderResult::state.sums), so the result can be refined later.
+  bool keep_state = false;
+  /// Resume or refine an earlier render of the same scene, window, seed and sampling options. A pixel that has all
+  /// its samples (spp; with adaptive sampling, any) is copied from it; one with fewer continues from its exact
+  /// accumulator, which must then be kept (previous->state.exact()); one with none is rendered. Pixels come out bit
+  /// for bit as from an uninterrupted render at spp. Requirements (checked, std::invalid_argument): previous's image
+  /// has the window's size (and the variance channels when `variance` is set), no pixel has more than spp samples,
+  /// keep_state needs an exact previous state, and adaptive sampling cannot continue a pixel.
+  const StoredRender* previous = nullptr;
 };
 
 /// A rendered window.
@@ -48,7 +61,9 @@ struct RenderResult {
   PixelWindow window;   ///< Where the image lies in the full picture.
   RayCounters counters; ///< Ray counts.
   double seconds = 0;   ///< Wall time.
-  bool cancelled = false;  ///< True when stopped by `cancel`.
+  bool cancelled = false;  ///< True when stopped by `cancel` or `tile_budget` (some pixels are then unfinished).
+  /// Samples of every pixel (0: not rendered, when cancelled) and, with keep_state, the exact accumulators.
+  RenderState state;
 };
 
 /// Renders options.window of the scene. Bitwise identical pixels for any window split, tile size or thread count.

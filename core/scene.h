@@ -70,7 +70,10 @@ struct Scene {
   IntegratorSettings settings;             ///< Integrator settings.
   std::vector<Texture> textures;           ///< Textures in use.
   std::vector<Material> materials;         ///< Materials in use (index 0 is kNone).
-  std::vector<Triangle> triangles;         ///< World-space triangles.
+  /// Where the scene's coordinates have their origin, in the scene file's coordinates: the loader centres them on
+  /// the camera (core/camera_frame.h), so the camera sits at (0, 0, 0).
+  glm::dvec3 frame_origin{0.0};
+  std::vector<Triangle> triangles;         ///< Triangles, in the scene's (camera-centred) coordinates.
   std::vector<PrimAttr> triangle_attr;     ///< Per triangle.
   std::vector<TriangleShading> triangle_shading;  ///< Shading data of triangles that have some.
   std::vector<Sphere> spheres;             ///< Spheres.

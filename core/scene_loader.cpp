@@ -1,5 +1,6 @@
 #include "core/scene_loader.h"
 
+#include "core/camera_frame.h"
 #include "core/coincident.h"
 #include "core/enum_names.h"
 #include "core/image.h"
@@ -109,13 +110,17 @@ struct Ctx {
   }
 
   Vec3 vec3(const json& j, const char* key, const std::string& path, const Vec3& def) const {
+    return Vec3(dvec3(j, key, path, glm::dvec3(def)));
+  }
+
+  glm::dvec3 dvec3(const json& j, const char* key, const std::string& path, const glm::dvec3& def) const {
     if (!j.contains(key)) return def;
     const auto v = numbers(j.at(key), path + "." + key, 3);
-    return Vec3(float(v[0]), float(v[1]), float(v[2]));
+    return glm::dvec3(v[0], v[1], v[2]);
   }
 
   // A 4x4 matrix as 4 rows of 4 numbers or 16 numbers, row-major.
-  glm::mat4 matrix(const json& v, const std::string& path) const {
+  glm::dmat4 matrix(const json& v, const std::string& path) const {
     std::vector<double> m;
     if (v.is_array() && v.size() == 4 && v[0].is_array()) {
       for (size_t r = 0; r < 4; ++r) {
@@ -125,9 +130,9 @@ struct Ctx {
     } else {
       m = numbers(v, path, 16);
     }
-    glm::mat4 out(1.f);
+    glm::dmat4 out(1.0);
     for (int r = 0; r < 4; ++r)
-      for (int c = 0; c < 4; ++c) out[c][r] = float(m[size_t(r * 4 + c)]);  // glm is column-major
+      for (int c = 0; c < 4; ++c) out[c][r] = m[size_t(r * 4 + c)];  // glm is column-major
     return out;
   }
 };
@@ -148,8 +153,10 @@ struct ObjMesh {
   bool has_shading = false;
 };
 
-ObjMesh load_obj(const fs::path& file, const std::string& label, const glm::mat4& xf, const Vec3& translate,
-                 Ctx& ctx, const std::string& path) {
+// Vertices are transformed by xf, translated and re-expressed in the camera frame in double precision (see
+// core/camera_frame.h), then rounded once to float.
+ObjMesh load_obj(const fs::path& file, const std::string& label, const glm::dmat4& xf, const glm::dvec3& translate,
+                 const CameraFrame& frame, Ctx& ctx, const std::string& path) {
   const std::string text = read_file(file, ctx.name + ": " + path);
   // OBJ is text; tinyobjloader skips lines it does not know, so a binary file (an EXR named .obj, say) would load
   // as an empty mesh with only a warning.
@@ -163,7 +170,7 @@ ObjMesh load_obj(const fs::path& file, const std::string& label, const glm::mat4
   if (!reader.ParseFromString(text, "", cfg)) ctx.fail(path, label + ": not a valid OBJ: " + reader.Error());
   const auto& attrib = reader.GetAttrib();
   const size_t nv = attrib.vertices.size() / 3, nn = attrib.normals.size() / 3, nt = attrib.texcoords.size() / 2;
-  const glm::mat3 nxf = glm::transpose(glm::inverse(glm::mat3(xf)));
+  const glm::mat3 nxf = glm::transpose(glm::inverse(glm::mat3(glm::mat4(xf))));
   ObjMesh m;
   size_t degenerate = 0, face_no = 0;
   for (const auto& shape : reader.GetShapes()) {
@@ -179,8 +186,8 @@ ObjMesh load_obj(const fs::path& file, const std::string& label, const glm::mat4
           ctx.fail(path, label + ": triangle " + std::to_string(face_no + 1) + " refers to vertex " +
                              std::to_string(ix.vertex_index + 1) + " but the file has " + std::to_string(nv));
         const float* v = &attrib.vertices[3 * size_t(ix.vertex_index)];
-        const glm::vec4 w = xf * glm::vec4(v[0], v[1], v[2], 1.f);
-        p[k] = Vec3(w) / (w.w != 0.f ? w.w : 1.f) + translate;
+        const glm::dvec4 w = xf * glm::dvec4(v[0], v[1], v[2], 1.0);
+        p[k] = frame.local(glm::dvec3(w) / (w.w != 0.0 ? w.w : 1.0) + translate);
         if (!is_finite(p[k])) ctx.fail(path, label + ": vertex " + std::to_string(ix.vertex_index + 1) + " is not finite");
         if (ix.normal_index >= 0) {
           if (size_t(ix.normal_index) >= nn) ctx.fail(path, label + ": triangle " + std::to_string(face_no + 1) + " refers to normal " + std::to_string(ix.normal_index + 1) + " but the file has " + std::to_string(nn));
@@ -392,6 +399,8 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
   ctx.check_keys(j, "(top level)", {"integrator", "film", "camera", "textures", "materials", "objects", "environment_map"});
   Sha256 hash;
   hash.update(j.dump());
+  const CameraFrame frame = camera_frame(j);
+  s.frame_origin = frame.origin;
   BvhOptions bvh_options;
 
   // integrator
@@ -424,7 +433,7 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
     if (options.env_sampling) s.settings.env_sampling = *options.env_sampling;
     if (options.bvh) bvh_options.split = *options.bvh;
     PointLight pl;
-    pl.position = ctx.vec3(in, "point_light_position", "integrator", Vec3(0.f, 5.f, 0.f));
+    pl.position = frame.local(ctx.dvec3(in, "point_light_position", "integrator", glm::dvec3(0.0, 5.0, 0.0)));
     pl.flux = ctx.vec3(in, "point_light_flux", "integrator", Vec3(1.f));
     if (pl.flux.x < 0.f || pl.flux.y < 0.f || pl.flux.z < 0.f) ctx.fail("integrator.point_light_flux", "must not be negative");
     if (max_component(pl.flux) > 0.f) s.point_light = pl;
@@ -454,8 +463,8 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
   {
     const json& c = j.contains("camera") ? ctx.object(j["camera"], "camera") : json::object();
     ctx.check_keys(c, "camera", {"position", "look_at", "ref_up", "fov", "focal_length"});
-    const Vec3 pos = ctx.vec3(c, "position", "camera", Vec3(0, 0, 1));
-    const Vec3 at = ctx.vec3(c, "look_at", "camera", Vec3(0, 0, 0));
+    const Vec3 pos = frame.local(ctx.dvec3(c, "position", "camera", glm::dvec3(0, 0, 1)));
+    const Vec3 at = frame.local(ctx.dvec3(c, "look_at", "camera", glm::dvec3(0, 0, 0)));
     const Vec3 up = ctx.vec3(c, "ref_up", "camera", Vec3(0, 1, 0));
     const double fov = ctx.number(c, "fov", "camera", 45);
     const double fl = ctx.number(c, "focal_length", "camera", 1);
@@ -588,9 +597,9 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
       ctx.check_keys(o, op, {"type", "path", "material_name", "translate", "transform", "light"});
       const std::string rel = ctx.string(o, "path", op);
       const fs::path file = resolve(rel, op + ".path");
-      const Vec3 tr = ctx.vec3(o, "translate", op, Vec3(0.f));
-      const glm::mat4 xf = o.contains("transform") ? ctx.matrix(o["transform"], op + ".transform") : glm::mat4(1.f);
-      ObjMesh mesh = load_obj(file, rel, xf, tr, ctx, op + ".path");
+      const glm::dvec3 tr = ctx.dvec3(o, "translate", op, glm::dvec3(0.0));
+      const glm::dmat4 xf = o.contains("transform") ? ctx.matrix(o["transform"], op + ".transform") : glm::dmat4(1.0);
+      ObjMesh mesh = load_obj(file, rel, xf, tr, frame, ctx, op + ".path");
       hash.update(sha256_file(file));
       if (std::find(out.assets.begin(), out.assets.end(), rel) == out.assets.end()) out.assets.push_back(rel);
       std::vector<Vec3> normals;
@@ -614,7 +623,7 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
     } else if (type == "sphere") {
       ctx.check_keys(o, op, {"type", "center", "radius", "material_name", "light"});
       Sphere sp;
-      sp.center = ctx.vec3(o, "center", op, Vec3(0.f));
+      sp.center = frame.local(ctx.dvec3(o, "center", op, glm::dvec3(0.0)));
       const double r = ctx.number(o, "radius", op, 1.0);
       if (r < 0) ctx.fail(op + ".radius", "must not be negative (got " + std::to_string(r) + ")");
       if (!(r > 0) || !std::isfinite(float(r))) {
@@ -676,7 +685,7 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
     env.scale = float(ctx.number(e, "scale", "environment_map", 1.0));
     if (!(env.scale >= 0.f)) ctx.fail("environment_map.scale", "must not be negative");
     if (e.contains("transform")) {
-      const glm::mat3 m(ctx.matrix(e["transform"], "environment_map.transform"));
+      const glm::mat3 m(glm::mat4(ctx.matrix(e["transform"], "environment_map.transform")));
       const float det = glm::determinant(m);
       if (!(std::abs(det) > 1e-6f)) ctx.fail("environment_map.transform", "is singular");
       env.to_world = m;
@@ -687,6 +696,7 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
 
   s.finish(bvh_options);
   s.hash = hash.hex();
+  for (std::string& w : precision_warnings(s, name)) out.warnings.push_back(std::move(w));
   return out;
 }
 

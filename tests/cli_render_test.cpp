@@ -1,5 +1,6 @@
 // Integration tests of `tessera render`: runs the built binary on small scenes and inspects what it writes (EXR
 // windows, channels, pixel type and metadata, the PNG preview, the progress and summary lines) and how it fails.
+#include "cli/interrupt_guard.h"
 #include "core/render.h"
 #include "core/scene_loader.h"
 #include "core/test_files.h"
@@ -13,11 +14,13 @@
 #include <sys/wait.h>
 
 #include <algorithm>
+#include <csignal>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <vector>
 
 namespace tessera {
 namespace {
@@ -27,13 +30,13 @@ namespace fs = std::filesystem;
 
 struct CliRun {
   int exit_code;    // the process's exit status (-1 when it did not exit normally)
-  std::string err;  // what it wrote to stderr
+  std::string err;  // what it wrote to stderr (and stdout)
 };
 
 class CliRender : public testing::TempDirTest {
  protected:
-  // Runs `tessera render <args...>` (each argument shell-quoted) with stderr captured.
-  CliRun tessera(std::initializer_list<std::string> args) {
+  // Runs `tessera <command> <args...>` (each argument shell-quoted) with stderr captured.
+  CliRun tessera(std::initializer_list<std::string> args, const std::string& command = "render") {
     // Built by appending: GCC 12 at -O3 warns (-Wrestrict, falsely) on "literal" + std::string chains.
     std::string cmd;
     auto quoted = [&](const std::string& a) {
@@ -42,11 +45,13 @@ class CliRender : public testing::TempDirTest {
       cmd += "' ";
     };
     quoted(TESSERA_BINARY);
-    cmd += "render ";
+    cmd += command;
+    cmd += ' ';
     for (const std::string& a : args) quoted(a);
     const std::string log = file("stderr.txt").string();
-    cmd += ">/dev/null 2>";
+    cmd += "2>";
     quoted(log);
+    cmd += "1>&2";  // `submit` logs to stdout; `render` writes nothing there
     const int status = std::system(cmd.c_str());
     std::ifstream in(log);
     std::string err((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -200,6 +205,136 @@ TEST_F(CliRender, BadInputFailsWithTheJsonPath) {
   r = tessera({scene().string(), "-o", f("c.exr"), "-q", "--crop", "0", "0", "21", "5"});  // outside the 20 x 12 film
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.err.find("--crop"), std::string::npos) << r.err;
+}
+
+// The bytes of a file.
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+// Bitwise equality of two EXRs' windows, colours and float channels.
+void expect_same_exr(const fs::path& a, const fs::path& b) {
+  const ExrImage x = read_exr(a), y = read_exr(b);
+  EXPECT_EQ(x.data_window, y.data_window);
+  ASSERT_EQ(x.pixels.rgb.size(), y.pixels.rgb.size());
+  EXPECT_EQ(std::memcmp(x.pixels.rgb.data(), y.pixels.rgb.data(), x.pixels.rgb.size() * sizeof(float)), 0) << a << " vs " << b;
+  for (const auto& [name, ch] : x.pixels.extra) {
+    ASSERT_TRUE(y.pixels.extra.count(name)) << name;
+    EXPECT_EQ(std::memcmp(ch.data(), y.pixels.extra.at(name).data(), ch.size() * sizeof(float)), 0) << name;
+  }
+}
+
+// An output that cannot be written is an error before any rendering, and nothing existing is touched.
+TEST_F(CliRender, UnwritableOutputFailsBeforeRendering) {
+  const fs::path sc = scene();
+  CliRun r = tessera({sc.string(), "-o", "/no/such/dir/out.exr", "--spp", "1"});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("cannot write the output \"/no/such/dir/out.exr\": the folder \"/no/such/dir\" does not exist"),
+            std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("tiles"), std::string::npos) << r.err;  // no progress: nothing was rendered
+  fs::create_directories(file("folder.exr"));
+  r = tessera({sc.string(), "-o", f("folder.exr"), "--spp", "1"});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("it is a folder"), std::string::npos) << r.err;
+  // A good earlier result is neither clobbered nor joined by half files when only the preview is unwritable.
+  ASSERT_EQ(tessera({sc.string(), "-o", f("good.exr"), "-q", "--spp", "1"}).exit_code, 0);
+  const std::string before = slurp(file("good.exr"));
+  const auto entries = [&] {
+    std::vector<std::string> names;
+    for (const auto& e : fs::directory_iterator(file(""))) names.push_back(e.path().filename().string());
+    std::sort(names.begin(), names.end());
+    return names;
+  };
+  const auto listing = entries();
+  r = tessera({sc.string(), "-o", f("good.exr"), "-q", "--spp", "2", "--preview", f("missing/p.png")});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("cannot write the preview"), std::string::npos) << r.err;
+  EXPECT_EQ(slurp(file("good.exr")), before);
+  EXPECT_EQ(entries(), listing);
+  // `submit -o` checks before contacting the coordinator (nothing listens on port 1).
+  r = tessera({sc.string(), "--coordinator", "http://127.0.0.1:1", "-o", "/no/such/dir/out.exr", "-q"}, "submit");
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("the folder \"/no/such/dir\" does not exist"), std::string::npos) << r.err;
+}
+
+// --tile-budget stops after N tiles and writes a partial EXR (unrendered pixels have 0 in tessera.samples);
+// --resume finishes it bit for bit as one uninterrupted render, with the settings taken from the file.
+TEST_F(CliRender, PartialRenderResumesBitwise) {
+  const fs::path sc = scene();
+  ASSERT_EQ(tessera({sc.string(), "-o", f("whole.exr"), "-q", "--spp", "3", "--seed", "5", "--variance", "--crop", "1",
+                     "2", "17", "10"}).exit_code,
+            0);
+  CliRun r = tessera({sc.string(), "-o", f("part.exr"), "--spp", "3", "--seed", "5", "--variance", "--crop", "1", "2",
+                      "17", "10", "--tile", "4", "--tile-budget", "4", "--half"});
+  ASSERT_EQ(r.exit_code, 3) << r.err;
+  EXPECT_NE(r.err.find("--resume"), std::string::npos) << r.err;
+  const ExrImage part = read_exr(file("part.exr"));
+  EXPECT_EQ(part.metadata.at("tessera:partial"), "64 of 128 pixels");  // 4 of the 8 tiles of 4x4
+  const auto& samples = part.pixels.uint_extra.at("tessera.samples");
+  EXPECT_EQ(std::count(samples.begin(), samples.end(), 3u), 64);
+  EXPECT_EQ(std::count(samples.begin(), samples.end(), 0u), 128 - 64);
+  EXPECT_EQ(part.pixels.uint_extra.count("tessera.state.sum.R.hi"), 0u);  // no exact sums without --resumable
+  // Finished in two more slices, the second one writing over its own input.
+  r = tessera({sc.string(), "-o", f("part2.exr"), "-q", "--resume", f("part.exr"), "--tile", "3", "--tile-budget", "5"});
+  ASSERT_EQ(r.exit_code, 3) << r.err;
+  r = tessera({sc.string(), "-o", f("part2.exr"), "-q", "--resume", f("part2.exr")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  expect_same_exr(file("part2.exr"), file("whole.exr"));
+  EXPECT_FALSE(read_exr(file("part2.exr")).metadata.count("tessera:partial"));
+  // A partial file cannot be refined (no exact sums), nor resumed against another scene or with other settings.
+  r = tessera({sc.string(), "-o", f("x.exr"), "-q", "--resume", f("part.exr"), "--spp", "6"});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("--resumable"), std::string::npos) << r.err;
+  r = tessera({sc.string(), "-o", f("x.exr"), "-q", "--resume", f("part.exr"), "--seed", "6"});
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("--seed excludes --resume"), std::string::npos) << r.err;
+  json other = testing::minimal_scene();
+  other["film"]["resolution"] = {20, 12};
+  write_scene("other.json", other);
+  r = tessera({f("other.json"), "-o", f("x.exr"), "-q", "--resume", f("part.exr")});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("another scene"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(file("x.exr")));
+}
+
+// --resumable keeps each pixel's exact sums, so --resume --spp 4N refines an N-spp render to exactly the 4N one.
+TEST_F(CliRender, ResumableRenderRefinesBitwise) {
+  const fs::path sc = scene();
+  ASSERT_EQ(tessera({sc.string(), "-o", f("n.exr"), "-q", "--spp", "2", "--replicates", "2", "--variance", "--resumable"}).exit_code, 0);
+  ASSERT_EQ(tessera({sc.string(), "-o", f("ref.exr"), "-q", "--spp", "8", "--replicates", "2", "--variance"}).exit_code, 0);
+  CliRun r = tessera({sc.string(), "-o", f("4n.exr"), "-q", "--resume", f("n.exr"), "--spp", "8"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  expect_same_exr(file("4n.exr"), file("ref.exr"));
+  EXPECT_EQ(read_exr(file("4n.exr")).metadata.at("tessera:spp"), "8");
+  r = tessera({sc.string(), "-o", f("x.exr"), "-q", "--resume", f("4n.exr"), "--spp", "4"});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("cannot take samples away"), std::string::npos) << r.err;
+  // A finished render without --resumable cannot be continued; an adaptive one cannot be refined.
+  r = tessera({sc.string(), "-o", f("x.exr"), "-q", "--resume", f("ref.exr"), "--spp", "16"});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("tessera.samples"), std::string::npos) << r.err;
+  ASSERT_EQ(tessera({sc.string(), "-o", f("a.exr"), "-q", "--target-error", "0.3", "--resumable"}).exit_code, 0);
+  r = tessera({sc.string(), "-o", f("x.exr"), "-q", "--resume", f("a.exr"), "--spp", "64"});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("adaptive"), std::string::npos) << r.err;
+}
+
+// SIGINT and SIGTERM set the flag `render` passes to the renderer as its cancel flag (the same path --tile-budget
+// takes, tested above), only while a guard is installed; a new guard starts cleared.
+TEST(InterruptGuard, SignalsSetTheFlagOnlyWhileInstalled) {
+  using cli::InterruptGuard;
+  struct sigaction before {};
+  sigaction(SIGINT, nullptr, &before);
+  for (const int sig : {SIGINT, SIGTERM}) {
+    InterruptGuard guard;
+    EXPECT_FALSE(InterruptGuard::interrupted());
+    std::raise(sig);  // the handler runs before raise returns
+    EXPECT_TRUE(InterruptGuard::interrupted()) << sig;
+  }
+  struct sigaction after {};
+  sigaction(SIGINT, nullptr, &after);
+  EXPECT_EQ(after.sa_handler, before.sa_handler);
 }
 
 }  // namespace

@@ -1,0 +1,25 @@
+// `tessera render --resume FILE`: the settings a resumable EXR records, turned back into render arguments.
+#pragma once
+
+#include "cli/render_command.h"
+#include "core/image.h"
+
+#include <cstdint>
+#include <map>
+#include <string>
+
+namespace tessera::cli {
+
+/// The metadata `render` writes so that --resume can repeat the render's sampling exactly: seed, spp (or
+/// "adaptive" and the adaptive settings), replicates and the strategy overrides given on the command line.
+std::map<std::string, std::string> sampling_metadata(const RenderArgs& args, uint32_t spp);
+
+/// `given` with the sampling settings of the render stored in `file` (seed, spp unless given, crop window,
+/// variance, replicates, adaptive settings, strategies). Throws std::runtime_error naming `given.resume` when the
+/// file lacks them, is not a render of this kind, or --spp asks for something that cannot be continued exactly.
+RenderArgs resumed_args(const RenderArgs& given, const ExrImage& file);
+
+/// The samples per pixel recorded in a resumable file's metadata (0 for an adaptive render).
+uint32_t recorded_spp(const ExrImage& file);
+
+}  // namespace tessera::cli
