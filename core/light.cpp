@@ -1,4 +1,5 @@
 #include "core/light.h"
+#include "core/trig.h"
 
 #include <algorithm>
 #include <cmath>
@@ -113,10 +114,10 @@ Vec2 direction_to_uv(const Vec3& d) {
 
 Vec3 uv_to_direction(Vec2 uv, float* sin_theta) {
   const float theta = uv.y * kPi, phi = uv.x * 2.f * kPi;
-  const float st = std::sin(theta);
+  const float st = portable_sin(theta);
   *sin_theta = st;
   // Inverse of direction_to_uv: d.x = sin(theta) sin(phi), d.z = -sin(theta) cos(phi).
-  return {st * std::sin(phi), std::cos(theta), -st * std::cos(phi)};
+  return {st * portable_sin(phi), portable_cos(theta), -st * portable_cos(phi)};
 }
 
 }  // namespace
@@ -132,7 +133,7 @@ void Environment::finish() {
   for (int y = 0; y < H; ++y) {
     // Largest sin(theta) over the row's band [y, y+1) / H.
     const float t0 = kPi * float(y) / float(H), t1 = kPi * float(y + 1) / float(H);
-    const float st = (t0 <= kPi / 2 && t1 >= kPi / 2) ? 1.f : std::max(std::sin(t0), std::sin(t1));
+    const float st = (t0 <= kPi / 2 && t1 >= kPi / 2) ? 1.f : std::max(portable_sin(t0), portable_sin(t1));
     for (int x = 0; x < W; ++x) {
       float m = lum[size_t(y) * size_t(W) + size_t(x)];
       if (!raw_pixel_distribution) {
@@ -143,7 +144,7 @@ void Environment::finish() {
             m = std::max(m, lum[size_t(yy) * size_t(W) + size_t(xx)]);
           }
       }
-      w[size_t(y) * size_t(W) + size_t(x)] = m * (raw_pixel_distribution ? std::sin(kPi * (float(y) + 0.5f) / float(H)) : st);
+      w[size_t(y) * size_t(W) + size_t(x)] = m * (raw_pixel_distribution ? portable_sin(kPi * (float(y) + 0.5f) / float(H)) : st);
     }
   }
   dist = Distribution2D(w, W, H);

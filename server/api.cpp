@@ -705,7 +705,13 @@ void Api::finalize(const std::string& job) {
   const auto img = image_for(job, s->params.width, s->params.height);
   const auto t0 = std::chrono::steady_clock::now();
   const int64_t now = clock_();
-  const std::map<std::string, std::string> meta = {
+  json adaptive;  // the job's adaptive-sampling options, recorded like `tessera render` records them
+  {
+    std::lock_guard lock(mu_);
+    const auto it = specs_.find(job);
+    if (it != specs_.end() && it->second.contains("target_error")) adaptive = it->second;
+  }
+  std::map<std::string, std::string> meta = {
       {"tessera:version", TESSERA_VERSION},
       {"tessera:job", job},
       {"tessera:name", s->params.name},
@@ -718,6 +724,12 @@ void Api::finalize(const std::string& job) {
       {"tessera:startedMs", std::to_string(s->started_ms.value_or(0))},
       {"tessera:finishedMs", std::to_string(now)},
       {"tessera:renderSeconds", std::to_string(double(now - s->started_ms.value_or(now)) / 1000.0)}};
+  if (!adaptive.is_null()) {
+    meta["tessera:spp"] = "adaptive";
+    meta["tessera:targetError"] = std::to_string(adaptive["target_error"].get<float>());
+    meta["tessera:minSpp"] = std::to_string(adaptive["min_spp"].get<uint32_t>());
+    meta["tessera:maxSpp"] = std::to_string(adaptive["max_spp"].get<uint32_t>());
+  }
   try {
     img->write_exr(jobs_.result_path(job), meta);
   } catch (const std::exception& e) {

@@ -1,16 +1,22 @@
 // `tessera render` with --target-error and the strategy overrides, run as a process: the options reach the
-// renderer, a whole image and odd-sized crops agree bitwise, the samples channel holds per-pixel counts.
+// renderer, a whole image and odd-sized crops agree bitwise, the samples channel holds per-pixel counts, strategies
+// agree in expectation, and a bad option is refused with its exit status and message.
 #include "core/image.h"
+#include "core/test_error.h"
 
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 
 namespace tessera {
@@ -48,6 +54,10 @@ struct Fixture : ::testing::Test {
                             " 2>" + (dir / "stderr.txt").string();
     return std::system(cmd.c_str());
   }
+  std::string stderr_text() const {
+    std::ifstream in(dir / "stderr.txt");
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }
 };
 
 TEST_F(Fixture, TargetErrorWholeAndOddCropsAreBitwiseIdentical) {
@@ -76,12 +86,29 @@ TEST_F(Fixture, TargetErrorWholeAndOddCropsAreBitwiseIdentical) {
 }
 
 TEST_F(Fixture, StrategyOverridesChangeTheImageButNotItsExpectation) {
-  ASSERT_EQ(0, tessera("-o " + (dir / "a.exr").string() + " --spp 4 --area-sampling solid_angle"));
-  ASSERT_EQ(0, tessera("-o " + (dir / "b.exr").string() + " --spp 4 --area-sampling area"));
+  // Unbiased per-pixel error estimates (4 replicates), so the two images' difference can be held to them.
+  const std::string opts = " --spp 64 --variance --replicates 4";
+  ASSERT_EQ(0, tessera("-o " + (dir / "a.exr").string() + opts + " --area-sampling solid_angle"));
+  ASSERT_EQ(0, tessera("-o " + (dir / "b.exr").string() + opts + " --area-sampling area"));
   const ExrImage a = read_exr(dir / "a.exr"), b = read_exr(dir / "b.exr");
-  EXPECT_NE(a.pixels.rgb, b.pixels.rgb);
+  EXPECT_EQ("solid_angle", a.metadata.at("tessera:areaSampling"));
   EXPECT_EQ("area", b.metadata.at("tessera:areaSampling"));
-  EXPECT_NE(0, tessera("-o " + (dir / "c.exr").string() + " --bvh octree"));  // rejected with the choices
+  EXPECT_NE(a.pixels.rgb, b.pixels.rgb);
+  // The same expectation: the difference is what both images' own error estimates predict, in the sum of squares
+  // and in the signed sum (a bias of one strategy moves the signed sum by many of its standard deviations).
+  const testing::ErrorCheck c = testing::compare_with_reference(a.pixels, b.pixels);
+  std::printf("solid angle vs area: measured %.4g, predicted %.4g (sd %.2g); mean difference at %.2f sd\n", c.measured,
+              c.predicted, c.sd, c.bias_z);
+  EXPECT_LE(c.measured, 1.2 * c.predicted + 3 * c.sd);
+  EXPECT_LE(std::abs(c.bias_z), 4.0);
+}
+
+TEST_F(Fixture, AnUnknownBvhIsRejectedWithTheChoices) {
+  const int status = tessera("-o " + (dir / "c.exr").string() + " --bvh octree");
+  ASSERT_TRUE(WIFEXITED(status)) << "ended by a signal (status " << status << ")";
+  EXPECT_EQ(105, WEXITSTATUS(status)) << "not CLI11's validation-error status";  // 127: binary missing
+  EXPECT_NE(std::string::npos, stderr_text().find("--bvh: octree not in {sah,median}")) << stderr_text();
+  EXPECT_FALSE(fs::exists(dir / "c.exr"));
 }
 
 }  // namespace

@@ -25,10 +25,6 @@ except ImportError as e:
 # The Secret the operator creates (deploy/k8s/README.md): its name and keys.
 TOKEN_SECRET = "tessera-tokens"
 TOKEN_KEYS = {"client-token", "worker-token"}
-# Flags of the access-token interface being built alongside this work (docs/operations.md); accepted until the
-# binary's --help lists them, and then checked like any other.
-PENDING_FLAGS = {"serve": {"--client-token-file", "--worker-token-file"}, "worker": {"--token-file"},
-                 "submit": {"--token-file"}}
 WORKER_MIN_GRACE_SECONDS = 120
 
 errors = []
@@ -229,7 +225,7 @@ def check_all(tessera, k8s_dir):
                     if not helps[sub]:
                         error(cname, f"`tessera {sub} --help` lists no flags: not a tessera subcommand?")
                 for flag in flags:
-                    if flag not in helps[sub] and flag not in PENDING_FLAGS.get(sub, set()):
+                    if flag not in helps[sub]:
                         error(cname, f"`tessera {sub}` has no flag {flag}")
             for path in (flag_value(c, "--data"), flag_value(c, "--cache")):
                 if path and not any(path == p or path.startswith(p.rstrip("/") + "/") for p in mounts):
@@ -376,6 +372,8 @@ MUTATIONS = [
     ("farm/workers.yaml", "terminationGracePeriodSeconds: 600", "terminationGracePeriodSeconds: 30",
      "terminationGracePeriodSeconds below"),
     ("farm/workers.yaml", "- --cache", "- --cache-dir", "has no flag --cache-dir"),
+    ("farm/workers.yaml", "- --token-file", "- --token-path", "has no flag --token-path"),
+    ("farm/coordinator.yaml", "- --worker-token-file", "- --worker-token", "has no flag --worker-token"),
     ("farm/workers.yaml", "- $(POD_NAME)", "- $(POD)", "does not define"),
     ("farm/workers.yaml", "http://tessera-coordinator:8470", "http://coordinator:8470", "not the Service's"),
     ("farm/coordinator.yaml", "replicas: 1 ", "replicas: 2 ", "exactly 1 replica"),

@@ -22,6 +22,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <cstring>
 #include <filesystem>
@@ -45,9 +46,19 @@ const fs::path kSource = TESSERA_SOURCE_DIR;
 const fs::path kCases = kSource / "tests/hostile/cases.json";
 const fs::path kDoc = kSource / "docs/hostile-inputs.md";
 
+// The coordinator's read timeout (whole request) in this test, and the bound within which a slow or idle client
+// must see the server close its connection: the timeout plus a slack for scheduling on a loaded machine. A server
+// that ignored the flag would close only after its default 30 s and fail the bound.
+constexpr int kReadTimeoutSeconds = 1;
+constexpr double kCloseBoundSeconds = kReadTimeoutSeconds + 9.0;
+// The client's own socket timeout: three times the bound, so that it can never be mistaken for a server close
+// (the test also tells them apart by how the socket call ended).
+constexpr int kClientTimeoutSeconds = 30;
+static_assert(kClientTimeoutSeconds >= 3 * kCloseBoundSeconds);
+
 // The limits the coordinator under test runs with (the case list's texts quote them).
 const std::vector<std::string> kServeLimits = {
-    "--read-timeout-seconds", "1",      "--max-connections", "16",       "--max-queued-jobs", "4",
+    "--read-timeout-seconds", std::to_string(kReadTimeoutSeconds), "--max-connections", "16", "--max-queued-jobs", "4",
     "--max-json-bytes",       "65536",  "--max-blob-bytes",  "1048576",  "--max-result-bytes", "4194304",
     "--max-header-bytes",     "8192",   "--max-job-pixels",  "1048576",  "--max-job-samples",  "1e8"};
 
@@ -106,12 +117,27 @@ struct Reply {
   }
 };
 
-// A connected loopback socket with 30 s send/receive timeouts (so a broken server fails the test, never hangs it).
+// How a socket call that found no more data (or could not send) ended.
+enum class End {
+  open,            ///< Not ended.
+  server_closed,   ///< The peer closed (EOF) or reset the connection.
+  client_timeout,  ///< The client's own socket timeout expired.
+  error,           ///< Any other failure.
+};
+
+End end_of(ssize_t n, int err) {
+  if (n == 0) return End::server_closed;
+  if (err == ECONNRESET || err == EPIPE) return End::server_closed;
+  if (err == EAGAIN || err == EWOULDBLOCK) return End::client_timeout;
+  return End::error;
+}
+
+// A connected loopback socket with send/receive timeouts (so a broken server fails the test, never hangs it).
 class Conn {
  public:
   explicit Conn(int port) {
     fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
-    timeval tv{30, 0};
+    timeval tv{kClientTimeoutSeconds, 0};
     setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
     setsockopt(fd_, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
     sockaddr_in a{};
@@ -127,22 +153,29 @@ class Conn {
   Conn& operator=(const Conn&) = delete;
 
   bool ok() const { return ok_; }
-  /// Sends everything; false when the connection is gone.
+  /// How the connection ended, as seen by the last call that found its end (End::open until then).
+  End end() const { return end_; }
+  /// Sends everything; false when the connection is gone (see end()).
   bool send(std::string_view bytes) {
     while (!bytes.empty()) {
       const ssize_t n = ::send(fd_, bytes.data(), bytes.size(), MSG_NOSIGNAL);
-      if (n <= 0) return false;
+      if (n <= 0) {
+        end_ = end_of(n, errno);
+        return false;
+      }
       bytes.remove_prefix(size_t(n));
     }
     return true;
   }
-  /// True when the peer has closed (or reset) the connection; reads nothing that is not an end.
-  bool closed_by_peer() {
+  /// True when the connection has ended (see end()); reads nothing that is not an end.
+  bool ended() {
     pollfd p{fd_, POLLIN, 0};
     if (::poll(&p, 1, 0) <= 0) return false;
     char c;
     const ssize_t n = ::recv(fd_, &c, 1, MSG_PEEK | MSG_DONTWAIT);
-    return n <= 0;
+    if (n > 0) return false;
+    end_ = end_of(n, errno);
+    return true;
   }
   /// Reads one response (status 0 if the connection ends first).
   Reply read(bool head = false) {
@@ -168,6 +201,7 @@ class Conn {
       if (parser.is_done()) break;
       const ssize_t n = ::recv(fd_, buf, sizeof buf, 0);
       if (n <= 0) {
+        end_ = end_of(n, errno);
         if (!got_bytes) return r;  // closed before answering (Beast would complete an empty message here)
         parser.put_eof(ec);
         if (ec || !parser.is_done()) return r;
@@ -186,6 +220,7 @@ class Conn {
  private:
   int fd_ = -1;
   bool ok_ = false;
+  End end_ = End::open;
   std::string pending_;
 };
 
@@ -406,25 +441,29 @@ void HostileFarm::check_case(const json& c, const std::map<std::string, std::str
     Conn conn(port_);
     ASSERT_TRUE(conn.ok());
     const auto t0 = std::chrono::steady_clock::now();
-    bool dropped = false;
+    auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
     if (kind == "idle") {
-      r = conn.read();  // blocks until the server closes (or the 30 s socket timeout)
-      dropped = r.status == 0;
+      r = conn.read();  // blocks until the server closes (or the client's own socket timeout)
+      EXPECT_EQ(r.status, 0u) << "the server answered a request never sent";
     } else {
       const bool body = c["stage"].get<std::string>() == "body";
       conn.send(body ? "POST /v1/jobs HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 100000\r\n\r\n"
                      : "GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Slow: ");
-      // One byte every 100 ms, for at most 30 s: far longer than the 1 s read timeout.
-      for (int i = 0; i < 300 && !dropped; ++i) {
+      // One byte every 100 ms, never finishing the request, until the connection ends or the client gives up.
+      while (elapsed() < kClientTimeoutSeconds) {
         std::this_thread::sleep_for(std::chrono::milliseconds(100));
-        dropped = conn.closed_by_peer() || !conn.send("a");
+        if (conn.ended() || !conn.send("a")) break;
       }
-      if (!dropped) r = conn.read();
     }
-    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    std::printf("  %s: dropped=%d after %.2f s (read timeout 1 s)\n", name.c_str(), int(dropped), secs);
-    EXPECT_TRUE(dropped) << "the connection was not dropped";
-    if (dropped) r = Reply{};
+    const double secs = elapsed();
+    std::printf("  %s: ended=%d after %.2f s (read timeout %d s, bound %.0f s)\n", name.c_str(), int(conn.end()), secs,
+                kReadTimeoutSeconds, kCloseBoundSeconds);
+    EXPECT_EQ(conn.end(), End::server_closed) << "the server did not close the connection (end " << int(conn.end()) << ")";
+    // Not before the timeout (the client's clock starts before the server accepts, so never later than the server's),
+    // and within the bound.
+    EXPECT_GE(secs, kReadTimeoutSeconds * 0.95) << "closed before the read timeout";
+    EXPECT_LE(secs, kCloseBoundSeconds) << "not closed within the read timeout's bound";
+    r = Reply{};
   } else if (kind == "connections") {
     // Open keep-alive connections one by one (each answers /healthz) until the server refuses one.
     std::vector<std::unique_ptr<Conn>> open;

@@ -1,0 +1,57 @@
+#include "core/trig.h"
+
+#include <cmath>
+#include <cstdint>
+
+namespace tessera {
+namespace {
+
+// pi/2 split so that k * kPio2Hi is exact for |k| < 2^20 (kPio2Hi has 33 significant bits), and the rest.
+constexpr double kPio2Hi = 1.57079632673412561417e+00;
+constexpr double kPio2Lo = 6.07710050650619224932e-11;
+constexpr double kTwoOverPi = 0.63661977236758134308;
+
+// Taylor polynomials on |r| <= pi/4 (+ a little): truncation below 1e-11 relative, far under a float ulp (6e-8).
+double sin_poly(double r) {
+  const double r2 = r * r;
+  return r + r * r2 * (-1.0 / 6 + r2 * (1.0 / 120 + r2 * (-1.0 / 5040 + r2 * (1.0 / 362880 + r2 * (-1.0 / 39916800)))));
+}
+double cos_poly(double r) {
+  const double r2 = r * r;
+  return 1.0 + r2 * (-1.0 / 2 + r2 * (1.0 / 24 + r2 * (-1.0 / 720 + r2 * (1.0 / 40320 + r2 * (-1.0 / 3628800 +
+                                                                                          r2 * (1.0 / 479001600))))));
+}
+
+// x = k pi/2 + r with |r| <= pi/4; the quadrant is k mod 4.
+double reduce(float x, int* quadrant) {
+  const double xd = double(x);
+  const double k = std::floor(xd * kTwoOverPi + 0.5);  // floor is exact in every libm variant
+  *quadrant = int(int64_t(k) & 3);
+  return (xd - k * kPio2Hi) - k * kPio2Lo;
+}
+
+}  // namespace
+
+float portable_sin(float x) {
+  int q;
+  const double r = reduce(x, &q);
+  switch (q) {
+    case 0: return float(sin_poly(r));
+    case 1: return float(cos_poly(r));
+    case 2: return float(-sin_poly(r));
+    default: return float(-cos_poly(r));
+  }
+}
+
+float portable_cos(float x) {
+  int q;
+  const double r = reduce(x, &q);
+  switch (q) {
+    case 0: return float(cos_poly(r));
+    case 1: return float(-sin_poly(r));
+    case 2: return float(-cos_poly(r));
+    default: return float(sin_poly(r));
+  }
+}
+
+}  // namespace tessera
