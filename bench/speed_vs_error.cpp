@@ -203,6 +203,22 @@ Run run(const Scene& s, RenderOptions o, const Image& ref, int repeats) {
   return run_interleaved({&s}, {o}, {&ref}, repeats)[0];
 }
 
+// Every scene of `ss` (variants of one scene) at `spp`, interleaved, against the same reference.
+std::vector<Run> run_variants(const std::vector<Scene>& ss, uint32_t spp, uint64_t seed, const Image& ref, int repeats) {
+  std::vector<const Scene*> sp;
+  std::vector<RenderOptions> os;
+  std::vector<const Image*> rs;
+  for (const Scene& sc : ss) {
+    RenderOptions o;
+    o.spp = spp;
+    o.seed = seed;
+    sp.push_back(&sc);
+    os.push_back(o);
+    rs.push_back(&ref);
+  }
+  return run_interleaved(sp, os, rs, repeats);
+}
+
 struct Point {
   uint32_t spp;
   double seconds, rel_mse, rmse, p99, mean_spp, cpu_seconds;
@@ -356,18 +372,7 @@ int path_tracing_report(const Args& a, const fs::path& data, const std::string& 
     std::vector<double> rays(variants.size(), 0.0);
     for (uint32_t spp : sweep) {
       if (spp < 4) continue;
-      std::vector<const Scene*> sp;
-      std::vector<RenderOptions> os;
-      std::vector<const Image*> rp;
-      for (const Scene& s : ss) {
-        RenderOptions o;
-        o.spp = spp;
-        o.seed = 11;
-        sp.push_back(&s);
-        os.push_back(o);
-        rp.push_back(&refs[scene]);
-      }
-      const std::vector<Run> runs = run_interleaved(sp, os, rp, a.repeats);
+      const std::vector<Run> runs = run_variants(ss, spp, 11, refs[scene], a.repeats);
       for (size_t k = 0; k < runs.size(); ++k) {
         c[k].push_back({spp, runs[k].seconds, runs[k].m.rel_mse, runs[k].m.rmse, runs[k].m.p99, runs[k].mean_spp,
                         runs[k].cpu_seconds});
@@ -606,18 +611,7 @@ int main(int argc, char** argv) {
     for (const Variant& v : cmp.variants) ss.push_back(load(cmp.scene, v, a.scale));
     std::vector<std::vector<Point>> cs(ss.size());
     for (uint32_t spp : sweep) {
-      std::vector<const Scene*> sp;
-      std::vector<RenderOptions> os;
-      std::vector<const Image*> rs;
-      for (const Scene& sc : ss) {
-        RenderOptions o;
-        o.spp = spp;
-        o.seed = 1;
-        sp.push_back(&sc);
-        os.push_back(o);
-        rs.push_back(&refs[cmp.scene]);
-      }
-      const std::vector<Run> runs = run_interleaved(sp, os, rs, a.repeats);
+      const std::vector<Run> runs = run_variants(ss, spp, 1, refs[cmp.scene], a.repeats);
       for (size_t k = 0; k < ss.size(); ++k) {
         const Run& r = runs[k];
         cs[k].push_back({spp, r.seconds, r.m.rel_mse, r.m.rmse, r.m.p99, r.mean_spp, r.cpu_seconds});
