@@ -50,6 +50,9 @@ std::string inward_cube_obj() {
          "f 1 2 3 4\nf 8 7 6 5\nf 1 5 6 2\nf 4 3 7 8\nf 1 4 8 5\nf 2 6 7 3\n";
 }
 
+// Samples per pixel for a test: n in the main build, fewer under sanitizers, never below 32 (two per replicate).
+int test_spp(size_t n) { return int(std::max<size_t>(32, testing::scaled(n))); }
+
 json path_scene(int res, int spp) {
   return json{{"integrator", {{"type", "path"}, {"spp", spp}, {"max_depth", 1000}, {"point_light_flux", {0, 0, 0}}}},
               {"film", {{"resolution", {res, res}}}},
@@ -100,7 +103,7 @@ TEST_F(PathTracer, FurnaceSphereShowsLeOverOneMinusRho) {
   write("sphere.obj", inward_sphere_obj(16, 32));
   for (float rho : {0.5f, 0.9f}) {
     for (const char* profile : {"MIS", "NEE"}) {
-      json s = path_scene(6, int(testing::scaled(256)));
+      json s = path_scene(6, test_spp(256));
       s["integrator"]["profile"] = profile;
       s["textures"]["albedo"] = {{"type", "constant"}, {"color", {rho, rho, rho}}};
       s["materials"]["wall"] = {{"type", "diffuse"}, {"texture_name", "albedo"}};
@@ -115,7 +118,7 @@ TEST_F(PathTracer, FurnaceBoxEveryProfileAndRoulette) {
   write("box.obj", inward_cube_obj());
   for (const char* profile : {"MIS", "NEE", "RW"}) {
     for (float rr : {0.1f, 0.f}) {
-      json s = path_scene(6, int(testing::scaled(256)));
+      json s = path_scene(6, test_spp(256));
       s["integrator"]["profile"] = profile;
       s["integrator"]["rr_threshold"] = rr;
       if (rr == 0.f) s["integrator"]["max_depth"] = 80;  // without roulette: truncation bias 0.8^80 ~ 2e-8
@@ -130,7 +133,7 @@ TEST_F(PathTracer, FurnaceBoxEveryProfileAndRoulette) {
 }
 
 TEST_F(PathTracer, GlassSphereInAWhiteEnvironmentStaysWhite) {
-  json s = path_scene(12, int(testing::scaled(64)));
+  json s = path_scene(12, test_spp(64));
   s["integrator"]["max_depth"] = 64;
   s["camera"] = {{"position", {0, 0, -4}}, {"look_at", {0, 0, 0}}, {"ref_up", {0, 1, 0}}, {"fov", 35}};
   s["textures"]["white"] = {{"type", "constant"}, {"color", {1, 1, 1}}};
@@ -146,7 +149,7 @@ TEST_F(PathTracer, GlassSphereInAWhiteEnvironmentStaysWhite) {
 TEST_F(PathTracer, FullyReflectingRoughMetalInAWhiteEnvironmentLosesOnlyShadowing) {
   // F = 1 (etaT = k = 0) on a convex sphere: every pixel shows the single-scattering albedo, at most 1 and at least
   // 1 - 0.15 alpha at normal incidence (see bsdf_test); over the silhouette grazing angles lose more.
-  json s = path_scene(12, int(testing::scaled(128)));
+  json s = path_scene(12, test_spp(128));
   s["camera"] = {{"position", {0, 0, -4}}, {"look_at", {0, 0, 0}}, {"ref_up", {0, 1, 0}}, {"fov", 35}};
   s["textures"]["white"] = {{"type", "constant"}, {"color", {1, 1, 1}}};
   s["materials"]["metal"] = {{"type", "roughconductor"}, {"alpha_x", 0.3}, {"alpha_y", 0.3}, {"etaT", {0, 0, 0}}, {"k", {0, 0, 0}}};
@@ -198,7 +201,7 @@ class PathTracerMixed : public PathTracer {
 };
 
 TEST_F(PathTracerMixed, ProfilesConvergeToTheSameImage) {
-  const int spp = int(testing::scaled(1024));
+  const int spp = int(std::max<size_t>(512, testing::scaled(1024)));  // the variance ordering needs enough samples
   std::vector<RenderResult> r;
   for (const char* p : {"MIS", "NEE", "RW"}) r.push_back(render_scene(mixed_scene(p, spp)));
   // The image means agree within 4.5 combined standard errors (each from its pixels' variance channels).

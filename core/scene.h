@@ -73,7 +73,7 @@ struct TriangleShading {
 /// Integrator settings from the scene file (and overrides).
 struct IntegratorSettings {
   uint32_t spp = 8;                   ///< Samples per pixel.
-  int max_depth = 16;                 ///< Maximum specular bounces.
+  int max_depth = 16;                 ///< Maximum bounces (the direct integrator counts specular ones only).
   int light_samples = 1;              ///< Area-light samples per camera sample.
   AreaSampling area_sampling = AreaSampling::kAuto;  ///< Area light strategy.
   EnvSampling env_sampling = EnvSampling::kMis;           ///< Environment strategy.
