@@ -48,4 +48,10 @@ for course in cbox.json glass_sphere.json; do
     >"$WORK/render-path-$course.log" 2>&1 || fail "path-traced $course through the farm failed"
   "$EXR_COMPARE" "$WORK/path-$course-ref.exr" "$WORK/path-$course-farm.exr" || fail "path-traced $course differs"
 done
+# ... and adaptive sampling on a path-traced scene.
+G="$WORK/path-glass_sphere.json"
+"$TESSERA" render "$G/scene.json" -o "$G/adaptive-ref.exr" --target-error 0.1 --min-spp 2 --max-spp 16 -q
+"$TESSERA" render "$G/scene.json" -o "$G/adaptive-farm.exr" --target-error 0.1 --min-spp 2 --max-spp 16 \
+  --workers 2 --farm-tile 5 -q >"$WORK/render-path-adaptive.log" 2>&1 || fail "adaptive path-traced farm render failed"
+"$EXR_COMPARE" "$G/adaptive-ref.exr" "$G/adaptive-farm.exr" || fail "adaptive path-traced farm render differs"
 echo "PASS"
