@@ -59,6 +59,22 @@ constexpr const char* kAdaptiveDiscussion = R"(How to read it (from the run of c
 
 )";
 
+// What the path-tracing tables show (written from the measurements of the first full run).
+constexpr const char* kPathDiscussion = R"(## Findings (from the run of commit 06be5e1 with the scenes of 56fbfe8; the tables above are regenerated every time)
+
+- MIS has the lowest error at equal time on `veach_mis`: relMSE 0.0041 against 0.091 (NEE) and 0.12 (RW) at MIS's
+  64-spp CPU time; NEE needs 16x and RW 29x MIS's time to reach its error. NEE fails on the near-mirror plates
+  (light samples almost never fall in their lobes, and BSDF-sampled hits of the lights do not count), RW on the small
+  lights (BSDF rays rarely hit them).
+- On `cbox_gi` (diffuse walls, one light) MIS and NEE are equal (0.00413 / 0.00413; a BSDF-sampled hit of the light
+  from a diffuse wall gets a tiny MIS weight) and RW needs 72x the time.
+- Russian roulette (rr_threshold 0.1) saves time at equal error: without it, `cbox_gi` traces 10.7 instead of 6.9 rays
+  per sample (paths run to max_depth 16) and needs 1.41x the time for the same relMSE; `veach_mis` (max_depth 8,
+  dark backdrop) 1.18x. At equal sample count roulette costs a little variance (0.00413 against 0.00371 on `cbox_gi`).
+- `cbox_glass` converges slowest (relMSE 0.030 at 128 spp against 0.0020 for `cbox_gi`): caustics under the glass
+  sphere are found only by BSDF sampling from the floor through the glass to the small light.
+)";
+
 // Independent renders summed per row of the predicted-against-measured table. In cbox_area_light ten pixels (the
 // sliver of the light at a pixel's edge) carry 75-81% of the variance at 16-64 spp, and both the variance channel
 // and the squared error there are heavy-tailed: 8 renders gave ratios of 0.79 and 1.23 for K = 4, while 64 renders
@@ -72,6 +88,7 @@ struct Args {
   uint32_t ref_spp = 4096;  // reference sample count
   int repeats = 3;          // timing repeats (median)
   int threads = 0;
+  bool path_tracing = false;  // write the path-tracing report (speed-vs-error-path.md) instead of the main one
   std::string command;
 };
 
@@ -202,6 +219,22 @@ Run run(const Scene& s, RenderOptions o, const Image& ref, int repeats) {
   return run_interleaved({&s}, {o}, {&ref}, repeats)[0];
 }
 
+// Every scene of `ss` (variants of one scene) at `spp`, interleaved, against the same reference.
+std::vector<Run> run_variants(const std::vector<Scene>& ss, uint32_t spp, uint64_t seed, const Image& ref, int repeats) {
+  std::vector<const Scene*> sp;
+  std::vector<RenderOptions> os;
+  std::vector<const Image*> rs;
+  for (const Scene& sc : ss) {
+    RenderOptions o;
+    o.spp = spp;
+    o.seed = seed;
+    sp.push_back(&sc);
+    os.push_back(o);
+    rs.push_back(&ref);
+  }
+  return run_interleaved(sp, os, rs, repeats);
+}
+
 struct Point {
   uint32_t spp;
   double seconds, rel_mse, rmse, p99, mean_spp, cpu_seconds;
@@ -256,6 +289,150 @@ void log(const std::string& s) {
   std::fflush(stderr);
 }
 
+
+// ---- path tracing ------------------------------------------------------------------------------------------------
+
+// relMSE a curve (sorted by CPU time) reaches at CPU time t: log-log interpolation, or the ideal 1/time slope beyond.
+double error_at_time(const std::vector<Point>& c, double t) {
+  for (size_t i = 0; i + 1 < c.size(); ++i)
+    if (c[i].cpu_seconds <= t && t <= c[i + 1].cpu_seconds) {
+      const double f = std::log(t / c[i].cpu_seconds) / std::log(c[i + 1].cpu_seconds / c[i].cpu_seconds);
+      return std::exp(std::log(c[i].rel_mse) + f * (std::log(c[i + 1].rel_mse) - std::log(c[i].rel_mse)));
+    }
+  const Point& e = t < c.front().cpu_seconds ? c.front() : c.back();
+  return e.rel_mse * e.cpu_seconds / t;
+}
+
+// The path tracer's report: error against time on the path-traced scenes, the three profiles at equal time, and
+// Russian roulette on and off. Writes speed-vs-error-path.md beside the main report.
+int path_tracing_report(const Args& a, const fs::path& data, const std::string& stamp, const std::string& machine) {
+  struct PathScene {
+    std::string name;
+    fs::path file;
+  };
+  const fs::path shared = fs::path(TESSERA_SOURCE_DIR) / ".." / "shared" / "compat" / "rdr171";
+  const fs::path own = fs::path(TESSERA_SOURCE_DIR) / "scenes";
+  const std::vector<PathScene> scenes = {{"sphere", shared / "sphere.json"},
+                                         {"glass_sphere", shared / "glass_sphere.json"},
+                                         {"cbox_gi", own / "cbox_gi.json"},
+                                         {"cbox_glass", own / "cbox_glass.json"},
+                                         {"veach_mis", own / "veach_mis.json"}};
+  auto load_scaled = [&](const PathScene& ps) {
+    Scene s = load_scene_file(ps.file).scene;
+    s.width = std::max(1, int(std::lround(s.width * a.scale)));
+    s.height = std::max(1, int(std::lround(s.height * a.scale)));
+    return s;
+  };
+  std::vector<uint32_t> sweep;
+  for (uint32_t s = 1; s <= a.max_spp; s *= 2) sweep.push_back(s);
+  std::ostringstream md;
+  md << "# Speed against error: the path tracer\n\n"
+     << "Regenerated by `" << a.command << "` (bench/speed_vs_error.cpp; the rest of the report is "
+     << "[speed-vs-error.md](speed-vs-error.md)).\n\n"
+     << "- Machine: " << machine << "; shared with other jobs, so runs being compared are interleaved and every time "
+     << "is the median of " << a.repeats << " runs. Times are process CPU seconds (all threads).\n"
+     << "- Code: " << stamp << ".\n"
+     << "- Resolution: every scene at " << a.scale << " x its own. References: " << a.ref_spp << " spp with the "
+     << "scene's own profile and 8 independent replicates (own relMSE estimate stated). Metrics as in the main report "
+     << "(relMSE = mean (I-R)^2/(R^2+0.01) over pixels and channels).\n"
+     << "- Scenes: the course's `sphere.json` (diffuse sphere in a white environment plus the default point light) and "
+     << "`glass_sphere.json` (glass, eta 1.8, under the sky map), and the project's `cbox_gi`, `cbox_glass`, "
+     << "`veach_mis` (scenes/).\n\n"
+     << "## Error against time (MIS, the scenes' settings)\n\n"
+     << "| scene | pixels | reference relMSE | spp | CPU (s) | relMSE | RMSE | p99 | rays per sample |\n"
+     << "|---|---|---|---|---|---|---|---|---|\n";
+  std::map<std::string, Image> refs;
+  std::map<std::string, std::vector<Point>> curves;
+  for (const PathScene& ps : scenes) {
+    const Scene s = load_scaled(ps);
+    log("path-tracing reference " + ps.name);
+    RenderOptions ro;
+    ro.spp = a.ref_spp;
+    ro.seed = 1000;
+    ro.variance = true;
+    ro.replicates = 8;
+    const RenderResult ref = render(s, ro);
+    refs[ps.name] = ref.image;
+    for (uint32_t spp : sweep) {
+      RenderOptions o;
+      o.spp = spp;
+      o.seed = 1;
+      const Run r = run(s, o, ref.image, a.repeats);
+      curves[ps.name].push_back({spp, r.seconds, r.m.rel_mse, r.m.rmse, r.m.p99, r.mean_spp, r.cpu_seconds});
+      md << "| " << ps.name << " | " << s.width << "x" << s.height << " | "
+         << fmt("%.2e", predicted_rel_mse(ref.image, nullptr, false)) << " | " << spp << " | "
+         << fmt("%.4f", r.cpu_seconds) << " | " << fmt("%.4g", r.m.rel_mse) << " | " << fmt("%.4g", r.m.rmse) << " | "
+         << fmt("%.4g", r.m.p99) << " | "
+         << fmt("%.2f", double(r.last.counters.rays) / double(std::max<uint64_t>(1, r.last.counters.camera))) << " |\n";
+    }
+  }
+
+  // Profiles at equal time, and roulette on/off: sweeps of each variant, interleaved per sample count.
+  struct VariantRow {
+    std::string label;
+    std::optional<PathProfile> profile;
+    std::optional<float> rr;
+  };
+  auto compare = [&](const std::string& title, const std::string& scene, const std::vector<VariantRow>& variants,
+                     const std::string& note) {
+    const PathScene& ps = *std::find_if(scenes.begin(), scenes.end(), [&](const PathScene& x) { return x.name == scene; });
+    std::vector<Scene> ss;
+    for (const VariantRow& v : variants) {
+      Scene s = load_scaled(ps);
+      if (v.profile) s.settings.profile = *v.profile;
+      if (v.rr) s.settings.rr_threshold = *v.rr;
+      ss.push_back(std::move(s));
+    }
+    log("path-tracing comparison: " + title + " on " + scene);
+    std::vector<std::vector<Point>> c(variants.size());
+    std::vector<double> rays(variants.size(), 0.0);
+    for (uint32_t spp : sweep) {
+      if (spp < 4) continue;
+      const std::vector<Run> runs = run_variants(ss, spp, 11, refs[scene], a.repeats);
+      for (size_t k = 0; k < runs.size(); ++k) {
+        c[k].push_back({spp, runs[k].seconds, runs[k].m.rel_mse, runs[k].m.rmse, runs[k].m.p99, runs[k].mean_spp,
+                        runs[k].cpu_seconds});
+        rays[k] = double(runs[k].last.counters.rays) / double(std::max<uint64_t>(1, runs[k].last.counters.camera));
+      }
+    }
+    // Reference point: the first variant at 64 spp (or the sweep's end).
+    const Point& base = *std::find_if(c[0].begin(), c[0].end(), [&](const Point& p) { return p.spp >= std::min(64u, a.max_spp); });
+    md << "### " << title << ": " << scene << "\n\n" << note << "\n\n"
+       << "| variant | relMSE at " << base.spp << " spp | CPU (s) at " << base.spp << " spp | rays per sample | relMSE at "
+       << fmt("%.3g", base.cpu_seconds) << " CPU s (" << variants[0].label << "'s " << base.spp << "-spp time) | CPU time to reach "
+       << variants[0].label << "'s " << base.spp << "-spp relMSE, ratio |\n|---|---|---|---|---|---|\n";
+    for (size_t k = 0; k < variants.size(); ++k) {
+      const Point& p = *std::find_if(c[k].begin(), c[k].end(), [&](const Point& q) { return q.spp == base.spp; });
+      md << "| " << variants[k].label << " | " << fmt("%.4g", p.rel_mse) << " | " << fmt("%.3f", p.cpu_seconds) << " | "
+         << fmt("%.2f", rays[k]) << " | " << fmt("%.4g", error_at_time(c[k], base.cpu_seconds)) << " | "
+         << fmt("%.2f", time_to_reach(c[k], base.rel_mse, true) / base.cpu_seconds) << " |\n";
+    }
+    md << "\n";
+  };
+  md << "\n## Profiles at equal time\n\n"
+     << "Each profile renders the same scene (converging to the same image; core/path_integrator_test.cpp checks "
+     << "that); errors against the MIS reference. Equal time = the relMSE each profile's curve reaches at MIS's "
+     << "64-spp CPU time (log-log interpolation).\n\n";
+  const std::vector<VariantRow> profiles = {{"MIS", PathProfile::kMis, {}}, {"NEE", PathProfile::kNee, {}},
+                                            {"RW", PathProfile::kRw, {}}};
+  compare("Profiles", "veach_mis", profiles,
+          "Four plates from near-mirror (alpha 0.005) to rough (0.2) reflecting four lights of equal power, radii 0.04 "
+          "to 0.6: light sampling fails on the smooth plates with large lights, BSDF sampling on rough plates with "
+          "small lights.");
+  compare("Profiles", "cbox_gi", profiles, "The global-illumination box (one rectangular light, diffuse walls).");
+  md << "## Russian roulette\n\n"
+     << "rr_threshold 0.1 (the format's default: below it a path survives with probability equal to its throughput's "
+     << "largest channel) against 0 (no roulette; paths end only at max_depth).\n\n";
+  const std::vector<VariantRow> rr = {{"rr 0.1", {}, 0.1f}, {"no roulette", {}, 0.f}};
+  compare("Roulette", "cbox_gi", rr, "max_depth 16, walls of albedo 0.05-0.73.");
+  compare("Roulette", "veach_mis", rr, "max_depth 8: metal plates and a dark backdrop (albedo 0.1).");
+  md << "\n" << kPathDiscussion;
+  std::ofstream(a.out / "speed-vs-error-path.md") << md.str();
+  log("wrote " + (a.out / "speed-vs-error-path.md").string());
+  (void)data;
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -279,8 +456,9 @@ int main(int argc, char** argv) {
     else if (k == "--ref-spp") a.ref_spp = uint32_t(std::stoul(next()));
     else if (k == "--repeats") a.repeats = std::stoi(next());
     else if (k == "--threads") a.threads = std::stoi(next());
+    else if (k == "--path-tracing") a.path_tracing = true;
     else {
-      std::fprintf(stderr, "usage: %s [--out DIR] [--scale F] [--max-spp N] [--ref-spp N] [--repeats N] [--threads N]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--out DIR] [--scale F] [--max-spp N] [--ref-spp N] [--repeats N] [--threads N] [--path-tracing]\n", argv[0]);
       return 2;
     }
   }
@@ -296,6 +474,7 @@ int main(int argc, char** argv) {
   if (!dirty.empty()) stamp += " (+ local changes)";
   stamp += ", ";
   stamp += machine;
+  if (a.path_tracing) return path_tracing_report(a, data, stamp, machine);
 
   const std::vector<std::string> scenes = {"cbox_no_light", "cbox_no_light_refraction", "cbox_area_light",
                                            "cbox_env_light", "sky_sun"};
@@ -305,7 +484,9 @@ int main(int argc, char** argv) {
   std::ostringstream md;
   md << "# Speed against error\n\n"
      << "Regenerated by `" << a.command << "` (" << "bench/speed_vs_error.cpp"
-     << "; plots by gnuplot from `docs/speed-vs-error/plots.gp`).\n\n"
+     << "; plots by gnuplot from `docs/speed-vs-error/plots.gp`). The path tracer's figures (path-traced scenes, "
+     << "profiles MIS / NEE / RW at equal time, Russian roulette) are in [speed-vs-error-path.md](speed-vs-error-path.md), "
+     << "written by the same program with `--path-tracing`.\n\n"
      << "- Machine: " << machine << " (`/proc/cpuinfo`, `nproc`); shared with other jobs, so runs being compared are "
      << "interleaved and every time is the median of " << a.repeats << " runs.\n"
      << "- Code: " << stamp << ".\n"
@@ -447,18 +628,7 @@ int main(int argc, char** argv) {
     for (const Variant& v : cmp.variants) ss.push_back(load(cmp.scene, v, a.scale));
     std::vector<std::vector<Point>> cs(ss.size());
     for (uint32_t spp : sweep) {
-      std::vector<const Scene*> sp;
-      std::vector<RenderOptions> os;
-      std::vector<const Image*> rs;
-      for (const Scene& sc : ss) {
-        RenderOptions o;
-        o.spp = spp;
-        o.seed = 1;
-        sp.push_back(&sc);
-        os.push_back(o);
-        rs.push_back(&refs[cmp.scene]);
-      }
-      const std::vector<Run> runs = run_interleaved(sp, os, rs, a.repeats);
+      const std::vector<Run> runs = run_variants(ss, spp, 1, refs[cmp.scene], a.repeats);
       for (size_t k = 0; k < ss.size(); ++k) {
         const Run& r = runs[k];
         cs[k].push_back({spp, r.seconds, r.m.rel_mse, r.m.rmse, r.m.p99, r.mean_spp, r.cpu_seconds});

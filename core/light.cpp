@@ -41,6 +41,42 @@ LightSample from_area(const Vec3& p, const Vec3& q, const Vec3& nq, float pdf_a,
 
 }  // namespace
 
+bool AreaLight::by_solid_angle(const Rect& rc, const Vec3& p, AreaSampling mode) {
+  return mode == AreaSampling::kSolidAngle ||
+         (mode == AreaSampling::kAuto &&
+          rc.area > kAutoSolidAngleRatio * length_squared(rc.corner + 0.5f * (rc.ex + rc.ey) - p));
+}
+
+float AreaLight::pdf(const Vec3& p, const Vec3& q, const Vec3& nq, AreaSampling mode) const {
+  const Vec3d w = Vec3d(p) - Vec3d(q);
+  const double d2 = glm::dot(w, w);
+  const double cos_l = glm::dot(Vec3d(nq), w) / std::sqrt(d2);
+  if (!(cos_l > 0.0) || !(d2 > 0.0) || !(total_area > 0.f)) return 0.f;
+  const float by_area = float(d2 / (cos_l * double(total_area)));  // any part picked by area, then a uniform point
+  if (sphere) {
+    const float r = sphere->radius;
+    const float dc2 = length_squared(sphere->center - p);
+    if (mode != AreaSampling::kArea && dc2 > r * r * 1.0001f) {
+      const float cos_max = std::sqrt(std::max(0.f, 1.f - r * r / dc2));
+      return 1.f / (2.f * kPi * (1.f - cos_max));
+    }
+    return by_area;
+  }
+  // A rectangle sampled by solid angle has density pick / (its solid angle); every other part pick / area / cos.
+  for (const Rect& rc : rects) {
+    if (!by_solid_angle(rc, p, mode)) continue;
+    const Vec3 d = q - rc.corner;
+    const float size = std::max(glm::length(rc.ex), glm::length(rc.ey));
+    if (std::abs(glm::dot(d, rc.n)) > 1e-4f * size) continue;
+    const float a = glm::dot(d, rc.ex) / glm::dot(rc.ex, rc.ex), b = glm::dot(d, rc.ey) / glm::dot(rc.ey, rc.ey);
+    if (a < -1e-4f || a > 1.0001f || b < -1e-4f || b > 1.0001f) continue;
+    SphericalRectangle sr;
+    if (glm::dot(rc.n, p - rc.corner) <= 0.f || !sr.init(p, rc.corner, rc.ex, rc.ey) || !(sr.solid_angle() > 0.f)) return 0.f;
+    return rc.area / total_area / sr.solid_angle();
+  }
+  return by_area;
+}
+
 LightSample AreaLight::sample(const Vec3& p, float u_part, Vec2 u, AreaSampling mode) const {
   if (sphere) {
     const Vec3 c = sphere->center;
@@ -73,10 +109,7 @@ LightSample AreaLight::sample(const Vec3& p, float u_part, Vec2 u, AreaSampling 
   const float pick = part_pdf / float(nparts);  // probability of this part
   if (part < int(rects.size())) {
     const Rect& rc = rects[size_t(part)];
-    const bool solid = mode == AreaSampling::kSolidAngle ||
-                       (mode == AreaSampling::kAuto &&
-                        rc.area > kAutoSolidAngleRatio * length_squared(rc.corner + 0.5f * (rc.ex + rc.ey) - p));
-    if (solid) {
+    if (by_solid_angle(rc, p, mode)) {
       SphericalRectangle sr;
       if (glm::dot(rc.n, p - rc.corner) <= 0.f || !sr.init(p, rc.corner, rc.ex, rc.ey)) return {p, rc.n, Vec3(0.f), 0.f};
       const RectSample s = sr.sample(u);

@@ -80,6 +80,13 @@ struct AreaLight {
   void finish();
   /// One direct-lighting sample towards point p (u selects the part, u2 the point).
   LightSample sample(const Vec3& p, float u_part, Vec2 u, AreaSampling mode) const;
+  /// Solid-angle density with which sample(p, ..., mode) returns the point q (normal nq) of this light: what
+  /// multiple importance sampling needs when a BSDF-sampled ray from p hits the light at q.
+  float pdf(const Vec3& p, const Vec3& q, const Vec3& nq, AreaSampling mode) const;
+
+ private:
+  // Whether sample() draws from rectangle rc by solid angle (else by area) for a shading point p.
+  static bool by_solid_angle(const Rect& rc, const Vec3& p, AreaSampling mode);
 };
 
 }  // namespace tessera

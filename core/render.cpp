@@ -1,5 +1,7 @@
 #include "core/render.h"
 
+#include "core/path_integrator.h"
+
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
@@ -27,7 +29,7 @@ void add_samples(const Scene& scene, int px, int row, uint64_t seed, uint32_t en
   for (uint32_t s = acc.count(); s < end; ++s) {
     PixelSampler sampler = pixel_sampler(seed, px, row, s, replicates);
     const Ray r = scene.camera.generate_pixel(px, row, sampler.next_2d(), scene.width, scene.height);
-    acc.add(trace_radiance(scene, r, sampler, counters));
+    acc.add(trace_sample(scene, r, sampler, counters));
   }
 }
 

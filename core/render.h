@@ -1,4 +1,4 @@
-// Rendering a window of the image with the direct integrator, tile by tile on all threads.
+// Rendering a window of the image with the scene's integrator, tile by tile on all threads.
 #pragma once
 
 #include "core/adaptive.h"

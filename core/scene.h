@@ -11,24 +11,49 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace tessera {
 
-/// The two materials of basic ray tracing.
+/// The materials of the course format (the last two need the path integrator).
 enum class MaterialKind {
-  kNone,        ///< An emitter without a material: black apart from its emission.
-  kDiffuse,     ///< Lambertian, BRDF = albedo / pi.
-  kRefraction,  ///< Perfect refraction by Snell's law, total internal reflection turns into reflection.
+  kNone,            ///< An emitter without a material: black apart from its emission.
+  kDiffuse,         ///< Lambertian, BRDF = albedo / pi.
+  kRefraction,      ///< Perfect refraction by Snell's law, total internal reflection turns into reflection.
+  kGlass,           ///< Smooth dielectric: Fresnel split between mirror reflection and refraction.
+  kRoughConductor,  ///< Anisotropic Beckmann microfacet metal with per-channel conductor Fresnel.
 };
 
 /// A material instance.
 struct Material {
   MaterialKind kind = MaterialKind::kNone;  ///< Kind.
-  uint32_t texture = 0;                     ///< Albedo texture index (diffuse).
+  uint32_t texture = 0;                     ///< Albedo (diffuse) or reflectance multiplier (roughconductor) texture.
   bool twosided = false;                    ///< Diffuse reflects on both sides (otherwise only the normal's side).
-  float eta = 1.5f;                         ///< Inside / outside index of refraction (refraction).
+  float eta = 1.5f;                         ///< Inside / outside index of refraction (refraction, glass).
+  Vec3 reflect_tint{1.f};                   ///< Glass: R, tints reflection.
+  Vec3 transmit_tint{1.f};                  ///< Glass: T, tints transmission.
+  float alpha_x = 0.1f, alpha_y = 0.1f;     ///< Roughconductor: Beckmann roughness along tangent and bitangent.
+  Vec3 eta_i{1.f};                          ///< Roughconductor: index of refraction outside (per channel).
+  Vec3 eta_t{1.f};                          ///< Roughconductor: the metal's index eta (per channel).
+  Vec3 k{1.f};                              ///< Roughconductor: the metal's absorption k (per channel).
 };
+
+/// Which integrator renders the scene.
+enum class IntegratorKind {
+  kDirect,  ///< intersection_test: refraction chains, then direct light at the first diffuse surface.
+  kPath,    ///< Unidirectional path tracing (path, and bdpt rendered with it).
+};
+
+/// How the path tracer gathers light.
+enum class PathProfile {
+  kMis,  ///< Light sampling and BSDF sampling combined by the power heuristic.
+  kNee,  ///< Light sampling only (emitters hit by BSDF rays count only after delta bounces and camera rays).
+  kRw,   ///< BSDF sampling only (a random walk; the point light, a delta light, is still sampled).
+};
+
+/// Names of the PathProfile values (scene key integrator.profile; synonyms in the loader), in declaration order.
+inline constexpr std::string_view kPathProfileNames[] = {"MIS", "NEE", "RW"};
 
 /// Per-primitive shading data.
 struct PrimAttr {
@@ -48,10 +73,13 @@ struct TriangleShading {
 /// Integrator settings from the scene file (and overrides).
 struct IntegratorSettings {
   uint32_t spp = 8;                   ///< Samples per pixel.
-  int max_depth = 16;                 ///< Maximum specular bounces.
+  int max_depth = 16;                 ///< Maximum bounces (the direct integrator counts specular ones only).
   int light_samples = 1;              ///< Area-light samples per camera sample.
   AreaSampling area_sampling = AreaSampling::kAuto;  ///< Area light strategy.
   EnvSampling env_sampling = EnvSampling::kMis;           ///< Environment strategy.
+  IntegratorKind integrator = IntegratorKind::kDirect;    ///< Integrator.
+  PathProfile profile = PathProfile::kMis;                ///< Path tracer: light gathering.
+  float rr_threshold = 0.1f;  ///< Path tracer: Russian roulette once the throughput's largest channel is below this.
 };
 
 /// Everything the integrator needs to know about a surface point it hit.

@@ -119,6 +119,13 @@ struct Ctx {
     return glm::dvec3(v[0], v[1], v[2]);
   }
 
+  // An RGB value that must not be negative.
+  Vec3 colour(const json& j, const char* key, const std::string& path, const Vec3& def) const {
+    const Vec3 c = vec3(j, key, path, def);
+    if (c.x < 0.f || c.y < 0.f || c.z < 0.f) fail(path + "." + key, "must not be negative");
+    return c;
+  }
+
   // A 4x4 matrix as 4 rows of 4 numbers or 16 numbers, row-major.
   glm::dmat4 matrix(const json& v, const std::string& path) const {
     std::vector<double> m;
@@ -270,8 +277,9 @@ void build_area_light(AreaLight& light, const std::vector<Triangle>& tris, const
                             0.5f * glm::length(glm::cross(tris[i].p1 - tris[i].p0, tris[i].p2 - tris[i].p0))});
 }
 
-const std::vector<std::string> kSupportedIntegrators = {"intersection_test", "direct"};
-const std::vector<std::string> kSupportedMaterials = {"diffuse", "refraction"};
+const std::vector<std::string> kSupportedIntegrators = {"intersection_test", "direct", "path", "bdpt"};
+const std::vector<std::string> kSupportedMaterials = {"diffuse", "refraction", "glass", "roughconductor"};
+const std::vector<std::string> kSupportedTextures = {"constant", "image", "checkerboard"};
 
 }  // namespace
 
@@ -407,16 +415,36 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
   {
     const json& in = j.contains("integrator") ? ctx.object(j["integrator"], "integrator") : json::object();
     const std::string type = ctx.string(in, "type", "integrator", "intersection_test");
-    if (std::find(kSupportedIntegrators.begin(), kSupportedIntegrators.end(), type) == kSupportedIntegrators.end()) {
-      if (!options.force_direct)
-        ctx.fail("integrator.type", "'" + type + "' is not supported (supported: " + join(kSupportedIntegrators) +
-                                        "); pass --integrator direct to render it with the direct-lighting integrator");
-      out.notes.push_back(name + ": integrator.type '" + type + "' rendered with the direct-lighting integrator");
+    const bool direct = type == "intersection_test" || type == "direct";
+    if (std::find(kSupportedIntegrators.begin(), kSupportedIntegrators.end(), type) == kSupportedIntegrators.end() &&
+        !options.force_direct)
+      ctx.fail("integrator.type", "'" + type + "' is not supported (supported: " + join(kSupportedIntegrators) +
+                                      "); pass --integrator direct to render it with the direct-lighting integrator");
+    if (options.force_direct || direct) {
+      if (!direct) out.notes.push_back(name + ": integrator.type '" + type + "' rendered with the direct-lighting integrator");
+      ctx.check_keys(in, "integrator",
+                     {"type", "spp", "max_depth", "point_light_position", "point_light_flux", "light_samples",
+                      "area_sampling", "env_sampling", "bvh"},
+                     {"profile", "rr_threshold", "max_path_length", "nee", "mis"});
+    } else {
+      s.settings.integrator = IntegratorKind::kPath;
+      if (type == "bdpt")
+        out.notes.push_back(name + ": integrator.type 'bdpt' rendered with the unidirectional path tracer (the same "
+                                   "image in expectation; there is no bidirectional tracer yet)");
+      ctx.check_keys(in, "integrator",
+                     {"type", "spp", "max_depth", "point_light_position", "point_light_flux", "light_samples",
+                      "area_sampling", "env_sampling", "bvh", "profile", "rr_threshold"},
+                     {"max_path_length", "nee", "mis"});
+      const std::string profile = ctx.string(in, "profile", "integrator", "MIS");
+      if (profile == "MIS" || profile == "MultipleImportanceSampling") s.settings.profile = PathProfile::kMis;
+      else if (profile == "NEE" || profile == "NextEventEstimation") s.settings.profile = PathProfile::kNee;
+      else if (profile == "RW" || profile == "RandomWalk") s.settings.profile = PathProfile::kRw;
+      else ctx.fail("integrator.profile", "'" + profile + "' is not one of: MIS, MultipleImportanceSampling, NEE, "
+                                          "NextEventEstimation, RW, RandomWalk");
+      const double rr = ctx.number(in, "rr_threshold", "integrator", 0.1);
+      if (!(rr >= 0)) ctx.fail("integrator.rr_threshold", "must not be negative");
+      s.settings.rr_threshold = float(rr);
     }
-    ctx.check_keys(in, "integrator",
-                   {"type", "spp", "max_depth", "point_light_position", "point_light_flux", "light_samples",
-                    "area_sampling", "env_sampling", "bvh"},
-                   {"profile", "rr_threshold", "max_path_length", "nee", "mis"});
     const double spp = ctx.number(in, "spp", "integrator", 8);
     if (!(spp >= 1 && spp <= kMaxSpp) || spp != std::floor(spp)) ctx.fail("integrator.spp", "must be an integer in [1, " + std::to_string(kMaxSpp) + "]");
     s.settings.spp = options.spp ? *options.spp : uint32_t(spp);
@@ -498,8 +526,7 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
     if (type == "constant") {
       ctx.check_keys(t, tp, {"type", "color"});
       if (!t.contains("color")) ctx.fail(tp + ".color", "missing");
-      tex.color = ctx.vec3(t, "color", tp, Vec3(1.f));
-      if (tex.color.x < 0.f || tex.color.y < 0.f || tex.color.z < 0.f) ctx.fail(tp + ".color", "must not be negative");
+      tex.color = ctx.colour(t, "color", tp, Vec3(1.f));
     } else if (type == "image") {
       ctx.check_keys(t, tp, {"type", "path", "tex_coordinate_generator"});
       const std::string rel = ctx.string(t, "path", tp);
@@ -514,17 +541,22 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
       }
       hash.update(sha256_file(file));
       out.assets.push_back(rel);
-      if (t.contains("tex_coordinate_generator")) {
-        const std::string gp = tp + ".tex_coordinate_generator";
-        const json& g = ctx.object(t["tex_coordinate_generator"], gp);
-        ctx.check_keys(g, gp, {"type", "scale", "delta"});
-        const std::string gt = ctx.string(g, "type", gp, "uvmapping2d");
-        if (gt != "uvmapping2d") ctx.fail(gp + ".type", "'" + gt + "' is not supported (supported: uvmapping2d)");
-        if (g.contains("scale")) { const auto v = ctx.numbers(g["scale"], gp + ".scale", 2); tex.scale = Vec2(float(v[0]), float(v[1])); }
-        if (g.contains("delta")) { const auto v = ctx.numbers(g["delta"], gp + ".delta", 2); tex.delta = Vec2(float(v[0]), float(v[1])); }
-      }
+    } else if (type == "checkerboard") {
+      ctx.check_keys(t, tp, {"type", "color0", "color1", "tex_coordinate_generator"});
+      tex.checkerboard = true;
+      tex.color = ctx.colour(t, "color0", tp, Vec3(0.4f));
+      tex.color1 = ctx.colour(t, "color1", tp, Vec3(0.2f));
     } else {
-      ctx.fail(tp + ".type", "'" + type + "' is not supported (supported: constant, image)");
+      ctx.fail(tp + ".type", "'" + type + "' is not supported (supported: " + join(kSupportedTextures) + ")");
+    }
+    if ((type == "image" || type == "checkerboard") && t.contains("tex_coordinate_generator")) {
+      const std::string gp = tp + ".tex_coordinate_generator";
+      const json& g = ctx.object(t["tex_coordinate_generator"], gp);
+      ctx.check_keys(g, gp, {"type", "scale", "delta"});
+      const std::string gt = ctx.string(g, "type", gp, "uvmapping2d");
+      if (gt != "uvmapping2d") ctx.fail(gp + ".type", "'" + gt + "' is not supported (supported: uvmapping2d)");
+      if (g.contains("scale")) { const auto v = ctx.numbers(g["scale"], gp + ".scale", 2); tex.scale = Vec2(float(v[0]), float(v[1])); }
+      if (g.contains("delta")) { const auto v = ctx.numbers(g["delta"], gp + ".delta", 2); tex.delta = Vec2(float(v[0]), float(v[1])); }
     }
     s.textures.push_back(std::move(tex));
     const uint32_t idx = uint32_t(s.textures.size() - 1);
@@ -552,6 +584,37 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
       mat.kind = MaterialKind::kRefraction;
       mat.eta = float(ctx.number(m, "eta", mp, 1.5));
       if (!(mat.eta > 0.f)) ctx.fail(mp + ".eta", "must be positive");
+    } else if (type == "glass" || type == "roughconductor") {
+      if (s.settings.integrator != IntegratorKind::kPath)
+        ctx.fail(mp + ".type", "'" + type + "' needs the path integrator (integrator.type path or bdpt); the direct "
+                               "integrator renders only diffuse and refraction");
+      if (type == "glass") {
+        ctx.check_keys(m, mp, {"type", "eta", "R", "T"});
+        mat.kind = MaterialKind::kGlass;
+        mat.eta = float(ctx.number(m, "eta", mp, 1.5));
+        if (!(mat.eta > 0.f)) ctx.fail(mp + ".eta", "must be positive");
+        mat.reflect_tint = ctx.colour(m, "R", mp, Vec3(1.f));
+        mat.transmit_tint = ctx.colour(m, "T", mp, Vec3(1.f));
+      } else {
+        ctx.check_keys(m, mp, {"type", "alpha_x", "alpha_y", "etaI", "etaT", "k", "texture_name"});
+        mat.kind = MaterialKind::kRoughConductor;
+        mat.alpha_x = float(ctx.number(m, "alpha_x", mp, 0.1));
+        mat.alpha_y = float(ctx.number(m, "alpha_y", mp, 0.1));
+        for (const char* key : {"alpha_x", "alpha_y"}) {
+          const double a = ctx.number(m, key, mp, 0.1);
+          if (!(a >= 1e-4 && a <= 10)) ctx.fail(mp + "." + key, "must be in [1e-4, 10]");
+        }
+        mat.eta_i = ctx.vec3(m, "etaI", mp, Vec3(1.f));
+        if (!(mat.eta_i.x > 0.f && mat.eta_i.y > 0.f && mat.eta_i.z > 0.f)) ctx.fail(mp + ".etaI", "must be positive");
+        mat.eta_t = ctx.colour(m, "etaT", mp, Vec3(1.f));
+        mat.k = ctx.colour(m, "k", mp, Vec3(1.f));
+        if (m.contains("texture_name")) {
+          mat.texture = use_texture(ctx.string(m, "texture_name", mp), mp + ".texture_name");
+        } else {
+          s.textures.push_back(Texture{});  // white: the conductor's Fresnel reflectance alone
+          mat.texture = uint32_t(s.textures.size() - 1);
+        }
+      }
     } else {
       ctx.fail(mp + ".type", "'" + type + "' is not supported (supported: " + join(kSupportedMaterials) + ")");
     }
@@ -646,6 +709,8 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
     const std::string type = (*it)["type"].get<std::string>(), mp = "materials." + it.key();
     if (type == "diffuse") ctx.check_keys(*it, mp, {"type", "texture_name", "twosided"});
     else if (type == "refraction") ctx.check_keys(*it, mp, {"type", "eta"});
+    else if (type == "glass") ctx.check_keys(*it, mp, {"type", "eta", "R", "T"});
+    else if (type == "roughconductor") ctx.check_keys(*it, mp, {"type", "alpha_x", "alpha_y", "etaI", "etaT", "k", "texture_name"});
   }
   for (auto it = textures.begin(); it != textures.end(); ++it) {
     const bool env_texture = j.contains("environment_map") && j["environment_map"].is_object() &&
@@ -654,6 +719,7 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
     const std::string type = (*it)["type"].get<std::string>(), tp = "textures." + it.key();
     if (type == "constant") ctx.check_keys(*it, tp, {"type", "color"});
     else if (type == "image") ctx.check_keys(*it, tp, {"type", "path", "tex_coordinate_generator"});
+    else if (type == "checkerboard") ctx.check_keys(*it, tp, {"type", "color0", "color1", "tex_coordinate_generator"});
   }
 
   // Exactly coincident triangles (z-fighting), one warning per pair of objects.
@@ -682,6 +748,7 @@ LoadedScene load_checked(const json& j, const std::string& name, const AssetReso
     ctx.check_keys(e, "environment_map", {"texture_name", "scale", "transform"});
     Environment env;
     env.texture = s.textures[use_texture(ctx.string(e, "texture_name", "environment_map"), "environment_map.texture_name")];
+    if (env.texture.checkerboard) ctx.fail("environment_map.texture_name", "a checkerboard cannot be an environment map (use constant or image)");
     env.scale = float(ctx.number(e, "scale", "environment_map", 1.0));
     if (!(env.scale >= 0.f)) ctx.fail("environment_map.scale", "must not be negative");
     if (e.contains("transform")) {

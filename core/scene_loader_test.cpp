@@ -299,29 +299,73 @@ TEST_F(SceneLoader, AbsoluteAssetPathsNeedAnAssetRoot) {
   EXPECT_THROW(load_scene_file(file("sub/scene.json"), opt), SceneError);
 }
 
-TEST_F(SceneLoader, OtherIntegratorsAreRefusedUnlessForcedDirect) {
+TEST_F(SceneLoader, PathAndBdptSelectThePathTracerUnlessForcedDirect) {
   for (const char* type : {"path", "bdpt"}) {
     json s = testing::minimal_scene();
     s["integrator"]["type"] = type;
-    s["integrator"]["rr_threshold"] = 0.1;
-    expect_error(s, {"integrator.type", type, "intersection_test", "--integrator direct"});
+    s["integrator"]["rr_threshold"] = 0.25;
+    s["integrator"]["profile"] = "NextEventEstimation";
+    const LoadedScene p = load_scene_file(write_scene("scene.json", s));
+    EXPECT_EQ(p.scene.settings.integrator, IntegratorKind::kPath);
+    EXPECT_EQ(p.scene.settings.profile, PathProfile::kNee);
+    EXPECT_FLOAT_EQ(p.scene.settings.rr_threshold, 0.25f);
+    EXPECT_TRUE(p.warnings.empty());
+    EXPECT_EQ(p.notes.size(), std::string(type) == "bdpt" ? 1u : 0u);  // bdpt says it renders with the path tracer
     LoadOptions direct;
     direct.force_direct = true;
     const LoadedScene l = load_scene_file(write_scene("scene.json", s), direct);
-    EXPECT_EQ(l.scene.spheres.size(), 1u);
+    EXPECT_EQ(l.scene.settings.integrator, IntegratorKind::kDirect);
     EXPECT_FALSE(l.notes.empty());
+  }
+  json s = testing::minimal_scene();
+  s["integrator"]["type"] = "photon";
+  expect_error(s, {"integrator.type", "photon", "intersection_test, direct, path, bdpt", "--integrator direct"});
+  s["integrator"]["type"] = "path";
+  s["integrator"]["profile"] = "MLT";
+  expect_error(s, {"integrator.profile", "MLT", "RandomWalk"});
+  for (const char* p : {"MIS", "MultipleImportanceSampling", "NEE", "RW", "RandomWalk"}) {
+    s["integrator"]["profile"] = p;
+    EXPECT_EQ(error_of(s), "") << p;
   }
 }
 
-TEST_F(SceneLoader, OtherMaterialsAreRefusedEvenWhenForcedDirect) {
-  for (const char* type : {"glass", "microfacet"}) {
+TEST_F(SceneLoader, GlassRoughConductorAndCheckerboardLoadForThePathTracer) {
+  json s = testing::minimal_scene();
+  s["integrator"]["type"] = "path";
+  s["textures"]["checks"] = {{"type", "checkerboard"}, {"color0", {1, 0, 0}}, {"color1", {0, 0, 1}},
+                             {"tex_coordinate_generator", {{"type", "uvmapping2d"}, {"scale", {2, 2}}}}};
+  s["materials"]["metal"] = {{"type", "roughconductor"}, {"alpha_x", 0.05}, {"alpha_y", 0.2},
+                             {"etaT", {0.2, 0.9, 1.1}}, {"k", {3.9, 2.4, 2.2}}, {"texture_name", "checks"}};
+  s["materials"]["glass"] = {{"type", "glass"}, {"eta", 1.8}, {"T", {0.9, 1, 1}}};
+  s["objects"].push_back({{"type", "sphere"}, {"center", {2, 0, 0}}, {"material_name", "metal"}});
+  s["objects"].push_back({{"type", "sphere"}, {"center", {-2, 0, 0}}, {"material_name", "glass"}});
+  const LoadedScene l = load_scene_file(write_scene("scene.json", s));
+  EXPECT_TRUE(l.warnings.empty());
+  const Material& metal = l.scene.materials[l.scene.sphere_attr[1].material];
+  EXPECT_EQ(metal.kind, MaterialKind::kRoughConductor);
+  EXPECT_FLOAT_EQ(metal.alpha_y, 0.2f);
+  EXPECT_FLOAT_EQ(metal.eta_t.y, 0.9f);
+  const Texture& checks = l.scene.textures[metal.texture];
+  EXPECT_TRUE(checks.checkerboard);
+  const Material& glass = l.scene.materials[l.scene.sphere_attr[2].material];
+  EXPECT_EQ(glass.kind, MaterialKind::kGlass);
+  EXPECT_FLOAT_EQ(glass.eta, 1.8f);
+  EXPECT_FLOAT_EQ(glass.transmit_tint.x, 0.9f);
+  // The direct integrator cannot render them.
+  LoadOptions direct;
+  direct.force_direct = true;
+  expect_error(s, {"materials.metal.type", "roughconductor", "path integrator"}, direct);
+  s["materials"]["metal"]["alpha_x"] = 0;
+  expect_error(s, {"materials.metal.alpha_x"});
+}
+
+TEST_F(SceneLoader, OtherMaterialsAreRefused) {
+  for (const char* type : {"microfacet", "dielectric"}) {
     json s = testing::minimal_scene();
     s["materials"]["white_diffuse"] = {{"type", type}, {"texture_name", "white"}};
-    expect_error(s, {"materials.white_diffuse.type", type, "diffuse, refraction"});
+    expect_error(s, {"materials.white_diffuse.type", type, "diffuse, refraction, glass, roughconductor"});
     s["integrator"]["type"] = "path";
-    LoadOptions direct;
-    direct.force_direct = true;
-    expect_error(s, {"materials.white_diffuse.type", type, "diffuse, refraction"}, direct);
+    expect_error(s, {"materials.white_diffuse.type", type, "diffuse, refraction, glass, roughconductor"});
   }
 }
 
@@ -339,6 +383,12 @@ TEST_F(SceneLoader, RectangleEmitterBecomesASphericalRectangleLight) {
 }
 
 TEST_F(SceneLoader, CourseScenesLoad) {
+  for (const char* name : {"sphere.json", "glass_sphere.json"}) {
+    const LoadedScene l = load_scene_file(fs::path(TESSERA_SHARED_DIR) / "compat/rdr171" / name);
+    EXPECT_EQ(l.scene.settings.integrator, IntegratorKind::kPath) << name;
+    EXPECT_EQ(l.scene.settings.max_depth, 64) << name;
+    EXPECT_TRUE(l.warnings.empty()) << name;
+  }
   for (const char* name : {"cbox.json", "cbox_no_light.json", "cbox_no_light_refract.json", "cbox_refract_textured.json"}) {
     LoadOptions opt;
     opt.force_direct = true;

@@ -4,6 +4,18 @@
 
 namespace tessera {
 
+namespace {
+
+// trunc(2 x) mod 2 in {0, 1}, for any finite x (in double: no integer overflow for large x).
+int checker_parity(float x) { return std::fmod(std::trunc(2.0 * double(x)), 2.0) != 0.0 ? 1 : 0; }
+
+}  // namespace
+
+Vec3 Texture::checker(Vec2 st) const {
+  if (!std::isfinite(st.x) || !std::isfinite(st.y)) return color;
+  return checker_parity(st.x) == checker_parity(st.y) ? color : color1;
+}
+
 Vec3 Texture::lookup(Vec2 st, bool clamp_t) const {
   const int w = image->width, h = image->height;
   if (w <= 0 || h <= 0) return Vec3(0.f);

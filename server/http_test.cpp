@@ -223,8 +223,11 @@ TEST_F(HttpTest, SceneErrorsCarryTheLoaderMessageWithTheJsonPath) {
   scene["objects"].erase(1);
   r = call(http::verb::post, "/v1/jobs", json{{"scene", scene}}.dump());
   EXPECT_EQ(r.status, 201u) << r.body;
-  // The bdpt box needs integrator "direct", as `tessera render --integrator direct`.
+  // The bdpt box renders with the path tracer; an unsupported integrator type needs integrator "direct", as
+  // `tessera render --integrator direct`.
   json bdpt = job_for("cbox.json");
+  EXPECT_EQ(call(http::verb::post, "/v1/jobs", bdpt.dump()).status, 201u);
+  bdpt["scene"]["integrator"]["type"] = "photon";
   r = call(http::verb::post, "/v1/jobs", bdpt.dump());
   ASSERT_EQ(r.status, 400u) << r.body;
   EXPECT_NE(r.js()["error"].get<std::string>().find("integrator.type"), std::string::npos) << r.body;

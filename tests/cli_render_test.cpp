@@ -184,13 +184,19 @@ TEST_F(CliRender, BadInputFailsWithTheJsonPath) {
   EXPECT_FALSE(fs::exists(file("bad.exr")));
 
   s = testing::minimal_scene();
+  s["integrator"]["type"] = "photon";
+  write_scene("photon.json", s);
+  r = tessera({f("photon.json"), "-o", f("photon.exr"), "-q"});
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("integrator.type"), std::string::npos) << r.err;
+  r = tessera({f("photon.json"), "-o", f("photon.exr"), "-q", "--integrator", "direct"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  // bdpt renders with the path tracer and says so on stderr.
   s["integrator"]["type"] = "bdpt";
   write_scene("bdpt.json", s);
   r = tessera({f("bdpt.json"), "-o", f("bdpt.exr"), "-q"});
-  EXPECT_NE(r.exit_code, 0);
-  EXPECT_NE(r.err.find("integrator.type"), std::string::npos) << r.err;
-  r = tessera({f("bdpt.json"), "-o", f("bdpt.exr"), "-q", "--integrator", "direct"});
   EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("rendered with the unidirectional path tracer"), std::string::npos) << r.err;
 
   s = testing::minimal_scene();
   s["objects"][0]["colour"] = "red";

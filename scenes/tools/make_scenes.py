@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
-"""Writes the project's Cornell-box scene files (scenes/cbox_*.json) from one description, so the four variants
-differ only where they mean to. The JSON files are committed; edit this script and re-run it to change them."""
+"""Writes the project's scene files (scenes/*.json, and the small meshes they need) from one description, so the
+variants differ only where they mean to. The JSON files are committed; edit this script and re-run it to change them."""
 import copy
 import json
+import math
 import os
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -110,6 +111,96 @@ def main():
         "environment_map": {"texture_name": "sky", "scale": 0.3},
     }
     write("sky_sun.json", s)
+
+    # 6. The box with global illumination: the rectangular ceiling light through the path tracer (MIS), so the
+    #    ceiling and the shadowed faces receive light bounced off the walls, with red and green colour bleeding.
+    gi = copy.deepcopy(BASE)
+    gi["integrator"] = {"type": "path", "profile": "MIS", "spp": 64, "max_depth": 16, "rr_threshold": 0.1,
+                        "point_light_flux": [0.0, 0.0, 0.0]}
+    gi["film"]["resolution"] = [256, 256]
+    gi["objects"].append({"type": "mesh", "path": "assets/cbox/light.obj",
+                          "light": {"type": "area", "radiance": [40.0, 28.0, 10.0]}})
+    write("cbox_gi.json", gi)
+
+    # 7. A glass sphere (Fresnel reflection and refraction) on the floor of the global-illumination box, beside a
+    #    rough gold-coloured metal sphere on the short box.
+    s = copy.deepcopy(gi)
+    s["materials"]["glass"] = {"type": "glass", "eta": 1.5}
+    s["materials"]["gold"] = {"type": "roughconductor", "alpha_x": 0.15, "alpha_y": 0.15,
+                              "etaT": [0.143, 0.374, 1.442], "k": [3.983, 2.385, 1.603]}
+    s["objects"] = [o for o in s["objects"] if o.get("path") != "assets/cbox/tall_box.obj"]
+    s["objects"].append({"type": "sphere", "center": [0.35, 0.4, -0.2], "radius": 0.4, "material_name": "glass"})
+    s["objects"].append({"type": "sphere", "center": [-0.35, 0.95, 0.35], "radius": 0.35, "material_name": "gold"})
+    write("cbox_glass.json", s)
+
+    # 8. Multiple importance sampling in the spirit of Veach's test scene (own geometry): four metal plates from
+    #    near-mirror to rough, each tilted to reflect the row of four spherical lights of equal power but radii from
+    #    0.04 to 0.6 towards the camera. Light sampling wins on rough plates and large lights, BSDF sampling on
+    #    smooth plates and small lights; MIS combines the two.
+    write_veach_scene()
+
+
+def normalize(v):
+    n = math.sqrt(sum(c * c for c in v))
+    return [c / n for c in v]
+
+
+def write_veach_scene():
+    camera = [0.0, 2.0, 9.0]
+    light_centre = [0.0, 3.6, -2.5]
+    plates = [  # (centre, alpha)
+        ([0.0, 0.20, 1.6], 0.005),
+        ([0.0, 0.60, 0.6], 0.02),
+        ([0.0, 1.05, -0.3], 0.06),
+        ([0.0, 1.55, -1.1], 0.2),
+    ]
+    os.makedirs(os.path.join(SCENES, "assets", "veach"), exist_ok=True)
+    objects = []
+    materials = {"backdrop": {"type": "diffuse", "texture_name": "backdrop"}}
+    for i, (c, alpha) in enumerate(plates):
+        to_cam = normalize([camera[k] - c[k] for k in range(3)])
+        to_light = normalize([light_centre[k] - c[k] for k in range(3)])
+        n = normalize([to_cam[k] + to_light[k] for k in range(3)])
+        # The plate spans 7 along x and 0.7 along the in-plane direction perpendicular to x.
+        ex = [3.5, 0.0, 0.0]
+        d = normalize([0.0, n[2], -n[1]])  # perpendicular to x and to n
+        ey = [0.35 * d[k] for k in range(3)]
+        corners = [[c[k] - ex[k] - ey[k] for k in range(3)], [c[k] + ex[k] - ey[k] for k in range(3)],
+                   [c[k] + ex[k] + ey[k] for k in range(3)], [c[k] - ex[k] + ey[k] for k in range(3)]]
+        # Wind the face so that its normal is n.
+        e1 = [corners[1][k] - corners[0][k] for k in range(3)]
+        e2 = [corners[2][k] - corners[0][k] for k in range(3)]
+        cr = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]]
+        order = [1, 2, 3, 4] if sum(cr[k] * n[k] for k in range(3)) > 0 else [4, 3, 2, 1]
+        path = "assets/veach/plate%d.obj" % i
+        with open(os.path.join(SCENES, path), "w") as f:
+            f.write("# Tessera: MIS test plate %d (written by scenes/tools/make_scenes.py)\n" % i)
+            for v in corners:
+                f.write("v %.6f %.6f %.6f\n" % tuple(v))
+            f.write("f %d %d %d %d\n" % tuple(order))
+        name = "plate%d" % i
+        materials[name] = {"type": "roughconductor", "alpha_x": alpha, "alpha_y": alpha,
+                           "etaT": [0.2, 0.2, 0.2], "k": [3.6, 3.6, 3.6]}
+        objects.append({"type": "mesh", "path": path, "material_name": name})
+    objects.append({"type": "mesh", "path": "assets/ground.obj", "material_name": "backdrop",
+                    "translate": [0.0, -0.6, 0.0]})
+    colours = [[1.0, 0.45, 0.3], [1.0, 0.85, 0.4], [0.45, 1.0, 0.45], [0.4, 0.6, 1.0]]
+    for i, r in enumerate([0.04, 0.12, 0.3, 0.6]):
+        x = -3.0 + 2.0 * i
+        # Equal power: radiance proportional to 1 / r^2.
+        radiance = [round(c * 1.5 / (r * r), 4) for c in colours[i]]
+        objects.append({"type": "sphere", "center": [x, light_centre[1], light_centre[2]], "radius": r,
+                        "light": {"type": "area", "radiance": radiance}})
+    s = {
+        "integrator": {"type": "path", "profile": "MIS", "spp": 64, "max_depth": 8, "rr_threshold": 0.1,
+                       "point_light_flux": [0.0, 0.0, 0.0]},
+        "film": {"resolution": [384, 256]},
+        "camera": {"position": camera, "look_at": [0.0, 1.4, 0.0], "ref_up": [0.0, 1.0, 0.0], "fov": 36.0},
+        "textures": {"backdrop": {"type": "constant", "color": [0.1, 0.1, 0.1]}},
+        "materials": materials,
+        "objects": objects,
+    }
+    write("veach_mis.json", s)
 
 
 if __name__ == "__main__":

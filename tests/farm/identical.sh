@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # render --workers N for several farm tile sizes (dividing the image or not, 1-pixel tiles) and worker counts gives
-# R,G,B bitwise identical to the single-process render; also with a scene that has OBJ and EXR assets.
+# R,G,B bitwise identical to the single-process render; also with a scene that has OBJ and EXR assets, and with
+# path-traced scenes.
 source "$(dirname "$0")/common.sh"
 
 write_sphere_scene "$WORK/spheres.json" 37 23 3
@@ -40,4 +41,18 @@ write_cbox_scene "$WORK/bdpt" 20 20 2 cbox.json
 "$TESSERA" render "$WORK/bdpt/scene.json" -o "$WORK/bdpt-farm.exr" --integrator direct --workers 1 --farm-tile 9 -q \
   >"$WORK/render-bdpt.log" 2>&1 || fail "bdpt box with --integrator direct failed"
 "$EXR_COMPARE" "$WORK/bdpt-ref.exr" "$WORK/bdpt-farm.exr" || fail "bdpt box differs"
+# Path-traced scenes (global illumination, glass, an EXR environment): the course's bdpt box and glass sphere.
+for course in cbox.json glass_sphere.json; do
+  write_cbox_scene "$WORK/path-$course" 24 20 4 "$course"
+  "$TESSERA" render "$WORK/path-$course/scene.json" -o "$WORK/path-$course-ref.exr" --seed 3 -q
+  "$TESSERA" render "$WORK/path-$course/scene.json" -o "$WORK/path-$course-farm.exr" --seed 3 --workers 2 --farm-tile 7 -q \
+    >"$WORK/render-path-$course.log" 2>&1 || fail "path-traced $course through the farm failed"
+  "$EXR_COMPARE" "$WORK/path-$course-ref.exr" "$WORK/path-$course-farm.exr" || fail "path-traced $course differs"
+done
+# ... and adaptive sampling on a path-traced scene.
+G="$WORK/path-glass_sphere.json"
+"$TESSERA" render "$G/scene.json" -o "$G/adaptive-ref.exr" --target-error 0.1 --min-spp 2 --max-spp 16 -q
+"$TESSERA" render "$G/scene.json" -o "$G/adaptive-farm.exr" --target-error 0.1 --min-spp 2 --max-spp 16 \
+  --workers 2 --farm-tile 5 -q >"$WORK/render-path-adaptive.log" 2>&1 || fail "adaptive path-traced farm render failed"
+"$EXR_COMPARE" "$G/adaptive-ref.exr" "$G/adaptive-farm.exr" || fail "adaptive path-traced farm render differs"
 echo "PASS"
