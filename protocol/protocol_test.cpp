@@ -72,6 +72,15 @@ TEST(Messages, JobStatusRoundTrips) {
   EXPECT_FALSE(back.finished_ms);
 }
 
+TEST(Messages, ParsesAJobWithNullError) {
+  const auto s = json::parse(R"({"id": "j-1", "state": "running", "width": 8, "height": 4, "tiles": {"total": 4,
+      "done": 1, "leased": 2, "pending": 1}, "render_seconds": 1.5, "error": null, "finished_ms": null})").get<JobStatus>();
+  EXPECT_EQ(s.tiles.total, 4);
+  EXPECT_EQ(s.tiles.done, 1);
+  EXPECT_FALSE(s.finished());
+  EXPECT_FALSE(s.error);
+}
+
 TEST(Messages, SubmissionRefusesUnknownKeysAndBadSettings) {
   auto error_of = [](const std::string& body) {
     try {

@@ -22,11 +22,11 @@ namespace tessera::server {
 
 namespace {
 
-// A request the client got wrong; becomes an error response with this status.
-struct HttpError : std::runtime_error {
-  HttpError(http::status s, const std::string& what) : std::runtime_error(what), status(s) {}
-  http::status status;
-};
+using protocol::ApiError;
+using protocol::ProtocolError;
+
+// A refusal with this status and sentence.
+ApiError refusal(http::status status, const std::string& what) { return ApiError(int(status), what); }
 
 HttpResponse json_response(http::status status, const json& body, unsigned version) {
   HttpResponse res{status, version};
@@ -44,75 +44,6 @@ HttpResponse bytes_response(std::string bytes, const char* content_type, unsigne
   return res;
 }
 
-std::vector<std::string> split_path(std::string_view path) {
-  std::vector<std::string> out;
-  if (path.empty() || path[0] != '/') return {"\x01"};  // never matches
-  size_t i = 1;
-  while (true) {
-    const size_t j = path.find('/', i);
-    out.emplace_back(path.substr(i, j == std::string_view::npos ? std::string_view::npos : j - i));
-    if (j == std::string_view::npos) break;
-    i = j + 1;
-  }
-  return out;
-}
-
-// Parses a JSON object body and refuses keys outside `known`; an empty body is {} when allowed.
-json parse_object(const HttpRequest& req, std::initializer_list<const char*> known, bool allow_empty) {
-  const std::string& body = req.body();
-  if (body.find_first_not_of(" \t\r\n") == std::string::npos) {
-    if (allow_empty) return json::object();
-    throw HttpError(http::status::bad_request, "request body is empty; expected a JSON object");
-  }
-  // Deep nesting is refused before parsing: printing, copying or destroying such a value recurses per level.
-  if (json_nesting_depth(body) > kMaxSceneJsonDepth)
-    throw HttpError(http::status::bad_request,
-                    "malformed JSON: arrays/objects nested deeper than " + std::to_string(kMaxSceneJsonDepth) + " levels");
-  json j;
-  try {
-    j = json::parse(body);
-  } catch (const json::exception& e) {  // syntax errors, and numbers beyond the double range (out_of_range)
-    throw HttpError(http::status::bad_request, std::string("malformed JSON: ") + e.what());
-  }
-  if (!j.is_object()) throw HttpError(http::status::bad_request, std::string("expected a JSON object, got ") + j.type_name());
-  for (auto it = j.begin(); it != j.end(); ++it) {
-    if (std::none_of(known.begin(), known.end(), [&](const char* k) { return it.key() == k; })) {
-      std::string list;
-      for (const char* k : known) list += (list.empty() ? "" : ", ") + std::string(k);
-      throw HttpError(http::status::bad_request, "unknown key '" + it.key() + "' (known keys: " + list + ")");
-    }
-  }
-  return j;
-}
-
-int64_t get_int(const json& j, const char* key, int64_t def, int64_t lo, int64_t hi) {
-  if (!j.contains(key)) return def;
-  const json& v = j[key];
-  if (!v.is_number_integer() || (v.is_number_unsigned() && v.get<uint64_t>() > uint64_t(std::numeric_limits<int64_t>::max())) ||
-      v.get<int64_t>() < lo || v.get<int64_t>() > hi)
-    throw HttpError(http::status::bad_request, std::string("'") + key + "' must be an integer in " + std::to_string(lo) +
-                                                   ".." + std::to_string(hi) + " (got " + v.dump() + ")");
-  return v.get<int64_t>();
-}
-
-uint64_t get_uint(const json& j, const char* key, uint64_t def) {
-  if (!j.contains(key)) return def;
-  const json& v = j[key];
-  if (!v.is_number_unsigned() && !(v.is_number_integer() && v.get<int64_t>() >= 0))
-    throw HttpError(http::status::bad_request, std::string("'") + key + "' must be a non-negative integer (got " + v.dump() + ")");
-  return v.get<uint64_t>();
-}
-
-std::string get_string(const json& j, const char* key, const std::string& def) {
-  if (!j.contains(key)) return def;
-  if (!j[key].is_string()) throw HttpError(http::status::bad_request, std::string("'") + key + "' must be a string (got " + j[key].dump() + ")");
-  return j[key].get<std::string>();
-}
-
-json window_json(const PixelWindow& w) { return json::array({w.x0, w.y0, w.x1, w.y1}); }
-
-json optional_ms(const std::optional<int64_t>& v) { return v ? json(*v) : json(nullptr); }
-
 std::string join_workers(const std::vector<std::string>& v) {
   std::string s;
   for (const auto& w : v) s += (s.empty() ? "" : ",") + w;
@@ -122,34 +53,13 @@ std::string join_workers(const std::vector<std::string>& v) {
 }  // namespace
 
 Route match_route(std::string_view target) {
-  const size_t q = target.find('?');
-  const std::vector<std::string> p = split_path(target.substr(0, q));
-  using V = http::verb;
+  const protocol::RouteMatch m = protocol::match_route(target);
   Route r;
-  auto set = [&](RouteId id, std::string name, std::vector<V> methods, std::string param = "") {
-    r.id = id;
-    r.name = std::move(name);
-    r.methods = std::move(methods);
-    r.param = std::move(param);
-  };
-  const size_t n = p.size();
-  for (const auto& s : p)
-    if (s.empty()) return r;  // "//" or a trailing slash
-  if (n == 1 && p[0] == "healthz") set(RouteId::healthz, "/healthz", {V::get});
-  else if (n == 1 && p[0] == "metrics") set(RouteId::metrics, "/metrics", {V::get});
-  else if (n < 2 || p[0] != "v1") return r;
-  else if (n == 3 && p[1] == "blobs") set(RouteId::blob, "/v1/blobs/{sha256}", {V::put, V::head, V::get}, p[2]);
-  else if (n == 2 && p[1] == "jobs") set(RouteId::jobs, "/v1/jobs", {V::get, V::post});
-  else if (n == 3 && p[1] == "jobs") set(RouteId::job, "/v1/jobs/{id}", {V::get, V::delete_}, p[2]);
-  else if (n == 4 && p[1] == "jobs" && p[3] == "result.exr") set(RouteId::job_result, "/v1/jobs/{id}/result.exr", {V::get}, p[2]);
-  else if (n == 4 && p[1] == "jobs" && p[3] == "preview.png") set(RouteId::job_preview, "/v1/jobs/{id}/preview.png", {V::get}, p[2]);
-  else if (n == 4 && p[1] == "jobs" && p[3] == "spec") set(RouteId::job_spec, "/v1/jobs/{id}/spec", {V::get}, p[2]);
-  else if (n == 2 && p[1] == "workers") set(RouteId::workers, "/v1/workers", {V::post});
-  else if (n == 4 && p[1] == "workers" && p[3] == "lease") set(RouteId::worker_lease, "/v1/workers/{wid}/lease", {V::post}, p[2]);
-  else if (n == 4 && p[1] == "leases" && p[3] == "heartbeat") set(RouteId::lease_heartbeat, "/v1/leases/{lease}/heartbeat", {V::post}, p[2]);
-  else if (n == 4 && p[1] == "leases" && p[3] == "result") set(RouteId::lease_result, "/v1/leases/{lease}/result", {V::put}, p[2]);
-  else if (n == 4 && p[1] == "leases" && p[3] == "fail") set(RouteId::lease_fail, "/v1/leases/{lease}/fail", {V::post}, p[2]);
-  else if (n == 4 && p[1] == "leases" && p[3] == "release") set(RouteId::lease_release, "/v1/leases/{lease}/release", {V::post}, p[2]);
+  if (!m.route) return r;
+  r.id = m.route->endpoint;
+  r.param = m.param;
+  r.name = std::string(m.route->pattern);
+  for (std::string_view v : m.route->methods) r.methods.push_back(http::string_to_verb(v));
   return r;
 }
 
@@ -236,8 +146,10 @@ HttpResponse Api::handle(HttpRequest&& req) noexcept {
           res = dispatch(route, req);
         }
       }
-    } catch (const HttpError& e) {
-      res = json_error(e.status, e.what(), version);
+    } catch (const ProtocolError& e) {
+      res = json_error(http::status::bad_request, e.what(), version);
+    } catch (const ApiError& e) {
+      res = json_error(http::status(e.status), e.what(), version);
     } catch (const std::exception& e) {
       spdlog::error("{} {}: internal error: {}", std::string(req.method_string()), std::string(req.target()), e.what());
       res = json_error(http::status::internal_server_error, std::string("internal error: ") + e.what(), version);
@@ -283,17 +195,17 @@ HttpResponse Api::dispatch(const Route& r, HttpRequest& req) {
     case RouteId::lease_release: return post_release(r.param, req);
     case RouteId::none: break;
   }
-  throw HttpError(http::status::not_found, "no such endpoint");
+  throw refusal(http::status::not_found, "no such endpoint");
 }
 
 // ---- blobs
 
 HttpResponse Api::put_blob(const std::string& sha, HttpRequest& req) {
   if (!is_sha256_hex(sha))
-    throw HttpError(http::status::bad_request, "blob path must be 64 lowercase hex digits (a SHA-256), got '" + sha + "'");
+    throw refusal(http::status::bad_request, "blob path must be 64 lowercase hex digits (a SHA-256), got '" + sha + "'");
   const PutBlobResult r = blobs_.put(sha, req.body());
   if (r.status == PutBlobResult::mismatch)
-    throw HttpError(http::status::bad_request, "body hashes to " + r.actual + ", not " + sha);
+    throw refusal(http::status::bad_request, "body hashes to " + r.actual + ", not " + sha);
   if (r.status == PutBlobResult::created) spdlog::info("blob {}: stored ({} bytes)", sha, r.size);
   return json_response(r.status == PutBlobResult::created ? http::status::created : http::status::ok,
                        {{"sha256", sha}, {"size", r.size}}, req.version());
@@ -310,35 +222,11 @@ HttpResponse Api::head_blob(const std::string& sha, HttpRequest& req) {
 
 HttpResponse Api::get_blob(const std::string& sha, HttpRequest& req) {
   std::optional<std::string> bytes = blobs_.read(sha);
-  if (!bytes) throw HttpError(http::status::not_found, "blob " + sha + " is not stored");
+  if (!bytes) throw refusal(http::status::not_found, "blob " + sha + " is not stored");
   return bytes_response(std::move(*bytes), "application/octet-stream", req.version());
 }
 
 // ---- jobs
-
-json Api::job_json(const JobStatus& s) const {
-  const int64_t now = clock_();
-  double render_seconds = 0;
-  if (s.started_ms) render_seconds = double((s.finished_ms ? *s.finished_ms : now) - *s.started_ms) / 1000.0;
-  return {{"id", s.id},
-          {"name", s.params.name},
-          {"state", to_string(s.state)},
-          {"priority", s.params.priority},
-          {"width", s.params.width},
-          {"height", s.params.height},
-          {"spp", s.params.spp},
-          {"seed", s.params.seed},
-          {"tile_size", s.params.tile_size},
-          {"scene_hash", s.params.scene_hash},
-          {"tiles", {{"total", s.tiles.total}, {"done", s.tiles.done}, {"leased", s.tiles.leased}, {"pending", s.tiles.pending}}},
-          {"created_ms", s.created_ms},
-          {"started_ms", optional_ms(s.started_ms)},
-          {"finished_ms", optional_ms(s.finished_ms)},
-          {"render_seconds", render_seconds},
-          {"rays", s.rays},
-          {"workers", s.workers},
-          {"error", s.error ? json(*s.error) : json(nullptr)}};
-}
 
 HttpResponse Api::post_job(HttpRequest& req) {
   // Admission: queued plus running jobs are bounded (checked again, atomically with add_job, below).
@@ -359,56 +247,22 @@ HttpResponse Api::post_job(HttpRequest& req) {
   };
   if (unfinished_jobs() >= opt_.max_queued_jobs) return queue_full();
 
-  const json j = parse_object(req, {"scene", "assets", "spp", "seed", "tile_size", "priority", "name", "integrator",
-                                    "target_error", "min_spp", "max_spp"}, false);
-  if (!j.contains("scene")) throw HttpError(http::status::bad_request, "'scene' is missing");
-  const json& scene = j["scene"];
-  if (!scene.is_object()) throw HttpError(http::status::bad_request, std::string("'scene' must be a JSON object, got ") + scene.type_name());
-  std::map<std::string, std::string> assets;
-  if (j.contains("assets")) {
-    if (!j["assets"].is_object()) throw HttpError(http::status::bad_request, "'assets' must be an object mapping scene paths to SHA-256 hashes");
-    for (auto it = j["assets"].begin(); it != j["assets"].end(); ++it) {
-      if (!it.value().is_string() || !is_sha256_hex(it.value().get<std::string>()))
-        throw HttpError(http::status::bad_request, "assets[\"" + it.key() + "\"] must be a lowercase hex SHA-256 (got " + it.value().dump() + ")");
-      assets.emplace(it.key(), it.value().get<std::string>());
-    }
-  }
-  const int64_t spp_req = get_int(j, "spp", 0, 1, int64_t(1) << 20);
-  const uint64_t seed = get_uint(j, "seed", 0);
-  const int tile_size = int(get_int(j, "tile_size", 64, 1, 4096));
-  const int priority = int(get_int(j, "priority", 0, std::numeric_limits<int>::min() + 1, std::numeric_limits<int>::max()));
-  const std::string name = get_string(j, "name", "");
-  const std::string integrator = get_string(j, "integrator", "");
-  // Adaptive sampling (like `tessera render --target-error`): each pixel's sample count depends only on its own
-  // samples, so any tile split still gives the same bits.
-  double target_error = 0.0;
-  if (j.contains("target_error")) {
-    const json& v = j["target_error"];
-    if (!v.is_number() || !(v.get<double>() > 0.0) || !(v.get<double>() <= 1e6))
-      throw HttpError(http::status::bad_request, "'target_error' must be a number in (0, 1e6] (got " + v.dump() + ")");
-    target_error = v.get<double>();
-  }
-  const int64_t min_spp = get_int(j, "min_spp", 16, 1, int64_t(1) << 20);
-  const int64_t max_spp = get_int(j, "max_spp", 1024, 1, int64_t(1) << 20);
-  if (target_error == 0.0 && (j.contains("min_spp") || j.contains("max_spp")))
-    throw HttpError(http::status::bad_request, "'min_spp' and 'max_spp' apply only with 'target_error'");
-  if (min_spp > max_spp)
-    throw HttpError(http::status::bad_request, "'min_spp' (" + std::to_string(min_spp) + ") is larger than 'max_spp' (" +
-                                                   std::to_string(max_spp) + ")");
-  if (!integrator.empty() && integrator != "direct" && integrator != "intersection_test")
-    throw HttpError(http::status::bad_request, "'integrator' must be \"direct\" or \"intersection_test\" (got \"" + integrator + "\")");
+  const protocol::JobSubmission sub = protocol::parse_job_submission(req.body());
+  const json& scene = sub.scene;
+  const std::map<std::string, std::string>& assets = sub.assets;
+  const protocol::SamplingSettings& sampling = sub.sampling;
 
   // Asset paths are names for blobs (the coordinator and workers never open them as files), but a scene that renders
   // here must render with `tessera render` too: the same paths the loader refuses are refused here.
   auto check_path = [](const std::string& rel, const std::string& where) {
     const fs::path p(rel);
-    if (rel.empty()) throw HttpError(http::status::bad_request, where + ": empty asset path");
-    if (rel.find('\0') != std::string::npos) throw HttpError(http::status::bad_request, where + ": asset path contains a NUL byte");
+    if (rel.empty()) throw refusal(http::status::bad_request, where + ": empty asset path");
+    if (rel.find('\0') != std::string::npos) throw refusal(http::status::bad_request, where + ": asset path contains a NUL byte");
     if (p.is_absolute() || p.has_root_name() || p.has_root_directory())
-      throw HttpError(http::status::bad_request, where + ": absolute asset path '" + rel + "' (paths are relative to the scene's folder)");
+      throw refusal(http::status::bad_request, where + ": absolute asset path '" + rel + "' (paths are relative to the scene's folder)");
     const fs::path n = p.lexically_normal();
     if (n.empty() || *n.begin() == "..")
-      throw HttpError(http::status::bad_request, where + ": asset path '" + rel + "' leaves the scene's folder");
+      throw refusal(http::status::bad_request, where + ": asset path '" + rel + "' leaves the scene's folder");
   };
   for (const auto& [path, sha] : assets) check_path(path, "assets[\"" + path + "\"]");
   for (const std::string& path : scene_asset_paths(scene)) check_path(path, "scene");
@@ -423,11 +277,9 @@ HttpResponse Api::post_job(HttpRequest& req) {
     else continue;
     missing += (missing.empty() ? "" : ", ") + path + " (" + why + ")";
   }
-  if (!missing.empty()) throw HttpError(http::status::bad_request, "missing assets: " + missing);
+  if (!missing.empty()) throw refusal(http::status::bad_request, "missing assets: " + missing);
 
-  LoadOptions lo;
-  lo.force_direct = !integrator.empty();
-  if (spp_req) lo.spp = uint32_t(spp_req);
+  const LoadOptions lo = sampling.load_options();
   LoadedScene loaded;
   try {
     loaded = load_scene_json(scene, "scene", [&](const std::string& rel, const std::string& jp) -> fs::path {
@@ -438,49 +290,44 @@ HttpResponse Api::post_job(HttpRequest& req) {
       return *f;
     }, lo);
   } catch (const SceneError& e) {
-    throw HttpError(http::status::bad_request, e.what());
+    throw refusal(http::status::bad_request, e.what());
   }
   const Scene& s = loaded.scene;
   // Size limits: the merged image is held in memory, and width x height x spp bounds the work one job may ask for.
   const uint64_t pixels = uint64_t(s.width) * uint64_t(s.height);
   if (pixels > opt_.max_job_pixels)
-    throw HttpError(http::status::bad_request, "job too large: " + std::to_string(s.width) + "x" + std::to_string(s.height) +
+    throw refusal(http::status::bad_request, "job too large: " + std::to_string(s.width) + "x" + std::to_string(s.height) +
                                                    " = " + std::to_string(pixels) + " pixels is over the limit of " +
                                                    std::to_string(opt_.max_job_pixels) + " (--max-job-pixels)");
-  const uint64_t per_pixel = target_error > 0.0 ? uint64_t(max_spp) : uint64_t(s.settings.spp);
+  const bool adaptive = sampling.target_error > 0.0;
+  const uint64_t per_pixel = adaptive ? uint64_t(sampling.max_spp) : uint64_t(s.settings.spp);
   const double samples = double(pixels) * double(per_pixel);
   if (samples > opt_.max_job_samples) {
     char text[256];
     std::snprintf(text, sizeof text, "job too large: %dx%d pixels x %llu %s = %.3g samples is over the limit of %.3g (--max-job-samples)",
-                  s.width, s.height, static_cast<unsigned long long>(per_pixel), target_error > 0.0 ? "max_spp" : "spp",
+                  s.width, s.height, static_cast<unsigned long long>(per_pixel), adaptive ? "max_spp" : "spp",
                   samples, opt_.max_job_samples);
-    throw HttpError(http::status::bad_request, text);
+    throw refusal(http::status::bad_request, text);
   }
   JobParams p;
-  p.name = name;
-  p.priority = priority;
+  p.name = sub.name;
+  p.priority = sub.priority;
   p.width = s.width;
   p.height = s.height;
-  p.tile_size = tile_size;
+  p.tile_size = sub.tile_size;
   p.spp = s.settings.spp;
-  p.seed = seed;
+  p.seed = sampling.seed;
   p.scene_hash = s.hash;
 
-  json spec = {{"scene", scene}, {"assets", assets}, {"spp", p.spp}, {"seed", p.seed}, {"width", p.width},
-               {"height", p.height}, {"tile_size", p.tile_size}};
-  if (!integrator.empty()) spec["integrator"] = integrator;
-  if (target_error > 0.0) {
-    spec["target_error"] = target_error;
-    spec["min_spp"] = min_spp;
-    spec["max_spp"] = max_spp;
-  }
+  protocol::JobSpec spec{scene, assets, sampling, p.width, p.height, p.tile_size};
+  spec.sampling.spp = p.spp;
   std::unique_lock admit(admit_mu_);
   if (unfinished_jobs() >= opt_.max_queued_jobs) return queue_full();
   const std::string id = sched_.new_job_id();
   json record = spec;
   record["id"] = id;
-  record["name"] = name;
-  record["priority"] = priority;
+  record["name"] = p.name;
+  record["priority"] = p.priority;
   record["scene_hash"] = p.scene_hash;
   record["created_ms"] = clock_();
   jobs_.save_record(id, record);
@@ -490,49 +337,47 @@ HttpResponse Api::post_job(HttpRequest& req) {
   }
   sched_.add_job(p, id);
   admit.unlock();
-  spdlog::info("job {}: submitted '{}' {}x{} spp {} seed {} tile {} priority {} ({} tiles)", id, name, p.width, p.height,
+  spdlog::info("job {}: submitted '{}' {}x{} spp {} seed {} tile {} priority {} ({} tiles)", id, p.name, p.width, p.height,
                p.spp, p.seed, p.tile_size, p.priority, TileGrid(p.width, p.height, p.tile_size).count());
   for (const auto& w : loaded.warnings) spdlog::warn("job {}: {}", id, w);
-  HttpResponse res = json_response(http::status::created, {{"id", id}, {"warnings", loaded.warnings}}, req.version());
-  res.set(http::field::location, "/v1/jobs/" + id);
+  HttpResponse res = json_response(http::status::created, protocol::SubmitAnswer{id, loaded.warnings}, req.version());
+  res.set(http::field::location, protocol::routes::job(id));
   return res;
 }
 
 HttpResponse Api::list_jobs(HttpRequest& req) {
-  json list = json::array();
-  for (const JobStatus& s : sched_.jobs()) list.push_back(job_json(s));
-  return json_response(http::status::ok, {{"jobs", list}}, req.version());
+  return json_response(http::status::ok, protocol::JobList{sched_.jobs()}, req.version());
 }
 
 HttpResponse Api::get_job(const std::string& id, HttpRequest& req) {
   const auto s = sched_.job(id);
-  if (!s) throw HttpError(http::status::not_found, "no job " + id);
-  return json_response(http::status::ok, job_json(*s), req.version());
+  if (!s) throw refusal(http::status::not_found, "no job " + id);
+  return json_response(http::status::ok, json(*s), req.version());
 }
 
 HttpResponse Api::delete_job(const std::string& id, HttpRequest& req) {
   const CancelResult c = sched_.cancel(id);
-  if (c.status == CancelResult::unknown) throw HttpError(http::status::not_found, "no job " + id);
+  if (c.status == CancelResult::unknown) throw refusal(http::status::not_found, "no job " + id);
   const auto s = sched_.job(id);
   if (c.status == CancelResult::already_ended)
-    throw HttpError(http::status::conflict, "job " + id + " already ended (" + to_string(s->state) + ")");
+    throw refusal(http::status::conflict, "job " + id + " already ended (" + to_string(s->state) + ")");
   drop_image(id);
   spdlog::info("job {}: cancelled, {} lease(s) revoked", id, c.revoked_leases);
-  return json_response(http::status::ok, job_json(*s), req.version());
+  return json_response(http::status::ok, json(*s), req.version());
 }
 
 HttpResponse Api::get_result(const std::string& id, HttpRequest& req) {
   const auto s = sched_.job(id);
-  if (!s) throw HttpError(http::status::not_found, "no job " + id);
+  if (!s) throw refusal(http::status::not_found, "no job " + id);
   if (s->state != JobState::done)
-    throw HttpError(http::status::conflict, "job " + id + " is " + to_string(s->state) + ", not done");
+    throw refusal(http::status::conflict, "job " + id + " is " + to_string(s->state) + ", not done");
   HttpResponse res = bytes_response(read_file_bytes(jobs_.result_path(id)), "image/x-exr", req.version());
   return res;
 }
 
 HttpResponse Api::get_preview(const std::string& id, HttpRequest& req) {
   const auto s = sched_.job(id);
-  if (!s) throw HttpError(http::status::not_found, "no job " + id);
+  if (!s) throw refusal(http::status::not_found, "no job " + id);
   std::vector<uint8_t> png;
   if (!is_final(s->state)) {
     png = image_for(id, s->params.width, s->params.height)->preview_png();
@@ -550,59 +395,49 @@ HttpResponse Api::get_spec(const std::string& id, HttpRequest& req) {
     const auto it = specs_.find(id);
     if (it != specs_.end()) return json_response(http::status::ok, it->second, req.version());
   }
-  if (!sched_.job(id)) throw HttpError(http::status::not_found, "no job " + id);
+  if (!sched_.job(id)) throw refusal(http::status::not_found, "no job " + id);
   std::optional<json> rec = jobs_.load_record(id);
-  if (!rec) throw HttpError(http::status::not_found, "no record for job " + id);
-  json spec;
-  for (const char* k : {"scene", "assets", "spp", "seed", "width", "height", "tile_size", "integrator", "target_error",
-                        "min_spp", "max_spp"})
-    if (rec->contains(k)) spec[k] = (*rec)[k];
+  if (!rec) throw refusal(http::status::not_found, "no record for job " + id);
+  const auto spec = rec->get<protocol::JobSpec>();  // the record is the spec plus the job's facts
+  {
+    std::lock_guard lock(mu_);
+    specs_.emplace(id, spec);
+  }
   return json_response(http::status::ok, spec, req.version());
 }
 
 // ---- workers and leases
 
 HttpResponse Api::post_worker(HttpRequest& req) {
-  const json j = parse_object(req, {"name", "threads", "version"}, true);
-  const std::string name = get_string(j, "name", "");
-  const int64_t threads = get_int(j, "threads", 0, 0, 1 << 20);
-  const std::string version = get_string(j, "version", "");
-  const std::string id = sched_.register_worker(name);
-  spdlog::info("worker {}: registered '{}' ({} threads, version {})", id, name, threads, version.empty() ? "?" : version);
-  HttpResponse res = json_response(http::status::created,
-                                   {{"id", id},
-                                    {"lease_seconds", sched_.config().lease_ms % 1000 == 0
-                                                          ? json(sched_.config().lease_ms / 1000)
-                                                          : json(double(sched_.config().lease_ms) / 1000.0)},
-                                    {"heartbeat_seconds", opt_.heartbeat_seconds}},
-                                   req.version());
-  res.set(http::field::location, "/v1/workers/" + id);
+  const protocol::WorkerHello hello = protocol::parse_worker_hello(req.body());
+  const std::string id = sched_.register_worker(hello.name);
+  spdlog::info("worker {}: registered '{}' ({} threads, version {})", id, hello.name, hello.threads,
+               hello.version.empty() ? "?" : hello.version);
+  const protocol::Registration reg{id, double(sched_.config().lease_ms) / 1000.0, double(opt_.heartbeat_seconds)};
+  HttpResponse res = json_response(http::status::created, reg, req.version());
+  res.set(http::field::location, protocol::routes::workers() + "/" + id);
   return res;
 }
 
 HttpResponse Api::post_lease(const std::string& worker, HttpRequest& req) {
   const AcquireResult r = sched_.acquire(worker);
   if (r.status == AcquireResult::unknown_worker)
-    throw HttpError(http::status::not_found, "unknown worker " + worker + ": register again");
+    throw refusal(http::status::not_found, "unknown worker " + worker + ": register again");
   if (r.status == AcquireResult::no_work) {
     HttpResponse res{http::status::no_content, req.version()};
     return res;
   }
   const Lease& l = r.lease;
   spdlog::debug("job {} tile {} worker {}: leased as {}", l.job, l.tile, l.worker, l.id);
-  return json_response(http::status::ok,
-                       {{"lease", l.id}, {"job", l.job}, {"tile", l.tile}, {"window", window_json(l.window)}, {"spp", l.spp},
-                        {"seed", l.seed}, {"scene_hash", l.scene_hash}, {"deadline_ms", l.deadline_ms}},
-                       req.version());
+  return json_response(http::status::ok, l, req.version());
 }
 
 HttpResponse Api::post_heartbeat(const std::string& lease, HttpRequest& req) {
-  const json j = parse_object(req, {"rays"}, true);
-  const uint64_t rays = get_uint(j, "rays", 0);
+  const uint64_t rays = protocol::parse_heartbeat_report(req.body()).rays;
   const HeartbeatResult h = sched_.heartbeat(lease, rays);
-  if (h.status == HeartbeatResult::unknown) throw HttpError(http::status::not_found, "unknown lease " + lease);
+  if (h.status == HeartbeatResult::unknown) throw refusal(http::status::not_found, "unknown lease " + lease);
   if (h.status == HeartbeatResult::gone)
-    throw HttpError(http::status::gone, "lease " + lease + " was revoked or expired: stop rendering this tile");
+    throw refusal(http::status::gone, "lease " + lease + " was revoked or expired: stop rendering this tile");
   metrics_.add_rays(rays, clock_());
   return json_response(http::status::ok, {{"deadline_ms", h.deadline_ms}}, req.version());
 }
@@ -644,11 +479,11 @@ HttpResponse Api::put_result(const std::string& lease, HttpRequest& req) {
   if (const auto h = req[ "X-Tessera-Rays" ]; !h.empty()) {
     const auto [ptr, ec] = std::from_chars(h.data(), h.data() + h.size(), rays);
     if (ec != std::errc() || ptr != h.data() + h.size())
-      throw HttpError(http::status::bad_request, "X-Tessera-Rays must be a non-negative integer (got '" + std::string(h) + "')");
+      throw refusal(http::status::bad_request, "X-Tessera-Rays must be a non-negative integer (got '" + std::string(h) + "')");
   }
   auto settled = [&](const ResultClaim& c) -> std::optional<HttpResponse> {
     switch (c.status) {
-      case ResultClaim::unknown: throw HttpError(http::status::not_found, "unknown lease " + lease);
+      case ResultClaim::unknown: throw refusal(http::status::not_found, "unknown lease " + lease);
       case ResultClaim::discarded:
         spdlog::info("job {} tile {} worker {}: result discarded (job ended)", c.job, c.tile, c.worker);
         return json_response(http::status::gone, {{"status", "discarded"}}, req.version());
@@ -677,7 +512,7 @@ HttpResponse Api::put_result(const std::string& lease, HttpRequest& req) {
     spdlog::warn("job {} tile {} worker {}: invalid result: {}{}", pre.job, pre.tile, pre.worker, *check.error,
                  f.job_failed ? " (job failed)" : f.blocklisted ? " (worker blocklisted for the job)" : "");
     if (f.job_failed) drop_image(pre.job);
-    throw HttpError(http::status::unprocessable_entity, "invalid result: " + *check.error);
+    throw refusal(http::status::unprocessable_entity, "invalid result: " + *check.error);
   }
 
   const ResultClaim c = sched_.claim_result(lease);
@@ -733,11 +568,10 @@ void Api::finalize(const std::string& job) {
 }
 
 HttpResponse Api::post_fail(const std::string& lease, HttpRequest& req) {
-  const json j = parse_object(req, {"error"}, true);
-  const std::string error = get_string(j, "error", "(no error text)");
+  const std::string error = protocol::parse_fail_report(req.body()).error;
   const ResultClaim info = sched_.check_result(lease);
   const FailResult f = sched_.fail(lease, error);
-  if (f.status == FailResult::unknown) throw HttpError(http::status::not_found, "unknown lease " + lease);
+  if (f.status == FailResult::unknown) throw refusal(http::status::not_found, "unknown lease " + lease);
   spdlog::warn("job {} tile {} worker {}: failed: {}{}", info.job, info.tile, info.worker, error,
                f.job_failed ? " (job failed)" : f.blocklisted ? " (worker blocklisted for the job)" : "");
   if (f.job_failed) drop_image(info.job);
@@ -745,8 +579,8 @@ HttpResponse Api::post_fail(const std::string& lease, HttpRequest& req) {
 }
 
 HttpResponse Api::post_release(const std::string& lease, HttpRequest& req) {
-  parse_object(req, {}, true);
-  if (!sched_.release(lease)) throw HttpError(http::status::not_found, "unknown lease " + lease);
+  protocol::parse_release(req.body());
+  if (!sched_.release(lease)) throw refusal(http::status::not_found, "unknown lease " + lease);
   spdlog::debug("lease {}: released", lease);
   return json_response(http::status::ok, {{"status", "released"}}, req.version());
 }

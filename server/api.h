@@ -2,6 +2,8 @@
 // the stores and the job images. Knows HTTP messages, not sockets.
 #pragma once
 
+#include "protocol/messages.h"
+#include "protocol/routes.h"
 #include "server/assembly.h"
 #include "server/auth.h"
 #include "server/http_server.h"
@@ -28,7 +30,7 @@ struct ApiOptions {
   std::size_t json_limit = std::size_t(16) << 20;    ///< JSON request bodies.
   std::size_t blob_limit = std::size_t(256) << 20;   ///< Blob uploads.
   std::size_t result_limit = std::size_t(64) << 20;  ///< Tile result uploads.
-  int heartbeat_seconds = 5;                         ///< Heartbeat interval announced to workers.
+  int heartbeat_seconds = protocol::kDefaultHeartbeatSeconds;  ///< Heartbeat interval announced to workers.
   AccessTokens tokens;                               ///< Bearer tokens (empty: that side's endpoints are open).
   int64_t max_queued_jobs = 1000;                    ///< Queued plus running jobs; more submissions get 429.
   int retry_after_seconds = 30;                      ///< Retry-After announced with 429.
@@ -36,11 +38,8 @@ struct ApiOptions {
   double max_job_samples = 4e10;                     ///< width x height x spp (x max_spp when adaptive) of one job.
 };
 
-/// The endpoints a request target can name.
-enum class RouteId {
-  none, healthz, metrics, blob, jobs, job, job_result, job_preview, job_spec, workers, worker_lease,
-  lease_heartbeat, lease_result, lease_fail, lease_release
-};
+/// The endpoints a request target can name (protocol/routes.h).
+using RouteId = protocol::Endpoint;
 
 /// A matched request target.
 struct Route {
@@ -87,7 +86,6 @@ class Api final : public HttpHandler {
   HttpResponse post_fail(const std::string& lease, HttpRequest& req);
   HttpResponse post_release(const std::string& lease, HttpRequest& req);
 
-  nlohmann::json job_json(const JobStatus& s) const;
   std::shared_ptr<JobImage> image_for(const std::string& job, int width, int height);
   void drop_image(const std::string& job);
   void finalize(const std::string& job);
@@ -101,7 +99,7 @@ class Api final : public HttpHandler {
   std::mutex mu_;
   std::mutex admit_mu_;                                      // makes the queued-jobs check and add_job one step
   std::map<std::string, std::shared_ptr<JobImage>> images_;  // running jobs' images (a cache of the stored tiles)
-  std::map<std::string, nlohmann::json> specs_;              // job id -> what workers need to build the scene
+  std::map<std::string, protocol::JobSpec> specs_;           // job id -> what workers need to build the scene
 };
 
 }  // namespace tessera::server

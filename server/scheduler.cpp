@@ -28,17 +28,6 @@ E parse_state(std::string_view s, const E (&all)[N], const char* what) {
 
 }  // namespace
 
-const char* to_string(JobState s) {
-  switch (s) {
-    case JobState::queued: return "queued";
-    case JobState::running: return "running";
-    case JobState::done: return "done";
-    case JobState::failed: return "failed";
-    case JobState::cancelled: return "cancelled";
-  }
-  return "unknown";
-}
-
 const char* to_string(TileState s) {
   switch (s) {
     case TileState::pending: return "pending";
@@ -59,12 +48,6 @@ const char* to_string(LeaseState s) {
     case LeaseState::failed: return "failed";
   }
   return "unknown";
-}
-
-JobState job_state_from_string(std::string_view s) {
-  static constexpr JobState all[] = {JobState::queued, JobState::running, JobState::done, JobState::failed,
-                                     JobState::cancelled};
-  return parse_state(s, all, "job");
 }
 
 TileState tile_state_from_string(std::string_view s) {
@@ -273,10 +256,11 @@ std::string Scheduler::add_job(const JobParams& p, const std::string& id_in) {
   });
 }
 
-JobStatus Scheduler::snapshot_locked(const JobRec& j, int64_t) const {
+JobStatus Scheduler::snapshot_locked(const JobRec& j, int64_t now) const {
   JobStatus s = j.status;
   s.tiles.pending = int64_t(j.pending.size());
   s.tiles.leased = s.tiles.total - s.tiles.done - s.tiles.pending;
+  if (s.started_ms) s.render_seconds = double(s.finished_ms.value_or(now) - *s.started_ms) / 1000.0;
   return s;
 }
 

@@ -3,6 +3,8 @@
 #pragma once
 
 #include "core/image.h"
+#include "protocol/job.h"
+#include "protocol/messages.h"
 
 #include <cstdint>
 #include <functional>
@@ -21,14 +23,15 @@ namespace tessera::server {
 /// Milliseconds since the Unix epoch (or any fixed origin in tests); injected so tests control time.
 using ClockMs = std::function<int64_t()>;
 
-/// Life cycle of a job (docs/protocol.md, "Jobs, tiles and leases").
-enum class JobState { queued, running, done, failed, cancelled };
-
-/// The protocol's lowercase name of a job state.
-const char* to_string(JobState s);
-
-/// True for states a job never leaves (done, failed, cancelled).
-inline bool is_final(JobState s) { return s == JobState::done || s == JobState::failed || s == JobState::cancelled; }
+// The protocol's job and lease types are the scheduler's own (protocol/job.h, protocol/messages.h).
+using protocol::is_final;
+using protocol::to_string;
+using protocol::job_state_from_string;
+using protocol::JobParams;
+using protocol::JobState;
+using protocol::JobStatus;
+using protocol::Lease;
+using protocol::TileCounts;
 
 /// Scheduler tunables.
 struct SchedulerConfig {
@@ -37,53 +40,6 @@ struct SchedulerConfig {
   int worker_failure_limit = 2;    ///< Failures after which a worker is blocklisted for a job.
   std::string id_tag;              ///< Inserted into generated ids ("j-<tag>-1") so ids differ between runs.
   int64_t worker_gone_ms = 0;      ///< A worker not seen for this long no longer counts as present (0: 3 leases).
-};
-
-/// What a job renders, fixed at submission.
-struct JobParams {
-  std::string name;         ///< Optional label.
-  int priority = 0;         ///< Higher is scheduled first.
-  int width = 0;            ///< Image columns.
-  int height = 0;           ///< Image rows.
-  int tile_size = 64;       ///< Tile edge in pixels.
-  uint32_t spp = 1;         ///< Samples per pixel.
-  uint64_t seed = 0;        ///< Sample seed.
-  std::string scene_hash;   ///< The loader's content hash of scene and assets.
-};
-
-/// Tile counts of a job.
-struct TileCounts {
-  int64_t total = 0;    ///< Tiles in the job.
-  int64_t done = 0;     ///< Merged tiles.
-  int64_t leased = 0;   ///< Tiles under a live lease or being merged.
-  int64_t pending = 0;  ///< Tiles waiting for a worker.
-};
-
-/// A snapshot of one job.
-struct JobStatus {
-  std::string id;                       ///< Job id.
-  JobParams params;                     ///< What it renders.
-  JobState state = JobState::queued;    ///< Where it is in its life cycle.
-  TileCounts tiles;                     ///< Tile counts.
-  int64_t created_ms = 0;               ///< Submission time.
-  std::optional<int64_t> started_ms;    ///< First lease.
-  std::optional<int64_t> finished_ms;   ///< Entered a final state.
-  std::optional<std::string> error;     ///< Why it failed.
-  uint64_t rays = 0;                    ///< Rays reported by workers.
-  std::vector<std::string> workers;     ///< Workers whose tiles were merged, in order of first merge.
-};
-
-/// A granted lease: everything a worker needs to render the tile.
-struct Lease {
-  std::string id;           ///< Lease id.
-  std::string job;          ///< Job id.
-  std::string worker;       ///< Worker holding it.
-  int64_t tile = 0;         ///< Tile index.
-  PixelWindow window;       ///< Tile pixels.
-  uint32_t spp = 0;         ///< Samples per pixel.
-  uint64_t seed = 0;        ///< Sample seed.
-  std::string scene_hash;   ///< Scene content hash.
-  int64_t deadline_ms = 0;  ///< Expiry unless extended.
 };
 
 /// Outcome of asking for work.
@@ -148,8 +104,6 @@ enum class LeaseState { live, expired, revoked, completed, released, failed };
 const char* to_string(TileState s);
 /// The lowercase name of a lease state (as stored).
 const char* to_string(LeaseState s);
-/// Parses a stored job state name; throws std::invalid_argument for unknown names.
-JobState job_state_from_string(std::string_view s);
 /// Parses a stored tile state name; throws std::invalid_argument for unknown names.
 TileState tile_state_from_string(std::string_view s);
 /// Parses a stored lease state name; throws std::invalid_argument for unknown names.
