@@ -502,10 +502,7 @@ void Scheduler::abandon_result(const std::string& lease) {
     JobRec& j = *jobs_.at(it->second.lease.job);
     Tile& t = j.tiles[size_t(it->second.lease.tile)];
     if (t.state != TileState::merging || t.lease != lease) return 0;
-    t.state = TileState::pending;
-    t.lease.clear();
-    j.pending.insert(it->second.lease.tile);
-    touch_tile(j, it->second.lease.tile);
+    return_to_pending_locked(j, it->second.lease.tile);
     return 0;
   });
 }
@@ -529,11 +526,7 @@ FailResult Scheduler::fail(const std::string& lease, const std::string& error) {
     }
     const bool was_live = l.state == LeaseState::live;
     end_lease_locked(l, LeaseState::failed);
-    if (was_live && t.lease == lease) {
-      t.state = TileState::pending;
-      t.lease.clear();
-      j.pending.insert(l.lease.tile);
-    }
+    if (was_live && t.lease == lease) return_to_pending_locked(j, l.lease.tile);
     const std::string& w = l.lease.worker;
     t.failures[w] = error;
     const int n = ++j.worker_failures[w];
@@ -562,12 +555,7 @@ bool Scheduler::release(const std::string& lease) {
     end_lease_locked(l, LeaseState::released);
     JobRec& j = *jobs_.at(l.lease.job);
     Tile& t = j.tiles[size_t(l.lease.tile)];
-    if (t.state == TileState::leased && t.lease == lease) {
-      t.state = TileState::pending;
-      t.lease.clear();
-      j.pending.insert(l.lease.tile);
-      touch_tile(j, l.lease.tile);
-    }
+    if (t.state == TileState::leased && t.lease == lease) return_to_pending_locked(j, l.lease.tile);
     return true;
   });
 }
@@ -633,6 +621,14 @@ std::vector<std::string> Scheduler::unfinalized_jobs() {
   });
 }
 
+void Scheduler::return_to_pending_locked(JobRec& j, int64_t tile) {
+  Tile& t = j.tiles[size_t(tile)];
+  t.state = TileState::pending;
+  t.lease.clear();
+  j.pending.insert(tile);
+  touch_tile(j, tile);
+}
+
 void Scheduler::expire_locked(int64_t now) {
   for (auto it = live_leases_.begin(); it != live_leases_.end();) {
     LeaseRec& l = leases_.at(*it);
@@ -642,12 +638,7 @@ void Scheduler::expire_locked(int64_t now) {
     ++lease_expiries_;
     JobRec& j = *jobs_.at(l.lease.job);
     Tile& t = j.tiles[size_t(l.lease.tile)];
-    if (t.state == TileState::leased && t.lease == l.lease.id) {
-      t.state = TileState::pending;
-      t.lease.clear();
-      j.pending.insert(l.lease.tile);
-      touch_tile(j, l.lease.tile);
-    }
+    if (t.state == TileState::leased && t.lease == l.lease.id) return_to_pending_locked(j, l.lease.tile);
   }
 }
 
@@ -670,12 +661,7 @@ void Scheduler::finish_job_locked(JobRec& j, JobState to, int64_t now, std::opti
     if (l.lease.job != j.status.id) continue;
     end_lease_locked(l, LeaseState::revoked);
     Tile& t = j.tiles[size_t(l.lease.tile)];
-    if (t.state == TileState::leased && t.lease == l.lease.id) {
-      t.state = TileState::pending;
-      t.lease.clear();
-      j.pending.insert(l.lease.tile);
-      touch_tile(j, l.lease.tile);
-    }
+    if (t.state == TileState::leased && t.lease == l.lease.id) return_to_pending_locked(j, l.lease.tile);
   }
 }
 

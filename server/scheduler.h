@@ -286,6 +286,8 @@ class Scheduler {
   bool all_present_blocklisted_locked(const JobRec& j, int64_t now, size_t* present) const;
   bool fail_if_all_blocklisted_locked(JobRec& j, int64_t now);
   void expire_locked(int64_t now);
+  /// Hands a tile back to the queue: pending, no lease, leasable again.
+  void return_to_pending_locked(JobRec& j, int64_t tile);
   void end_lease_locked(LeaseRec& l, LeaseState to);
   void finish_job_locked(JobRec& j, JobState to, int64_t now, std::optional<std::string> error);
   ResultClaim claim_view_locked(const std::string& lease, JobRec** job_out, LeaseRec** lease_out);

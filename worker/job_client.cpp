@@ -1,5 +1,6 @@
 #include "worker/job_client.h"
 
+#include "core/file_io.h"
 #include "core/scene_loader.h"
 #include "core/sha256.h"
 #include "protocol/routes.h"
@@ -7,14 +8,6 @@
 
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
-
-#include <fcntl.h>
-#include <unistd.h>
-
-#include <cerrno>
-#include <cstring>
-#include <fstream>
-#include <sstream>
 
 namespace tessera::farm {
 
@@ -24,37 +17,12 @@ using nlohmann::json;
 
 namespace {
 
+// A file the submission needs, or SubmitError saying why not.
 std::string read_file(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw SubmitError("cannot open " + path.string() + ": " + std::strerror(errno));
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) throw SubmitError("cannot read " + path.string());
-  return ss.str();
-}
-
-void write_atomically(const fs::path& path, const std::string& bytes) {
-  fs::path tmp = path;
-  tmp += ".tmp";
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
-  if (fd < 0) throw SubmitError("cannot create " + tmp.string() + ": " + std::strerror(errno));
-  size_t done = 0;
-  int err = 0;
-  while (done < bytes.size()) {
-    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      err = n < 0 ? errno : EIO;
-      break;
-    }
-    done += size_t(n);
-  }
-  if (!err && ::fsync(fd) != 0) err = errno;
-  if (::close(fd) != 0 && !err) err = errno;
-  if (!err && ::rename(tmp.c_str(), path.c_str()) != 0) err = errno;
-  if (err) {
-    ::unlink(tmp.c_str());
-    throw SubmitError("cannot write " + path.string() + ": " + std::strerror(err));
+  try {
+    return read_file_bytes(path);
+  } catch (const FileError& e) {
+    throw SubmitError(e.what());
   }
 }
 
@@ -137,7 +105,11 @@ JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::funct
 uint64_t download_result(HttpClient& http, const std::string& id, const fs::path& path) {
   const HttpResponse r = http.send("GET", routes::job_result(id));
   if (r.status != 200) refuse("downloading the result of " + id, r);
-  write_atomically(path, r.body);
+  try {
+    write_file_atomic(path, r.body);
+  } catch (const FileError& e) {
+    throw SubmitError(e.what());
+  }
   return r.body.size();
 }
 
