@@ -238,7 +238,7 @@ FailReport parse_fail_report(const std::string& body) {
   return FailReport{request_string(j, "error", FailReport{}.error)};
 }
 
-void parse_release(const std::string& body) { parse_request_object(body, {}, true); }
+void parse_empty_request(const std::string& body) { parse_request_object(body, {}, true); }
 
 void to_json(json& j, const JobList& l) { j = {{"jobs", l.jobs}}; }
 

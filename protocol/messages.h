@@ -123,8 +123,8 @@ struct FailReport {
 void to_json(nlohmann::json& j, const FailReport& f);
 FailReport parse_fail_report(const std::string& body);
 
-/// Body of POST /v1/leases/{lease}/release (empty or {}); throws ProtocolError for anything else.
-void parse_release(const std::string& body);
+/// Body of a POST that carries nothing (release, retry): empty or {}; throws ProtocolError for anything else.
+void parse_empty_request(const std::string& body);
 
 /// Answer of GET /v1/jobs.
 struct JobList {

@@ -34,6 +34,7 @@ const std::vector<RouteSpec>& route_table() {
       {Endpoint::job_result, "/v1/jobs/{id}/result.exr", {"GET"}},
       {Endpoint::job_preview, "/v1/jobs/{id}/preview.png", {"GET"}},
       {Endpoint::job_spec, "/v1/jobs/{id}/spec", {"GET"}},
+      {Endpoint::job_retry, "/v1/jobs/{id}/retry", {"POST"}},
       {Endpoint::workers, "/v1/workers", {"POST"}},
       {Endpoint::worker_lease, "/v1/workers/{wid}/lease", {"POST"}},
       {Endpoint::lease_heartbeat, "/v1/leases/{lease}/heartbeat", {"POST"}},

@@ -30,7 +30,8 @@ Access route_access(RouteId route, http::verb method) {
     case RouteId::jobs:
     case RouteId::job:
     case RouteId::job_result:
-    case RouteId::job_preview: return Access::client;
+    case RouteId::job_preview:
+    case RouteId::job_retry: return Access::client;
     case RouteId::workers:
     case RouteId::worker_lease:
     case RouteId::lease_heartbeat:
@@ -146,7 +147,8 @@ ResourceHandler& Api::handler_for(RouteId route) {
     case RouteId::job:
     case RouteId::job_result:
     case RouteId::job_preview:
-    case RouteId::job_spec: return jobs_handler_;
+    case RouteId::job_spec:
+    case RouteId::job_retry: return jobs_handler_;
     case RouteId::workers: return workers_handler_;
     case RouteId::worker_lease:
     case RouteId::lease_heartbeat:

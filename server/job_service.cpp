@@ -164,6 +164,21 @@ protocol::JobStatus JobService::cancel(const std::string& id) {
   return std::move(*s);
 }
 
+protocol::JobStatus JobService::retry(const std::string& id) {
+  const RetryResult r = sched_.retry(id);
+  switch (r.status) {
+    case RetryResult::unknown: throw ApiError(404, "no job " + id);
+    case RetryResult::not_ended:
+      throw ApiError(409, "job " + id + " is " + to_string(r.was) + ": only failed or cancelled jobs can be retried");
+    case RetryResult::done: throw ApiError(409, "job " + id + " is done: only failed or cancelled jobs can be retried");
+    case RetryResult::retried: break;
+  }
+  spdlog::info("job {}: retried after it was {}; {} tile(s) to render, done tiles kept", id, to_string(r.was),
+               r.pending);
+  if (r.pending == 0 && !sched_.job(id)->tiles.leased) finalize(id);  // every tile was done: only the result is missing
+  return status(id);
+}
+
 protocol::JobSpec JobService::spec(const std::string& id) {
   {
     std::lock_guard lock(mu_);

@@ -49,6 +49,9 @@ class JobService {
   std::vector<protocol::JobStatus> list();
   /// Cancels a queued or running job; ApiError 404 unknown, 409 already ended.
   protocol::JobStatus cancel(const std::string& id);
+  /// Puts a failed or cancelled job back in the queue; only its tiles that are not done are rendered again. ApiError
+  /// 404 unknown, 409 for queued, running and done jobs.
+  protocol::JobStatus retry(const std::string& id);
   /// What workers need to build the job; ApiError 404.
   protocol::JobSpec spec(const std::string& id);
   /// The merged EXR of a done job; ApiError 404 unknown, 409 not done.

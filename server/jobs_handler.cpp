@@ -22,6 +22,9 @@ HttpResponse JobsHandler::handle(Endpoint endpoint, const std::string& id, HttpR
       return bytes_response(std::string(png.begin(), png.end()), "image/png", v);
     }
     case Endpoint::job_spec: return json_response(http::status::ok, jobs_.spec(id), v);
+    case Endpoint::job_retry:
+      protocol::parse_empty_request(req.body());
+      return json_response(http::status::ok, jobs_.retry(id), v);
     default: break;
   }
   throw protocol::ApiError(404, "no such endpoint");

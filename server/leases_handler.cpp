@@ -19,7 +19,7 @@ HttpResponse LeasesHandler::handle(Endpoint endpoint, const std::string& id, Htt
       jobs_.record_failure(id, protocol::parse_fail_report(req.body()).error);
       return json_response(http::status::ok, {{"status", "recorded"}}, v);
     case Endpoint::lease_release:
-      protocol::parse_release(req.body());
+      protocol::parse_empty_request(req.body());
       if (!sched_.release(id)) throw ApiError(404, "unknown lease " + id);
       spdlog::debug("lease {}: released", id);
       return json_response(http::status::ok, {{"status", "released"}}, v);

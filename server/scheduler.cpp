@@ -560,6 +560,44 @@ bool Scheduler::release(const std::string& lease) {
   });
 }
 
+RetryResult Scheduler::retry(const std::string& job) {
+  return transact([&](int64_t) {
+    RetryResult r;
+    const auto it = jobs_.find(job);
+    if (it == jobs_.end()) return r;
+    JobRec& j = *it->second;
+    r.was = j.status.state;
+    if (!is_final(j.status.state)) {
+      r.status = RetryResult::not_ended;
+      return r;
+    }
+    if (j.status.state == JobState::done) {
+      r.status = RetryResult::done;
+      return r;
+    }
+    // Leases were revoked when it ended, so its unfinished tiles are pending; only the bookkeeping of its failures
+    // goes. It keeps its place in the queue (created_ms and seq).
+    j.worker_failures.clear();
+    j.worker_last_error.clear();
+    for (int64_t i = 0; i < j.status.tiles.total; ++i) {
+      Tile& t = j.tiles[size_t(i)];
+      if (t.failures.empty()) continue;
+      t.failures.clear();
+      touch_tile(j, i);
+    }
+    const bool all_done = j.status.tiles.done == j.status.tiles.total;
+    j.status.state = all_done || j.status.started_ms ? JobState::running : JobState::queued;
+    j.status.finished_ms.reset();
+    j.status.error.reset();
+    queue_.emplace(QueueKey{-j.status.params.priority, j.status.created_ms, j.seq}, &j);
+    sync_needed_ = true;
+    touch_job(j);
+    r.status = RetryResult::retried;
+    r.pending = int64_t(j.pending.size());
+    return r;
+  });
+}
+
 CancelResult Scheduler::cancel(const std::string& job) {
   return transact([&](int64_t now) {
     CancelResult r;

@@ -84,6 +84,14 @@ struct CancelResult {
   int revoked_leases = 0;  ///< Leases revoked.
 };
 
+/// Outcome of retrying a job.
+struct RetryResult {
+  /// retried: queued again; not_ended: still queued or running; done: nothing to retry; unknown: no such job.
+  enum Status { retried, not_ended, done, unknown } status = unknown;
+  JobState was = JobState::queued;  ///< The state it had.
+  int64_t pending = 0;              ///< Tiles to render again (done tiles are kept).
+};
+
 /// Counters for /metrics.
 struct SchedulerCounters {
   std::map<JobState, int64_t> jobs;   ///< Jobs by state.
@@ -239,6 +247,9 @@ class Scheduler {
 
   /// Cancels a queued or running job and revokes its leases.
   CancelResult cancel(const std::string& job);
+  /// Puts a failed or cancelled job back in the queue keeping its done tiles; its failure counts, blocklists and
+  /// error are cleared. A job whose every tile is done becomes running with nothing to lease (see unfinalized_jobs).
+  RetryResult retry(const std::string& job);
   /// Marks a job whose tiles are all merged done (after its image was written).
   void complete_job(const std::string& job);
   /// Marks an unfinished job failed with a reason.

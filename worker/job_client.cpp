@@ -74,6 +74,18 @@ JobStatus get_job(HttpClient& http, const std::string& id) {
   return protocol::parse_answer<JobStatus>(r.body, "job " + id);
 }
 
+std::vector<JobStatus> list_jobs(HttpClient& http) {
+  const HttpResponse r = http.send("GET", routes::jobs());
+  if (r.status != 200) refuse("GET " + routes::jobs(), r);
+  return protocol::parse_answer<protocol::JobList>(r.body, "job list").jobs;
+}
+
+JobStatus retry_job(HttpClient& http, const std::string& id) {
+  const HttpResponse r = http.send("POST", routes::job_retry(id));
+  if (r.status != 200) refuse("retrying " + id, r);
+  return protocol::parse_answer<JobStatus>(r.body, "job " + id);
+}
+
 JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::function<void(const JobStatus&)>& progress,
                        const std::function<bool()>& stop, std::chrono::milliseconds poll, std::chrono::seconds give_up) {
   JobStatus last;

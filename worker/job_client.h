@@ -11,6 +11,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace tessera::farm {
 
@@ -56,6 +57,12 @@ JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::funct
 /// Downloads the finished job's result.exr to path atomically (temporary file, fsync, rename); throws SubmitError
 /// or HttpError. Returns the number of bytes.
 uint64_t download_result(HttpClient& http, const std::string& id, const std::filesystem::path& path);
+
+/// GET /v1/jobs: every job, newest first; throws SubmitError or HttpError.
+std::vector<JobStatus> list_jobs(HttpClient& http);
+
+/// POST /v1/jobs/{id}/retry: the job queued again; throws SubmitError (404, 409 with the coordinator's sentence).
+JobStatus retry_job(HttpClient& http, const std::string& id);
 
 /// DELETE /v1/jobs/{id}; true when cancelled, false when it had already ended (409). Throws for other answers.
 bool cancel_job(HttpClient& http, const std::string& id);

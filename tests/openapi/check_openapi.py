@@ -241,6 +241,13 @@ def exercise(c, tessera, workdir, address):
     c.call("DELETE", f"/v1/jobs/{a}", expect=200)
     c.call("DELETE", f"/v1/jobs/{a}", expect=409)
     c.call("DELETE", "/v1/jobs/j-none", expect=404)
+    c.call("POST", f"/v1/jobs/{a}/retry", {"x": 1}, expect=400)
+    _, again = c.call("POST", f"/v1/jobs/{a}/retry", expect=200)
+    if again["state"] not in ("queued", "running") or again["error"] is not None:
+        failures.append(f"retry: the job is {again['state']} with error {again['error']!r}")
+    c.call("POST", f"/v1/jobs/{a}/retry", expect=409)
+    c.call("POST", "/v1/jobs/j-none/retry", expect=404)
+    c.call("DELETE", f"/v1/jobs/{a}", expect=200)
     c.call("PUT", f"/v1/leases/{l3['lease']}/result", b"x", "image/x-exr", expect=410)
 
     # A job a real worker renders: the done states, the result and an accepted upload.
