@@ -13,6 +13,8 @@
 // The simulated workers share the machine with the coordinator; their own CPU use is printed too, so a row where
 // the clients starve the coordinator can be told apart from one where the coordinator is the limit.
 #include "core/image.h"
+#include "protocol/messages.h"
+#include "protocol/routes.h"
 #include "worker/child_process.h"
 #include "worker/http_client.h"
 
@@ -42,6 +44,8 @@ using namespace std::chrono_literals;
 using tessera::farm::HttpClient;
 using tessera::farm::HttpError;
 using tessera::farm::HttpResponse;
+namespace protocol = tessera::protocol;
+namespace routes = tessera::protocol::routes;
 
 namespace {
 
@@ -129,7 +133,7 @@ double self_cpu_seconds() {
 }
 
 /// A small sphere scene (no assets) of the given size: the coordinator validates it like any submission.
-json job_body(int image, int tile) {
+std::string job_body(int image, int tile) {
   json scene = {
       {"integrator", {{"type", "intersection_test"}, {"spp", 1}, {"point_light_position", {0, 3, 3}},
                       {"point_light_flux", {40, 40, 40}}}},
@@ -138,7 +142,11 @@ json job_body(int image, int tile) {
       {"textures", {{"white", {{"type", "constant"}, {"color", {0.8, 0.7, 0.6}}}}}},
       {"materials", {{"m", {{"type", "diffuse"}, {"texture_name", "white"}}}}},
       {"objects", {{{"type", "sphere"}, {"center", {0, 0, 0}}, {"radius", 0.7}, {"material_name", "m"}}}}};
-  return {{"scene", scene}, {"assets", json::object()}, {"tile_size", tile}, {"name", "sim_workers"}};
+  protocol::JobSubmission job;
+  job.scene = std::move(scene);
+  job.tile_size = tile;
+  job.name = "sim_workers";
+  return json(job).dump();
 }
 
 /// Shared state of one run.
@@ -190,14 +198,14 @@ void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
   while (!farm.stop.load()) {
     try {
       if (id.empty()) {
-        const json reg = {{"name", "sim-" + std::to_string(index)}, {"threads", 1}, {"version", "sim"}};
-        const HttpResponse r = timed(kRegister, [&] { return http.send("POST", "/v1/workers", reg.dump()); });
+        const json reg = protocol::WorkerHello{"sim-" + std::to_string(index), 1, "sim"};
+        const HttpResponse r = timed(kRegister, [&] { return http.send("POST", routes::workers(), reg.dump()); });
         if (r.status != 201) { error("register answered " + r.error_text()); nap(farm, 1s); continue; }
-        const json j = json::parse(r.body);
-        id = j.at("id").get<std::string>();
-        heartbeat_seconds = j.at("heartbeat_seconds").get<int>();
+        const auto registration = protocol::parse_answer<protocol::Registration>(r.body, "registration");
+        id = registration.id;
+        heartbeat_seconds = int(registration.heartbeat_seconds);
       }
-      const HttpResponse r = timed(kLease, [&] { return http.send("POST", "/v1/workers/" + id + "/lease"); });
+      const HttpResponse r = timed(kLease, [&] { return http.send("POST", routes::worker_lease(id)); });
       if (r.status == 204) {
         std::uniform_int_distribution<long long> pick(idle.count() / 2, idle.count());
         nap(farm, std::chrono::milliseconds(pick(rng)));
@@ -207,12 +215,12 @@ void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
       if (r.status == 404) { id.clear(); continue; }
       if (r.status != 200) { error("lease answered " + r.error_text()); nap(farm, 1s); continue; }
       idle = 100ms;
-      const json lease = json::parse(r.body);
-      const std::string lease_id = lease.at("lease").get<std::string>();
-      const std::string job = lease.at("job").get<std::string>();
-      const auto window = lease.at("window").get<std::array<int, 4>>();
+      const auto lease = protocol::parse_answer<protocol::Lease>(r.body, "lease");
+      const std::string& lease_id = lease.id;
+      const std::string& job = lease.job;
+      const std::array<int, 4> window = {lease.window.x0, lease.window.y0, lease.window.x1, lease.window.y1};
       if (job != spec_job) {
-        const HttpResponse s = timed(kSpec, [&] { return http.send("GET", "/v1/jobs/" + job + "/spec"); });
+        const HttpResponse s = timed(kSpec, [&] { return http.send("GET", routes::job_spec(job)); });
         if (s.status != 200) { error("spec answered " + s.error_text()); continue; }
         spec_job = job;
       }
@@ -226,7 +234,7 @@ void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
         if (!nap(farm, next - Clock::now())) break;
         if (Clock::now() >= done) break;
         const HttpResponse h = timed(kHeartbeat, [&] {
-          return http.send("POST", "/v1/leases/" + lease_id + "/heartbeat", R"({"rays": 4096})");
+          return http.send("POST", routes::lease_heartbeat(lease_id), json(protocol::HeartbeatReport{4096}).dump());
         });
         if (h.status == 410) { revoked = true; break; }
         if (h.status != 200) error("heartbeat answered " + h.error_text());
@@ -235,7 +243,7 @@ void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
       const std::string& exr = farm.bank.at(window);
       tessera::farm::HttpRequest up;
       up.method = "PUT";
-      up.target = "/v1/leases/" + lease_id + "/result";
+      up.target = routes::lease_result(lease_id);
       up.body = exr;
       up.content_type = "image/x-exr";
       up.headers["X-Tessera-Rays"] = "4096";
@@ -259,27 +267,25 @@ void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
 /// Keeps at least two unfinished jobs on the coordinator so that workers always find work.
 void feeder(Farm& farm, WorkerTally& tally) {
   HttpClient http(farm.url);
-  const std::string body = job_body(farm.opt.image, farm.opt.tile).dump();
+  const std::string body = job_body(farm.opt.image, farm.opt.tile);
   while (!farm.stop.load()) {
     try {
-      const HttpResponse r = http.send("GET", "/v1/jobs");
+      const HttpResponse r = http.send("GET", routes::jobs());
       int unfinished = 0;
       int64_t pending = 0;
       if (r.status == 200) {
-        const json listing = json::parse(r.body);  // named: a range-for over a temporary's member would dangle
-        for (const json& j : listing.at("jobs")) {
-          const std::string state = j.at("state").get<std::string>();
-          if (state != "queued" && state != "running") continue;
+        for (const protocol::JobStatus& j : protocol::parse_answer<protocol::JobList>(r.body, "job list").jobs) {
+          if (j.finished()) continue;
           ++unfinished;
-          pending += j.at("tiles").at("pending").get<int64_t>();
+          pending += j.tiles.pending;
         }
       }
       // At least two unfinished jobs, and enough pending tiles that no worker waits for the next check.
       const int64_t per_job = int64_t((farm.opt.image + farm.opt.tile - 1) / farm.opt.tile) *
                               ((farm.opt.image + farm.opt.tile - 1) / farm.opt.tile);
       while (unfinished < 2 || pending < 2 * int64_t(farm.workers)) {
-        const HttpResponse s = http.send("POST", "/v1/jobs", body);
-        if (s.status != 201) throw std::runtime_error("POST /v1/jobs answered " + s.error_text());
+        const HttpResponse s = http.send("POST", routes::jobs(), body);
+        if (s.status != 201) throw std::runtime_error("POST " + routes::jobs() + " answered " + s.error_text());
         ++unfinished;
         pending += per_job;
       }

@@ -1,4 +1,5 @@
 // The single `tessera` executable: one subcommand per way of using the farm.
+#include "cli/jobs_command.h"
 #include "cli/merge_command.h"
 #include "cli/render_command.h"
 #include "cli/serve_command.h"
@@ -25,6 +26,8 @@ int main(int argc, char** argv) {
     auto* worker = tessera::cli::add_worker_command(app, worker_args);
     tessera::cli::SubmitArgs submit_args;
     auto* submit = tessera::cli::add_submit_command(app, submit_args);
+    tessera::cli::JobsArgs jobs_args;
+    auto* jobs = tessera::cli::add_jobs_command(app, jobs_args);
     tessera::cli::MergeArgs merge_args;
     auto* merge = tessera::cli::add_merge_command(app, merge_args);
 
@@ -34,6 +37,7 @@ int main(int argc, char** argv) {
     if (serve->parsed()) return tessera::cli::run_serve(serve_args);
     if (worker->parsed()) return tessera::cli::run_worker_command(worker_args);
     if (submit->parsed()) return tessera::cli::run_submit(submit_args);
+    if (jobs->parsed()) return tessera::cli::run_jobs(jobs_args);
     if (merge->parsed()) return tessera::cli::run_merge(merge_args);
     std::fputs(app.help().c_str(), stdout);
     return 0;

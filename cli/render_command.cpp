@@ -46,9 +46,11 @@ CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
                 "Sample each pixel in doubling rounds until the relative standard error of its luminance is at most "
                 "this (e.g. 0.02); --spp is then ignored")
       ->check(CLI::Range(0.f, 1e6f));
-  c->add_option("--min-spp", a.min_spp, "With --target-error: samples of the first round (default 16)")
+  c->add_option("--min-spp", a.min_spp, "With --target-error: samples of the first round")
+      ->capture_default_str()
       ->check(CLI::Range(1u, 1u << 20));
-  c->add_option("--max-spp", a.max_spp, "With --target-error: most samples per pixel (default 1024)")
+  c->add_option("--max-spp", a.max_spp, "With --target-error: most samples per pixel")
+      ->capture_default_str()
       ->check(CLI::Range(1u, 1u << 20));
   c->add_option("--error-floor", a.error_floor,
                 "With --target-error: luminance below which absolute error is measured (default 0.01)")

@@ -1,6 +1,8 @@
 // `tessera render`: load a scene, render it (or a crop of it) on this machine, write an OpenEXR file.
 #pragma once
 
+#include "core/adaptive.h"
+
 #include <CLI/CLI.hpp>
 
 #include <array>
@@ -28,10 +30,10 @@ struct RenderArgs {
   int tile_size = 16;                   ///< Thread tile edge.
   bool quiet = false;                   ///< No progress bar.
   int workers = 0;                      ///< >0: render through a local coordinator and this many worker processes.
-  int farm_tile = 64;                   ///< Farm tile edge (with --workers).
+  int farm_tile = 64;                   ///< Farm tile edge (with --workers; the farm's default tile size).
   float target_error = 0.f;             ///< Adaptive sampling target (relative standard error); 0: off.
-  uint32_t min_spp = 16;                ///< Adaptive sampling: first round and minimum.
-  uint32_t max_spp = 1024;              ///< Adaptive sampling: cap.
+  uint32_t min_spp = kAdaptiveMinSpp;   ///< Adaptive sampling: first round and minimum.
+  uint32_t max_spp = kAdaptiveMaxSpp;   ///< Adaptive sampling: cap.
   float error_floor = 0.01f;            ///< Adaptive sampling: luminance floor of the relative error.
   uint32_t replicates = 1;              ///< Independent replicates per pixel (unbiased error estimates when >= 2).
   std::string area_sampling;            ///< Overrides integrator.area_sampling (auto, solid_angle or area).

@@ -69,20 +69,9 @@ int run_render_farm(const RenderArgs& a) {
     spdlog::error("--workers renders whole images without variance channels: drop --crop/--variance");
     return 2;
   }
-  // Options the farm's job API does not carry yet: refused, never silently dropped.
-  std::vector<std::string> unsupported;
-  if (!a.area_sampling.empty()) unsupported.push_back("--area-sampling");
-  if (!a.env_sampling.empty()) unsupported.push_back("--env-sampling");
-  if (!a.bvh.empty()) unsupported.push_back("--bvh");
-  if (a.replicates > 1) unsupported.push_back("--replicates");
-  if (a.strict) unsupported.push_back("--strict");
-  if (a.error_floor != AdaptiveOptions{}.error_floor) unsupported.push_back("--error-floor");
-  if (!unsupported.empty()) {
-    std::string list;
-    for (const auto& u : unsupported) list += (list.empty() ? "" : ", ") + u;
-    spdlog::error("--workers does not pass on {} yet: set the sampling strategies in the scene's \"integrator\" block "
-                  "(area_sampling, env_sampling, bvh), or render without --workers",
-                  list);
+  // --strict is a property of loading the file here, which the coordinator does not repeat: refused, never dropped.
+  if (a.strict) {
+    spdlog::error("--workers does not pass on --strict: check the scene with `tessera render --strict` first");
     return 2;
   }
   InterruptGuard guard;
@@ -118,6 +107,11 @@ int run_render_farm(const RenderArgs& a) {
     http.set_bearer_token(client_token);
     farm::SubmitOptions o = shared_job_options(a);
     o.tile_size = a.farm_tile;
+    o.sampling.error_floor = a.error_floor;
+    o.sampling.replicates = a.replicates;
+    o.sampling.area_sampling = a.area_sampling;
+    o.sampling.env_sampling = a.env_sampling;
+    o.sampling.bvh = a.bvh;
     rc = submit_and_wait(http, o, a.output, a.quiet, [&] {
       if (InterruptGuard::interrupted()) return true;
       // Every worker gone means no progress is possible.

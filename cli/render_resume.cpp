@@ -1,5 +1,7 @@
 #include "cli/render_resume.h"
 
+#include "protocol/messages.h"
+
 #include <charconv>
 #include <stdexcept>
 
@@ -25,31 +27,22 @@ T number(const ExrImage& file, const std::string& path, const std::string& key) 
   return v;
 }
 
-// The shortest text that reads back as exactly v.
-std::string exact_text(float v) {
-  char buf[32];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v);
-  return std::string(buf, r.ptr);
-}
-
 }  // namespace
 
 std::map<std::string, std::string> sampling_metadata(const RenderArgs& a, uint32_t spp) {
-  std::map<std::string, std::string> m;
-  m["tessera:seed"] = std::to_string(a.seed);
-  m["tessera:spp"] = a.target_error > 0.f ? std::string("adaptive") : std::to_string(spp);
-  if (a.target_error > 0.f) {
-    m["tessera:targetError"] = exact_text(a.target_error);
-    m["tessera:minSpp"] = std::to_string(a.min_spp);
-    m["tessera:maxSpp"] = std::to_string(a.max_spp);
-    m["tessera:errorFloor"] = exact_text(a.error_floor);
-  }
-  m["tessera:replicates"] = std::to_string(a.replicates);
+  protocol::SamplingSettings s;
+  s.spp = spp;
+  s.seed = a.seed;
+  s.target_error = a.target_error;
+  s.min_spp = a.min_spp;
+  s.max_spp = a.max_spp;
+  s.error_floor = a.error_floor;
+  s.replicates = a.replicates;
   // Strategy overrides given on the command line (the chosen strategies themselves are recorded by the caller).
-  if (!a.area_sampling.empty()) m["tessera:areaSamplingOverride"] = a.area_sampling;
-  if (!a.env_sampling.empty()) m["tessera:envSamplingOverride"] = a.env_sampling;
-  if (!a.bvh.empty()) m["tessera:bvhOverride"] = a.bvh;
-  return m;
+  s.area_sampling = a.area_sampling;
+  s.env_sampling = a.env_sampling;
+  s.bvh = a.bvh;
+  return s.metadata();
 }
 
 uint32_t recorded_spp(const ExrImage& file) {

@@ -68,7 +68,7 @@ int run_serve(const ServeArgs& a) {
     server::Coordinator coordinator(o);
     const auto ep = coordinator.endpoint();
     const std::string bound = ep.address().to_string() + ":" + std::to_string(ep.port());
-    if (!a.ready_file.empty()) server::write_file_atomic(a.ready_file, bound + "\n");
+    if (!a.ready_file.empty()) write_file_atomic(a.ready_file, bound + "\n");
     const auto& t = o.limits.tokens;
     spdlog::info("coordinator listening on http://{} (data in {}, leases {}s, heartbeats {}s, tokens: {})", bound,
                  a.data, a.lease_seconds, a.heartbeat_seconds,

@@ -28,9 +28,11 @@ CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
   c->add_option("--target-error", a.target_error,
                 "Adaptive sampling: sample each pixel until its relative standard error is at most this")
       ->check(CLI::Range(0.0, 1e6));
-  c->add_option("--min-spp", a.min_spp, "With --target-error: samples of the first round (default 16)")
+  c->add_option("--min-spp", a.min_spp, "With --target-error: samples of the first round")
+      ->capture_default_str()
       ->check(CLI::Range(1u, 1u << 20));
-  c->add_option("--max-spp", a.max_spp, "With --target-error: most samples per pixel (default 1024)")
+  c->add_option("--max-spp", a.max_spp, "With --target-error: most samples per pixel")
+      ->capture_default_str()
       ->check(CLI::Range(1u, 1u << 20));
   c->add_option("--token-file", a.token_file, "File holding the client token (default: $TESSERA_CLIENT_TOKEN)");
   c->add_flag("--detach", a.detach, "Print the job id and return without waiting");
@@ -53,7 +55,7 @@ int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& o, const 
         http, job,
         [&](const farm::JobStatus& s) {
           const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-          bar.update(RenderProgress{int(s.tiles_done), int(s.tiles_total), s.rays, secs});
+          bar.update(RenderProgress{int(s.tiles.done), int(s.tiles.total), s.rays, secs});
         },
         stop);
     if (!end.finished()) {
@@ -65,11 +67,11 @@ int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& o, const 
       }
       return 1;
     }
-    if (end.state == "failed") {
-      spdlog::error("job {} failed: {}", job, end.error.empty() ? "(no reason given)" : end.error);
+    if (end.state == protocol::JobState::failed) {
+      spdlog::error("job {} failed: {}", job, end.error.value_or("(no reason given)"));
       return 1;
     }
-    if (end.state == "cancelled") {
+    if (end.state == protocol::JobState::cancelled) {
       spdlog::error("job {} was cancelled", job);
       return 1;
     }
@@ -78,7 +80,7 @@ int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& o, const 
       const uint64_t bytes = farm::download_result(http, job, output);
       if (!quiet)
         std::fprintf(stderr, "%s: %dx%d px, %lld tiles, %.2fs (%.2fs from the first lease), %llu bytes\n",
-                     output.c_str(), end.width, end.height, static_cast<long long>(end.tiles_total), secs,
+                     output.c_str(), end.params.width, end.params.height, static_cast<long long>(end.tiles.total), secs,
                      end.render_seconds, static_cast<unsigned long long>(bytes));
     } else if (!quiet) {
       std::fprintf(stderr, "%s done in %.2fs\n", job.c_str(), secs);

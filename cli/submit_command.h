@@ -19,15 +19,15 @@ struct SubmitArgs {
   std::string coordinator;          ///< Coordinator URL.
   std::string output;               ///< Where to write result.exr (empty: do not download).
   std::optional<uint32_t> spp;      ///< Samples per pixel override.
-  int tile_size = 64;               ///< Tile edge.
-  int priority = 0;                 ///< Job priority.
+  int tile_size = protocol::kDefaultTileSize;  ///< Tile edge.
+  int priority = protocol::kDefaultPriority;   ///< Job priority.
   uint64_t seed = 0;                ///< Sample seed.
   std::string name;                 ///< Job label.
   std::string integrator;           ///< "direct": submit scenes of other integrator types.
   std::string asset_root;           ///< Allow assets anywhere below this folder.
   double target_error = 0.0;        ///< Adaptive sampling target (0: off).
-  uint32_t min_spp = 16;            ///< Adaptive sampling: first round.
-  uint32_t max_spp = 1024;          ///< Adaptive sampling: most samples per pixel.
+  uint32_t min_spp = protocol::kDefaultMinSpp;  ///< Adaptive sampling: first round.
+  uint32_t max_spp = protocol::kDefaultMaxSpp;  ///< Adaptive sampling: most samples per pixel.
   std::string token_file;           ///< File holding the client token (else $TESSERA_CLIENT_TOKEN).
   bool detach = false;              ///< Print the job id and return without waiting.
   bool quiet = false;               ///< No progress bar.
@@ -39,13 +39,13 @@ template <class Args>
 farm::SubmitOptions shared_job_options(const Args& a) {
   farm::SubmitOptions o;
   o.scene = a.scene;
-  o.spp = a.spp;
-  o.seed = a.seed;
-  o.force_direct = !a.integrator.empty();
+  o.sampling.spp = a.spp.value_or(0);
+  o.sampling.seed = a.seed;
+  if (!a.integrator.empty()) o.sampling.integrator = "direct";
   if (!a.asset_root.empty()) o.asset_root = a.asset_root;
-  o.target_error = a.target_error;
-  o.min_spp = a.min_spp;
-  o.max_spp = a.max_spp;
+  o.sampling.target_error = a.target_error;
+  o.sampling.min_spp = a.min_spp;
+  o.sampling.max_spp = a.max_spp;
   return o;
 }
 

@@ -1,21 +1,23 @@
-// The farm protocol's endpoints (docs/protocol.md): routing, request validation and responses over the scheduler,
-// the stores and the job images. Knows HTTP messages, not sockets.
+// The farm protocol's front door (docs/protocol.md): matches a request to its endpoint, checks its token and body
+// limit, hands it to that resource's handler and turns refusals into error answers. Knows HTTP messages, not sockets.
 #pragma once
 
-#include "server/assembly.h"
+#include "protocol/messages.h"
+#include "protocol/routes.h"
 #include "server/auth.h"
+#include "server/blobs_handler.h"
 #include "server/http_server.h"
+#include "server/job_service.h"
+#include "server/jobs_handler.h"
+#include "server/leases_handler.h"
 #include "server/metrics.h"
+#include "server/monitor_handler.h"
 #include "server/scheduler.h"
 #include "server/storage.h"
-
-#include <nlohmann/json.hpp>
+#include "server/workers_handler.h"
 
 #include <cstddef>
 #include <cstdint>
-#include <map>
-#include <memory>
-#include <mutex>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -28,7 +30,7 @@ struct ApiOptions {
   std::size_t json_limit = std::size_t(16) << 20;    ///< JSON request bodies.
   std::size_t blob_limit = std::size_t(256) << 20;   ///< Blob uploads.
   std::size_t result_limit = std::size_t(64) << 20;  ///< Tile result uploads.
-  int heartbeat_seconds = 5;                         ///< Heartbeat interval announced to workers.
+  int heartbeat_seconds = protocol::kDefaultHeartbeatSeconds;  ///< Heartbeat interval announced to workers.
   AccessTokens tokens;                               ///< Bearer tokens (empty: that side's endpoints are open).
   int64_t max_queued_jobs = 1000;                    ///< Queued plus running jobs; more submissions get 429.
   int retry_after_seconds = 30;                      ///< Retry-After announced with 429.
@@ -36,11 +38,8 @@ struct ApiOptions {
   double max_job_samples = 4e10;                     ///< width x height x spp (x max_spp when adaptive) of one job.
 };
 
-/// The endpoints a request target can name.
-enum class RouteId {
-  none, healthz, metrics, blob, jobs, job, job_result, job_preview, job_spec, workers, worker_lease,
-  lease_heartbeat, lease_result, lease_fail, lease_release
-};
+/// The endpoints a request target can name (protocol/routes.h).
+using RouteId = protocol::Endpoint;
 
 /// A matched request target.
 struct Route {
@@ -65,43 +64,20 @@ class Api final : public HttpHandler {
   std::optional<HttpResponse> early_response(const http::request_header<>& header) noexcept override;
   HttpResponse handle(HttpRequest&& request) noexcept override;
   /// After a restart: finishes jobs whose every tile was stored but whose result was not written yet.
-  void recover();
+  void recover() { jobs_.recover(); }
 
  private:
   std::optional<HttpResponse> check_access(const Route& route, const http::request_header<>& header);
-  HttpResponse dispatch(const Route& route, HttpRequest& req);
-  HttpResponse put_blob(const std::string& sha, HttpRequest& req);
-  HttpResponse head_blob(const std::string& sha, HttpRequest& req);
-  HttpResponse get_blob(const std::string& sha, HttpRequest& req);
-  HttpResponse post_job(HttpRequest& req);
-  HttpResponse list_jobs(HttpRequest& req);
-  HttpResponse get_job(const std::string& id, HttpRequest& req);
-  HttpResponse delete_job(const std::string& id, HttpRequest& req);
-  HttpResponse get_result(const std::string& id, HttpRequest& req);
-  HttpResponse get_preview(const std::string& id, HttpRequest& req);
-  HttpResponse get_spec(const std::string& id, HttpRequest& req);
-  HttpResponse post_worker(HttpRequest& req);
-  HttpResponse post_lease(const std::string& worker, HttpRequest& req);
-  HttpResponse post_heartbeat(const std::string& lease, HttpRequest& req);
-  HttpResponse put_result(const std::string& lease, HttpRequest& req);
-  HttpResponse post_fail(const std::string& lease, HttpRequest& req);
-  HttpResponse post_release(const std::string& lease, HttpRequest& req);
+  ResourceHandler& handler_for(RouteId route);
 
-  nlohmann::json job_json(const JobStatus& s) const;
-  std::shared_ptr<JobImage> image_for(const std::string& job, int width, int height);
-  void drop_image(const std::string& job);
-  void finalize(const std::string& job);
-
-  Scheduler& sched_;
-  BlobStore& blobs_;
-  JobStore& jobs_;
   Metrics& metrics_;
-  ClockMs clock_;
   ApiOptions opt_;
-  std::mutex mu_;
-  std::mutex admit_mu_;                                      // makes the queued-jobs check and add_job one step
-  std::map<std::string, std::shared_ptr<JobImage>> images_;  // running jobs' images (a cache of the stored tiles)
-  std::map<std::string, nlohmann::json> specs_;              // job id -> what workers need to build the scene
+  JobService jobs_;
+  JobsHandler jobs_handler_;
+  LeasesHandler leases_handler_;
+  WorkersHandler workers_handler_;
+  BlobsHandler blobs_handler_;
+  MonitorHandler monitor_handler_;
 };
 
 }  // namespace tessera::server

@@ -30,17 +30,6 @@ E parse_state(std::string_view s, const E (&all)[N], const char* what) {
 
 }  // namespace
 
-const char* to_string(JobState s) {
-  switch (s) {
-    case JobState::queued: return "queued";
-    case JobState::running: return "running";
-    case JobState::done: return "done";
-    case JobState::failed: return "failed";
-    case JobState::cancelled: return "cancelled";
-  }
-  return "unknown";
-}
-
 const char* to_string(TileState s) {
   switch (s) {
     case TileState::pending: return "pending";
@@ -61,12 +50,6 @@ const char* to_string(LeaseState s) {
     case LeaseState::failed: return "failed";
   }
   return "unknown";
-}
-
-JobState job_state_from_string(std::string_view s) {
-  static constexpr JobState all[] = {JobState::queued, JobState::running, JobState::done, JobState::failed,
-                                     JobState::cancelled};
-  return parse_state(s, all, "job");
 }
 
 TileState tile_state_from_string(std::string_view s) {
@@ -275,10 +258,11 @@ std::string Scheduler::add_job(const JobParams& p, const std::string& id_in) {
   });
 }
 
-JobStatus Scheduler::snapshot_locked(const JobRec& j, int64_t) const {
+JobStatus Scheduler::snapshot_locked(const JobRec& j, int64_t now) const {
   JobStatus s = j.status;
   s.tiles.pending = int64_t(j.pending.size());
   s.tiles.leased = s.tiles.total - s.tiles.done - s.tiles.pending;
+  if (s.started_ms) s.render_seconds = double(s.finished_ms.value_or(now) - *s.started_ms) / 1000.0;
   return s;
 }
 
@@ -520,10 +504,7 @@ void Scheduler::abandon_result(const std::string& lease) {
     JobRec& j = *jobs_.at(it->second.lease.job);
     Tile& t = j.tiles[size_t(it->second.lease.tile)];
     if (t.state != TileState::merging || t.lease != lease) return 0;
-    t.state = TileState::pending;
-    t.lease.clear();
-    j.pending.insert(it->second.lease.tile);
-    touch_tile(j, it->second.lease.tile);
+    return_to_pending_locked(j, it->second.lease.tile);
     return 0;
   });
 }
@@ -547,11 +528,7 @@ FailResult Scheduler::fail(const std::string& lease, const std::string& error) {
     }
     const bool was_live = l.state == LeaseState::live;
     end_lease_locked(l, LeaseState::failed);
-    if (was_live && t.lease == lease) {
-      t.state = TileState::pending;
-      t.lease.clear();
-      j.pending.insert(l.lease.tile);
-    }
+    if (was_live && t.lease == lease) return_to_pending_locked(j, l.lease.tile);
     const std::string& w = l.lease.worker;
     t.failures[w] = error;
     const int n = ++j.worker_failures[w];
@@ -580,13 +557,46 @@ bool Scheduler::release(const std::string& lease) {
     end_lease_locked(l, LeaseState::released);
     JobRec& j = *jobs_.at(l.lease.job);
     Tile& t = j.tiles[size_t(l.lease.tile)];
-    if (t.state == TileState::leased && t.lease == lease) {
-      t.state = TileState::pending;
-      t.lease.clear();
-      j.pending.insert(l.lease.tile);
-      touch_tile(j, l.lease.tile);
-    }
+    if (t.state == TileState::leased && t.lease == lease) return_to_pending_locked(j, l.lease.tile);
     return true;
+  });
+}
+
+RetryResult Scheduler::retry(const std::string& job) {
+  return transact([&](int64_t) {
+    RetryResult r;
+    const auto it = jobs_.find(job);
+    if (it == jobs_.end()) return r;
+    JobRec& j = *it->second;
+    r.was = j.status.state;
+    if (!is_final(j.status.state)) {
+      r.status = RetryResult::not_ended;
+      return r;
+    }
+    if (j.status.state == JobState::done) {
+      r.status = RetryResult::done;
+      return r;
+    }
+    // Leases were revoked when it ended, so its unfinished tiles are pending; only the bookkeeping of its failures
+    // goes. It keeps its place in the queue (created_ms and seq).
+    j.worker_failures.clear();
+    j.worker_last_error.clear();
+    for (int64_t i = 0; i < j.status.tiles.total; ++i) {
+      Tile& t = j.tiles[size_t(i)];
+      if (t.failures.empty()) continue;
+      t.failures.clear();
+      touch_tile(j, i);
+    }
+    const bool all_done = j.status.tiles.done == j.status.tiles.total;
+    j.status.state = all_done || j.status.started_ms ? JobState::running : JobState::queued;
+    j.status.finished_ms.reset();
+    j.status.error.reset();
+    queue_.emplace(QueueKey{-j.status.params.priority, j.status.created_ms, j.seq}, &j);
+    sync_needed_ = true;
+    touch_job(j);
+    r.status = RetryResult::retried;
+    r.pending = int64_t(j.pending.size());
+    return r;
   });
 }
 
@@ -651,6 +661,14 @@ std::vector<std::string> Scheduler::unfinalized_jobs() {
   });
 }
 
+void Scheduler::return_to_pending_locked(JobRec& j, int64_t tile) {
+  Tile& t = j.tiles[size_t(tile)];
+  t.state = TileState::pending;
+  t.lease.clear();
+  j.pending.insert(tile);
+  touch_tile(j, tile);
+}
+
 void Scheduler::expire_locked(int64_t now) {
   for (auto it = live_leases_.begin(); it != live_leases_.end();) {
     LeaseRec& l = leases_.at(*it);
@@ -661,12 +679,7 @@ void Scheduler::expire_locked(int64_t now) {
     spdlog::info("job {} tile {} worker {}: lease {} expired", l.lease.job, l.lease.tile, l.lease.worker, l.lease.id);
     JobRec& j = *jobs_.at(l.lease.job);
     Tile& t = j.tiles[size_t(l.lease.tile)];
-    if (t.state == TileState::leased && t.lease == l.lease.id) {
-      t.state = TileState::pending;
-      t.lease.clear();
-      j.pending.insert(l.lease.tile);
-      touch_tile(j, l.lease.tile);
-    }
+    if (t.state == TileState::leased && t.lease == l.lease.id) return_to_pending_locked(j, l.lease.tile);
   }
 }
 
@@ -689,12 +702,7 @@ void Scheduler::finish_job_locked(JobRec& j, JobState to, int64_t now, std::opti
     if (l.lease.job != j.status.id) continue;
     end_lease_locked(l, LeaseState::revoked);
     Tile& t = j.tiles[size_t(l.lease.tile)];
-    if (t.state == TileState::leased && t.lease == l.lease.id) {
-      t.state = TileState::pending;
-      t.lease.clear();
-      j.pending.insert(l.lease.tile);
-      touch_tile(j, l.lease.tile);
-    }
+    if (t.state == TileState::leased && t.lease == l.lease.id) return_to_pending_locked(j, l.lease.tile);
   }
 }
 

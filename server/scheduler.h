@@ -3,6 +3,8 @@
 #pragma once
 
 #include "core/image.h"
+#include "protocol/job.h"
+#include "protocol/messages.h"
 
 #include <cstdint>
 #include <functional>
@@ -21,14 +23,15 @@ namespace tessera::server {
 /// Milliseconds since the Unix epoch (or any fixed origin in tests); injected so tests control time.
 using ClockMs = std::function<int64_t()>;
 
-/// Life cycle of a job (docs/protocol.md, "Jobs, tiles and leases").
-enum class JobState { queued, running, done, failed, cancelled };
-
-/// The protocol's lowercase name of a job state.
-const char* to_string(JobState s);
-
-/// True for states a job never leaves (done, failed, cancelled).
-inline bool is_final(JobState s) { return s == JobState::done || s == JobState::failed || s == JobState::cancelled; }
+// The protocol's job and lease types are the scheduler's own (protocol/job.h, protocol/messages.h).
+using protocol::is_final;
+using protocol::to_string;
+using protocol::job_state_from_string;
+using protocol::JobParams;
+using protocol::JobState;
+using protocol::JobStatus;
+using protocol::Lease;
+using protocol::TileCounts;
 
 /// Scheduler tunables.
 struct SchedulerConfig {
@@ -37,53 +40,6 @@ struct SchedulerConfig {
   int worker_failure_limit = 2;    ///< Failures after which a worker is blocklisted for a job.
   std::string id_tag;              ///< Inserted into generated ids ("j-<tag>-1") so ids differ between runs.
   int64_t worker_gone_ms = 0;      ///< A worker not seen for this long no longer counts as present (0: 3 leases).
-};
-
-/// What a job renders, fixed at submission.
-struct JobParams {
-  std::string name;         ///< Optional label.
-  int priority = 0;         ///< Higher is scheduled first.
-  int width = 0;            ///< Image columns.
-  int height = 0;           ///< Image rows.
-  int tile_size = 64;       ///< Tile edge in pixels.
-  uint32_t spp = 1;         ///< Samples per pixel.
-  uint64_t seed = 0;        ///< Sample seed.
-  std::string scene_hash;   ///< The loader's content hash of scene and assets.
-};
-
-/// Tile counts of a job.
-struct TileCounts {
-  int64_t total = 0;    ///< Tiles in the job.
-  int64_t done = 0;     ///< Merged tiles.
-  int64_t leased = 0;   ///< Tiles under a live lease or being merged.
-  int64_t pending = 0;  ///< Tiles waiting for a worker.
-};
-
-/// A snapshot of one job.
-struct JobStatus {
-  std::string id;                       ///< Job id.
-  JobParams params;                     ///< What it renders.
-  JobState state = JobState::queued;    ///< Where it is in its life cycle.
-  TileCounts tiles;                     ///< Tile counts.
-  int64_t created_ms = 0;               ///< Submission time.
-  std::optional<int64_t> started_ms;    ///< First lease.
-  std::optional<int64_t> finished_ms;   ///< Entered a final state.
-  std::optional<std::string> error;     ///< Why it failed.
-  uint64_t rays = 0;                    ///< Rays reported by workers.
-  std::vector<std::string> workers;     ///< Workers whose tiles were merged, in order of first merge.
-};
-
-/// A granted lease: everything a worker needs to render the tile.
-struct Lease {
-  std::string id;           ///< Lease id.
-  std::string job;          ///< Job id.
-  std::string worker;       ///< Worker holding it.
-  int64_t tile = 0;         ///< Tile index.
-  PixelWindow window;       ///< Tile pixels.
-  uint32_t spp = 0;         ///< Samples per pixel.
-  uint64_t seed = 0;        ///< Sample seed.
-  std::string scene_hash;   ///< Scene content hash.
-  int64_t deadline_ms = 0;  ///< Expiry unless extended.
 };
 
 /// Outcome of asking for work.
@@ -128,6 +84,14 @@ struct CancelResult {
   int revoked_leases = 0;  ///< Leases revoked.
 };
 
+/// Outcome of retrying a job.
+struct RetryResult {
+  /// retried: queued again; not_ended: still queued or running; done: nothing to retry; unknown: no such job.
+  enum Status { retried, not_ended, done, unknown } status = unknown;
+  JobState was = JobState::queued;  ///< The state it had.
+  int64_t pending = 0;              ///< Tiles to render again (done tiles are kept).
+};
+
 /// Counters for /metrics.
 struct SchedulerCounters {
   std::map<JobState, int64_t> jobs;   ///< Jobs by state.
@@ -148,8 +112,6 @@ enum class LeaseState { live, expired, revoked, completed, released, failed };
 const char* to_string(TileState s);
 /// The lowercase name of a lease state (as stored).
 const char* to_string(LeaseState s);
-/// Parses a stored job state name; throws std::invalid_argument for unknown names.
-JobState job_state_from_string(std::string_view s);
 /// Parses a stored tile state name; throws std::invalid_argument for unknown names.
 TileState tile_state_from_string(std::string_view s);
 /// Parses a stored lease state name; throws std::invalid_argument for unknown names.
@@ -285,6 +247,9 @@ class Scheduler {
 
   /// Cancels a queued or running job and revokes its leases.
   CancelResult cancel(const std::string& job);
+  /// Puts a failed or cancelled job back in the queue keeping its done tiles; its failure counts, blocklists and
+  /// error are cleared. A job whose every tile is done becomes running with nothing to lease (see unfinalized_jobs).
+  RetryResult retry(const std::string& job);
   /// Marks a job whose tiles are all merged done (after its image was written).
   void complete_job(const std::string& job);
   /// Marks an unfinished job failed with a reason.
@@ -332,6 +297,8 @@ class Scheduler {
   bool all_present_blocklisted_locked(const JobRec& j, int64_t now, size_t* present) const;
   bool fail_if_all_blocklisted_locked(JobRec& j, int64_t now);
   void expire_locked(int64_t now);
+  /// Hands a tile back to the queue: pending, no lease, leasable again.
+  void return_to_pending_locked(JobRec& j, int64_t tile);
   void end_lease_locked(LeaseRec& l, LeaseState to);
   void finish_job_locked(JobRec& j, JobState to, int64_t now, std::optional<std::string> error);
   ResultClaim claim_view_locked(const std::string& lease, JobRec** job_out, LeaseRec** lease_out);

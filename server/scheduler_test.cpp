@@ -377,6 +377,72 @@ TEST_F(SchedulerTest, CancelRevokesLeasesAndDiscardsUploads) {
   EXPECT_EQ(s.counters().active_leases, 0);
 }
 
+// Retry (issue 14): a failed job goes back to the queue with its done tiles kept and its failures forgotten.
+TEST_F(SchedulerTest, RetryOfAFailedJobLeasesOnlyTheTilesNotDone) {
+  const std::string j = job();  // 4 tiles
+  const std::string a = s.register_worker("a"), b = s.register_worker("b"), c = s.register_worker("c");
+  EXPECT_EQ(upload(lease(a).id), ResultClaim::proceed);  // tile 0
+  EXPECT_EQ(upload(lease(a).id), ResultClaim::proceed);  // tile 1
+  EXPECT_FALSE(s.fail(lease(a).id, "boom a").job_failed);  // tile 2, a's first failure
+  EXPECT_FALSE(s.fail(lease(b).id, "boom b").job_failed);
+  EXPECT_TRUE(s.fail(lease(c).id, "boom c").job_failed);
+  ASSERT_EQ(s.job(j)->state, JobState::failed);
+
+  now += 1000;
+  const RetryResult r = s.retry(j);
+  EXPECT_EQ(r.status, RetryResult::retried);
+  EXPECT_EQ(r.was, JobState::failed);
+  EXPECT_EQ(r.pending, 2);
+  JobStatus st = *s.job(j);
+  EXPECT_EQ(st.state, JobState::running);
+  EXPECT_FALSE(st.error);
+  EXPECT_FALSE(st.finished_ms);
+  EXPECT_EQ(st.tiles.done, 2);
+  // c failed tile 2 before: no blocklist or failure count survives the retry, so three more failures are needed.
+  const Lease l2 = lease(c), l3 = lease(c);
+  EXPECT_EQ(l2.tile, 2);
+  EXPECT_EQ(l3.tile, 3);
+  EXPECT_EQ(s.acquire(a).status, AcquireResult::no_work);  // nothing else to render
+  bool last = false;
+  EXPECT_EQ(upload(l2.id, &last), ResultClaim::proceed);
+  EXPECT_FALSE(last);
+  EXPECT_EQ(upload(l3.id, &last), ResultClaim::proceed);
+  EXPECT_TRUE(last);
+  s.complete_job(j);
+  EXPECT_EQ(s.job(j)->state, JobState::done);
+  EXPECT_EQ(s.counters().tiles_rendered, 4u);
+}
+
+TEST_F(SchedulerTest, RetryOfACancelledJobRequeuesItAndRefusesOtherStates) {
+  const std::string j = job();
+  const std::string a = s.register_worker("a");
+  const Lease l = lease(a);
+  EXPECT_EQ(s.retry(j).status, RetryResult::not_ended);
+  EXPECT_EQ(s.cancel(j).status, CancelResult::cancelled);
+  const RetryResult r = s.retry(j);
+  EXPECT_EQ(r.status, RetryResult::retried);
+  EXPECT_EQ(r.was, JobState::cancelled);
+  EXPECT_EQ(r.pending, 4);
+  EXPECT_EQ(s.heartbeat(l.id).status, HeartbeatResult::gone);  // the old lease stays revoked
+  EXPECT_EQ(lease(a).tile, 0);
+  EXPECT_EQ(s.retry("j-none").status, RetryResult::unknown);
+
+  const std::string q = job();  // never started: queued again, not running
+  EXPECT_EQ(s.cancel(q).status, CancelResult::cancelled);
+  EXPECT_EQ(s.retry(q).status, RetryResult::retried);
+  EXPECT_EQ(s.job(q)->state, JobState::queued);
+
+  const std::string d = job(0, 64, 64, 64);
+  const std::string b = s.register_worker("b");
+  Lease ld;
+  do ld = lease(b); while (ld.job != d);
+  bool last = false;
+  EXPECT_EQ(upload(ld.id, &last), ResultClaim::proceed);
+  ASSERT_TRUE(last);
+  s.complete_job(d);
+  EXPECT_EQ(s.retry(d).status, RetryResult::done);
+}
+
 TEST_F(SchedulerTest, CancelQueuedJob) {
   const std::string j = job();
   EXPECT_EQ(s.cancel(j).status, CancelResult::cancelled);

@@ -1,6 +1,8 @@
 // The coordinator's storage behind interfaces: a content-addressed blob store and per-job records and results.
 #pragma once
 
+#include "core/file_io.h"
+
 #include <nlohmann/json.hpp>
 
 #include <cstdint>
@@ -15,9 +17,7 @@
 namespace tessera::server {
 
 /// A storage operation that failed for a reason other than the caller's input (disk full, permissions).
-struct StorageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
+using StorageError = FileError;
 
 /// Outcome of storing a blob.
 struct PutBlobResult {
@@ -73,14 +73,5 @@ class JobStore {
 
 /// Creates a folder and its parents; throws StorageError naming it.
 void make_dirs(const std::filesystem::path& dir);
-
-/// Writes bytes to `path` atomically: a temp file beside it, fsync, rename, fsync of the folder. Throws StorageError.
-void write_file_atomic(const std::filesystem::path& path, std::string_view bytes);
-
-/// Reads a whole file; throws StorageError naming it.
-std::string read_file_bytes(const std::filesystem::path& path);
-
-/// A fresh unique name (for temp files), e.g. "3f9a1c0d2b4e5f60".
-std::string random_hex(int bytes);
 
 }  // namespace tessera::server

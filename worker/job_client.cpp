@@ -1,58 +1,28 @@
 #include "worker/job_client.h"
 
+#include "core/file_io.h"
 #include "core/scene_loader.h"
 #include "core/sha256.h"
+#include "protocol/routes.h"
 #include "worker/backoff.h"
 
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
-#include <fcntl.h>
-#include <unistd.h>
-
-#include <cerrno>
-#include <cstring>
-#include <fstream>
-#include <sstream>
-
 namespace tessera::farm {
 
 namespace fs = std::filesystem;
+namespace routes = protocol::routes;
 using nlohmann::json;
 
 namespace {
 
+// A file the submission needs, or SubmitError saying why not.
 std::string read_file(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw SubmitError("cannot open " + path.string() + ": " + std::strerror(errno));
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) throw SubmitError("cannot read " + path.string());
-  return ss.str();
-}
-
-void write_atomically(const fs::path& path, const std::string& bytes) {
-  fs::path tmp = path;
-  tmp += ".tmp";
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
-  if (fd < 0) throw SubmitError("cannot create " + tmp.string() + ": " + std::strerror(errno));
-  size_t done = 0;
-  int err = 0;
-  while (done < bytes.size()) {
-    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      err = n < 0 ? errno : EIO;
-      break;
-    }
-    done += size_t(n);
-  }
-  if (!err && ::fsync(fd) != 0) err = errno;
-  if (::close(fd) != 0 && !err) err = errno;
-  if (!err && ::rename(tmp.c_str(), path.c_str()) != 0) err = errno;
-  if (err) {
-    ::unlink(tmp.c_str());
-    throw SubmitError("cannot write " + path.string() + ": " + std::strerror(err));
+  try {
+    return read_file_bytes(path);
+  } catch (const FileError& e) {
+    throw SubmitError(e.what());
   }
 }
 
@@ -73,42 +43,47 @@ SubmitResult submit_job(HttpClient& http, const SubmitOptions& o) {
   const fs::path root = o.asset_root ? *o.asset_root : base;
 
   SubmitResult out;
-  json assets = json::object();
+  protocol::JobSubmission job;
   for (const std::string& rel : scene_asset_paths(scene)) {
     const fs::path file = resolve_inside(base, root, rel, "asset '" + rel + "'");
     const std::string hash = sha256_file(file);
-    assets[rel] = hash;
+    job.assets[rel] = hash;
     ++out.assets_total;
-    const HttpResponse head = http.send("HEAD", "/v1/blobs/" + hash);
+    const HttpResponse head = http.send("HEAD", routes::blob(hash));
     if (head.status == 200) continue;
-    if (head.status != 404) refuse("HEAD /v1/blobs/" + hash + " (" + rel + ")", head);
-    const HttpResponse put = http.send("PUT", "/v1/blobs/" + hash, read_file(file), "application/octet-stream");
+    if (head.status != 404) refuse("HEAD " + routes::blob(hash) + " (" + rel + ")", head);
+    const HttpResponse put = http.send("PUT", routes::blob(hash), read_file(file), "application/octet-stream");
     if (put.status != 201 && put.status != 200) refuse("uploading " + rel, put);
     ++out.assets_uploaded;
   }
 
-  json job = {{"scene", scene}, {"assets", assets}, {"seed", o.seed}, {"tile_size", o.tile_size},
-              {"priority", o.priority}, {"name", o.name.empty() ? o.scene.filename().string() : o.name}};
-  if (o.spp) job["spp"] = *o.spp;
-  if (o.force_direct) job["integrator"] = "direct";
-  if (o.target_error > 0.0) {
-    job["target_error"] = o.target_error;
-    job["min_spp"] = o.min_spp;
-    job["max_spp"] = o.max_spp;
-  }
-  const HttpResponse r = http.send("POST", "/v1/jobs", job.dump());
+  job.scene = std::move(scene);
+  job.sampling = o.sampling;
+  job.tile_size = o.tile_size;
+  job.priority = o.priority;
+  job.name = o.name.empty() ? o.scene.filename().string() : o.name;
+  const HttpResponse r = http.send("POST", routes::jobs(), json(job).dump());
   if (r.status != 201 && r.status != 200) refuse("submitting " + o.scene.string(), r);
-  const json j = parse_body(r.body, "job submission");
-  if (!j.is_object() || !j.contains("id") || !j["id"].is_string())
-    throw ProtocolError("job submission: the answer has no \"id\"");
-  out.job_id = j["id"].get<std::string>();
+  out.job_id = protocol::parse_answer<protocol::SubmitAnswer>(r.body, "job submission").id;
   return out;
 }
 
 JobStatus get_job(HttpClient& http, const std::string& id) {
-  const HttpResponse r = http.send("GET", "/v1/jobs/" + id);
-  if (r.status != 200) refuse("GET /v1/jobs/" + id, r);
-  return parse_job_status(parse_body(r.body, "job " + id));
+  const HttpResponse r = http.send("GET", routes::job(id));
+  if (r.status != 200) refuse("GET " + routes::job(id), r);
+  return protocol::parse_answer<JobStatus>(r.body, "job " + id);
+}
+
+std::vector<JobStatus> list_jobs(HttpClient& http) {
+  const HttpResponse r = http.send("GET", routes::jobs());
+  if (r.status != 200) refuse("GET " + routes::jobs(), r);
+  return protocol::parse_answer<protocol::JobList>(r.body, "job list").jobs;
+}
+
+JobStatus retry_job(HttpClient& http, const std::string& id) {
+  const HttpResponse r = http.send("POST", routes::job_retry(id));
+  if (r.status != 200) refuse("retrying " + id, r);
+  return protocol::parse_answer<JobStatus>(r.body, "job " + id);
 }
 
 JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::function<void(const JobStatus&)>& progress,
@@ -121,7 +96,7 @@ JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::funct
       const JobStatus s = get_job(http, id);
       failing_since = {};
       backoff.reset();
-      if (progress && (s.tiles_done != last.tiles_done || s.state != last.state || s.tiles_total != last.tiles_total))
+      if (progress && (s.tiles.done != last.tiles.done || s.state != last.state || s.tiles.total != last.tiles.total))
         progress(s);
       last = s;
       if (s.finished()) return s;
@@ -140,14 +115,18 @@ JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::funct
 }
 
 uint64_t download_result(HttpClient& http, const std::string& id, const fs::path& path) {
-  const HttpResponse r = http.send("GET", "/v1/jobs/" + id + "/result.exr");
+  const HttpResponse r = http.send("GET", routes::job_result(id));
   if (r.status != 200) refuse("downloading the result of " + id, r);
-  write_atomically(path, r.body);
+  try {
+    write_file_atomic(path, r.body);
+  } catch (const FileError& e) {
+    throw SubmitError(e.what());
+  }
   return r.body.size();
 }
 
 bool cancel_job(HttpClient& http, const std::string& id) {
-  const HttpResponse r = http.send("DELETE", "/v1/jobs/" + id);
+  const HttpResponse r = http.send("DELETE", routes::job(id));
   if (r.status == 200) return true;
   if (r.status == 409) return false;
   refuse("cancelling " + id, r);

@@ -2,7 +2,7 @@
 #pragma once
 
 #include "worker/http_client.h"
-#include "worker/protocol.h"
+#include "protocol/messages.h"
 
 #include <atomic>
 #include <cstdint>
@@ -11,6 +11,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace tessera::farm {
 
@@ -19,19 +20,17 @@ struct SubmitError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+using protocol::JobStatus;
+using protocol::ProtocolError;
+
 /// What to submit.
 struct SubmitOptions {
   std::filesystem::path scene;         ///< Scene file (course JSON format).
-  std::optional<uint32_t> spp;         ///< Samples per pixel (default: the scene's).
-  uint64_t seed = 0;                   ///< Sample seed.
-  int tile_size = 64;                  ///< Tile edge in pixels.
-  int priority = 0;                    ///< Higher runs first.
+  protocol::SamplingSettings sampling; ///< How to sample (spp 0: the scene's).
+  int tile_size = protocol::kDefaultTileSize;  ///< Tile edge in pixels.
+  int priority = protocol::kDefaultPriority;   ///< Higher runs first.
   std::string name;                    ///< Job label (default: the scene's file name).
-  bool force_direct = false;           ///< Send "integrator": "direct" (like `render --integrator direct`).
   std::optional<std::filesystem::path> asset_root;  ///< Assets may lie anywhere below this folder.
-  double target_error = 0.0;           ///< Adaptive sampling target (0: off); see `tessera render --target-error`.
-  uint32_t min_spp = 16;               ///< Adaptive sampling: first round (sent only with target_error).
-  uint32_t max_spp = 1024;             ///< Adaptive sampling: most samples per pixel (sent only with target_error).
 };
 
 /// Counts of a submission's asset uploads.
@@ -58,6 +57,12 @@ JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::funct
 /// Downloads the finished job's result.exr to path atomically (temporary file, fsync, rename); throws SubmitError
 /// or HttpError. Returns the number of bytes.
 uint64_t download_result(HttpClient& http, const std::string& id, const std::filesystem::path& path);
+
+/// GET /v1/jobs: every job, newest first; throws SubmitError or HttpError.
+std::vector<JobStatus> list_jobs(HttpClient& http);
+
+/// POST /v1/jobs/{id}/retry: the job queued again; throws SubmitError (404, 409 with the coordinator's sentence).
+JobStatus retry_job(HttpClient& http, const std::string& id);
 
 /// DELETE /v1/jobs/{id}; true when cancelled, false when it had already ended (409). Throws for other answers.
 bool cancel_job(HttpClient& http, const std::string& id);

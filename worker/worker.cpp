@@ -6,7 +6,8 @@
 #include "failpoint/failpoint.h"
 #include "worker/asset_cache.h"
 #include "worker/backoff.h"
-#include "worker/protocol.h"
+#include "protocol/messages.h"
+#include "protocol/routes.h"
 #include "worker/scene_cache.h"
 
 #include <spdlog/spdlog.h>
@@ -25,6 +26,10 @@ namespace tessera::farm {
 
 using nlohmann::json;
 using namespace std::chrono_literals;
+using protocol::JobSpec;
+using protocol::Lease;
+using protocol::Registration;
+namespace routes = protocol::routes;
 
 namespace {
 
@@ -58,10 +63,8 @@ bool retryable_status(int status) { return status >= 500 || status == 408 || sta
 // and on a second stop request it cancels for shutdown.
 // A job's built scene and the sampling settings of its spec, cached per job id.
 struct PreparedJob {
-  LoadedScene loaded;        // scene and BVH
-  double target_error = 0.0; // adaptive sampling target (0: fixed spp)
-  uint32_t min_spp = 16;     // adaptive: first round
-  uint32_t max_spp = 1024;   // adaptive: most samples per pixel
+  LoadedScene loaded;                   // scene and BVH
+  protocol::SamplingSettings sampling;  // the spec's sampling settings
 };
 
 class Heartbeat {
@@ -104,7 +107,7 @@ class Heartbeat {
         if (cancel_.load() || std::chrono::steady_clock::now() < next) continue;
         lock.unlock();
         const uint64_t rays = rays_.load();
-        beat(json{{"rays", rays - sent_rays}}.dump());
+        beat(json(protocol::HeartbeatReport{rays - sent_rays}).dump());
         sent_rays = rays;
         next = std::chrono::steady_clock::now() + period_;
         lock.lock();
@@ -118,7 +121,7 @@ class Heartbeat {
 
   void beat(const std::string& body) {
     try {
-      const HttpResponse r = http_.send("POST", "/v1/leases/" + lease_ + "/heartbeat", body);
+      const HttpResponse r = http_.send("POST", routes::lease_heartbeat(lease_), body);
       if (r.status == 200) return;
       if (r.status == 410 || r.status == 404) {
         spdlog::info("{}: heartbeat answered {} ({}), cancelling the render", prefix_, r.status, r.error_text());
@@ -209,12 +212,12 @@ class Worker {
   }
 
   bool register_worker() {
-    const json body = {{"name", name_}, {"threads", threads_}, {"version", TESSERA_VERSION}};
+    const json body = protocol::WorkerHello{name_, threads_, TESSERA_VERSION};
     try {
-      const HttpResponse r = http_.send("POST", "/v1/workers", body.dump());
+      const HttpResponse r = http_.send("POST", routes::workers(), body.dump());
       coordinator_up();
       if (r.status == 201 || r.status == 200) {
-        const Registration reg = parse_registration(parse_body(r.body, "registration"));
+        const auto reg = protocol::parse_answer<Registration>(r.body, "registration");
         id_ = reg.id;
         heartbeat_period_ = std::chrono::milliseconds(std::max<int64_t>(100, int64_t(reg.heartbeat_seconds * 1000)));
         spdlog::info("worker {} registered as {} (lease {}s, heartbeat {}s)", name_, id_, reg.lease_seconds,
@@ -234,7 +237,7 @@ class Worker {
   std::optional<Lease> request_lease() {
     HttpResponse r;
     try {
-      r = http_.send("POST", "/v1/workers/" + id_ + "/lease");
+      r = http_.send("POST", routes::worker_lease(id_));
     } catch (const HttpError& e) {
       coordinator_down("lease", e);
       return std::nullopt;
@@ -242,7 +245,7 @@ class Worker {
     coordinator_up();
     if (r.status == 200) {
       idle_.reset();
-      return parse_lease(parse_body(r.body, "lease"));
+      return protocol::parse_answer<Lease>(r.body, "lease");
     }
     if (r.status == 204) {
       sleep_unless(idle_.next(), [&] { return stopping(); });
@@ -287,11 +290,11 @@ class Worker {
                                                const std::function<bool()>& interrupted) {
     if (auto s = scenes_.find(l.job)) return s;
     const auto t0 = std::chrono::steady_clock::now();
-    const JobSpec spec = parse_job_spec(parse_body(fetch("/v1/jobs/" + l.job + "/spec", interrupted), "job spec"));
+    const auto spec = protocol::parse_answer<JobSpec>(fetch(routes::job_spec(l.job), interrupted), "job spec");
     std::map<std::string, std::filesystem::path> files;
     for (const auto& [path, hash] : spec.assets) {
       try {
-        files[path] = cache_.get(hash, [&](const std::string& h) { return fetch("/v1/blobs/" + h, interrupted); });
+        files[path] = cache_.get(hash, [&](const std::string& h) { return fetch(routes::blob(h), interrupted); });
       } catch (const Gone& e) {
         throw AssetError("asset " + path + " (" + hash + ") is not on the coordinator: " + e.what());
       }
@@ -301,13 +304,12 @@ class Worker {
       if (it == files.end()) throw SceneError(json_path + ": asset '" + path + "' is not listed in the job's assets");
       return it->second;
     };
-    LoadOptions lo;
-    lo.force_direct = !spec.integrator.empty();
+    // The spec's spp is already the job's (the scene's unless overridden): the loader is not told again.
+    LoadOptions lo = spec.sampling.load_options();
+    lo.spp.reset();
     auto loaded = std::make_shared<PreparedJob>();
     loaded->loaded = load_scene_json(spec.scene, "job " + l.job, resolve, lo);
-    loaded->target_error = spec.target_error;
-    loaded->min_spp = spec.min_spp;
-    loaded->max_spp = spec.max_spp;
+    loaded->sampling = spec.sampling;
     const Scene& built = loaded->loaded.scene;
     if (built.width != spec.width || built.height != spec.height)
       throw SceneError("job " + l.job + ": the scene is " + std::to_string(built.width) + "x" +
@@ -342,15 +344,13 @@ class Worker {
         // long render would).
         TESSERA_FAIL_POINT_CANCELLABLE("worker.render", [&] { return cancel.load(); });
         RenderOptions ro;
+        scene->sampling.apply_to(ro);
         ro.seed = l.seed;
         ro.spp = l.spp;
         ro.window = l.window;
         // Small thread tiles: a farm tile is one worker's whole unit of work, so its last thread tile is a tail in
         // which the other threads idle (pixels do not depend on this split).
         ro.tile_size = 8;
-        ro.target_error = float(scene->target_error);
-        ro.min_spp = scene->min_spp;
-        ro.max_spp = scene->max_spp;
         ro.cancel = &cancel;
         ro.progress = [&rays](const RenderProgress& p) { rays.store(p.rays); };
         result = render(scene->loaded.scene, ro);
@@ -395,7 +395,7 @@ class Worker {
                               [&](const std::string& how) { bytes = corrupt_tile(res.image, wo, how); });
     HttpRequest req;
     req.method = "PUT";
-    req.target = "/v1/leases/" + l.id + "/result";
+    req.target = routes::lease_result(l.id);
     req.body.assign(bytes.begin(), bytes.end());
     req.content_type = "image/x-exr";
     req.headers["X-Tessera-Rays"] = std::to_string(res.counters.rays);
@@ -468,12 +468,12 @@ class Worker {
 #endif
 
   // Posts a small JSON message about a lease, retrying briefly; the lease expires anyway if this never arrives.
-  bool post_lease_message(const Lease& l, const std::string& pfx, const std::string& action, const json& body,
-                          int attempts) {
+  bool post_lease_message(const std::string& pfx, const std::string& action, const std::string& target,
+                          const json& body, int attempts) {
     Backoff backoff(100ms, 1000ms);
     for (int i = 0; i < attempts; ++i) {
       try {
-        const HttpResponse r = http_.send("POST", "/v1/leases/" + l.id + "/" + action, body.dump());
+        const HttpResponse r = http_.send("POST", target, body.dump());
         if (r.status == 200) return true;
         if (!retryable_status(r.status)) {
           spdlog::warn("{}: {} answered {}: {}", pfx, action, r.status, r.error_text());
@@ -489,12 +489,12 @@ class Worker {
 
   void report_failure(const Lease& l, const std::string& pfx, const std::string& error) {
     ++stats_.tiles_failed;
-    if (post_lease_message(l, pfx, "fail", json{{"error", error}}, 10)) spdlog::info("{}: failure reported", pfx);
+    if (post_lease_message(pfx, "fail", routes::lease_fail(l.id), protocol::FailReport{error}, 10)) spdlog::info("{}: failure reported", pfx);
   }
 
   void release(const Lease& l, const std::string& pfx) {
     ++stats_.tiles_released;
-    if (post_lease_message(l, pfx, "release", json::object(), 3)) spdlog::info("{}: tile handed back", pfx);
+    if (post_lease_message(pfx, "release", routes::lease_release(l.id), json::object(), 3)) spdlog::info("{}: tile handed back", pfx);
   }
 
   const WorkerOptions& opt_;

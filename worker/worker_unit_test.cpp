@@ -1,7 +1,6 @@
 #include "core/sha256.h"
 #include "worker/asset_cache.h"
 #include "worker/backoff.h"
-#include "worker/protocol.h"
 #include "worker/scene_cache.h"
 
 #include <gtest/gtest.h>
@@ -92,44 +91,6 @@ TEST(AssetCache, ReplacesACorruptFile) {
   });
   EXPECT_EQ(fetches, 1);
   EXPECT_EQ(sha256_file(cache.path_of(hash)), hash);
-}
-
-TEST(Protocol, ParsesALease) {
-  const Lease l = parse_lease(nlohmann::json::parse(
-      R"({"lease": "l-1", "job": "j-2", "tile": 7, "window": [64, 0, 128, 64], "spp": 32, "seed": 5,
-          "scene_hash": "ab", "deadline_ms": 0})"));
-  EXPECT_EQ(l.id, "l-1");
-  EXPECT_EQ(l.job, "j-2");
-  EXPECT_EQ(l.tile, 7);
-  EXPECT_EQ(l.window, (PixelWindow{64, 0, 128, 64}));
-  EXPECT_EQ(l.spp, 32u);
-  EXPECT_EQ(l.seed, 5u);
-}
-
-TEST(Protocol, NamesTheFieldThatIsWrong) {
-  try {
-    parse_lease(nlohmann::json::parse(R"({"lease": "l-1", "job": "j-2", "tile": 7, "window": [1, 2, 3], "spp": 1})"));
-    FAIL();
-  } catch (const ProtocolError& e) {
-    EXPECT_STREQ(e.what(), "lease: \"window\" must hold 4 numbers");
-  }
-  try {
-    parse_job_status(nlohmann::json::parse(R"({"id": "j-1"})"));
-    FAIL();
-  } catch (const ProtocolError& e) {
-    EXPECT_STREQ(e.what(), "job: missing \"state\"");
-  }
-  EXPECT_THROW(parse_body("<html>", "lease"), ProtocolError);
-}
-
-TEST(Protocol, ParsesAJobWithNullError) {
-  const JobStatus s = parse_job_status(nlohmann::json::parse(
-      R"({"id": "j-1", "state": "running", "width": 8, "height": 4, "tiles": {"total": 4, "done": 1, "leased": 2,
-          "pending": 1}, "render_seconds": 1.5, "error": null, "finished_ms": null})"));
-  EXPECT_EQ(s.tiles_total, 4);
-  EXPECT_EQ(s.tiles_done, 1);
-  EXPECT_FALSE(s.finished());
-  EXPECT_EQ(s.error, "");
 }
 
 }  // namespace

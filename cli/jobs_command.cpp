@@ -1,0 +1,72 @@
+#include "cli/jobs_command.h"
+
+#include "cli/token.h"
+#include "worker/http_client.h"
+#include "worker/job_client.h"
+
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include <cstdio>
+
+namespace tessera::cli {
+
+namespace {
+
+// One line per job: id, state, priority, tiles done/total, name.
+void print_table(const std::vector<protocol::JobStatus>& jobs) {
+  std::printf("%-20s %-10s %8s %13s  %s\n", "ID", "STATE", "PRIORITY", "TILES", "NAME");
+  for (const protocol::JobStatus& j : jobs) {
+    const std::string tiles = std::to_string(j.tiles.done) + "/" + std::to_string(j.tiles.total);
+    std::printf("%-20s %-10s %8d %13s  %s\n", j.id.c_str(), protocol::to_string(j.state), j.params.priority,
+                tiles.c_str(), j.params.name.c_str());
+  }
+}
+
+}  // namespace
+
+CLI::App* add_jobs_command(CLI::App& app, JobsArgs& a) {
+  auto* c = app.add_subcommand("jobs", "List and control a coordinator's jobs");
+  c->add_option("action", a.action, "ls: list; show ID: the job as JSON; retry ID: render a failed or cancelled "
+                                    "job's missing tiles; cancel ID")
+      ->required()
+      ->check(CLI::IsMember({"ls", "show", "retry", "cancel"}));
+  c->add_option("job", a.job, "Job id (show, retry, cancel)");
+  c->add_option("--coordinator", a.coordinator, "Coordinator URL, e.g. http://127.0.0.1:8470")->required();
+  c->add_option("--token-file", a.token_file, "File holding the client token (default: $TESSERA_CLIENT_TOKEN)");
+  return c;
+}
+
+int run_jobs(const JobsArgs& a) {
+  if (a.action != "ls" && a.job.empty()) {
+    spdlog::error("jobs {} needs a job id", a.action);
+    return 2;
+  }
+  try {
+    farm::HttpClient http(farm::parse_http_url(a.coordinator));
+    http.set_bearer_token(load_token(a.token_file, "TESSERA_CLIENT_TOKEN"));
+    if (a.action == "ls") {
+      print_table(farm::list_jobs(http));
+    } else if (a.action == "show") {
+      std::printf("%s\n", nlohmann::json(farm::get_job(http, a.job)).dump(2).c_str());
+    } else if (a.action == "retry") {
+      const protocol::JobStatus s = farm::retry_job(http, a.job);
+      std::printf("%s: %s again, %lld of %lld tiles to render\n", s.id.c_str(), protocol::to_string(s.state),
+                  static_cast<long long>(s.tiles.total - s.tiles.done), static_cast<long long>(s.tiles.total));
+    } else if (!farm::cancel_job(http, a.job)) {
+      spdlog::error("job {} had already ended", a.job);
+      return 2;
+    } else {
+      std::printf("%s: cancelled\n", a.job.c_str());
+    }
+    return 0;
+  } catch (const farm::SubmitError& e) {
+    spdlog::error("{}", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    spdlog::error("jobs {}: {}", a.action, e.what());
+    return 1;
+  }
+}
+
+}  // namespace tessera::cli

@@ -1,0 +1,25 @@
+// `tessera jobs`: look at and control a coordinator's jobs (ls, show, retry, cancel).
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <string>
+
+namespace tessera::cli {
+
+/// Options of `tessera jobs`.
+struct JobsArgs {
+  std::string action;       ///< ls, show, retry or cancel.
+  std::string job;          ///< The job id (all but ls).
+  std::string coordinator;  ///< Coordinator URL.
+  std::string token_file;   ///< File holding the client token (else $TESSERA_CLIENT_TOKEN).
+};
+
+/// Registers the subcommand's options on `app`.
+CLI::App* add_jobs_command(CLI::App& app, JobsArgs& args);
+
+/// Runs it; returns the process exit code: 0 done, 2 refused by the coordinator (unknown id, wrong state), 1 other
+/// errors (coordinator unreachable).
+int run_jobs(const JobsArgs& args);
+
+}  // namespace tessera::cli

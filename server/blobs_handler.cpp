@@ -1,0 +1,38 @@
+#include "server/blobs_handler.h"
+
+#include "core/sha256.h"
+
+#include <spdlog/spdlog.h>
+
+#include <filesystem>
+
+namespace fs = std::filesystem;
+
+namespace tessera::server {
+
+using protocol::ApiError;
+
+HttpResponse BlobsHandler::handle(protocol::Endpoint, const std::string& sha, HttpRequest& req) {
+  if (req.method() == http::verb::put) {
+    if (!is_sha256_hex(sha))
+      throw ApiError(400, "blob path must be 64 lowercase hex digits (a SHA-256), got '" + sha + "'");
+    const PutBlobResult r = blobs_.put(sha, req.body());
+    if (r.status == PutBlobResult::mismatch) throw ApiError(400, "body hashes to " + r.actual + ", not " + sha);
+    if (r.status == PutBlobResult::created) spdlog::info("blob {}: stored ({} bytes)", sha, r.size);
+    return json_response(r.status == PutBlobResult::created ? http::status::created : http::status::ok,
+                         {{"sha256", sha}, {"size", r.size}}, req.version());
+  }
+  if (req.method() == http::verb::head) {
+    const std::optional<fs::path> f = blobs_.file(sha);
+    HttpResponse res{f ? http::status::ok : http::status::not_found, req.version()};
+    std::error_code ec;
+    res.content_length(f ? uint64_t(fs::file_size(*f, ec)) : 0);
+    if (f) res.set(http::field::content_type, "application/octet-stream");
+    return res;
+  }
+  std::optional<std::string> bytes = blobs_.read(sha);
+  if (!bytes) throw ApiError(404, "blob " + sha + " is not stored");
+  return bytes_response(std::move(*bytes), "application/octet-stream", req.version());
+}
+
+}  // namespace tessera::server

@@ -1,0 +1,20 @@
+// Content-addressed assets: upload, check, download.
+#pragma once
+
+#include "server/resource_handler.h"
+#include "server/storage.h"
+
+namespace tessera::server {
+
+/// PUT, HEAD and GET /v1/blobs/{sha256}.
+class BlobsHandler final : public ResourceHandler {
+ public:
+  /// Endpoints over `blobs` (which must outlive it).
+  explicit BlobsHandler(BlobStore& blobs) : blobs_(blobs) {}
+  HttpResponse handle(protocol::Endpoint endpoint, const std::string& sha256, HttpRequest& req) override;
+
+ private:
+  BlobStore& blobs_;
+};
+
+}  // namespace tessera::server

@@ -1,0 +1,342 @@
+#include "server/job_service.h"
+
+#include "core/file_io.h"
+#include "core/scene_loader.h"
+#include "core/tiles.h"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace tessera::server {
+
+using protocol::ApiError;
+
+namespace {
+
+std::string join_workers(const std::vector<std::string>& v) {
+  std::string s;
+  for (const auto& w : v) s += (s.empty() ? "" : ",") + w;
+  return s;
+}
+
+// Asset paths are names for blobs (the coordinator and workers never open them as files), but a scene that renders
+// here must render with `tessera render` too: the same paths the loader refuses are refused here.
+void check_path(const std::string& rel, const std::string& where) {
+  const fs::path p(rel);
+  if (rel.empty()) throw ApiError(400, where + ": empty asset path");
+  if (rel.find('\0') != std::string::npos) throw ApiError(400, where + ": asset path contains a NUL byte");
+  if (p.is_absolute() || p.has_root_name() || p.has_root_directory())
+    throw ApiError(400, where + ": absolute asset path '" + rel + "' (paths are relative to the scene's folder)");
+  const fs::path n = p.lexically_normal();
+  if (n.empty() || *n.begin() == "..") throw ApiError(400, where + ": asset path '" + rel + "' leaves the scene's folder");
+}
+
+}  // namespace
+
+const char* to_string(UploadOutcome o) {
+  switch (o) {
+    case UploadOutcome::accepted: return "accepted";
+    case UploadOutcome::duplicate: return "duplicate";
+    case UploadOutcome::discarded: return "discarded";
+  }
+  return "unknown";
+}
+
+JobService::JobService(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock,
+                       AdmissionLimits limits)
+    : sched_(scheduler), blobs_(blobs), jobs_(jobs), metrics_(metrics), clock_(std::move(clock)), limits_(limits) {}
+
+int64_t JobService::unfinished_jobs() {
+  const SchedulerCounters c = sched_.counters();
+  int64_t n = 0;
+  for (const JobState st : {JobState::queued, JobState::running})
+    if (const auto it = c.jobs.find(st); it != c.jobs.end()) n += it->second;
+  return n;
+}
+
+void JobService::check_assets(const protocol::JobSubmission& sub) {
+  for (const auto& [path, sha] : sub.assets) check_path(path, "assets[\"" + path + "\"]");
+  for (const std::string& path : scene_asset_paths(sub.scene)) check_path(path, "scene");
+  // Every asset the scene uses must be named and uploaded; say which are not, all at once.
+  std::string missing;
+  for (const std::string& path : scene_asset_paths(sub.scene)) {
+    const auto it = sub.assets.find(path);
+    std::string why;
+    if (it == sub.assets.end()) why = "not in \"assets\"";
+    else if (!blobs_.has(it->second)) why = "not uploaded";
+    else continue;
+    missing += (missing.empty() ? "" : ", ") + path + " (" + why + ")";
+  }
+  if (!missing.empty()) throw ApiError(400, "missing assets: " + missing);
+}
+
+protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
+  const auto queue_full = [&] {
+    return ApiError(429, "too many unfinished jobs: " + std::to_string(limits_.max_queued_jobs) +
+                             " are queued or running (--max-queued-jobs); retry later");
+  };
+  // Admission: queued plus running jobs are bounded (checked again, atomically with add_job, below).
+  if (unfinished_jobs() >= limits_.max_queued_jobs) throw queue_full();
+  check_assets(sub);
+
+  LoadedScene loaded;
+  try {
+    loaded = load_scene_json(sub.scene, "scene", [&](const std::string& rel, const std::string& jp) -> fs::path {
+      const auto it = sub.assets.find(rel);
+      if (it == sub.assets.end()) throw SceneError("scene: " + jp + ": asset '" + rel + "' is not in \"assets\"");
+      std::optional<fs::path> f = blobs_.file(it->second);
+      if (!f) throw SceneError("scene: " + jp + ": asset '" + rel + "' (" + it->second + ") is not uploaded");
+      return *f;
+    }, sub.sampling.load_options());
+  } catch (const SceneError& e) {
+    throw ApiError(400, e.what());
+  }
+  const Scene& s = loaded.scene;
+  // Size limits: the merged image is held in memory, and width x height x spp bounds the work one job may ask for.
+  const uint64_t pixels = uint64_t(s.width) * uint64_t(s.height);
+  if (pixels > limits_.max_job_pixels)
+    throw ApiError(400, "job too large: " + std::to_string(s.width) + "x" + std::to_string(s.height) + " = " +
+                            std::to_string(pixels) + " pixels is over the limit of " +
+                            std::to_string(limits_.max_job_pixels) + " (--max-job-pixels)");
+  const bool adaptive = sub.sampling.target_error > 0.0;
+  const uint64_t per_pixel = adaptive ? uint64_t(sub.sampling.max_spp) : uint64_t(s.settings.spp);
+  const double samples = double(pixels) * double(per_pixel);
+  if (samples > limits_.max_job_samples) {
+    char text[256];
+    std::snprintf(text, sizeof text,
+                  "job too large: %dx%d pixels x %llu %s = %.3g samples is over the limit of %.3g (--max-job-samples)",
+                  s.width, s.height, static_cast<unsigned long long>(per_pixel), adaptive ? "max_spp" : "spp", samples,
+                  limits_.max_job_samples);
+    throw ApiError(400, text);
+  }
+  JobParams p;
+  p.name = sub.name;
+  p.priority = sub.priority;
+  p.width = s.width;
+  p.height = s.height;
+  p.tile_size = sub.tile_size;
+  p.spp = s.settings.spp;
+  p.seed = sub.sampling.seed;
+  p.scene_hash = s.hash;
+
+  protocol::JobSpec spec{sub.scene, sub.assets, sub.sampling, p.width, p.height, p.tile_size};
+  spec.sampling.spp = p.spp;
+  std::unique_lock admit(admit_mu_);
+  if (unfinished_jobs() >= limits_.max_queued_jobs) throw queue_full();
+  const std::string id = sched_.new_job_id();
+  // The record is the spec only: name, priority, size and times are the scheduler's (stored with the job's row).
+  jobs_.save_record(id, spec);
+  {
+    std::lock_guard lock(mu_);
+    specs_[id] = spec;
+  }
+  sched_.add_job(p, id);
+  admit.unlock();
+  spdlog::info("job {}: submitted '{}' {}x{} spp {} seed {} tile {} priority {} ({} tiles)", id, p.name, p.width,
+               p.height, p.spp, p.seed, p.tile_size, p.priority, TileGrid(p.width, p.height, p.tile_size).count());
+  for (const auto& w : loaded.warnings) spdlog::warn("job {}: {}", id, w);
+  return {id, loaded.warnings};
+}
+
+protocol::JobStatus JobService::status(const std::string& id) {
+  auto s = sched_.job(id);
+  if (!s) throw ApiError(404, "no job " + id);
+  return std::move(*s);
+}
+
+std::vector<protocol::JobStatus> JobService::list() { return sched_.jobs(); }
+
+protocol::JobStatus JobService::cancel(const std::string& id) {
+  const CancelResult c = sched_.cancel(id);
+  if (c.status == CancelResult::unknown) throw ApiError(404, "no job " + id);
+  auto s = sched_.job(id);
+  if (c.status == CancelResult::already_ended)
+    throw ApiError(409, "job " + id + " already ended (" + to_string(s->state) + ")");
+  drop_image(id);
+  spdlog::info("job {}: cancelled, {} lease(s) revoked", id, c.revoked_leases);
+  return std::move(*s);
+}
+
+protocol::JobStatus JobService::retry(const std::string& id) {
+  const RetryResult r = sched_.retry(id);
+  switch (r.status) {
+    case RetryResult::unknown: throw ApiError(404, "no job " + id);
+    case RetryResult::not_ended:
+      throw ApiError(409, "job " + id + " is " + to_string(r.was) + ": only failed or cancelled jobs can be retried");
+    case RetryResult::done: throw ApiError(409, "job " + id + " is done: only failed or cancelled jobs can be retried");
+    case RetryResult::retried: break;
+  }
+  spdlog::info("job {}: retried after it was {}; {} tile(s) to render, done tiles kept", id, to_string(r.was),
+               r.pending);
+  if (r.pending == 0 && !sched_.job(id)->tiles.leased) finalize(id);  // every tile was done: only the result is missing
+  return status(id);
+}
+
+protocol::JobSpec JobService::spec(const std::string& id) {
+  {
+    std::lock_guard lock(mu_);
+    const auto it = specs_.find(id);
+    if (it != specs_.end()) return it->second;
+  }
+  if (!sched_.job(id)) throw ApiError(404, "no job " + id);
+  std::optional<json> rec = jobs_.load_record(id);
+  if (!rec) throw ApiError(404, "no record for job " + id);
+  const auto spec = rec->get<protocol::JobSpec>();  // records of older versions also carry the job's facts: ignored
+  std::lock_guard lock(mu_);
+  specs_.emplace(id, spec);
+  return spec;
+}
+
+std::string JobService::result_exr(const std::string& id) {
+  const protocol::JobStatus s = status(id);
+  if (s.state != JobState::done) throw ApiError(409, "job " + id + " is " + to_string(s.state) + ", not done");
+  return read_file_bytes(jobs_.result_path(id));
+}
+
+std::vector<uint8_t> JobService::preview_png(const std::string& id) {
+  const protocol::JobStatus s = status(id);
+  if (!is_final(s.state)) return image_for(id, s.params.width, s.params.height)->preview_png();
+  if (s.state == JobState::done) return encode_png_srgb(read_exr(jobs_.result_path(id)).pixels);
+  return encode_png_srgb(Image::make(s.params.width, s.params.height));
+}
+
+std::shared_ptr<JobImage> JobService::image_for(const std::string& job, int width, int height) {
+  std::lock_guard lock(mu_);
+  auto& slot = images_[job];
+  if (!slot) {
+    // First use since the coordinator started: the done tiles are in the store. Holding the lock while reading them
+    // means an upload finishing meanwhile either is among them or pastes into this image afterwards.
+    auto img = std::make_shared<JobImage>(width, height);
+    const auto s = sched_.job(job);
+    if (s) {
+      const TileGrid grid(s->params.width, s->params.height, s->params.tile_size);
+      for (const auto& [index, bytes] : jobs_.tile_pixels(job)) {
+        const PixelWindow w = grid.window(index);
+        img->paste(tile_from_bytes(bytes, w.width(), w.height()), w);
+      }
+    }
+    slot = std::move(img);
+  }
+  return slot;
+}
+
+void JobService::drop_image(const std::string& job) {
+  std::lock_guard lock(mu_);
+  images_.erase(job);
+}
+
+void JobService::after_failure(const std::string& job, const FailResult& f) {
+  if (f.job_failed) drop_image(job);
+}
+
+UploadOutcome JobService::accept_tile(const std::string& lease, const std::string& exr, uint64_t rays) {
+  auto settled = [&](const ResultClaim& c) -> std::optional<UploadOutcome> {
+    switch (c.status) {
+      case ResultClaim::unknown: throw ApiError(404, "unknown lease " + lease);
+      case ResultClaim::discarded:
+        spdlog::info("job {} tile {} worker {}: result discarded (job ended)", c.job, c.tile, c.worker);
+        return UploadOutcome::discarded;
+      case ResultClaim::duplicate:
+        spdlog::info("job {} tile {} worker {}: duplicate result acknowledged", c.job, c.tile, c.worker);
+        return UploadOutcome::duplicate;
+      case ResultClaim::proceed: break;
+    }
+    return std::nullopt;
+  };
+  const ResultClaim pre = sched_.check_result(lease);
+  if (auto r = settled(pre)) return *r;
+
+  // Validate outside every lock: the EXR goes to a scratch file because the reader takes a path.
+  const fs::path tmp = jobs_.scratch_dir() / ("result-" + lease + "-" + random_hex(6) + ".exr");
+  {
+    std::ofstream out(tmp, std::ios::binary);
+    out.write(exr.data(), std::streamsize(exr.size()));
+    if (!out.flush()) throw StorageError("cannot write " + tmp.string());
+  }
+  TileCheck check = check_tile_exr(tmp, pre.window, pre.width, pre.height);
+  std::error_code rm_ec;
+  fs::remove(tmp, rm_ec);
+  if (check.error) {
+    const FailResult f = sched_.fail(lease, "invalid result: " + *check.error);
+    spdlog::warn("job {} tile {} worker {}: invalid result: {}{}", pre.job, pre.tile, pre.worker, *check.error,
+                 f.job_failed ? " (job failed)" : f.blocklisted ? " (worker blocklisted for the job)" : "");
+    after_failure(pre.job, f);
+    throw ApiError(422, "invalid result: " + *check.error);
+  }
+
+  const ResultClaim c = sched_.claim_result(lease);
+  if (auto r = settled(c)) return *r;
+  bool last = false;
+  try {
+    // Pasted before the tile counts as done: the upload that finishes the job writes the image, and every other
+    // tile's pixels must be in it by then (pasting identical pixels twice is harmless if the store then fails).
+    image_for(c.job, c.width, c.height)->paste(check.pixels, c.window);  // after a restart, rebuilt from the store first
+    // Durable before acknowledged: the pixels and the tile's done state go to the store in one transaction.
+    last = sched_.finish_result(lease, rays, tile_bytes(check.pixels)).last;
+  } catch (...) {
+    sched_.abandon_result(lease);
+    throw;
+  }
+  metrics_.add_rays(rays, clock_());
+  spdlog::info("job {} tile {} worker {}: merged", c.job, c.tile, c.worker);
+  if (last) finalize(c.job);
+  return UploadOutcome::accepted;
+}
+
+void JobService::record_failure(const std::string& lease, const std::string& error) {
+  const ResultClaim info = sched_.check_result(lease);
+  const FailResult f = sched_.fail(lease, error);
+  if (f.status == FailResult::unknown) throw ApiError(404, "unknown lease " + lease);
+  spdlog::warn("job {} tile {} worker {}: failed: {}{}", info.job, info.tile, info.worker, error,
+               f.job_failed ? " (job failed)" : f.blocklisted ? " (worker blocklisted for the job)" : "");
+  after_failure(info.job, f);
+}
+
+void JobService::recover() {
+  for (const std::string& job : sched_.unfinalized_jobs()) {
+    spdlog::info("job {}: every tile was done before the restart; writing the result", job);
+    finalize(job);
+  }
+}
+
+void JobService::finalize(const std::string& job) {
+  const auto s = sched_.job(job);
+  if (!s) return;
+  const auto img = image_for(job, s->params.width, s->params.height);
+  const auto t0 = std::chrono::steady_clock::now();
+  const int64_t now = clock_();
+  // The sampling settings are recorded as `tessera render` records them (adaptive jobs: "adaptive" and its options).
+  std::map<std::string, std::string> meta = spec(job).sampling.metadata();
+  meta.insert({
+      {"tessera:version", TESSERA_VERSION},
+      {"tessera:job", job},
+      {"tessera:name", s->params.name},
+      {"tessera:sceneHash", s->params.scene_hash},
+      {"tessera:tileSize", std::to_string(s->params.tile_size)},
+      {"tessera:workers", join_workers(s->workers)},
+      {"tessera:createdMs", std::to_string(s->created_ms)},
+      {"tessera:startedMs", std::to_string(s->started_ms.value_or(0))},
+      {"tessera:finishedMs", std::to_string(now)},
+      {"tessera:renderSeconds", std::to_string(double(now - s->started_ms.value_or(now)) / 1000.0)}});
+  try {
+    img->write_exr(jobs_.result_path(job), meta);
+  } catch (const std::exception& e) {
+    spdlog::error("job {}: writing the result failed: {}", job, e.what());
+    sched_.fail_job(job, std::string("writing the result failed: ") + e.what());
+    drop_image(job);
+    return;
+  }
+  sched_.complete_job(job);
+  drop_image(job);
+  spdlog::info("job {}: done, result written in {:.3f}s", job,
+               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+}
+
+}  // namespace tessera::server

@@ -1,0 +1,33 @@
+#include "server/jobs_handler.h"
+
+namespace tessera::server {
+
+using protocol::Endpoint;
+
+HttpResponse JobsHandler::handle(Endpoint endpoint, const std::string& id, HttpRequest& req) {
+  const unsigned v = req.version();
+  const bool get = req.method() == http::verb::get;
+  switch (endpoint) {
+    case Endpoint::jobs: {
+      if (get) return json_response(http::status::ok, protocol::JobList{jobs_.list()}, v);
+      const protocol::SubmitAnswer a = jobs_.submit(protocol::parse_job_submission(req.body()));
+      HttpResponse res = json_response(http::status::created, a, v);
+      res.set(http::field::location, protocol::routes::job(a.id));
+      return res;
+    }
+    case Endpoint::job: return json_response(http::status::ok, get ? jobs_.status(id) : jobs_.cancel(id), v);
+    case Endpoint::job_result: return bytes_response(jobs_.result_exr(id), "image/x-exr", v);
+    case Endpoint::job_preview: {
+      const std::vector<uint8_t> png = jobs_.preview_png(id);
+      return bytes_response(std::string(png.begin(), png.end()), "image/png", v);
+    }
+    case Endpoint::job_spec: return json_response(http::status::ok, jobs_.spec(id), v);
+    case Endpoint::job_retry:
+      protocol::parse_empty_request(req.body());
+      return json_response(http::status::ok, jobs_.retry(id), v);
+    default: break;
+  }
+  throw protocol::ApiError(404, "no such endpoint");
+}
+
+}  // namespace tessera::server

@@ -1,0 +1,62 @@
+#include "server/leases_handler.h"
+
+#include <spdlog/spdlog.h>
+
+#include <charconv>
+
+namespace tessera::server {
+
+using protocol::ApiError;
+using protocol::Endpoint;
+
+HttpResponse LeasesHandler::handle(Endpoint endpoint, const std::string& id, HttpRequest& req) {
+  const unsigned v = req.version();
+  switch (endpoint) {
+    case Endpoint::worker_lease: return lease(id, v);
+    case Endpoint::lease_heartbeat: return heartbeat(id, req);
+    case Endpoint::lease_result: return result(id, req);
+    case Endpoint::lease_fail:
+      jobs_.record_failure(id, protocol::parse_fail_report(req.body()).error);
+      return json_response(http::status::ok, {{"status", "recorded"}}, v);
+    case Endpoint::lease_release:
+      protocol::parse_empty_request(req.body());
+      if (!sched_.release(id)) throw ApiError(404, "unknown lease " + id);
+      spdlog::debug("lease {}: released", id);
+      return json_response(http::status::ok, {{"status", "released"}}, v);
+    default: break;
+  }
+  throw ApiError(404, "no such endpoint");
+}
+
+HttpResponse LeasesHandler::lease(const std::string& worker, unsigned version) {
+  const AcquireResult r = sched_.acquire(worker);
+  if (r.status == AcquireResult::unknown_worker) throw ApiError(404, "unknown worker " + worker + ": register again");
+  if (r.status == AcquireResult::no_work) return HttpResponse{http::status::no_content, version};
+  const Lease& l = r.lease;
+  spdlog::debug("job {} tile {} worker {}: leased as {}", l.job, l.tile, l.worker, l.id);
+  return json_response(http::status::ok, l, version);
+}
+
+HttpResponse LeasesHandler::heartbeat(const std::string& lease, HttpRequest& req) {
+  const uint64_t rays = protocol::parse_heartbeat_report(req.body()).rays;
+  const HeartbeatResult h = sched_.heartbeat(lease, rays);
+  if (h.status == HeartbeatResult::unknown) throw ApiError(404, "unknown lease " + lease);
+  if (h.status == HeartbeatResult::gone)
+    throw ApiError(410, "lease " + lease + " was revoked or expired: stop rendering this tile");
+  metrics_.add_rays(rays, clock_());
+  return json_response(http::status::ok, {{"deadline_ms", h.deadline_ms}}, req.version());
+}
+
+HttpResponse LeasesHandler::result(const std::string& lease, HttpRequest& req) {
+  uint64_t rays = 0;
+  if (const auto h = req["X-Tessera-Rays"]; !h.empty()) {
+    const auto [ptr, ec] = std::from_chars(h.data(), h.data() + h.size(), rays);
+    if (ec != std::errc() || ptr != h.data() + h.size())
+      throw ApiError(400, "X-Tessera-Rays must be a non-negative integer (got '" + std::string(h) + "')");
+  }
+  const UploadOutcome o = jobs_.accept_tile(lease, req.body(), rays);
+  return json_response(o == UploadOutcome::discarded ? http::status::gone : http::status::ok, {{"status", to_string(o)}},
+                       req.version());
+}
+
+}  // namespace tessera::server

@@ -1,0 +1,30 @@
+// Worker endpoints of tiles: ask for a lease, heartbeat it, upload its result, report a failure, hand it back.
+#pragma once
+
+#include "server/job_service.h"
+#include "server/metrics.h"
+#include "server/resource_handler.h"
+#include "server/scheduler.h"
+
+namespace tessera::server {
+
+/// /v1/workers/{wid}/lease and /v1/leases/{lease}/heartbeat, /result, /fail, /release.
+class LeasesHandler final : public ResourceHandler {
+ public:
+  /// Endpoints over the given state (which must outlive it).
+  LeasesHandler(Scheduler& scheduler, JobService& jobs, Metrics& metrics, ClockMs clock)
+      : sched_(scheduler), jobs_(jobs), metrics_(metrics), clock_(std::move(clock)) {}
+  HttpResponse handle(protocol::Endpoint endpoint, const std::string& id, HttpRequest& req) override;
+
+ private:
+  HttpResponse lease(const std::string& worker, unsigned version);
+  HttpResponse heartbeat(const std::string& lease, HttpRequest& req);
+  HttpResponse result(const std::string& lease, HttpRequest& req);
+
+  Scheduler& sched_;
+  JobService& jobs_;
+  Metrics& metrics_;
+  ClockMs clock_;
+};
+
+}  // namespace tessera::server

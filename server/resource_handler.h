@@ -1,0 +1,28 @@
+// One resource's endpoints behind the router (server/api.h): requests arrive matched, authorised and within their
+// size limit; refusals are thrown as protocol::ApiError or protocol::ProtocolError.
+#pragma once
+
+#include "protocol/errors.h"
+#include "protocol/routes.h"
+#include "server/http_server.h"
+
+#include <nlohmann/json.hpp>
+
+#include <string>
+
+namespace tessera::server {
+
+/// Handles the endpoints of one resource.
+class ResourceHandler {
+ public:
+  virtual ~ResourceHandler() = default;
+  /// Answers a request for `endpoint` (one of this handler's) with the path parameter `param`.
+  virtual HttpResponse handle(protocol::Endpoint endpoint, const std::string& param, HttpRequest& request) = 0;
+};
+
+/// A JSON answer.
+HttpResponse json_response(http::status status, const nlohmann::json& body, unsigned version);
+/// A 200 answer with these bytes.
+HttpResponse bytes_response(std::string bytes, const char* content_type, unsigned version);
+
+}  // namespace tessera::server

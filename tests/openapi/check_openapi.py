@@ -1,0 +1,314 @@
+#!/usr/bin/env python3
+"""Starts a real coordinator, calls every endpoint of docs/openapi.yaml and validates each real answer (status,
+content type, JSON body) against the document. Also checks that the document and the route table in
+protocol/routes.cpp name the same paths and methods, so neither can drift.
+
+usage: check_openapi.py TESSERA_BINARY SOURCE_DIR
+"""
+import hashlib
+import http.client
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+import yaml
+
+TESSERA, SOURCE = sys.argv[1], sys.argv[2]
+DOC = yaml.safe_load(open(os.path.join(SOURCE, "docs", "openapi.yaml")))
+SCHEMAS = DOC["components"]["schemas"]
+failures = []
+covered = set()
+
+
+# ---- a JSON-schema checker for the subset the document uses
+
+def resolve(schema):
+    while "$ref" in schema:
+        ref = schema["$ref"]
+        assert ref.startswith("#/components/"), ref
+        node = DOC
+        for part in ref[2:].split("/"):
+            node = node[part]
+        schema = node
+    return schema
+
+
+def check(value, schema, where):
+    """Returns a list of problems (empty when value satisfies schema)."""
+    schema = resolve(schema)
+    problems = []
+    if value is None:
+        return [] if schema.get("nullable") else [f"{where}: null is not allowed"]
+    for part in schema.get("allOf", []):
+        problems += check(value, part, where)
+    t = schema.get("type")
+    kinds = {"object": dict, "array": list, "string": str, "boolean": bool}
+    if t in kinds and not isinstance(value, kinds[t]):
+        return [f"{where}: expected {t}, got {type(value).__name__}"]
+    if t == "integer" and (isinstance(value, bool) or not isinstance(value, int)):
+        return [f"{where}: expected integer, got {value!r}"]
+    if t == "number" and (isinstance(value, bool) or not isinstance(value, (int, float))):
+        return [f"{where}: expected number, got {value!r}"]
+    if "enum" in schema and value not in schema["enum"]:
+        problems.append(f"{where}: {value!r} is not one of {schema['enum']}")
+    if "minimum" in schema:
+        if schema.get("exclusiveMinimum") and not value > schema["minimum"]:
+            problems.append(f"{where}: {value} is not above {schema['minimum']}")
+        elif value < schema["minimum"]:
+            problems.append(f"{where}: {value} is below {schema['minimum']}")
+    if "maximum" in schema and value > schema["maximum"]:
+        problems.append(f"{where}: {value} is above {schema['maximum']}")
+    if "minLength" in schema and len(value) < schema["minLength"]:
+        problems.append(f"{where}: shorter than {schema['minLength']}")
+    if "pattern" in schema and not re.search(schema["pattern"], value):
+        problems.append(f"{where}: {value!r} does not match {schema['pattern']}")
+    if isinstance(value, list):
+        if len(value) < schema.get("minItems", 0) or len(value) > schema.get("maxItems", len(value)):
+            problems.append(f"{where}: {len(value)} items")
+        for i, item in enumerate(value):
+            problems += check(item, schema.get("items", {}), f"{where}[{i}]")
+    if isinstance(value, dict):
+        props = schema.get("properties", {})
+        for key in schema.get("required", []):
+            if key not in value:
+                problems.append(f"{where}: missing {key!r}")
+        extra = schema.get("additionalProperties", True)
+        for key, v in value.items():
+            if key in props:
+                problems += check(v, props[key], f"{where}.{key}")
+            elif extra is False and "allOf" not in schema:
+                problems.append(f"{where}: unexpected key {key!r}")
+            elif isinstance(extra, dict):
+                problems += check(v, extra, f"{where}.{key}")
+    return problems
+
+
+def self_test():
+    """The checker itself must catch what it claims to catch."""
+    job = {"$ref": "#/components/schemas/Lease"}
+    good = {"lease": "l-1", "job": "j-1", "tile": 0, "window": [0, 0, 8, 8], "spp": 1, "seed": 0,
+            "scene_hash": "x", "deadline_ms": 5}
+    assert check(good, job, "lease") == []
+    assert check({**good, "extra": 1}, job, "lease"), "extra key not caught"
+    assert check({**good, "window": [0, 0, 8]}, job, "lease"), "short array not caught"
+    assert check({**good, "tile": "0"}, job, "lease"), "wrong type not caught"
+    assert check({k: v for k, v in good.items() if k != "job"}, job, "lease"), "missing key not caught"
+    assert check({"status": "nope"}, {"$ref": "#/components/schemas/UploadStatus"}, "s"), "enum not caught"
+
+
+# ---- the document against the route table
+
+def route_table_agrees():
+    src = open(os.path.join(SOURCE, "protocol", "routes.cpp")).read()
+    table = {}
+    for pattern, methods in re.findall(r'\{Endpoint::\w+, "([^"]+)", \{([^}]*)\}\}', src):
+        table[pattern] = {m.strip().strip('"').lower() for m in methods.split(",")}
+    documented = {p: {m for m in ops if m in ("get", "put", "post", "delete", "head", "patch")}
+                  for p, ops in DOC["paths"].items()}
+    if not table:
+        failures.append("no routes found in protocol/routes.cpp")
+    if table != documented:
+        failures.append(f"route table and docs/openapi.yaml differ:\n  code: {table}\n  doc:  {documented}")
+
+
+# ---- calling the coordinator
+
+def template_of(path):
+    """The document's path template that a concrete path instantiates."""
+    path = path.split("?")[0]
+    for template in DOC["paths"]:
+        regex = "^" + re.sub(r"\\\{[^}]+\\\}", "[^/]+", re.escape(template)) + "$"
+        if re.match(regex, path):
+            return template
+    return None
+
+
+class Coordinator:
+    def __init__(self, address):
+        self.host, self.port = address.rsplit(":", 1)
+
+    def call(self, method, path, body=None, content_type="application/json", expect=None):
+        if isinstance(body, (dict, list)):
+            body = json.dumps(body).encode()
+        elif isinstance(body, str):
+            body = body.encode()
+        conn = http.client.HTTPConnection(self.host, int(self.port), timeout=30)
+        headers = {"Content-Type": content_type} if body is not None else {}
+        conn.request(method, path, body=body, headers=headers)
+        r = conn.getresponse()
+        data = r.read()
+        ctype = r.getheader("Content-Type", "")
+        conn.close()
+        self.validate(method, path, r.status, ctype, data)
+        if expect is not None and r.status != expect:
+            failures.append(f"{method} {path}: expected {expect}, got {r.status} {data[:200]!r}")
+        return r.status, (json.loads(data) if ctype.startswith("application/json") and data else data)
+
+    def validate(self, method, path, status, ctype, data):
+        where = f"{method} {path} -> {status}"
+        template = template_of(path)
+        if template is None:
+            failures.append(f"{where}: path not in docs/openapi.yaml")
+            return
+        op = DOC["paths"][template].get(method.lower())
+        if op is None:
+            failures.append(f"{where}: method not documented for {template}")
+            return
+        response = op["responses"].get(str(status))
+        if response is None:
+            failures.append(f"{where}: status not documented for {method} {template}")
+            return
+        covered.add((template, method.lower()))
+        response = resolve(response)
+        content = response.get("content")
+        if not content or method == "HEAD":
+            return
+        media = next((m for m in content if ctype.startswith(m)), None)
+        if media is None:
+            failures.append(f"{where}: content type {ctype!r} not in {list(content)}")
+            return
+        if media == "application/json":
+            problems = check(json.loads(data), content[media]["schema"], "body")
+            failures.extend(f"{where}: {p}" for p in problems)
+
+
+def sphere_scene(size):
+    return {
+        "integrator": {"type": "intersection_test", "spp": 1, "point_light_position": [0, 3, 3],
+                       "point_light_flux": [40, 40, 40]},
+        "film": {"resolution": [size, size]},
+        "camera": {"position": [0, 0.3, 4], "look_at": [0, 0, 0], "fov": 45},
+        "textures": {"white": {"type": "constant", "color": [0.8, 0.7, 0.6]}},
+        "materials": {"m": {"type": "diffuse", "texture_name": "white"}},
+        "objects": [{"type": "sphere", "center": [0, 0, 0], "radius": 0.7, "material_name": "m"}],
+    }
+
+
+def exercise(c, tessera, workdir, address):
+    c.call("GET", "/healthz", expect=200)
+    c.call("GET", "/metrics", expect=200)
+
+    blob = b"an asset's bytes"
+    sha = hashlib.sha256(blob).hexdigest()
+    c.call("PUT", f"/v1/blobs/{sha}", blob, "application/octet-stream", expect=201)
+    c.call("PUT", f"/v1/blobs/{sha}", blob, "application/octet-stream", expect=200)
+    c.call("PUT", f"/v1/blobs/{'0' * 64}", blob, "application/octet-stream", expect=400)
+    c.call("HEAD", f"/v1/blobs/{sha}", expect=200)
+    c.call("HEAD", f"/v1/blobs/{'1' * 64}", expect=404)
+    c.call("GET", f"/v1/blobs/{sha}", expect=200)
+    c.call("GET", f"/v1/blobs/{'1' * 64}", expect=404)
+
+    job = {"scene": sphere_scene(16), "tile_size": 8, "name": "openapi", "seed": 1}
+    c.call("POST", "/v1/jobs", {**job, "spps": 2}, expect=400)
+    _, a = c.call("POST", "/v1/jobs", job, expect=201)
+    a = a["id"]
+    c.call("GET", "/v1/jobs", expect=200)
+    c.call("GET", f"/v1/jobs/{a}", expect=200)
+    c.call("GET", "/v1/jobs/j-none", expect=404)
+    c.call("GET", f"/v1/jobs/{a}/spec", expect=200)
+    c.call("GET", "/v1/jobs/j-none/spec", expect=404)
+    c.call("GET", f"/v1/jobs/{a}/preview.png", expect=200)
+    c.call("GET", "/v1/jobs/j-none/preview.png", expect=404)
+    c.call("GET", f"/v1/jobs/{a}/result.exr", expect=409)
+    c.call("GET", "/v1/jobs/j-none/result.exr", expect=404)
+
+    c.call("POST", "/v1/workers", {"name": "openapi", "threads": 1, "colour": "red"}, expect=400)
+    _, w1 = c.call("POST", "/v1/workers", {"name": "openapi", "threads": 1, "version": "test"}, expect=201)
+    _, w2 = c.call("POST", "/v1/workers", None, expect=201)
+    c.call("POST", "/v1/workers/w-none/lease", expect=404)
+    _, l1 = c.call("POST", f"/v1/workers/{w1['id']}/lease", expect=200)
+    c.call("POST", f"/v1/leases/{l1['lease']}/heartbeat", {"rays": 10}, expect=200)
+    c.call("POST", f"/v1/leases/{l1['lease']}/heartbeat", {"rays": -1}, expect=400)
+    c.call("POST", "/v1/leases/l-none/heartbeat", expect=404)
+    c.call("PUT", f"/v1/leases/{l1['lease']}/result", b"not an exr", "image/x-exr", expect=422)  # w1's 1st failure
+    c.call("POST", f"/v1/leases/{l1['lease']}/heartbeat", expect=410)
+    c.call("PUT", "/v1/leases/l-none/result", b"x", "image/x-exr", expect=404)
+    _, l2 = c.call("POST", f"/v1/workers/{w1['id']}/lease", expect=200)
+    c.call("POST", f"/v1/leases/{l2['lease']}/fail", {"error": "x", "more": 1}, expect=400)
+    c.call("POST", f"/v1/leases/{l2['lease']}/fail", {"error": "openapi test"}, expect=200)  # 2nd: blocklisted
+    c.call("POST", "/v1/leases/l-none/fail", expect=404)
+    c.call("POST", f"/v1/workers/{w1['id']}/lease", expect=204)
+    _, l3 = c.call("POST", f"/v1/workers/{w2['id']}/lease", expect=200)
+    c.call("POST", f"/v1/leases/{l3['lease']}/release", {"why": 1}, expect=400)
+    c.call("POST", f"/v1/leases/{l3['lease']}/release", expect=200)
+    c.call("POST", "/v1/leases/l-none/release", expect=404)
+    c.call("DELETE", f"/v1/jobs/{a}", expect=200)
+    c.call("DELETE", f"/v1/jobs/{a}", expect=409)
+    c.call("DELETE", "/v1/jobs/j-none", expect=404)
+    c.call("POST", f"/v1/jobs/{a}/retry", {"x": 1}, expect=400)
+    _, again = c.call("POST", f"/v1/jobs/{a}/retry", expect=200)
+    if again["state"] not in ("queued", "running") or again["error"] is not None:
+        failures.append(f"retry: the job is {again['state']} with error {again['error']!r}")
+    c.call("POST", f"/v1/jobs/{a}/retry", expect=409)
+    c.call("POST", "/v1/jobs/j-none/retry", expect=404)
+    c.call("DELETE", f"/v1/jobs/{a}", expect=200)
+    c.call("PUT", f"/v1/leases/{l3['lease']}/result", b"x", "image/x-exr", expect=410)
+
+    # A job a real worker renders: the done states, the result and an accepted upload.
+    _, b = c.call("POST", "/v1/jobs", job, expect=201)
+    b = b["id"]
+    worker = subprocess.Popen([tessera, "worker", "--coordinator", "http://" + address, "--threads", "1"],
+                              stdout=subprocess.DEVNULL, stderr=open(os.path.join(workdir, "worker.log"), "w"))
+    try:
+        deadline = time.time() + 60
+        state = None
+        while time.time() < deadline:
+            _, j = c.call("GET", f"/v1/jobs/{b}", expect=200)
+            state = j["state"]
+            if state in ("done", "failed", "cancelled"):
+                break
+            time.sleep(0.1)
+        if state != "done":
+            failures.append(f"job {b} ended {state}, not done")
+    finally:
+        worker.send_signal(signal.SIGTERM)
+        worker.wait(timeout=30)
+    status, exr = c.call("GET", f"/v1/jobs/{b}/result.exr", expect=200)
+    if status == 200 and exr[:4] != b"\x76\x2f\x31\x01":
+        failures.append("result.exr is not an OpenEXR file")
+    c.call("GET", f"/v1/jobs/{b}/preview.png", expect=200)
+    c.call("GET", "/v1/jobs", expect=200)
+
+    # 429: the coordinator runs with --max-queued-jobs 1 and no worker is left.
+    c.call("POST", "/v1/jobs", job, expect=201)
+    c.call("POST", "/v1/jobs", job, expect=429)
+
+
+def main():
+    self_test()
+    route_table_agrees()
+    workdir = tempfile.mkdtemp(prefix="tessera-openapi-")
+    ready = os.path.join(workdir, "ready")
+    serve = subprocess.Popen([TESSERA, "serve", "--listen", "127.0.0.1:0", "--data", os.path.join(workdir, "data"),
+                              "--ready-file", ready, "--max-queued-jobs", "1"],
+                             stdout=subprocess.DEVNULL, stderr=open(os.path.join(workdir, "serve.log"), "w"))
+    try:
+        deadline = time.time() + 30
+        while not (os.path.exists(ready) and open(ready).read().strip()):
+            if serve.poll() is not None or time.time() > deadline:
+                sys.exit("the coordinator did not start:\n" + open(os.path.join(workdir, "serve.log")).read())
+            time.sleep(0.05)
+        address = open(ready).read().strip()
+        exercise(Coordinator(address), TESSERA, workdir, address)
+    finally:
+        serve.send_signal(signal.SIGTERM)
+        serve.wait(timeout=30)
+    documented = {(p, m) for p, ops in DOC["paths"].items() for m in ops
+                  if m in ("get", "put", "post", "delete", "head", "patch")}
+    for p, m in sorted(documented - covered):
+        failures.append(f"{m.upper()} {p} was not exercised")
+    if failures:
+        print("\n".join(failures))
+        print(f"logs kept in {workdir}")
+        sys.exit(1)
+    shutil.rmtree(workdir)
+    print(f"{len(covered)} operations answered as docs/openapi.yaml says")
+
+
+main()
