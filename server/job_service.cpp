@@ -312,8 +312,16 @@ void JobService::finalize(const std::string& job) {
   const auto img = image_for(job, s->params.width, s->params.height);
   const auto t0 = std::chrono::steady_clock::now();
   const int64_t now = clock_();
-  // The sampling settings are recorded as `tessera render` records them (adaptive jobs: "adaptive" and its options).
-  std::map<std::string, std::string> meta = spec(job).sampling.metadata();
+  // The sampling settings are recorded as `tessera render` records them (adaptive jobs: "adaptive" and its options);
+  // a job whose record is missing is recorded by the spp and seed the scheduler holds.
+  protocol::SamplingSettings sampling;
+  sampling.spp = s->params.spp;
+  sampling.seed = s->params.seed;
+  try {
+    sampling = spec(job).sampling;
+  } catch (const ApiError&) {
+  }
+  std::map<std::string, std::string> meta = sampling.metadata();
   meta.insert({
       {"tessera:version", TESSERA_VERSION},
       {"tessera:job", job},
