@@ -40,7 +40,10 @@ struct Case {
 const std::vector<Case> kCases = {{"cbox_area_light", "cbox_area_light.json", 8, 1},
                                   {"cbox_no_light_refraction", "cbox_no_light_refraction.json", 8, 1},
                                   {"cbox_env_light", "cbox_env_light.json", 8, 2},
-                                  {"sky_sun", "sky_sun.json", 8, 1}};
+                                  {"sky_sun", "sky_sun.json", 8, 1},
+                                  // The path tracer: diffuse interreflection, glass and rough metal.
+                                  {"cbox_gi", "cbox_gi.json", 8, 1},
+                                  {"cbox_glass", "cbox_glass.json", 8, 2}};
 
 const Scene& scene_of(const std::string& file) {
   static std::map<std::string, LoadedScene> cache;
