@@ -72,7 +72,7 @@ struct Coordinator::Impl {
         sched(SchedulerConfig{int64_t(opt.lease_seconds * 1000.0), 3, 2, random_hex(3)}, wall_ms, store),
         api(sched, blobs, store, metrics, wall_ms, with_heartbeat(opt)),
         pool(std::size_t(opt.handler_threads > 0 ? opt.handler_threads : std::max(2u, std::thread::hardware_concurrency()))),
-        server(ioc, pool, api, HttpServerOptions{opt.host, opt.port, opt.read_timeout, opt.header_limit, opt.max_connections}),
+        server(ioc, pool, api, HttpServerOptions{opt.host, opt.port, opt.read_timeout, opt.header_limit, opt.max_connections, opt.tls}),
         tick(ioc),
         signals(ioc) {}
 
@@ -140,11 +140,8 @@ void Coordinator::run() {
   if (m.opt.handle_signals) {
     m.signals.add(SIGINT);
     m.signals.add(SIGTERM);
-    m.signals.async_wait([this](boost::system::error_code ec, int sig) {
-      if (ec) return;
-      spdlog::info("received signal {}: no new connections; finishing requests in flight", sig);
-      stop();
-    });
+    if (m.server.tls()) m.signals.add(SIGHUP);
+    wait_for_signal();
   }
   auto serve = [&m] {
     for (;;) {
@@ -175,6 +172,23 @@ void Coordinator::run() {
     pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
   }
   spdlog::info("coordinator stopped");
+}
+
+void Coordinator::wait_for_signal() {
+  impl_->signals.async_wait([this](boost::system::error_code ec, int sig) {
+    if (ec) return;
+    if (sig == SIGHUP) {
+      try {
+        impl_->server.reload_tls();
+        spdlog::info("received SIGHUP: TLS certificate and key re-read; new connections use them");
+      } catch (const std::exception& e) {
+        spdlog::error("received SIGHUP: {}; still serving with the previous certificate", e.what());
+      }
+      return wait_for_signal();
+    }
+    spdlog::info("received signal {}: no new connections; finishing requests in flight", sig);
+    stop();
+  });
 }
 
 void Coordinator::stop() {
