@@ -47,7 +47,9 @@ class SessionBase {
 struct HttpServer::State {
   State(asio::io_context& i, asio::thread_pool& p, HttpHandler& h, HttpServerOptions o)
       : ioc(i), pool(p), handler(h), opt(std::move(o)), acceptor(asio::make_strand(i)) {
-    if (opt.tls.enabled()) tls_context = make_server_tls_context(opt.tls);
+    // Any TLS file named builds the context, so a key or client CA without a certificate is an error, not plain HTTP.
+    const TlsServerFiles& t = opt.tls;
+    if (!t.cert_file.empty() || !t.key_file.empty() || !t.client_ca_file.empty()) tls_context = make_server_tls_context(t);
   }
   asio::io_context& ioc;
   asio::thread_pool& pool;

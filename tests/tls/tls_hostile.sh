@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Hostile input against an HTTPS coordinator: random bytes and a plain HTTP request instead of a handshake, a
+# Hostile input against an HTTPS coordinator: half a TLS setup (a key or client CA without a certificate, a key of
+# another certificate) refused at start; random bytes and a plain HTTP request instead of a handshake, a
 # handshake that stalls (whole or after its first bytes) and one with a client certificate from the wrong CA are
 # refused and closed, a stalled handshake is closed by the read timeout and holds a slot of --max-connections while
 # it lasts, and the coordinator keeps serving throughout.
@@ -23,6 +24,15 @@ probe() {
   shift
   expect_exit 0 "$log" -- "$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --detach "$@"
 }
+
+# 0. Half a TLS setup is refused at start, never served as plain HTTP.
+expect_exit 1 "$WORK/half1.log" -- "$TESSERA" serve --listen 127.0.0.1:0 --data "$WORK/d0" --tls-client-ca "$T/ca.pem"
+log_has "$WORK/half1.log" "--tls-client-ca needs --tls-cert and --tls-key" || fail "a client CA without a certificate was accepted"
+expect_exit 1 "$WORK/half2.log" -- "$TESSERA" serve --listen 127.0.0.1:0 --data "$WORK/d0" --tls-key "$T/server.key"
+log_has "$WORK/half2.log" "needs both --tls-cert and --tls-key" || fail "a key without a certificate was accepted"
+expect_exit 1 "$WORK/half3.log" -- "$TESSERA" serve --listen 127.0.0.1:0 --data "$WORK/d0" --tls-cert "$T/server.pem" \
+  --tls-key "$T/client.key"
+log_has "$WORK/half3.log" "cannot use TLS key.*mismatch" || fail "a key of another certificate was accepted"
 
 # 1. Read timeout 1 s: garbage, plain HTTP and stalled handshakes are closed, the coordinator serves on.
 start_serve --tls-cert "$T/server.pem" --tls-key "$T/server.key" --tls-client-ca "$T/ca.pem" --read-timeout-seconds 1
