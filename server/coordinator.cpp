@@ -122,6 +122,14 @@ Coordinator::Coordinator(CoordinatorOptions options) {
     spdlog::info("resuming {} queued and {} running job(s) with {} live lease(s) from {}", c.jobs[JobState::queued],
                  c.jobs[JobState::running], c.active_leases, impl_->store.database_file().string());
   impl_->api.recover();
+  if (impl_->opt.handle_signals) {
+    // Caught from here on, before the caller announces readiness: a signal that arrives before run() is held by the
+    // signal set and acted on once run() starts, instead of killing the process with the default action.
+    impl_->signals.add(SIGINT);
+    impl_->signals.add(SIGTERM);
+    if (impl_->server.tls()) impl_->signals.add(SIGHUP);
+    wait_for_signal();
+  }
 }
 
 Coordinator::~Coordinator() {
@@ -137,12 +145,6 @@ void Coordinator::run() {
   Impl& m = *impl_;
   m.server.start();
   m.arm_tick();
-  if (m.opt.handle_signals) {
-    m.signals.add(SIGINT);
-    m.signals.add(SIGTERM);
-    if (m.server.tls()) m.signals.add(SIGHUP);
-    wait_for_signal();
-  }
   auto serve = [&m] {
     for (;;) {
       try {

@@ -15,10 +15,14 @@ log_has "$WORK/serve.log" "clear text" && fail "a TLS coordinator warned about c
 URL=https://$COORD
 worker_on w1 w1 "$URL" --threads 1 "${CLIENT_TLS[@]}" --token-file "$WORKER_TOKEN_FILE"
 worker_on w2 w2 "$URL" --threads 1 "${CLIENT_TLS[@]}" --token-file "$WORKER_TOKEN_FILE"
+both_registered() { log_has "$WORK/w1.log" "registered as" && log_has "$WORK/w2.log" "registered as"; }
+wait_for both_registered || fail "the workers did not register over TLS"
 expect_exit 0 "$WORK/submit.log" -- on w3 "$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 8 --seed 5 -q \
   -o "$WORK/out.exr" "${CLIENT_TLS[@]}" --token-file "$CLIENT_TOKEN_FILE"
 "$EXR_COMPARE" "$WORK/ref.exr" "$WORK/out.exr" || fail "the job over TLS differs from the single-process render"
-for w in w1 w2; do log_has "$WORK/$w.log" "upload accepted" || fail "$w rendered nothing over TLS"; done
+# Which worker renders how many tiles is up to the machine's speed; together they rendered all 24.
+[ $(($(count "$WORK/w1.log" "upload accepted") + $(count "$WORK/w2.log" "upload accepted"))) = 24 ] \
+  || fail "the workers' accepted uploads do not add up to the job's 24 tiles"
 
 # The same host, a second coordinator on plain HTTP: it starts, and says that tokens travel in clear text.
 PLAIN_LOG=$WORK/serve.log
