@@ -6,6 +6,8 @@
 # shellcheck shell=bash
 # shellcheck source-path=SCRIPTDIR source=../lib/tls.sh
 source "$(dirname "${BASH_SOURCE[0]}")/../lib/tls.sh"
+# shellcheck source-path=SCRIPTDIR source=../lib/freeze.sh
+source "$(dirname "${BASH_SOURCE[0]}")/../lib/freeze.sh"
 
 NS=tsr$$-                 # namespace prefix, unique per test process
 SWITCH=${NS}sw
@@ -142,12 +144,16 @@ start_short_lease_farm() {
   submit_on "$1" "$WORK/submit.log" "$WORK/s.json" "$URL" "${SUBMIT[@]}" -o "$WORK/out.exr"
 }
 
-# start_frozen_worker HOST NAME: a worker that leases a tile, renders it and freezes itself (SIGSTOP, the
-# TESSERA_WORKER_STOP_BEFORE_UPLOAD hook) before uploading; returns once it is frozen, holding the lease. Sets
-# FROZEN_PID and FROZEN_TILE ("tile=N").
+# start_frozen_worker HOST NAME: a worker that leases a tile, renders it and freezes itself (SIGSTOP, see
+# tests/lib/freeze.sh) before uploading; returns once it is frozen, holding the lease. Sets FROZEN_PID and
+# FROZEN_TILE ("tile=N").
 start_frozen_worker() {
-  TESSERA_WORKER_STOP_BEFORE_UPLOAD=1 worker_on "$1" "$2" "$URL" "${WORKER[@]}"
-  FROZEN_PID=$WORKER_PID
+  freeze_setup
+  env "${FREEZE_ENV[@]}" ip netns exec "${NS}$1" "$FREEZE_BIN" worker --coordinator "$URL" --cache "$WORK/cache-$2" \
+    --name "$2" "${WORKER[@]}" >"$WORK/$2.log" 2>&1 &
+  FROZEN_PID=$!
+  PIDS+=("$FROZEN_PID")
   wait_for is_stopped "$FROZEN_PID" || fail "$2 never froze before its upload"
-  FROZEN_TILE=$(grep -Eo "tile=[0-9]+ lease=[^:]+: TESSERA_WORKER_STOP" "$WORK/$2.log" | head -n1 | grep -Eo "tile=[0-9]+")
+  FROZEN_TILE=$(frozen_tile "$WORK/$2.log")
+  [ -n "$FROZEN_TILE" ] || fail "$2 froze before rendering a tile"
 }

@@ -2,8 +2,8 @@
 # Partition: worker "late" (host w1) holds a lease when its link is cut. Its lease expires, worker "prompt" (w2)
 # renders the tile and the job completes bitwise identical; when the link returns, late's upload of the tile (retried
 # all along) is answered as a duplicate, and late then renders a second job by itself without a restart.
-# Mid-tile is made certain, not timed: late freezes itself (SIGSTOP, the TESSERA_WORKER_STOP_BEFORE_UPLOAD hook)
-# after rendering and before uploading, the link is cut while it is frozen, and only then is it continued.
+# Mid-tile is made certain, not timed: late freezes itself (SIGSTOP, tests/lib/freeze.sh) after rendering and
+# before uploading, the link is cut while it is frozen, and only then is it continued.
 source "$(dirname "$0")/../farm/common.sh"
 source "$(dirname "$0")/common.sh"
 start_short_lease_farm w3

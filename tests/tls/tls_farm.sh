@@ -7,6 +7,8 @@
 source "$(dirname "$0")/../farm/common.sh"
 # shellcheck source-path=SCRIPTDIR source=../lib/tls.sh
 source "$(dirname "$0")/../lib/tls.sh"
+# shellcheck source-path=SCRIPTDIR source=../lib/freeze.sh
+source "$(dirname "$0")/../lib/freeze.sh"
 
 T=$WORK/tls
 mkdir -p "$T"
@@ -57,11 +59,14 @@ expect_exit 1 "$WORK/mixed.log" -- "$TESSERA" submit "$WORK/s.json" --coordinato
 log_has "$WORK/mixed.log" "is plain HTTP: use an https:// URL" || fail "TLS files with an http:// URL were not refused"
 
 # A worker that trusts both CAs (as during a planned rotation) freezes with a lease before its first upload.
-TESSERA_WORKER_STOP_BEFORE_UPLOAD=1 start_worker w1 --threads 1 --ca-file "$T/both.pem" "${MTLS[@]}" \
-  --token-file "$WORK/worker.token"
-W1=$WORKER_PID
+freeze_setup
+env "${FREEZE_ENV[@]}" "$FREEZE_BIN" worker --coordinator "$URL" --cache "$WORK/cache-w1" --name w1 --threads 1 \
+  --ca-file "$T/both.pem" "${MTLS[@]}" --token-file "$WORK/worker.token" >"$WORK/w1.log" 2>&1 &
+W1=$!
+PIDS+=("$W1")
 start_submit "$WORK/submit.log" "$WORK/s.json" --tile 8 -o "$WORK/out.exr" -q --ca-file "$T/ca.pem" "${MTLS[@]}"
 wait_for is_stopped "$W1" || fail "the worker never stopped itself before its upload"
+HELD_TILE=$(frozen_tile "$WORK/w1.log")
 
 # Rotation: a key that cannot be read is refused and the old certificate stays; then the new pair is taken.
 echo "not a key" >"$T/live.key"
@@ -80,8 +85,7 @@ log_has "$WORK/old-ca.log" "certificate is not accepted" || fail "new connection
 # The lease taken before the reload completes after it; the job is bitwise identical.
 kill -CONT "$W1"
 wait "$SUBMIT_PID" || fail "submit over TLS exited with $?"
-log_has "$WORK/w1.log" "TESSERA_WORKER_STOP_BEFORE_UPLOAD" || fail "the worker did not hold a lease across the reload"
-grep -Eq "upload accepted" "$WORK/w1.log" || fail "the lease held across the reload did not complete"
+log_has "$WORK/w1.log" "$HELD_TILE lease=.*upload accepted" || fail "the lease held across the reload did not complete"
 "$EXR_COMPARE" "$WORK/ref.exr" "$WORK/out.exr" || fail "result over TLS differs from the single-process render"
 expect_exit 0 "$WORK/new-ca.log" -- "$TESSERA" submit "$WORK/s.json" --coordinator "$URL" -q --ca-file "$T/ca2.pem" \
   "${MTLS[@]}" -o "$WORK/out2.exr"
