@@ -24,6 +24,10 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
                 "File holding the bearer token clients must send (default: $TESSERA_CLIENT_TOKEN)");
   c->add_option("--worker-token-file", a.worker_token_file,
                 "File holding the bearer token workers must send (default: $TESSERA_WORKER_TOKEN)");
+  c->add_option("--tls-cert", a.tls_cert, "Serve HTTPS with this PEM certificate chain (re-read on SIGHUP)");
+  c->add_option("--tls-key", a.tls_key, "Private key (PEM) of --tls-cert (re-read on SIGHUP)");
+  c->add_option("--tls-client-ca", a.tls_client_ca,
+                "Require every client to present a certificate from this PEM CA file (mutual TLS; tokens still apply; re-read on SIGHUP)");
   c->add_option("--max-queued-jobs", a.max_queued_jobs, "Queued plus running jobs; more submissions get 429 with Retry-After")
       ->check(CLI::Range(int64_t(1), int64_t(1) << 40))->capture_default_str();
   c->add_option("--max-job-pixels", a.max_job_pixels, "Largest width x height of one job (400 above it)")
@@ -63,16 +67,22 @@ int run_serve(const ServeArgs& a) {
     o.header_limit = a.max_header_bytes;
     o.max_connections = a.max_connections;
     o.handle_signals = true;
+    o.tls = server::TlsServerFiles{a.tls_cert, a.tls_key, a.tls_client_ca};
     o.limits.tokens.client = load_token(a.client_token_file, "TESSERA_CLIENT_TOKEN");
     o.limits.tokens.worker = load_token(a.worker_token_file, "TESSERA_WORKER_TOKEN");
     server::Coordinator coordinator(o);
     const auto ep = coordinator.endpoint();
     const std::string bound = ep.address().to_string() + ":" + std::to_string(ep.port());
-    if (!a.ready_file.empty()) write_file_atomic(a.ready_file, bound + "\n");
+    if (!o.tls.enabled() && !ep.address().is_loopback())
+      spdlog::warn("serving plain HTTP on {}: access tokens and job data travel in clear text; use --tls-cert and "
+                   "--tls-key unless this network is private to you (see README, Access and TLS)", bound);
     const auto& t = o.limits.tokens;
-    spdlog::info("coordinator listening on http://{} (data in {}, leases {}s, heartbeats {}s, tokens: {})", bound,
+    spdlog::info("coordinator listening on {}://{} (data in {}, leases {}s, heartbeats {}s, tokens: {}{})",
+                 o.tls.enabled() ? "https" : "http", bound,
                  a.data, a.lease_seconds, a.heartbeat_seconds,
-                 t.complete() ? "client and worker" : t.client.empty() ? (t.worker.empty() ? "none" : "worker only") : "client only");
+                 t.complete() ? "client and worker" : t.client.empty() ? (t.worker.empty() ? "none" : "worker only") : "client only",
+                 o.tls.client_ca_file.empty() ? "" : ", client certificates required");
+    if (!a.ready_file.empty()) write_file_atomic(a.ready_file, bound + "\n");  // after the log lines above
     coordinator.run();
     return 0;
   } catch (const std::exception& e) {

@@ -20,6 +20,9 @@ struct ServeArgs {
   int threads = 0;                        ///< Request handler threads (0: cores).
   std::string client_token_file;          ///< File holding the client token (else $TESSERA_CLIENT_TOKEN).
   std::string worker_token_file;          ///< File holding the worker token (else $TESSERA_WORKER_TOKEN).
+  std::string tls_cert;                   ///< PEM certificate chain: serve HTTPS.
+  std::string tls_key;                    ///< PEM private key of tls_cert.
+  std::string tls_client_ca;              ///< PEM CA file: require client certificates from it (mutual TLS).
   int64_t max_queued_jobs = 1000;         ///< Queued plus running jobs before POST /v1/jobs answers 429.
   uint64_t max_job_pixels = uint64_t(1) << 26;  ///< width x height of one job.
   double max_job_samples = 4e10;          ///< width x height x spp of one job.

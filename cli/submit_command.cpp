@@ -1,6 +1,7 @@
 #include "cli/submit_command.h"
 
 #include "cli/progress_bar.h"
+#include "cli/tls_flags.h"
 #include "cli/token.h"
 #include "core/output_file.h"
 #include "core/scene_loader.h"
@@ -35,6 +36,7 @@ CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
       ->capture_default_str()
       ->check(CLI::Range(1u, 1u << 20));
   c->add_option("--token-file", a.token_file, "File holding the client token (default: $TESSERA_CLIENT_TOKEN)");
+  add_client_tls_flags(c, a.tls);
   c->add_flag("--detach", a.detach, "Print the job id and return without waiting");
   c->add_flag("-q,--quiet", a.quiet, "No progress bar");
   return c;
@@ -109,7 +111,7 @@ int run_submit(const SubmitArgs& a) {
     }
   }
   try {
-    farm::HttpClient http(farm::parse_http_url(a.coordinator));
+    farm::HttpClient http(farm::parse_http_url(a.coordinator), {}, uint64_t(2) << 30, a.tls);
     http.set_bearer_token(load_token(a.token_file, "TESSERA_CLIENT_TOKEN"));
     farm::SubmitOptions o = shared_job_options(a);
     o.tile_size = a.tile_size;

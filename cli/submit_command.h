@@ -29,6 +29,7 @@ struct SubmitArgs {
   uint32_t min_spp = protocol::kDefaultMinSpp;  ///< Adaptive sampling: first round.
   uint32_t max_spp = protocol::kDefaultMaxSpp;  ///< Adaptive sampling: most samples per pixel.
   std::string token_file;           ///< File holding the client token (else $TESSERA_CLIENT_TOKEN).
+  farm::ClientTlsFiles tls;         ///< CA and client certificate files for https:// coordinators.
   bool detach = false;              ///< Print the job id and return without waiting.
   bool quiet = false;               ///< No progress bar.
 };

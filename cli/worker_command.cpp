@@ -1,5 +1,6 @@
 #include "cli/worker_command.h"
 
+#include "cli/tls_flags.h"
 #include "cli/token.h"
 
 #include "worker/worker.h"
@@ -22,11 +23,18 @@ extern "C" void on_stop_signal(int) { g_stop_requests.fetch_add(1); }
 
 CLI::App* add_worker_command(CLI::App& app, WorkerArgs& a) {
   auto* c = app.add_subcommand("worker", "Run a worker that leases and renders tiles");
-  c->add_option("--coordinator", a.coordinator, "Coordinator URL, e.g. http://127.0.0.1:8470")->required();
+  c->add_option("--coordinator", a.coordinator, "Coordinator URL, e.g. http://127.0.0.1:8470 or https://coordinator.example:8470")->required();
   c->add_option("--threads", a.threads, "Render threads (default: all cores)")->check(CLI::Range(0, 4096));
   c->add_option("--cache", a.cache, "Asset cache folder (default: $XDG_CACHE_HOME/tessera or ~/.cache/tessera)");
   c->add_option("--name", a.name, "Name reported to the coordinator (default: host name and process id)");
   c->add_option("--token-file", a.token_file, "File holding the worker token (default: $TESSERA_WORKER_TOKEN)");
+  add_client_tls_flags(c, a.tls);
+  c->add_option("--connect-timeout-seconds", a.connect_timeout_seconds,
+                "A connection (with its TLS handshake) must be made within this time")
+      ->check(CLI::Range(0.1, 3600.0))->capture_default_str();
+  c->add_option("--request-timeout-seconds", a.request_timeout_seconds,
+                "Sending a request, and receiving its whole response, must each take at most this long")
+      ->check(CLI::Range(0.1, 86400.0))->capture_default_str();
   c->add_flag("-v,--verbose", a.verbose, "Debug logging");
   c->footer("SIGTERM or SIGINT: finish and upload the current tile, then exit 0. A second one: stop rendering, hand "
             "the tile back, exit 0.");
@@ -50,6 +58,9 @@ int run_worker_command(const WorkerArgs& a) {
     o.cache_dir = a.cache;
     o.name = a.name;
     o.token = load_token(a.token_file, "TESSERA_WORKER_TOKEN");
+    o.tls = a.tls;
+    const auto ms = [](double s) { return std::chrono::milliseconds(int64_t(s * 1000)); };
+    o.timeouts = farm::HttpTimeouts{ms(a.connect_timeout_seconds), ms(a.request_timeout_seconds), ms(a.request_timeout_seconds)};
     farm::run_worker(o, g_stop_requests);
     return 0;
   } catch (const std::exception& e) {

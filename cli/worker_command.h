@@ -1,6 +1,8 @@
 // `tessera worker`: lease tiles from a coordinator, render them, upload them.
 #pragma once
 
+#include "worker/tls_client_context.h"
+
 #include <CLI/CLI.hpp>
 
 #include <string>
@@ -14,6 +16,9 @@ struct WorkerArgs {
   std::string cache;        ///< Asset cache folder (empty: the default).
   std::string name;         ///< Worker name (empty: host-pid).
   std::string token_file;   ///< File holding the worker token (else $TESSERA_WORKER_TOKEN).
+  farm::ClientTlsFiles tls; ///< CA and client certificate files for https:// coordinators.
+  double connect_timeout_seconds = 3;   ///< Connecting and the TLS handshake.
+  double request_timeout_seconds = 30;  ///< Sending a request, and receiving its response.
   bool verbose = false;     ///< Debug logging.
 };
 

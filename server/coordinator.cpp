@@ -72,7 +72,7 @@ struct Coordinator::Impl {
         sched(SchedulerConfig{int64_t(opt.lease_seconds * 1000.0), 3, 2, random_hex(3)}, wall_ms, store),
         api(sched, blobs, store, metrics, wall_ms, with_heartbeat(opt)),
         pool(std::size_t(opt.handler_threads > 0 ? opt.handler_threads : std::max(2u, std::thread::hardware_concurrency()))),
-        server(ioc, pool, api, HttpServerOptions{opt.host, opt.port, opt.read_timeout, opt.header_limit, opt.max_connections}),
+        server(ioc, pool, api, HttpServerOptions{opt.host, opt.port, opt.read_timeout, opt.header_limit, opt.max_connections, opt.tls}),
         tick(ioc),
         signals(ioc) {}
 
@@ -122,6 +122,14 @@ Coordinator::Coordinator(CoordinatorOptions options) {
     spdlog::info("resuming {} queued and {} running job(s) with {} live lease(s) from {}", c.jobs[JobState::queued],
                  c.jobs[JobState::running], c.active_leases, impl_->store.database_file().string());
   impl_->api.recover();
+  if (impl_->opt.handle_signals) {
+    // Caught from here on, before the caller announces readiness: a signal that arrives before run() is held by the
+    // signal set and acted on once run() starts, instead of killing the process with the default action.
+    impl_->signals.add(SIGINT);
+    impl_->signals.add(SIGTERM);
+    if (impl_->server.tls()) impl_->signals.add(SIGHUP);
+    wait_for_signal();
+  }
 }
 
 Coordinator::~Coordinator() {
@@ -137,15 +145,6 @@ void Coordinator::run() {
   Impl& m = *impl_;
   m.server.start();
   m.arm_tick();
-  if (m.opt.handle_signals) {
-    m.signals.add(SIGINT);
-    m.signals.add(SIGTERM);
-    m.signals.async_wait([this](boost::system::error_code ec, int sig) {
-      if (ec) return;
-      spdlog::info("received signal {}: no new connections; finishing requests in flight", sig);
-      stop();
-    });
-  }
   auto serve = [&m] {
     for (;;) {
       try {
@@ -175,6 +174,23 @@ void Coordinator::run() {
     pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
   }
   spdlog::info("coordinator stopped");
+}
+
+void Coordinator::wait_for_signal() {
+  impl_->signals.async_wait([this](boost::system::error_code ec, int sig) {
+    if (ec) return;
+    if (sig == SIGHUP) {
+      try {
+        impl_->server.reload_tls();
+        spdlog::info("received SIGHUP: TLS certificate and key re-read; new connections use them");
+      } catch (const std::exception& e) {
+        spdlog::error("received SIGHUP: {}; still serving with the previous certificate", e.what());
+      }
+      return wait_for_signal();
+    }
+    spdlog::info("received signal {}: no new connections; finishing requests in flight", sig);
+    stop();
+  });
 }
 
 void Coordinator::stop() {

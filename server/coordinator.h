@@ -2,6 +2,7 @@
 #pragma once
 
 #include "server/api.h"
+#include "server/tls_context.h"
 
 #include <boost/asio/ip/tcp.hpp>
 
@@ -24,9 +25,10 @@ struct CoordinatorOptions {
   std::chrono::milliseconds read_timeout{30'000};  ///< Whole-request read timeout.
   std::size_t header_limit = 64 * 1024;        ///< Largest request header.
   std::size_t max_connections = 1024;          ///< Open connections (more get 503).
+  TlsServerFiles tls;                          ///< HTTPS certificate files (none: plain HTTP).
   int io_threads = 1;                          ///< Network threads.
   int handler_threads = 0;                     ///< Request handler threads (0: max(2, cores)).
-  bool handle_signals = false;                 ///< Stop gracefully on SIGINT/SIGTERM.
+  bool handle_signals = false;                 ///< Stop gracefully on SIGINT/SIGTERM; re-read the TLS files on SIGHUP.
 };
 
 /// A running coordinator. Construction binds the port; run() serves until stop() (or a signal).
@@ -46,6 +48,7 @@ class Coordinator {
   void stop();
 
  private:
+  void wait_for_signal();  // SIGINT/SIGTERM stop, SIGHUP reloads TLS and waits again
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

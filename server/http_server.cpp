@@ -5,7 +5,10 @@
 #include <boost/asio/post.hpp>
 #include <boost/asio/strand.hpp>
 #include <boost/beast/core.hpp>
+#include <boost/beast/ssl.hpp>
 #include <nlohmann/json.hpp>
+#include <openssl/err.h>
+#include <openssl/ssl.h>
 #include <spdlog/spdlog.h>
 
 #include <array>
@@ -14,11 +17,13 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <type_traits>
 
 namespace tessera::server {
 
 namespace asio = boost::asio;
 namespace beast = boost::beast;
+namespace ssl = asio::ssl;
 using tcp = asio::ip::tcp;
 
 HttpResponse json_error(http::status status, const std::string& text, unsigned version) {
@@ -30,11 +35,22 @@ HttpResponse json_error(http::status status, const std::string& text, unsigned v
   return res;
 }
 
-class Session;
+class SessionBase {
+ public:
+  virtual ~SessionBase() = default;
+  // Starts the connection's work (handshake or first read) on its strand.
+  virtual void run() = 0;
+  // Called at shutdown: a connection waiting for its next request is closed now; a busy one closes after answering.
+  virtual void stop_if_idle() = 0;
+};
 
 struct HttpServer::State {
   State(asio::io_context& i, asio::thread_pool& p, HttpHandler& h, HttpServerOptions o)
-      : ioc(i), pool(p), handler(h), opt(std::move(o)), acceptor(asio::make_strand(i)) {}
+      : ioc(i), pool(p), handler(h), opt(std::move(o)), acceptor(asio::make_strand(i)) {
+    // Any TLS file named builds the context, so a key or client CA without a certificate is an error, not plain HTTP.
+    const TlsServerFiles& t = opt.tls;
+    if (!t.cert_file.empty() || !t.key_file.empty() || !t.client_ca_file.empty()) tls_context = make_server_tls_context(t);
+  }
   asio::io_context& ioc;
   asio::thread_pool& pool;
   HttpHandler& handler;
@@ -42,40 +58,86 @@ struct HttpServer::State {
   tcp::acceptor acceptor;
   std::atomic<bool> stopping{false};
   std::mutex mu;
-  std::map<uint64_t, std::weak_ptr<Session>> sessions;
+  std::map<uint64_t, std::weak_ptr<SessionBase>> sessions;
   uint64_t next_session = 1;
+  std::shared_ptr<ssl::context> tls_context;  // guarded by mu; replaced by reload_tls(), null for plain HTTP
 };
 
-// One connection: reads a request header, picks the body limit, reads the body, hands the request to the handler
-// pool and writes the answer, all on the connection's strand; keep-alive loops back to the next header.
-class Session : public std::enable_shared_from_this<Session> {
- public:
-  Session(tcp::socket&& socket, std::shared_ptr<HttpServer::State> st, uint64_t id)
-      : stream_(std::move(socket)), st_(std::move(st)), id_(id) {}
+// One connection: (with TLS, a server handshake first, within the read timeout,) then reads a request header, picks
+// the body limit, reads the body, hands the request to the handler pool and writes the answer, all on the
+// connection's strand; keep-alive loops back to the next header.
+template <bool kTls>
+class Session : public SessionBase, public std::enable_shared_from_this<Session<kTls>> {
+  using Stream = std::conditional_t<kTls, beast::ssl_stream<beast::tcp_stream>, beast::tcp_stream>;
 
-  ~Session() {
+ public:
+  Session(tcp::socket&& socket, std::shared_ptr<ssl::context> tls, std::shared_ptr<HttpServer::State> st, uint64_t id)
+      : tls_(std::move(tls)), stream_(make_stream(std::move(socket), tls_.get())), st_(std::move(st)), id_(id) {}
+
+  ~Session() override {
     std::lock_guard lock(st_->mu);
     st_->sessions.erase(id_);
   }
 
-  void run() { asio::dispatch(stream_.get_executor(), beast::bind_front_handler(&Session::read_header, shared_from_this())); }
+  void run() override {
+    if constexpr (kTls) {
+      asio::dispatch(stream_.get_executor(), [self = this->shared_from_this()] { self->handshake(); });
+    } else {
+      asio::dispatch(stream_.get_executor(), beast::bind_front_handler(&Session::read_header, this->shared_from_this()));
+    }
+  }
 
-  // Called at shutdown: a connection waiting for its next request is closed now; a busy one closes after answering.
-  void stop_if_idle() {
-    asio::dispatch(stream_.get_executor(), [self = shared_from_this()] {
-      if (self->waiting_ && self->parser_ && !self->parser_->got_some()) self->stream_.cancel();
+  void stop_if_idle() override {
+    asio::dispatch(stream_.get_executor(), [self = this->shared_from_this()] {
+      if (self->waiting_ && (!self->parser_ || !self->parser_->got_some())) self->lowest().cancel();
     });
   }
 
  private:
+  static Stream make_stream(tcp::socket&& socket, ssl::context* tls) {
+    if constexpr (kTls) return Stream(std::move(socket), *tls);
+    else return Stream(std::move(socket));
+  }
+
+  beast::tcp_stream& lowest() { return beast::get_lowest_layer(stream_); }
+
+  void handshake() {
+    waiting_ = true;
+    lowest().expires_after(st_->opt.read_timeout);  // a stalled handshake is a stalled request
+    stream_.async_handshake(ssl::stream_base::server, [self = this->shared_from_this()](beast::error_code ec) {
+      self->waiting_ = false;
+      if (ec) {
+        spdlog::debug("connection {}: TLS handshake failed: {}", self->id_, ec.message());
+        if (ec.category() == asio::error::get_ssl_category() && ERR_GET_REASON(ec.value()) == SSL_R_HTTP_REQUEST)
+          return self->refuse_plain_http();
+        beast::error_code ignored;
+        self->lowest().socket().close(ignored);
+        return;
+      }
+      self->read_header();
+    });
+  }
+
+  // A plain HTTP request reached the TLS listener: answered 400 in plain HTTP, so the client learns why.
+  void refuse_plain_http() {
+    closing_ = true;
+    auto res = std::make_shared<HttpResponse>(
+        json_error(http::status::bad_request, "this coordinator speaks HTTPS only: use an https:// URL"));
+    res->keep_alive(false);
+    lowest().expires_after(std::chrono::seconds(1));
+    http::async_write(lowest(), *res, [self = this->shared_from_this(), res](beast::error_code, std::size_t) {
+      self->half_close_and_drain();
+    });
+  }
+
   void read_header() {
     if (st_->stopping) return close();
     parser_.emplace();
     parser_->header_limit(std::uint32_t(st_->opt.header_limit));
     parser_->body_limit(std::numeric_limits<std::uint64_t>::max());
     waiting_ = true;
-    stream_.expires_after(st_->opt.read_timeout);  // covers the whole request, body included
-    http::async_read_header(stream_, buffer_, *parser_, beast::bind_front_handler(&Session::on_header, shared_from_this()));
+    lowest().expires_after(st_->opt.read_timeout);  // covers the whole request, body included
+    http::async_read_header(stream_, buffer_, *parser_, beast::bind_front_handler(&Session::on_header, this->shared_from_this()));
   }
 
   void on_header(beast::error_code ec, std::size_t) {
@@ -89,7 +151,7 @@ class Session : public std::enable_shared_from_this<Session> {
       return too_large(limit);
     if (beast::iequals(req[http::field::expect], "100-continue")) {
       auto cont = std::make_shared<http::response<http::empty_body>>(http::status::continue_, req.version());
-      http::async_write(stream_, *cont, [self = shared_from_this(), cont](beast::error_code wec, std::size_t) {
+      http::async_write(stream_, *cont, [self = this->shared_from_this(), cont](beast::error_code wec, std::size_t) {
         if (wec) return self->close();
         self->read_body();
       });
@@ -99,13 +161,14 @@ class Session : public std::enable_shared_from_this<Session> {
   }
 
   void read_body() {
-    http::async_read(stream_, buffer_, *parser_, beast::bind_front_handler(&Session::on_body, shared_from_this()));
+    http::async_read(stream_, buffer_, *parser_, beast::bind_front_handler(&Session::on_body, this->shared_from_this()));
   }
 
   void on_read_error(beast::error_code ec) {
     if (ec == http::error::body_limit) return too_large(std::size_t(-1));
     if (ec == http::error::end_of_stream || ec == beast::error::timeout || ec == asio::error::operation_aborted ||
-        ec == asio::error::eof || ec == asio::error::connection_reset) {
+        ec == asio::error::eof || ec == asio::error::connection_reset || ec.category() == asio::error::get_ssl_category() ||
+        ec == ssl::error::stream_truncated) {
       if (ec == beast::error::timeout) spdlog::debug("connection {}: read timeout, closed", id_);
       return close();
     }
@@ -123,11 +186,11 @@ class Session : public std::enable_shared_from_this<Session> {
 
   void on_body(beast::error_code ec, std::size_t) {
     if (ec) return on_read_error(ec);
-    stream_.expires_never();  // the handler may take a while; the write sets its own deadline
+    lowest().expires_never();  // the handler may take a while; the write sets its own deadline
     HttpRequest req = parser_->release();
     const bool keep_alive = req.keep_alive();
     auto work = asio::make_work_guard(stream_.get_executor());  // keeps run() going while the pool works
-    asio::post(st_->pool, [self = shared_from_this(), req = std::move(req), keep_alive, work = std::move(work)]() mutable {
+    asio::post(st_->pool, [self = this->shared_from_this(), req = std::move(req), keep_alive, work = std::move(work)]() mutable {
       HttpResponse res = self->st_->handler.handle(std::move(req));
       asio::post(self->stream_.get_executor(), [self, res = std::move(res), keep_alive, work = std::move(work)]() mutable {
         self->write(std::move(res), keep_alive && !self->st_->stopping);
@@ -141,8 +204,8 @@ class Session : public std::enable_shared_from_this<Session> {
     res.keep_alive(keep_alive);
     if (!res.has_content_length() && !res.chunked()) res.prepare_payload();
     auto sp = std::make_shared<HttpResponse>(std::move(res));
-    stream_.expires_after(st_->opt.read_timeout);
-    http::async_write(stream_, *sp, [self = shared_from_this(), sp](beast::error_code ec, std::size_t) {
+    lowest().expires_after(st_->opt.read_timeout);
+    http::async_write(stream_, *sp, [self = this->shared_from_this(), sp](beast::error_code ec, std::size_t) {
       if (ec) {
         spdlog::debug("connection {}: write failed: {}", self->id_, ec.message());
         return self->close();
@@ -152,31 +215,42 @@ class Session : public std::enable_shared_from_this<Session> {
     });
   }
 
-  // Half-closes, then reads and discards what the client still sends (for at most a second) before closing, so an
-  // unread request body does not turn the close into a reset that destroys the response in flight.
+  // With TLS, first sends close_notify (for at most a second). Then half-closes, and reads and discards what the
+  // client still sends (for at most a second) before closing, so an unread request body does not turn the close
+  // into a reset that destroys the response in flight.
   void close() {
     if (closing_) return;
     closing_ = true;
     waiting_ = false;
+    if constexpr (kTls) {
+      lowest().expires_after(std::chrono::seconds(1));
+      stream_.async_shutdown([self = this->shared_from_this()](beast::error_code) { self->half_close_and_drain(); });
+    } else {
+      half_close_and_drain();
+    }
+  }
+
+  void half_close_and_drain() {
     beast::error_code ec;
-    stream_.socket().shutdown(tcp::socket::shutdown_send, ec);
+    lowest().socket().shutdown(tcp::socket::shutdown_send, ec);
     if (ec) {
-      stream_.socket().close(ec);
+      lowest().socket().close(ec);
       return;
     }
-    stream_.expires_after(std::chrono::seconds(1));
+    lowest().expires_after(std::chrono::seconds(1));
     drain();
   }
 
   void drain() {
-    stream_.async_read_some(asio::buffer(drain_), [self = shared_from_this()](beast::error_code ec, std::size_t) {
+    lowest().async_read_some(asio::buffer(drain_), [self = this->shared_from_this()](beast::error_code ec, std::size_t) {
       if (!ec) return self->drain();
       beast::error_code ignored;
-      self->stream_.socket().close(ignored);
+      self->lowest().socket().close(ignored);
     });
   }
 
-  beast::tcp_stream stream_;
+  std::shared_ptr<ssl::context> tls_;  // the context this connection's handshake used (kept across a reload)
+  Stream stream_;
   beast::flat_buffer buffer_;
   std::optional<http::request_parser<http::string_body>> parser_;
   std::shared_ptr<HttpServer::State> st_;
@@ -188,7 +262,7 @@ class Session : public std::enable_shared_from_this<Session> {
 
 namespace {
 
-// A connection over the limit: answered 503 at once (without reading its request), half-closed, and drained for
+// A plain-HTTP connection over the limit: answered 503 at once (without reading its request), half-closed, and drained for
 // at most a second so the answer is not lost to a reset.
 class Refusal : public std::enable_shared_from_this<Refusal> {
  public:
@@ -232,20 +306,29 @@ void accept_next(const std::shared_ptr<HttpServer::State>& st) {
       // Responses are small writes a client waits for: no Nagle delay (see worker/http_client.cpp).
       beast::error_code nodelay_ec;
       socket.set_option(tcp::no_delay(true), nodelay_ec);
-      std::shared_ptr<Session> s;
+      std::shared_ptr<SessionBase> s;
+      std::shared_ptr<ssl::context> tls;
       bool over_limit = false;
       {
         std::lock_guard lock(st->mu);
         over_limit = st->sessions.size() >= st->opt.max_connections;
+        tls = st->tls_context;
         if (!over_limit) {
           const uint64_t id = st->next_session++;
-          s = std::make_shared<Session>(std::move(socket), st, id);
+          if (tls) s = std::make_shared<Session<true>>(std::move(socket), tls, st, id);
+          else s = std::make_shared<Session<false>>(std::move(socket), nullptr, st, id);
           st->sessions.emplace(id, s);
         }
       }
       if (over_limit) {
         spdlog::warn("connection refused: {} connections open (--max-connections)", st->opt.max_connections);
-        std::make_shared<Refusal>(std::move(socket), st->opt.max_connections)->run();
+        if (tls) {
+          // No handshake for a connection over the limit: doing one would let a flood of them cost CPU.
+          beast::error_code ignored;
+          socket.close(ignored);
+        } else {
+          std::make_shared<Refusal>(std::move(socket), st->opt.max_connections)->run();
+        }
       } else {
         s->run();
       }
@@ -289,7 +372,7 @@ void HttpServer::shutdown() {
     beast::error_code ec;
     st->acceptor.close(ec);
   });
-  std::vector<std::shared_ptr<Session>> live;
+  std::vector<std::shared_ptr<SessionBase>> live;
   {
     std::lock_guard lock(state_->mu);
     for (auto& [id, w] : state_->sessions)
@@ -297,5 +380,14 @@ void HttpServer::shutdown() {
   }
   for (auto& s : live) s->stop_if_idle();
 }
+
+void HttpServer::reload_tls() {
+  if (!state_->opt.tls.enabled()) return;
+  auto fresh = make_server_tls_context(state_->opt.tls);
+  std::lock_guard lock(state_->mu);
+  state_->tls_context = std::move(fresh);
+}
+
+bool HttpServer::tls() const { return state_->opt.tls.enabled(); }
 
 }  // namespace tessera::server

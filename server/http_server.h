@@ -1,5 +1,8 @@
-// HTTP transport: an async Boost.Beast listener and per-connection sessions that hand whole requests to a handler.
+// HTTP transport: an async Boost.Beast listener (plain or TLS) and per-connection sessions that hand whole requests
+// to a handler.
 #pragma once
+
+#include "server/tls_context.h"
 
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
@@ -43,13 +46,16 @@ struct HttpServerOptions {
   std::chrono::milliseconds read_timeout{30'000};      ///< A whole request (or keep-alive idle time) must fit in it.
   std::size_t header_limit = 64 * 1024;                ///< Largest request header (larger ones get 431).
   std::size_t max_connections = 1024;                  ///< Open connections; more are answered 503 and closed.
+  TlsServerFiles tls;                                  ///< Certificate files (none: plain HTTP).
 };
 
 /// Accepts connections and runs one session per connection (each on its own strand); requests are answered on a
-/// separate handler pool so slow handlers never block the network threads.
+/// separate handler pool so slow handlers never block the network threads. With TLS, the handshake is part of the
+/// first request: it must finish within the read timeout and its connection counts against the connection limit.
 class HttpServer {
  public:
-  /// Binds and listens (throws std::runtime_error naming the address on failure); call start() to accept.
+  /// Reads the TLS files (if any), binds and listens (throws std::runtime_error naming the file or address on
+  /// failure); call start() to accept.
   HttpServer(boost::asio::io_context& ioc, boost::asio::thread_pool& handlers, HttpHandler& handler, HttpServerOptions options);
   ~HttpServer();
   HttpServer(const HttpServer&) = delete;
@@ -61,6 +67,11 @@ class HttpServer {
   void start();
   /// Stops accepting, closes idle connections, and lets in-flight requests finish (their connections then close).
   void shutdown();
+  /// Reads the TLS files again for connections accepted from now on (open connections keep their session); on
+  /// failure throws std::runtime_error and keeps serving with the previous certificate. A no-op without TLS.
+  void reload_tls();
+  /// True when the listener speaks TLS.
+  bool tls() const;
 
   struct State;  ///< Shared with sessions (opaque).
 

@@ -11,29 +11,39 @@
 #include <boost/beast/http/read.hpp>
 #include <boost/beast/http/string_body.hpp>
 #include <boost/beast/http/write.hpp>
+#include <boost/beast/ssl/ssl_stream.hpp>
 #include <nlohmann/json.hpp>
+#include <openssl/ssl.h>
+#include <openssl/x509_vfy.h>
 
 #include <algorithm>
 #include <cctype>
 #include <charconv>
+#include <optional>
 
 namespace tessera::farm {
 
 namespace asio = boost::asio;
 namespace beast = boost::beast;
 namespace http = boost::beast::http;
+namespace ssl = boost::asio::ssl;
 using tcp = asio::ip::tcp;
 using boost::system::error_code;
 
-std::string HttpUrl::to_string() const { return "http://" + host + ":" + port + base_path; }
+std::string HttpUrl::to_string() const { return (tls ? "https://" : "http://") + host + ":" + port + base_path; }
 
 HttpUrl parse_http_url(std::string_view url) {
   const std::string original(url);
-  if (url.starts_with("https://")) throw std::invalid_argument("'" + original + "': https is not supported, use http://");
-  if (url.starts_with("http://")) url.remove_prefix(7);
-  else if (url.find("://") != std::string_view::npos)
-    throw std::invalid_argument("'" + original + "': only http:// URLs are supported");
   HttpUrl out;
+  if (url.starts_with("https://")) {
+    url.remove_prefix(8);
+    out.tls = true;
+    out.port = "443";
+  } else if (url.starts_with("http://")) {
+    url.remove_prefix(7);
+  } else if (url.find("://") != std::string_view::npos) {
+    throw std::invalid_argument("'" + original + "': only http:// and https:// URLs are supported");
+  }
   const size_t slash = url.find('/');
   std::string_view authority = url.substr(0, slash);
   if (slash != std::string_view::npos) {
@@ -81,11 +91,15 @@ std::string HttpResponse::error_text() const {
 
 struct HttpClient::Impl {
   asio::io_context ioc;
-  beast::tcp_stream stream{ioc};
+  std::shared_ptr<ssl::context> tls_context;  // set for https:// URLs
+  std::optional<beast::tcp_stream> plain;     // the open connection: one of these two
+  std::optional<beast::ssl_stream<beast::tcp_stream>> tls;
   beast::flat_buffer buffer;
   bool connected = false;
   HttpTimeouts timeouts;
   uint64_t max_response_bytes = 0;
+
+  beast::tcp_stream& lowest() { return tls ? beast::get_lowest_layer(*tls) : *plain; }
 
   // Starts one asynchronous operation with `start(handler)` and runs the context until it completes; the stream's
   // expiry (set by the caller) turns a stalled operation into beast::error::timeout.
@@ -98,10 +112,65 @@ struct HttpClient::Impl {
     return result;
   }
 
+  // run() for an operation on the open stream: op(stream, handler) with the TLS or the plain stream.
+  template <class Op>
+  error_code run_on_stream(Op&& op) {
+    return run([&](auto handler) {
+      if (tls) op(*tls, std::move(handler));
+      else op(*plain, std::move(handler));
+    });
+  }
+
+  // A fresh stream for a new connection, set up to check that the certificate names `host`.
+  void open_stream(const std::string& host) {
+    buffer.clear();
+    if (!tls_context) {
+      plain.emplace(ioc);
+      return;
+    }
+    tls.emplace(ioc, *tls_context);
+    SSL* native = tls->native_handle();
+    error_code ec;
+    asio::ip::make_address(host, ec);
+    if (!ec) {
+      X509_VERIFY_PARAM_set1_ip_asc(SSL_get0_param(native), host.c_str());  // an address must be an IP SAN
+    } else {
+      SSL_set_tlsext_host_name(native, host.c_str());  // SNI
+      SSL_set1_host(native, host.c_str());             // a DNS SAN (wildcards allowed)
+    }
+  }
+
+  // Why a handshake failed, in words a user can act on.
+  std::string handshake_failure(const error_code& ec) {
+    if (ec == beast::error::timeout) return "timed out after " + std::to_string(timeouts.connect.count()) + " ms";
+    const long verify = tls ? SSL_get_verify_result(tls->native_handle()) : X509_V_OK;
+    if (verify != X509_V_OK)
+      return std::string("the server's certificate is not accepted: ") + X509_verify_cert_error_string(verify) +
+             " (trust its CA with --ca-file; the certificate must name the host or IP address of the URL)";
+    return with_hint(ec);
+  }
+
+  // The error's text, with what to do about the TLS failures a user can fix. With TLS 1.3 a refused client
+  // certificate shows only when the first response is read, so reads and writes use this too.
+  std::string with_hint(const error_code& ec) const {
+    const std::string reason = ec.message();
+    if (!tls || ec.category() != asio::error::get_ssl_category()) return reason;
+    if (reason.find("wrong version number") != std::string::npos || reason.find("packet length too long") != std::string::npos)
+      return reason + " (does the server speak plain HTTP? then use an http:// URL)";
+    if (reason.find("certificate required") != std::string::npos || reason.find("unknown ca") != std::string::npos ||
+        reason.find("bad certificate") != std::string::npos || reason.find("handshake failure") != std::string::npos)
+      return reason + " (the server requires a client certificate from a CA it trusts: --tls-cert, --tls-key)";
+    return reason;
+  }
+
   void close() {
     error_code ignored;
-    stream.socket().shutdown(tcp::socket::shutdown_both, ignored);
-    stream.close();
+    if (plain || tls) {
+      lowest().socket().shutdown(tcp::socket::shutdown_both, ignored);
+      lowest().close();
+    }
+    plain.reset();
+    tls.reset();
     buffer.clear();
     connected = false;
   }
@@ -117,15 +186,24 @@ std::string describe(const error_code& ec, std::chrono::milliseconds limit) {
 // Errors that mean a kept-alive connection had been closed by the server before our request reached it.
 bool is_stale_connection(const error_code& ec) {
   return ec == http::error::end_of_stream || ec == asio::error::eof || ec == asio::error::connection_reset ||
-         ec == asio::error::broken_pipe || ec == asio::error::connection_aborted;
+         ec == asio::error::broken_pipe || ec == asio::error::connection_aborted || ec == ssl::error::stream_truncated;
 }
 
 }  // namespace
 
-HttpClient::HttpClient(HttpUrl url, HttpTimeouts timeouts, uint64_t max_response_bytes)
+HttpClient::HttpClient(HttpUrl url, HttpTimeouts timeouts, uint64_t max_response_bytes, const ClientTlsFiles& tls)
     : url_(std::move(url)), impl_(std::make_unique<Impl>()) {
   impl_->timeouts = timeouts;
   impl_->max_response_bytes = max_response_bytes;
+  if (!url_.tls && tls.any())
+    throw std::invalid_argument("TLS files are given but " + url_.to_string() + " is plain HTTP: use an https:// URL");
+  if (url_.tls) {
+    try {
+      impl_->tls_context = make_client_tls_context(tls);
+    } catch (const std::runtime_error& e) {
+      throw std::invalid_argument(e.what());
+    }
+  }
 }
 
 HttpClient::~HttpClient() { impl_->close(); }
@@ -164,40 +242,52 @@ HttpResponse HttpClient::send(const HttpRequest& request) {
       tcp::resolver resolver(im.ioc);
       const auto endpoints = resolver.resolve(url_.host, url_.port, ec);
       if (ec) throw HttpError(what + ": cannot resolve " + url_.host + ": " + ec.message());
-      im.stream.expires_after(im.timeouts.connect);
-      ec = im.run([&](auto handler) { im.stream.async_connect(endpoints, std::move(handler)); });
+      im.open_stream(url_.host);
+      im.lowest().expires_after(im.timeouts.connect);
+      ec = im.run([&](auto handler) { im.lowest().async_connect(endpoints, std::move(handler)); });
       if (ec) {
         im.close();
         throw HttpError(what + ": cannot connect: " + describe(ec, im.timeouts.connect));
       }
       // Requests are small writes answered at once: without TCP_NODELAY, Nagle's algorithm holds a request's last
       // segment until the server's delayed ACK (tens of milliseconds per request on loopback).
-      im.stream.socket().set_option(tcp::no_delay(true), ec);
+      im.lowest().socket().set_option(tcp::no_delay(true), ec);
+      if (im.tls) {
+        im.lowest().expires_after(im.timeouts.connect);
+        ec = im.run([&](auto handler) { im.tls->async_handshake(ssl::stream_base::client, std::move(handler)); });
+        if (ec) {
+          const std::string why = im.handshake_failure(ec);
+          im.close();
+          throw HttpError(what + ": TLS handshake failed: " + why);
+        }
+      }
       im.connected = true;
     }
 
-    im.stream.expires_after(im.timeouts.write);
-    error_code ec = im.run([&](auto handler) { http::async_write(im.stream, req, std::move(handler)); });
+    im.lowest().expires_after(im.timeouts.write);
+    error_code ec = im.run_on_stream([&](auto& stream, auto handler) { http::async_write(stream, req, std::move(handler)); });
     if (ec) {
+      const std::string why = ec == beast::error::timeout ? describe(ec, im.timeouts.write) : im.with_hint(ec);
       im.close();
       if (reused && attempt == 0 && ec != beast::error::timeout) continue;
-      throw HttpError(what + ": cannot send the request: " + describe(ec, im.timeouts.write));
+      throw HttpError(what + ": cannot send the request: " + why);
     }
 
     http::response_parser<http::string_body> parser;
     parser.body_limit(im.max_response_bytes);
     if (verb == http::verb::head) parser.skip(true);
-    im.stream.expires_after(im.timeouts.read);
-    ec = im.run([&](auto handler) { http::async_read(im.stream, im.buffer, parser, std::move(handler)); });
+    im.lowest().expires_after(im.timeouts.read);
+    ec = im.run_on_stream([&](auto& stream, auto handler) { http::async_read(stream, im.buffer, parser, std::move(handler)); });
     if (ec) {
       const bool got_some = parser.got_some();
+      const std::string why = ec == beast::error::timeout ? describe(ec, im.timeouts.read) : im.with_hint(ec);
       im.close();
       if (reused && attempt == 0 && !got_some && is_stale_connection(ec)) continue;
       if (ec == http::error::body_limit)
         throw HttpError(what + ": response body larger than " + std::to_string(im.max_response_bytes) + " bytes");
-      throw HttpError(what + ": cannot read the response: " + describe(ec, im.timeouts.read));
+      throw HttpError(what + ": cannot read the response: " + why);
     }
-    im.stream.expires_never();
+    im.lowest().expires_never();
 
     auto res = parser.release();
     HttpResponse out;

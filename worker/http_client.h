@@ -1,5 +1,7 @@
-// A small synchronous HTTP/1.1 client (Boost.Beast over loopback or LAN) with connect, write and read timeouts.
+// A small synchronous HTTP/1.1 client (Boost.Beast, plain or TLS) with connect, write and read timeouts.
 #pragma once
+
+#include "worker/tls_client_context.h"
 
 #include <chrono>
 #include <cstdint>
@@ -18,23 +20,24 @@ struct HttpError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// The parts of an http:// URL the client needs.
+/// The parts of an http:// or https:// URL the client needs.
 struct HttpUrl {
   std::string host;       ///< Host name or address, e.g. "127.0.0.1".
   std::string port = "80";  ///< Port as text.
   std::string base_path;  ///< Path prefix without a trailing slash (usually empty).
+  bool tls = false;       ///< https: TLS with the server's certificate verified.
 
-  /// "http://host:port" + base_path, for messages.
+  /// "http[s]://host:port" + base_path, for messages.
   std::string to_string() const;
 };
 
-/// Parses "http://host[:port][/prefix]" (a bare "host:port" is accepted too); throws std::invalid_argument with the
-/// reason for anything else (https, empty host, bad port).
+/// Parses "http[s]://host[:port][/prefix]" (a bare "host:port" is plain HTTP; https defaults to port 443); throws
+/// std::invalid_argument with the reason for anything else (other schemes, empty host, bad port).
 HttpUrl parse_http_url(std::string_view url);
 
 /// How long each phase of a request may take.
 struct HttpTimeouts {
-  std::chrono::milliseconds connect{3000};  ///< Resolving and connecting.
+  std::chrono::milliseconds connect{3000};  ///< Connecting (and the TLS handshake); names are resolved first, unbounded.
   std::chrono::milliseconds write{30000};   ///< Sending the whole request.
   std::chrono::milliseconds read{30000};    ///< Receiving the whole response.
 };
@@ -61,11 +64,15 @@ struct HttpResponse {
 };
 
 /// A connection to one server, reused across requests (keep-alive) and reopened when the server closed it.
+/// For https:// URLs every connection verifies the server's certificate chain and that it names url.host (DNS name
+/// or IP address); a failure is an HttpError saying why, never a fallback to plain HTTP or to no verification.
 /// Not thread-safe: give each thread its own client.
 class HttpClient {
  public:
-  /// A client for url; connects lazily on the first request.
-  explicit HttpClient(HttpUrl url, HttpTimeouts timeouts = {}, uint64_t max_response_bytes = uint64_t(2) << 30);
+  /// A client for url; connects lazily on the first request. TLS files are for https:// URLs only: naming one with
+  /// an http:// URL, or an unusable file, throws std::invalid_argument.
+  explicit HttpClient(HttpUrl url, HttpTimeouts timeouts = {}, uint64_t max_response_bytes = uint64_t(2) << 30,
+                      const ClientTlsFiles& tls = {});
   ~HttpClient();
   HttpClient(const HttpClient&) = delete;
   HttpClient& operator=(const HttpClient&) = delete;

@@ -80,10 +80,30 @@ TEST(ParseHttpUrl, AcceptsHostPortAndPrefix) {
   EXPECT_EQ(parse_http_url("localhost:9").port, "9");
   EXPECT_EQ(parse_http_url("http://example").port, "80");
   EXPECT_EQ(parse_http_url("http://[::1]:81").host, "::1");
+  EXPECT_FALSE(u.tls);
+}
+
+TEST(ParseHttpUrl, AcceptsHttpsWithItsDefaultPort) {
+  const HttpUrl u = parse_http_url("https://coordinator.example/farm");
+  EXPECT_TRUE(u.tls);
+  EXPECT_EQ(u.port, "443");
+  EXPECT_EQ(u.to_string(), "https://coordinator.example:443/farm");
+  EXPECT_EQ(parse_http_url("https://10.0.0.5:8470").port, "8470");
+}
+
+TEST(HttpClientTls, RefusesTlsFilesWithPlainHttpAndUnusableFiles) {
+  ClientTlsFiles ca;
+  ca.ca_file = "/nonexistent/ca.pem";
+  // Naming a CA for an http:// URL would suggest a verification that never happens.
+  EXPECT_THROW(HttpClient(parse_http_url("http://127.0.0.1:1"), {}, 1024, ca), std::invalid_argument);
+  EXPECT_THROW(HttpClient(parse_http_url("https://127.0.0.1:1"), {}, 1024, ca), std::invalid_argument);
+  ClientTlsFiles half;
+  half.cert_file = "/etc/hostname";
+  EXPECT_THROW(HttpClient(parse_http_url("https://127.0.0.1:1"), {}, 1024, half), std::invalid_argument);
+  EXPECT_NO_THROW(HttpClient(parse_http_url("https://127.0.0.1:1")));  // the system CA store
 }
 
 TEST(ParseHttpUrl, RejectsWhatItCannotUse) {
-  EXPECT_THROW(parse_http_url("https://x:1"), std::invalid_argument);
   EXPECT_THROW(parse_http_url("ftp://x:1"), std::invalid_argument);
   EXPECT_THROW(parse_http_url("http://:80"), std::invalid_argument);
   EXPECT_THROW(parse_http_url("http://x:0"), std::invalid_argument);

@@ -149,10 +149,18 @@ class Heartbeat {
 };
 
 class Worker {
+  static constexpr uint64_t kMaxResponse = uint64_t(2) << 30;  // blobs and specs
+
+  // Heartbeats must fail fast enough to be retried within a lease: at most 2 s to connect and 5 s per phase.
+  static HttpTimeouts heartbeat_timeouts(const HttpTimeouts& t) {
+    return HttpTimeouts{std::min<std::chrono::milliseconds>(t.connect, 2000ms), std::min<std::chrono::milliseconds>(t.write, 5000ms),
+                        std::min<std::chrono::milliseconds>(t.read, 5000ms)};
+  }
+
  public:
   Worker(const WorkerOptions& opt, const std::atomic<int>& stop)
-      : opt_(opt), stop_(stop), url_(parse_http_url(opt.coordinator)), http_(url_, opt.timeouts),
-        heartbeat_http_(url_, HttpTimeouts{2000ms, 5000ms, 5000ms}),
+      : opt_(opt), stop_(stop), url_(parse_http_url(opt.coordinator)), http_(url_, opt.timeouts, kMaxResponse, opt.tls),
+        heartbeat_http_(url_, heartbeat_timeouts(opt.timeouts), kMaxResponse, opt.tls),
         cache_(opt.cache_dir.empty() ? default_cache_dir() : opt.cache_dir), scenes_(opt.scene_cache_jobs),
         idle_(100ms, opt.max_idle_wait), retry_(200ms, opt.max_retry_wait) {
     name_ = opt.name.empty() ? default_name() : opt.name;

@@ -22,6 +22,7 @@ struct WorkerOptions {
   std::chrono::milliseconds max_idle_wait{2000};   ///< Longest wait between lease requests when there is no work.
   std::chrono::milliseconds max_retry_wait{5000};  ///< Longest wait between retries when the coordinator is down.
   HttpTimeouts timeouts{};             ///< Timeouts of lease, spec, blob and upload requests.
+  ClientTlsFiles tls;                  ///< Trust and client certificate files for an https:// coordinator.
 };
 
 /// What a worker did, for its exit log and for tests.

@@ -22,9 +22,11 @@ try:
 except ImportError as e:
     sys.exit(f"FAIL: {e}: install Debian's python3-yaml and python3-kubernetes (bash deploy/install-deps.sh)")
 
-# The Secret the operator creates (deploy/k8s/README.md): its name and keys.
-TOKEN_SECRET = "tessera-tokens"
-TOKEN_KEYS = {"client-token", "worker-token"}
+# The Secrets the operator creates (deploy/k8s/README.md): their names and keys.
+SECRET_KEYS = {"tessera-tokens": {"client-token", "worker-token"}, "tessera-tls": {"tls.crt", "tls.key", "ca.crt"}}
+# Flags naming a file that must come from a mounted volume.
+FILE_FLAGS = ("--client-token-file", "--worker-token-file", "--token-file", "--tls-cert", "--tls-key", "--ca-file",
+              "--tls-client-ca")
 WORKER_MIN_GRACE_SECONDS = 120
 
 errors = []
@@ -195,11 +197,12 @@ def check_all(tessera, k8s_dir):
                 error(name, f"volume {v['name']} claims {v['persistentVolumeClaim']['claimName']}, "
                       "which no manifest defines")
             if "secret" in v:
-                if v["secret"]["secretName"] != TOKEN_SECRET:
-                    error(name, f"secret {v['secret']['secretName']} is not the documented {TOKEN_SECRET}")
-                for item in v["secret"].get("items", []):
-                    if item["key"] not in TOKEN_KEYS:
-                        error(name, f"secret key {item['key']} is not one of {sorted(TOKEN_KEYS)}")
+                keys = SECRET_KEYS.get(v["secret"]["secretName"])
+                if keys is None:
+                    error(name, f"secret {v['secret']['secretName']} is not one of the documented {sorted(SECRET_KEYS)}")
+                for item in v["secret"].get("items", []) if keys else []:
+                    if item["key"] not in keys:
+                        error(name, f"secret key {item['key']} is not one of {sorted(keys)}")
         for c in spec["containers"]:
             cname = f"{name} container {c['name']}"
             ports = {p.get("name"): p["containerPort"] for p in c.get("ports", [])}
@@ -230,10 +233,15 @@ def check_all(tessera, k8s_dir):
             for path in (flag_value(c, "--data"), flag_value(c, "--cache")):
                 if path and not any(path == p or path.startswith(p.rstrip("/") + "/") for p in mounts):
                     error(cname, f"{path} is not on a mounted volume")
-            for flag in ("--client-token-file", "--worker-token-file", "--token-file"):
+            for flag in FILE_FLAGS:
                 path = flag_value(c, flag)
                 if path and os.path.dirname(path) not in mounts:
                     error(cname, f"{flag} {path} is not in a mounted folder")
+                elif path:
+                    volume = volumes[mounts[os.path.dirname(path)]]
+                    items = {i["path"]: i["key"] for i in (volume.get("secret") or {}).get("items", [])}
+                    if items and os.path.basename(path) not in items:
+                        error(cname, f"{flag} {path}: the mounted secret has no item {os.path.basename(path)}")
 
     # The farm: one coordinator, reachable through its Service, probed; workers point at that Service.
     deployments = {d["metadata"]["name"]: (w, d) for w, d in kinds.get("Deployment", [])}
@@ -253,6 +261,13 @@ def check_all(tessera, k8s_dir):
     for probe in ("livenessProbe", "readinessProbe"):
         if probe not in cc:
             error(cw, f"the coordinator has no {probe}")
+    # TLS: the coordinator serves HTTPS (so its probes must use it) and the workers verify it against the CA.
+    if not flag_value(cc, "--tls-cert") or not flag_value(cc, "--tls-key"):
+        error(cw, "the coordinator does not serve HTTPS (--tls-cert and --tls-key)")
+    for probe in ("startupProbe", "livenessProbe", "readinessProbe"):
+        get = (cc.get(probe) or {}).get("httpGet")
+        if get and flag_value(cc, "--tls-cert") and get.get("scheme") != "HTTPS":
+            error(cw, f"{probe} must use scheme HTTPS against a TLS coordinator")
     data = flag_value(cc, "--data")
     vols = {v["name"]: v for v in cd["spec"]["template"]["spec"].get("volumes", [])}
     data_mount = next((m for m in cc.get("volumeMounts", []) if data and data.startswith(m["mountPath"])), None)
@@ -277,7 +292,9 @@ def check_all(tessera, k8s_dir):
         error(ww, f"terminationGracePeriodSeconds below {WORKER_MIN_GRACE_SECONDS}: a SIGTERMed worker finishes "
               "its tile first")
     url = flag_value(wspec["containers"][0], "--coordinator") or ""
-    want = f"http://{sd['metadata']['name']}:{sd['spec']['ports'][0]['port']}"
+    want = f"https://{sd['metadata']['name']}:{sd['spec']['ports'][0]['port']}"
+    if not flag_value(wspec["containers"][0], "--ca-file"):
+        error(ww, "workers do not say which CA to trust (--ca-file)")
     if url != want:
         error(ww, f"--coordinator {url} is not the Service's {want}")
 
@@ -375,12 +392,20 @@ MUTATIONS = [
     ("farm/workers.yaml", "- --token-file", "- --token-path", "has no flag --token-path"),
     ("farm/coordinator.yaml", "- --worker-token-file", "- --worker-token", "has no flag --worker-token"),
     ("farm/workers.yaml", "- $(POD_NAME)", "- $(POD)", "does not define"),
-    ("farm/workers.yaml", "http://tessera-coordinator:8470", "http://coordinator:8470", "not the Service's"),
+    ("farm/workers.yaml", "https://tessera-coordinator:8470", "http://tessera-coordinator:8470", "not the Service's"),
+    ("farm/workers.yaml", "- --ca-file ", "- --no-ca-file ", "do not say which CA"),
+    ("farm/workers.yaml", "path: ca.crt", "path: ca.pem", "has no item ca.crt"),
+    ("farm/workers.yaml", "secretName: tessera-tls", "secretName: tessera-cert", "not one of the documented"),
+    ("farm/coordinator.yaml", "- --tls-key\n", "- --tls-keys\n", "has no flag --tls-keys"),
+    ("farm/coordinator.yaml", "port: http, scheme: HTTPS}\n            periodSeconds: 10",
+     "port: http}\n            periodSeconds: 10", "must use scheme HTTPS"),
+    ("farm/coordinator.yaml", "mountPath: /etc/tessera/tls\n", "mountPath: /etc/tessera/certs\n",
+     "is not in a mounted folder"),
     ("farm/coordinator.yaml", "replicas: 1 ", "replicas: 2 ", "exactly 1 replica"),
     ("farm/coordinator.yaml", "type: Recreate", "type: RollingUpdate", "strategy Recreate"),
     ("farm/coordinator.yaml", "periodSeconds: 10", "periodSeconds: ten", "expected int"),
-    ("farm/coordinator.yaml", "httpGet: {path: /healthz, port: http}\n            periodSeconds: 5",
-     "httpGet: {path: /health, port: http}\n            periodSeconds: 5", "does not ask /healthz"),
+    ("farm/coordinator.yaml", "httpGet: {path: /healthz, port: http, scheme: HTTPS}\n            periodSeconds: 5",
+     "httpGet: {path: /health, port: http, scheme: HTTPS}\n            periodSeconds: 5", "does not ask /healthz"),
     ("farm/coordinator.yaml", "targetPort: http", "targetPort: 8471", "not the coordinator's port"),
     ("farm/coordinator.yaml", "claimName: tessera-data", "claimName: tessera-dat", "which no manifest defines"),
     ("farm/coordinator.yaml", "        - name: coordinator\n          image: tessera:0.1.0",

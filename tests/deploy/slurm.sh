@@ -2,13 +2,17 @@
 # The farm under Slurm on a one-node cluster made on this machine: a private munged (generated key, run as the munge
 # user) and slurmctld + slurmd on free ports with state in a temporary folder. deploy/slurm/coordinator.sbatch runs
 # the coordinator as a Slurm job, deploy/slurm/workers.sbatch fans 3 workers out as a job array, `tessera submit`
-# renders scenes/cbox_area_light.json through them, and the EXR must be bitwise identical to a single-process render.
-# scancel must then stop every worker cleanly (SIGTERM: exit 0) and the coordinator too.
+# renders scenes/cbox_area_light.json through them over HTTPS with client certificates (a throwaway CA made here), and
+# the EXR must be bitwise identical to a single-process render. `scancel --batch --signal=HUP` must reach the
+# coordinator (it re-reads its certificate); scancel must then stop every worker cleanly (SIGTERM: exit 0) and the
+# coordinator too.
 # Needs root and Debian's slurm-wlm + munge (deploy/install-deps.sh); anything missing is a failure, never a skip.
 # Arguments: TESSERA EXR_COMPARE SOURCE_DIR. Every daemon is stopped on exit, by pid.
 set -euo pipefail
 # shellcheck source-path=SCRIPTDIR source=../lib/proc.sh
 source "$(dirname "$0")/../lib/proc.sh"
+# shellcheck source-path=SCRIPTDIR source=../lib/tls.sh
+source "$(dirname "$0")/../lib/tls.sh"
 TESSERA=$(realpath "$1")
 EXR_COMPARE=$(realpath "$2")
 SRC=$(realpath "$3")
@@ -136,25 +140,41 @@ DAEMONS+=($!)
 node_idle() { sinfo -h -n "$HOST" -o %T 2>/dev/null | grep -qx idle; }
 wait_until 30 "the node to register idle with slurmctld" node_idle
 
+# --- TLS: a throwaway CA, the coordinator's certificate for 127.0.0.1, and one client certificate for all.
+mkdir -p "$WORK/tls"
+make_ca "$WORK/tls" ca
+make_cert "$WORK/tls" ca coordinator "IP:127.0.0.1" serverAuth
+make_cert "$WORK/tls" ca member "DNS:member" clientAuth
+TLS_CLIENT=(--ca-file "$WORK/tls/ca.pem" --tls-cert "$WORK/tls/member.pem" --tls-key "$WORK/tls/member.key")
+
 # --- the coordinator as a Slurm job, then the workers as a job array pointing at it.
 sbatch_job() { sbatch --parsable --chdir="$WORK" "$@" | cut -d';' -f1; }
 COORD=$(TESSERA_BIN="$TESSERA" TESSERA_DATA="$WORK/data" TESSERA_LISTEN=127.0.0.1:0 TESSERA_URL_FILE="$WORK/url" \
+  TESSERA_TLS_CERT="$WORK/tls/coordinator.pem" TESSERA_TLS_KEY="$WORK/tls/coordinator.key" \
+  TESSERA_TLS_CLIENT_CA="$WORK/tls/ca.pem" \
   sbatch_job --cpus-per-task=1 --output="$WORK/coordinator.log" "$SRC/deploy/slurm/coordinator.sbatch") || fail "sbatch coordinator"
 JOBS+=("$COORD")
 WORKERS=$(TESSERA_BIN="$TESSERA" TESSERA_COORDINATOR_FILE="$WORK/url" TESSERA_CACHE="$WORK/cache" \
+  TESSERA_CA_FILE="$WORK/tls/ca.pem" TESSERA_TLS_CERT="$WORK/tls/member.pem" TESSERA_TLS_KEY="$WORK/tls/member.key" \
   sbatch_job --array=0-2 --output="$WORK/worker-%a.log" "$SRC/deploy/slurm/workers.sbatch") || fail "sbatch workers"
 JOBS+=("$WORKERS")
 wait_until 30 "the coordinator job's URL file" test -s "$WORK/url"
 URL=$(cat "$WORK/url")
+[[ "$URL" == https://127.0.0.1:* ]] || fail "the URL file says $URL, not https://127.0.0.1:PORT"
 workers_running() { [ "$(squeue -h -j "$WORKERS" -t RUNNING -o %i | wc -l)" = 3 ]; }
 wait_until 30 "3 running worker tasks" workers_running
 
 # --- render through the farm and compare with a single-process render.
 SCENE="$SRC/scenes/cbox_area_light.json"
 "$TESSERA" render "$SCENE" -o "$WORK/ref.exr" --spp 2 -q >"$WORK/render.log" 2>&1 || fail "single-process render"
-timeout $((DEADLINE - SECONDS)) "$TESSERA" submit "$SCENE" --coordinator "$URL" --spp 2 --tile 32 -o "$WORK/farm.exr" -q \
+timeout $((DEADLINE - SECONDS)) "$TESSERA" submit "$SCENE" --coordinator "$URL" "${TLS_CLIENT[@]}" --spp 2 --tile 32 -o "$WORK/farm.exr" -q \
   >"$WORK/submit.log" 2>&1 || fail "submit through the Slurm farm failed"
 "$EXR_COMPARE" "$WORK/ref.exr" "$WORK/farm.exr" || fail "the Slurm farm's EXR differs from the single-process render"
+
+# --- SIGHUP through Slurm reaches the coordinator, which re-reads its certificate and keeps serving.
+scancel --batch --signal=HUP "$COORD"
+reloaded() { grep -q 'TLS certificate and key re-read' "$WORK/coordinator.log"; }
+wait_until 20 "the coordinator to re-read its certificate after scancel --signal=HUP" reloaded
 
 # --- scancel: every worker finishes (SIGTERM -> exit 0) and reports its tiles; all 64 tiles came from them.
 scancel "$WORKERS"

@@ -50,6 +50,13 @@ check_units() {
       esac
     done
   done
+  # TLS: the coordinator serves HTTPS and reloads its certificate on `systemctl reload`; the worker's URL is
+  # https:// and it is told which CA to trust.
+  local coord=$dir/tessera-coordinator.service
+  grep -q -- '--tls-cert ' "$coord" && grep -q -- '--tls-key ' "$coord" || echo "tessera-coordinator: no --tls-cert/--tls-key"
+  grep -qx 'ExecReload=/bin/kill -HUP $MAINPID' "$coord" || echo "tessera-coordinator: ExecReload must send SIGHUP"
+  grep -q '^TESSERA_COORDINATOR=https://' "$dir/tessera-worker.default" || echo "tessera-worker: the URL is not https://"
+  grep -q -- '--ca-file ' "$dir/tessera-worker.service" || echo "tessera-worker: no --ca-file"
   local worker=$dir/tessera-worker.service
   grep -qx 'KillSignal=SIGTERM' "$worker" || echo "tessera-worker: KillSignal must be SIGTERM (finish the tile, exit 0)"
   grep -qx 'KillMode=mixed' "$worker" || echo "tessera-worker: KillMode must be mixed (one SIGTERM to the worker only)"
@@ -75,6 +82,10 @@ mutations=(
   "tessera-coordinator.service|s/^LoadCredential=worker-token/#/|credential worker-token is not loaded"
   "tessera-coordinator.service|s/{TESSERA_LISTEN}/{TESSERA_LISTN}/|TESSERA_LISTN is set neither"
   "tessera.sysusers|s/nologin/nologin extra/|sysusers"
+  "tessera-coordinator.service|s/--tls-key \${TESSERA_TLS_KEY}//|no --tls-cert/--tls-key"
+  "tessera-coordinator.service|s/^ExecReload=.*/ExecReload=/|ExecReload must send SIGHUP"
+  "tessera-coordinator.default|s/^TESSERA_TLS_CERT=.*//|TESSERA_TLS_CERT is set neither"
+  "tessera-worker.default|s#^TESSERA_COORDINATOR=https#TESSERA_COORDINATOR=http#|URL is not https"
 )
 for m in "${mutations[@]}"; do
   IFS='|' read -r file expr expected <<<"$m"
