@@ -11,7 +11,8 @@ until every job is done. Then it checks the end state only, never how fast anyth
   spp and seed (tests/exr_compare);
 - every tile of every job is done with pixels in the database, no tile was merged twice (coordinator logs) or
   acknowledged as accepted twice (worker logs), and a tile never logged as merged was acknowledged as a duplicate
-  (its merge was committed just before a coordinator kill);
+  or uploaded without an answer (its merge was committed just before a coordinator kill; the worker may have been
+  killed before its retry);
 - no lease is live, and the data folder holds nothing orphaned: jobs/ holds exactly the jobs' folders with their
   result.exr, tmp/ is empty, no *.tmp file anywhere, every blob is referenced by a job or is one the driver uploaded.
 Exit status 0 when every check passes, 1 otherwise; figures go to stdout and WORK/summary.json.
@@ -440,12 +441,14 @@ def check_end_state(args, farm, jobs, submitter):
     serve_log = (farm.work / "serve.log").read_text(errors="replace")
     merged = collections.Counter(re.findall(r"job (\S+) tile (\d+) worker \S+: merged", serve_log))
     accepted, duplicate = collections.Counter(), collections.Counter()
+    unanswered = set()  # (job, tile) of uploads that got no answer: the coordinator may have stored them and died
     renders = 0
     for name in farm.workers:
         text = (farm.work / f"{name}.log").read_text(errors="replace")
         renders += len(re.findall(r": rendered in", text))
         for job, tile, what in re.findall(r"job=(\S+) tile=(\d+) lease=\S+: upload (accepted|duplicate)", text):
             (accepted if what == "accepted" else duplicate)[(job, tile)] += 1
+        unanswered.update(re.findall(r"job=(\S+) tile=(\d+) lease=\S+: upload attempt \d+ failed", text))
     leftovers = sum(int(n) for n in re.findall(r"removed (\d+) temporary file", serve_log))
     tiles_done_before_restart = set(re.findall(r"job (\S+): every tile was done before the restart", serve_log))
     unlogged = 0
@@ -458,9 +461,9 @@ def check_end_state(args, farm, jobs, submitter):
                 problems.append(f"job {jid} tile {idx} acknowledged as accepted {accepted[key]} times")
             if merged[key] == 0:
                 unlogged += 1
-                if duplicate[key] == 0 and jid not in tiles_done_before_restart:
-                    problems.append(f"job {jid} tile {idx} is done but was neither logged as merged nor "
-                                    "acknowledged as a duplicate")
+                if duplicate[key] == 0 and key not in unanswered and jid not in tiles_done_before_restart:
+                    problems.append(f"job {jid} tile {idx} is done but was neither logged as merged, nor "
+                                    "acknowledged as a duplicate, nor uploaded without an answer")
 
     # The data folder: nothing orphaned.
     jobs_dir = farm.data / "jobs"
