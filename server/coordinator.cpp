@@ -117,6 +117,8 @@ Coordinator::Coordinator(CoordinatorOptions options) {
   } catch (const StorageError& e) {
     throw std::runtime_error(std::string("cannot open the coordinator's state: ") + e.what());
   }
+  if (const size_t n = impl_->blobs.leftovers_removed() + impl_->store.leftovers_removed(); n > 0)
+    spdlog::info("removed {} temporary file(s) left by an interrupted run", n);
   SchedulerCounters c = impl_->sched.counters();
   if (c.jobs[JobState::queued] + c.jobs[JobState::running] > 0)
     spdlog::info("resuming {} queued and {} running job(s) with {} live lease(s) from {}", c.jobs[JobState::queued],

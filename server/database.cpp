@@ -205,6 +205,8 @@ DurableStore::DurableStore(const fs::path& dir)
     : jobs_dir_(dir / "jobs"), scratch_(dir / "tmp"), db_((make_dirs(dir), dir / "tessera.db")) {
   make_dirs(jobs_dir_);
   make_dirs(scratch_);
+  // Uploads being validated and results being written when the last run was killed.
+  leftovers_removed_ = remove_leftovers(scratch_, true) + remove_leftovers(jobs_dir_);
   // Commits survive a process crash without waiting for the disk; sync() makes them survive a power cut when the
   // scheduler acknowledges something, outside its lock (see SchedulerStore::sync).
   db_.exec("PRAGMA synchronous=NORMAL");

@@ -107,7 +107,8 @@ class DurableStore final : public SchedulerStore, public JobStore {
   /// The schema version this build reads and writes.
   static constexpr int kSchemaVersion = 1;
 
-  /// Opens or creates the store under `dir`; throws StorageError (unreadable file, newer schema).
+  /// Opens or creates the store under `dir`, removing what a crash can leave behind: every file in DIR/tmp/ and the
+  /// temp files of interrupted result writes under DIR/jobs/. Throws StorageError (unreadable file, newer schema).
   explicit DurableStore(const std::filesystem::path& dir);
   ~DurableStore() override;
 
@@ -126,12 +127,15 @@ class DurableStore final : public SchedulerStore, public JobStore {
 
   /// The database file.
   std::filesystem::path database_file() const { return db_.file(); }
+  /// How many leftovers of an earlier run the constructor removed.
+  size_t leftovers_removed() const { return leftovers_removed_; }
 
  private:
   std::mutex mu_;
   std::mutex wal_mu_;   // guards wal_fd_
   int wal_fd_ = -1;     // the write-ahead log, opened for sync()
   std::filesystem::path jobs_dir_, scratch_;
+  size_t leftovers_removed_ = 0;
   Database db_;
 };
 

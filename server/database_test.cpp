@@ -9,6 +9,7 @@
 #include <sqlite3.h>
 
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <random>
 #include <set>
@@ -202,6 +203,42 @@ TEST_F(DatabaseTest, CoordinatorStartFinishesAJobWhoseTilesWereAllStored) {
   DurableStore reread(dir);
   Scheduler after(SchedulerConfig{10'000, 3, 2, "b"}, [this] { return now; }, reread);
   EXPECT_EQ(after.job(j)->state, JobState::done);
+}
+
+// What a SIGKILL can leave in the data folder (found by the chaos soak, tests/soak/): an upload's scratch file in
+// DIR/tmp/ (written before validation, removed after), the temp file of a result or blob write (write, fsync, rename).
+// A coordinator started on the folder removes them and keeps everything else.
+TEST_F(DatabaseTest, CoordinatorStartRemovesTheTempFilesOfAKilledRun) {
+  const std::string j = job(64, 64, 64);
+  sched.reset();
+  store.reset();
+  const auto write = [](const fs::path& p, const std::string& text) {
+    fs::create_directories(p.parent_path());
+    std::ofstream(p, std::ios::binary) << text;
+  };
+  const std::string sha(64, 'a');
+  write(dir / "tmp" / "result-L-1-0a1b2c.exr", "half an upload");
+  write(dir / "tmp" / "nested" / "x", "?");
+  write(dir / "jobs" / j / "result.exr.tmp", "half a result");
+  write(dir / "blobs" / "aa" / (sha + ".0a1b2c3d4e5f.tmp"), "half a blob");
+  write(dir / "blobs" / "aa" / sha, "a blob");
+  CoordinatorOptions o;
+  o.port = 0;
+  o.data_dir = dir;
+  {
+    Coordinator c(o);
+  }
+  EXPECT_TRUE(fs::is_directory(dir / "tmp"));
+  EXPECT_TRUE(fs::is_empty(dir / "tmp"));
+  EXPECT_FALSE(fs::exists(dir / "jobs" / j / "result.exr.tmp"));
+  EXPECT_FALSE(fs::exists(dir / "blobs" / "aa" / (sha + ".0a1b2c3d4e5f.tmp")));
+  EXPECT_TRUE(fs::exists(dir / "blobs" / "aa" / sha));
+  EXPECT_TRUE(fs::exists(dir / "tessera.db"));
+  DurableStore reopened(dir);  // nothing left to remove the second time
+  EXPECT_EQ(reopened.leftovers_removed(), 0u);
+  DiskBlobStore blobs(dir / "blobs");
+  EXPECT_EQ(blobs.leftovers_removed(), 0u);
+  EXPECT_TRUE(blobs.has(sha));
 }
 
 TEST_F(DatabaseTest, ATileIsNeverDoneWithoutItsPixels) {

@@ -23,7 +23,30 @@ void make_dirs(const fs::path& dir) {
   if (ec) throw StorageError("cannot create " + dir.string() + ": " + ec.message());
 }
 
-DiskBlobStore::DiskBlobStore(fs::path dir) : dir_(std::move(dir)) { make_dirs(dir_); }
+size_t remove_leftovers(const fs::path& dir, bool everything) {
+  std::error_code ec;
+  std::vector<fs::path> doomed;
+  for (auto it = fs::recursive_directory_iterator(dir, ec); !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+    const fs::path& p = it->path();
+    if (everything) {
+      doomed.push_back(p);
+      it.disable_recursion_pending();  // the whole entry goes
+    } else if (it->is_regular_file() && p.extension() == ".tmp") {
+      doomed.push_back(p);
+    }
+  }
+  if (ec) throw StorageError("cannot list " + dir.string() + ": " + ec.message());
+  for (const fs::path& p : doomed) {
+    fs::remove_all(p, ec);
+    if (ec) throw StorageError("cannot remove " + p.string() + ": " + ec.message());
+  }
+  return doomed.size();
+}
+
+DiskBlobStore::DiskBlobStore(fs::path dir) : dir_(std::move(dir)) {
+  make_dirs(dir_);
+  leftovers_removed_ = remove_leftovers(dir_);  // blob writes a crash interrupted
+}
 
 fs::path DiskBlobStore::path_of(const std::string& sha) const { return dir_ / sha.substr(0, 2) / sha; }
 

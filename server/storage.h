@@ -43,8 +43,11 @@ class BlobStore {
 /// Blobs as files DIR/<2 hex>/<64 hex>, written to a temp file, fsynced and renamed into place.
 class DiskBlobStore final : public BlobStore {
  public:
-  /// A store rooted at `dir` (created if missing); throws StorageError when it cannot be created.
+  /// A store rooted at `dir` (created if missing, temp files of interrupted writes removed); throws StorageError when
+  /// it cannot be created or cleaned.
   explicit DiskBlobStore(std::filesystem::path dir);
+  /// How many temp files of interrupted writes the constructor removed.
+  size_t leftovers_removed() const { return leftovers_removed_; }
   PutBlobResult put(const std::string& sha256, std::string_view bytes) override;
   bool has(const std::string& sha256) override;
   std::optional<std::filesystem::path> file(const std::string& sha256) override;
@@ -53,6 +56,7 @@ class DiskBlobStore final : public BlobStore {
  private:
   std::filesystem::path path_of(const std::string& sha256) const;
   std::filesystem::path dir_;
+  size_t leftovers_removed_ = 0;
 };
 
 /// Job records (the submitted spec and derived facts) and job outputs.
@@ -73,5 +77,10 @@ class JobStore {
 
 /// Creates a folder and its parents; throws StorageError naming it.
 void make_dirs(const std::filesystem::path& dir);
+
+/// Removes the temp files (names ending in ".tmp") that writes interrupted by a crash left anywhere below `dir`, and,
+/// when `everything` is true, every other entry below it too; at start-up only (a running write's temp file would
+/// go). Returns how many entries it removed; throws StorageError when one cannot be removed.
+size_t remove_leftovers(const std::filesystem::path& dir, bool everything = false);
 
 }  // namespace tessera::server
