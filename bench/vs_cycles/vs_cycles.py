@@ -246,7 +246,7 @@ def main():
         print(s, flush=True)
         lines.append(s)
 
-    dirty = " (with uncommitted changes)" if git(args, "status", "--porcelain", "--untracked-files=no") else ""
+    dirty = " (with uncommitted changes)" if git(args, "status", "--porcelain", "--untracked-files=no", "--", ".", ":!bench/results") else ""
     log("vs_cycles: Tessera against Blender Cycles at equal error, direct lighting only")
     log(f"date: {datetime.datetime.utcnow():%Y-%m-%d %H:%M} UTC")
     log(f"commit: {git(args, 'rev-parse', '--short', 'HEAD')}{dirty}")
