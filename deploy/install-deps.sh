@@ -12,6 +12,7 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libembree-dev gnuplot-nox
   slurm-wlm munge python3-yaml python3-kubernetes systemd
+  chromium chromium-driver python3-selenium
 )
 
 missing=()
