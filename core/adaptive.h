@@ -9,6 +9,10 @@ namespace tessera {
 
 /// Most independent replicates a pixel's samples can be split into.
 inline constexpr uint32_t kMaxReplicates = 16;
+/// Default first round of adaptive sampling (`render`, `submit` and farm jobs share it).
+inline constexpr uint32_t kAdaptiveMinSpp = 16;
+/// Default cap on a pixel's samples under adaptive sampling.
+inline constexpr uint32_t kAdaptiveMaxSpp = 1024;
 
 /// A pixel's estimate: mean, variance of the mean and sample count.
 struct PixelEstimate {
@@ -22,8 +26,8 @@ struct PixelEstimate {
 /// never below 1/n, a pixel takes at least 1/target_error samples even when all of them agree.
 struct AdaptiveOptions {
   float target_error = 0.05f;  ///< Relative standard error to reach (> 0).
-  uint32_t min_spp = 16;       ///< Samples of the first round (at least 2 so a variance exists).
-  uint32_t max_spp = 1024;     ///< Cap on a pixel's samples.
+  uint32_t min_spp = kAdaptiveMinSpp;  ///< Samples of the first round (at least 2 so a variance exists).
+  uint32_t max_spp = kAdaptiveMaxSpp;  ///< Cap on a pixel's samples.
   float error_floor = 0.01f;   ///< Luminance floor of the denominator (dark pixels are judged by absolute error).
   uint32_t replicates = 1;     ///< Independent replicates (see PixelAccumulator); rounds are multiples of it.
 };

@@ -31,8 +31,8 @@ struct RenderOptions {
   /// max_spp) until its relative standard error on luminance falls to target_error (see core/adaptive.h);
   /// spp is then ignored. The decision uses only the pixel's own samples, so tiling never changes a bit.
   float target_error = 0.f;
-  uint32_t min_spp = 16;             ///< First round of adaptive sampling (also the fewest samples a pixel gets).
-  uint32_t max_spp = 1024;           ///< Most samples a pixel gets with adaptive sampling.
+  uint32_t min_spp = kAdaptiveMinSpp;  ///< First round of adaptive sampling (also the fewest samples a pixel gets).
+  uint32_t max_spp = kAdaptiveMaxSpp;  ///< Most samples a pixel gets with adaptive sampling.
   float error_floor = 0.01f;         ///< Luminance below which adaptive sampling measures absolute error instead.
   /// Independent replicates per pixel (1 = one stratified sequence, the default). K >= 2 interleaves K independently
   /// scrambled sequences so that the variance channels and the adaptive rule use an unbiased error estimate, at

@@ -1,0 +1,91 @@
+#include "protocol/job.h"
+
+#include "protocol/json_fields.h"
+
+#include <nlohmann/json.hpp>
+
+#include <stdexcept>
+
+namespace tessera::protocol {
+
+using nlohmann::json;
+
+const char* to_string(JobState s) {
+  switch (s) {
+    case JobState::queued: return "queued";
+    case JobState::running: return "running";
+    case JobState::done: return "done";
+    case JobState::failed: return "failed";
+    case JobState::cancelled: return "cancelled";
+  }
+  return "unknown";
+}
+
+JobState job_state_from_string(std::string_view s) {
+  for (JobState e : {JobState::queued, JobState::running, JobState::done, JobState::failed, JobState::cancelled})
+    if (s == to_string(e)) return e;
+  throw std::invalid_argument("unknown job state '" + std::string(s) + "'");
+}
+
+namespace {
+json optional_json(const auto& v) { return v ? json(*v) : json(nullptr); }
+}  // namespace
+
+void to_json(json& j, const JobStatus& s) {
+  j = {{"id", s.id},
+       {"name", s.params.name},
+       {"state", to_string(s.state)},
+       {"priority", s.params.priority},
+       {"width", s.params.width},
+       {"height", s.params.height},
+       {"spp", s.params.spp},
+       {"seed", s.params.seed},
+       {"tile_size", s.params.tile_size},
+       {"scene_hash", s.params.scene_hash},
+       {"tiles", {{"total", s.tiles.total}, {"done", s.tiles.done}, {"leased", s.tiles.leased}, {"pending", s.tiles.pending}}},
+       {"created_ms", s.created_ms},
+       {"started_ms", optional_json(s.started_ms)},
+       {"finished_ms", optional_json(s.finished_ms)},
+       {"render_seconds", s.render_seconds},
+       {"rays", s.rays},
+       {"workers", s.workers},
+       {"error", optional_json(s.error)}};
+}
+
+void from_json(const json& j, JobStatus& s) {
+  constexpr const char* kMsg = "job";
+  s = JobStatus{};
+  s.id = answer_field<std::string>(j, "id", kMsg);
+  const auto state = answer_field<std::string>(j, "state", kMsg);
+  try {
+    s.state = job_state_from_string(state);
+  } catch (const std::invalid_argument& e) {
+    throw ProtocolError(std::string(kMsg) + ": " + e.what());
+  }
+  JobParams& p = s.params;
+  p.name = answer_field_or<std::string>(j, "name", kMsg, "");
+  p.priority = answer_field_or<int>(j, "priority", kMsg, kDefaultPriority);
+  p.width = answer_field_or<int>(j, "width", kMsg, 0);
+  p.height = answer_field_or<int>(j, "height", kMsg, 0);
+  p.spp = answer_field_or<uint32_t>(j, "spp", kMsg, 1);
+  p.seed = answer_field_or<uint64_t>(j, "seed", kMsg, 0);
+  p.tile_size = answer_field_or<int>(j, "tile_size", kMsg, kDefaultTileSize);
+  p.scene_hash = answer_field_or<std::string>(j, "scene_hash", kMsg, "");
+  if (j.contains("tiles") && j["tiles"].is_object()) {
+    const json& t = j["tiles"];
+    s.tiles.total = answer_field_or<int64_t>(t, "total", "job tiles", 0);
+    s.tiles.done = answer_field_or<int64_t>(t, "done", "job tiles", 0);
+    s.tiles.leased = answer_field_or<int64_t>(t, "leased", "job tiles", 0);
+    s.tiles.pending = answer_field_or<int64_t>(t, "pending", "job tiles", 0);
+  }
+  s.created_ms = answer_field_or<int64_t>(j, "created_ms", kMsg, 0);
+  if (j.contains("started_ms") && !j["started_ms"].is_null()) s.started_ms = answer_field<int64_t>(j, "started_ms", kMsg);
+  if (j.contains("finished_ms") && !j["finished_ms"].is_null())
+    s.finished_ms = answer_field<int64_t>(j, "finished_ms", kMsg);
+  if (j.contains("error") && !j["error"].is_null()) s.error = answer_field<std::string>(j, "error", kMsg);
+  s.rays = answer_field_or<uint64_t>(j, "rays", kMsg, 0);
+  s.workers = answer_field_or<std::vector<std::string>>(j, "workers", kMsg, {});
+  s.render_seconds = answer_field_or<double>(j, "render_seconds", kMsg, 0);
+}
+
+}  // namespace tessera::protocol

@@ -1,0 +1,68 @@
+// A job as the protocol describes it: its life-cycle state, what it renders and its progress (GET /v1/jobs/{id}).
+#pragma once
+
+#include "protocol/defaults.h"
+
+#include <nlohmann/json_fwd.hpp>
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace tessera::protocol {
+
+/// Life cycle of a job (docs/protocol.md, "Jobs, tiles and leases").
+enum class JobState { queued, running, done, failed, cancelled };
+
+/// The protocol's lowercase name of a job state.
+const char* to_string(JobState s);
+/// Parses a job state name; throws std::invalid_argument for unknown names.
+JobState job_state_from_string(std::string_view s);
+/// True for states a job never leaves (done, failed, cancelled).
+inline bool is_final(JobState s) { return s == JobState::done || s == JobState::failed || s == JobState::cancelled; }
+
+/// What a job renders and how it is scheduled, fixed at submission.
+struct JobParams {
+  std::string name;                     ///< Optional label.
+  int priority = kDefaultPriority;      ///< Higher is scheduled first.
+  int width = 0;                        ///< Image columns.
+  int height = 0;                       ///< Image rows.
+  int tile_size = kDefaultTileSize;     ///< Tile edge in pixels.
+  uint32_t spp = 1;                     ///< Samples per pixel.
+  uint64_t seed = 0;                    ///< Sample seed.
+  std::string scene_hash;               ///< The loader's content hash of scene and assets.
+};
+
+/// Tile counts of a job.
+struct TileCounts {
+  int64_t total = 0;    ///< Tiles in the job.
+  int64_t done = 0;     ///< Merged tiles.
+  int64_t leased = 0;   ///< Tiles under a live lease or being merged.
+  int64_t pending = 0;  ///< Tiles waiting for a worker.
+};
+
+/// A snapshot of one job.
+struct JobStatus {
+  std::string id;                       ///< Job id.
+  JobParams params;                     ///< What it renders.
+  JobState state = JobState::queued;    ///< Where it is in its life cycle.
+  TileCounts tiles;                     ///< Tile counts.
+  int64_t created_ms = 0;               ///< Submission time.
+  std::optional<int64_t> started_ms;    ///< First lease.
+  std::optional<int64_t> finished_ms;   ///< Entered a final state.
+  std::optional<std::string> error;     ///< Why it failed.
+  uint64_t rays = 0;                    ///< Rays reported by workers.
+  std::vector<std::string> workers;     ///< Workers whose tiles were merged, in order of first merge.
+  double render_seconds = 0;            ///< From the first lease to the end (or to the snapshot's time).
+  /// True for done, failed and cancelled.
+  bool finished() const { return is_final(state); }
+};
+
+/// The job object of GET /v1/jobs/{id} (params flattened into it, tiles as an object).
+void to_json(nlohmann::json& j, const JobStatus& s);
+/// Reads a job object; id and state are required, the rest defaults; throws ProtocolError naming the field.
+void from_json(const nlohmann::json& j, JobStatus& s);
+
+}  // namespace tessera::protocol

@@ -1,0 +1,49 @@
+// Reading JSON messages field by field with errors that name the field: strict readers for requests (the coordinator
+// refuses unknown keys and out-of-range values) and tolerant ones for answers (clients ignore keys they do not know).
+#pragma once
+
+#include "protocol/errors.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <initializer_list>
+#include <string>
+
+namespace tessera::protocol {
+
+/// Parses a message body as JSON; throws ProtocolError naming `what` on malformed text.
+nlohmann::json parse_body(const std::string& body, const std::string& what);
+
+/// Parses a request body that must be a JSON object and refuses keys outside `known` (an empty body is {} when
+/// allowed); throws ProtocolError with the sentence the coordinator answers.
+nlohmann::json parse_request_object(const std::string& body, std::initializer_list<const char*> known, bool allow_empty);
+
+/// Request fields: `key`'s value or `fallback` when absent; throws ProtocolError naming the key and the allowed range.
+int64_t request_int(const nlohmann::json& j, const char* key, int64_t fallback, int64_t lo, int64_t hi);
+/// A non-negative integer request field.
+uint64_t request_uint(const nlohmann::json& j, const char* key, uint64_t fallback);
+/// A string request field.
+std::string request_string(const nlohmann::json& j, const char* key, const std::string& fallback);
+
+/// Answer fields: the field `key` of object j converted to T; throws ProtocolError naming the message and the field.
+template <class T>
+T answer_field(const nlohmann::json& j, const char* key, const char* message) {
+  if (!j.is_object()) throw ProtocolError(std::string(message) + ": not a JSON object");
+  const auto it = j.find(key);
+  if (it == j.end()) throw ProtocolError(std::string(message) + ": missing \"" + key + "\"");
+  try {
+    return it->get<T>();
+  } catch (const nlohmann::json::exception& e) {
+    throw ProtocolError(std::string(message) + ": \"" + key + "\" has the wrong type (" + e.what() + ")");
+  }
+}
+
+/// An optional answer field: `fallback` when absent or null.
+template <class T>
+T answer_field_or(const nlohmann::json& j, const char* key, const char* message, T fallback) {
+  if (!j.is_object() || !j.contains(key) || j[key].is_null()) return fallback;
+  return answer_field<T>(j, key, message);
+}
+
+}  // namespace tessera::protocol

@@ -1,0 +1,247 @@
+#include "protocol/messages.h"
+
+#include "core/bvh.h"
+#include "core/enum_names.h"
+#include "core/light.h"
+#include "core/sha256.h"
+
+namespace tessera::protocol {
+
+using nlohmann::json;
+
+namespace {
+
+// A strategy override: "" (the scene's) or one of the names in `table`.
+template <std::size_t N>
+std::string strategy(const json& j, const char* key, const std::string_view (&table)[N]) {
+  const std::string v = request_string(j, key, "");
+  if (j.contains(key) && !enum_from_name<int>(v, table)) {
+    std::string list;
+    for (std::string_view n : table) list += (list.empty() ? "" : ", ") + std::string(n);
+    throw ProtocolError(std::string("'") + key + "' must be one of " + list + " (got \"" + v + "\")");
+  }
+  return v;
+}
+
+// Sampling settings of a request object, checked with the coordinator's sentences.
+SamplingSettings request_sampling(const json& j) {
+  SamplingSettings s;
+  s.spp = uint32_t(request_int(j, "spp", 0, 1, int64_t(1) << 20));
+  s.seed = request_uint(j, "seed", 0);
+  s.integrator = request_string(j, "integrator", "");
+  // Adaptive sampling (like `tessera render --target-error`): each pixel's sample count depends only on its own
+  // samples, so any tile split still gives the same bits.
+  if (j.contains("target_error")) {
+    const json& v = j["target_error"];
+    if (!v.is_number() || !(v.get<double>() > 0.0) || !(v.get<double>() <= 1e6))
+      throw ProtocolError("'target_error' must be a number in (0, 1e6] (got " + v.dump() + ")");
+    s.target_error = v.get<double>();
+  }
+  s.min_spp = uint32_t(request_int(j, "min_spp", kDefaultMinSpp, 1, int64_t(1) << 20));
+  s.max_spp = uint32_t(request_int(j, "max_spp", kDefaultMaxSpp, 1, int64_t(1) << 20));
+  if (s.target_error == 0.0 && (j.contains("min_spp") || j.contains("max_spp") || j.contains("error_floor")))
+    throw ProtocolError(j.contains("error_floor") ? "'error_floor' applies only with 'target_error'"
+                                                  : "'min_spp' and 'max_spp' apply only with 'target_error'");
+  if (s.min_spp > s.max_spp)
+    throw ProtocolError("'min_spp' (" + std::to_string(s.min_spp) + ") is larger than 'max_spp' (" +
+                        std::to_string(s.max_spp) + ")");
+  if (!s.integrator.empty() && s.integrator != "direct" && s.integrator != "intersection_test")
+    throw ProtocolError("'integrator' must be \"direct\" or \"intersection_test\" (got \"" + s.integrator + "\")");
+  if (j.contains("error_floor")) {
+    const json& v = j["error_floor"];
+    if (!v.is_number() || !(v.get<double>() > 0.0) || !(v.get<double>() <= 1e6))
+      throw ProtocolError("'error_floor' must be a number in (0, 1e6] (got " + v.dump() + ")");
+    s.error_floor = v.get<double>();
+  }
+  s.replicates = uint32_t(request_int(j, "replicates", 1, 1, kMaxReplicates));
+  s.area_sampling = strategy(j, "area_sampling", kAreaSamplingNames);
+  s.env_sampling = strategy(j, "env_sampling", kEnvSamplingNames);
+  s.bvh = strategy(j, "bvh", kSplitMethodNames);
+  return s;
+}
+
+// Writes the settings into j; those at their defaults are left out, so older readers see the keys they know.
+void put_sampling(json& j, const SamplingSettings& s) {
+  if (s.spp) j["spp"] = s.spp;
+  j["seed"] = s.seed;
+  if (!s.integrator.empty()) j["integrator"] = s.integrator;
+  if (s.target_error > 0.0) {
+    j["target_error"] = s.target_error;
+    j["min_spp"] = s.min_spp;
+    j["max_spp"] = s.max_spp;
+    if (s.error_floor != SamplingSettings{}.error_floor) j["error_floor"] = s.error_floor;
+  }
+  if (s.replicates != 1) j["replicates"] = s.replicates;
+  if (!s.area_sampling.empty()) j["area_sampling"] = s.area_sampling;
+  if (!s.env_sampling.empty()) j["env_sampling"] = s.env_sampling;
+  if (!s.bvh.empty()) j["bvh"] = s.bvh;
+}
+
+// Reads settings written by put_sampling (a spec from the coordinator).
+SamplingSettings answer_sampling(const json& j, const char* msg) {
+  SamplingSettings s;
+  s.spp = answer_field<uint32_t>(j, "spp", msg);
+  s.seed = answer_field_or<uint64_t>(j, "seed", msg, 0);
+  s.integrator = answer_field_or<std::string>(j, "integrator", msg, "");
+  s.target_error = answer_field_or<double>(j, "target_error", msg, 0.0);
+  s.min_spp = answer_field_or<uint32_t>(j, "min_spp", msg, kDefaultMinSpp);
+  s.max_spp = answer_field_or<uint32_t>(j, "max_spp", msg, kDefaultMaxSpp);
+  s.error_floor = answer_field_or<double>(j, "error_floor", msg, SamplingSettings{}.error_floor);
+  s.replicates = answer_field_or<uint32_t>(j, "replicates", msg, 1);
+  s.area_sampling = answer_field_or<std::string>(j, "area_sampling", msg, "");
+  s.env_sampling = answer_field_or<std::string>(j, "env_sampling", msg, "");
+  s.bvh = answer_field_or<std::string>(j, "bvh", msg, "");
+  if (!(s.target_error >= 0.0) || s.min_spp < 1 || s.min_spp > s.max_spp || !(s.error_floor > 0.0))
+    throw ProtocolError(std::string(msg) + ": bad adaptive sampling settings (target_error, min_spp, max_spp, error_floor)");
+  if (s.replicates < 1 || s.replicates > kMaxReplicates)
+    throw ProtocolError(std::string(msg) + ": bad replicates " + std::to_string(s.replicates));
+  return s;
+}
+
+std::map<std::string, std::string> request_assets(const json& j) {
+  std::map<std::string, std::string> assets;
+  if (!j.contains("assets")) return assets;
+  if (!j["assets"].is_object()) throw ProtocolError("'assets' must be an object mapping scene paths to SHA-256 hashes");
+  for (auto it = j["assets"].begin(); it != j["assets"].end(); ++it) {
+    if (!it.value().is_string() || !is_sha256_hex(it.value().get<std::string>()))
+      throw ProtocolError("assets[\"" + it.key() + "\"] must be a lowercase hex SHA-256 (got " + it.value().dump() + ")");
+    assets.emplace(it.key(), it.value().get<std::string>());
+  }
+  return assets;
+}
+
+}  // namespace
+
+LoadOptions SamplingSettings::load_options() const {
+  LoadOptions lo;
+  lo.force_direct = !integrator.empty();
+  if (spp) lo.spp = spp;
+  lo.area_sampling = enum_from_name<AreaSampling>(area_sampling, kAreaSamplingNames);
+  lo.env_sampling = enum_from_name<EnvSampling>(env_sampling, kEnvSamplingNames);
+  lo.bvh = enum_from_name<SplitMethod>(bvh, kSplitMethodNames);
+  return lo;
+}
+
+void SamplingSettings::apply_to(RenderOptions& o) const {
+  o.seed = seed;
+  o.target_error = float(target_error);
+  o.min_spp = min_spp;
+  o.max_spp = max_spp;
+  o.error_floor = float(error_floor);
+  o.replicates = replicates;
+}
+
+void to_json(json& j, const JobSubmission& s) {
+  j = {{"scene", s.scene}, {"assets", s.assets}, {"tile_size", s.tile_size}, {"priority", s.priority}, {"name", s.name}};
+  put_sampling(j, s.sampling);
+}
+
+JobSubmission parse_job_submission(const std::string& body) {
+  const json j = parse_request_object(
+      body, {"scene", "assets", "spp", "seed", "tile_size", "priority", "name", "integrator", "target_error", "min_spp",
+             "max_spp", "error_floor", "replicates", "area_sampling", "env_sampling", "bvh"},
+      false);
+  JobSubmission s;
+  if (!j.contains("scene")) throw ProtocolError("'scene' is missing");
+  s.scene = j["scene"];
+  if (!s.scene.is_object()) throw ProtocolError(std::string("'scene' must be a JSON object, got ") + s.scene.type_name());
+  s.assets = request_assets(j);
+  s.tile_size = int(request_int(j, "tile_size", kDefaultTileSize, 1, 4096));
+  s.priority = int(request_int(j, "priority", kDefaultPriority, std::numeric_limits<int>::min() + 1,
+                               std::numeric_limits<int>::max()));
+  s.name = request_string(j, "name", "");
+  s.sampling = request_sampling(j);
+  return s;
+}
+
+void to_json(json& j, const SubmitAnswer& a) { j = {{"id", a.id}, {"warnings", a.warnings}}; }
+
+void from_json(const json& j, SubmitAnswer& a) {
+  a.id = answer_field<std::string>(j, "id", "job submission");
+  a.warnings = answer_field_or<std::vector<std::string>>(j, "warnings", "job submission", {});
+}
+
+void to_json(json& j, const JobSpec& s) {
+  j = {{"scene", s.scene}, {"assets", s.assets}, {"width", s.width}, {"height", s.height}, {"tile_size", s.tile_size}};
+  put_sampling(j, s.sampling);
+  j["spp"] = s.sampling.spp;
+}
+
+void from_json(const json& j, JobSpec& s) {
+  constexpr const char* kMsg = "job spec";
+  if (!j.is_object() || !j.contains("scene") || !j["scene"].is_object())
+    throw ProtocolError("job spec: missing \"scene\" object");
+  s.scene = j["scene"];
+  s.assets = answer_field_or<std::map<std::string, std::string>>(j, "assets", kMsg, {});
+  s.sampling = answer_sampling(j, kMsg);
+  s.width = answer_field<int>(j, "width", kMsg);
+  s.height = answer_field<int>(j, "height", kMsg);
+  s.tile_size = answer_field_or<int>(j, "tile_size", kMsg, kDefaultTileSize);
+}
+
+void to_json(json& j, const WorkerHello& h) { j = {{"name", h.name}, {"threads", h.threads}, {"version", h.version}}; }
+
+WorkerHello parse_worker_hello(const std::string& body) {
+  const json j = parse_request_object(body, {"name", "threads", "version"}, true);
+  WorkerHello h;
+  h.name = request_string(j, "name", "");
+  h.threads = request_int(j, "threads", 0, 0, 1 << 20);
+  h.version = request_string(j, "version", "");
+  return h;
+}
+
+void to_json(json& j, const Registration& r) {
+  // Whole seconds are written as integers, as a person would.
+  auto seconds = [](double s) { return s == double(int64_t(s)) ? json(int64_t(s)) : json(s); };
+  j = {{"id", r.id}, {"lease_seconds", seconds(r.lease_seconds)}, {"heartbeat_seconds", seconds(r.heartbeat_seconds)}};
+}
+
+void from_json(const json& j, Registration& r) {
+  r.id = answer_field<std::string>(j, "id", "registration");
+  r.lease_seconds = answer_field_or<double>(j, "lease_seconds", "registration", kDefaultLeaseSeconds);
+  r.heartbeat_seconds = answer_field_or<double>(j, "heartbeat_seconds", "registration", kDefaultHeartbeatSeconds);
+  if (!(r.heartbeat_seconds > 0)) throw ProtocolError("registration: heartbeat_seconds must be positive");
+}
+
+void to_json(json& j, const Lease& l) {
+  j = {{"lease", l.id},     {"job", l.job},   {"tile", l.tile},
+       {"window", json::array({l.window.x0, l.window.y0, l.window.x1, l.window.y1})},
+       {"spp", l.spp},      {"seed", l.seed}, {"scene_hash", l.scene_hash}, {"deadline_ms", l.deadline_ms}};
+}
+
+void from_json(const json& j, Lease& l) {
+  l = Lease{};
+  l.id = answer_field<std::string>(j, "lease", "lease");
+  l.job = answer_field<std::string>(j, "job", "lease");
+  l.tile = answer_field<int64_t>(j, "tile", "lease");
+  const auto w = answer_field<std::vector<int>>(j, "window", "lease");
+  if (w.size() != 4) throw ProtocolError("lease: \"window\" must hold 4 numbers");
+  l.window = {w[0], w[1], w[2], w[3]};
+  if (l.window.empty()) throw ProtocolError("lease: empty window");
+  l.spp = answer_field<uint32_t>(j, "spp", "lease");
+  l.seed = answer_field_or<uint64_t>(j, "seed", "lease", 0);
+  l.scene_hash = answer_field_or<std::string>(j, "scene_hash", "lease", "");
+  l.deadline_ms = answer_field_or<int64_t>(j, "deadline_ms", "lease", 0);
+}
+
+void to_json(json& j, const HeartbeatReport& h) { j = {{"rays", h.rays}}; }
+
+HeartbeatReport parse_heartbeat_report(const std::string& body) {
+  const json j = parse_request_object(body, {"rays"}, true);
+  return HeartbeatReport{request_uint(j, "rays", 0)};
+}
+
+void to_json(json& j, const FailReport& f) { j = {{"error", f.error}}; }
+
+FailReport parse_fail_report(const std::string& body) {
+  const json j = parse_request_object(body, {"error"}, true);
+  return FailReport{request_string(j, "error", FailReport{}.error)};
+}
+
+void parse_release(const std::string& body) { parse_request_object(body, {}, true); }
+
+void to_json(json& j, const JobList& l) { j = {{"jobs", l.jobs}}; }
+
+void from_json(const json& j, JobList& l) { l.jobs = answer_field<std::vector<JobStatus>>(j, "jobs", "job list"); }
+
+}  // namespace tessera::protocol

@@ -1,0 +1,147 @@
+// The farm protocol's request and answer bodies (docs/protocol.md, docs/openapi.yaml) as structs with their JSON
+// form. A render option is one field of SamplingSettings: its JSON key, its check and its effect on loading and
+// rendering are all written here.
+#pragma once
+
+#include "core/image.h"
+#include "core/render.h"
+#include "core/scene_loader.h"
+#include "protocol/defaults.h"
+#include "protocol/job.h"
+#include "protocol/json_fields.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace tessera::protocol {
+
+/// How a job's pixels are sampled: everything besides the scene that changes a pixel's bits.
+struct SamplingSettings {
+  uint32_t spp = 0;            ///< Samples per pixel (0 in a submission: the scene's; always set in a job spec).
+  uint64_t seed = 0;           ///< Sample seed.
+  std::string integrator;      ///< "direct" or "intersection_test": render other integrator types with it; "" off.
+  double target_error = 0.0;   ///< Adaptive sampling target (0: every pixel gets spp samples).
+  uint32_t min_spp = kDefaultMinSpp;  ///< Adaptive sampling: first round.
+  uint32_t max_spp = kDefaultMaxSpp;  ///< Adaptive sampling: most samples per pixel.
+  double error_floor = AdaptiveOptions{}.error_floor;  ///< Adaptive sampling: luminance floor of the relative error.
+  uint32_t replicates = 1;     ///< Independent replicates per pixel (see core/adaptive.h).
+  std::string area_sampling;   ///< Overrides the scene's integrator.area_sampling ("": the scene's).
+  std::string env_sampling;    ///< Overrides the scene's integrator.env_sampling ("": the scene's).
+  std::string bvh;             ///< Overrides the scene's integrator.bvh ("": the scene's).
+
+  /// What loading the scene needs from these settings (spp override, integrator, strategy overrides).
+  LoadOptions load_options() const;
+  /// Sets the render options these settings decide (seed, adaptive sampling, replicates).
+  void apply_to(RenderOptions& options) const;
+};
+
+/// Body of POST /v1/jobs.
+struct JobSubmission {
+  nlohmann::json scene = nlohmann::json::object();  ///< The scene file's JSON.
+  std::map<std::string, std::string> assets;        ///< Asset path as written in the scene -> SHA-256.
+  SamplingSettings sampling;                        ///< How to sample.
+  int tile_size = kDefaultTileSize;                 ///< Tile edge in pixels.
+  int priority = kDefaultPriority;                  ///< Higher runs first.
+  std::string name;                                 ///< Label.
+};
+/// The submission's JSON (sampling settings at their defaults are left out).
+void to_json(nlohmann::json& j, const JobSubmission& s);
+/// Parses and checks a submission body; throws ProtocolError with the sentence the coordinator answers (400).
+JobSubmission parse_job_submission(const std::string& body);
+
+/// Answer 201 to POST /v1/jobs.
+struct SubmitAnswer {
+  std::string id;                     ///< The new job's id.
+  std::vector<std::string> warnings;  ///< What the scene loader had to say.
+};
+void to_json(nlohmann::json& j, const SubmitAnswer& a);
+void from_json(const nlohmann::json& j, SubmitAnswer& a);
+
+/// What workers need to build and render a job: answer to GET /v1/jobs/{id}/spec, and the job's stored record.
+struct JobSpec {
+  nlohmann::json scene = nlohmann::json::object();  ///< The scene file's JSON.
+  std::map<std::string, std::string> assets;        ///< Asset path as written in the scene -> SHA-256.
+  SamplingSettings sampling;                        ///< How to sample (spp set).
+  int width = 0;                                    ///< Image width.
+  int height = 0;                                   ///< Image height.
+  int tile_size = kDefaultTileSize;                 ///< Tile edge.
+};
+void to_json(nlohmann::json& j, const JobSpec& s);
+/// Reads a spec (extra keys are ignored); throws ProtocolError naming the field.
+void from_json(const nlohmann::json& j, JobSpec& s);
+
+/// Body of POST /v1/workers.
+struct WorkerHello {
+  std::string name;     ///< Self-reported name.
+  int64_t threads = 0;  ///< Render threads.
+  std::string version;  ///< Tessera version.
+};
+void to_json(nlohmann::json& j, const WorkerHello& h);
+/// Parses a registration request; throws ProtocolError (400).
+WorkerHello parse_worker_hello(const std::string& body);
+
+/// Answer 201 to POST /v1/workers.
+struct Registration {
+  std::string id;                                               ///< Worker id (w-…).
+  double lease_seconds = kDefaultLeaseSeconds;                  ///< Lease length.
+  double heartbeat_seconds = kDefaultHeartbeatSeconds;          ///< Heartbeat period.
+};
+void to_json(nlohmann::json& j, const Registration& r);
+void from_json(const nlohmann::json& j, Registration& r);
+
+/// A granted lease: answer 200 to POST /v1/workers/{wid}/lease, and the coordinator's record of it.
+struct Lease {
+  std::string id;           ///< Lease id (l-…).
+  std::string job;          ///< Job id.
+  std::string worker;       ///< Worker holding it (the coordinator's bookkeeping; not sent).
+  int64_t tile = 0;         ///< Tile number.
+  PixelWindow window;       ///< Tile pixels, half-open, row 0 at the top.
+  uint32_t spp = 0;         ///< Samples per pixel.
+  uint64_t seed = 0;        ///< Sample seed.
+  std::string scene_hash;   ///< Scene content hash (informative).
+  int64_t deadline_ms = 0;  ///< Expiry unless extended by a heartbeat.
+};
+void to_json(nlohmann::json& j, const Lease& l);
+void from_json(const nlohmann::json& j, Lease& l);
+
+/// Body of POST /v1/leases/{lease}/heartbeat.
+struct HeartbeatReport {
+  uint64_t rays = 0;  ///< Rays traced since the previous heartbeat.
+};
+void to_json(nlohmann::json& j, const HeartbeatReport& h);
+HeartbeatReport parse_heartbeat_report(const std::string& body);
+
+/// Body of POST /v1/leases/{lease}/fail.
+struct FailReport {
+  std::string error = "(no error text)";  ///< What went wrong.
+};
+void to_json(nlohmann::json& j, const FailReport& f);
+FailReport parse_fail_report(const std::string& body);
+
+/// Body of POST /v1/leases/{lease}/release (empty or {}); throws ProtocolError for anything else.
+void parse_release(const std::string& body);
+
+/// Answer of GET /v1/jobs.
+struct JobList {
+  std::vector<JobStatus> jobs;  ///< Newest first.
+};
+void to_json(nlohmann::json& j, const JobList& l);
+void from_json(const nlohmann::json& j, JobList& l);
+
+/// Reads an answer body as T (JSON text, then from_json); throws ProtocolError naming `what`.
+template <class T>
+T parse_answer(const std::string& body, const std::string& what) {
+  const nlohmann::json j = parse_body(body, what);
+  try {
+    return j.get<T>();
+  } catch (const nlohmann::json::exception& e) {
+    throw ProtocolError(what + ": " + e.what());
+  }
+}
+
+}  // namespace tessera::protocol

@@ -1,0 +1,111 @@
+#include "protocol/messages.h"
+#include "protocol/routes.h"
+
+#include <gtest/gtest.h>
+
+namespace tessera::protocol {
+namespace {
+
+using nlohmann::json;
+
+TEST(Routes, BuildersAndTheMatcherAgree) {
+  for (const RouteSpec& r : route_table()) {
+    const std::string target = path(r.endpoint, "x-1");
+    const RouteMatch m = match_route(target + "?q=1");
+    ASSERT_NE(m.route, nullptr) << target;
+    EXPECT_EQ(m.route->endpoint, r.endpoint) << target;
+    if (r.pattern.find('{') != std::string_view::npos) {
+      EXPECT_EQ(m.param, "x-1");
+    }
+  }
+  EXPECT_EQ(routes::lease_result("l-3"), "/v1/leases/l-3/result");
+  EXPECT_EQ(match_route("/v1/jobs/").route, nullptr);
+  EXPECT_EQ(match_route("//v1/jobs").route, nullptr);
+  EXPECT_EQ(match_route("v1/jobs").route, nullptr);
+  EXPECT_EQ(match_route("/v1/jobs/a/b").route, nullptr);
+}
+
+TEST(Messages, ParsesALease) {
+  const auto l = json::parse(R"({"lease": "l-1", "job": "j-2", "tile": 7, "window": [64, 0, 128, 64], "spp": 32,
+                                 "seed": 5, "scene_hash": "ab", "deadline_ms": 9})").get<Lease>();
+  EXPECT_EQ(l.id, "l-1");
+  EXPECT_EQ(l.job, "j-2");
+  EXPECT_EQ(l.tile, 7);
+  EXPECT_EQ(l.window, (PixelWindow{64, 0, 128, 64}));
+  EXPECT_EQ(l.spp, 32u);
+  EXPECT_EQ(l.seed, 5u);
+  EXPECT_EQ(json(l).get<Lease>().deadline_ms, 9);
+}
+
+TEST(Messages, NamesTheFieldThatIsWrong) {
+  try {
+    (void)json::parse(R"({"lease": "l-1", "job": "j-2", "tile": 7, "window": [1, 2, 3], "spp": 1})").get<Lease>();
+    FAIL();
+  } catch (const ProtocolError& e) {
+    EXPECT_STREQ(e.what(), "lease: \"window\" must hold 4 numbers");
+  }
+  try {
+    (void)json::parse(R"({"id": "j-1"})").get<JobStatus>();
+    FAIL();
+  } catch (const ProtocolError& e) {
+    EXPECT_STREQ(e.what(), "job: missing \"state\"");
+  }
+  EXPECT_THROW(parse_body("<html>", "lease"), ProtocolError);
+}
+
+TEST(Messages, JobStatusRoundTrips) {
+  JobStatus s;
+  s.id = "j-1";
+  s.state = JobState::running;
+  s.params.width = 8;
+  s.params.height = 4;
+  s.tiles = {4, 1, 2, 1};
+  s.started_ms = 10;
+  s.render_seconds = 1.5;
+  const auto back = json(s).get<JobStatus>();
+  EXPECT_EQ(back.tiles.total, 4);
+  EXPECT_EQ(back.tiles.done, 1);
+  EXPECT_EQ(back.params.width, 8);
+  EXPECT_FALSE(back.finished());
+  EXPECT_FALSE(back.error);
+  EXPECT_EQ(back.started_ms, 10);
+  EXPECT_FALSE(back.finished_ms);
+}
+
+TEST(Messages, SubmissionRefusesUnknownKeysAndBadSettings) {
+  auto error_of = [](const std::string& body) {
+    try {
+      parse_job_submission(body);
+    } catch (const ProtocolError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(accepted)");
+  };
+  EXPECT_EQ(error_of(R"({"scene": {}, "spps": 4})").rfind("unknown key 'spps' (known keys: scene, assets, spp", 0), 0u);
+  EXPECT_EQ(error_of(R"({"scene": {}, "min_spp": 4})"), "'min_spp' and 'max_spp' apply only with 'target_error'");
+  EXPECT_EQ(error_of(R"({"scene": {}, "bvh": "octree"})"), "'bvh' must be one of sah, median (got \"octree\")");
+  EXPECT_EQ(error_of(R"({"scene": {}, "replicates": 99})"), "'replicates' must be an integer in 1..16 (got 99)");
+  EXPECT_EQ(error_of(""), "request body is empty; expected a JSON object");
+}
+
+TEST(Messages, ASubmissionsSettingsReachTheSpecUnchanged) {
+  const JobSubmission sub = parse_job_submission(
+      R"({"scene": {"a": 1}, "spp": 8, "seed": 3, "target_error": 0.1, "max_spp": 64, "error_floor": 0.5,
+          "replicates": 4, "area_sampling": "area", "env_sampling": "cosine", "bvh": "median"})");
+  JobSpec spec{sub.scene, sub.assets, sub.sampling, 16, 8, sub.tile_size};
+  const auto back = json(spec).get<JobSpec>();
+  EXPECT_EQ(json(back), json(spec));
+  EXPECT_EQ(back.sampling.replicates, 4u);
+  EXPECT_EQ(back.sampling.bvh, "median");
+  const LoadOptions lo = back.sampling.load_options();
+  EXPECT_EQ(lo.spp, 8u);
+  EXPECT_EQ(lo.bvh, SplitMethod::kMedian);
+  RenderOptions ro;
+  back.sampling.apply_to(ro);
+  EXPECT_EQ(ro.max_spp, 64u);
+  EXPECT_FLOAT_EQ(ro.error_floor, 0.5f);
+  EXPECT_EQ(ro.seed, 3u);
+}
+
+}  // namespace
+}  // namespace tessera::protocol

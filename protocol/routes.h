@@ -1,0 +1,58 @@
+// Every URL of the farm protocol, once: the route table the coordinator matches requests against, and the builders
+// clients make request targets with.
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace tessera::protocol {
+
+/// The endpoints a request target can name.
+enum class Endpoint {
+  none, healthz, metrics, blob, jobs, job, job_result, job_preview, job_spec, workers, worker_lease,
+  lease_heartbeat, lease_result, lease_fail, lease_release
+};
+
+/// One route: its path pattern ("{name}" is the one path parameter) and the methods it accepts.
+struct RouteSpec {
+  Endpoint endpoint;                       ///< Which endpoint.
+  std::string_view pattern;                ///< e.g. "/v1/jobs/{id}/spec".
+  std::vector<std::string_view> methods;   ///< e.g. {"GET"}.
+};
+
+/// Every route of the protocol.
+const std::vector<RouteSpec>& route_table();
+
+/// A request target matched against the table.
+struct RouteMatch {
+  const RouteSpec* route = nullptr;  ///< nullptr: no route (404).
+  std::string param;                 ///< The value of the pattern's parameter.
+};
+
+/// Matches a request target (query string ignored); empty segments ("//", a trailing slash) never match.
+RouteMatch match_route(std::string_view target);
+
+/// The path of an endpoint with its parameter filled in.
+std::string path(Endpoint endpoint, std::string_view param = {});
+
+/// Request targets, by name.
+namespace routes {
+inline std::string healthz() { return path(Endpoint::healthz); }
+inline std::string metrics() { return path(Endpoint::metrics); }
+inline std::string blob(std::string_view sha256) { return path(Endpoint::blob, sha256); }
+inline std::string jobs() { return path(Endpoint::jobs); }
+inline std::string job(std::string_view id) { return path(Endpoint::job, id); }
+inline std::string job_result(std::string_view id) { return path(Endpoint::job_result, id); }
+inline std::string job_preview(std::string_view id) { return path(Endpoint::job_preview, id); }
+inline std::string job_spec(std::string_view id) { return path(Endpoint::job_spec, id); }
+inline std::string workers() { return path(Endpoint::workers); }
+inline std::string worker_lease(std::string_view worker) { return path(Endpoint::worker_lease, worker); }
+inline std::string lease_heartbeat(std::string_view lease) { return path(Endpoint::lease_heartbeat, lease); }
+inline std::string lease_result(std::string_view lease) { return path(Endpoint::lease_result, lease); }
+inline std::string lease_fail(std::string_view lease) { return path(Endpoint::lease_fail, lease); }
+inline std::string lease_release(std::string_view lease) { return path(Endpoint::lease_release, lease); }
+}  // namespace routes
+
+}  // namespace tessera::protocol
