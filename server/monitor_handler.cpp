@@ -1,6 +1,6 @@
 #include "server/monitor_handler.h"
 
-#include "server/api.h"
+#include "protocol/routes.h"
 #include "server/monitor_assets.h"
 
 #include <nlohmann/json.hpp>
@@ -35,10 +35,10 @@ std::string tiles_job(std::string_view path) {
   return id.find('/') == std::string_view::npos ? std::string(id) : std::string();
 }
 
-// True when the API itself answers `method target` (the monitor then uses it instead of its fallback).
+// True when the protocol's route table has `method target` (the monitor then uses it instead of its fallback).
 bool api_has(std::string_view target, http::verb method) {
-  const Route r = match_route(target);
-  return r.id != RouteId::none && std::find(r.methods.begin(), r.methods.end(), method) != r.methods.end();
+  const protocol::RouteMatch m = protocol::match_route(target);
+  return m.route && std::find(m.route->methods.begin(), m.route->methods.end(), http::to_string(method)) != m.route->methods.end();
 }
 
 const char* content_type(std::string_view path) {
