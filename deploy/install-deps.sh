@@ -13,6 +13,7 @@ PACKAGES=(
   libembree-dev gnuplot-nox
   slurm-wlm munge python3-yaml python3-kubernetes systemd
   openssl iproute2
+  chromium chromium-driver python3-selenium
 )
 
 missing=()

@@ -52,7 +52,7 @@ Api::Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metric
       leases_handler_(scheduler, jobs_, metrics, clock),
       workers_handler_(scheduler, opt_.heartbeat_seconds),
       blobs_handler_(blobs),
-      monitor_handler_(scheduler, metrics, clock) {}
+      health_handler_(scheduler, metrics, clock) {}
 
 std::size_t Api::body_limit(const http::request_header<>& h) {
   const Route r = match_route(h.target());
@@ -141,7 +141,7 @@ HttpResponse Api::handle(HttpRequest&& req) noexcept {
 ResourceHandler& Api::handler_for(RouteId route) {
   switch (route) {
     case RouteId::healthz:
-    case RouteId::metrics: return monitor_handler_;
+    case RouteId::metrics: return health_handler_;
     case RouteId::blob: return blobs_handler_;
     case RouteId::jobs:
     case RouteId::job:

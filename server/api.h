@@ -11,7 +11,7 @@
 #include "server/jobs_handler.h"
 #include "server/leases_handler.h"
 #include "server/metrics.h"
-#include "server/monitor_handler.h"
+#include "server/health_handler.h"
 #include "server/scheduler.h"
 #include "server/storage.h"
 #include "server/workers_handler.h"
@@ -77,7 +77,7 @@ class Api final : public HttpHandler {
   LeasesHandler leases_handler_;
   WorkersHandler workers_handler_;
   BlobsHandler blobs_handler_;
-  MonitorHandler monitor_handler_;
+  HealthHandler health_handler_;
 };
 
 }  // namespace tessera::server

@@ -2,6 +2,7 @@
 
 #include "server/database.h"
 #include "server/http_server.h"
+#include "server/monitor_handler.h"
 
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/post.hpp>
@@ -71,8 +72,9 @@ struct Coordinator::Impl {
         store(opt.data_dir),
         sched(SchedulerConfig{int64_t(opt.lease_seconds * 1000.0), 3, 2, random_hex(3)}, wall_ms, store),
         api(sched, blobs, store, metrics, wall_ms, with_heartbeat(opt)),
+        monitor(api, sched, !opt.limits.tokens.client.empty()),
         pool(std::size_t(opt.handler_threads > 0 ? opt.handler_threads : std::max(2u, std::thread::hardware_concurrency()))),
-        server(ioc, pool, api, HttpServerOptions{opt.host, opt.port, opt.read_timeout, opt.header_limit, opt.max_connections, opt.tls}),
+        server(ioc, pool, monitor, HttpServerOptions{opt.host, opt.port, opt.read_timeout, opt.header_limit, opt.max_connections, opt.tls}),
         tick(ioc),
         signals(ioc) {}
 
@@ -99,6 +101,7 @@ struct Coordinator::Impl {
   Scheduler sched;
   Metrics metrics;
   Api api;
+  MonitorHandler monitor;  // the web monitor at /, in front of the API
   asio::io_context ioc;
   asio::thread_pool pool;
   HttpServer server;

@@ -1,24 +1,32 @@
-// What operators and their tools watch: liveness and Prometheus metrics.
+// The web monitor in front of the API: serves the embedded static files at / and /monitor/..., tells the page which
+// API endpoints this coordinator has, and hands every other request to the API unchanged.
 #pragma once
 
-#include "server/metrics.h"
-#include "server/resource_handler.h"
+#include "server/http_server.h"
 #include "server/scheduler.h"
+
+#include <optional>
 
 namespace tessera::server {
 
-/// GET /healthz and GET /metrics.
-class MonitorHandler final : public ResourceHandler {
+/// An HttpHandler that serves the monitor and forwards everything else to `api`.
+class MonitorHandler final : public HttpHandler {
  public:
-  /// Endpoints over the given state (which must outlive it).
-  MonitorHandler(Scheduler& scheduler, Metrics& metrics, ClockMs clock)
-      : sched_(scheduler), metrics_(metrics), clock_(std::move(clock)) {}
-  HttpResponse handle(protocol::Endpoint endpoint, const std::string& param, HttpRequest& req) override;
+  /// `api` answers every request that is not the monitor's; `scheduler` backs the tile map's fallback endpoint.
+  /// `tokens_required` is reported to the page so it asks for the client token before its first call.
+  MonitorHandler(HttpHandler& api, Scheduler& scheduler, bool tokens_required);
+  std::size_t body_limit(const http::request_header<>& header) override;
+  std::optional<HttpResponse> early_response(const http::request_header<>& header) noexcept override;
+  HttpResponse handle(HttpRequest&& request) noexcept override;
 
  private:
+  HttpResponse serve_static(const HttpRequest& req) const;
+  HttpResponse capabilities(const HttpRequest& req) const;
+  HttpResponse job_tiles(HttpRequest&& req, const std::string& job);
+
+  HttpHandler& api_;
   Scheduler& sched_;
-  Metrics& metrics_;
-  ClockMs clock_;
+  bool tokens_required_;
 };
 
 }  // namespace tessera::server

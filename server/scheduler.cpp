@@ -274,6 +274,27 @@ std::optional<JobStatus> Scheduler::job(const std::string& id) {
   });
 }
 
+std::optional<std::vector<TileView>> Scheduler::tiles(const std::string& job) {
+  return transact([&](int64_t) -> std::optional<std::vector<TileView>> {
+    const auto it = jobs_.find(job);
+    if (it == jobs_.end()) return std::nullopt;
+    std::vector<TileView> out;
+    out.reserve(it->second->tiles.size());
+    for (size_t i = 0; i < it->second->tiles.size(); ++i) {
+      const Tile& t = it->second->tiles[i];
+      TileView v{int64_t(i), t.state, {}, {}, t.failures};
+      const auto l = t.state == TileState::pending || t.state == TileState::done ? leases_.end() : leases_.find(t.lease);
+      if (l != leases_.end()) {
+        v.worker = l->second.lease.worker;
+        const auto w = workers_.find(v.worker);
+        if (w != workers_.end()) v.worker_name = w->second.name;
+      }
+      out.push_back(std::move(v));
+    }
+    return out;
+  });
+}
+
 std::vector<JobStatus> Scheduler::jobs() {
   return transact([&](int64_t now) {
     std::vector<const JobRec*> recs;

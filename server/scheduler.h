@@ -117,6 +117,15 @@ TileState tile_state_from_string(std::string_view s);
 /// Parses a stored lease state name; throws std::invalid_argument for unknown names.
 LeaseState lease_state_from_string(std::string_view s);
 
+/// One tile as the monitor shows it.
+struct TileView {
+  int64_t index = 0;                            ///< Tile number.
+  TileState state = TileState::pending;         ///< Where it is.
+  std::string worker;                           ///< Worker holding its live lease (leased or merging), else empty.
+  std::string worker_name;                      ///< That worker's self-reported name.
+  std::map<std::string, std::string> failures;  ///< Worker -> last error text on this tile.
+};
+
 /// A job as the store keeps it: its snapshot (tile counts are derived from the tiles) and its failure bookkeeping.
 struct JobRow {
   JobStatus status;                                       ///< Params, state, times, error, rays, workers.
@@ -259,6 +268,8 @@ class Scheduler {
   void expire();
   /// Current counters.
   SchedulerCounters counters();
+  /// Every tile of a job in index order, or nothing for an unknown job.
+  std::optional<std::vector<TileView>> tiles(const std::string& job);
   /// Ids of jobs that are running with every tile done (a restart came between the last tile and the result file).
   std::vector<std::string> unfinalized_jobs();
 

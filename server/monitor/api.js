@@ -1,0 +1,101 @@
+// Talking to the coordinator: the bearer token (kept in sessionStorage, never in a URL), JSON calls, the preview
+// image, which endpoints this coordinator has, and the event stream when it exists.
+const TOKEN_KEY = 'tessera.clientToken';
+
+export class ApiError extends Error {
+  constructor(status, message) {
+    super(message);
+    this.status = status;
+  }
+  get isAuth() { return this.status === 401 || this.status === 403; }
+}
+
+let authListener = () => {};
+/** Called with an ApiError whenever the coordinator refuses the token (401/403). */
+export function onAuthError(fn) { authListener = fn; }
+
+export function token() { return sessionStorage.getItem(TOKEN_KEY) || ''; }
+export function setToken(t) {
+  if (t) sessionStorage.setItem(TOKEN_KEY, t);
+  else sessionStorage.removeItem(TOKEN_KEY);
+}
+
+function headers(extra) {
+  const h = new Headers(extra || {});
+  const t = token();
+  if (t) h.set('Authorization', 'Bearer ' + t);
+  return h;
+}
+
+async function errorOf(res) {
+  let text = res.statusText || 'error';
+  try {
+    const body = await res.json();
+    if (body && body.error) text = body.error;
+  } catch (_) { /* not JSON */ }
+  return new ApiError(res.status, text);
+}
+
+/** A JSON call; resolves to the parsed body (null for an empty one), rejects with ApiError. */
+export async function call(method, path, body) {
+  let res;
+  try {
+    res = await fetch(path, {
+      method,
+      headers: headers(body === undefined ? {} : { 'Content-Type': 'application/json' }),
+      body: body === undefined ? undefined : JSON.stringify(body),
+      cache: 'no-store',
+    });
+  } catch (e) {
+    throw new ApiError(0, 'the coordinator is not reachable (' + e.message + ')');
+  }
+  if (!res.ok) {
+    const err = await errorOf(res);
+    if (err.isAuth) authListener(err);
+    throw err;
+  }
+  const text = await res.text();
+  return text ? JSON.parse(text) : null;
+}
+
+/** The preview PNG as an object URL (the caller revokes it). */
+export async function previewUrl(jobId) {
+  const res = await fetch('/v1/jobs/' + encodeURIComponent(jobId) + '/preview.png', { headers: headers(), cache: 'no-store' });
+  if (!res.ok) throw await errorOf(res);
+  return URL.createObjectURL(await res.blob());
+}
+
+/** What this coordinator offers: {tokens_required, endpoints: {pause, resume, retry, ...}}. */
+export async function capabilities() {
+  const res = await fetch('/monitor/capabilities.json', { cache: 'no-store' });
+  if (!res.ok) throw await errorOf(res);
+  return res.json();
+}
+
+/**
+ * Reads GET /v1/events (Server-Sent Events) with the bearer header (EventSource cannot send one) and calls
+ * onEvent(type, data) per event. Resolves when the stream ends; rejects on errors.
+ */
+export async function streamEvents(onEvent, signal) {
+  const res = await fetch('/v1/events', { headers: headers({ Accept: 'text/event-stream' }), signal, cache: 'no-store' });
+  if (!res.ok) throw await errorOf(res);
+  const reader = res.body.pipeThrough(new TextDecoderStream()).getReader();
+  let buffer = '';
+  for (;;) {
+    const { value, done } = await reader.read();
+    if (done) return;
+    buffer += value.replace(/\r\n?/g, '\n');
+    let end;
+    while ((end = buffer.indexOf('\n\n')) >= 0) {
+      const block = buffer.slice(0, end);
+      buffer = buffer.slice(end + 2);
+      let type = 'message';
+      const data = [];
+      for (const line of block.split('\n')) {
+        if (line.startsWith('event:')) type = line.slice(6).trim();
+        else if (line.startsWith('data:')) data.push(line.slice(5).replace(/^ /, ''));
+      }
+      if (data.length) onEvent(type, data.join('\n'));
+    }
+  }
+}

@@ -1,0 +1,68 @@
+// Small display helpers shared by the pages.
+export function el(tag, attrs, ...children) {
+  const e = document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs || {})) {
+    if (v === undefined || v === null || v === false) continue;
+    if (k === 'class') e.className = v;
+    else if (k === 'text') e.textContent = v;
+    else if (k.startsWith('on')) e.addEventListener(k.slice(2), v);
+    else if (k === 'dataset') Object.assign(e.dataset, v);
+    else e.setAttribute(k, v === true ? '' : v);
+  }
+  for (const c of children.flat(Infinity)) if (c !== null && c !== undefined) e.append(c);
+  return e;
+}
+
+export function duration(seconds) {
+  if (seconds === null || seconds === undefined || !isFinite(seconds)) return '–';
+  const s = Math.max(0, Math.round(seconds));
+  if (s < 60) return s + ' s';
+  if (s < 3600) return Math.floor(s / 60) + ' min ' + String(s % 60).padStart(2, '0') + ' s';
+  return Math.floor(s / 3600) + ' h ' + String(Math.floor(s % 3600 / 60)).padStart(2, '0') + ' min';
+}
+
+export function clock(ms) {
+  if (!ms) return '–';
+  const d = new Date(ms);
+  const today = new Date();
+  const time = d.toLocaleTimeString([], { hour: '2-digit', minute: '2-digit', second: '2-digit' });
+  return d.toDateString() === today.toDateString() ? time : d.toLocaleDateString() + ' ' + time;
+}
+
+export function ago(ms) {
+  if (!ms) return '–';
+  return duration((Date.now() - ms) / 1000) + ' ago';
+}
+
+/** Whether a job is paused, however the coordinator reports it. */
+export function isPaused(job) { return job.state === 'paused' || job.paused === true; }
+
+export function shownState(job) { return isPaused(job) && job.state !== 'paused' ? 'paused' : job.state; }
+
+export function badge(state) { return el('span', { class: 'badge state-' + state, text: state }); }
+
+/** Derived figures of a job: progress fraction, ETA (seconds or null) and average Mrays/s (or null). */
+export function jobFigures(job) {
+  const t = job.tiles || { total: 0, done: 0 };
+  const frac = t.total ? t.done / t.total : 0;
+  const secs = job.render_seconds || 0;
+  let eta = null;
+  if ((job.state === 'running') && t.done > 0 && secs > 0) eta = secs / t.done * (t.total - t.done);
+  if (job.state === 'done') eta = 0;
+  const mrays = secs > 0 && job.rays ? job.rays / secs / 1e6 : null;
+  return { frac, eta, mrays, secs };
+}
+
+export function progressBar(job) {
+  const t = job.tiles || { total: 0, done: 0, leased: 0 };
+  const pct = t.total ? 100 * t.done / t.total : 0;
+  const leasedPct = t.total ? 100 * (t.leased || 0) / t.total : 0;
+  const bar = el('div', { class: 'progress', title: `${t.done} of ${t.total} tiles done, ${t.leased || 0} rendering` },
+    el('div', { class: 'progress-done state-' + shownState(job) }),
+    el('div', { class: 'progress-leased' }));
+  bar.children[0].style.width = pct.toFixed(2) + '%';
+  bar.children[1].style.width = leasedPct.toFixed(2) + '%';
+  return el('div', { class: 'progress-cell' }, bar, el('span', { class: 'progress-text', text: `${t.done}/${t.total}` }));
+}
+
+export function mrays(v) { return v === null || v === undefined ? '–' : v >= 100 ? v.toFixed(0) : v.toFixed(1); }

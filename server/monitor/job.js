@@ -1,0 +1,222 @@
+// One job: its figures, the live tile map, the partial image, tile details, and the job's controls.
+import * as api from './api.js';
+import { el, badge, duration, clock, jobFigures, progressBar, mrays, isPaused, shownState } from './format.js';
+import { TileMap, tileWindow, shownTileState, workerColor } from './tilemap.js';
+
+const FINAL = ['done', 'failed', 'cancelled'];
+
+/** A button that needs a second click within 4 s (for cancel and delete). */
+function confirmButton(label, confirmLabel, action, cls) {
+  let armed = null;
+  const b = el('button', { type: 'button', class: cls || '', text: label });
+  b.addEventListener('click', () => {
+    if (!armed) {
+      b.textContent = confirmLabel;
+      b.classList.add('armed');
+      armed = setTimeout(() => { armed = null; b.textContent = label; b.classList.remove('armed'); }, 4000);
+      return;
+    }
+    clearTimeout(armed);
+    armed = null;
+    b.textContent = label;
+    b.classList.remove('armed');
+    action();
+  });
+  return b;
+}
+
+export function mount(host, ctx) {
+  const id = ctx.arg;
+  const ep = ctx.caps.endpoints;
+  const path = '/v1/jobs/' + encodeURIComponent(id);
+  let job = null, tiles = [], previewKey = '', previewBusy = false, previewUrl = null, selected = -1;
+
+  const title = el('h1', { id: 'job-title', text: id });
+  const stateBadge = el('span', { id: 'job-state' });
+  const actionMsg = el('p', { class: 'action-msg', id: 'action-msg', role: 'status' });
+  const figures = el('dl', { class: 'figures', id: 'job-figures' });
+  const errorBox = el('div', { class: 'errorbox', id: 'job-error', hidden: true });
+  const tileCounts = el('div', { class: 'legend', id: 'tile-legend' });
+  const detail = el('div', { class: 'tile-detail', id: 'tile-detail' },
+    el('p', { class: 'sub', text: 'Click a tile for its worker, failures and log lines.' }));
+  const map = new TileMap((i) => { selected = i; drawDetail(); });
+  const img = el('img', { id: 'preview', alt: 'Partial image of the job', hidden: true });
+  const imgNote = el('p', { class: 'sub', id: 'preview-note', text: 'The image appears as tiles are done.' });
+
+  // ---- controls ----
+  const missing = (what) => `This coordinator has no ${what} endpoint yet.`;
+  async function act(label, method, url, body, after) {
+    actionMsg.textContent = label + '…';
+    actionMsg.className = 'action-msg';
+    try {
+      await api.call(method, url, body);
+      actionMsg.textContent = label + ': done.';
+      if (after) after();
+    } catch (e) {
+      actionMsg.textContent = label + ' failed: ' + e.message;
+      actionMsg.className = 'action-msg error';
+    }
+    ctx.refresh();
+  }
+  const btn = (label, name, enabledBy, onClick, cls) => {
+    const b = el('button', { type: 'button', text: label, 'data-action': name, class: cls || '', onclick: onClick });
+    b.dataset.supported = enabledBy ? 'yes' : 'no';
+    if (!enabledBy) { b.disabled = true; b.title = missing(label.toLowerCase()); }
+    return b;
+  };
+  const pauseB = btn('Pause', 'pause', ep.pause, () => act('Pause', 'POST', path + '/pause'));
+  const resumeB = btn('Resume', 'resume', ep.resume, () => act('Resume', 'POST', path + '/resume'));
+  const retryB = btn('Retry', 'retry', ep.retry, () => act('Retry', 'POST', path + '/retry'), 'primary');
+  const cancelB = confirmButton('Cancel', 'Click to confirm', () => act('Cancel', 'DELETE', path), 'danger');
+  cancelB.dataset.action = 'cancel';
+  cancelB.dataset.supported = 'yes';
+  const deleteB = confirmButton('Delete', 'Click to delete for good',
+    () => act('Delete', 'DELETE', path + '?purge=true', undefined, () => { location.hash = '#/jobs'; }), 'danger');
+  deleteB.dataset.action = 'delete';
+  deleteB.dataset.supported = ep.purge ? 'yes' : 'no';
+  if (!ep.purge) { deleteB.disabled = true; deleteB.title = missing('purge (DELETE ?purge=true)'); }
+  const prioInput = el('input', { type: 'number', id: 'priority-input', step: '1', 'aria-label': 'Priority' });
+  const prioB = btn('Set priority', 'priority', ep.priority,
+    () => act('Priority', 'PATCH', path, { priority: Number(prioInput.value) }));
+  if (!ep.priority) { prioInput.disabled = true; prioInput.title = missing('PATCH /v1/jobs/{id}'); }
+
+  host.append(
+    el('div', { class: 'crumbs' }, el('a', { href: '#/jobs', text: 'Jobs' }), ' / ', el('span', { text: id })),
+    el('div', { class: 'page-head' },
+      el('div', { class: 'title' }, title, stateBadge),
+      el('div', { class: 'actions' }, pauseB, resumeB, retryB, cancelB,
+        el('span', { class: 'prio' }, prioInput, prioB), deleteB)),
+    actionMsg, errorBox,
+    el('div', { class: 'card figures-card' }, figures),
+    el('div', { class: 'split' },
+      el('section', { class: 'card' },
+        el('div', { class: 'card-head' }, el('h2', { text: 'Tiles' }), tileCounts),
+        map.grid),
+      el('div', { class: 'stack' },
+        el('section', { class: 'card' },
+          el('div', { class: 'card-head' }, el('h2', { text: 'Image' }), el('span', { class: 'sub', id: 'preview-age' })),
+          el('div', { class: 'preview-box' }, img), imgNote),
+        el('section', { class: 'card' }, detail))));
+
+  function drawHead() {
+    title.textContent = job.name || job.id;
+    stateBadge.replaceChildren(badge(shownState(job)));
+    const f = jobFigures(job);
+    const t = job.tiles;
+    const item = (k, v, idAttr) => [el('dt', { text: k }), el('dd', { text: v, id: idAttr })];
+    figures.replaceChildren(
+      el('div', { class: 'fig wide' }, el('dt', { text: 'Progress' }), el('dd', {}, progressBar(job))),
+      ...[
+        item('Done', `${t.done} / ${t.total} tiles (${(100 * f.frac).toFixed(0)}%)`, 'fig-done'),
+        item('Rendering', `${t.leased} tiles`, 'fig-leased'),
+        item('Elapsed', duration(f.secs)),
+        item('ETA', f.eta === null ? '–' : duration(f.eta)),
+        item('Mrays/s', mrays(f.mrays)),
+        item('Image', `${job.width}×${job.height} · ${job.spp} spp · seed ${job.seed}`),
+        item('Tiles', `${job.tile_size} px`),
+        item('Priority', String(job.priority ?? 0), 'fig-priority'),
+        item('Submitted', clock(job.created_ms)),
+      ].map((pair) => el('div', { class: 'fig' }, pair)));
+    errorBox.hidden = !job.error;
+    errorBox.textContent = job.error ? 'Failed: ' + job.error : '';
+    const paused = isPaused(job), final = FINAL.includes(job.state);
+    pauseB.hidden = paused || final;
+    resumeB.hidden = !paused;
+    retryB.hidden = !(job.state === 'failed' || job.state === 'cancelled');
+    cancelB.hidden = final;
+    deleteB.hidden = !final;
+    if (document.activeElement !== prioInput) prioInput.value = String(job.priority ?? 0);
+  }
+
+  function drawTiles() {
+    map.layout(job);
+    map.update(tiles);
+    const n = { pending: 0, leased: 0, done: 0, failed: 0 };
+    const workers = new Map();
+    for (const t of tiles) {
+      const s = shownTileState(t);
+      n[s] = (n[s] || 0) + 1;
+      if (t.state === 'leased' && t.worker) workers.set(t.worker, t.worker_name || t.worker);
+    }
+    tileCounts.replaceChildren(
+      ...['done', 'leased', 'pending', 'failed'].map((s) =>
+        el('span', { class: 'key', 'data-count': s }, el('i', { class: 'swatch tile', 'data-state': s }), `${s} ${n[s] || 0}`)),
+      ...[...workers].map(([w, name]) => {
+        const sw = el('i', { class: 'swatch' });
+        sw.style.background = workerColor(w);
+        return el('span', { class: 'key worker-key', title: w }, sw, name);
+      }));
+    drawDetail();
+  }
+
+  function drawDetail() {
+    if (selected < 0 || !job) return;
+    const t = tiles.find((x) => x.index === selected);
+    if (!t) return;
+    const [x0, y0, x1, y1] = tileWindow(job, selected);
+    const rows = [
+      ['State', shownTileState(t)],
+      ['Pixels', `[${x0}, ${x1}) × [${y0}, ${y1})`],
+      ['Worker', t.worker ? `${t.worker_name || ''} (${t.worker})` : '–'],
+    ];
+    const skip = new Set(['index', 'state', 'worker', 'worker_name', 'failures', 'log', 'logs', 'window']);
+    for (const [k, v] of Object.entries(t)) if (!skip.has(k) && v !== null) rows.push([k.replace(/_/g, ' '), String(v)]);
+    let failures = t.failures || [];
+    if (!Array.isArray(failures)) failures = Object.entries(failures).map(([worker, error]) => ({ worker, error }));
+    const logs = [].concat(t.log || t.logs || []);
+    const requeue = ep.requeue && t.state !== 'done'
+      ? el('button', { type: 'button', text: 'Requeue tile', onclick: () => act('Requeue', 'POST', `${path}/tiles/${selected}/requeue`) })
+      : null;
+    detail.replaceChildren(...[
+      el('h3', {}, `Tile ${selected}`, requeue),
+      el('dl', { class: 'kv' }, rows.map(([k, v]) => [el('dt', { text: k }), el('dd', { text: v })])),
+      failures.length
+        ? el('div', {}, el('h4', { text: 'Failures' }),
+            el('pre', { class: 'log', text: failures.map((f) => `${f.worker}: ${f.error}`).join('\n') }))
+        : el('p', { class: 'sub', text: 'No failures on this tile.' }),
+      logs.length ? el('div', {}, el('h4', { text: 'Log' }), el('pre', { class: 'log', text: logs.join('\n') })) : null,
+    ].filter(Boolean));
+  }
+
+  async function refreshPreview() {
+    const key = `${job.tiles.done}/${job.state}`;
+    if (key === previewKey || previewBusy || job.tiles.done === 0) return;
+    previewBusy = true;
+    try {
+      const url = await api.previewUrl(id);
+      await new Promise((resolve) => { img.onload = resolve; img.onerror = resolve; img.src = url; });
+      if (previewUrl) URL.revokeObjectURL(previewUrl);
+      previewUrl = url;
+      previewKey = key;
+      img.hidden = false;
+      img.dataset.tilesDone = String(job.tiles.done);
+      imgNote.hidden = true;
+      document.getElementById('preview-age').textContent = `${job.tiles.done} of ${job.tiles.total} tiles`;
+    } finally {
+      previewBusy = false;
+    }
+  }
+
+  return {
+    async refresh() {
+      let j;
+      try {
+        j = await api.call('GET', path);
+      } catch (e) {
+        if (e.status === 404) {
+          host.replaceChildren(el('div', { class: 'card empty' }, `No job ${id} on this coordinator. `,
+            el('a', { href: '#/jobs', text: 'Back to the jobs' })));
+          return;
+        }
+        throw e;
+      }
+      job = j;
+      drawHead();
+      const body = await api.call('GET', path + '/tiles');
+      tiles = Array.isArray(body) ? body : body.tiles || [];
+      drawTiles();
+      await refreshPreview();
+    },
+    unmount() { if (previewUrl) URL.revokeObjectURL(previewUrl); },
+  };
+}

@@ -1,0 +1,60 @@
+// The job list: state, progress, priority, elapsed time, ETA and Mrays/s of every job, filtered by state.
+import * as api from './api.js';
+import { el, badge, duration, clock, jobFigures, progressBar, mrays, shownState } from './format.js';
+
+const STATES = ['all', 'queued', 'running', 'paused', 'done', 'failed', 'cancelled'];
+
+export function mount(host) {
+  let filter = sessionStorage.getItem('tessera.jobFilter') || 'all';
+  const chips = el('div', { class: 'chips', role: 'tablist', 'aria-label': 'Filter by state' });
+  const tbody = el('tbody');
+  const empty = el('p', { class: 'empty', hidden: true });
+  host.append(
+    el('div', { class: 'page-head' }, el('h1', { text: 'Jobs' }), chips),
+    el('div', { class: 'card' },
+      el('table', { class: 'jobs', id: 'jobs-table' },
+        el('thead', {}, el('tr', {},
+          ['Job', 'State', 'Progress', 'Priority', 'Elapsed', 'ETA', 'Mrays/s', 'Size', 'Submitted']
+            .map((h, i) => el('th', { text: h, class: i >= 3 && i <= 6 ? 'num' : undefined })))),
+        tbody),
+      empty));
+
+  let jobs = [];
+  function draw() {
+    const counts = Object.fromEntries(STATES.map((s) => [s, 0]));
+    for (const j of jobs) { counts.all++; counts[shownState(j)] = (counts[shownState(j)] || 0) + 1; }
+    chips.replaceChildren(...STATES.map((s) => el('button', {
+      type: 'button', class: 'chip' + (s === filter ? ' active' : ''), 'data-state': s, role: 'tab',
+      'aria-selected': s === filter ? 'true' : 'false',
+      onclick: () => { filter = s; sessionStorage.setItem('tessera.jobFilter', s); draw(); },
+    }, s, el('span', { class: 'count', text: String(counts[s] || 0) }))));
+    const shown = jobs.filter((j) => filter === 'all' || shownState(j) === filter);
+    tbody.replaceChildren(...shown.map(row));
+    empty.hidden = shown.length > 0;
+    empty.textContent = jobs.length ? 'No ' + filter + ' jobs.' : 'No jobs yet. Submit one with tessera submit SCENE --coordinator URL.';
+  }
+
+  function row(j) {
+    const f = jobFigures(j);
+    const open = () => { location.hash = '#/jobs/' + encodeURIComponent(j.id); };
+    return el('tr', { class: 'clickable', 'data-job': j.id, onclick: open },
+      el('td', {}, el('a', { href: '#/jobs/' + encodeURIComponent(j.id), class: 'job-name', text: j.name || j.id }),
+        el('div', { class: 'sub', text: j.id })),
+      el('td', {}, badge(shownState(j))),
+      el('td', {}, progressBar(j)),
+      el('td', { class: 'num', text: String(j.priority ?? 0) }),
+      el('td', { class: 'num', text: duration(f.secs) }),
+      el('td', { class: 'num', text: f.eta === null ? '–' : duration(f.eta) }),
+      el('td', { class: 'num', text: mrays(f.mrays) }),
+      el('td', { class: 'sub', text: `${j.width}×${j.height}, ${j.spp} spp` }),
+      el('td', { class: 'sub', text: clock(j.created_ms) }));
+  }
+
+  return {
+    async refresh() {
+      const body = await api.call('GET', '/v1/jobs');
+      jobs = body.jobs || [];
+      draw();
+    },
+  };
+}

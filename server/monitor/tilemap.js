@@ -1,0 +1,80 @@
+// The tile map: one cell per tile in the image's shape, coloured by state (leased tiles by their worker).
+import { el } from './format.js';
+
+// Hues far from done (green) and failed (red).
+const WORKER_HUES = [38, 205, 275, 320, 185, 55, 235, 300, 20, 250];
+
+/** A stable colour per worker id. */
+export function workerColor(id) {
+  let h = 0;
+  for (const c of String(id)) h = (h * 31 + c.charCodeAt(0)) >>> 0;
+  return `hsl(${WORKER_HUES[h % WORKER_HUES.length]} 75% 62%)`;
+}
+
+/** The state a tile is drawn in: its own, or 'failed' for a pending tile that has failed on some worker. */
+export function shownTileState(t) {
+  const failures = t.failures || [];
+  return t.state === 'pending' && (failures.length || Object.keys(failures).length) ? 'failed' : t.state;
+}
+
+export function tileWindow(job, index) {
+  const cols = Math.ceil(job.width / job.tile_size);
+  const x0 = (index % cols) * job.tile_size;
+  const y0 = Math.floor(index / cols) * job.tile_size;
+  return [x0, y0, Math.min(x0 + job.tile_size, job.width), Math.min(y0 + job.tile_size, job.height)];
+}
+
+export class TileMap {
+  constructor(onSelect) {
+    this.grid = el('div', { class: 'tilemap', id: 'tilemap', role: 'grid', 'aria-label': 'Tiles' });
+    this.onSelect = onSelect;
+    this.cells = [];
+    this.shape = '';
+    this.selected = -1;
+  }
+
+  layout(job) {
+    const shape = `${job.width}x${job.height}/${job.tile_size}`;
+    if (shape === this.shape) return;
+    this.shape = shape;
+    const ts = job.tile_size;
+    const cols = Math.ceil(job.width / ts), rows = Math.ceil(job.height / ts);
+    const lastW = job.width - (cols - 1) * ts, lastH = job.height - (rows - 1) * ts;
+    this.grid.style.gridTemplateColumns = (cols > 1 ? `repeat(${cols - 1}, ${ts}fr) ` : '') + `${lastW}fr`;
+    this.grid.style.gridTemplateRows = (rows > 1 ? `repeat(${rows - 1}, ${ts}fr) ` : '') + `${lastH}fr`;
+    this.grid.style.aspectRatio = `${job.width} / ${job.height}`;
+    this.grid.style.setProperty('--aspect', String(job.width / job.height));
+    this.grid.classList.toggle('dense', cols * rows > 1500);
+    this.cells = [];
+    const frag = document.createDocumentFragment();
+    for (let i = 0; i < cols * rows; i++) {
+      const c = el('div', { class: 'tile', role: 'gridcell', 'data-index': String(i), 'data-state': 'pending', onclick: () => this.select(i) });
+      this.cells.push(c);
+      frag.append(c);
+    }
+    this.grid.replaceChildren(frag);
+  }
+
+  select(i) {
+    if (this.cells[this.selected]) this.cells[this.selected].classList.remove('selected');
+    this.selected = i;
+    if (this.cells[i]) this.cells[i].classList.add('selected');
+    this.onSelect(i);
+  }
+
+  /** Draws tile states; `tiles` is the list from GET /v1/jobs/{id}/tiles. */
+  update(tiles) {
+    for (const t of tiles) {
+      const c = this.cells[t.index];
+      if (!c) continue;
+      const s = shownTileState(t);
+      const worker = t.state === 'leased' ? (t.worker_name || t.worker || '') : '';
+      if (c.dataset.state !== s) c.dataset.state = s;
+      if ((c.dataset.worker || '') !== (t.worker || '')) {
+        c.dataset.worker = t.worker || '';
+        c.style.setProperty('--worker', t.worker && t.state === 'leased' ? workerColor(t.worker) : '');
+      }
+      c.title = `Tile ${t.index}: ${s}${worker ? ' on ' + worker : ''}`;
+    }
+  }
+}

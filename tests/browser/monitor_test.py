@@ -1,0 +1,284 @@
+#!/usr/bin/python3
+"""The web monitor in headless Chromium against a real coordinator and worker (ctest label `browser`).
+
+Usage: monitor_test.py TESSERA ARTEFACT_DIR
+
+Timing is driven, never raced: a scripted worker ("holder", plain HTTP) leases tiles and holds them while a real
+`tessera worker` renders the rest, so the job page is shown mid-render with known tile states however fast the
+machine is; the holder then hands its tiles back and the job finishes. Every wait polls a state with a generous
+overall deadline. Exits 77 (ctest SKIP_RETURN_CODE) when Chromium, chromedriver or Selenium is missing.
+"""
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+import urllib.error
+import urllib.request
+
+SKIP = 77
+DEADLINE = 120.0  # seconds for any one awaited state; only a hung system gets near it
+
+CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+CHROMEDRIVER = shutil.which("chromedriver") or "/usr/bin/chromedriver"
+try:
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+    from selenium.webdriver.common.by import By
+except ImportError:
+    print("SKIP: python3-selenium is not installed (apt-get install python3-selenium)")
+    sys.exit(SKIP)
+if not (os.access(CHROMIUM, os.X_OK) and os.access(CHROMEDRIVER, os.X_OK)):
+    print("SKIP: chromium or chromedriver is not installed (apt-get install chromium chromium-driver)")
+    sys.exit(SKIP)
+
+TESSERA, ARTEFACTS = sys.argv[1], sys.argv[2]
+os.makedirs(ARTEFACTS, exist_ok=True)
+WORK = tempfile.mkdtemp(prefix="tessera-browser-")
+PROCS = []
+
+FARM_COMMON = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "farm", "common.sh")
+WIDTH, HEIGHT = 320, 192
+TILE = 32
+TOTAL_TILES = (WIDTH // TILE) * (HEIGHT // TILE)
+HELD = 3  # tiles the scripted worker holds
+
+
+def fail(msg):
+    raise AssertionError(msg)
+
+
+def wait_for(what, predicate, deadline=DEADLINE):
+    end = time.monotonic() + deadline
+    while True:
+        value = predicate()
+        if value:
+            return value
+        if time.monotonic() > end:
+            fail("timed out waiting for " + what)
+        time.sleep(0.1)
+
+
+class Http:
+    def __init__(self, base, token):
+        self.base, self.token = base, token
+
+    def call(self, method, path, body=None):
+        data = None if body is None else json.dumps(body).encode()
+        req = urllib.request.Request(self.base + path, data=data, method=method)
+        req.add_header("Authorization", "Bearer " + self.token)
+        if data is not None:
+            req.add_header("Content-Type", "application/json")
+        try:
+            with urllib.request.urlopen(req, timeout=30) as r:
+                text = r.read()
+                return r.status, (json.loads(text) if text and r.headers.get_content_type() == "application/json" else text)
+        except urllib.error.HTTPError as e:
+            return e.code, e.read()
+
+
+def token_file(name):
+    path = os.path.join(WORK, name)
+    with open(path, "w") as f:
+        f.write(os.urandom(24).hex())
+    os.chmod(path, 0o600)
+    return path, open(path).read()
+
+
+def start(args, log):
+    p = subprocess.Popen(args, stdout=open(os.path.join(WORK, log), "w"), stderr=subprocess.STDOUT)
+    PROCS.append(p)
+    return p
+
+
+def stop(p):
+    if p.poll() is None:
+        p.send_signal(signal.SIGTERM)
+        try:
+            p.wait(30)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait()
+
+
+def browser():
+    o = webdriver.ChromeOptions()
+    o.binary_location = CHROMIUM
+    for a in ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+              "--disable-background-networking", "--disable-component-update", "--disable-sync",
+              "--disable-dev-shm-usage", "--window-size=1366,768", "--user-data-dir=" + os.path.join(WORK, "chrome")):
+        o.add_argument(a)
+    o.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+    d = webdriver.Chrome(service=Service(CHROMEDRIVER, log_path=os.path.join(WORK, "chromedriver.log")), options=o)
+    # A laptop screen's page area, whatever the headless window's decorations.
+    d.execute_cdp_cmd("Emulation.setDeviceMetricsOverride", {"width": 1366, "height": 768, "deviceScaleFactor": 1, "mobile": False})
+    return d
+
+
+def console_errors(d):
+    return [e for e in d.get_log("browser") if e["level"] == "SEVERE"]
+
+
+def visible(d, css):
+    return [e for e in d.find_elements(By.CSS_SELECTOR, css) if e.is_displayed()]
+
+
+def tiles_in(d, state):
+    return len(d.find_elements(By.CSS_SELECTOR, f'#tilemap .tile[data-state="{state}"]'))
+
+
+def sphere_scene():
+    """The farm tests' small analytic scene (tests/farm/common.sh, write_sphere_scene)."""
+    path = os.path.join(WORK, "scene.json")
+    subprocess.run(["bash", "-c", 'source "$1" - - -; write_sphere_scene "$2" "$3" "$4" 4', "bash", FARM_COMMON, path,
+                    str(WIDTH), str(HEIGHT)], check=True)
+    return json.load(open(path))
+
+
+def main():
+    client_path, client_token = token_file("client.token")
+    worker_path, worker_token = token_file("worker.token")
+    ready = os.path.join(WORK, "ready")
+    # Long leases: the held tiles stay leased for the whole test, whatever the machine's speed.
+    serve = start([TESSERA, "serve", "--data", os.path.join(WORK, "data"), "--listen", "127.0.0.1:0",
+                   "--ready-file", ready, "--lease-seconds", "600", "--client-token-file", client_path,
+                   "--worker-token-file", worker_path], "serve.log")
+    wait_for("the coordinator", lambda: os.path.exists(ready) and open(ready).read().strip())
+    base = "http://" + open(ready).read().strip()
+    client, workerside = Http(base, client_token), Http(base, worker_token)
+    caps = json.loads(urllib.request.urlopen(base + "/monitor/capabilities.json", timeout=30).read())
+    ep = caps["endpoints"]
+    print("endpoints on this coordinator:", ", ".join(k for k, v in ep.items() if v) or "none of the optional ones")
+
+    # The page and its headers need no token; the API does.
+    with urllib.request.urlopen(base + "/", timeout=30) as r:
+        csp = r.headers["Content-Security-Policy"] or ""
+        if "script-src 'self'" not in csp or "default-src 'none'" not in csp:
+            fail("the monitor page has no strict Content-Security-Policy: " + csp)
+        if not r.headers["Content-Type"].startswith("text/html"):
+            fail("index has Content-Type " + r.headers["Content-Type"])
+
+    status, body = client.call("POST", "/v1/jobs", {"scene": sphere_scene(), "assets": {}, "tile_size": TILE, "seed": 3,
+                                                     "name": "browser-test spheres"})
+    if status != 201:
+        fail(f"submit answered {status}: {body}")
+    job = body["id"]
+
+    # The scripted worker leases the job's first tiles and keeps them.
+    status, reg = workerside.call("POST", "/v1/workers", {"name": "holder", "threads": 1})
+    holder = reg["id"]
+    held = []
+    for _ in range(HELD):
+        status, lease = workerside.call("POST", f"/v1/workers/{holder}/lease")
+        if status != 200:
+            fail(f"holder lease answered {status}")
+        held.append(lease["lease"])
+
+    d = browser()
+    try:
+        d.get(base + "/")
+        # Token: a wrong one is refused with a clear message, the right one lets the page work.
+        wait_for("the token dialog", lambda: visible(d, "#token-dialog"))
+        d.find_element(By.ID, "token-input").send_keys("not-the-client-token-0123456789")
+        d.find_element(By.ID, "token-submit").click()
+        msg = wait_for("the wrong-token message", lambda: visible(d, "#token-error") and d.find_element(By.ID, "token-error").text)
+        if "refused" not in msg or "401" not in msg:
+            fail("unclear wrong-token message: " + msg)
+        d.find_element(By.ID, "token-input").send_keys(worker_token)
+        d.find_element(By.ID, "token-submit").click()
+        wait_for("the 403 message", lambda: "403" in d.find_element(By.ID, "token-error").text)
+        print("wrong tokens:", msg, "|", d.find_element(By.ID, "token-error").text)
+        expected = console_errors(d)  # the refused calls above are logged by the browser; nothing may follow them
+        if any("401" not in e["message"] and "403" not in e["message"] for e in expected):
+            fail(f"unexpected console errors: {expected}")
+        d.find_element(By.ID, "token-input").send_keys(client_token)
+        d.find_element(By.ID, "token-submit").click()
+        wait_for("the token dialog to close", lambda: not visible(d, "#token-dialog"))
+        if "client.token" in d.current_url or client_token in d.current_url:
+            fail("the token appears in the URL")
+
+        # The job list shows the job, running (the holder's leases started it).
+        row = wait_for("the job row", lambda: visible(d, f'tr[data-job="{job}"]'))[0]
+        wait_for("state running in the list", lambda: "running" in row.text)
+        d.save_screenshot(os.path.join(ARTEFACTS, "monitor-jobs.png"))
+        row.click()
+        wait_for("the tile map", lambda: len(d.find_elements(By.CSS_SELECTOR, "#tilemap .tile")) == TOTAL_TILES)
+        wait_for("the held tiles leased by holder", lambda: len(
+            [t for t in d.find_elements(By.CSS_SELECTOR, '#tilemap .tile[data-state="leased"]') if "holder" in t.get_attribute("title")]) == HELD)
+
+        # A real worker renders everything else; the page follows tile by tile.
+        worker = start([TESSERA, "worker", "--coordinator", base, "--token-file", worker_path, "--threads", "1",
+                        "--name", "render-1", "--cache", os.path.join(WORK, "cache")], "worker.log")
+        wait_for("the free tiles done (API)", lambda: client.call("GET", f"/v1/jobs/{job}")[1]["tiles"]["done"] == TOTAL_TILES - HELD)
+        wait_for("the free tiles done on the map", lambda: tiles_in(d, "done") == TOTAL_TILES - HELD)
+        if tiles_in(d, "leased") != HELD:
+            fail("the held tiles are not shown leased")
+        wait_for("the partial preview", lambda: d.execute_script(
+            "const i = document.getElementById('preview'); return !i.hidden && i.complete && i.naturalWidth === arguments[1] "
+            "&& i.dataset.tilesDone === String(arguments[0]);", TOTAL_TILES - HELD, WIDTH))
+        d.find_elements(By.CSS_SELECTOR, '#tilemap .tile[data-state="leased"]')[0].click()
+        wait_for("the tile details", lambda: "holder" in d.find_element(By.ID, "tile-detail").text)
+        d.save_screenshot(os.path.join(ARTEFACTS, "monitor-job-mid-render.png"))
+
+        if ep["pause"] and ep["resume"]:
+            d.find_element(By.CSS_SELECTOR, '[data-action="pause"]').click()
+            wait_for("paused", lambda: (lambda j: j.get("state") == "paused" or j.get("paused") is True)(client.call("GET", f"/v1/jobs/{job}")[1]))
+            for lease in held:
+                workerside.call("POST", f"/v1/leases/{lease}/release")
+            status, _ = workerside.call("POST", f"/v1/workers/{holder}/lease")
+            if status != 204:
+                fail(f"a paused job handed out a lease ({status})")
+            wait_for("released tiles pending on the map", lambda: tiles_in(d, "pending") == HELD)
+            d.find_element(By.CSS_SELECTOR, '[data-action="resume"]').click()
+            print("pause: no lease while paused; resumed from the page")
+        else:
+            print("pause/resume: not on this coordinator (buttons disabled):",
+                  d.find_element(By.CSS_SELECTOR, '[data-action="pause"]').get_attribute("title"))
+            for lease in held:
+                workerside.call("POST", f"/v1/leases/{lease}/release")
+
+        wait_for("job done on the page", lambda: "done" in d.find_element(By.ID, "job-state").text)
+        wait_for("every tile done on the map", lambda: tiles_in(d, "done") == TOTAL_TILES)
+        wait_for("the final preview", lambda: d.execute_script(
+            "const i = document.getElementById('preview'); return i.complete && i.dataset.tilesDone === String(arguments[0]);",
+            TOTAL_TILES))
+        d.save_screenshot(os.path.join(ARTEFACTS, "monitor-job-done.png"))
+
+        # Workers page: drain when the coordinator has it.
+        d.get(base + "/#/workers")
+        if ep["workers"] and ep["drain"]:
+            row = wait_for("the worker row", lambda: visible(d, 'tr[data-name="render-1"]'))[0]
+            row.find_element(By.CSS_SELECTOR, '[data-action="drain"]').click()
+            wait_for("the worker draining", lambda: "draining" in d.find_element(By.CSS_SELECTOR, 'tr[data-name="render-1"]').text)
+            d.save_screenshot(os.path.join(ARTEFACTS, "monitor-workers.png"))
+            print("drain: render-1 draining")
+        else:
+            wait_for("the workers notice", lambda: visible(d, "#workers-unavailable"))
+            print("workers/drain: not on this coordinator (the page says so)")
+        stop(worker)
+
+        errors = console_errors(d)
+        if errors:
+            fail(f"console errors: {errors}")
+    except BaseException:
+        d.save_screenshot(os.path.join(ARTEFACTS, "monitor-failure.png"))
+        print("page text at the failure:", d.find_element(By.TAG_NAME, "body").text[:2000])
+        print("browser log:", d.get_log("browser"))
+        raise
+    finally:
+        d.quit()
+    print("PASS: job listed, tiles done on the map, preview shown, tokens checked; screenshots in", ARTEFACTS)
+
+
+try:
+    main()
+finally:
+    for p in PROCS:
+        stop(p)
+    if os.environ.get("KEEP_WORK"):
+        print("work folder kept:", WORK)
+    else:
+        shutil.rmtree(WORK, ignore_errors=True)
