@@ -1,5 +1,6 @@
 #include "cli/jobs_command.h"
 
+#include "cli/tls_flags.h"
 #include "cli/token.h"
 #include "worker/http_client.h"
 #include "worker/job_client.h"
@@ -34,6 +35,7 @@ CLI::App* add_jobs_command(CLI::App& app, JobsArgs& a) {
   c->add_option("job", a.job, "Job id (show, retry, cancel)");
   c->add_option("--coordinator", a.coordinator, "Coordinator URL, e.g. http://127.0.0.1:8470")->required();
   c->add_option("--token-file", a.token_file, "File holding the client token (default: $TESSERA_CLIENT_TOKEN)");
+  add_client_tls_flags(c, a.tls);
   return c;
 }
 
@@ -43,7 +45,7 @@ int run_jobs(const JobsArgs& a) {
     return 2;
   }
   try {
-    farm::HttpClient http(farm::parse_http_url(a.coordinator));
+    farm::HttpClient http(farm::parse_http_url(a.coordinator), {}, uint64_t(2) << 30, a.tls);
     http.set_bearer_token(load_token(a.token_file, "TESSERA_CLIENT_TOKEN"));
     if (a.action == "ls") {
       print_table(farm::list_jobs(http));

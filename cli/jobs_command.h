@@ -1,6 +1,8 @@
 // `tessera jobs`: look at and control a coordinator's jobs (ls, show, retry, cancel).
 #pragma once
 
+#include "worker/http_client.h"
+
 #include <CLI/CLI.hpp>
 
 #include <string>
@@ -13,6 +15,7 @@ struct JobsArgs {
   std::string job;          ///< The job id (all but ls).
   std::string coordinator;  ///< Coordinator URL.
   std::string token_file;   ///< File holding the client token (else $TESSERA_CLIENT_TOKEN).
+  farm::ClientTlsFiles tls;  ///< --ca-file, --tls-cert, --tls-key for https:// coordinators.
 };
 
 /// Registers the subcommand's options on `app`.

@@ -90,5 +90,10 @@ log_has "$WORK/w1.log" "$HELD_TILE lease=.*upload accepted" || fail "the lease h
 expect_exit 0 "$WORK/new-ca.log" -- "$TESSERA" submit "$WORK/s.json" --coordinator "$URL" -q --ca-file "$T/ca2.pem" \
   "${MTLS[@]}" -o "$WORK/out2.exr"
 "$EXR_COMPARE" "$WORK/ref.exr" "$WORK/out2.exr" || fail "result after the rotation differs"
+# `tessera jobs` verifies the server like submit: it lists the two jobs with the CA, and refuses without it.
+expect_exit 0 "$WORK/jobs.log" -- "$TESSERA" jobs ls --coordinator "$URL" --ca-file "$T/ca2.pem" "${MTLS[@]}"
+[ "$(grep -c ' done ' "$WORK/jobs.log")" -eq 2 ] || fail "jobs ls over TLS did not list the two done jobs"
+expect_exit 1 "$WORK/jobs-no-ca.log" -- "$TESSERA" jobs ls --coordinator "$URL" "${MTLS[@]}"
+log_has "$WORK/jobs-no-ca.log" "certificate is not accepted" || fail "jobs ls without the CA did not say why"
 grep -q "$(cat "$WORK/worker.token")" "$WORK"/*.log && fail "a token was logged"
 echo "PASS"
