@@ -170,16 +170,12 @@ int run_render(const RenderArgs& given) {
       resume_file.reset();
     }
 
+    const protocol::SamplingSettings sampling = sampling_settings(a, spp);
     RenderOptions ro;
-    ro.seed = a.seed;
+    sampling.apply_to(ro);
     ro.spp = spp;
     ro.tile_size = a.tile_size;
     ro.variance = a.variance;
-    ro.target_error = a.target_error;
-    ro.min_spp = a.min_spp;
-    ro.max_spp = a.max_spp;
-    ro.error_floor = a.error_floor;
-    ro.replicates = a.replicates;
     ro.tile_budget = a.tile_budget;
     // A resumable file stays resumable when continued.
     ro.keep_state = a.resumable || (previous && previous->state.exact());
@@ -208,7 +204,7 @@ int run_render(const RenderArgs& given) {
     wo.half = a.half && !res.cancelled;
     wo.data_window = res.window;
     wo.display_window = PixelWindow{0, 0, scene.width, scene.height};
-    wo.metadata = sampling_metadata(a, spp);
+    wo.metadata = sampling.metadata();  // the chosen strategies are recorded below
     wo.metadata["tessera:version"] = TESSERA_VERSION;
     wo.metadata["tessera:scene"] = a.scene;
     wo.metadata["tessera:sceneHash"] = scene.hash;

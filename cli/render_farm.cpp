@@ -1,6 +1,7 @@
 #include "cli/render_farm.h"
 
 #include "cli/interrupt_guard.h"
+#include "cli/render_resume.h"
 #include "cli/submit_command.h"
 #include "core/adaptive.h"
 #include "core/image.h"
@@ -107,11 +108,7 @@ int run_render_farm(const RenderArgs& a) {
     http.set_bearer_token(client_token);
     farm::SubmitOptions o = shared_job_options(a);
     o.tile_size = a.farm_tile;
-    o.sampling.error_floor = a.error_floor;
-    o.sampling.replicates = a.replicates;
-    o.sampling.area_sampling = a.area_sampling;
-    o.sampling.env_sampling = a.env_sampling;
-    o.sampling.bvh = a.bvh;
+    o.sampling = sampling_settings(a, a.spp.value_or(0));  // 0: the scene's spp
     rc = submit_and_wait(http, o, a.output, a.quiet, [&] {
       if (InterruptGuard::interrupted()) return true;
       // Every worker gone means no progress is possible.

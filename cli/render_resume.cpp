@@ -1,7 +1,5 @@
 #include "cli/render_resume.h"
 
-#include "protocol/messages.h"
-
 #include <charconv>
 #include <stdexcept>
 
@@ -29,20 +27,20 @@ T number(const ExrImage& file, const std::string& path, const std::string& key) 
 
 }  // namespace
 
-std::map<std::string, std::string> sampling_metadata(const RenderArgs& a, uint32_t spp) {
+protocol::SamplingSettings sampling_settings(const RenderArgs& a, uint32_t spp) {
   protocol::SamplingSettings s;
   s.spp = spp;
   s.seed = a.seed;
+  if (!a.integrator.empty()) s.integrator = "direct";
   s.target_error = a.target_error;
   s.min_spp = a.min_spp;
   s.max_spp = a.max_spp;
   s.error_floor = a.error_floor;
   s.replicates = a.replicates;
-  // Strategy overrides given on the command line (the chosen strategies themselves are recorded by the caller).
   s.area_sampling = a.area_sampling;
   s.env_sampling = a.env_sampling;
   s.bvh = a.bvh;
-  return s.metadata();
+  return s;
 }
 
 uint32_t recorded_spp(const ExrImage& file) {

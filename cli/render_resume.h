@@ -3,6 +3,7 @@
 
 #include "cli/render_command.h"
 #include "core/image.h"
+#include "protocol/messages.h"
 
 #include <cstdint>
 #include <map>
@@ -10,9 +11,10 @@
 
 namespace tessera::cli {
 
-/// The metadata `render` writes so that --resume can repeat the render's sampling exactly: seed, spp (or
-/// "adaptive" and the adaptive settings), replicates and the strategy overrides given on the command line.
-std::map<std::string, std::string> sampling_metadata(const RenderArgs& args, uint32_t spp);
+/// The render's sampling settings at `spp` samples per pixel (seed, adaptive settings, replicates, integrator and the
+/// strategy overrides given on the command line): what the render options, the EXR metadata that lets --resume repeat
+/// the render exactly, and a `--workers` job are made from.
+protocol::SamplingSettings sampling_settings(const RenderArgs& args, uint32_t spp);
 
 /// `given` with the sampling settings of the render stored in `file` (seed, spp unless given, crop window,
 /// variance, replicates, adaptive settings, strategies). Throws std::runtime_error naming `given.resume` when the
