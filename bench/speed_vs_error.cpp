@@ -36,6 +36,16 @@ namespace {
 
 // What the adaptive table shows and why (written from the measurements of the first full run; the numbers in the
 // table itself are regenerated every time).
+// A converged reference: `spp` samples at seed 1000 in 8 replicates, with variance channels (its own error).
+RenderResult render_reference(const Scene& s, uint32_t spp) {
+  RenderOptions ro;
+  ro.spp = spp;
+  ro.seed = 1000;
+  ro.variance = true;
+  ro.replicates = 8;
+  return render(s, ro);
+}
+
 constexpr const char* kAdaptiveDiscussion = R"(How to read it (from the run of commit d0386d4; see the table for the current figures):
 
 - Equal-error sampling cannot beat uniform sampling on mean error by much in theory: if pixel i needs
@@ -347,12 +357,7 @@ int path_tracing_report(const Args& a, const fs::path& data, const std::string& 
   for (const PathScene& ps : scenes) {
     const Scene s = load_scaled(ps);
     log("path-tracing reference " + ps.name);
-    RenderOptions ro;
-    ro.spp = a.ref_spp;
-    ro.seed = 1000;
-    ro.variance = true;
-    ro.replicates = 8;
-    const RenderResult ref = render(s, ro);
+    const RenderResult ref = render_reference(s, a.ref_spp);
     refs[ps.name] = ref.image;
     for (uint32_t spp : sweep) {
       RenderOptions o;
@@ -520,12 +525,7 @@ int main(int argc, char** argv) {
   for (const auto& name : scenes) {
     const Scene s = load(name, {}, a.scale);
     log("reference " + name);
-    RenderOptions ro;
-    ro.spp = a.ref_spp;
-    ro.seed = 1000;
-    ro.variance = true;
-    ro.replicates = 8;
-    const RenderResult ref = render(s, ro);
+    const RenderResult ref = render_reference(s, a.ref_spp);
     refs[name] = ref.image;
     ref_err[name] = predicted_rel_mse(ref.image, nullptr, false);
     std::vector<Point>& c = curves[name];
