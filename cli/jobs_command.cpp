@@ -27,11 +27,12 @@ void print_table(const std::vector<protocol::JobStatus>& jobs) {
 
 CLI::App* add_jobs_command(CLI::App& app, JobsArgs& a) {
   auto* c = app.add_subcommand("jobs", "List and control a coordinator's jobs");
-  c->add_option("action", a.action, "ls: list; show ID: the job as JSON; retry ID: render a failed or cancelled "
-                                    "job's missing tiles; cancel ID")
+  c->add_option("action", a.action, "ls: list; show ID: the job as JSON; pause ID: no new leases (running tiles "
+                                    "finish); resume ID; retry ID: render a failed or cancelled job's missing tiles; "
+                                    "cancel ID")
       ->required()
-      ->check(CLI::IsMember({"ls", "show", "retry", "cancel"}));
-  c->add_option("job", a.job, "Job id (show, retry, cancel)");
+      ->check(CLI::IsMember({"ls", "show", "pause", "resume", "retry", "cancel"}));
+  c->add_option("job", a.job, "Job id (all but ls)");
   c->add_option("--coordinator", a.coordinator, "Coordinator URL, e.g. http://127.0.0.1:8470")->required();
   c->add_option("--token-file", a.token_file, "File holding the client token (default: $TESSERA_CLIENT_TOKEN)");
   return c;
@@ -49,6 +50,9 @@ int run_jobs(const JobsArgs& a) {
       print_table(farm::list_jobs(http));
     } else if (a.action == "show") {
       std::printf("%s\n", nlohmann::json(farm::get_job(http, a.job)).dump(2).c_str());
+    } else if (a.action == "pause" || a.action == "resume") {
+      const protocol::JobStatus s = a.action == "pause" ? farm::pause_job(http, a.job) : farm::resume_job(http, a.job);
+      std::printf("%s: %s\n", s.id.c_str(), protocol::to_string(s.state));
     } else if (a.action == "retry") {
       const protocol::JobStatus s = farm::retry_job(http, a.job);
       std::printf("%s: %s again, %lld of %lld tiles to render\n", s.id.c_str(), protocol::to_string(s.state),

@@ -1,4 +1,4 @@
-// `tessera jobs`: look at and control a coordinator's jobs (ls, show, retry, cancel).
+// `tessera jobs`: look at and control a coordinator's jobs (ls, show, pause, resume, retry, cancel).
 #pragma once
 
 #include <CLI/CLI.hpp>
@@ -9,7 +9,7 @@ namespace tessera::cli {
 
 /// Options of `tessera jobs`.
 struct JobsArgs {
-  std::string action;       ///< ls, show, retry or cancel.
+  std::string action;       ///< ls, show, pause, resume, retry or cancel.
   std::string job;          ///< The job id (all but ls).
   std::string coordinator;  ///< Coordinator URL.
   std::string token_file;   ///< File holding the client token (else $TESSERA_CLIENT_TOKEN).

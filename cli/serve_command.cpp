@@ -24,7 +24,7 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
                 "File holding the bearer token clients must send (default: $TESSERA_CLIENT_TOKEN)");
   c->add_option("--worker-token-file", a.worker_token_file,
                 "File holding the bearer token workers must send (default: $TESSERA_WORKER_TOKEN)");
-  c->add_option("--max-queued-jobs", a.max_queued_jobs, "Queued plus running jobs; more submissions get 429 with Retry-After")
+  c->add_option("--max-queued-jobs", a.max_queued_jobs, "Queued, running and paused jobs; more submissions get 429 with Retry-After")
       ->check(CLI::Range(int64_t(1), int64_t(1) << 40))->capture_default_str();
   c->add_option("--max-job-pixels", a.max_job_pixels, "Largest width x height of one job (400 above it)")
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 28))->capture_default_str();

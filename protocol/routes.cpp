@@ -35,6 +35,8 @@ const std::vector<RouteSpec>& route_table() {
       {Endpoint::job_preview, "/v1/jobs/{id}/preview.png", {"GET"}},
       {Endpoint::job_spec, "/v1/jobs/{id}/spec", {"GET"}},
       {Endpoint::job_retry, "/v1/jobs/{id}/retry", {"POST"}},
+      {Endpoint::job_pause, "/v1/jobs/{id}/pause", {"POST"}},
+      {Endpoint::job_resume, "/v1/jobs/{id}/resume", {"POST"}},
       {Endpoint::workers, "/v1/workers", {"POST"}},
       {Endpoint::worker_lease, "/v1/workers/{wid}/lease", {"POST"}},
       {Endpoint::lease_heartbeat, "/v1/leases/{lease}/heartbeat", {"POST"}},

@@ -31,7 +31,9 @@ Access route_access(RouteId route, http::verb method) {
     case RouteId::job:
     case RouteId::job_result:
     case RouteId::job_preview:
-    case RouteId::job_retry: return Access::client;
+    case RouteId::job_retry:
+    case RouteId::job_pause:
+    case RouteId::job_resume: return Access::client;
     case RouteId::workers:
     case RouteId::worker_lease:
     case RouteId::lease_heartbeat:
@@ -148,7 +150,9 @@ ResourceHandler& Api::handler_for(RouteId route) {
     case RouteId::job_result:
     case RouteId::job_preview:
     case RouteId::job_spec:
-    case RouteId::job_retry: return jobs_handler_;
+    case RouteId::job_retry:
+    case RouteId::job_pause:
+    case RouteId::job_resume: return jobs_handler_;
     case RouteId::workers: return workers_handler_;
     case RouteId::worker_lease:
     case RouteId::lease_heartbeat:

@@ -25,6 +25,12 @@ HttpResponse JobsHandler::handle(Endpoint endpoint, const std::string& id, HttpR
     case Endpoint::job_retry:
       protocol::parse_empty_request(req.body());
       return json_response(http::status::ok, jobs_.retry(id), v);
+    case Endpoint::job_pause:
+      protocol::parse_empty_request(req.body());
+      return json_response(http::status::ok, jobs_.pause(id), v);
+    case Endpoint::job_resume:
+      protocol::parse_empty_request(req.body());
+      return json_response(http::status::ok, jobs_.resume(id), v);
     default: break;
   }
   throw protocol::ApiError(404, "no such endpoint");

@@ -26,6 +26,11 @@ E parse_state(std::string_view s, const E (&all)[N], const char* what) {
   throw std::invalid_argument(std::string("unknown ") + what + " state '" + std::string(s) + "'");
 }
 
+// A job that has started and not ended: its last upload completes it.
+bool started_and_open(const JobStatus& s) {
+  return s.state == JobState::running || (s.state == JobState::paused && s.started_ms);
+}
+
 }  // namespace
 
 const char* to_string(TileState s) {
@@ -337,7 +342,7 @@ AcquireResult Scheduler::acquire(const std::string& worker) {
     seen_locked(worker, now);
     std::vector<JobRec*> stuck;  // jobs this worker may not take: fail them if no present worker may
     for (auto& [key, j] : queue_) {
-      if (j->pending.empty()) continue;
+      if (j->pending.empty() || j->status.state == JobState::paused) continue;
       const auto wf = j->worker_failures.find(worker);
       if (wf != j->worker_failures.end() && wf->second >= config_.worker_failure_limit) {
         stuck.push_back(j);
@@ -490,7 +495,7 @@ FinishResult Scheduler::finish_result(const std::string& lease, uint64_t rays, s
       tiles_rendered_ = rendered_before;
       throw;
     }
-    r.last = j.status.state == JobState::running && j.status.tiles.done == j.status.tiles.total;
+    r.last = started_and_open(j.status) && j.status.tiles.done == j.status.tiles.total;
     return r;
   });
 }
@@ -598,6 +603,32 @@ RetryResult Scheduler::retry(const std::string& job) {
   });
 }
 
+PauseResult Scheduler::pause(const std::string& job) { return set_paused(job, true); }
+
+PauseResult Scheduler::resume(const std::string& job) { return set_paused(job, false); }
+
+PauseResult Scheduler::set_paused(const std::string& job, bool paused) {
+  return transact([&](int64_t) {
+    PauseResult r;
+    const auto it = jobs_.find(job);
+    if (it == jobs_.end()) return r;
+    JobStatus& st = it->second->status;
+    r.was = st.state;
+    const bool allowed =
+        paused ? st.state == JobState::queued || st.state == JobState::running : st.state == JobState::paused;
+    if (!allowed) {
+      r.status = PauseResult::wrong_state;
+      return r;
+    }
+    // A paused job stays in queue_: acquire skips it while its live leases and uploads go on.
+    st.state = paused ? JobState::paused : st.started_ms ? JobState::running : JobState::queued;
+    sync_needed_ = true;
+    touch_job(*it->second);
+    r.status = PauseResult::changed;
+    return r;
+  });
+}
+
 CancelResult Scheduler::cancel(const std::string& job) {
   return transact([&](int64_t now) {
     CancelResult r;
@@ -618,7 +649,7 @@ CancelResult Scheduler::cancel(const std::string& job) {
 void Scheduler::complete_job(const std::string& job) {
   transact([&](int64_t now) {
     JobRec& j = *jobs_.at(job);
-    if (j.status.state != JobState::running || j.status.tiles.done != j.status.tiles.total) return 0;
+    if (!started_and_open(j.status) || j.status.tiles.done != j.status.tiles.total) return 0;
     finish_job_locked(j, JobState::done, now, std::nullopt);
     return 0;
   });
@@ -639,7 +670,7 @@ void Scheduler::expire() {
 SchedulerCounters Scheduler::counters() {
   return transact([&](int64_t) {
     SchedulerCounters c;
-    for (JobState s : {JobState::queued, JobState::running, JobState::done, JobState::failed, JobState::cancelled}) c.jobs[s] = 0;
+    for (JobState s : protocol::kAllJobStates) c.jobs[s] = 0;
     for (const auto& [id, j] : jobs_) ++c.jobs[j->status.state];
     c.tiles_rendered = tiles_rendered_;
     c.lease_expiries = lease_expiries_;
@@ -654,7 +685,7 @@ std::vector<std::string> Scheduler::unfinalized_jobs() {
   return transact([&](int64_t) {
     std::vector<std::string> out;
     for (const auto& [key, j] : queue_)
-      if (j->status.state == JobState::running && j->status.tiles.done == j->status.tiles.total) out.push_back(j->status.id);
+      if (started_and_open(j->status) && j->status.tiles.done == j->status.tiles.total) out.push_back(j->status.id);
     return out;
   });
 }

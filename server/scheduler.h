@@ -92,6 +92,13 @@ struct RetryResult {
   int64_t pending = 0;              ///< Tiles to render again (done tiles are kept).
 };
 
+/// Outcome of pausing or resuming a job.
+struct PauseResult {
+  /// changed: now paused (or resumed); wrong_state: the job is not in a state that allows it; unknown: no such job.
+  enum Status { changed, wrong_state, unknown } status = unknown;
+  JobState was = JobState::queued;  ///< The state it had.
+};
+
 /// Counters for /metrics.
 struct SchedulerCounters {
   std::map<JobState, int64_t> jobs;   ///< Jobs by state.
@@ -250,6 +257,11 @@ class Scheduler {
   /// Puts a failed or cancelled job back in the queue keeping its done tiles; its failure counts, blocklists and
   /// error are cleared. A job whose every tile is done becomes running with nothing to lease (see unfinalized_jobs).
   RetryResult retry(const std::string& job);
+  /// Pauses a queued or running job: it gets no new leases; its live leases go on and their uploads are accepted (a
+  /// paused job whose last tile lands is done, see ResultClaim::last).
+  PauseResult pause(const std::string& job);
+  /// Resumes a paused job: running again if it had started, else queued.
+  PauseResult resume(const std::string& job);
   /// Marks a job whose tiles are all merged done (after its image was written).
   void complete_job(const std::string& job);
   /// Marks an unfinished job failed with a reason.
@@ -259,7 +271,8 @@ class Scheduler {
   void expire();
   /// Current counters.
   SchedulerCounters counters();
-  /// Ids of jobs that are running with every tile done (a restart came between the last tile and the result file).
+  /// Ids of jobs that are running (or paused after starting) with every tile done (a restart came between the last
+  /// tile and the result file).
   std::vector<std::string> unfinalized_jobs();
 
  private:
@@ -294,6 +307,7 @@ class Scheduler {
   void touch_tile(const JobRec& j, int64_t tile) { dirty_tiles_.emplace(j.status.id, tile); }
   void touch_lease(const LeaseRec& l) { dirty_leases_.insert(l.lease.id); }
   void seen_locked(const std::string& worker, int64_t now);
+  PauseResult set_paused(const std::string& job, bool paused);  // pause (true) or resume (false)
   bool all_present_blocklisted_locked(const JobRec& j, int64_t now, size_t* present) const;
   bool fail_if_all_blocklisted_locked(JobRec& j, int64_t now);
   void expire_locked(int64_t now);

@@ -443,6 +443,64 @@ TEST_F(SchedulerTest, RetryOfACancelledJobRequeuesItAndRefusesOtherStates) {
   EXPECT_EQ(s.retry(d).status, RetryResult::done);
 }
 
+// Pause (issue 14): a paused job gets no new leases, its running tiles finish and their uploads count.
+TEST_F(SchedulerTest, PausedJobGetsNoNewLeasesButItsRunningTilesFinish) {
+  const std::string hi = job(5);  // 4 tiles, leased first
+  const std::string lo = job(0);
+  const std::string a = s.register_worker("a");
+  const Lease l0 = lease(a);
+  ASSERT_EQ(l0.job, hi);
+  const PauseResult p = s.pause(hi);
+  EXPECT_EQ(p.status, PauseResult::changed);
+  EXPECT_EQ(p.was, JobState::running);
+  EXPECT_EQ(s.job(hi)->state, JobState::paused);
+  EXPECT_EQ(lease(a).job, lo);  // the higher-priority job is skipped while paused
+  now += 5000;
+  EXPECT_EQ(s.heartbeat(l0.id).status, HeartbeatResult::ok);
+  EXPECT_EQ(upload(l0.id), ResultClaim::proceed);
+  EXPECT_EQ(s.job(hi)->tiles.done, 1);
+  EXPECT_EQ(s.job(hi)->state, JobState::paused);
+  EXPECT_EQ(s.pause(hi).status, PauseResult::wrong_state);  // already paused
+
+  const PauseResult r = s.resume(hi);
+  EXPECT_EQ(r.status, PauseResult::changed);
+  EXPECT_EQ(r.was, JobState::paused);
+  EXPECT_EQ(s.job(hi)->state, JobState::running);
+  EXPECT_EQ(lease(a).job, hi);
+  EXPECT_EQ(s.resume(hi).status, PauseResult::wrong_state);  // not paused
+  EXPECT_EQ(s.pause("j-none").status, PauseResult::unknown);
+  EXPECT_EQ(s.resume("j-none").status, PauseResult::unknown);
+}
+
+TEST_F(SchedulerTest, PauseOfAQueuedJobResumesQueuedAndEndedJobsCannotBePaused) {
+  const std::string q = job();
+  EXPECT_EQ(s.pause(q).status, PauseResult::changed);
+  const std::string a = s.register_worker("a");
+  EXPECT_EQ(s.acquire(a).status, AcquireResult::no_work);
+  EXPECT_EQ(s.counters().jobs.at(JobState::paused), 1);
+  EXPECT_EQ(s.resume(q).status, PauseResult::changed);
+  EXPECT_EQ(s.job(q)->state, JobState::queued);  // it had never started
+  EXPECT_EQ(s.pause(q).status, PauseResult::changed);
+  EXPECT_EQ(s.cancel(q).status, CancelResult::cancelled);  // a paused job can be cancelled
+  const PauseResult p = s.pause(q);
+  EXPECT_EQ(p.status, PauseResult::wrong_state);
+  EXPECT_EQ(p.was, JobState::cancelled);
+  EXPECT_EQ(s.resume(q).status, PauseResult::wrong_state);
+}
+
+TEST_F(SchedulerTest, APausedJobWhoseLastTileLandsIsDone) {
+  const std::string j = job(0, 64, 64, 64);  // one tile
+  const std::string a = s.register_worker("a");
+  const Lease l = lease(a);
+  EXPECT_EQ(s.pause(j).status, PauseResult::changed);
+  bool last = false;
+  EXPECT_EQ(upload(l.id, &last), ResultClaim::proceed);
+  EXPECT_TRUE(last);
+  s.complete_job(j);
+  EXPECT_EQ(s.job(j)->state, JobState::done);
+  EXPECT_EQ(s.pause(j).status, PauseResult::wrong_state);
+}
+
 TEST_F(SchedulerTest, CancelQueuedJob) {
   const std::string j = job();
   EXPECT_EQ(s.cancel(j).status, CancelResult::cancelled);

@@ -80,10 +80,25 @@ std::vector<JobStatus> list_jobs(HttpClient& http) {
   return protocol::parse_answer<protocol::JobList>(r.body, "job list").jobs;
 }
 
-JobStatus retry_job(HttpClient& http, const std::string& id) {
-  const HttpResponse r = http.send("POST", routes::job_retry(id));
-  if (r.status != 200) refuse("retrying " + id, r);
+namespace {
+// POST to one of a job's control endpoints; the answer is the job.
+JobStatus post_job_control(HttpClient& http, const std::string& id, const std::string& path, const char* doing) {
+  const HttpResponse r = http.send("POST", path);
+  if (r.status != 200) refuse(std::string(doing) + " " + id, r);
   return protocol::parse_answer<JobStatus>(r.body, "job " + id);
+}
+}  // namespace
+
+JobStatus retry_job(HttpClient& http, const std::string& id) {
+  return post_job_control(http, id, routes::job_retry(id), "retrying");
+}
+
+JobStatus pause_job(HttpClient& http, const std::string& id) {
+  return post_job_control(http, id, routes::job_pause(id), "pausing");
+}
+
+JobStatus resume_job(HttpClient& http, const std::string& id) {
+  return post_job_control(http, id, routes::job_resume(id), "resuming");
 }
 
 JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::function<void(const JobStatus&)>& progress,

@@ -64,6 +64,12 @@ std::vector<JobStatus> list_jobs(HttpClient& http);
 /// POST /v1/jobs/{id}/retry: the job queued again; throws SubmitError (404, 409 with the coordinator's sentence).
 JobStatus retry_job(HttpClient& http, const std::string& id);
 
+/// POST /v1/jobs/{id}/pause: the job, now paused; throws SubmitError (404, 409 with the coordinator's sentence).
+JobStatus pause_job(HttpClient& http, const std::string& id);
+
+/// POST /v1/jobs/{id}/resume: the job, queued or running again; throws SubmitError (404, 409 not paused).
+JobStatus resume_job(HttpClient& http, const std::string& id);
+
 /// DELETE /v1/jobs/{id}; true when cancelled, false when it had already ended (409). Throws for other answers.
 bool cancel_job(HttpClient& http, const std::string& id);
 

@@ -247,6 +247,18 @@ def exercise(c, tessera, workdir, address):
         failures.append(f"retry: the job is {again['state']} with error {again['error']!r}")
     c.call("POST", f"/v1/jobs/{a}/retry", expect=409)
     c.call("POST", "/v1/jobs/j-none/retry", expect=404)
+    c.call("POST", f"/v1/jobs/{a}/resume", expect=409)  # not paused
+    c.call("POST", f"/v1/jobs/{a}/pause", {"x": 1}, expect=400)
+    _, paused = c.call("POST", f"/v1/jobs/{a}/pause", expect=200)
+    if paused["state"] != "paused":
+        failures.append(f"pause: the job is {paused['state']}")
+    c.call("GET", f"/v1/jobs/{a}", expect=200)
+    c.call("POST", f"/v1/jobs/{a}/pause", expect=409)
+    c.call("POST", "/v1/jobs/j-none/pause", expect=404)
+    _, resumed = c.call("POST", f"/v1/jobs/{a}/resume", expect=200)
+    if resumed["state"] not in ("queued", "running"):
+        failures.append(f"resume: the job is {resumed['state']}")
+    c.call("POST", "/v1/jobs/j-none/resume", expect=404)
     c.call("DELETE", f"/v1/jobs/{a}", expect=200)
     c.call("PUT", f"/v1/leases/{l3['lease']}/result", b"x", "image/x-exr", expect=410)
 
