@@ -97,6 +97,16 @@ TEST(Messages, SubmissionRefusesUnknownKeysAndBadSettings) {
   EXPECT_EQ(error_of(""), "request body is empty; expected a JSON object");
 }
 
+TEST(Messages, AJobPatchCarriesOnlyAPriority) {
+  EXPECT_EQ(parse_job_patch(R"({"priority": -7})").priority, -7);
+  EXPECT_EQ(parse_job_patch(nlohmann::json(JobPatch{12}).dump()).priority, 12);
+  EXPECT_THROW(parse_job_patch(R"({"priority": 1, "name": "x"})"), ProtocolError);
+  EXPECT_THROW(parse_job_patch("{}"), ProtocolError);
+  EXPECT_THROW(parse_job_patch(""), ProtocolError);
+  EXPECT_THROW(parse_job_patch(R"({"priority": "high"})"), ProtocolError);
+  EXPECT_THROW(parse_job_patch(R"({"priority": 2147483648})"), ProtocolError);
+}
+
 TEST(Messages, ASubmissionsSettingsReachTheSpecUnchanged) {
   const JobSubmission sub = parse_job_submission(
       R"({"scene": {"a": 1}, "spp": 8, "seed": 3, "target_error": 0.1, "max_spp": 64, "error_floor": 0.5,

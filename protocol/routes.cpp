@@ -30,7 +30,7 @@ const std::vector<RouteSpec>& route_table() {
       {Endpoint::metrics, "/metrics", {"GET"}},
       {Endpoint::blob, "/v1/blobs/{sha256}", {"PUT", "HEAD", "GET"}},
       {Endpoint::jobs, "/v1/jobs", {"GET", "POST"}},
-      {Endpoint::job, "/v1/jobs/{id}", {"GET", "DELETE"}},
+      {Endpoint::job, "/v1/jobs/{id}", {"GET", "PATCH", "DELETE"}},
       {Endpoint::job_result, "/v1/jobs/{id}/result.exr", {"GET"}},
       {Endpoint::job_preview, "/v1/jobs/{id}/preview.png", {"GET"}},
       {Endpoint::job_spec, "/v1/jobs/{id}/spec", {"GET"}},

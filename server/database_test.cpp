@@ -155,6 +155,13 @@ TEST_F(DatabaseTest, APausedJobStaysPausedAcrossARestart) {
   EXPECT_EQ(lease(w).tile, 1);
 }
 
+TEST_F(DatabaseTest, AChangedPriorityIsStored) {
+  const std::string j = job();  // priority 3
+  ASSERT_EQ(sched->set_priority(j, 11).status, PriorityResult::changed);
+  reopen();
+  EXPECT_EQ(sched->job(j)->params.priority, 11);
+}
+
 TEST_F(DatabaseTest, IdsNeverRepeatAfterARestart) {
   std::set<std::string> ids;
   const std::string j = job();

@@ -197,6 +197,15 @@ protocol::JobStatus JobService::resume(const std::string& id) {
   return status(id);
 }
 
+protocol::JobStatus JobService::set_priority(const std::string& id, int priority) {
+  const PriorityResult r = sched_.set_priority(id, priority);
+  if (r.status == PriorityResult::unknown) throw ApiError(404, "no job " + id);
+  if (r.status == PriorityResult::ended)
+    throw ApiError(409, "job " + id + " is " + to_string(r.was) + ": only a job that has not ended can change priority");
+  spdlog::info("job {}: priority {}", id, priority);
+  return status(id);
+}
+
 protocol::JobSpec JobService::spec(const std::string& id) {
   {
     std::lock_guard lock(mu_);

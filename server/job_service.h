@@ -56,6 +56,8 @@ class JobService {
   protocol::JobStatus pause(const std::string& id);
   /// Resumes a paused job. ApiError 404 unknown, 409 a job that is not paused.
   protocol::JobStatus resume(const std::string& id);
+  /// Changes a job's priority; ApiError 404 unknown, 409 ended.
+  protocol::JobStatus set_priority(const std::string& id, int priority);
   /// What workers need to build the job; ApiError 404.
   protocol::JobSpec spec(const std::string& id);
   /// The merged EXR of a done job; ApiError 404 unknown, 409 not done.

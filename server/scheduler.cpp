@@ -629,6 +629,27 @@ PauseResult Scheduler::set_paused(const std::string& job, bool paused) {
   });
 }
 
+PriorityResult Scheduler::set_priority(const std::string& job, int priority) {
+  return transact([&](int64_t) {
+    PriorityResult r;
+    const auto it = jobs_.find(job);
+    if (it == jobs_.end()) return r;
+    JobRec& j = *it->second;
+    r.was = j.status.state;
+    if (is_final(j.status.state)) {
+      r.status = PriorityResult::ended;
+      return r;
+    }
+    // The queue is ordered by (-priority, created_ms, seq): re-key the job.
+    queue_.erase(QueueKey{-j.status.params.priority, j.status.created_ms, j.seq});
+    j.status.params.priority = priority;
+    queue_.emplace(QueueKey{-priority, j.status.created_ms, j.seq}, &j);
+    touch_job(j);
+    r.status = PriorityResult::changed;
+    return r;
+  });
+}
+
 CancelResult Scheduler::cancel(const std::string& job) {
   return transact([&](int64_t now) {
     CancelResult r;

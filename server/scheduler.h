@@ -99,6 +99,13 @@ struct PauseResult {
   JobState was = JobState::queued;  ///< The state it had.
 };
 
+/// Outcome of changing a job's priority.
+struct PriorityResult {
+  /// changed: the queue uses the new priority; ended: the job is done, failed or cancelled; unknown: no such job.
+  enum Status { changed, ended, unknown } status = unknown;
+  JobState was = JobState::queued;  ///< The state it has.
+};
+
 /// Counters for /metrics.
 struct SchedulerCounters {
   std::map<JobState, int64_t> jobs;   ///< Jobs by state.
@@ -262,6 +269,8 @@ class Scheduler {
   PauseResult pause(const std::string& job);
   /// Resumes a paused job: running again if it had started, else queued.
   PauseResult resume(const std::string& job);
+  /// Changes the priority of a job that has not ended; its next tiles are leased in the new order.
+  PriorityResult set_priority(const std::string& job, int priority);
   /// Marks a job whose tiles are all merged done (after its image was written).
   void complete_job(const std::string& job);
   /// Marks an unfinished job failed with a reason.

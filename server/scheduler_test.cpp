@@ -501,6 +501,31 @@ TEST_F(SchedulerTest, APausedJobWhoseLastTileLandsIsDone) {
   EXPECT_EQ(s.pause(j).status, PauseResult::wrong_state);
 }
 
+// Priority change (issue 14): the lease order follows the new priority at once; ended jobs keep theirs.
+TEST_F(SchedulerTest, PriorityChangeReordersLeasesAndEndedJobsRefuseIt) {
+  const std::string older = job(1), newer = job(0);
+  const std::string a = s.register_worker("a");
+  EXPECT_EQ(lease(a).job, older);
+  const PriorityResult r = s.set_priority(newer, 5);
+  EXPECT_EQ(r.status, PriorityResult::changed);
+  EXPECT_EQ(s.job(newer)->params.priority, 5);
+  EXPECT_EQ(lease(a).job, newer);
+  EXPECT_EQ(s.set_priority(newer, -3).status, PriorityResult::changed);
+  EXPECT_EQ(lease(a).job, older);  // back below the older job
+  EXPECT_EQ(s.set_priority(older, -3).status, PriorityResult::changed);
+  EXPECT_EQ(lease(a).job, older);  // equal priorities: the older job first
+
+  EXPECT_EQ(s.pause(newer).status, PauseResult::changed);
+  EXPECT_EQ(s.set_priority(newer, 9).status, PriorityResult::changed);  // a paused job may change it
+  EXPECT_EQ(lease(a).job, older);
+  EXPECT_EQ(s.cancel(newer).status, CancelResult::cancelled);
+  const PriorityResult ended = s.set_priority(newer, 1);
+  EXPECT_EQ(ended.status, PriorityResult::ended);
+  EXPECT_EQ(ended.was, JobState::cancelled);
+  EXPECT_EQ(s.job(newer)->params.priority, 9);
+  EXPECT_EQ(s.set_priority("j-none", 1).status, PriorityResult::unknown);
+}
+
 TEST_F(SchedulerTest, CancelQueuedJob) {
   const std::string j = job();
   EXPECT_EQ(s.cancel(j).status, CancelResult::cancelled);

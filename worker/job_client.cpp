@@ -81,24 +81,30 @@ std::vector<JobStatus> list_jobs(HttpClient& http) {
 }
 
 namespace {
-// POST to one of a job's control endpoints; the answer is the job.
-JobStatus post_job_control(HttpClient& http, const std::string& id, const std::string& path, const char* doing) {
-  const HttpResponse r = http.send("POST", path);
+// A request that changes a job; the answer is the job.
+JobStatus control_job(HttpClient& http, const std::string& id, const char* method, const std::string& path,
+                      const char* doing, std::string body = {}) {
+  const HttpResponse r = http.send(method, path, std::move(body));
   if (r.status != 200) refuse(std::string(doing) + " " + id, r);
   return protocol::parse_answer<JobStatus>(r.body, "job " + id);
 }
 }  // namespace
 
 JobStatus retry_job(HttpClient& http, const std::string& id) {
-  return post_job_control(http, id, routes::job_retry(id), "retrying");
+  return control_job(http, id, "POST", routes::job_retry(id), "retrying");
 }
 
 JobStatus pause_job(HttpClient& http, const std::string& id) {
-  return post_job_control(http, id, routes::job_pause(id), "pausing");
+  return control_job(http, id, "POST", routes::job_pause(id), "pausing");
 }
 
 JobStatus resume_job(HttpClient& http, const std::string& id) {
-  return post_job_control(http, id, routes::job_resume(id), "resuming");
+  return control_job(http, id, "POST", routes::job_resume(id), "resuming");
+}
+
+JobStatus set_job_priority(HttpClient& http, const std::string& id, int priority) {
+  return control_job(http, id, "PATCH", routes::job(id), "changing the priority of",
+                     json(protocol::JobPatch{priority}).dump());
 }
 
 JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::function<void(const JobStatus&)>& progress,

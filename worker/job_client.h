@@ -64,6 +64,9 @@ std::vector<JobStatus> list_jobs(HttpClient& http);
 /// POST /v1/jobs/{id}/retry: the job queued again; throws SubmitError (404, 409 with the coordinator's sentence).
 JobStatus retry_job(HttpClient& http, const std::string& id);
 
+/// PATCH /v1/jobs/{id} {"priority": N}: the job with its new priority; throws SubmitError (404, 409 ended).
+JobStatus set_job_priority(HttpClient& http, const std::string& id, int priority);
+
 /// POST /v1/jobs/{id}/pause: the job, now paused; throws SubmitError (404, 409 with the coordinator's sentence).
 JobStatus pause_job(HttpClient& http, const std::string& id);
 

@@ -241,6 +241,7 @@ def exercise(c, tessera, workdir, address):
     c.call("DELETE", f"/v1/jobs/{a}", expect=200)
     c.call("DELETE", f"/v1/jobs/{a}", expect=409)
     c.call("DELETE", "/v1/jobs/j-none", expect=404)
+    c.call("PATCH", f"/v1/jobs/{a}", {"priority": 1}, expect=409)  # cancelled
     c.call("POST", f"/v1/jobs/{a}/retry", {"x": 1}, expect=400)
     _, again = c.call("POST", f"/v1/jobs/{a}/retry", expect=200)
     if again["state"] not in ("queued", "running") or again["error"] is not None:
@@ -259,6 +260,12 @@ def exercise(c, tessera, workdir, address):
     if resumed["state"] not in ("queued", "running"):
         failures.append(f"resume: the job is {resumed['state']}")
     c.call("POST", "/v1/jobs/j-none/resume", expect=404)
+    _, patched = c.call("PATCH", f"/v1/jobs/{a}", {"priority": 7}, expect=200)
+    if patched["priority"] != 7:
+        failures.append(f"patch: the job's priority is {patched['priority']}")
+    c.call("PATCH", f"/v1/jobs/{a}", {"priority": 1, "name": "x"}, expect=400)
+    c.call("PATCH", f"/v1/jobs/{a}", {}, expect=400)
+    c.call("PATCH", "/v1/jobs/j-none", {"priority": 1}, expect=404)
     c.call("DELETE", f"/v1/jobs/{a}", expect=200)
     c.call("PUT", f"/v1/leases/{l3['lease']}/result", b"x", "image/x-exr", expect=410)
 
