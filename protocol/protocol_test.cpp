@@ -1,5 +1,6 @@
 #include "protocol/messages.h"
 #include "protocol/routes.h"
+#include "protocol/worker.h"
 
 #include <gtest/gtest.h>
 
@@ -105,6 +106,32 @@ TEST(Messages, AJobPatchCarriesOnlyAPriority) {
   EXPECT_THROW(parse_job_patch(""), ProtocolError);
   EXPECT_THROW(parse_job_patch(R"({"priority": "high"})"), ProtocolError);
   EXPECT_THROW(parse_job_patch(R"({"priority": 2147483648})"), ProtocolError);
+}
+
+TEST(Messages, WorkerListRoundTrips) {
+  WorkerInfo w;
+  w.id = "w-1";
+  w.name = "host";
+  w.state = WorkerState::rendering;
+  w.job = "j-2";
+  w.tile = 7;
+  w.threads = 8;
+  w.tiles_done = 3;
+  w.last_seen_ms = 1234;
+  w.blocklisted_for = {"j-3"};
+  WorkerInfo idle;
+  idle.id = "w-2";
+  const WorkerList back = parse_answer<WorkerList>(nlohmann::json(WorkerList{{w, idle}}).dump(), "list");
+  ASSERT_EQ(back.workers.size(), 2u);
+  const WorkerInfo& b = back.workers[0];
+  EXPECT_EQ(b.state, WorkerState::rendering);
+  EXPECT_EQ(b.job, "j-2");
+  EXPECT_EQ(b.tile, 7);
+  EXPECT_EQ(b.blocklisted_for, std::vector<std::string>{"j-3"});
+  EXPECT_EQ(b.tiles_done, 3);
+  EXPECT_FALSE(back.workers[1].job);
+  EXPECT_FALSE(back.workers[1].tile);
+  EXPECT_THROW(parse_answer<WorkerList>(R"({"workers": [{"id": "w", "state": "asleep"}]})", "list"), ProtocolError);
 }
 
 TEST(Messages, ASubmissionsSettingsReachTheSpecUnchanged) {

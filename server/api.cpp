@@ -33,8 +33,10 @@ Access route_access(RouteId route, http::verb method) {
     case RouteId::job_preview:
     case RouteId::job_retry:
     case RouteId::job_pause:
-    case RouteId::job_resume: return Access::client;
-    case RouteId::workers:
+    case RouteId::job_resume:
+    case RouteId::worker_drain:
+    case RouteId::worker_undrain: return Access::client;
+    case RouteId::workers: return method == http::verb::get ? Access::client : Access::worker;  // POST: registration
     case RouteId::worker_lease:
     case RouteId::lease_heartbeat:
     case RouteId::lease_result:
@@ -153,7 +155,9 @@ ResourceHandler& Api::handler_for(RouteId route) {
     case RouteId::job_retry:
     case RouteId::job_pause:
     case RouteId::job_resume: return jobs_handler_;
-    case RouteId::workers: return workers_handler_;
+    case RouteId::workers:
+    case RouteId::worker_drain:
+    case RouteId::worker_undrain: return workers_handler_;
     case RouteId::worker_lease:
     case RouteId::lease_heartbeat:
     case RouteId::lease_result:

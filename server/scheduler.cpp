@@ -289,10 +289,10 @@ std::vector<JobStatus> Scheduler::jobs() {
   });
 }
 
-std::string Scheduler::register_worker(const std::string& name) {
+std::string Scheduler::register_worker(const std::string& name, int64_t threads) {
   return transact([&](int64_t now) {
     const std::string id = next_id('w');
-    workers_.emplace(id, WorkerRec{name, now});
+    workers_.emplace(id, WorkerRec{name, now, threads});
     new_workers_.insert(id);
     return id;
   });
@@ -308,11 +308,57 @@ void Scheduler::seen_locked(const std::string& worker, int64_t now) {
   if (it != workers_.end()) it->second.last_seen_ms = std::max(it->second.last_seen_ms, now);
 }
 
+std::vector<protocol::WorkerInfo> Scheduler::workers() {
+  return transact([&](int64_t now) {
+    std::vector<protocol::WorkerInfo> out;
+    for (const auto& [id, w] : workers_) out.push_back(worker_info_locked(id, w, now));
+    return out;
+  });
+}
+
+std::optional<protocol::WorkerInfo> Scheduler::set_drained(const std::string& worker, bool drained) {
+  return transact([&](int64_t now) -> std::optional<protocol::WorkerInfo> {
+    const auto it = workers_.find(worker);
+    if (it == workers_.end()) return std::nullopt;
+    it->second.drained = drained;
+    return worker_info_locked(it->first, it->second, now);
+  });
+}
+
+int64_t Scheduler::gone_ms() const { return config_.worker_gone_ms > 0 ? config_.worker_gone_ms : 3 * config_.lease_ms; }
+
+protocol::WorkerInfo Scheduler::worker_info_locked(const std::string& id, const WorkerRec& w, int64_t now) const {
+  protocol::WorkerInfo info;
+  info.id = id;
+  info.name = w.name;
+  info.threads = w.threads;
+  info.tiles_done = w.tiles_done;
+  info.last_seen_ms = w.last_seen_ms;
+  for (const std::string& lid : live_leases_) {
+    const Lease& l = leases_.at(lid).lease;
+    if (l.worker != id) continue;
+    info.job = l.job;
+    info.tile = l.tile;
+    break;
+  }
+  for (const auto& [jid, j] : jobs_) {
+    if (is_final(j->status.state)) continue;
+    const auto f = j->worker_failures.find(id);
+    if (f != j->worker_failures.end() && f->second >= config_.worker_failure_limit) info.blocklisted_for.push_back(jid);
+  }
+  using protocol::WorkerState;
+  info.state = now - w.last_seen_ms > gone_ms() ? WorkerState::offline
+               : w.drained                      ? WorkerState::draining
+               : info.job                       ? WorkerState::rendering
+                                                : WorkerState::idle;
+  return info;
+}
+
 bool Scheduler::all_present_blocklisted_locked(const JobRec& j, int64_t now, size_t* present) const {
-  const int64_t gone_ms = config_.worker_gone_ms > 0 ? config_.worker_gone_ms : 3 * config_.lease_ms;
+  const int64_t gone = gone_ms();
   *present = 0;
   for (const auto& [id, w] : workers_) {
-    if (now - w.last_seen_ms > gone_ms) continue;  // died or left: it will not take this job's tiles
+    if (now - w.last_seen_ms > gone) continue;  // died or left: it will not take this job's tiles
     ++*present;
     const auto f = j.worker_failures.find(id);
     if (f == j.worker_failures.end() || f->second < config_.worker_failure_limit) return false;
@@ -340,6 +386,10 @@ AcquireResult Scheduler::acquire(const std::string& worker) {
       return r;
     }
     seen_locked(worker, now);
+    if (workers_.at(worker).drained) {  // it keeps polling and hears "no work" until undrained
+      r.status = AcquireResult::no_work;
+      return r;
+    }
     std::vector<JobRec*> stuck;  // jobs this worker may not take: fail them if no present worker may
     for (auto& [key, j] : queue_) {
       if (j->pending.empty() || j->status.state == JobState::paused) continue;
@@ -480,6 +530,8 @@ FinishResult Scheduler::finish_result(const std::string& lease, uint64_t rays, s
     j.status.rays += rays;
     rays_ += rays;
     const std::string& w = it->second.lease.worker;
+    const auto wr = workers_.find(w);
+    if (wr != workers_.end()) ++wr->second.tiles_done;
     if (std::find(j.status.workers.begin(), j.status.workers.end(), w) == j.status.workers.end()) j.status.workers.push_back(w);
     touch_tile(j, tile);
     touch_job(j);
@@ -493,6 +545,7 @@ FinishResult Scheduler::finish_result(const std::string& lease, uint64_t rays, s
       j.status = before;
       rays_ = rays_before;
       tiles_rendered_ = rendered_before;
+      if (wr != workers_.end()) --wr->second.tiles_done;
       throw;
     }
     r.last = started_and_open(j.status) && j.status.tiles.done == j.status.tiles.total;

@@ -4,6 +4,7 @@
 
 #include "core/image.h"
 #include "protocol/job.h"
+#include "protocol/worker.h"
 #include "protocol/messages.h"
 
 #include <cstdint>
@@ -233,12 +234,18 @@ class Scheduler {
   /// All jobs, newest first.
   std::vector<JobStatus> jobs();
 
-  /// Registers a worker and returns its id.
-  std::string register_worker(const std::string& name);
+  /// Registers a worker (announcing `threads` render threads, 0 unknown) and returns its id.
+  std::string register_worker(const std::string& name, int64_t threads = 0);
+  /// Every registered worker with its state (offline after worker_gone_ms without a request), lease and blocklists.
+  std::vector<protocol::WorkerInfo> workers();
+  /// Drains a worker (true: it finishes its current tile, then every lease request answers no work) or undrains it;
+  /// the worker as it is now, nullopt for unknown ids. Not stored: a restarted coordinator forgets it.
+  std::optional<protocol::WorkerInfo> set_drained(const std::string& worker, bool drained);
   /// True when the worker id is registered.
   bool has_worker(const std::string& id);
 
-  /// Leases the lowest pending tile of the highest-priority (then oldest) job the worker is not blocklisted for.
+  /// Leases the lowest pending tile of the highest-priority (then oldest) job that is not paused and the worker is not
+  /// blocklisted for; a drained worker gets no work.
   AcquireResult acquire(const std::string& worker);
   /// Extends a live lease to now + lease_ms and adds `rays` to the job's count.
   HeartbeatResult heartbeat(const std::string& lease, uint64_t rays = 0);
@@ -305,6 +312,9 @@ class Scheduler {
   struct WorkerRec {
     std::string name;
     int64_t last_seen_ms = 0;  // register, lease request, heartbeat, upload or failure report
+    int64_t threads = 0;       // announced at registration (0: unknown, e.g. after a restart)
+    int64_t tiles_done = 0;    // accepted uploads since this coordinator started
+    bool drained = false;      // no new leases
   };
   using QueueKey = std::tuple<int, int64_t, uint64_t>;  // (-priority, created_ms, seq)
 
@@ -317,6 +327,8 @@ class Scheduler {
   void touch_lease(const LeaseRec& l) { dirty_leases_.insert(l.lease.id); }
   void seen_locked(const std::string& worker, int64_t now);
   PauseResult set_paused(const std::string& job, bool paused);  // pause (true) or resume (false)
+  int64_t gone_ms() const;  // a worker not seen for this long is offline
+  protocol::WorkerInfo worker_info_locked(const std::string& id, const WorkerRec& w, int64_t now) const;
   bool all_present_blocklisted_locked(const JobRec& j, int64_t now, size_t* present) const;
   bool fail_if_all_blocklisted_locked(JobRec& j, int64_t now);
   void expire_locked(int64_t now);

@@ -526,6 +526,63 @@ TEST_F(SchedulerTest, PriorityChangeReordersLeasesAndEndedJobsRefuseIt) {
   EXPECT_EQ(s.set_priority("j-none", 1).status, PriorityResult::unknown);
 }
 
+// Workers (issue 14): the list says what each one does; a drained worker finishes its tile and then gets no work.
+TEST_F(SchedulerTest, WorkerListShowsStateLeaseTilesAndBlocklists) {
+  const std::string j = job();
+  const std::string a = s.register_worker("alpha", 8), b = s.register_worker("beta");
+  std::vector<protocol::WorkerInfo> ws = s.workers();
+  ASSERT_EQ(ws.size(), 2u);
+  EXPECT_EQ(ws[0].id, a);
+  EXPECT_EQ(ws[0].name, "alpha");
+  EXPECT_EQ(ws[0].threads, 8);
+  EXPECT_EQ(ws[0].state, protocol::WorkerState::idle);
+  EXPECT_FALSE(ws[0].job);
+
+  const Lease l = lease(a);
+  ws = s.workers();
+  EXPECT_EQ(ws[0].state, protocol::WorkerState::rendering);
+  EXPECT_EQ(ws[0].job, j);
+  EXPECT_EQ(ws[0].tile, l.tile);
+  EXPECT_EQ(upload(l.id), ResultClaim::proceed);
+  EXPECT_FALSE(s.fail(lease(b).id, "boom 1").job_failed);
+  EXPECT_FALSE(s.fail(lease(b).id, "boom 2").job_failed);  // b is now blocklisted for j
+  ws = s.workers();
+  EXPECT_EQ(ws[0].tiles_done, 1);
+  EXPECT_EQ(ws[0].state, protocol::WorkerState::idle);
+  EXPECT_EQ(ws[0].last_seen_ms, now);
+  EXPECT_EQ(ws[1].blocklisted_for, std::vector<std::string>{j});
+  EXPECT_TRUE(ws[0].blocklisted_for.empty());
+
+  // Offline after three lease lengths (30 s here) without a request; back when it asks again.
+  now += 30'001;
+  EXPECT_EQ(s.workers()[1].state, protocol::WorkerState::offline);
+  lease(a);
+  EXPECT_EQ(s.workers()[0].state, protocol::WorkerState::rendering);
+  EXPECT_EQ(s.workers()[1].state, protocol::WorkerState::offline);
+}
+
+TEST_F(SchedulerTest, ADrainedWorkerFinishesItsTileThenGetsNoWorkUntilUndrained) {
+  const std::string j = job();
+  const std::string a = s.register_worker("a");
+  const Lease l = lease(a);
+  const std::optional<protocol::WorkerInfo> d = s.set_drained(a, true);
+  ASSERT_TRUE(d);
+  EXPECT_EQ(d->state, protocol::WorkerState::draining);
+  EXPECT_EQ(d->job, j);  // still rendering its tile
+  EXPECT_EQ(s.heartbeat(l.id).status, HeartbeatResult::ok);
+  EXPECT_EQ(upload(l.id), ResultClaim::proceed);  // its upload is accepted
+  EXPECT_EQ(s.acquire(a).status, AcquireResult::no_work);  // though tiles are pending
+  EXPECT_EQ(s.job(j)->tiles.pending, 3);
+  EXPECT_EQ(s.workers()[0].state, protocol::WorkerState::draining);
+  EXPECT_FALSE(s.workers()[0].job);
+  now += 25'000;
+  EXPECT_EQ(s.acquire(a).status, AcquireResult::no_work);  // polling keeps it seen, not offline
+  EXPECT_EQ(s.workers()[0].state, protocol::WorkerState::draining);
+  EXPECT_EQ(s.set_drained(a, false)->state, protocol::WorkerState::idle);
+  EXPECT_EQ(lease(a).tile, 1);
+  EXPECT_FALSE(s.set_drained("w-none", true));
+}
+
 TEST_F(SchedulerTest, CancelQueuedJob) {
   const std::string j = job();
   EXPECT_EQ(s.cancel(j).status, CancelResult::cancelled);

@@ -81,29 +81,41 @@ std::vector<JobStatus> list_jobs(HttpClient& http) {
 }
 
 namespace {
-// A request that changes a job; the answer is the job.
-JobStatus control_job(HttpClient& http, const std::string& id, const char* method, const std::string& path,
-                      const char* doing, std::string body = {}) {
+// A request that changes a job or a worker; the answer is it as it is now.
+template <class T = JobStatus>
+T control(HttpClient& http, const std::string& id, const char* method, const std::string& path, const char* doing,
+          std::string body = {}) {
   const HttpResponse r = http.send(method, path, std::move(body));
   if (r.status != 200) refuse(std::string(doing) + " " + id, r);
-  return protocol::parse_answer<JobStatus>(r.body, "job " + id);
+  return protocol::parse_answer<T>(r.body, id);
 }
 }  // namespace
 
+std::vector<protocol::WorkerInfo> list_workers(HttpClient& http) {
+  const HttpResponse r = http.send("GET", routes::workers());
+  if (r.status != 200) refuse("GET " + routes::workers(), r);
+  return protocol::parse_answer<protocol::WorkerList>(r.body, "worker list").workers;
+}
+
+protocol::WorkerInfo drain_worker(HttpClient& http, const std::string& id, bool drain) {
+  return control<protocol::WorkerInfo>(http, id, "POST", drain ? routes::worker_drain(id) : routes::worker_undrain(id),
+                                       drain ? "draining" : "undraining");
+}
+
 JobStatus retry_job(HttpClient& http, const std::string& id) {
-  return control_job(http, id, "POST", routes::job_retry(id), "retrying");
+  return control(http, id, "POST", routes::job_retry(id), "retrying");
 }
 
 JobStatus pause_job(HttpClient& http, const std::string& id) {
-  return control_job(http, id, "POST", routes::job_pause(id), "pausing");
+  return control(http, id, "POST", routes::job_pause(id), "pausing");
 }
 
 JobStatus resume_job(HttpClient& http, const std::string& id) {
-  return control_job(http, id, "POST", routes::job_resume(id), "resuming");
+  return control(http, id, "POST", routes::job_resume(id), "resuming");
 }
 
 JobStatus set_job_priority(HttpClient& http, const std::string& id, int priority) {
-  return control_job(http, id, "PATCH", routes::job(id), "changing the priority of",
+  return control(http, id, "PATCH", routes::job(id), "changing the priority of",
                      json(protocol::JobPatch{priority}).dump());
 }
 
