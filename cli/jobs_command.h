@@ -1,18 +1,20 @@
-// `tessera jobs`: look at and control a coordinator's jobs (ls, show, retry, cancel).
+// `tessera jobs`: look at and control a coordinator's jobs (ls, show, pause, resume, priority, retry, cancel).
 #pragma once
 
 #include "worker/http_client.h"
 
 #include <CLI/CLI.hpp>
 
+#include <optional>
 #include <string>
 
 namespace tessera::cli {
 
 /// Options of `tessera jobs`.
 struct JobsArgs {
-  std::string action;       ///< ls, show, retry or cancel.
+  std::string action;       ///< ls, show, pause, resume, priority, retry or cancel.
   std::string job;          ///< The job id (all but ls).
+  std::optional<int> priority;  ///< The new priority (priority).
   std::string coordinator;  ///< Coordinator URL.
   std::string token_file;   ///< File holding the client token (else $TESSERA_CLIENT_TOKEN).
   farm::ClientTlsFiles tls;  ///< --ca-file, --tls-cert, --tls-key for https:// coordinators.

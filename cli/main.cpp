@@ -5,6 +5,7 @@
 #include "cli/serve_command.h"
 #include "cli/submit_command.h"
 #include "cli/worker_command.h"
+#include "cli/workers_command.h"
 
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
@@ -28,6 +29,8 @@ int main(int argc, char** argv) {
     auto* submit = tessera::cli::add_submit_command(app, submit_args);
     tessera::cli::JobsArgs jobs_args;
     auto* jobs = tessera::cli::add_jobs_command(app, jobs_args);
+    tessera::cli::WorkersArgs workers_args;
+    auto* workers = tessera::cli::add_workers_command(app, workers_args);
     tessera::cli::MergeArgs merge_args;
     auto* merge = tessera::cli::add_merge_command(app, merge_args);
 
@@ -38,6 +41,7 @@ int main(int argc, char** argv) {
     if (worker->parsed()) return tessera::cli::run_worker_command(worker_args);
     if (submit->parsed()) return tessera::cli::run_submit(submit_args);
     if (jobs->parsed()) return tessera::cli::run_jobs(jobs_args);
+    if (workers->parsed()) return tessera::cli::run_workers(workers_args);
     if (merge->parsed()) return tessera::cli::run_merge(merge_args);
     std::fputs(app.help().c_str(), stdout);
     return 0;

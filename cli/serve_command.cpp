@@ -28,7 +28,7 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
   c->add_option("--tls-key", a.tls_key, "Private key (PEM) of --tls-cert (re-read on SIGHUP)");
   c->add_option("--tls-client-ca", a.tls_client_ca,
                 "Require every client to present a certificate from this PEM CA file (mutual TLS; tokens still apply; re-read on SIGHUP)");
-  c->add_option("--max-queued-jobs", a.max_queued_jobs, "Queued plus running jobs; more submissions get 429 with Retry-After")
+  c->add_option("--max-queued-jobs", a.max_queued_jobs, "Queued, running and paused jobs; more submissions get 429 with Retry-After")
       ->check(CLI::Range(int64_t(1), int64_t(1) << 40))->capture_default_str();
   c->add_option("--max-job-pixels", a.max_job_pixels, "Largest width x height of one job (400 above it)")
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 28))->capture_default_str();

@@ -14,6 +14,7 @@ const char* to_string(JobState s) {
   switch (s) {
     case JobState::queued: return "queued";
     case JobState::running: return "running";
+    case JobState::paused: return "paused";
     case JobState::done: return "done";
     case JobState::failed: return "failed";
     case JobState::cancelled: return "cancelled";
@@ -22,7 +23,7 @@ const char* to_string(JobState s) {
 }
 
 JobState job_state_from_string(std::string_view s) {
-  for (JobState e : {JobState::queued, JobState::running, JobState::done, JobState::failed, JobState::cancelled})
+  for (JobState e : kAllJobStates)
     if (s == to_string(e)) return e;
   throw std::invalid_argument("unknown job state '" + std::string(s) + "'");
 }

@@ -14,7 +14,10 @@
 namespace tessera::protocol {
 
 /// Life cycle of a job (docs/protocol.md, "Jobs, tiles and leases").
-enum class JobState { queued, running, done, failed, cancelled };
+enum class JobState { queued, running, paused, done, failed, cancelled };
+/// Every job state, in declaration order.
+inline constexpr JobState kAllJobStates[] = {JobState::queued, JobState::running, JobState::paused,
+                                             JobState::done,   JobState::failed,  JobState::cancelled};
 
 /// The protocol's lowercase name of a job state.
 const char* to_string(JobState s);

@@ -166,6 +166,14 @@ void to_json(json& j, const JobSubmission& s) {
   put_sampling(j, s.sampling);
 }
 
+namespace {
+// A job priority field: any int but INT_MIN (its negation orders the queue).
+int request_priority(const json& j) {
+  return int(request_int(j, "priority", kDefaultPriority, std::numeric_limits<int>::min() + 1,
+                         std::numeric_limits<int>::max()));
+}
+}  // namespace
+
 JobSubmission parse_job_submission(const std::string& body) {
   const json j = parse_request_object(
       body, {"scene", "assets", "spp", "seed", "tile_size", "priority", "name", "integrator", "target_error", "min_spp",
@@ -177,11 +185,18 @@ JobSubmission parse_job_submission(const std::string& body) {
   if (!s.scene.is_object()) throw ProtocolError(std::string("'scene' must be a JSON object, got ") + s.scene.type_name());
   s.assets = request_assets(j);
   s.tile_size = int(request_int(j, "tile_size", kDefaultTileSize, 1, 4096));
-  s.priority = int(request_int(j, "priority", kDefaultPriority, std::numeric_limits<int>::min() + 1,
-                               std::numeric_limits<int>::max()));
+  s.priority = request_priority(j);
   s.name = request_string(j, "name", "");
   s.sampling = request_sampling(j);
   return s;
+}
+
+void to_json(json& j, const JobPatch& p) { j = {{"priority", p.priority}}; }
+
+JobPatch parse_job_patch(const std::string& body) {
+  const json j = parse_request_object(body, {"priority"}, false);
+  if (!j.contains("priority")) throw ProtocolError("'priority' is missing: it is the only thing a job patch changes");
+  return JobPatch{request_priority(j)};
 }
 
 void to_json(json& j, const SubmitAnswer& a) { j = {{"id", a.id}, {"warnings", a.warnings}}; }

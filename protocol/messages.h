@@ -57,6 +57,14 @@ void to_json(nlohmann::json& j, const JobSubmission& s);
 /// Parses and checks a submission body; throws ProtocolError with the sentence the coordinator answers (400).
 JobSubmission parse_job_submission(const std::string& body);
 
+/// Body of PATCH /v1/jobs/{id}: what may change on a job that has not ended.
+struct JobPatch {
+  int priority = kDefaultPriority;  ///< The new priority (higher runs first); required.
+};
+void to_json(nlohmann::json& j, const JobPatch& p);
+/// Parses a patch body ({"priority": N}, nothing else); throws ProtocolError with the sentence answered (400).
+JobPatch parse_job_patch(const std::string& body);
+
 /// Answer 201 to POST /v1/jobs.
 struct SubmitAnswer {
   std::string id;                     ///< The new job's id.

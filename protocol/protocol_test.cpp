@@ -1,5 +1,6 @@
 #include "protocol/messages.h"
 #include "protocol/routes.h"
+#include "protocol/worker.h"
 
 #include <gtest/gtest.h>
 
@@ -95,6 +96,42 @@ TEST(Messages, SubmissionRefusesUnknownKeysAndBadSettings) {
   EXPECT_EQ(error_of(R"({"scene": {}, "bvh": "octree"})"), "'bvh' must be one of sah, median (got \"octree\")");
   EXPECT_EQ(error_of(R"({"scene": {}, "replicates": 99})"), "'replicates' must be an integer in 1..16 (got 99)");
   EXPECT_EQ(error_of(""), "request body is empty; expected a JSON object");
+}
+
+TEST(Messages, AJobPatchCarriesOnlyAPriority) {
+  EXPECT_EQ(parse_job_patch(R"({"priority": -7})").priority, -7);
+  EXPECT_EQ(parse_job_patch(nlohmann::json(JobPatch{12}).dump()).priority, 12);
+  EXPECT_THROW(parse_job_patch(R"({"priority": 1, "name": "x"})"), ProtocolError);
+  EXPECT_THROW(parse_job_patch("{}"), ProtocolError);
+  EXPECT_THROW(parse_job_patch(""), ProtocolError);
+  EXPECT_THROW(parse_job_patch(R"({"priority": "high"})"), ProtocolError);
+  EXPECT_THROW(parse_job_patch(R"({"priority": 2147483648})"), ProtocolError);
+}
+
+TEST(Messages, WorkerListRoundTrips) {
+  WorkerInfo w;
+  w.id = "w-1";
+  w.name = "host";
+  w.state = WorkerState::rendering;
+  w.job = "j-2";
+  w.tile = 7;
+  w.threads = 8;
+  w.tiles_done = 3;
+  w.last_seen_ms = 1234;
+  w.blocklisted_for = {"j-3"};
+  WorkerInfo idle;
+  idle.id = "w-2";
+  const WorkerList back = parse_answer<WorkerList>(nlohmann::json(WorkerList{{w, idle}}).dump(), "list");
+  ASSERT_EQ(back.workers.size(), 2u);
+  const WorkerInfo& b = back.workers[0];
+  EXPECT_EQ(b.state, WorkerState::rendering);
+  EXPECT_EQ(b.job, "j-2");
+  EXPECT_EQ(b.tile, 7);
+  EXPECT_EQ(b.blocklisted_for, std::vector<std::string>{"j-3"});
+  EXPECT_EQ(b.tiles_done, 3);
+  EXPECT_FALSE(back.workers[1].job);
+  EXPECT_FALSE(back.workers[1].tile);
+  EXPECT_THROW(parse_answer<WorkerList>(R"({"workers": [{"id": "w", "state": "asleep"}]})", "list"), ProtocolError);
 }
 
 TEST(Messages, ASubmissionsSettingsReachTheSpecUnchanged) {

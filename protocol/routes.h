@@ -11,7 +11,7 @@ namespace tessera::protocol {
 
 /// The endpoints a request target can name.
 enum class Endpoint {
-  none, healthz, metrics, blob, jobs, job, job_result, job_preview, job_spec, job_retry, workers, worker_lease,
+  none, healthz, metrics, blob, jobs, job, job_result, job_preview, job_spec, job_retry, job_pause, job_resume, workers, worker_drain, worker_undrain, worker_lease,
   lease_heartbeat, lease_result, lease_fail, lease_release
 };
 
@@ -48,7 +48,11 @@ inline std::string job_result(std::string_view id) { return path(Endpoint::job_r
 inline std::string job_preview(std::string_view id) { return path(Endpoint::job_preview, id); }
 inline std::string job_spec(std::string_view id) { return path(Endpoint::job_spec, id); }
 inline std::string job_retry(std::string_view id) { return path(Endpoint::job_retry, id); }
+inline std::string job_pause(std::string_view id) { return path(Endpoint::job_pause, id); }
+inline std::string job_resume(std::string_view id) { return path(Endpoint::job_resume, id); }
 inline std::string workers() { return path(Endpoint::workers); }
+inline std::string worker_drain(std::string_view worker) { return path(Endpoint::worker_drain, worker); }
+inline std::string worker_undrain(std::string_view worker) { return path(Endpoint::worker_undrain, worker); }
 inline std::string worker_lease(std::string_view worker) { return path(Endpoint::worker_lease, worker); }
 inline std::string lease_heartbeat(std::string_view lease) { return path(Endpoint::lease_heartbeat, lease); }
 inline std::string lease_result(std::string_view lease) { return path(Endpoint::lease_result, lease); }

@@ -31,8 +31,12 @@ Access route_access(RouteId route, http::verb method) {
     case RouteId::job:
     case RouteId::job_result:
     case RouteId::job_preview:
-    case RouteId::job_retry: return Access::client;
-    case RouteId::workers:
+    case RouteId::job_retry:
+    case RouteId::job_pause:
+    case RouteId::job_resume:
+    case RouteId::worker_drain:
+    case RouteId::worker_undrain: return Access::client;
+    case RouteId::workers: return method == http::verb::get ? Access::client : Access::worker;  // POST: registration
     case RouteId::worker_lease:
     case RouteId::lease_heartbeat:
     case RouteId::lease_result:
@@ -148,8 +152,12 @@ ResourceHandler& Api::handler_for(RouteId route) {
     case RouteId::job_result:
     case RouteId::job_preview:
     case RouteId::job_spec:
-    case RouteId::job_retry: return jobs_handler_;
-    case RouteId::workers: return workers_handler_;
+    case RouteId::job_retry:
+    case RouteId::job_pause:
+    case RouteId::job_resume: return jobs_handler_;
+    case RouteId::workers:
+    case RouteId::worker_drain:
+    case RouteId::worker_undrain: return workers_handler_;
     case RouteId::worker_lease:
     case RouteId::lease_heartbeat:
     case RouteId::lease_result:

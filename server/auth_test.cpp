@@ -153,6 +153,13 @@ TEST_F(TokenServerTest, EndpointsAnswer401Or403WithoutTheRightToken) {
   const std::string wid = reg.js()["id"].get<std::string>();
   EXPECT_EQ(call(V::post, "/v1/workers/" + wid + "/lease", kTokens.client).status, 403u);
   EXPECT_EQ(call(V::post, "/v1/workers/" + wid + "/lease", kTokens.worker).status, 204u);
+  // Looking at and draining workers is the operator's business: the client token.
+  EXPECT_EQ(call(V::get, "/v1/workers", kTokens.worker).status, 403u);
+  EXPECT_EQ(call(V::get, "/v1/workers", kTokens.client).status, 200u);
+  EXPECT_EQ(call(V::post, "/v1/workers/" + wid + "/drain", kTokens.worker).status, 403u);
+  EXPECT_EQ(call(V::post, "/v1/workers/" + wid + "/drain", kTokens.client).status, 200u);
+  EXPECT_EQ(call(V::post, "/v1/workers/" + wid + "/lease", kTokens.worker).status, 204u);
+  EXPECT_EQ(call(V::post, "/v1/workers/" + wid + "/undrain", kTokens.client).status, 200u);
 
   const std::string sha(64, 'a');
   EXPECT_EQ(call(V::put, "/v1/blobs/" + sha, kTokens.worker, "x").status, 403u);

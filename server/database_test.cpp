@@ -143,6 +143,26 @@ TEST_F(DatabaseTest, EveryPieceOfStateSurvivesAReopen) {
   EXPECT_EQ(img.rgb, pixels_for(l0.window, 1.0f).rgb);
 }
 
+TEST_F(DatabaseTest, APausedJobStaysPausedAcrossARestart) {
+  const std::string j = job();
+  const std::string w = sched->register_worker("w");
+  lease(w);
+  ASSERT_EQ(sched->pause(j).status, PauseResult::changed);
+  reopen();
+  EXPECT_EQ(sched->job(j)->state, JobState::paused);
+  EXPECT_EQ(sched->acquire(w).status, AcquireResult::no_work);
+  ASSERT_EQ(sched->resume(j).status, PauseResult::changed);
+  EXPECT_EQ(sched->job(j)->state, JobState::running);
+  EXPECT_EQ(lease(w).tile, 1);
+}
+
+TEST_F(DatabaseTest, AChangedPriorityIsStored) {
+  const std::string j = job();  // priority 3
+  ASSERT_EQ(sched->set_priority(j, 11).status, PriorityResult::changed);
+  reopen();
+  EXPECT_EQ(sched->job(j)->params.priority, 11);
+}
+
 TEST_F(DatabaseTest, IdsNeverRepeatAfterARestart) {
   std::set<std::string> ids;
   const std::string j = job();

@@ -303,9 +303,9 @@ TEST_F(HttpTest, UnknownTargetsAndWrongMethods) {
   EXPECT_EQ(r.status, 405u);
   EXPECT_EQ(r.msg[http::field::allow], "PUT, HEAD, GET");
   EXPECT_TRUE(r.js().contains("error"));
-  r = call(http::verb::get, "/v1/workers");
+  r = call(http::verb::delete_, "/v1/workers");
   EXPECT_EQ(r.status, 405u);
-  EXPECT_EQ(r.msg[http::field::allow], "POST");
+  EXPECT_EQ(r.msg[http::field::allow], "GET, POST");
   r = call(http::verb::put, "/v1/jobs");
   EXPECT_EQ(r.status, 405u);
   EXPECT_EQ(r.msg[http::field::allow], "GET, POST");

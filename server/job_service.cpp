@@ -56,7 +56,7 @@ JobService::JobService(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, M
 int64_t JobService::unfinished_jobs() {
   const SchedulerCounters c = sched_.counters();
   int64_t n = 0;
-  for (const JobState st : {JobState::queued, JobState::running})
+  for (const JobState st : {JobState::queued, JobState::running, JobState::paused})
     if (const auto it = c.jobs.find(st); it != c.jobs.end()) n += it->second;
   return n;
 }
@@ -80,7 +80,7 @@ void JobService::check_assets(const protocol::JobSubmission& sub) {
 protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
   const auto queue_full = [&] {
     return ApiError(429, "too many unfinished jobs: " + std::to_string(limits_.max_queued_jobs) +
-                             " are queued or running (--max-queued-jobs); retry later");
+                             " are queued, running or paused (--max-queued-jobs); retry later");
   };
   // Admission: queued plus running jobs are bounded (checked again, atomically with add_job, below).
   if (unfinished_jobs() >= limits_.max_queued_jobs) throw queue_full();
@@ -176,6 +176,33 @@ protocol::JobStatus JobService::retry(const std::string& id) {
   spdlog::info("job {}: retried after it was {}; {} tile(s) to render, done tiles kept", id, to_string(r.was),
                r.pending);
   if (r.pending == 0 && !sched_.job(id)->tiles.leased) finalize(id);  // every tile was done: only the result is missing
+  return status(id);
+}
+
+protocol::JobStatus JobService::pause(const std::string& id) {
+  const PauseResult r = sched_.pause(id);
+  if (r.status == PauseResult::unknown) throw ApiError(404, "no job " + id);
+  if (r.status == PauseResult::wrong_state)
+    throw ApiError(409, "job " + id + " is " + to_string(r.was) + ": only queued or running jobs can be paused");
+  spdlog::info("job {}: paused (was {})", id, to_string(r.was));
+  return status(id);
+}
+
+protocol::JobStatus JobService::resume(const std::string& id) {
+  const PauseResult r = sched_.resume(id);
+  if (r.status == PauseResult::unknown) throw ApiError(404, "no job " + id);
+  if (r.status == PauseResult::wrong_state)
+    throw ApiError(409, "job " + id + " is " + to_string(r.was) + ": only paused jobs can be resumed");
+  spdlog::info("job {}: resumed", id);
+  return status(id);
+}
+
+protocol::JobStatus JobService::set_priority(const std::string& id, int priority) {
+  const PriorityResult r = sched_.set_priority(id, priority);
+  if (r.status == PriorityResult::unknown) throw ApiError(404, "no job " + id);
+  if (r.status == PriorityResult::ended)
+    throw ApiError(409, "job " + id + " is " + to_string(r.was) + ": only a job that has not ended can change priority");
+  spdlog::info("job {}: priority {}", id, priority);
   return status(id);
 }
 

@@ -52,6 +52,12 @@ class JobService {
   /// Puts a failed or cancelled job back in the queue; only its tiles that are not done are rendered again. ApiError
   /// 404 unknown, 409 for queued, running and done jobs.
   protocol::JobStatus retry(const std::string& id);
+  /// Pauses a queued or running job (no new leases; running tiles finish). ApiError 404 unknown, 409 other states.
+  protocol::JobStatus pause(const std::string& id);
+  /// Resumes a paused job. ApiError 404 unknown, 409 a job that is not paused.
+  protocol::JobStatus resume(const std::string& id);
+  /// Changes a job's priority; ApiError 404 unknown, 409 ended.
+  protocol::JobStatus set_priority(const std::string& id, int priority);
   /// What workers need to build the job; ApiError 404.
   protocol::JobSpec spec(const std::string& id);
   /// The merged EXR of a done job; ApiError 404 unknown, 409 not done.

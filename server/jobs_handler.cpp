@@ -15,7 +15,11 @@ HttpResponse JobsHandler::handle(Endpoint endpoint, const std::string& id, HttpR
       res.set(http::field::location, protocol::routes::job(a.id));
       return res;
     }
-    case Endpoint::job: return json_response(http::status::ok, get ? jobs_.status(id) : jobs_.cancel(id), v);
+    case Endpoint::job:
+      if (get) return json_response(http::status::ok, jobs_.status(id), v);
+      if (req.method() == http::verb::patch)
+        return json_response(http::status::ok, jobs_.set_priority(id, protocol::parse_job_patch(req.body()).priority), v);
+      return json_response(http::status::ok, jobs_.cancel(id), v);
     case Endpoint::job_result: return bytes_response(jobs_.result_exr(id), "image/x-exr", v);
     case Endpoint::job_preview: {
       const std::vector<uint8_t> png = jobs_.preview_png(id);
@@ -25,6 +29,12 @@ HttpResponse JobsHandler::handle(Endpoint endpoint, const std::string& id, HttpR
     case Endpoint::job_retry:
       protocol::parse_empty_request(req.body());
       return json_response(http::status::ok, jobs_.retry(id), v);
+    case Endpoint::job_pause:
+      protocol::parse_empty_request(req.body());
+      return json_response(http::status::ok, jobs_.pause(id), v);
+    case Endpoint::job_resume:
+      protocol::parse_empty_request(req.body());
+      return json_response(http::status::ok, jobs_.resume(id), v);
     default: break;
   }
   throw protocol::ApiError(404, "no such endpoint");

@@ -6,7 +6,7 @@
 
 namespace tessera::server {
 
-/// /v1/jobs, /v1/jobs/{id}, /v1/jobs/{id}/result.exr, /preview.png, /spec and /retry.
+/// /v1/jobs, /v1/jobs/{id}, /v1/jobs/{id}/result.exr, /preview.png, /spec, /retry, /pause and /resume.
 class JobsHandler final : public ResourceHandler {
  public:
   /// Endpoints over `jobs` (which must outlive it).

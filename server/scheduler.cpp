@@ -28,6 +28,11 @@ E parse_state(std::string_view s, const E (&all)[N], const char* what) {
   throw std::invalid_argument(std::string("unknown ") + what + " state '" + std::string(s) + "'");
 }
 
+// A job that has started and not ended: its last upload completes it.
+bool started_and_open(const JobStatus& s) {
+  return s.state == JobState::running || (s.state == JobState::paused && s.started_ms);
+}
+
 }  // namespace
 
 const char* to_string(TileState s) {
@@ -307,10 +312,10 @@ std::vector<JobStatus> Scheduler::jobs() {
   });
 }
 
-std::string Scheduler::register_worker(const std::string& name) {
+std::string Scheduler::register_worker(const std::string& name, int64_t threads) {
   return transact([&](int64_t now) {
     const std::string id = next_id('w');
-    workers_.emplace(id, WorkerRec{name, now});
+    workers_.emplace(id, WorkerRec{name, now, threads});
     new_workers_.insert(id);
     return id;
   });
@@ -326,11 +331,57 @@ void Scheduler::seen_locked(const std::string& worker, int64_t now) {
   if (it != workers_.end()) it->second.last_seen_ms = std::max(it->second.last_seen_ms, now);
 }
 
+std::vector<protocol::WorkerInfo> Scheduler::workers() {
+  return transact([&](int64_t now) {
+    std::vector<protocol::WorkerInfo> out;
+    for (const auto& [id, w] : workers_) out.push_back(worker_info_locked(id, w, now));
+    return out;
+  });
+}
+
+std::optional<protocol::WorkerInfo> Scheduler::set_drained(const std::string& worker, bool drained) {
+  return transact([&](int64_t now) -> std::optional<protocol::WorkerInfo> {
+    const auto it = workers_.find(worker);
+    if (it == workers_.end()) return std::nullopt;
+    it->second.drained = drained;
+    return worker_info_locked(it->first, it->second, now);
+  });
+}
+
+int64_t Scheduler::gone_ms() const { return config_.worker_gone_ms > 0 ? config_.worker_gone_ms : 3 * config_.lease_ms; }
+
+protocol::WorkerInfo Scheduler::worker_info_locked(const std::string& id, const WorkerRec& w, int64_t now) const {
+  protocol::WorkerInfo info;
+  info.id = id;
+  info.name = w.name;
+  info.threads = w.threads;
+  info.tiles_done = w.tiles_done;
+  info.last_seen_ms = w.last_seen_ms;
+  for (const std::string& lid : live_leases_) {
+    const Lease& l = leases_.at(lid).lease;
+    if (l.worker != id) continue;
+    info.job = l.job;
+    info.tile = l.tile;
+    break;
+  }
+  for (const auto& [jid, j] : jobs_) {
+    if (is_final(j->status.state)) continue;
+    const auto f = j->worker_failures.find(id);
+    if (f != j->worker_failures.end() && f->second >= config_.worker_failure_limit) info.blocklisted_for.push_back(jid);
+  }
+  using protocol::WorkerState;
+  info.state = now - w.last_seen_ms > gone_ms() ? WorkerState::offline
+               : w.drained                      ? WorkerState::draining
+               : info.job                       ? WorkerState::rendering
+                                                : WorkerState::idle;
+  return info;
+}
+
 bool Scheduler::all_present_blocklisted_locked(const JobRec& j, int64_t now, size_t* present) const {
-  const int64_t gone_ms = config_.worker_gone_ms > 0 ? config_.worker_gone_ms : 3 * config_.lease_ms;
+  const int64_t gone = gone_ms();
   *present = 0;
   for (const auto& [id, w] : workers_) {
-    if (now - w.last_seen_ms > gone_ms) continue;  // died or left: it will not take this job's tiles
+    if (now - w.last_seen_ms > gone) continue;  // died or left: it will not take this job's tiles
     ++*present;
     const auto f = j.worker_failures.find(id);
     if (f == j.worker_failures.end() || f->second < config_.worker_failure_limit) return false;
@@ -358,9 +409,13 @@ AcquireResult Scheduler::acquire(const std::string& worker) {
       return r;
     }
     seen_locked(worker, now);
+    if (workers_.at(worker).drained) {  // it keeps polling and hears "no work" until undrained
+      r.status = AcquireResult::no_work;
+      return r;
+    }
     std::vector<JobRec*> stuck;  // jobs this worker may not take: fail them if no present worker may
     for (auto& [key, j] : queue_) {
-      if (j->pending.empty()) continue;
+      if (j->pending.empty() || j->status.state == JobState::paused) continue;
       const auto wf = j->worker_failures.find(worker);
       if (wf != j->worker_failures.end() && wf->second >= config_.worker_failure_limit) {
         stuck.push_back(j);
@@ -498,6 +553,8 @@ FinishResult Scheduler::finish_result(const std::string& lease, uint64_t rays, s
     j.status.rays += rays;
     rays_ += rays;
     const std::string& w = it->second.lease.worker;
+    const auto wr = workers_.find(w);
+    if (wr != workers_.end()) ++wr->second.tiles_done;
     if (std::find(j.status.workers.begin(), j.status.workers.end(), w) == j.status.workers.end()) j.status.workers.push_back(w);
     touch_tile(j, tile);
     touch_job(j);
@@ -511,9 +568,10 @@ FinishResult Scheduler::finish_result(const std::string& lease, uint64_t rays, s
       j.status = before;
       rays_ = rays_before;
       tiles_rendered_ = rendered_before;
+      if (wr != workers_.end()) --wr->second.tiles_done;
       throw;
     }
-    r.last = j.status.state == JobState::running && j.status.tiles.done == j.status.tiles.total;
+    r.last = started_and_open(j.status) && j.status.tiles.done == j.status.tiles.total;
     return r;
   });
 }
@@ -621,6 +679,53 @@ RetryResult Scheduler::retry(const std::string& job) {
   });
 }
 
+PauseResult Scheduler::pause(const std::string& job) { return set_paused(job, true); }
+
+PauseResult Scheduler::resume(const std::string& job) { return set_paused(job, false); }
+
+PauseResult Scheduler::set_paused(const std::string& job, bool paused) {
+  return transact([&](int64_t) {
+    PauseResult r;
+    const auto it = jobs_.find(job);
+    if (it == jobs_.end()) return r;
+    JobStatus& st = it->second->status;
+    r.was = st.state;
+    const bool allowed =
+        paused ? st.state == JobState::queued || st.state == JobState::running : st.state == JobState::paused;
+    if (!allowed) {
+      r.status = PauseResult::wrong_state;
+      return r;
+    }
+    // A paused job stays in queue_: acquire skips it while its live leases and uploads go on.
+    st.state = paused ? JobState::paused : st.started_ms ? JobState::running : JobState::queued;
+    sync_needed_ = true;
+    touch_job(*it->second);
+    r.status = PauseResult::changed;
+    return r;
+  });
+}
+
+PriorityResult Scheduler::set_priority(const std::string& job, int priority) {
+  return transact([&](int64_t) {
+    PriorityResult r;
+    const auto it = jobs_.find(job);
+    if (it == jobs_.end()) return r;
+    JobRec& j = *it->second;
+    r.was = j.status.state;
+    if (is_final(j.status.state)) {
+      r.status = PriorityResult::ended;
+      return r;
+    }
+    // The queue is ordered by (-priority, created_ms, seq): re-key the job.
+    queue_.erase(QueueKey{-j.status.params.priority, j.status.created_ms, j.seq});
+    j.status.params.priority = priority;
+    queue_.emplace(QueueKey{-priority, j.status.created_ms, j.seq}, &j);
+    touch_job(j);
+    r.status = PriorityResult::changed;
+    return r;
+  });
+}
+
 CancelResult Scheduler::cancel(const std::string& job) {
   return transact([&](int64_t now) {
     CancelResult r;
@@ -641,7 +746,7 @@ CancelResult Scheduler::cancel(const std::string& job) {
 void Scheduler::complete_job(const std::string& job) {
   transact([&](int64_t now) {
     JobRec& j = *jobs_.at(job);
-    if (j.status.state != JobState::running || j.status.tiles.done != j.status.tiles.total) return 0;
+    if (!started_and_open(j.status) || j.status.tiles.done != j.status.tiles.total) return 0;
     finish_job_locked(j, JobState::done, now, std::nullopt);
     return 0;
   });
@@ -662,7 +767,7 @@ void Scheduler::expire() {
 SchedulerCounters Scheduler::counters() {
   return transact([&](int64_t) {
     SchedulerCounters c;
-    for (JobState s : {JobState::queued, JobState::running, JobState::done, JobState::failed, JobState::cancelled}) c.jobs[s] = 0;
+    for (JobState s : protocol::kAllJobStates) c.jobs[s] = 0;
     for (const auto& [id, j] : jobs_) ++c.jobs[j->status.state];
     c.tiles_rendered = tiles_rendered_;
     c.lease_expiries = lease_expiries_;
@@ -677,7 +782,7 @@ std::vector<std::string> Scheduler::unfinalized_jobs() {
   return transact([&](int64_t) {
     std::vector<std::string> out;
     for (const auto& [key, j] : queue_)
-      if (j->status.state == JobState::running && j->status.tiles.done == j->status.tiles.total) out.push_back(j->status.id);
+      if (started_and_open(j->status) && j->status.tiles.done == j->status.tiles.total) out.push_back(j->status.id);
     return out;
   });
 }

@@ -4,6 +4,7 @@
 
 #include "core/image.h"
 #include "protocol/job.h"
+#include "protocol/worker.h"
 #include "protocol/messages.h"
 
 #include <cstdint>
@@ -90,6 +91,20 @@ struct RetryResult {
   enum Status { retried, not_ended, done, unknown } status = unknown;
   JobState was = JobState::queued;  ///< The state it had.
   int64_t pending = 0;              ///< Tiles to render again (done tiles are kept).
+};
+
+/// Outcome of pausing or resuming a job.
+struct PauseResult {
+  /// changed: now paused (or resumed); wrong_state: the job is not in a state that allows it; unknown: no such job.
+  enum Status { changed, wrong_state, unknown } status = unknown;
+  JobState was = JobState::queued;  ///< The state it had.
+};
+
+/// Outcome of changing a job's priority.
+struct PriorityResult {
+  /// changed: the queue uses the new priority; ended: the job is done, failed or cancelled; unknown: no such job.
+  enum Status { changed, ended, unknown } status = unknown;
+  JobState was = JobState::queued;  ///< The state it has.
 };
 
 /// Counters for /metrics.
@@ -228,12 +243,18 @@ class Scheduler {
   /// All jobs, newest first.
   std::vector<JobStatus> jobs();
 
-  /// Registers a worker and returns its id.
-  std::string register_worker(const std::string& name);
+  /// Registers a worker (announcing `threads` render threads, 0 unknown) and returns its id.
+  std::string register_worker(const std::string& name, int64_t threads = 0);
+  /// Every registered worker with its state (offline after worker_gone_ms without a request), lease and blocklists.
+  std::vector<protocol::WorkerInfo> workers();
+  /// Drains a worker (true: it finishes its current tile, then every lease request answers no work) or undrains it;
+  /// the worker as it is now, nullopt for unknown ids. Not stored: a restarted coordinator forgets it.
+  std::optional<protocol::WorkerInfo> set_drained(const std::string& worker, bool drained);
   /// True when the worker id is registered.
   bool has_worker(const std::string& id);
 
-  /// Leases the lowest pending tile of the highest-priority (then oldest) job the worker is not blocklisted for.
+  /// Leases the lowest pending tile of the highest-priority (then oldest) job that is not paused and the worker is not
+  /// blocklisted for; a drained worker gets no work.
   AcquireResult acquire(const std::string& worker);
   /// Extends a live lease to now + lease_ms and adds `rays` to the job's count.
   HeartbeatResult heartbeat(const std::string& lease, uint64_t rays = 0);
@@ -259,6 +280,13 @@ class Scheduler {
   /// Puts a failed or cancelled job back in the queue keeping its done tiles; its failure counts, blocklists and
   /// error are cleared. A job whose every tile is done becomes running with nothing to lease (see unfinalized_jobs).
   RetryResult retry(const std::string& job);
+  /// Pauses a queued or running job: it gets no new leases; its live leases go on and their uploads are accepted (a
+  /// paused job whose last tile lands is done, see ResultClaim::last).
+  PauseResult pause(const std::string& job);
+  /// Resumes a paused job: running again if it had started, else queued.
+  PauseResult resume(const std::string& job);
+  /// Changes the priority of a job that has not ended; its next tiles are leased in the new order.
+  PriorityResult set_priority(const std::string& job, int priority);
   /// Marks a job whose tiles are all merged done (after its image was written).
   void complete_job(const std::string& job);
   /// Marks an unfinished job failed with a reason.
@@ -270,7 +298,8 @@ class Scheduler {
   SchedulerCounters counters();
   /// Every tile of a job in index order, or nothing for an unknown job.
   std::optional<std::vector<TileView>> tiles(const std::string& job);
-  /// Ids of jobs that are running with every tile done (a restart came between the last tile and the result file).
+  /// Ids of jobs that are running (or paused after starting) with every tile done (a restart came between the last
+  /// tile and the result file).
   std::vector<std::string> unfinalized_jobs();
 
  private:
@@ -294,6 +323,9 @@ class Scheduler {
   struct WorkerRec {
     std::string name;
     int64_t last_seen_ms = 0;  // register, lease request, heartbeat, upload or failure report
+    int64_t threads = 0;       // announced at registration (0: unknown, e.g. after a restart)
+    int64_t tiles_done = 0;    // accepted uploads since this coordinator started
+    bool drained = false;      // no new leases
   };
   using QueueKey = std::tuple<int, int64_t, uint64_t>;  // (-priority, created_ms, seq)
 
@@ -305,6 +337,9 @@ class Scheduler {
   void touch_tile(const JobRec& j, int64_t tile) { dirty_tiles_.emplace(j.status.id, tile); }
   void touch_lease(const LeaseRec& l) { dirty_leases_.insert(l.lease.id); }
   void seen_locked(const std::string& worker, int64_t now);
+  PauseResult set_paused(const std::string& job, bool paused);  // pause (true) or resume (false)
+  int64_t gone_ms() const;  // a worker not seen for this long is offline
+  protocol::WorkerInfo worker_info_locked(const std::string& id, const WorkerRec& w, int64_t now) const;
   bool all_present_blocklisted_locked(const JobRec& j, int64_t now, size_t* present) const;
   bool fail_if_all_blocklisted_locked(JobRec& j, int64_t now);
   void expire_locked(int64_t now);

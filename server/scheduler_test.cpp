@@ -443,6 +443,146 @@ TEST_F(SchedulerTest, RetryOfACancelledJobRequeuesItAndRefusesOtherStates) {
   EXPECT_EQ(s.retry(d).status, RetryResult::done);
 }
 
+// Pause (issue 14): a paused job gets no new leases, its running tiles finish and their uploads count.
+TEST_F(SchedulerTest, PausedJobGetsNoNewLeasesButItsRunningTilesFinish) {
+  const std::string hi = job(5);  // 4 tiles, leased first
+  const std::string lo = job(0);
+  const std::string a = s.register_worker("a");
+  const Lease l0 = lease(a);
+  ASSERT_EQ(l0.job, hi);
+  const PauseResult p = s.pause(hi);
+  EXPECT_EQ(p.status, PauseResult::changed);
+  EXPECT_EQ(p.was, JobState::running);
+  EXPECT_EQ(s.job(hi)->state, JobState::paused);
+  EXPECT_EQ(lease(a).job, lo);  // the higher-priority job is skipped while paused
+  now += 5000;
+  EXPECT_EQ(s.heartbeat(l0.id).status, HeartbeatResult::ok);
+  EXPECT_EQ(upload(l0.id), ResultClaim::proceed);
+  EXPECT_EQ(s.job(hi)->tiles.done, 1);
+  EXPECT_EQ(s.job(hi)->state, JobState::paused);
+  EXPECT_EQ(s.pause(hi).status, PauseResult::wrong_state);  // already paused
+
+  const PauseResult r = s.resume(hi);
+  EXPECT_EQ(r.status, PauseResult::changed);
+  EXPECT_EQ(r.was, JobState::paused);
+  EXPECT_EQ(s.job(hi)->state, JobState::running);
+  EXPECT_EQ(lease(a).job, hi);
+  EXPECT_EQ(s.resume(hi).status, PauseResult::wrong_state);  // not paused
+  EXPECT_EQ(s.pause("j-none").status, PauseResult::unknown);
+  EXPECT_EQ(s.resume("j-none").status, PauseResult::unknown);
+}
+
+TEST_F(SchedulerTest, PauseOfAQueuedJobResumesQueuedAndEndedJobsCannotBePaused) {
+  const std::string q = job();
+  EXPECT_EQ(s.pause(q).status, PauseResult::changed);
+  const std::string a = s.register_worker("a");
+  EXPECT_EQ(s.acquire(a).status, AcquireResult::no_work);
+  EXPECT_EQ(s.counters().jobs.at(JobState::paused), 1);
+  EXPECT_EQ(s.resume(q).status, PauseResult::changed);
+  EXPECT_EQ(s.job(q)->state, JobState::queued);  // it had never started
+  EXPECT_EQ(s.pause(q).status, PauseResult::changed);
+  EXPECT_EQ(s.cancel(q).status, CancelResult::cancelled);  // a paused job can be cancelled
+  const PauseResult p = s.pause(q);
+  EXPECT_EQ(p.status, PauseResult::wrong_state);
+  EXPECT_EQ(p.was, JobState::cancelled);
+  EXPECT_EQ(s.resume(q).status, PauseResult::wrong_state);
+}
+
+TEST_F(SchedulerTest, APausedJobWhoseLastTileLandsIsDone) {
+  const std::string j = job(0, 64, 64, 64);  // one tile
+  const std::string a = s.register_worker("a");
+  const Lease l = lease(a);
+  EXPECT_EQ(s.pause(j).status, PauseResult::changed);
+  bool last = false;
+  EXPECT_EQ(upload(l.id, &last), ResultClaim::proceed);
+  EXPECT_TRUE(last);
+  s.complete_job(j);
+  EXPECT_EQ(s.job(j)->state, JobState::done);
+  EXPECT_EQ(s.pause(j).status, PauseResult::wrong_state);
+}
+
+// Priority change (issue 14): the lease order follows the new priority at once; ended jobs keep theirs.
+TEST_F(SchedulerTest, PriorityChangeReordersLeasesAndEndedJobsRefuseIt) {
+  const std::string older = job(1), newer = job(0);
+  const std::string a = s.register_worker("a");
+  EXPECT_EQ(lease(a).job, older);
+  const PriorityResult r = s.set_priority(newer, 5);
+  EXPECT_EQ(r.status, PriorityResult::changed);
+  EXPECT_EQ(s.job(newer)->params.priority, 5);
+  EXPECT_EQ(lease(a).job, newer);
+  EXPECT_EQ(s.set_priority(newer, -3).status, PriorityResult::changed);
+  EXPECT_EQ(lease(a).job, older);  // back below the older job
+  EXPECT_EQ(s.set_priority(older, -3).status, PriorityResult::changed);
+  EXPECT_EQ(lease(a).job, older);  // equal priorities: the older job first
+
+  EXPECT_EQ(s.pause(newer).status, PauseResult::changed);
+  EXPECT_EQ(s.set_priority(newer, 9).status, PriorityResult::changed);  // a paused job may change it
+  EXPECT_EQ(lease(a).job, older);
+  EXPECT_EQ(s.cancel(newer).status, CancelResult::cancelled);
+  const PriorityResult ended = s.set_priority(newer, 1);
+  EXPECT_EQ(ended.status, PriorityResult::ended);
+  EXPECT_EQ(ended.was, JobState::cancelled);
+  EXPECT_EQ(s.job(newer)->params.priority, 9);
+  EXPECT_EQ(s.set_priority("j-none", 1).status, PriorityResult::unknown);
+}
+
+// Workers (issue 14): the list says what each one does; a drained worker finishes its tile and then gets no work.
+TEST_F(SchedulerTest, WorkerListShowsStateLeaseTilesAndBlocklists) {
+  const std::string j = job();
+  const std::string a = s.register_worker("alpha", 8), b = s.register_worker("beta");
+  std::vector<protocol::WorkerInfo> ws = s.workers();
+  ASSERT_EQ(ws.size(), 2u);
+  EXPECT_EQ(ws[0].id, a);
+  EXPECT_EQ(ws[0].name, "alpha");
+  EXPECT_EQ(ws[0].threads, 8);
+  EXPECT_EQ(ws[0].state, protocol::WorkerState::idle);
+  EXPECT_FALSE(ws[0].job);
+
+  const Lease l = lease(a);
+  ws = s.workers();
+  EXPECT_EQ(ws[0].state, protocol::WorkerState::rendering);
+  EXPECT_EQ(ws[0].job, j);
+  EXPECT_EQ(ws[0].tile, l.tile);
+  EXPECT_EQ(upload(l.id), ResultClaim::proceed);
+  EXPECT_FALSE(s.fail(lease(b).id, "boom 1").job_failed);
+  EXPECT_FALSE(s.fail(lease(b).id, "boom 2").job_failed);  // b is now blocklisted for j
+  ws = s.workers();
+  EXPECT_EQ(ws[0].tiles_done, 1);
+  EXPECT_EQ(ws[0].state, protocol::WorkerState::idle);
+  EXPECT_EQ(ws[0].last_seen_ms, now);
+  EXPECT_EQ(ws[1].blocklisted_for, std::vector<std::string>{j});
+  EXPECT_TRUE(ws[0].blocklisted_for.empty());
+
+  // Offline after three lease lengths (30 s here) without a request; back when it asks again.
+  now += 30'001;
+  EXPECT_EQ(s.workers()[1].state, protocol::WorkerState::offline);
+  lease(a);
+  EXPECT_EQ(s.workers()[0].state, protocol::WorkerState::rendering);
+  EXPECT_EQ(s.workers()[1].state, protocol::WorkerState::offline);
+}
+
+TEST_F(SchedulerTest, ADrainedWorkerFinishesItsTileThenGetsNoWorkUntilUndrained) {
+  const std::string j = job();
+  const std::string a = s.register_worker("a");
+  const Lease l = lease(a);
+  const std::optional<protocol::WorkerInfo> d = s.set_drained(a, true);
+  ASSERT_TRUE(d);
+  EXPECT_EQ(d->state, protocol::WorkerState::draining);
+  EXPECT_EQ(d->job, j);  // still rendering its tile
+  EXPECT_EQ(s.heartbeat(l.id).status, HeartbeatResult::ok);
+  EXPECT_EQ(upload(l.id), ResultClaim::proceed);  // its upload is accepted
+  EXPECT_EQ(s.acquire(a).status, AcquireResult::no_work);  // though tiles are pending
+  EXPECT_EQ(s.job(j)->tiles.pending, 3);
+  EXPECT_EQ(s.workers()[0].state, protocol::WorkerState::draining);
+  EXPECT_FALSE(s.workers()[0].job);
+  now += 25'000;
+  EXPECT_EQ(s.acquire(a).status, AcquireResult::no_work);  // polling keeps it seen, not offline
+  EXPECT_EQ(s.workers()[0].state, protocol::WorkerState::draining);
+  EXPECT_EQ(s.set_drained(a, false)->state, protocol::WorkerState::idle);
+  EXPECT_EQ(lease(a).tile, 1);
+  EXPECT_FALSE(s.set_drained("w-none", true));
+}
+
 TEST_F(SchedulerTest, CancelQueuedJob) {
   const std::string j = job();
   EXPECT_EQ(s.cancel(j).status, CancelResult::cancelled);

@@ -4,14 +4,26 @@
 
 namespace tessera::server {
 
-HttpResponse WorkersHandler::handle(protocol::Endpoint, const std::string&, HttpRequest& req) {
+using protocol::Endpoint;
+
+HttpResponse WorkersHandler::handle(Endpoint endpoint, const std::string& id, HttpRequest& req) {
+  const unsigned v = req.version();
+  if (endpoint == Endpoint::worker_drain || endpoint == Endpoint::worker_undrain) {
+    protocol::parse_empty_request(req.body());
+    const bool drain = endpoint == Endpoint::worker_drain;
+    const std::optional<protocol::WorkerInfo> w = sched_.set_drained(id, drain);
+    if (!w) throw protocol::ApiError(404, "no worker " + id);
+    spdlog::info("worker {}: {}", id, drain ? "draining (no new tiles)" : "undrained");
+    return json_response(http::status::ok, *w, v);
+  }
+  if (req.method() == http::verb::get) return json_response(http::status::ok, protocol::WorkerList{sched_.workers()}, v);
   const protocol::WorkerHello hello = protocol::parse_worker_hello(req.body());
-  const std::string id = sched_.register_worker(hello.name);
-  spdlog::info("worker {}: registered '{}' ({} threads, version {})", id, hello.name, hello.threads,
+  const std::string id_new = sched_.register_worker(hello.name, hello.threads);
+  spdlog::info("worker {}: registered '{}' ({} threads, version {})", id_new, hello.name, hello.threads,
                hello.version.empty() ? "?" : hello.version);
-  const protocol::Registration reg{id, double(sched_.config().lease_ms) / 1000.0, double(heartbeat_seconds_)};
-  HttpResponse res = json_response(http::status::created, reg, req.version());
-  res.set(http::field::location, protocol::routes::workers() + "/" + id);
+  const protocol::Registration reg{id_new, double(sched_.config().lease_ms) / 1000.0, double(heartbeat_seconds_)};
+  HttpResponse res = json_response(http::status::created, reg, v);
+  res.set(http::field::location, protocol::routes::workers() + "/" + id_new);
   return res;
 }
 

@@ -80,10 +80,43 @@ std::vector<JobStatus> list_jobs(HttpClient& http) {
   return protocol::parse_answer<protocol::JobList>(r.body, "job list").jobs;
 }
 
+namespace {
+// A request that changes a job or a worker; the answer is it as it is now.
+template <class T = JobStatus>
+T control(HttpClient& http, const std::string& id, const char* method, const std::string& path, const char* doing,
+          std::string body = {}) {
+  const HttpResponse r = http.send(method, path, std::move(body));
+  if (r.status != 200) refuse(std::string(doing) + " " + id, r);
+  return protocol::parse_answer<T>(r.body, id);
+}
+}  // namespace
+
+std::vector<protocol::WorkerInfo> list_workers(HttpClient& http) {
+  const HttpResponse r = http.send("GET", routes::workers());
+  if (r.status != 200) refuse("GET " + routes::workers(), r);
+  return protocol::parse_answer<protocol::WorkerList>(r.body, "worker list").workers;
+}
+
+protocol::WorkerInfo drain_worker(HttpClient& http, const std::string& id, bool drain) {
+  return control<protocol::WorkerInfo>(http, id, "POST", drain ? routes::worker_drain(id) : routes::worker_undrain(id),
+                                       drain ? "draining" : "undraining");
+}
+
 JobStatus retry_job(HttpClient& http, const std::string& id) {
-  const HttpResponse r = http.send("POST", routes::job_retry(id));
-  if (r.status != 200) refuse("retrying " + id, r);
-  return protocol::parse_answer<JobStatus>(r.body, "job " + id);
+  return control(http, id, "POST", routes::job_retry(id), "retrying");
+}
+
+JobStatus pause_job(HttpClient& http, const std::string& id) {
+  return control(http, id, "POST", routes::job_pause(id), "pausing");
+}
+
+JobStatus resume_job(HttpClient& http, const std::string& id) {
+  return control(http, id, "POST", routes::job_resume(id), "resuming");
+}
+
+JobStatus set_job_priority(HttpClient& http, const std::string& id, int priority) {
+  return control(http, id, "PATCH", routes::job(id), "changing the priority of",
+                     json(protocol::JobPatch{priority}).dump());
 }
 
 JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::function<void(const JobStatus&)>& progress,

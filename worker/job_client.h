@@ -1,8 +1,10 @@
-// The client side of jobs: upload a scene's assets, submit it, follow its progress, download the result.
+// The client side of jobs: upload a scene's assets, submit it, follow its progress, download the result; and the
+// operator's controls over jobs and workers (pause, priority, retry, cancel, the worker list, drain).
 #pragma once
 
 #include "worker/http_client.h"
 #include "protocol/messages.h"
+#include "protocol/worker.h"
 
 #include <atomic>
 #include <cstdint>
@@ -63,6 +65,21 @@ std::vector<JobStatus> list_jobs(HttpClient& http);
 
 /// POST /v1/jobs/{id}/retry: the job queued again; throws SubmitError (404, 409 with the coordinator's sentence).
 JobStatus retry_job(HttpClient& http, const std::string& id);
+
+/// PATCH /v1/jobs/{id} {"priority": N}: the job with its new priority; throws SubmitError (404, 409 ended).
+JobStatus set_job_priority(HttpClient& http, const std::string& id, int priority);
+
+/// GET /v1/workers: every registered worker; throws SubmitError or HttpError.
+std::vector<protocol::WorkerInfo> list_workers(HttpClient& http);
+
+/// POST /v1/workers/{id}/drain (drain true) or /undrain: the worker as it is now; throws SubmitError (404 unknown).
+protocol::WorkerInfo drain_worker(HttpClient& http, const std::string& id, bool drain);
+
+/// POST /v1/jobs/{id}/pause: the job, now paused; throws SubmitError (404, 409 with the coordinator's sentence).
+JobStatus pause_job(HttpClient& http, const std::string& id);
+
+/// POST /v1/jobs/{id}/resume: the job, queued or running again; throws SubmitError (404, 409 not paused).
+JobStatus resume_job(HttpClient& http, const std::string& id);
 
 /// DELETE /v1/jobs/{id}; true when cancelled, false when it had already ended (409). Throws for other answers.
 bool cancel_job(HttpClient& http, const std::string& id);

@@ -221,9 +221,23 @@ def exercise(c, tessera, workdir, address):
     c.call("POST", "/v1/workers", {"name": "openapi", "threads": 1, "colour": "red"}, expect=400)
     _, w1 = c.call("POST", "/v1/workers", {"name": "openapi", "threads": 1, "version": "test"}, expect=201)
     _, w2 = c.call("POST", "/v1/workers", None, expect=201)
+    _, drained = c.call("POST", f"/v1/workers/{w2['id']}/drain", expect=200)
+    if drained["state"] != "draining":
+        failures.append(f"drain: the worker is {drained['state']}")
+    c.call("POST", f"/v1/workers/{w2['id']}/lease", expect=204)  # drained: no work even with tiles pending
+    c.call("POST", f"/v1/workers/{w2['id']}/drain", {"x": 1}, expect=400)
+    c.call("POST", "/v1/workers/w-none/drain", expect=404)
+    _, undrained = c.call("POST", f"/v1/workers/{w2['id']}/undrain", expect=200)
+    if undrained["state"] != "idle":
+        failures.append(f"undrain: the worker is {undrained['state']}")
+    c.call("POST", "/v1/workers/w-none/undrain", expect=404)
     c.call("POST", "/v1/workers/w-none/lease", expect=404)
     _, l1 = c.call("POST", f"/v1/workers/{w1['id']}/lease", expect=200)
     c.call("POST", f"/v1/leases/{l1['lease']}/heartbeat", {"rays": 10}, expect=200)
+    _, listed = c.call("GET", "/v1/workers", expect=200)
+    mine = [w for w in listed["workers"] if w["id"] == w1["id"]]
+    if not mine or mine[0]["state"] != "rendering" or mine[0]["tile"] != l1["tile"] or mine[0]["threads"] != 1:
+        failures.append(f"GET /v1/workers: {w1['id']} is not shown rendering tile {l1['tile']}: {mine}")
     c.call("POST", f"/v1/leases/{l1['lease']}/heartbeat", {"rays": -1}, expect=400)
     c.call("POST", "/v1/leases/l-none/heartbeat", expect=404)
     c.call("PUT", f"/v1/leases/{l1['lease']}/result", b"not an exr", "image/x-exr", expect=422)  # w1's 1st failure
@@ -241,12 +255,31 @@ def exercise(c, tessera, workdir, address):
     c.call("DELETE", f"/v1/jobs/{a}", expect=200)
     c.call("DELETE", f"/v1/jobs/{a}", expect=409)
     c.call("DELETE", "/v1/jobs/j-none", expect=404)
+    c.call("PATCH", f"/v1/jobs/{a}", {"priority": 1}, expect=409)  # cancelled
     c.call("POST", f"/v1/jobs/{a}/retry", {"x": 1}, expect=400)
     _, again = c.call("POST", f"/v1/jobs/{a}/retry", expect=200)
     if again["state"] not in ("queued", "running") or again["error"] is not None:
         failures.append(f"retry: the job is {again['state']} with error {again['error']!r}")
     c.call("POST", f"/v1/jobs/{a}/retry", expect=409)
     c.call("POST", "/v1/jobs/j-none/retry", expect=404)
+    c.call("POST", f"/v1/jobs/{a}/resume", expect=409)  # not paused
+    c.call("POST", f"/v1/jobs/{a}/pause", {"x": 1}, expect=400)
+    _, paused = c.call("POST", f"/v1/jobs/{a}/pause", expect=200)
+    if paused["state"] != "paused":
+        failures.append(f"pause: the job is {paused['state']}")
+    c.call("GET", f"/v1/jobs/{a}", expect=200)
+    c.call("POST", f"/v1/jobs/{a}/pause", expect=409)
+    c.call("POST", "/v1/jobs/j-none/pause", expect=404)
+    _, resumed = c.call("POST", f"/v1/jobs/{a}/resume", expect=200)
+    if resumed["state"] not in ("queued", "running"):
+        failures.append(f"resume: the job is {resumed['state']}")
+    c.call("POST", "/v1/jobs/j-none/resume", expect=404)
+    _, patched = c.call("PATCH", f"/v1/jobs/{a}", {"priority": 7}, expect=200)
+    if patched["priority"] != 7:
+        failures.append(f"patch: the job's priority is {patched['priority']}")
+    c.call("PATCH", f"/v1/jobs/{a}", {"priority": 1, "name": "x"}, expect=400)
+    c.call("PATCH", f"/v1/jobs/{a}", {}, expect=400)
+    c.call("PATCH", "/v1/jobs/j-none", {"priority": 1}, expect=404)
     c.call("DELETE", f"/v1/jobs/{a}", expect=200)
     c.call("PUT", f"/v1/leases/{l3['lease']}/result", b"x", "image/x-exr", expect=410)
 

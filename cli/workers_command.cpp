@@ -1,0 +1,71 @@
+#include "cli/workers_command.h"
+
+#include "cli/tls_flags.h"
+#include "cli/token.h"
+#include "worker/http_client.h"
+#include "worker/job_client.h"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <cstdio>
+
+namespace tessera::cli {
+
+namespace {
+
+// One line per worker: id, state, threads, tiles done, what it renders, seconds since seen, name, blocklists.
+void print_table(const std::vector<protocol::WorkerInfo>& workers) {
+  const int64_t now = std::chrono::duration_cast<std::chrono::milliseconds>(
+                          std::chrono::system_clock::now().time_since_epoch()).count();
+  std::printf("%-14s %-10s %7s %6s %-26s %6s  %s\n", "ID", "STATE", "THREADS", "TILES", "RENDERING", "SEEN", "NAME");
+  for (const protocol::WorkerInfo& w : workers) {
+    const std::string doing = w.job ? *w.job + " #" + std::to_string(w.tile.value_or(0)) : "-";
+    const std::string seen = std::to_string((now - w.last_seen_ms) / 1000) + "s";
+    std::string blocked;
+    for (const std::string& j : w.blocklisted_for) blocked += (blocked.empty() ? "  blocklisted for " : ", ") + j;
+    std::printf("%-14s %-10s %7lld %6lld %-26s %6s  %s%s\n", w.id.c_str(), protocol::to_string(w.state),
+                static_cast<long long>(w.threads), static_cast<long long>(w.tiles_done), doing.c_str(), seen.c_str(),
+                w.name.c_str(), blocked.c_str());
+  }
+}
+
+}  // namespace
+
+CLI::App* add_workers_command(CLI::App& app, WorkersArgs& a) {
+  auto* c = app.add_subcommand("workers", "List a coordinator's workers, drain or undrain one");
+  c->add_option("action", a.action, "ls: list; drain ID: finish the current tile, then take no more; undrain ID")
+      ->required()
+      ->check(CLI::IsMember({"ls", "drain", "undrain"}));
+  c->add_option("worker", a.worker, "Worker id (drain, undrain)");
+  c->add_option("--coordinator", a.coordinator, "Coordinator URL, e.g. http://127.0.0.1:8470")->required();
+  c->add_option("--token-file", a.token_file, "File holding the client token (default: $TESSERA_CLIENT_TOKEN)");
+  add_client_tls_flags(c, a.tls);
+  return c;
+}
+
+int run_workers(const WorkersArgs& a) {
+  if (a.action != "ls" && a.worker.empty()) {
+    spdlog::error("workers {} needs a worker id", a.action);
+    return 2;
+  }
+  try {
+    farm::HttpClient http(farm::parse_http_url(a.coordinator), {}, uint64_t(2) << 30, a.tls);
+    http.set_bearer_token(load_token(a.token_file, "TESSERA_CLIENT_TOKEN"));
+    if (a.action == "ls") {
+      print_table(farm::list_workers(http));
+    } else {
+      const protocol::WorkerInfo w = farm::drain_worker(http, a.worker, a.action == "drain");
+      std::printf("%s: %s\n", w.id.c_str(), protocol::to_string(w.state));
+    }
+    return 0;
+  } catch (const farm::SubmitError& e) {
+    spdlog::error("{}", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    spdlog::error("workers {}: {}", a.action, e.what());
+    return 1;
+  }
+}
+
+}  // namespace tessera::cli
