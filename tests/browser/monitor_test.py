@@ -28,6 +28,7 @@ try:
     from selenium import webdriver
     from selenium.webdriver.chrome.service import Service
     from selenium.webdriver.common.by import By
+    from selenium.common.exceptions import StaleElementReferenceException
 except ImportError:
     print("SKIP: python3-selenium is not installed (apt-get install python3-selenium)")
     sys.exit(SKIP)
@@ -52,9 +53,14 @@ def fail(msg):
 
 
 def wait_for(what, predicate, deadline=DEADLINE):
+    """Polls predicate until it is truthy. The page re-renders while it polls the coordinator, so an element found a
+    moment ago may be gone: a stale element counts as "not yet" and the predicate runs again on a fresh look-up."""
     end = time.monotonic() + deadline
     while True:
-        value = predicate()
+        try:
+            value = predicate()
+        except StaleElementReferenceException:
+            value = None
         if value:
             return value
         if time.monotonic() > end:
@@ -124,6 +130,17 @@ def console_errors(d):
 
 def visible(d, css):
     return [e for e in d.find_elements(By.CSS_SELECTOR, css) if e.is_displayed()]
+
+
+def click(d, css, what):
+    """Clicks the first visible element matching css once it exists (looked up and clicked in one attempt)."""
+    def attempt():
+        found = visible(d, css)
+        if not found:
+            return False
+        found[0].click()
+        return True
+    wait_for(what, attempt)
 
 
 def tiles_in(d, state):
@@ -201,10 +218,10 @@ def main():
             fail("the token appears in the URL")
 
         # The job list shows the job, running (the holder's leases started it).
-        row = wait_for("the job row", lambda: visible(d, f'tr[data-job="{job}"]'))[0]
-        wait_for("state running in the list", lambda: "running" in row.text)
+        row = f'tr[data-job="{job}"]'
+        wait_for("state running in the list", lambda: any("running" in r.text for r in visible(d, row)))
         d.save_screenshot(os.path.join(ARTEFACTS, "monitor-jobs.png"))
-        row.click()
+        click(d, row, "the job row")
         wait_for("the tile map", lambda: len(d.find_elements(By.CSS_SELECTOR, "#tilemap .tile")) == TOTAL_TILES)
         wait_for("the held tiles leased by holder", lambda: len(
             [t for t in d.find_elements(By.CSS_SELECTOR, '#tilemap .tile[data-state="leased"]') if "holder" in t.get_attribute("title")]) == HELD)
@@ -219,12 +236,12 @@ def main():
         wait_for("the partial preview", lambda: d.execute_script(
             "const i = document.getElementById('preview'); return !i.hidden && i.complete && i.naturalWidth === arguments[1] "
             "&& i.dataset.tilesDone === String(arguments[0]);", TOTAL_TILES - HELD, WIDTH))
-        d.find_elements(By.CSS_SELECTOR, '#tilemap .tile[data-state="leased"]')[0].click()
+        click(d, '#tilemap .tile[data-state="leased"]', "a leased tile")
         wait_for("the tile details", lambda: "holder" in d.find_element(By.ID, "tile-detail").text)
         d.save_screenshot(os.path.join(ARTEFACTS, "monitor-job-mid-render.png"))
 
         if ep["pause"] and ep["resume"]:
-            d.find_element(By.CSS_SELECTOR, '[data-action="pause"]').click()
+            click(d, '[data-action="pause"]', "the pause button")
             wait_for("paused", lambda: (lambda j: j.get("state") == "paused" or j.get("paused") is True)(client.call("GET", f"/v1/jobs/{job}")[1]))
             for lease in held:
                 workerside.call("POST", f"/v1/leases/{lease}/release")
@@ -232,7 +249,7 @@ def main():
             if status != 204:
                 fail(f"a paused job handed out a lease ({status})")
             wait_for("released tiles pending on the map", lambda: tiles_in(d, "pending") == HELD)
-            d.find_element(By.CSS_SELECTOR, '[data-action="resume"]').click()
+            click(d, '[data-action="resume"]', "the resume button")
             print("pause: no lease while paused; resumed from the page")
         else:
             print("pause/resume: not on this coordinator (buttons disabled):",
@@ -250,8 +267,7 @@ def main():
         # Workers page: drain when the coordinator has it.
         d.get(base + "/#/workers")
         if ep["workers"] and ep["drain"]:
-            row = wait_for("the worker row", lambda: visible(d, 'tr[data-name="render-1"]'))[0]
-            row.find_element(By.CSS_SELECTOR, '[data-action="drain"]').click()
+            click(d, 'tr[data-name="render-1"] [data-action="drain"]', "the drain button")
             wait_for("the worker draining", lambda: "draining" in d.find_element(By.CSS_SELECTOR, 'tr[data-name="render-1"]').text)
             d.save_screenshot(os.path.join(ARTEFACTS, "monitor-workers.png"))
             print("drain: render-1 draining")
