@@ -1,19 +1,12 @@
 # A worker that freezes itself (SIGSTOP) once, after rendering a tile and before uploading it (sourced; needs
-# $TESSERA). Builds with fail points have the test binary tessera-failpoints beside tessera, frozen by the fail point
-# worker.upload; older builds have only the release binary's hook TESSERA_WORKER_STOP_BEFORE_UPLOAD.
+# $TESSERA): the test binary tessera-failpoints beside tessera, frozen by its fail point worker.upload.
 # shellcheck shell=bash
 
 # freeze_setup: sets FREEZE_BIN (the binary to run) and FREEZE_ENV (environment assignments for `env`).
 freeze_setup() {
-  local test_binary
-  test_binary="$(dirname "$TESSERA")/tessera-failpoints"
-  if [ -x "$test_binary" ]; then
-    FREEZE_BIN=$test_binary
-    FREEZE_ENV=("TESSERA_FAIL_POINTS=worker.upload=1*stop")
-  else
-    FREEZE_BIN=$TESSERA
-    FREEZE_ENV=("TESSERA_WORKER_STOP_BEFORE_UPLOAD=1")
-  fi
+  FREEZE_BIN="$(dirname "$TESSERA")/tessera-failpoints"
+  [ -x "$FREEZE_BIN" ] || fail "no test binary $FREEZE_BIN (built with the tests)"
+  FREEZE_ENV=("TESSERA_FAIL_POINTS=worker.upload=1*stop")
 }
 
 # frozen_tile LOG: "tile=N" of the tile a frozen worker rendered last (the one waiting for its upload).
