@@ -29,12 +29,12 @@ void print_table(const std::vector<protocol::JobStatus>& jobs) {
 CLI::App* add_jobs_command(CLI::App& app, JobsArgs& a) {
   auto* c = app.add_subcommand("jobs", "List and control a coordinator's jobs");
   c->add_option("action", a.action, "ls: list; show ID: the job as JSON; pause ID: no new leases (running tiles "
-                                    "finish); resume ID; priority ID N: lease its tiles in a new order; retry ID: render a failed or cancelled job's missing tiles; "
+                                    "finish); resume ID; priority ID N: lease its tiles in a new order; spp ID M: raise a --resumable job to M samples per pixel, continuing its stored tiles; retry ID: render a failed or cancelled job's missing tiles; "
                                     "cancel ID")
       ->required()
-      ->check(CLI::IsMember({"ls", "show", "pause", "resume", "priority", "retry", "cancel"}));
+      ->check(CLI::IsMember({"ls", "show", "pause", "resume", "priority", "spp", "retry", "cancel"}));
   c->add_option("job", a.job, "Job id (all but ls)");
-  c->add_option("priority", a.priority, "New priority, higher runs first (priority)");
+  c->add_option("value", a.priority, "New priority, higher runs first (priority); new samples per pixel (spp)");
   c->add_option("--coordinator", a.coordinator, "Coordinator URL, e.g. http://127.0.0.1:8470")->required();
   c->add_option("--token-file", a.token_file, "File holding the client token (default: $TESSERA_CLIENT_TOKEN)");
   add_client_tls_flags(c, a.tls);
@@ -50,6 +50,10 @@ int run_jobs(const JobsArgs& a) {
     spdlog::error("jobs priority needs a job id and the new priority");
     return 2;
   }
+  if (a.action == "spp" && (!a.priority || *a.priority < 1)) {
+    spdlog::error("jobs spp needs a job id and the new samples per pixel (a positive number)");
+    return 2;
+  }
   try {
     farm::HttpClient http(farm::parse_http_url(a.coordinator), {}, uint64_t(2) << 30, a.tls);
     http.set_bearer_token(load_token(a.token_file, "TESSERA_CLIENT_TOKEN"));
@@ -63,6 +67,11 @@ int run_jobs(const JobsArgs& a) {
     } else if (a.action == "priority") {
       const protocol::JobStatus s = farm::set_job_priority(http, a.job, *a.priority);
       std::printf("%s: %s, priority %d\n", s.id.c_str(), protocol::to_string(s.state), s.params.priority);
+    } else if (a.action == "spp") {
+      const protocol::JobStatus s = farm::raise_job_spp(http, a.job, uint32_t(*a.priority));
+      std::printf("%s: %s again at %u spp, %lld of %lld tiles to continue\n", s.id.c_str(), protocol::to_string(s.state),
+                  s.params.spp, static_cast<long long>(s.tiles.total - s.tiles.done),
+                  static_cast<long long>(s.tiles.total));
     } else if (a.action == "retry") {
       const protocol::JobStatus s = farm::retry_job(http, a.job);
       std::printf("%s: %s again, %lld of %lld tiles to render\n", s.id.c_str(), protocol::to_string(s.state),

@@ -12,9 +12,9 @@ namespace tessera::cli {
 
 /// Options of `tessera jobs`.
 struct JobsArgs {
-  std::string action;       ///< ls, show, pause, resume, priority, retry or cancel.
+  std::string action;       ///< ls, show, pause, resume, priority, spp, retry or cancel.
   std::string job;          ///< The job id (all but ls).
-  std::optional<int> priority;  ///< The new priority (priority).
+  std::optional<int> priority;  ///< The new priority (priority) or samples per pixel (spp).
   std::string coordinator;  ///< Coordinator URL.
   std::string token_file;   ///< File holding the client token (else $TESSERA_CLIENT_TOKEN).
   farm::ClientTlsFiles tls;  ///< --ca-file, --tls-cert, --tls-key for https:// coordinators.

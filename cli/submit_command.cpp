@@ -37,6 +37,9 @@ CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
       ->check(CLI::Range(1u, 1u << 20));
   c->add_option("--token-file", a.token_file, "File holding the client token (default: $TESSERA_CLIENT_TOKEN)");
   add_client_tls_flags(c, a.tls);
+  c->add_flag("--resumable", a.resumable,
+              "Keep each tile's exact per-pixel sums, so that `tessera jobs spp ID M` can raise the job's spp later "
+              "(bitwise as if submitted at M; docs/resume.md)");
   c->add_flag("--detach", a.detach, "Print the job id and return without waiting");
   c->add_flag("-q,--quiet", a.quiet, "No progress bar");
   return c;
@@ -117,6 +120,7 @@ int run_submit(const SubmitArgs& a) {
     o.tile_size = a.tile_size;
     o.priority = a.priority;
     o.name = a.name;
+    o.resumable = a.resumable;
     if (a.detach) {
       const farm::SubmitResult sub = farm::submit_job(http, o);
       std::printf("%s\n", sub.job_id.c_str());

@@ -30,6 +30,7 @@ struct SubmitArgs {
   uint32_t max_spp = protocol::kDefaultMaxSpp;  ///< Adaptive sampling: most samples per pixel.
   std::string token_file;           ///< File holding the client token (else $TESSERA_CLIENT_TOKEN).
   farm::ClientTlsFiles tls;         ///< CA and client certificate files for https:// coordinators.
+  bool resumable = false;           ///< Keep each tile's exact sums so `jobs spp` can raise the job's spp later.
   bool detach = false;              ///< Print the job id and return without waiting.
   bool quiet = false;               ///< No progress bar.
 };

@@ -211,19 +211,61 @@ void read_luminance_chroma(Imf::IStream& is, const Imath::Box2i& dw, Image& img)
   }
 }
 
+// An OpenEXR input stream over bytes in memory (decode_exr).
+class MemoryIStream final : public Imf::IStream {
+ public:
+  MemoryIStream(std::string_view bytes, const char* name) : Imf::IStream(name), bytes_(bytes) {}
+  bool read(char c[], int n) override {
+    if (n < 0 || size_t(n) > bytes_.size() - std::min(pos_, bytes_.size()))
+      throw std::runtime_error("data ends early (truncated or damaged)");
+    std::memcpy(c, bytes_.data() + pos_, size_t(n));
+    pos_ += size_t(n);
+    return pos_ < bytes_.size();
+  }
+  uint64_t tellg() override { return pos_; }
+  void seekg(uint64_t pos) override { pos_ = size_t(pos); }
+  void clear() override {}
+
+ private:
+  std::string_view bytes_;
+  size_t pos_ = 0;
+};
+
+// The version field after the magic number (the first `got` of 8 bytes read), so that short and foreign data get a
+// plain message.
+int exr_version(const char (&start)[8], std::streamsize got) {
+  if (got < 4 || !Imf::isImfMagic(start)) throw std::runtime_error("not an OpenEXR file (no magic number)");
+  if (got < 8) throw std::runtime_error("file ends inside the version field");
+  return int(uint32_t(uint8_t(start[4])) | uint32_t(uint8_t(start[5])) << 8 | uint32_t(uint8_t(start[6])) << 16 |
+             uint32_t(uint8_t(start[7])) << 24);
+}
+
+ExrImage read_exr_stream(Imf::IStream& stream, int version);
+
 ExrImage read_exr_impl(const std::filesystem::path& path) {
   errno = 0;
   std::ifstream file(path, std::ios::binary);
   if (!file) throw std::runtime_error(errno != 0 ? errno_text(errno) : "cannot open file");
-  // The magic number and version field, read here so that short and foreign files get a plain message.
   char start[8] = {};
   file.read(start, 8);
   if (file.bad()) throw std::runtime_error(errno != 0 ? errno_text(errno) : "read error");
-  if (file.gcount() < 4 || !Imf::isImfMagic(start)) throw std::runtime_error("not an OpenEXR file (no magic number)");
-  if (file.gcount() < 8) throw std::runtime_error("file ends inside the version field");
-  const int version = int(uint32_t(uint8_t(start[4])) | uint32_t(uint8_t(start[5])) << 8 |
-                          uint32_t(uint8_t(start[6])) << 16 | uint32_t(uint8_t(start[7])) << 24);
+  const int version = exr_version(start, file.gcount());
   Imf::StdIFStream stream(file, path.c_str());
+  return read_exr_stream(stream, version);
+}
+
+ExrImage decode_exr_impl(std::string_view bytes) {
+  char start[8] = {};
+  const size_t got = std::min<size_t>(8, bytes.size());
+  std::memcpy(start, bytes.data(), got);
+  const int version = exr_version(start, std::streamsize(got));
+  MemoryIStream stream(bytes, "(memory)");
+  stream.seekg(8);
+  return read_exr_stream(stream, version);
+}
+
+// Reads the EXR from stream, positioned just after the version field.
+ExrImage read_exr_stream(Imf::IStream& stream, int version) {
   check_exr_header(stream, version);
   stream.seekg(0);
 
@@ -400,6 +442,10 @@ Image Image::make(int width, int height) {
 
 ExrImage read_exr(const std::filesystem::path& path) {
   return with_context("cannot read EXR " + quoted(path), [&] { return read_exr_impl(path); });
+}
+
+ExrImage decode_exr(std::string_view bytes) {
+  return with_context("cannot read EXR data", [&] { return decode_exr_impl(bytes); });
 }
 
 void write_exr(const std::filesystem::path& path, const Image& img, const ExrWriteOptions& opt) {

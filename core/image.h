@@ -10,6 +10,7 @@
 #include <map>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace tessera {
@@ -88,6 +89,9 @@ struct ExrImage {
 /// unreadable, truncated or non-EXR file, deep data, no colour channels, or a data window over 65536 pixels per side
 /// or 2^28 pixels in all.
 ExrImage read_exr(const std::filesystem::path& path);
+
+/// read_exr for a file's bytes held in memory (e.g. received over HTTP); throws ImageError as read_exr does.
+ExrImage decode_exr(std::string_view bytes);
 
 /// Lossless compression of an EXR's pixels. Rendered float data is noisy and barely compresses (measured on a 3840x2160
 /// float frame: ZIP 7.4 s for 5% smaller, PIZ 5.0 s for 23% smaller, none 0.19 s), so the farm's hot paths use kNone.

@@ -164,6 +164,7 @@ void SamplingSettings::apply_to(RenderOptions& o) const {
 void to_json(json& j, const JobSubmission& s) {
   j = {{"scene", s.scene}, {"assets", s.assets}, {"tile_size", s.tile_size}, {"priority", s.priority}, {"name", s.name}};
   put_sampling(j, s.sampling);
+  if (s.resumable) j["resumable"] = true;
 }
 
 namespace {
@@ -177,7 +178,7 @@ int request_priority(const json& j) {
 JobSubmission parse_job_submission(const std::string& body) {
   const json j = parse_request_object(
       body, {"scene", "assets", "spp", "seed", "tile_size", "priority", "name", "integrator", "target_error", "min_spp",
-             "max_spp", "error_floor", "replicates", "area_sampling", "env_sampling", "bvh"},
+             "max_spp", "error_floor", "replicates", "area_sampling", "env_sampling", "bvh", "resumable"},
       false);
   JobSubmission s;
   if (!j.contains("scene")) throw ProtocolError("'scene' is missing");
@@ -188,15 +189,30 @@ JobSubmission parse_job_submission(const std::string& body) {
   s.priority = request_priority(j);
   s.name = request_string(j, "name", "");
   s.sampling = request_sampling(j);
+  if (j.contains("resumable")) {
+    if (!j["resumable"].is_boolean()) throw ProtocolError("'resumable' must be true or false (got " + j["resumable"].dump() + ")");
+    s.resumable = j["resumable"].get<bool>();
+  }
+  if (s.resumable && s.sampling.target_error > 0.0)
+    throw ProtocolError("'resumable' needs a fixed spp: with 'target_error' each pixel stops at its own sample count, so "
+                        "there is no common spp to raise later");
   return s;
 }
 
-void to_json(json& j, const JobPatch& p) { j = {{"priority", p.priority}}; }
+void to_json(json& j, const JobPatch& p) {
+  j = json::object();
+  if (p.priority) j["priority"] = *p.priority;
+  if (p.spp) j["spp"] = *p.spp;
+}
 
 JobPatch parse_job_patch(const std::string& body) {
-  const json j = parse_request_object(body, {"priority"}, false);
-  if (!j.contains("priority")) throw ProtocolError("'priority' is missing: it is the only thing a job patch changes");
-  return JobPatch{request_priority(j)};
+  const json j = parse_request_object(body, {"priority", "spp"}, false);
+  if (!j.contains("priority") && !j.contains("spp"))
+    throw ProtocolError("a job patch needs 'priority' or 'spp' (or both): they are what it can change");
+  JobPatch p;
+  if (j.contains("priority")) p.priority = request_priority(j);
+  if (j.contains("spp")) p.spp = uint32_t(request_int(j, "spp", 0, 1, int64_t(1) << 20));
+  return p;
 }
 
 void to_json(json& j, const SubmitAnswer& a) { j = {{"id", a.id}, {"warnings", a.warnings}}; }
@@ -210,6 +226,7 @@ void to_json(json& j, const JobSpec& s) {
   j = {{"scene", s.scene}, {"assets", s.assets}, {"width", s.width}, {"height", s.height}, {"tile_size", s.tile_size}};
   put_sampling(j, s.sampling);
   j["spp"] = s.sampling.spp;
+  if (s.resumable) j["resumable"] = true;
 }
 
 void from_json(const json& j, JobSpec& s) {
@@ -222,6 +239,7 @@ void from_json(const json& j, JobSpec& s) {
   s.width = answer_field<int>(j, "width", kMsg);
   s.height = answer_field<int>(j, "height", kMsg);
   s.tile_size = answer_field_or<int>(j, "tile_size", kMsg, kDefaultTileSize);
+  s.resumable = answer_field_or<bool>(j, "resumable", kMsg, false);
 }
 
 void to_json(json& j, const WorkerHello& h) { j = {{"name", h.name}, {"threads", h.threads}, {"version", h.version}}; }
@@ -252,6 +270,8 @@ void to_json(json& j, const Lease& l) {
   j = {{"lease", l.id},     {"job", l.job},   {"tile", l.tile},
        {"window", json::array({l.window.x0, l.window.y0, l.window.x1, l.window.y1})},
        {"spp", l.spp},      {"seed", l.seed}, {"scene_hash", l.scene_hash}, {"deadline_ms", l.deadline_ms}};
+  if (l.resumable) j["resumable"] = true;
+  if (l.state_spp) j["state_spp"] = l.state_spp;
 }
 
 void from_json(const json& j, Lease& l) {
@@ -267,6 +287,9 @@ void from_json(const json& j, Lease& l) {
   l.seed = answer_field_or<uint64_t>(j, "seed", "lease", 0);
   l.scene_hash = answer_field_or<std::string>(j, "scene_hash", "lease", "");
   l.deadline_ms = answer_field_or<int64_t>(j, "deadline_ms", "lease", 0);
+  l.resumable = answer_field_or<bool>(j, "resumable", "lease", false);
+  l.state_spp = answer_field_or<uint32_t>(j, "state_spp", "lease", 0);
+  if (l.state_spp > l.spp) throw ProtocolError("lease: \"state_spp\" is above \"spp\"");
 }
 
 void to_json(json& j, const HeartbeatReport& h) { j = {{"rays", h.rays}}; }

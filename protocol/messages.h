@@ -51,18 +51,22 @@ struct JobSubmission {
   int tile_size = kDefaultTileSize;                 ///< Tile edge in pixels.
   int priority = kDefaultPriority;                  ///< Higher runs first.
   std::string name;                                 ///< Label.
+  /// Keep each pixel's exact sums with its tile, so the job's spp can be raised later (docs/resume.md).
+  bool resumable = false;
 };
 /// The submission's JSON (sampling settings at their defaults are left out).
 void to_json(nlohmann::json& j, const JobSubmission& s);
 /// Parses and checks a submission body; throws ProtocolError with the sentence the coordinator answers (400).
 JobSubmission parse_job_submission(const std::string& body);
 
-/// Body of PATCH /v1/jobs/{id}: what may change on a job that has not ended.
+/// Body of PATCH /v1/jobs/{id}: a new priority (a job that has not ended) and/or a higher spp (a resumable job).
 struct JobPatch {
-  int priority = kDefaultPriority;  ///< The new priority (higher runs first); required.
+  std::optional<int> priority;  ///< The new priority (higher runs first).
+  std::optional<uint32_t> spp;  ///< The new samples per pixel (see server/job_refine.h).
 };
 void to_json(nlohmann::json& j, const JobPatch& p);
-/// Parses a patch body ({"priority": N}, nothing else); throws ProtocolError with the sentence answered (400).
+/// Parses a patch body ({"priority": N} and/or {"spp": M}, nothing else, at least one); throws ProtocolError with the
+/// sentence answered (400).
 JobPatch parse_job_patch(const std::string& body);
 
 /// Answer 201 to POST /v1/jobs.
@@ -81,6 +85,7 @@ struct JobSpec {
   int width = 0;                                    ///< Image width.
   int height = 0;                                   ///< Image height.
   int tile_size = kDefaultTileSize;                 ///< Tile edge.
+  bool resumable = false;                           ///< Tiles carry their exact sums (see JobSubmission).
 };
 void to_json(nlohmann::json& j, const JobSpec& s);
 /// Reads a spec (extra keys are ignored); throws ProtocolError naming the field.
@@ -116,6 +121,9 @@ struct Lease {
   uint64_t seed = 0;        ///< Sample seed.
   std::string scene_hash;   ///< Scene content hash (informative).
   int64_t deadline_ms = 0;  ///< Expiry unless extended by a heartbeat.
+  bool resumable = false;   ///< Upload the tile with its exact sums (core/render_state.h channels).
+  /// When > 0: the tile was rendered before at this spp; continue from its state, GET /v1/leases/{lease}/state.
+  uint32_t state_spp = 0;
 };
 void to_json(nlohmann::json& j, const Lease& l);
 void from_json(const nlohmann::json& j, Lease& l);

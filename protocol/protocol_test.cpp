@@ -96,11 +96,22 @@ TEST(Messages, SubmissionRefusesUnknownKeysAndBadSettings) {
   EXPECT_EQ(error_of(R"({"scene": {}, "bvh": "octree"})"), "'bvh' must be one of sah, median (got \"octree\")");
   EXPECT_EQ(error_of(R"({"scene": {}, "replicates": 99})"), "'replicates' must be an integer in 1..16 (got 99)");
   EXPECT_EQ(error_of(""), "request body is empty; expected a JSON object");
+  EXPECT_EQ(error_of(R"({"scene": {}, "resumable": 1})"), "'resumable' must be true or false (got 1)");
+  EXPECT_EQ(error_of(R"({"scene": {}, "resumable": true, "target_error": 0.1})").rfind("'resumable' needs a fixed spp", 0), 0u);
+  EXPECT_TRUE(parse_job_submission(R"({"scene": {}, "resumable": true})").resumable);
 }
 
-TEST(Messages, AJobPatchCarriesOnlyAPriority) {
+TEST(Messages, AJobPatchCarriesAPriorityAndOrAnSpp) {
   EXPECT_EQ(parse_job_patch(R"({"priority": -7})").priority, -7);
-  EXPECT_EQ(parse_job_patch(nlohmann::json(JobPatch{12}).dump()).priority, 12);
+  EXPECT_FALSE(parse_job_patch(R"({"priority": -7})").spp);
+  EXPECT_EQ(parse_job_patch(nlohmann::json(JobPatch{12, std::nullopt}).dump()).priority, 12);
+  const JobPatch both = parse_job_patch(nlohmann::json(JobPatch{3, 256}).dump());
+  EXPECT_EQ(both.priority, 3);
+  EXPECT_EQ(both.spp, 256u);
+  EXPECT_EQ(parse_job_patch(R"({"spp": 64})").spp, 64u);
+  EXPECT_FALSE(parse_job_patch(R"({"spp": 64})").priority);
+  EXPECT_THROW(parse_job_patch(R"({"spp": 0})"), ProtocolError);
+  EXPECT_THROW(parse_job_patch(R"({"spp": 1.5})"), ProtocolError);
   EXPECT_THROW(parse_job_patch(R"({"priority": 1, "name": "x"})"), ProtocolError);
   EXPECT_THROW(parse_job_patch("{}"), ProtocolError);
   EXPECT_THROW(parse_job_patch(""), ProtocolError);

@@ -41,7 +41,8 @@ Access route_access(RouteId route, http::verb method) {
     case RouteId::lease_heartbeat:
     case RouteId::lease_result:
     case RouteId::lease_fail:
-    case RouteId::lease_release: return Access::worker;
+    case RouteId::lease_release:
+    case RouteId::lease_state: return Access::worker;
     case RouteId::none: break;
   }
   return Access::client;  // unreachable for matched routes; the strictest answer otherwise
@@ -162,7 +163,8 @@ ResourceHandler& Api::handler_for(RouteId route) {
     case RouteId::lease_heartbeat:
     case RouteId::lease_result:
     case RouteId::lease_fail:
-    case RouteId::lease_release: return leases_handler_;
+    case RouteId::lease_release:
+    case RouteId::lease_state: return leases_handler_;
     case RouteId::none: break;
   }
   throw ApiError(404, "no such endpoint");

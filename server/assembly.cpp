@@ -114,10 +114,12 @@ std::vector<uint8_t> JobImage::preview_png() {
   return encode_png_srgb(image_);
 }
 
-void JobImage::write_exr(const std::filesystem::path& path, const std::map<std::string, std::string>& metadata) {
+void JobImage::write_exr(const std::filesystem::path& path, const std::map<std::string, std::string>& metadata,
+                         std::map<std::string, std::vector<uint32_t>> uint_channels) {
   TESSERA_FAIL_POINT("assembly.write_result");
   std::lock_guard lock(mu_);
   allocate_locked();
+  image_.uint_extra = std::move(uint_channels);
   ExrWriteOptions o;
   o.display_window = PixelWindow{0, 0, width_, height_};
   o.data_window = o.display_window;
@@ -125,7 +127,13 @@ void JobImage::write_exr(const std::filesystem::path& path, const std::map<std::
   // Uncompressed: on a 3840x2160 float frame ZIP costs 7.4 s to save 5% (rendered noise barely compresses), while
   // the whole file is written in 0.2 s, so assembly stays a small fraction of rendering.
   o.compression = ExrCompression::kNone;
-  tessera::write_exr(path, image_, o);
+  try {
+    tessera::write_exr(path, image_, o);
+  } catch (...) {
+    image_.uint_extra.clear();
+    throw;
+  }
+  image_.uint_extra.clear();
 }
 
 void JobImage::release() {

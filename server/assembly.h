@@ -40,8 +40,10 @@ class JobImage {
   void paste(const Image& tile, const PixelWindow& window);
   /// An sRGB PNG of the image as far as it is filled (black elsewhere).
   std::vector<uint8_t> preview_png();
-  /// Writes the image atomically as a float32 EXR with string metadata; throws ImageError naming the file.
-  void write_exr(const std::filesystem::path& path, const std::map<std::string, std::string>& metadata);
+  /// Writes the image atomically as a float32 EXR with string metadata (and UINT channels, e.g. a resumable job's state
+  /// channels); throws ImageError naming the file.
+  void write_exr(const std::filesystem::path& path, const std::map<std::string, std::string>& metadata,
+                 std::map<std::string, std::vector<uint32_t>> uint_channels = {});
   /// Frees the pixels (after the result is written).
   void release();
 

@@ -100,6 +100,7 @@ TEST(RouteAccess, EveryEndpointNeedsTheRightToken) {
   for (RouteId r : {RouteId::workers, RouteId::worker_lease, RouteId::lease_heartbeat, RouteId::lease_result,
                     RouteId::lease_fail, RouteId::lease_release})
     EXPECT_EQ(route_access(r, V::post), Access::worker);
+  EXPECT_EQ(route_access(RouteId::lease_state, V::get), Access::worker);
 }
 
 // A coordinator with both tokens on 127.0.0.1:0, its log captured to check that no token is ever written.

@@ -63,6 +63,8 @@ CREATE TABLE IF NOT EXISTS leases(
   deadline_ms INTEGER NOT NULL, state TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS workers(id TEXT PRIMARY KEY, name TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS job_records(id TEXT PRIMARY KEY, record TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS tile_states(job TEXT NOT NULL, idx INTEGER NOT NULL, spp INTEGER NOT NULL, exr BLOB NOT NULL,
+  PRIMARY KEY(job, idx));
 )sql";
 
 }  // namespace
@@ -436,6 +438,36 @@ std::vector<std::pair<int64_t, std::string>> DurableStore::tile_pixels(const std
   Statement& st = db_.statement("SELECT idx, pixels FROM tiles WHERE job = ? AND state = 'done' ORDER BY idx");
   st.bind_text(1, job);
   while (st.step()) out.emplace_back(st.integer(0), st.blob(1));
+  return out;
+}
+
+void DurableStore::save_tile_state(const std::string& job, int64_t tile, uint32_t spp, std::string_view exr) {
+  std::lock_guard lock(mu_);
+  db_.statement("INSERT OR REPLACE INTO tile_states(job, idx, spp, exr) VALUES(?,?,?,?)")
+      .bind_text(1, job)
+      .bind(2, tile)
+      .bind(3, int64_t(spp))
+      .bind_blob(4, exr)
+      .run();
+}
+
+std::optional<uint32_t> DurableStore::tile_state_spp(const std::string& job, int64_t tile) {
+  std::lock_guard lock(mu_);
+  Statement& st = db_.statement("SELECT spp FROM tile_states WHERE job = ? AND idx = ?");
+  st.bind_text(1, job).bind(2, tile);
+  if (!st.step()) return std::nullopt;
+  const auto spp = uint32_t(st.integer(0));
+  st.reset();
+  return spp;
+}
+
+std::optional<std::pair<uint32_t, std::string>> DurableStore::tile_state(const std::string& job, int64_t tile) {
+  std::lock_guard lock(mu_);
+  Statement& st = db_.statement("SELECT spp, exr FROM tile_states WHERE job = ? AND idx = ?");
+  st.bind_text(1, job).bind(2, tile);
+  if (!st.step()) return std::nullopt;
+  std::pair<uint32_t, std::string> out{uint32_t(st.integer(0)), st.blob(1)};
+  st.reset();
   return out;
 }
 

@@ -124,6 +124,9 @@ class DurableStore final : public SchedulerStore, public JobStore {
   std::filesystem::path result_path(const std::string& job) override;
   std::filesystem::path scratch_dir() override { return scratch_; }
   std::vector<std::pair<int64_t, std::string>> tile_pixels(const std::string& job) override;
+  void save_tile_state(const std::string& job, int64_t tile, uint32_t spp, std::string_view exr) override;
+  std::optional<uint32_t> tile_state_spp(const std::string& job, int64_t tile) override;
+  std::optional<std::pair<uint32_t, std::string>> tile_state(const std::string& job, int64_t tile) override;
 
   /// The database file.
   std::filesystem::path database_file() const { return db_.file(); }

@@ -3,6 +3,8 @@
 #include "core/file_io.h"
 #include "core/scene_loader.h"
 #include "core/tiles.h"
+#include "server/job_refine.h"
+#include "server/tile_state.h"
 
 #include <spdlog/spdlog.h>
 
@@ -77,6 +79,16 @@ void JobService::check_assets(const protocol::JobSubmission& sub) {
   if (!missing.empty()) throw ApiError(400, "missing assets: " + missing);
 }
 
+void JobService::check_samples(int width, int height, uint32_t per_pixel, bool adaptive) const {
+  const double samples = double(width) * double(height) * double(per_pixel);
+  if (samples <= limits_.max_job_samples) return;
+  char text[256];
+  std::snprintf(text, sizeof text,
+                "job too large: %dx%d pixels x %u %s = %.3g samples is over the limit of %.3g (--max-job-samples)",
+                width, height, per_pixel, adaptive ? "max_spp" : "spp", samples, limits_.max_job_samples);
+  throw ApiError(400, text);
+}
+
 protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
   const auto queue_full = [&] {
     return ApiError(429, "too many unfinished jobs: " + std::to_string(limits_.max_queued_jobs) +
@@ -106,16 +118,7 @@ protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
                             std::to_string(pixels) + " pixels is over the limit of " +
                             std::to_string(limits_.max_job_pixels) + " (--max-job-pixels)");
   const bool adaptive = sub.sampling.target_error > 0.0;
-  const uint64_t per_pixel = adaptive ? uint64_t(sub.sampling.max_spp) : uint64_t(s.settings.spp);
-  const double samples = double(pixels) * double(per_pixel);
-  if (samples > limits_.max_job_samples) {
-    char text[256];
-    std::snprintf(text, sizeof text,
-                  "job too large: %dx%d pixels x %llu %s = %.3g samples is over the limit of %.3g (--max-job-samples)",
-                  s.width, s.height, static_cast<unsigned long long>(per_pixel), adaptive ? "max_spp" : "spp", samples,
-                  limits_.max_job_samples);
-    throw ApiError(400, text);
-  }
+  check_samples(s.width, s.height, adaptive ? sub.sampling.max_spp : s.settings.spp, adaptive);
   JobParams p;
   p.name = sub.name;
   p.priority = sub.priority;
@@ -126,7 +129,7 @@ protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
   p.seed = sub.sampling.seed;
   p.scene_hash = s.hash;
 
-  protocol::JobSpec spec{sub.scene, sub.assets, sub.sampling, p.width, p.height, p.tile_size};
+  protocol::JobSpec spec{sub.scene, sub.assets, sub.sampling, p.width, p.height, p.tile_size, sub.resumable};
   spec.sampling.spp = p.spp;
   std::unique_lock admit(admit_mu_);
   if (unfinished_jobs() >= limits_.max_queued_jobs) throw queue_full();
@@ -204,6 +207,65 @@ protocol::JobStatus JobService::set_priority(const std::string& id, int priority
     throw ApiError(409, "job " + id + " is " + to_string(r.was) + ": only a job that has not ended can change priority");
   spdlog::info("job {}: priority {}", id, priority);
   return status(id);
+}
+
+protocol::JobStatus JobService::raise_spp(const std::string& id, uint32_t spp) {
+  const protocol::JobStatus before = status(id);
+  protocol::JobSpec sp = spec(id);
+  if (const auto why = refine_refusal(before, sp, spp)) throw ApiError(409, *why);
+  check_samples(before.params.width, before.params.height, spp, false);
+  const RaiseResult r = sched_.raise_spp(id, spp);
+  switch (r.status) {
+    case RaiseResult::unknown: throw ApiError(404, "no job " + id);
+    case RaiseResult::wrong_state: throw ApiError(409, *refine_refusal(*sched_.job(id), sp, spp));
+    case RaiseResult::merging:
+      throw ApiError(409, "job " + id + " is merging an uploaded tile at this moment; try again");
+    case RaiseResult::raised: break;
+  }
+  // The record follows the scheduler, whose spp is the job's (finalize records that one if a crash came between).
+  sp.sampling.spp = spp;
+  jobs_.save_record(id, sp);
+  {
+    std::lock_guard lock(mu_);
+    specs_[id] = sp;
+  }
+  spdlog::info("job {}: spp raised from {} to {} (was {}), {} lease(s) revoked; every tile continues from its stored "
+               "state", id, before.params.spp, spp, to_string(r.was), r.revoked_leases);
+  return status(id);
+}
+
+std::optional<protocol::SamplingSettings> JobService::resumable_sampling(const std::string& job) {
+  // From the cached spec without copying it (this runs for every lease and upload).
+  const auto cached = [&]() -> std::optional<std::optional<protocol::SamplingSettings>> {
+    std::lock_guard lock(mu_);
+    const auto it = specs_.find(job);
+    if (it == specs_.end()) return std::nullopt;
+    if (!it->second.resumable) return std::optional<protocol::SamplingSettings>();
+    return std::optional<protocol::SamplingSettings>(it->second.sampling);
+  };
+  if (auto r = cached()) return *r;
+  try {
+    spec(job);  // loads the record into the cache
+  } catch (const ApiError&) {  // no record: a job of an older version, not resumable
+    return std::nullopt;
+  }
+  return cached().value_or(std::nullopt);
+}
+
+protocol::Lease JobService::with_state(protocol::Lease lease) {
+  if (!resumable_sampling(lease.job)) return lease;
+  lease.resumable = true;
+  const std::optional<uint32_t> stored = jobs_.tile_state_spp(lease.job, lease.tile);
+  if (stored && *stored <= lease.spp) lease.state_spp = *stored;
+  return lease;
+}
+
+std::string JobService::lease_state(const std::string& lease) {
+  const ResultClaim c = sched_.check_result(lease);
+  if (c.status == ResultClaim::unknown) throw ApiError(404, "unknown lease " + lease);
+  auto stored = jobs_.tile_state(c.job, c.tile);
+  if (!stored) throw ApiError(404, "tile " + std::to_string(c.tile) + " of job " + c.job + " has no stored state");
+  return std::move(stored->second);
 }
 
 protocol::JobSpec JobService::spec(const std::string& id) {
@@ -290,6 +352,9 @@ UploadOutcome JobService::accept_tile(const std::string& lease, const std::strin
   TileCheck check = check_tile_exr(tmp, pre.window, pre.width, pre.height);
   std::error_code rm_ec;
   fs::remove(tmp, rm_ec);
+  // A resumable job's tile must carry its exact sums at the job's spp (server/tile_state.h).
+  const std::optional<protocol::SamplingSettings> sampling = resumable_sampling(pre.job);
+  if (!check.error && sampling) check.error = check_tile_state(check.pixels, pre.spp, sampling->replicates);
   if (check.error) {
     const FailResult f = sched_.fail(lease, "invalid result: " + *check.error);
     spdlog::warn("job {} tile {} worker {}: invalid result: {}{}", pre.job, pre.tile, pre.worker, *check.error,
@@ -302,6 +367,9 @@ UploadOutcome JobService::accept_tile(const std::string& lease, const std::strin
   if (auto r = settled(c)) return *r;
   bool last = false;
   try {
+    // Stored as uploaded, to continue from when the job's spp is raised (while the tile is claimed: no raise comes
+    // between, and a lease of another spp was discarded by the claim).
+    if (sampling) jobs_.save_tile_state(c.job, c.tile, c.spp, exr);
     // Pasted before the tile counts as done: the upload that finishes the job writes the image, and every other
     // tile's pixels must be in it by then (pasting identical pixels twice is harmless if the store then fails).
     image_for(c.job, c.width, c.height)->paste(check.pixels, c.window);  // after a restart, rebuilt from the store first
@@ -348,6 +416,8 @@ void JobService::finalize(const std::string& job) {
     sampling = spec(job).sampling;
   } catch (const ApiError&) {
   }
+  sampling.spp = s->params.spp;
+  const bool resumable = resumable_sampling(job).has_value();
   std::map<std::string, std::string> meta = sampling.metadata();
   meta.insert({
       {"tessera:version", TESSERA_VERSION},
@@ -361,7 +431,11 @@ void JobService::finalize(const std::string& job) {
       {"tessera:finishedMs", std::to_string(now)},
       {"tessera:renderSeconds", std::to_string(double(now - s->started_ms.value_or(now)) / 1000.0)}});
   try {
-    img->write_exr(jobs_.result_path(job), meta);
+    std::map<std::string, std::vector<uint32_t>> state;  // a resumable job's result can be refined like its tiles
+    if (resumable)
+      state = result_state_channels(jobs_, job, TileGrid(s->params.width, s->params.height, s->params.tile_size),
+                                    sampling.spp, sampling.replicates);
+    img->write_exr(jobs_.result_path(job), meta, std::move(state));
   } catch (const std::exception& e) {
     spdlog::error("job {}: writing the result failed: {}", job, e.what());
     sched_.fail_job(job, std::string("writing the result failed: ") + e.what());

@@ -14,6 +14,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -58,8 +59,15 @@ class JobService {
   protocol::JobStatus resume(const std::string& id);
   /// Changes a job's priority; ApiError 404 unknown, 409 ended.
   protocol::JobStatus set_priority(const std::string& id, int priority);
+  /// Raises a resumable job's spp (server/job_refine.h): ApiError 404 unknown, 409 with the reason it cannot be exact,
+  /// 400 over the sample limit.
+  protocol::JobStatus raise_spp(const std::string& id, uint32_t spp);
   /// What workers need to build the job; ApiError 404.
   protocol::JobSpec spec(const std::string& id);
+  /// A granted lease as answered: for a resumable job, marked so and naming the spp of the tile's stored state.
+  protocol::Lease with_state(protocol::Lease lease);
+  /// The stored state (EXR bytes) of a lease's tile, to continue from; ApiError 404 when there is none.
+  std::string lease_state(const std::string& lease);
   /// The merged EXR of a done job; ApiError 404 unknown, 409 not done.
   std::string result_exr(const std::string& id);
   /// The image as far as it has rendered, as PNG; ApiError 404.
@@ -79,6 +87,10 @@ class JobService {
  private:
   int64_t unfinished_jobs();
   void check_assets(const protocol::JobSubmission& submission);
+  /// The sampling settings of a resumable job; nothing for other jobs.
+  std::optional<protocol::SamplingSettings> resumable_sampling(const std::string& job);
+  /// ApiError 400 when width x height x per_pixel samples are over the limit.
+  void check_samples(int width, int height, uint32_t per_pixel, bool adaptive) const;
   std::shared_ptr<JobImage> image_for(const std::string& job, int width, int height);
   void drop_image(const std::string& job);
   void finalize(const std::string& job);

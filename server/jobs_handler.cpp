@@ -17,8 +17,11 @@ HttpResponse JobsHandler::handle(Endpoint endpoint, const std::string& id, HttpR
     }
     case Endpoint::job:
       if (get) return json_response(http::status::ok, jobs_.status(id), v);
-      if (req.method() == http::verb::patch)
-        return json_response(http::status::ok, jobs_.set_priority(id, protocol::parse_job_patch(req.body()).priority), v);
+      if (req.method() == http::verb::patch) {
+        const protocol::JobPatch patch = protocol::parse_job_patch(req.body());
+        if (patch.spp) jobs_.raise_spp(id, *patch.spp);
+        return json_response(http::status::ok, patch.priority ? jobs_.set_priority(id, *patch.priority) : jobs_.status(id), v);
+      }
       return json_response(http::status::ok, jobs_.cancel(id), v);
     case Endpoint::job_result: return bytes_response(jobs_.result_exr(id), "image/x-exr", v);
     case Endpoint::job_preview: {

@@ -23,6 +23,7 @@ HttpResponse LeasesHandler::handle(Endpoint endpoint, const std::string& id, Htt
       if (!sched_.release(id)) throw ApiError(404, "unknown lease " + id);
       spdlog::debug("lease {}: released", id);
       return json_response(http::status::ok, {{"status", "released"}}, v);
+    case Endpoint::lease_state: return bytes_response(jobs_.lease_state(id), "image/x-exr", v);
     default: break;
   }
   throw ApiError(404, "no such endpoint");
@@ -32,7 +33,7 @@ HttpResponse LeasesHandler::lease(const std::string& worker, unsigned version) {
   const AcquireResult r = sched_.acquire(worker);
   if (r.status == AcquireResult::unknown_worker) throw ApiError(404, "unknown worker " + worker + ": register again");
   if (r.status == AcquireResult::no_work) return HttpResponse{http::status::no_content, version};
-  const Lease& l = r.lease;
+  const Lease l = jobs_.with_state(r.lease);
   spdlog::debug("job {} tile {} worker {}: leased as {}", l.job, l.tile, l.worker, l.id);
   return json_response(http::status::ok, l, version);
 }

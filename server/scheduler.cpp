@@ -491,9 +491,10 @@ ResultClaim Scheduler::claim_view_locked(const std::string& lease, JobRec** job_
   c.window = l.window;
   c.width = j.status.params.width;
   c.height = j.status.params.height;
+  c.spp = j.status.params.spp;
   *job_out = &j;
   *lease_out = &it->second;
-  if (j.status.state == JobState::cancelled || j.status.state == JobState::failed) {
+  if (j.status.state == JobState::cancelled || j.status.state == JobState::failed || l.spp != c.spp) {
     c.status = ResultClaim::discarded;
     return c;
   }
@@ -739,6 +740,45 @@ CancelResult Scheduler::cancel(const std::string& job) {
     finish_job_locked(*it->second, JobState::cancelled, now, std::nullopt);
     r.revoked_leases = int(before - live_leases_.size());
     r.status = CancelResult::cancelled;
+    return r;
+  });
+}
+
+RaiseResult Scheduler::raise_spp(const std::string& job, uint32_t spp) {
+  return transact([&](int64_t) {
+    RaiseResult r;
+    const auto it = jobs_.find(job);
+    if (it == jobs_.end()) return r;
+    JobRec& j = *it->second;
+    r.was = j.status.state;
+    if (j.status.state == JobState::failed || j.status.state == JobState::cancelled) {
+      r.status = RaiseResult::wrong_state;
+      return r;
+    }
+    for (const Tile& t : j.tiles)
+      if (t.state == TileState::merging) {
+        r.status = RaiseResult::merging;
+        return r;
+      }
+    for (auto l = live_leases_.begin(); l != live_leases_.end();) {
+      LeaseRec& rec = leases_.at(*l);
+      ++l;  // end_lease_locked erases rec's entry
+      if (rec.lease.job != job) continue;
+      end_lease_locked(rec, LeaseState::revoked);
+      ++r.revoked_leases;
+    }
+    for (int64_t i = 0; i < j.status.tiles.total; ++i)
+      if (j.tiles[size_t(i)].state != TileState::pending) return_to_pending_locked(j, i);
+    j.status.tiles.done = 0;
+    j.status.params.spp = spp;
+    if (j.status.state == JobState::done) {
+      j.status.state = JobState::running;
+      j.status.finished_ms.reset();
+      queue_.emplace(QueueKey{-j.status.params.priority, j.status.created_ms, j.seq}, &j);
+    }
+    sync_needed_ = true;
+    touch_job(j);
+    r.status = RaiseResult::raised;
     return r;
   });
 }

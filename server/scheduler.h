@@ -65,6 +65,7 @@ struct ResultClaim {
   PixelWindow window;   ///< Tile pixels.
   int width = 0;        ///< Full image columns.
   int height = 0;       ///< Full image rows.
+  uint32_t spp = 0;     ///< The job's samples per pixel (a lease of another spp, from before a raise, is discarded).
 };
 
 /// Outcome of finishing a claimed result.
@@ -105,6 +106,15 @@ struct PriorityResult {
   /// changed: the queue uses the new priority; ended: the job is done, failed or cancelled; unknown: no such job.
   enum Status { changed, ended, unknown } status = unknown;
   JobState was = JobState::queued;  ///< The state it has.
+};
+
+/// Outcome of raising a job's spp.
+struct RaiseResult {
+  /// raised: running (or queued, paused) again at the new spp; wrong_state: failed or cancelled; merging: an upload is
+  /// being merged (retry in a moment); unknown: no such job.
+  enum Status { raised, wrong_state, merging, unknown } status = unknown;
+  JobState was = JobState::queued;  ///< The state it had.
+  int revoked_leases = 0;           ///< Leases of the old spp revoked.
 };
 
 /// Counters for /metrics.
@@ -287,6 +297,9 @@ class Scheduler {
   PauseResult resume(const std::string& job);
   /// Changes the priority of a job that has not ended; its next tiles are leased in the new order.
   PriorityResult set_priority(const std::string& job, int priority);
+  /// Sets a job's spp (the caller checks it can be exact, server/job_refine.h): its live leases are revoked and every
+  /// tile is pending again; a done job is running again. Uploads of leases at the old spp are discarded from then on.
+  RaiseResult raise_spp(const std::string& job, uint32_t spp);
   /// Marks a job whose tiles are all merged done (after its image was written).
   void complete_job(const std::string& job);
   /// Marks an unfinished job failed with a reason.

@@ -73,6 +73,13 @@ class JobStore {
   virtual std::filesystem::path scratch_dir() = 0;
   /// The stored pixels of the job's done tiles as (tile number, float32 RGB rows); throws StorageError.
   virtual std::vector<std::pair<int64_t, std::string>> tile_pixels(const std::string& job) = 0;
+  /// Stores a resumable job's tile as uploaded at `spp` (an EXR with its exact sums, server/tile_state.h), replacing
+  /// the tile's earlier one; throws StorageError.
+  virtual void save_tile_state(const std::string& job, int64_t tile, uint32_t spp, std::string_view exr) = 0;
+  /// The spp of the tile's stored state, or nothing when it has none; throws StorageError.
+  virtual std::optional<uint32_t> tile_state_spp(const std::string& job, int64_t tile) = 0;
+  /// The tile's stored state as (spp, EXR bytes), or nothing; throws StorageError.
+  virtual std::optional<std::pair<uint32_t, std::string>> tile_state(const std::string& job, int64_t tile) = 0;
 };
 
 /// Creates a folder and its parents; throws StorageError naming it.

@@ -62,6 +62,7 @@ SubmitResult submit_job(HttpClient& http, const SubmitOptions& o) {
   job.tile_size = o.tile_size;
   job.priority = o.priority;
   job.name = o.name.empty() ? o.scene.filename().string() : o.name;
+  job.resumable = o.resumable;
   const HttpResponse r = http.send("POST", routes::jobs(), json(job).dump());
   if (r.status != 201 && r.status != 200) refuse("submitting " + o.scene.string(), r);
   out.job_id = protocol::parse_answer<protocol::SubmitAnswer>(r.body, "job submission").id;
@@ -116,7 +117,11 @@ JobStatus resume_job(HttpClient& http, const std::string& id) {
 
 JobStatus set_job_priority(HttpClient& http, const std::string& id, int priority) {
   return control(http, id, "PATCH", routes::job(id), "changing the priority of",
-                     json(protocol::JobPatch{priority}).dump());
+                     json(protocol::JobPatch{priority, std::nullopt}).dump());
+}
+
+JobStatus raise_job_spp(HttpClient& http, const std::string& id, uint32_t spp) {
+  return control(http, id, "PATCH", routes::job(id), "raising the spp of", json(protocol::JobPatch{std::nullopt, spp}).dump());
 }
 
 JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::function<void(const JobStatus&)>& progress,

@@ -33,6 +33,7 @@ struct SubmitOptions {
   int priority = protocol::kDefaultPriority;   ///< Higher runs first.
   std::string name;                    ///< Job label (default: the scene's file name).
   std::optional<std::filesystem::path> asset_root;  ///< Assets may lie anywhere below this folder.
+  bool resumable = false;              ///< Tiles keep their exact sums, so the spp can be raised later.
 };
 
 /// Counts of a submission's asset uploads.
@@ -68,6 +69,10 @@ JobStatus retry_job(HttpClient& http, const std::string& id);
 
 /// PATCH /v1/jobs/{id} {"priority": N}: the job with its new priority; throws SubmitError (404, 409 ended).
 JobStatus set_job_priority(HttpClient& http, const std::string& id, int priority);
+
+/// PATCH /v1/jobs/{id} {"spp": M}: the resumable job, running again towards M samples per pixel with its stored tiles
+/// continued; throws SubmitError (404, 409 with the reason it cannot be raised exactly).
+JobStatus raise_job_spp(HttpClient& http, const std::string& id, uint32_t spp);
 
 /// GET /v1/workers: every registered worker; throws SubmitError or HttpError.
 std::vector<protocol::WorkerInfo> list_workers(HttpClient& http);

@@ -2,6 +2,7 @@
 
 #include "core/image.h"
 #include "core/render.h"
+#include "core/render_state.h"
 #include "core/scene_loader.h"
 #include "failpoint/failpoint.h"
 #include "worker/asset_cache.h"
@@ -331,8 +332,8 @@ class Worker {
 
   void process(const Lease& l) {
     const std::string pfx = prefix(l);
-    spdlog::info("{}: leased window [{},{})x[{},{}) at {} spp", pfx, l.window.x0, l.window.x1, l.window.y0, l.window.y1,
-                 l.spp);
+    spdlog::info("{}: leased window [{},{})x[{},{}) at {} spp{}", pfx, l.window.x0, l.window.x1, l.window.y0, l.window.y1,
+                 l.spp, l.state_spp ? " continuing from " + std::to_string(l.state_spp) : std::string());
     std::atomic<bool> cancel{false};
     std::atomic<int> reason{int(Stop::kNone)};
     std::atomic<uint64_t> rays{0};
@@ -351,6 +352,9 @@ class Worker {
         // Tests fail the render here, or hold it until released (a pause ends when the tile is cancelled, as a
         // long render would).
         TESSERA_FAIL_POINT_CANCELLABLE("worker.render", [&] { return cancel.load(); });
+        // A resumable job's tile rendered before at fewer samples: continue from its exact sums.
+        std::optional<StoredRender> previous;
+        if (l.state_spp > 0) previous = stored_tile(l, scene->sampling.replicates, [&] { return cancel.load(); });
         RenderOptions ro;
         scene->sampling.apply_to(ro);
         ro.seed = l.seed;
@@ -361,8 +365,11 @@ class Worker {
         ro.tile_size = 8;
         ro.cancel = &cancel;
         ro.progress = [&rays](const RenderProgress& p) { rays.store(p.rays); };
+        ro.keep_state = l.resumable;
+        ro.previous = previous ? &*previous : nullptr;
         result = render(scene->loaded.scene, ro);
         if (result->cancelled) result.reset();
+        else if (l.resumable) write_state_channels(result->state, result->image);
       } catch (const Interrupted&) {
         result.reset();
       } catch (const Gone& e) {
@@ -392,12 +399,22 @@ class Worker {
     upload(l, pfx, *result, width, height);
   }
 
+  // The lease's tile as the coordinator stored it (GET /v1/leases/{lease}/state): its pixels and exact sums.
+  StoredRender stored_tile(const Lease& l, uint32_t replicates, const std::function<bool()>& interrupted) {
+    ExrImage exr = decode_exr(fetch(routes::lease_state(l.id), interrupted));
+    if (!(exr.data_window == l.window)) throw std::runtime_error("the stored state of the tile covers another window");
+    StoredRender stored{std::move(exr.pixels), {}};
+    stored.state = read_state_channels(stored.image, replicates);
+    if (!stored.state.exact()) throw std::runtime_error("the stored state of the tile has no exact sums");
+    return stored;
+  }
+
   void upload(const Lease& l, const std::string& pfx, const RenderResult& res, int width, int height) {
     ExrWriteOptions wo;
     wo.compression = ExrCompression::kNone;  // noisy floats barely compress; the CPU is better spent rendering
     wo.data_window = l.window;
     wo.display_window = PixelWindow{0, 0, width, height};
-    wo.write_extra = false;
+    wo.write_extra = l.resumable;  // a resumable job's tile carries its state channels
     std::vector<uint8_t> bytes = encode_exr(res.image, wo);
     TESSERA_FAIL_POINT_RETURN("worker.upload.corrupt",
                               [&](const std::string& how) { bytes = corrupt_tile(res.image, wo, how); });

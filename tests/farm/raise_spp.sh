@@ -1,0 +1,66 @@
+#!/usr/bin/env bash
+# Raising a resumable job's spp (PATCH /v1/jobs/{id} {"spp": M}, `tessera jobs spp ID M`): the done job runs again,
+# every tile is leased again and its worker continues from the tile's stored exact sums, and the result is bitwise the
+# single-process `render --resumable --spp M` and a farm job submitted at M from the start (path-traced scene with
+# glass, odd tiles). Raised again while running (a worker holds a tile, fail point worker.render, until the raise
+# revokes its lease), it ends identical to M2 from the start. The farm result refines locally too (`render --resume`).
+# Refusals: a job not submitted as resumable, an adaptive one, a lower spp (409 with a sentence).
+source "$(dirname "$0")/common.sh"
+
+N=$(spp 2) M=$(spp 8) M2=$(spp 16)
+write_cbox_scene "$WORK/g" 24 20 2 glass_sphere.json
+S="$WORK/g/scene.json"
+for n in "$N" "$M" "$M2"; do
+  "$TESSERA" render "$S" -o "$WORK/ref-$n.exr" --spp "$n" --seed 5 --resumable -q || fail "reference render at $n spp"
+done
+start_serve --lease-seconds 5 --heartbeat-seconds 1
+FAIL_POINTS="worker.render=1*off->1*pause->off" start_worker w1 --threads 1
+
+# Submitted at N and finished: identical to render --resumable at N (state channels included).
+JOB=$("$TESSERA" submit "$S" --coordinator "$URL" --spp "$N" --seed 5 --tile 7 --resumable --detach 2>"$WORK/submit.log") \
+  || fail "submit --resumable failed"
+wait_for log_has "$WORK/w1.log" "tile=0 .*upload accepted" || fail "no tile finished"
+wait_for paused "$WORK/w1.log" || fail "the second tile was not held"
+# Raised while running (tile 0 done at N, tile 1 held): the held lease is revoked, the worker drops the tile.
+"$TESSERA" jobs spp "$JOB" "$M" --coordinator "$URL" >"$WORK/raise-running.log" 2>&1 || fail "jobs spp (running) failed"
+log_has "$WORK/raise-running.log" "^$JOB: running again at $M spp, 12 of 12 tiles to continue" \
+  || fail "jobs spp did not report the running job at $M spp"
+wait_for log_has "$WORK/w1.log" "tile=1 .*lease revoked, tile dropped" || fail "the held tile was not dropped"
+start_worker w2 --threads 1
+job_done() { "$TESSERA" jobs show "$JOB" --coordinator "$URL" 2>/dev/null | grep -q '"state": "done"'; }
+wait_for job_done || fail "the job raised while running did not finish"
+log_has "$WORK/w1.log" "tile=0 .*at $M spp continuing from $N" || log_has "$WORK/w2.log" "tile=0 .*at $M spp continuing from $N" \
+  || fail "tile 0 was not continued from its state at $N spp"
+curl -sS -f -o "$WORK/farm-$M.exr" "$URL/v1/jobs/$JOB/result.exr" || fail "no result at $M"
+"$EXR_COMPARE" "$WORK/ref-$M.exr" "$WORK/farm-$M.exr" || fail "raised while running: differs from render --spp $M"
+
+# Raised when done: every tile continues from its state at M.
+"$TESSERA" jobs spp "$JOB" "$M2" --coordinator "$URL" >"$WORK/raise-done.log" 2>&1 || fail "jobs spp (done) failed"
+log_has "$WORK/raise-done.log" "^$JOB: running again at $M2 spp, 12 of 12 tiles to continue" || fail "jobs spp on a done job"
+wait_for job_done || fail "the job raised when done did not finish"
+[ "$(cat "$WORK"/w[12].log | grep -c "at $M2 spp continuing from $M")" = 12 ] || fail "not every tile continued from $M spp"
+curl -sS -f -o "$WORK/farm-$M2.exr" "$URL/v1/jobs/$JOB/result.exr" || fail "no result at $M2"
+"$EXR_COMPARE" "$WORK/ref-$M2.exr" "$WORK/farm-$M2.exr" || fail "raised when done: differs from render --spp $M2"
+# ... and from a resumable farm job submitted at M2 from the start.
+"$TESSERA" submit "$S" --coordinator "$URL" --spp "$M2" --seed 5 --tile 7 --resumable -o "$WORK/fresh-$M2.exr" -q \
+  >"$WORK/submit-fresh.log" 2>&1 || fail "submit at $M2 failed"
+"$EXR_COMPARE" "$WORK/fresh-$M2.exr" "$WORK/farm-$M2.exr" || fail "raised job differs from a job submitted at $M2"
+# The farm result refines locally as a --resumable render does.
+"$TESSERA" render "$S" -o "$WORK/local.exr" --resume "$WORK/farm-$M.exr" --spp "$M2" -q || fail "render --resume of a farm result"
+"$EXR_COMPARE" "$WORK/ref-$M2.exr" "$WORK/local.exr" || fail "a farm result refined locally differs"
+
+# Refusals, with their sentences.
+PLAIN=$("$TESSERA" submit "$S" --coordinator "$URL" --spp "$N" --seed 5 --tile 7 --detach 2>"$WORK/submit-plain.log") \
+  || fail "submit failed"
+expect_exit 2 "$WORK/raise-plain.log" -- "$TESSERA" jobs spp "$PLAIN" "$M" --coordinator "$URL"
+log_has "$WORK/raise-plain.log" "was not submitted as resumable" || fail "raising a plain job did not say why"
+expect_exit 2 "$WORK/raise-lower.log" -- "$TESSERA" jobs spp "$JOB" "$M" --coordinator "$URL"
+log_has "$WORK/raise-lower.log" "has $M2 spp: it can only be raised" || fail "lowering the spp did not say why"
+ADAPTIVE=$("$TESSERA" submit "$S" --coordinator "$URL" --target-error 0.2 --min-spp 2 --max-spp 8 --tile 7 --detach \
+  2>"$WORK/submit-adaptive.log") || fail "adaptive submit failed"
+expect_exit 2 "$WORK/raise-adaptive.log" -- "$TESSERA" jobs spp "$ADAPTIVE" "$M" --coordinator "$URL"
+log_has "$WORK/raise-adaptive.log" "uses adaptive sampling" || fail "raising an adaptive job did not say why"
+expect_exit 2 "$WORK/submit-adaptive-resumable.log" -- "$TESSERA" submit "$S" --coordinator "$URL" --target-error 0.2 \
+  --resumable --detach
+log_has "$WORK/submit-adaptive-resumable.log" "'resumable' needs a fixed spp" || fail "resumable adaptive submit accepted"
+echo "PASS"
