@@ -280,11 +280,13 @@ def exercise(c, tessera, workdir, address):
     c.call("PATCH", f"/v1/jobs/{a}", {"priority": 1, "name": "x"}, expect=400)
     c.call("PATCH", f"/v1/jobs/{a}", {}, expect=400)
     c.call("PATCH", "/v1/jobs/j-none", {"priority": 1}, expect=404)
+    c.call("PATCH", f"/v1/jobs/{a}", {"spp": 4}, expect=409)  # not submitted as resumable
+    c.call("PATCH", f"/v1/jobs/{a}", {"spp": 0}, expect=400)
     c.call("DELETE", f"/v1/jobs/{a}", expect=200)
     c.call("PUT", f"/v1/leases/{l3['lease']}/result", b"x", "image/x-exr", expect=410)
 
-    # A job a real worker renders: the done states, the result and an accepted upload.
-    _, b = c.call("POST", "/v1/jobs", job, expect=201)
+    # A resumable job a real worker renders: the done states, the result and an accepted upload.
+    _, b = c.call("POST", "/v1/jobs", {**job, "resumable": True}, expect=201)
     b = b["id"]
     worker = subprocess.Popen([tessera, "worker", "--coordinator", "http://" + address, "--threads", "1"],
                               stdout=subprocess.DEVNULL, stderr=open(os.path.join(workdir, "worker.log"), "w"))
@@ -307,6 +309,21 @@ def exercise(c, tessera, workdir, address):
         failures.append("result.exr is not an OpenEXR file")
     c.call("GET", f"/v1/jobs/{b}/preview.png", expect=200)
     c.call("GET", "/v1/jobs", expect=200)
+
+    # Raised to 2 spp: running again, each tile's lease names its stored state, which the worker can fetch.
+    c.call("PATCH", f"/v1/jobs/{b}", {"spp": 1}, expect=409)  # not higher
+    _, raised = c.call("PATCH", f"/v1/jobs/{b}", {"spp": 2}, expect=200)
+    if raised["state"] != "running" or raised["spp"] != 2 or raised["tiles"]["done"] != 0:
+        failures.append(f"raise: the job is {raised['state']} at {raised['spp']} spp, {raised['tiles']['done']} tiles done")
+    _, w3 = c.call("POST", "/v1/workers", None, expect=201)
+    _, l4 = c.call("POST", f"/v1/workers/{w3['id']}/lease", expect=200)
+    if not l4.get("resumable") or l4.get("state_spp") != 1 or l4["spp"] != 2:
+        failures.append(f"lease of a raised job: {l4}")
+    status, state = c.call("GET", f"/v1/leases/{l4['lease']}/state", expect=200)
+    if status == 200 and state[:4] != b"\x76\x2f\x31\x01":
+        failures.append("a lease's state is not an OpenEXR file")
+    c.call("GET", "/v1/leases/l-none/state", expect=404)
+    c.call("DELETE", f"/v1/jobs/{b}", expect=200)
 
     # 429: the coordinator runs with --max-queued-jobs 1 and no worker is left.
     c.call("POST", "/v1/jobs", job, expect=201)
