@@ -266,7 +266,8 @@ void DurableStore::apply(const SchedulerChanges& c) {
         "INSERT INTO jobs(id, seq, name, priority, width, height, tile_size, spp, seed, scene_hash, state, created_ms,"
         " started_ms, finished_ms, error, rays, workers, worker_failures, worker_last_error)"
         " VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)"
-        " ON CONFLICT(id) DO UPDATE SET priority = excluded.priority, state = excluded.state, started_ms = excluded.started_ms,"
+        " ON CONFLICT(id) DO UPDATE SET priority = excluded.priority, spp = excluded.spp, state = excluded.state,"
+        " started_ms = excluded.started_ms,"
         " finished_ms = excluded.finished_ms, error = excluded.error, rays = excluded.rays, workers = excluded.workers,"
         " worker_failures = excluded.worker_failures, worker_last_error = excluded.worker_last_error");
     st.bind_text(1, s.id).bind(2, int64_t(r.seq)).bind_text(3, p.name).bind(4, int64_t(p.priority));

@@ -340,6 +340,26 @@ TEST_F(DatabaseTest, JobRecordsRoundTrip) {
   EXPECT_EQ(store->result_path("j-x"), dir / "jobs" / "j-x" / "result.exr");
 }
 
+TEST_F(DatabaseTest, ARaisedSppAndTileStatesSurviveARestart) {
+  const std::string j = job();  // 2 tiles at 7 spp
+  const std::string w = sched->register_worker("w");
+  const Lease l = lease(w);
+  upload(l, 1.f);
+  EXPECT_FALSE(store->tile_state_spp(j, 0));
+  store->save_tile_state(j, 0, 7, std::string("exr \0 bytes", 11));
+  store->save_tile_state(j, 0, 7, "replaced");
+  ASSERT_EQ(sched->raise_spp(j, 28).status, RaiseResult::raised);
+  reopen();
+  EXPECT_EQ(sched->job(j)->params.spp, 28u);
+  EXPECT_EQ(sched->job(j)->tiles.pending, 2);
+  EXPECT_EQ(store->tile_state_spp(j, 0), 7u);
+  EXPECT_EQ(store->tile_state(j, 0), (std::pair<uint32_t, std::string>{7, "replaced"}));
+  EXPECT_FALSE(store->tile_state(j, 1));
+  const Lease again = lease(w);
+  EXPECT_EQ(again.tile, 0);
+  EXPECT_EQ(again.spp, 28u);
+}
+
 TEST_F(DatabaseTest, DatabaseErrorsNameTheStatement) {
   Database db(dir / "other.db");
   try {

@@ -526,6 +526,72 @@ TEST_F(SchedulerTest, PriorityChangeReordersLeasesAndEndedJobsRefuseIt) {
   EXPECT_EQ(s.set_priority("j-none", 1).status, PriorityResult::unknown);
 }
 
+// Raising the spp (server/job_refine.h): a done job runs again with every tile pending at the new spp; a running job's
+// leases are revoked and their late uploads discarded; failed, cancelled and merging jobs refuse.
+TEST_F(SchedulerTest, RaisingTheSppOfADoneJobLeasesEveryTileAgainAtTheNewSpp) {
+  const std::string j = job();
+  const std::string a = s.register_worker("a");
+  for (int i = 0; i < 4; ++i) upload(lease(a).id);
+  s.complete_job(j);
+  ASSERT_EQ(s.job(j)->state, JobState::done);
+  const RaiseResult r = s.raise_spp(j, 16);
+  EXPECT_EQ(r.status, RaiseResult::raised);
+  EXPECT_EQ(r.was, JobState::done);
+  const JobStatus st = *s.job(j);
+  EXPECT_EQ(st.state, JobState::running);
+  EXPECT_EQ(st.params.spp, 16u);
+  EXPECT_EQ(st.tiles.done, 0);
+  EXPECT_EQ(st.tiles.pending, 4);
+  EXPECT_FALSE(st.finished_ms);
+  bool last = false;
+  for (int i = 0; i < 4; ++i) {
+    const Lease l = lease(a);
+    EXPECT_EQ(l.tile, i);
+    EXPECT_EQ(l.spp, 16u);
+    EXPECT_EQ(upload(l.id, &last), ResultClaim::proceed);
+  }
+  EXPECT_TRUE(last);
+  s.complete_job(j);
+  EXPECT_EQ(s.job(j)->state, JobState::done);
+}
+
+TEST_F(SchedulerTest, RaisingTheSppOfARunningJobRevokesItsLeasesAndDiscardsTheirUploads) {
+  const std::string j = job();
+  const std::string a = s.register_worker("a");
+  const Lease done = lease(a), held = lease(a);
+  upload(done.id);
+  const RaiseResult r = s.raise_spp(j, 8);
+  EXPECT_EQ(r.status, RaiseResult::raised);
+  EXPECT_EQ(r.revoked_leases, 1);
+  EXPECT_EQ(s.heartbeat(held.id).status, HeartbeatResult::gone);
+  EXPECT_EQ(upload(held.id), ResultClaim::discarded);  // rendered at 4 spp: not merged into an 8 spp job
+  EXPECT_EQ(s.job(j)->tiles.pending, 4);
+  const Lease again = lease(a);
+  EXPECT_EQ(again.tile, 0);
+  EXPECT_EQ(again.spp, 8u);
+  EXPECT_EQ(upload(again.id), ResultClaim::proceed);
+}
+
+TEST_F(SchedulerTest, RaisingTheSppIsRefusedForEndedOrMergingJobs) {
+  const std::string j = job(), k = job();
+  const std::string a = s.register_worker("a");
+  const Lease l = lease(a);
+  ASSERT_EQ(s.claim_result(l.id).status, ResultClaim::proceed);
+  const RaiseResult merging = s.raise_spp(j, 8);
+  EXPECT_EQ(merging.status, RaiseResult::merging);
+  EXPECT_EQ(s.job(j)->params.spp, 4u);
+  s.finish_result(l.id);
+  EXPECT_EQ(s.raise_spp(j, 8).status, RaiseResult::raised);
+  ASSERT_EQ(s.cancel(k).status, CancelResult::cancelled);
+  const RaiseResult cancelled = s.raise_spp(k, 8);
+  EXPECT_EQ(cancelled.status, RaiseResult::wrong_state);
+  EXPECT_EQ(cancelled.was, JobState::cancelled);
+  EXPECT_EQ(s.raise_spp("j-none", 8).status, RaiseResult::unknown);
+  ASSERT_EQ(s.pause(j).status, PauseResult::changed);
+  EXPECT_EQ(s.raise_spp(j, 12).status, RaiseResult::raised);  // a paused job stays paused
+  EXPECT_EQ(s.job(j)->state, JobState::paused);
+}
+
 // Workers (issue 14): the list says what each one does; a drained worker finishes its tile and then gets no work.
 TEST_F(SchedulerTest, WorkerListShowsStateLeaseTilesAndBlocklists) {
   const std::string j = job();
