@@ -4,6 +4,7 @@
 # single-process `render --resumable --spp M` and a farm job submitted at M from the start (path-traced scene with
 # glass, odd tiles). Raised again while running (a worker holds a tile, fail point worker.render, until the raise
 # revokes its lease), it ends identical to M2 from the start. The farm result refines locally too (`render --resume`).
+# With 2 replicates, raised across a SIGKILL of the coordinator, it is identical to render --replicates 2 --spp M.
 # Refusals: a job not submitted as resumable, an adaptive one, a lower spp (409 with a sentence).
 source "$(dirname "$0")/common.sh"
 
@@ -71,6 +72,41 @@ curl -sS -f -o "$WORK/farm-$M2.exr" "$URL/v1/jobs/$JOB/result.exr" || fail "no r
 # The farm result refines locally as a --resumable render does.
 "$TESSERA" render "$S" -o "$WORK/local.exr" --resume "$WORK/farm-$M.exr" --spp "$M2" -q || fail "render --resume of a farm result"
 "$EXR_COMPARE" "$WORK/ref-$M2.exr" "$WORK/local.exr" || fail "a farm result refined locally differs"
+
+# With replicates (a submission by hand: `submit` has no --replicates), raised when done, after a SIGKILL of the
+# coordinator with no worker running: the raised spp and the tiles' states come back from the database.
+R=$(python3 - "$S" "$N" <<'PY'
+import hashlib, json, os, sys
+scene = json.load(open(sys.argv[1]))
+def paths(v):  # every "path" value in the scene: its assets (uploaded by the submissions above)
+    if isinstance(v, dict):
+        for k, x in v.items():
+            yield from ([x] if k == "path" and isinstance(x, str) else paths(x))
+    elif isinstance(v, list):
+        for x in v:
+            yield from paths(x)
+base = os.path.dirname(sys.argv[1])
+assets = {p: hashlib.sha256(open(os.path.join(base, p), "rb").read()).hexdigest() for p in paths(scene)}
+print(json.dumps({"scene": scene, "assets": assets, "spp": int(sys.argv[2]), "seed": 5, "tile_size": 7,
+                  "replicates": 2, "resumable": True}))
+PY
+)
+REP=$(curl -sS -f -X POST -H 'Content-Type: application/json' -d "$R" "$URL/v1/jobs" | grep -Eo '"id":"[^"]+"' | cut -d'"' -f4)
+[ -n "$REP" ] || fail "the submission with replicates was refused"
+rep_done() { "$TESSERA" jobs show "$REP" --coordinator "$URL" 2>/dev/null | grep -q '"state": "done"'; }
+wait_for rep_done || fail "the job with replicates did not finish"
+kill -TERM "$WORKER_PID"  # w2; w1 is stopped too, so no tile renders before the restart
+for p in "${PIDS[@]}"; do [ "$p" = "$SERVE_PID" ] || kill -TERM "$p" 2>/dev/null || true; done
+"$TESSERA" jobs spp "$REP" "$M" --coordinator "$URL" >"$WORK/raise-rep.log" 2>&1 || fail "jobs spp (replicates) failed"
+kill -KILL "$SERVE_PID"
+wait "$SERVE_PID" 2>/dev/null || true
+start_serve --lease-seconds 5 --heartbeat-seconds 1
+start_worker w3 --threads 1
+wait_for rep_done || fail "the raised job with replicates did not finish after the restart"
+[ "$(grep -c "at $M spp continuing from $N" "$WORK/w3.log")" = 12 ] || fail "not every tile continued after the restart"
+curl -sS -f -o "$WORK/rep-$M.exr" "$URL/v1/jobs/$REP/result.exr" || fail "no result with replicates"
+"$TESSERA" render "$S" -o "$WORK/rep-ref-$M.exr" --spp "$M" --seed 5 --replicates 2 --resumable -q || fail "render --replicates"
+"$EXR_COMPARE" "$WORK/rep-ref-$M.exr" "$WORK/rep-$M.exr" || fail "raised job with replicates differs from render --spp $M"
 
 # Refusals, with their sentences.
 PLAIN=$("$TESSERA" submit "$S" --coordinator "$URL" --spp "$N" --seed 5 --tile 7 --detach 2>"$WORK/submit-plain.log") \
