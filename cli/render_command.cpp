@@ -132,8 +132,8 @@ int run_render(const RenderArgs& given) {
     return 2;
   }
   if (given.workers > 0) {
-    if (given.resumable || given.tile_budget > 0) {
-      spdlog::error("--workers renders whole jobs: drop --resumable/--tile-budget");
+    if (given.tile_budget > 0) {
+      spdlog::error("--workers renders whole jobs: drop --tile-budget");
       return 2;
     }
     return run_render_farm(given);

@@ -109,6 +109,7 @@ int run_render_farm(const RenderArgs& a) {
     farm::SubmitOptions o = shared_job_options(a);
     o.tile_size = a.farm_tile;
     o.sampling = sampling_settings(a, a.spp.value_or(0));  // 0: the scene's spp
+    o.resumable = a.resumable;  // the result then carries the state channels, as `render --resumable` writes them
     rc = submit_and_wait(http, o, a.output, a.quiet, [&] {
       if (InterruptGuard::interrupted()) return true;
       // Every worker gone means no progress is possible.

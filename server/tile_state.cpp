@@ -34,12 +34,13 @@ std::optional<std::string> check_tile_state(const Image& tile, uint32_t spp, uin
 std::map<std::string, std::vector<uint32_t>> result_state_channels(JobStore& store, const std::string& job,
                                                                    const TileGrid& grid, uint32_t spp,
                                                                    uint32_t replicates) {
-  const PixelWindow full{0, 0, grid.width, grid.height};
-  const size_t m = PixelAccumulator::state_size(replicates);
-  RenderState all;
-  all.replicates = replicates;
-  all.samples.assign(size_t(full.width()) * size_t(full.height()), 0);
-  all.sums.assign(all.samples.size() * m, 0.0);
+  // The tiles' state channels are copied as stored (each tile checked first), so the whole image's sums are never
+  // held as doubles besides.
+  const size_t width = size_t(grid.width), pixels = width * size_t(grid.height);
+  std::vector<std::string> channels{kSamplesChannel};
+  for (const std::string& v : PixelAccumulator::state_names(replicates))
+    for (const char* half : {".hi", ".lo"}) channels.push_back(kStateChannelPrefix + v + half);
+  std::map<std::string, std::vector<uint32_t>> out;
   for (int64_t t = 0; t < grid.count(); ++t) {
     const auto stored = store.tile_state(job, t);
     const std::string name = "tile " + std::to_string(t);
@@ -50,19 +51,17 @@ std::map<std::string, std::vector<uint32_t>> result_state_channels(JobStore& sto
     const ExrImage exr = decode_exr(stored->second);
     const PixelWindow w = grid.window(t);
     if (!(exr.data_window == w)) throw std::runtime_error(name + "'s stored state covers another window");
-    const RenderState part = read_state_channels(exr.pixels, replicates);
-    if (!part.exact()) throw std::runtime_error(name + "'s stored state has no exact sums");
-    for (int y = 0; y < w.height(); ++y)
-      for (int x = 0; x < w.width(); ++x) {
-        const size_t from = size_t(y) * size_t(w.width()) + size_t(x);
-        const size_t to = size_t(w.y0 + y) * size_t(full.width()) + size_t(w.x0 + x);
-        all.samples[to] = part.samples[from];
-        std::copy_n(part.sums.begin() + std::ptrdiff_t(from * m), m, all.sums.begin() + std::ptrdiff_t(to * m));
-      }
+    if (const auto why = check_tile_state(exr.pixels, spp, replicates)) throw std::runtime_error(name + ": " + *why);
+    for (const std::string& channel : channels) {
+      const std::vector<uint32_t>& values = exr.pixels.uint_extra.at(channel);  // there: checked above
+      std::vector<uint32_t>& all = out[channel];
+      all.resize(pixels);
+      for (int y = 0; y < w.height(); ++y)
+        std::copy_n(values.begin() + std::ptrdiff_t(size_t(y) * size_t(w.width())), w.width(),
+                    all.begin() + std::ptrdiff_t(size_t(w.y0 + y) * width + size_t(w.x0)));
+    }
   }
-  Image channels = Image::make(full.width(), full.height());
-  write_state_channels(all, channels);
-  return std::move(channels.uint_extra);
+  return out;
 }
 
 }  // namespace tessera::server

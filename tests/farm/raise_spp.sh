@@ -108,6 +108,11 @@ curl -sS -f -o "$WORK/rep-$M.exr" "$URL/v1/jobs/$REP/result.exr" || fail "no res
 "$TESSERA" render "$S" -o "$WORK/rep-ref-$M.exr" --spp "$M" --seed 5 --replicates 2 --resumable -q || fail "render --replicates"
 "$EXR_COMPARE" "$WORK/rep-ref-$M.exr" "$WORK/rep-$M.exr" || fail "raised job with replicates differs from render --spp $M"
 
+# render --workers --resumable writes the file render --resumable writes (state channels included).
+"$TESSERA" render "$S" -o "$WORK/workers-$N.exr" --spp "$N" --seed 5 --resumable --workers 2 --farm-tile 7 -q \
+  >"$WORK/render-workers.log" 2>&1 || fail "render --workers --resumable failed"
+"$EXR_COMPARE" "$WORK/ref-$N.exr" "$WORK/workers-$N.exr" || fail "render --workers --resumable differs from render --resumable"
+
 # Refusals, with their sentences.
 PLAIN=$("$TESSERA" submit "$S" --coordinator "$URL" --spp "$N" --seed 5 --tile 7 --detach 2>"$WORK/submit-plain.log") \
   || fail "submit failed"
