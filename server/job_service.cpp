@@ -210,6 +210,7 @@ protocol::JobStatus JobService::set_priority(const std::string& id, int priority
 }
 
 protocol::JobStatus JobService::raise_spp(const std::string& id, uint32_t spp) {
+  std::lock_guard one_at_a_time(raise_mu_);
   const protocol::JobStatus before = status(id);
   protocol::JobSpec sp = spec(id);
   if (const auto why = refine_refusal(before, sp, spp)) throw ApiError(409, *why);
@@ -217,12 +218,14 @@ protocol::JobStatus JobService::raise_spp(const std::string& id, uint32_t spp) {
   const RaiseResult r = sched_.raise_spp(id, spp);
   switch (r.status) {
     case RaiseResult::unknown: throw ApiError(404, "no job " + id);
-    case RaiseResult::wrong_state: throw ApiError(409, *refine_refusal(*sched_.job(id), sp, spp));
+    case RaiseResult::wrong_state:
+    case RaiseResult::not_higher: throw ApiError(409, *refine_refusal(*sched_.job(id), sp, spp));  // changed meanwhile
     case RaiseResult::merging:
       throw ApiError(409, "job " + id + " is merging an uploaded tile at this moment; try again");
     case RaiseResult::raised: break;
   }
-  // The record follows the scheduler, whose spp is the job's (finalize records that one if a crash came between).
+  // The record follows the scheduler, whose spp is the job's (finalize records that one if a crash came between);
+  // raise_mu_ keeps concurrent raises from storing their records out of order.
   sp.sampling.spp = spp;
   jobs_.save_record(id, sp);
   {

@@ -104,6 +104,7 @@ class JobService {
   AdmissionLimits limits_;
   std::mutex mu_;
   std::mutex admit_mu_;                                      // makes the queued-jobs check and add_job one step
+  std::mutex raise_mu_;                                      // one raise_spp at a time (checks, scheduler, record)
   std::map<std::string, std::shared_ptr<JobImage>> images_;  // running jobs' images (a cache of the stored tiles)
   std::map<std::string, protocol::JobSpec> specs_;           // a cache of the stored specs
 };

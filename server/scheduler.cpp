@@ -755,6 +755,10 @@ RaiseResult Scheduler::raise_spp(const std::string& job, uint32_t spp) {
       r.status = RaiseResult::wrong_state;
       return r;
     }
+    if (spp <= j.status.params.spp) {
+      r.status = RaiseResult::not_higher;
+      return r;
+    }
     for (const Tile& t : j.tiles)
       if (t.state == TileState::merging) {
         r.status = RaiseResult::merging;

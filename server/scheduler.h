@@ -110,9 +110,9 @@ struct PriorityResult {
 
 /// Outcome of raising a job's spp.
 struct RaiseResult {
-  /// raised: running (or queued, paused) again at the new spp; wrong_state: failed or cancelled; merging: an upload is
-  /// being merged (retry in a moment); unknown: no such job.
-  enum Status { raised, wrong_state, merging, unknown } status = unknown;
+  /// raised: running (or queued, paused) again at the new spp; wrong_state: failed or cancelled; not_higher: the spp
+  /// is not above the job's; merging: an upload is being merged (retry in a moment); unknown: no such job.
+  enum Status { raised, wrong_state, not_higher, merging, unknown } status = unknown;
   JobState was = JobState::queued;  ///< The state it had.
   int revoked_leases = 0;           ///< Leases of the old spp revoked.
 };
@@ -297,7 +297,7 @@ class Scheduler {
   PauseResult resume(const std::string& job);
   /// Changes the priority of a job that has not ended; its next tiles are leased in the new order.
   PriorityResult set_priority(const std::string& job, int priority);
-  /// Sets a job's spp (the caller checks it can be exact, server/job_refine.h): its live leases are revoked and every
+  /// Raises a job's spp (the caller checks it can be exact, server/job_refine.h): its live leases are revoked and every
   /// tile is pending again; a done job is running again. Uploads of leases at the old spp are discarded from then on.
   RaiseResult raise_spp(const std::string& job, uint32_t spp);
   /// Marks a job whose tiles are all merged done (after its image was written).

@@ -587,6 +587,8 @@ TEST_F(SchedulerTest, RaisingTheSppIsRefusedForEndedOrMergingJobs) {
   EXPECT_EQ(cancelled.status, RaiseResult::wrong_state);
   EXPECT_EQ(cancelled.was, JobState::cancelled);
   EXPECT_EQ(s.raise_spp("j-none", 8).status, RaiseResult::unknown);
+  EXPECT_EQ(s.raise_spp(j, 8).status, RaiseResult::not_higher);  // already 8
+  EXPECT_EQ(s.raise_spp(j, 6).status, RaiseResult::not_higher);
   ASSERT_EQ(s.pause(j).status, PauseResult::changed);
   EXPECT_EQ(s.raise_spp(j, 12).status, RaiseResult::raised);  // a paused job stays paused
   EXPECT_EQ(s.job(j)->state, JobState::paused);
