@@ -352,7 +352,7 @@ class Worker {
         // Tests fail the render here, or hold it until released (a pause ends when the tile is cancelled, as a
         // long render would).
         TESSERA_FAIL_POINT_CANCELLABLE("worker.render", [&] { return cancel.load(); });
-        // A resumable job's tile rendered before at fewer samples: continue from its exact sums.
+        // A resumable job's tile rendered before (state_spp samples per pixel): continue from its exact sums.
         std::optional<StoredRender> previous;
         if (l.state_spp > 0) previous = stored_tile(l, scene->sampling.replicates, [&] { return cancel.load(); });
         RenderOptions ro;
