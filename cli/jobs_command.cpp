@@ -69,7 +69,7 @@ int run_jobs(const JobsArgs& a) {
       std::printf("%s: %s, priority %d\n", s.id.c_str(), protocol::to_string(s.state), s.params.priority);
     } else if (a.action == "spp") {
       const protocol::JobStatus s = farm::raise_job_spp(http, a.job, uint32_t(*a.priority));
-      std::printf("%s: %s again at %u spp, %lld of %lld tiles to continue\n", s.id.c_str(), protocol::to_string(s.state),
+      std::printf("%s: %s at %u spp, %lld of %lld tiles to continue\n", s.id.c_str(), protocol::to_string(s.state),
                   s.params.spp, static_cast<long long>(s.tiles.total - s.tiles.done),
                   static_cast<long long>(s.tiles.total));
     } else if (a.action == "retry") {

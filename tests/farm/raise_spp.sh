@@ -47,7 +47,7 @@ wait_for log_has "$WORK/w1.log" "tile=0 .*upload accepted" || fail "no tile fini
 wait_for paused "$WORK/w1.log" || fail "the second tile was not held"
 # Raised while running (tile 0 done at N, tile 1 held): the held lease is revoked, the worker drops the tile.
 "$TESSERA" jobs spp "$JOB" "$M" --coordinator "$URL" >"$WORK/raise-running.log" 2>&1 || fail "jobs spp (running) failed"
-log_has "$WORK/raise-running.log" "^$JOB: running again at $M spp, 12 of 12 tiles to continue" \
+log_has "$WORK/raise-running.log" "^$JOB: running at $M spp, 12 of 12 tiles to continue" \
   || fail "jobs spp did not report the running job at $M spp"
 wait_for log_has "$WORK/w1.log" "tile=1 .*lease revoked, tile dropped" || fail "the held tile was not dropped"
 start_worker w2 --threads 1
@@ -60,7 +60,7 @@ curl -sS -f -o "$WORK/farm-$M.exr" "$URL/v1/jobs/$JOB/result.exr" || fail "no re
 
 # Raised when done: every tile continues from its state at M.
 "$TESSERA" jobs spp "$JOB" "$M2" --coordinator "$URL" >"$WORK/raise-done.log" 2>&1 || fail "jobs spp (done) failed"
-log_has "$WORK/raise-done.log" "^$JOB: running again at $M2 spp, 12 of 12 tiles to continue" || fail "jobs spp on a done job"
+log_has "$WORK/raise-done.log" "^$JOB: running at $M2 spp, 12 of 12 tiles to continue" || fail "jobs spp on a done job"
 wait_for job_done || fail "the job raised when done did not finish"
 [ "$(cat "$WORK"/w[12].log | grep -c "at $M2 spp continuing from $M")" = 12 ] || fail "not every tile continued from $M spp"
 curl -sS -f -o "$WORK/farm-$M2.exr" "$URL/v1/jobs/$JOB/result.exr" || fail "no result at $M2"
