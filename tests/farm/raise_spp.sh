@@ -8,7 +8,7 @@
 # Refusals: a job not submitted as resumable, an adaptive one, a lower spp (409 with a sentence).
 source "$(dirname "$0")/common.sh"
 
-N=$(spp 2) M=$(spp 8) M2=$(spp 16)
+N=$(spp 2) M=$(spp 8 2) M2=$(spp 16 4)  # M2 > M > N at any TESSERA_TEST_SPP_SCALE
 write_cbox_scene "$WORK/g" 24 20 2 glass_sphere.json
 S="$WORK/g/scene.json"
 for n in "$N" "$M" "$M2"; do
