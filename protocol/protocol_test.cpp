@@ -36,6 +36,27 @@ TEST(Messages, ParsesALease) {
   EXPECT_EQ(l.spp, 32u);
   EXPECT_EQ(l.seed, 5u);
   EXPECT_EQ(json(l).get<Lease>().deadline_ms, 9);
+  // An ordinary job's lease carries no resumable keys (its answer is what it was before resumable jobs existed).
+  EXPECT_FALSE(json(l).contains("resumable"));
+  EXPECT_FALSE(json(l).contains("state_spp"));
+  Lease r = l;
+  r.resumable = true;
+  r.state_spp = 8;
+  const Lease back = json(r).get<Lease>();
+  EXPECT_TRUE(back.resumable);
+  EXPECT_EQ(back.state_spp, 8u);
+  r.state_spp = 64;
+  EXPECT_THROW((void)json(r).get<Lease>(), ProtocolError);  // a state above the lease's spp
+}
+
+TEST(Messages, ASpecSaysWhetherTheJobIsResumable) {
+  JobSpec spec;
+  spec.sampling.spp = 4;
+  spec.width = spec.height = 8;
+  EXPECT_FALSE(json(spec).contains("resumable"));
+  EXPECT_FALSE(json(spec).get<JobSpec>().resumable);
+  spec.resumable = true;
+  EXPECT_TRUE(json(spec).get<JobSpec>().resumable);
 }
 
 TEST(Messages, NamesTheFieldThatIsWrong) {
