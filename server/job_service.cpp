@@ -258,8 +258,10 @@ std::optional<protocol::SamplingSettings> JobService::resumable_sampling(const s
 protocol::Lease JobService::with_state(protocol::Lease lease) {
   if (!resumable_sampling(lease.job)) return lease;
   lease.resumable = true;
+  // Only a state of fewer samples is continued: a tile leased again at its own spp (e.g. its upload was never
+  // acknowledged) is rendered afresh rather than copied from what was stored.
   const std::optional<uint32_t> stored = jobs_.tile_state_spp(lease.job, lease.tile);
-  if (stored && *stored <= lease.spp) lease.state_spp = *stored;
+  if (stored && *stored < lease.spp) lease.state_spp = *stored;
   return lease;
 }
 
