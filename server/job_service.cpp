@@ -234,7 +234,7 @@ protocol::JobStatus JobService::raise_spp(const std::string& id, uint32_t spp) {
   }
   spdlog::info("job {}: spp raised from {} to {} (was {}), {} lease(s) revoked; every tile continues from its stored "
                "state", id, before.params.spp, spp, to_string(r.was), r.revoked_leases);
-  return status(id);
+  return r.job;
 }
 
 std::optional<protocol::SamplingSettings> JobService::resumable_sampling(const std::string& job) {

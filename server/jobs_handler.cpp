@@ -1,5 +1,7 @@
 #include "server/jobs_handler.h"
 
+#include <optional>
+
 namespace tessera::server {
 
 using protocol::Endpoint;
@@ -19,8 +21,9 @@ HttpResponse JobsHandler::handle(Endpoint endpoint, const std::string& id, HttpR
       if (get) return json_response(http::status::ok, jobs_.status(id), v);
       if (req.method() == http::verb::patch) {
         const protocol::JobPatch patch = protocol::parse_job_patch(req.body());
-        if (patch.spp) jobs_.raise_spp(id, *patch.spp);
-        return json_response(http::status::ok, patch.priority ? jobs_.set_priority(id, *patch.priority) : jobs_.status(id), v);
+        std::optional<protocol::JobStatus> raised;
+        if (patch.spp) raised = jobs_.raise_spp(id, *patch.spp);
+        return json_response(http::status::ok, patch.priority ? jobs_.set_priority(id, *patch.priority) : *raised, v);
       }
       return json_response(http::status::ok, jobs_.cancel(id), v);
     case Endpoint::job_result: return bytes_response(jobs_.result_exr(id), "image/x-exr", v);

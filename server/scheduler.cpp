@@ -745,7 +745,7 @@ CancelResult Scheduler::cancel(const std::string& job) {
 }
 
 RaiseResult Scheduler::raise_spp(const std::string& job, uint32_t spp) {
-  return transact([&](int64_t) {
+  return transact([&](int64_t now) {
     RaiseResult r;
     const auto it = jobs_.find(job);
     if (it == jobs_.end()) return r;
@@ -783,6 +783,7 @@ RaiseResult Scheduler::raise_spp(const std::string& job, uint32_t spp) {
     sync_needed_ = true;
     touch_job(j);
     r.status = RaiseResult::raised;
+    r.job = snapshot_locked(j, now);
     return r;
   });
 }

@@ -115,6 +115,7 @@ struct RaiseResult {
   enum Status { raised, wrong_state, not_higher, merging, unknown } status = unknown;
   JobState was = JobState::queued;  ///< The state it had.
   int revoked_leases = 0;           ///< Leases of the old spp revoked.
+  JobStatus job;                    ///< The job as raised (when raised), before any worker took a tile.
 };
 
 /// Counters for /metrics.

@@ -537,6 +537,8 @@ TEST_F(SchedulerTest, RaisingTheSppOfADoneJobLeasesEveryTileAgainAtTheNewSpp) {
   const RaiseResult r = s.raise_spp(j, 16);
   EXPECT_EQ(r.status, RaiseResult::raised);
   EXPECT_EQ(r.was, JobState::done);
+  EXPECT_EQ(r.job.tiles.pending, 4);
+  EXPECT_EQ(r.job.params.spp, 16u);
   const JobStatus st = *s.job(j);
   EXPECT_EQ(st.state, JobState::running);
   EXPECT_EQ(st.params.spp, 16u);

@@ -39,6 +39,7 @@ hand_upload "$HA" --spp "$N" --resumable | grep -q accepted || fail "a tile with
 "$TESSERA" jobs cancel "$HAND" --coordinator "$URL" >"$WORK/cancel-hand.log" 2>&1 || fail "cancel failed"
 
 FAIL_POINTS="worker.render=1*off->1*pause->off" start_worker w1 --threads 1
+W1_PID=$WORKER_PID
 
 # Submitted at N and finished: identical to render --resumable at N (state channels included).
 JOB=$("$TESSERA" submit "$S" --coordinator "$URL" --spp "$N" --seed 5 --tile 7 --resumable --detach 2>"$WORK/submit.log") \
@@ -51,6 +52,7 @@ log_has "$WORK/raise-running.log" "^$JOB: running at $M spp, 12 of 12 tiles to c
   || fail "jobs spp did not report the running job at $M spp"
 wait_for log_has "$WORK/w1.log" "tile=1 .*lease revoked, tile dropped" || fail "the held tile was not dropped"
 start_worker w2 --threads 1
+W2_PID=$WORKER_PID
 job_done() { "$TESSERA" jobs show "$JOB" --coordinator "$URL" 2>/dev/null | grep -q '"state": "done"'; }
 wait_for job_done || fail "the job raised while running did not finish"
 log_has "$WORK/w1.log" "tile=0 .*at $M spp continuing from $N" || log_has "$WORK/w2.log" "tile=0 .*at $M spp continuing from $N" \
@@ -95,8 +97,7 @@ REP=$(curl -sS -f -X POST -H 'Content-Type: application/json' -d "$R" "$URL/v1/j
 [ -n "$REP" ] || fail "the submission with replicates was refused"
 rep_done() { "$TESSERA" jobs show "$REP" --coordinator "$URL" 2>/dev/null | grep -q '"state": "done"'; }
 wait_for rep_done || fail "the job with replicates did not finish"
-kill -TERM "$WORKER_PID"  # w2; w1 is stopped too, so no tile renders before the restart
-for p in "${PIDS[@]}"; do [ "$p" = "$SERVE_PID" ] || kill -TERM "$p" 2>/dev/null || true; done
+kill -TERM "$W1_PID" "$W2_PID"  # asked to stop: no tile renders before the restart
 "$TESSERA" jobs spp "$REP" "$M" --coordinator "$URL" >"$WORK/raise-rep.log" 2>&1 || fail "jobs spp (replicates) failed"
 kill -KILL "$SERVE_PID"
 wait "$SERVE_PID" 2>/dev/null || true
