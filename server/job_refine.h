@@ -1,6 +1,7 @@
 // Raising a job's spp (PATCH /v1/jobs/{id} {"spp": M}): when it can be exact, and why not otherwise. A resumable job
 // raised to M goes back to running; every tile is leased again and its worker continues from the tile's stored exact
-// sums, so the merged result is bitwise the one of a job submitted at M (docs/resume.md says why).
+// sums, so the merged result is bitwise the one of a job submitted at M (docs/resume.md says why). job_refine.cpp also
+// defines JobService's operations on resumable jobs (raise_spp, with_state, lease_state, resumable_sampling).
 #pragma once
 
 #include "protocol/job.h"

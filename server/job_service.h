@@ -59,7 +59,7 @@ class JobService {
   protocol::JobStatus resume(const std::string& id);
   /// Changes a job's priority; ApiError 404 unknown, 409 ended.
   protocol::JobStatus set_priority(const std::string& id, int priority);
-  /// Raises a resumable job's spp (server/job_refine.h) and returns it as raised (every tile pending): ApiError 404
+  /// Raises a resumable job's spp (server/job_refine.h, which defines this and the next two) and returns it as raised (every tile pending): ApiError 404
   /// unknown, 409 with the reason it cannot be exact, 400 over the sample limit.
   protocol::JobStatus raise_spp(const std::string& id, uint32_t spp);
   /// What workers need to build the job; ApiError 404.
