@@ -29,6 +29,8 @@ std::string decode(std::string_view s) {
       const int lo = i + 2 < s.size() ? hex_digit(s[i + 2]) : -1;
       if (hi < 0 || lo < 0)
         throw ProtocolError("query string: bad percent-escape in '" + std::string(s) + "'");
+      if (hi < 2) throw ProtocolError("query string: a control character (%" + std::string(s.substr(i + 1, 2)) + ") in '" +
+                                      std::string(s) + "'");
       out += char(hi * 16 + lo);
       i += 2;
     } else {

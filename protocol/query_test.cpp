@@ -42,6 +42,7 @@ TEST(JobListQuery, BadValuesAreRefusedWithASentence) {
   EXPECT_NE(refusal("/v1/jobs?limit=1&limit=2").find("more than once"), std::string::npos);
   EXPECT_NE(refusal("/v1/jobs?after=%zz").find("bad percent-escape"), std::string::npos);
   EXPECT_NE(refusal("/v1/jobs?after=%4").find("bad percent-escape"), std::string::npos);
+  EXPECT_NE(refusal("/v1/jobs?after=a%0Ab").find("a control character (%0A)"), std::string::npos);
 }
 
 TEST(PurgeQuery, OnlyTrueOrFalse) {
