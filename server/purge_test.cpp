@@ -172,6 +172,31 @@ TEST_F(PurgeTest, PurgingGivesTheDatabasePagesBackAndLeavesOtherJobsWhole) {
   for (const std::string& j : doomed) EXPECT_TRUE(store->tile_pixels(j).empty());
 }
 
+// A database made by a build before purging existed has auto_vacuum off: opening it switches it on (one VACUUM) and
+// keeps everything in it.
+TEST_F(PurgeTest, AnOlderDatabaseIsSwitchedToIncrementalVacuumOnOpen) {
+  const std::string j = job();
+  collector.reset();
+  service.reset();
+  sched.reset();
+  store.reset();
+  const auto auto_vacuum = [&] {
+    Database db(dir / "tessera.db");
+    Statement& st = db.statement("PRAGMA auto_vacuum");
+    return st.step() ? st.integer(0) : -1;
+  };
+  {
+    Database db(dir / "tessera.db");
+    db.exec("PRAGMA auto_vacuum=NONE");
+    db.exec("VACUUM");
+  }
+  ASSERT_EQ(auto_vacuum(), 0);
+  open();
+  EXPECT_EQ(auto_vacuum(), 2);  // INCREMENTAL
+  EXPECT_EQ(sched->job(j)->state, JobState::queued);
+  EXPECT_TRUE(store->load_record(j));
+}
+
 TEST_F(PurgeTest, ServiceRefusesWithASentenceAndDeletesTheResultFile) {
   const std::string j = job();
   try {
