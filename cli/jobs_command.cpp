@@ -30,11 +30,17 @@ CLI::App* add_jobs_command(CLI::App& app, JobsArgs& a) {
   auto* c = app.add_subcommand("jobs", "List and control a coordinator's jobs");
   c->add_option("action", a.action, "ls: list; show ID: the job as JSON; pause ID: no new leases (running tiles "
                                     "finish); resume ID; priority ID N: lease its tiles in a new order; spp ID M: raise a --resumable job to M samples per pixel, continuing its stored tiles; retry ID: render a failed or cancelled job's missing tiles; "
-                                    "cancel ID")
+                                    "cancel ID; rm ID: cancel it, or with --purge delete an ended job, its tiles and result")
       ->required()
-      ->check(CLI::IsMember({"ls", "show", "pause", "resume", "priority", "spp", "retry", "cancel"}));
+      ->check(CLI::IsMember({"ls", "show", "pause", "resume", "priority", "spp", "retry", "cancel", "rm"}));
   c->add_option("job", a.job, "Job id (all but ls)");
   c->add_option("value", a.priority, "New priority, higher runs first (priority); new samples per pixel (spp)");
+  c->add_flag("--purge", a.purge, "rm: delete a done, failed or cancelled job entirely (rows, tile pixels, result)");
+  c->add_option("--state", a.states, "ls: only jobs in these states (queued, running, paused, done, failed, cancelled)")
+      ->delimiter(',');
+  c->add_option("--limit", a.limit, "ls: at most this many jobs, newest first")
+      ->check(CLI::Range(size_t(1), protocol::kMaxJobListLimit));
+  c->add_option("--after", a.after, "ls: the page after this cursor (printed by a listing with --limit) or job id");
   c->add_option("--coordinator", a.coordinator, "Coordinator URL, e.g. http://127.0.0.1:8470")->required();
   c->add_option("--token-file", a.token_file, "File holding the client token (default: $TESSERA_CLIENT_TOKEN)");
   add_client_tls_flags(c, a.tls);
@@ -58,7 +64,23 @@ int run_jobs(const JobsArgs& a) {
     farm::HttpClient http(farm::parse_http_url(a.coordinator), {}, uint64_t(2) << 30, a.tls);
     http.set_bearer_token(load_token(a.token_file, "TESSERA_CLIENT_TOKEN"));
     if (a.action == "ls") {
-      print_table(farm::list_jobs(http));
+      protocol::JobListQuery q;
+      for (const std::string& s : a.states) {
+        try {
+          q.states.push_back(protocol::job_state_from_string(s));
+        } catch (const std::invalid_argument& e) {
+          spdlog::error("--state: {}", e.what());
+          return 2;
+        }
+      }
+      q.limit = a.limit;
+      q.after = a.after;
+      const protocol::JobList page = farm::list_jobs(http, q);
+      print_table(page.jobs);
+      if (page.next) std::printf("more: --after %s\n", page.next->c_str());
+    } else if (a.action == "rm" && a.purge) {
+      const protocol::PurgeAnswer p = farm::purge_job(http, a.job);
+      std::printf("%s: purged (was %s)\n", p.id.c_str(), protocol::to_string(p.was));
     } else if (a.action == "show") {
       std::printf("%s\n", nlohmann::json(farm::get_job(http, a.job)).dump(2).c_str());
     } else if (a.action == "pause" || a.action == "resume") {

@@ -1,4 +1,4 @@
-// `tessera jobs`: look at and control a coordinator's jobs (ls, show, pause, resume, priority, retry, cancel).
+// `tessera jobs`: look at and control a coordinator's jobs (ls, show, pause, resume, priority, retry, cancel, rm).
 #pragma once
 
 #include "worker/http_client.h"
@@ -7,14 +7,19 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace tessera::cli {
 
 /// Options of `tessera jobs`.
 struct JobsArgs {
-  std::string action;       ///< ls, show, pause, resume, priority, spp, retry or cancel.
+  std::string action;       ///< ls, show, pause, resume, priority, spp, retry, cancel or rm.
   std::string job;          ///< The job id (all but ls).
   std::optional<int> priority;  ///< The new priority (priority) or samples per pixel (spp).
+  bool purge = false;       ///< rm: delete an ended job entirely (else rm cancels).
+  std::vector<std::string> states;  ///< ls: only jobs in these states.
+  size_t limit = 0;         ///< ls: at most this many (0: all).
+  std::string after;        ///< ls: the page after this cursor or job id.
   std::string coordinator;  ///< Coordinator URL.
   std::string token_file;   ///< File holding the client token (else $TESSERA_CLIENT_TOKEN).
   farm::ClientTlsFiles tls;  ///< --ca-file, --tls-cert, --tls-key for https:// coordinators.

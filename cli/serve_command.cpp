@@ -44,6 +44,12 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
       ->check(CLI::Range(std::size_t(1024), std::size_t(1) << 24))->capture_default_str();
   c->add_option("--max-connections", a.max_connections, "Open connections; more are answered 503 and closed")
       ->check(CLI::Range(std::size_t(1), std::size_t(1) << 20))->capture_default_str();
+  c->add_option("--retain-finished-hours", a.retain_finished_hours,
+                "Purge done, failed and cancelled jobs this many hours after they ended (default 0: keep them forever)")
+      ->check(CLI::Range(0.0, 1e6));
+  c->add_option("--blob-grace-minutes", a.blob_grace_minutes,
+                "Delete an asset no job references only this many minutes after it was last uploaded or checked")
+      ->check(CLI::Range(0.0, 1e8))->capture_default_str();
   c->add_flag("-v,--verbose", a.verbose, "Log every lease and connection event");
   return c;
 }
@@ -64,6 +70,8 @@ int run_serve(const ServeArgs& a) {
     o.limits.json_limit = a.max_json_bytes;
     o.limits.blob_limit = a.max_blob_bytes;
     o.limits.result_limit = a.max_result_bytes;
+    if (a.retain_finished_hours > 0) o.limits.retention.retain_finished_ms = int64_t(a.retain_finished_hours * 3'600'000.0);
+    o.limits.retention.blob_grace_ms = int64_t(a.blob_grace_minutes * 60'000.0);
     o.header_limit = a.max_header_bytes;
     o.max_connections = a.max_connections;
     o.handle_signals = true;

@@ -31,6 +31,8 @@ struct ServeArgs {
   std::size_t max_result_bytes = std::size_t(64) << 20;  ///< Tile result uploads.
   std::size_t max_header_bytes = 64 * 1024;              ///< Request headers.
   std::size_t max_connections = 1024;     ///< Open connections.
+  double retain_finished_hours = 0;       ///< Purge jobs this long after they ended (0: keep forever).
+  double blob_grace_minutes = 60;         ///< Keep unreferenced blobs this long after their last upload or check.
   bool verbose = false;                   ///< Debug logging.
 };
 

@@ -308,8 +308,26 @@ FailReport parse_fail_report(const std::string& body) {
 
 void parse_empty_request(const std::string& body) { parse_request_object(body, {}, true); }
 
-void to_json(json& j, const JobList& l) { j = {{"jobs", l.jobs}}; }
+void to_json(json& j, const JobList& l) {
+  j = {{"jobs", l.jobs}, {"next", nullptr}};
+  if (l.next) j["next"] = *l.next;
+}
 
-void from_json(const json& j, JobList& l) { l.jobs = answer_field<std::vector<JobStatus>>(j, "jobs", "job list"); }
+void from_json(const json& j, JobList& l) {
+  l.jobs = answer_field<std::vector<JobStatus>>(j, "jobs", "job list");
+  const std::string next = answer_field_or<std::string>(j, "next", "job list", "");
+  if (!next.empty()) l.next = next;
+}
+
+void to_json(json& j, const PurgeAnswer& a) { j = {{"id", a.id}, {"purged", true}, {"was", to_string(a.was)}}; }
+
+void from_json(const json& j, PurgeAnswer& a) {
+  a.id = answer_field<std::string>(j, "id", "purge answer");
+  try {
+    a.was = job_state_from_string(answer_field<std::string>(j, "was", "purge answer"));
+  } catch (const std::invalid_argument& e) {
+    throw ProtocolError(std::string("purge answer: \"was\": ") + e.what());
+  }
+}
 
 }  // namespace tessera::protocol

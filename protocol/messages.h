@@ -148,9 +148,18 @@ void parse_empty_request(const std::string& body);
 /// Answer of GET /v1/jobs.
 struct JobList {
   std::vector<JobStatus> jobs;  ///< Newest first.
+  std::optional<std::string> next;  ///< The cursor of the next page (`after=`); null when this page is the last.
 };
 void to_json(nlohmann::json& j, const JobList& l);
 void from_json(const nlohmann::json& j, JobList& l);
+
+/// Answer of DELETE /v1/jobs/{id}?purge=true.
+struct PurgeAnswer {
+  std::string id;                 ///< The purged job.
+  JobState was = JobState::done;  ///< The state it had.
+};
+void to_json(nlohmann::json& j, const PurgeAnswer& a);
+void from_json(const nlohmann::json& j, PurgeAnswer& a);
 
 /// Reads an answer body as T (JSON text, then from_json); throws ProtocolError naming `what`.
 template <class T>

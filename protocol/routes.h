@@ -44,6 +44,7 @@ inline std::string metrics() { return path(Endpoint::metrics); }
 inline std::string blob(std::string_view sha256) { return path(Endpoint::blob, sha256); }
 inline std::string jobs() { return path(Endpoint::jobs); }
 inline std::string job(std::string_view id) { return path(Endpoint::job, id); }
+inline std::string job_purge(std::string_view id) { return path(Endpoint::job, id) + "?purge=true"; }
 inline std::string job_result(std::string_view id) { return path(Endpoint::job_result, id); }
 inline std::string job_preview(std::string_view id) { return path(Endpoint::job_preview, id); }
 inline std::string job_spec(std::string_view id) { return path(Endpoint::job_spec, id); }

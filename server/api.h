@@ -6,6 +6,7 @@
 #include "protocol/routes.h"
 #include "server/auth.h"
 #include "server/blobs_handler.h"
+#include "server/collector.h"
 #include "server/http_server.h"
 #include "server/job_service.h"
 #include "server/jobs_handler.h"
@@ -36,6 +37,7 @@ struct ApiOptions {
   int retry_after_seconds = 30;                      ///< Retry-After announced with 429.
   uint64_t max_job_pixels = uint64_t(1) << 26;       ///< width x height of one job (the merged image lives in memory).
   double max_job_samples = 4e10;                     ///< width x height x spp (x max_spp when adaptive) of one job.
+  RetentionOptions retention;                        ///< How long finished jobs and unreferenced blobs are kept.
 };
 
 /// The endpoints a request target can name (protocol/routes.h).
@@ -65,6 +67,8 @@ class Api final : public HttpHandler {
   HttpResponse handle(HttpRequest&& request) noexcept override;
   /// After a restart: finishes jobs whose every tile was stored but whose result was not written yet.
   void recover() { jobs_.recover(); }
+  /// Purges finished jobs past their retention time and collects unreferenced blobs (see Collector::sweep).
+  SweepReport sweep() { return collector_.sweep(); }
 
  private:
   std::optional<HttpResponse> check_access(const Route& route, const http::request_header<>& header);
@@ -73,6 +77,7 @@ class Api final : public HttpHandler {
   Metrics& metrics_;
   ApiOptions opt_;
   JobService jobs_;
+  Collector collector_;
   JobsHandler jobs_handler_;
   LeasesHandler leases_handler_;
   WorkersHandler workers_handler_;

@@ -23,6 +23,8 @@ HttpResponse BlobsHandler::handle(protocol::Endpoint, const std::string& sha, Ht
                          {{"sha256", sha}, {"size", r.size}}, req.version());
   }
   if (req.method() == http::verb::head) {
+    // A client checks the blobs of a submission it is about to send: the blob's grace period starts again.
+    blobs_.touch(sha);
     const std::optional<fs::path> f = blobs_.file(sha);
     HttpResponse res{f ? http::status::ok : http::status::not_found, req.version()};
     std::error_code ec;

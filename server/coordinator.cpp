@@ -91,10 +91,20 @@ struct Coordinator::Impl {
       const uint64_t expiries = sched.counters().lease_expiries;  // counters() reclaims expired leases
       if (expiries > last_expiries) spdlog::warn("{} lease(s) expired; their tiles are pending again", expiries - last_expiries);
       last_expiries = expiries;
+      if (++ticks % kSweepTicks == 0) asio::post(pool, [this] { sweep(); });  // deletes files: not on the network thread
       arm_tick();
     });
   }
 
+  void sweep() {
+    try {
+      api.sweep();
+    } catch (const std::exception& e) {
+      spdlog::error("retention sweep: {}", e.what());  // tried again at the next sweep
+    }
+  }
+
+  static constexpr uint64_t kSweepTicks = 60;  // retention and blob collection run once a minute
   CoordinatorOptions opt;
   DiskBlobStore blobs;
   DurableStore store;  // jobs, tiles, leases, workers and job records in DIR/tessera.db
@@ -109,6 +119,7 @@ struct Coordinator::Impl {
   asio::signal_set signals;
   std::atomic<bool> stopped{false};
   uint64_t last_expiries = 0;
+  uint64_t ticks = 0;
 };
 
 Coordinator::Coordinator(CoordinatorOptions options) {

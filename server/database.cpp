@@ -212,6 +212,15 @@ DurableStore::DurableStore(const fs::path& dir)
   // Commits survive a process crash without waiting for the disk; sync() makes them survive a power cut when the
   // scheduler acknowledges something, outside its lock (see SchedulerStore::sync).
   db_.exec("PRAGMA synchronous=NORMAL");
+  // Purged jobs' pages are returned to the file system (see give_back_free_pages). The mode is set before the first
+  // table is created; a database made by an older build is rewritten once (VACUUM) to switch to it.
+  Statement& mode = db_.statement("PRAGMA auto_vacuum");
+  const int64_t auto_vacuum = mode.step() ? mode.integer(0) : 0;
+  mode.reset();
+  if (auto_vacuum != 2) {
+    db_.exec("PRAGMA auto_vacuum=INCREMENTAL");
+    db_.exec("VACUUM");
+  }
   Transaction tx(db_);
   db_.exec(kSchema);
   Statement& get = db_.statement("SELECT value FROM meta WHERE key = 'schema_version'");
@@ -310,7 +319,20 @@ void DurableStore::apply(const SchedulerChanges& c) {
                                                        {"rays", c.counters.rays}};
   for (const auto& [key, value] : counters)
     db_.statement("INSERT OR REPLACE INTO meta(key, value) VALUES(?,?)").bind_text(1, key).bind(2, int64_t(value)).run();
+  for (const std::string& job : c.purged_jobs)
+    for (const char* sql : {"DELETE FROM leases WHERE job = ?", "DELETE FROM tile_states WHERE job = ?",
+                            "DELETE FROM tiles WHERE job = ?", "DELETE FROM job_records WHERE id = ?",
+                            "DELETE FROM jobs WHERE id = ?"})
+      db_.statement(sql).bind_text(1, job).run();
   tx.commit();
+  if (!c.purged_jobs.empty()) give_back_free_pages();
+}
+
+void DurableStore::give_back_free_pages() {
+  // The freed pages leave the file (auto_vacuum=INCREMENTAL), and the write-ahead log that carried the deletion is
+  // copied into it and cut to zero bytes (no other connection reads this file, so the checkpoint always completes).
+  db_.exec("PRAGMA incremental_vacuum");
+  db_.exec("PRAGMA wal_checkpoint(TRUNCATE)");
 }
 
 SchedulerSnapshot DurableStore::load() {
@@ -469,6 +491,21 @@ std::optional<std::pair<uint32_t, std::string>> DurableStore::tile_state(const s
   if (!st.step()) return std::nullopt;
   std::pair<uint32_t, std::string> out{uint32_t(st.integer(0)), st.blob(1)};
   st.reset();
+  return out;
+}
+
+void DurableStore::remove_outputs(const std::string& job) {
+  std::error_code ec;
+  fs::remove_all(jobs_dir_ / job, ec);
+  if (ec) throw StorageError("cannot remove " + (jobs_dir_ / job).string() + ": " + ec.message());
+}
+
+std::vector<std::string> DurableStore::jobs_with_outputs() {
+  std::vector<std::string> out;
+  std::error_code ec;
+  for (auto it = fs::directory_iterator(jobs_dir_, ec); !ec && it != fs::directory_iterator(); it.increment(ec))
+    if (it->is_directory()) out.push_back(it->path().filename().string());
+  if (ec) throw StorageError("cannot list " + jobs_dir_.string() + ": " + ec.message());
   return out;
 }
 

@@ -101,7 +101,8 @@ class Transaction {
 };
 
 /// The coordinator's state under DIR: DIR/tessera.db holds jobs, tiles, leases, workers and job records, DIR/jobs/<id>/
-/// the merged results, DIR/tmp/ scratch files. Thread-safe (one connection behind a mutex).
+/// the merged results, DIR/tmp/ scratch files. Thread-safe (one connection behind a mutex). The database runs with
+/// auto_vacuum=INCREMENTAL: a change that purges jobs hands their pages back and truncates the write-ahead log.
 class DurableStore final : public SchedulerStore, public JobStore {
  public:
   /// The schema version this build reads and writes.
@@ -127,6 +128,8 @@ class DurableStore final : public SchedulerStore, public JobStore {
   void save_tile_state(const std::string& job, int64_t tile, uint32_t spp, std::string_view exr) override;
   std::optional<uint32_t> tile_state_spp(const std::string& job, int64_t tile) override;
   std::optional<std::pair<uint32_t, std::string>> tile_state(const std::string& job, int64_t tile) override;
+  void remove_outputs(const std::string& job) override;
+  std::vector<std::string> jobs_with_outputs() override;
 
   /// The database file.
   std::filesystem::path database_file() const { return db_.file(); }
@@ -134,6 +137,7 @@ class DurableStore final : public SchedulerStore, public JobStore {
   size_t leftovers_removed() const { return leftovers_removed_; }
 
  private:
+  void give_back_free_pages();  // after a purge: shrink the file and the log (mu_ held)
   std::mutex mu_;
   std::mutex wal_mu_;   // guards wal_fd_
   int wal_fd_ = -1;     // the write-ahead log, opened for sync()

@@ -7,6 +7,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <charconv>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -132,6 +133,7 @@ protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
   spec.sampling.spp = p.spp;
   std::unique_lock admit(admit_mu_);
   if (unfinished_jobs() >= limits_.max_queued_jobs) throw queue_full();
+  check_assets(sub);  // again, now that no blob collection can run before the job is stored: none went meanwhile
   const std::string id = sched_.new_job_id();
   // The record is the spec only: name, priority, size and times are the scheduler's (stored with the job's row).
   jobs_.save_record(id, spec);
@@ -154,6 +156,27 @@ protocol::JobStatus JobService::status(const std::string& id) {
 }
 
 std::vector<protocol::JobStatus> JobService::list() { return sched_.jobs(); }
+
+protocol::JobList JobService::list(const protocol::JobListQuery& q) {
+  JobQuery query;
+  query.states.insert(q.states.begin(), q.states.end());
+  query.limit = q.limit;
+  if (!q.after.empty()) {
+    query.after = sched_.job_seq(q.after);
+    uint64_t seq = 0;
+    const char* end = q.after.data() + q.after.size();
+    if (!query.after && q.after.size() > 1 && q.after[0] == 'c') {
+      const auto [ptr, ec] = std::from_chars(q.after.data() + 1, end, seq);
+      if (ec == std::errc() && ptr == end) query.after = seq;
+    }
+    if (!query.after)
+      throw ApiError(400, "after: '" + q.after + "' is neither the \"next\" cursor of a listing nor a job id");
+  }
+  JobPage page = sched_.jobs(query);
+  protocol::JobList out{std::move(page.jobs), std::nullopt};
+  if (page.more) out.next = "c" + std::to_string(page.seqs.back());
+  return out;
+}
 
 protocol::JobStatus JobService::cancel(const std::string& id) {
   const CancelResult c = sched_.cancel(id);
@@ -339,6 +362,46 @@ void JobService::recover() {
     spdlog::info("job {}: every tile was done before the restart; writing the result", job);
     finalize(job);
   }
+  for (const std::string& job : jobs_.jobs_with_outputs()) {
+    if (sched_.job(job)) continue;
+    spdlog::info("job {}: purged before the restart; deleting its result", job);
+    jobs_.remove_outputs(job);
+  }
+}
+
+protocol::JobState JobService::purge(const std::string& id) {
+  const PurgeResult r = sched_.purge(id);
+  switch (r.status) {
+    case PurgeResult::unknown: throw ApiError(404, "no job " + id);
+    case PurgeResult::not_ended:
+      throw ApiError(409, "job " + id + " is " + to_string(r.was) +
+                              ": only done, failed or cancelled jobs can be purged (cancel it first)");
+    case PurgeResult::busy:
+      throw ApiError(409, "job " + id + " is " + to_string(r.was) + " but an upload of one of its tiles is being stored; "
+                              "purge it again in a moment");
+    case PurgeResult::purged: break;
+  }
+  {
+    std::lock_guard lock(mu_);
+    images_.erase(id);
+    specs_.erase(id);
+  }
+  // The rows are gone (a restart deletes the file if this fails: see recover).
+  jobs_.remove_outputs(id);
+  spdlog::info("job {}: purged (was {})", id, to_string(r.was));
+  return r.was;
+}
+
+std::set<std::string> JobService::referenced_blobs() {
+  std::set<std::string> out;
+  for (const protocol::JobStatus& s : sched_.jobs()) {
+    try {
+      for (const auto& [path, sha] : spec(s.id).assets) out.insert(sha);
+    } catch (const ApiError&) {
+      if (sched_.job(s.id)) throw;  // a job without a readable spec: collect nothing rather than its blobs
+    }
+  }
+  return out;
 }
 
 void JobService::finalize(const std::string& job) {

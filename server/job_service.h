@@ -4,6 +4,7 @@
 #pragma once
 
 #include "protocol/messages.h"
+#include "protocol/query.h"
 #include "server/assembly.h"
 #include "server/metrics.h"
 #include "server/scheduler.h"
@@ -15,6 +16,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -48,6 +50,9 @@ class JobService {
   protocol::JobStatus status(const std::string& id);
   /// Every job, newest first.
   std::vector<protocol::JobStatus> list();
+  /// The jobs a listing asks for, newest first, with the cursor of the next page ("c<seq>"; `after` also takes a job
+  /// id). ApiError 400 for an `after` that is neither.
+  protocol::JobList list(const protocol::JobListQuery& query);
   /// Cancels a queued or running job; ApiError 404 unknown, 409 already ended.
   protocol::JobStatus cancel(const std::string& id);
   /// Puts a failed or cancelled job back in the queue; only its tiles that are not done are rendered again. ApiError
@@ -79,7 +84,17 @@ class JobService {
   /// Records a worker's failure report; ApiError 404 for unknown leases.
   void record_failure(const std::string& lease, const std::string& error);
 
-  /// After a restart: finishes jobs whose every tile was stored but whose result was not written yet.
+  /// Deletes a done, failed or cancelled job: its rows, tile pixels and spec (one store change), then its result file.
+  /// ApiError 404 unknown, 409 not ended (or an upload of it is being stored). Returns its state before.
+  protocol::JobState purge(const std::string& id);
+  /// Every blob a remaining job's spec names.
+  std::set<std::string> referenced_blobs();
+  /// Holds submissions back while locked: a blob that no job references and that is not touched meanwhile stays
+  /// unreferenced until it is released (a submission checks its blobs again under this lock before it is stored).
+  std::unique_lock<std::mutex> hold_submissions() { return std::unique_lock(admit_mu_); }
+
+  /// After a restart: finishes jobs whose every tile was stored but whose result was not written yet, and deletes
+  /// result files of jobs purged before a crash let them go.
   void recover();
   /// The limits it admits jobs under.
   const AdmissionLimits& limits() const { return limits_; }

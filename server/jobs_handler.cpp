@@ -11,7 +11,7 @@ HttpResponse JobsHandler::handle(Endpoint endpoint, const std::string& id, HttpR
   const bool get = req.method() == http::verb::get;
   switch (endpoint) {
     case Endpoint::jobs: {
-      if (get) return json_response(http::status::ok, protocol::JobList{jobs_.list()}, v);
+      if (get) return json_response(http::status::ok, jobs_.list(protocol::parse_job_list_query(req.target())), v);
       const protocol::SubmitAnswer a = jobs_.submit(protocol::parse_job_submission(req.body()));
       HttpResponse res = json_response(http::status::created, a, v);
       res.set(http::field::location, protocol::routes::job(a.id));
@@ -25,7 +25,9 @@ HttpResponse JobsHandler::handle(Endpoint endpoint, const std::string& id, HttpR
         if (patch.spp) raised = jobs_.raise_spp(id, *patch.spp);
         return json_response(http::status::ok, patch.priority ? jobs_.set_priority(id, *patch.priority) : *raised, v);
       }
-      return json_response(http::status::ok, jobs_.cancel(id), v);
+      // DELETE without purge=true cancels (as it always has); with it, deletes a job that has ended.
+      if (!protocol::parse_purge_query(req.target())) return json_response(http::status::ok, jobs_.cancel(id), v);
+      return json_response(http::status::ok, protocol::PurgeAnswer{id, collector_.purge(id)}, v);
     case Endpoint::job_result: return bytes_response(jobs_.result_exr(id), "image/x-exr", v);
     case Endpoint::job_preview: {
       const std::vector<uint8_t> png = jobs_.preview_png(id);

@@ -132,8 +132,7 @@ HttpResponse MonitorHandler::capabilities(const HttpRequest& req) const {
         {"resume", api_has("/v1/jobs/j/resume", V::post)},
         {"retry", api_has("/v1/jobs/j/retry", V::post)},
         {"priority", api_has("/v1/jobs/j", V::patch)},
-        // DELETE /v1/jobs/{id}?purge=true is not built yet (the route exists for cancel, so it cannot be asked).
-        {"purge", false},
+        {"purge", true},  // DELETE /v1/jobs/{id}?purge=true (the route also cancels, so it cannot be asked)
         {"requeue", api_has("/v1/jobs/j/tiles/0/requeue", V::post)},
         {"workers", api_has("/v1/workers", V::get)},
         {"drain", api_has("/v1/workers/w/drain", V::post)},

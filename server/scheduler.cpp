@@ -6,6 +6,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <cstdint>
 #include <algorithm>
 #include <stdexcept>
 #include <type_traits>
@@ -118,11 +119,12 @@ void Scheduler::flush_locked() {
     dirty_tiles_.clear();
     dirty_leases_.clear();
     new_workers_.clear();
+    purged_jobs_.clear();
     sync_needed_ = false;
     return;
   }
   if (dirty_jobs_.empty() && dirty_tiles_.empty() && dirty_leases_.empty() && new_workers_.empty() &&
-      counters == flushed_counters_)
+      purged_jobs_.empty() && counters == flushed_counters_)
     return;
   SchedulerChanges c;
   c.counters = counters;
@@ -148,6 +150,7 @@ void Scheduler::flush_locked() {
     const auto it = workers_.find(id);
     if (it != workers_.end()) c.workers.push_back(WorkerRow{id, it->second.name});
   }
+  c.purged_jobs.assign(purged_jobs_.begin(), purged_jobs_.end());
   // On failure the dirty sets stay, so the next operation writes these rows again.
   store_->apply(c);
   if (std::exchange(sync_needed_, false)) sync_due_ = true;
@@ -155,6 +158,7 @@ void Scheduler::flush_locked() {
   dirty_tiles_.clear();
   dirty_leases_.clear();
   new_workers_.clear();
+  purged_jobs_.clear();
   flushed_counters_ = counters;
 }
 
@@ -309,6 +313,33 @@ std::vector<JobStatus> Scheduler::jobs() {
     out.reserve(recs.size());
     for (const JobRec* j : recs) out.push_back(snapshot_locked(*j, now));
     return out;
+  });
+}
+
+JobPage Scheduler::jobs(const JobQuery& q) {
+  return transact([&](int64_t now) {
+    std::vector<const JobRec*> recs;
+    for (const auto& [id, j] : jobs_)
+      if ((q.states.empty() || q.states.count(j->status.state)) && (!q.after || j->seq < *q.after)) recs.push_back(j.get());
+    std::sort(recs.begin(), recs.end(), [](const JobRec* a, const JobRec* b) { return a->seq > b->seq; });
+    JobPage page;
+    if (q.limit > 0 && recs.size() > q.limit) {
+      recs.resize(q.limit);
+      page.more = true;
+    }
+    for (const JobRec* j : recs) {
+      page.jobs.push_back(snapshot_locked(*j, now));
+      page.seqs.push_back(j->seq);
+    }
+    return page;
+  });
+}
+
+std::optional<uint64_t> Scheduler::job_seq(const std::string& id) {
+  return transact([&](int64_t) -> std::optional<uint64_t> {
+    const auto it = jobs_.find(id);
+    if (it == jobs_.end()) return std::nullopt;
+    return it->second->seq;
   });
 }
 
@@ -784,6 +815,43 @@ RaiseResult Scheduler::raise_spp(const std::string& job, uint32_t spp) {
     touch_job(j);
     r.status = RaiseResult::raised;
     r.job = snapshot_locked(j, now);
+    return r;
+  });
+}
+
+PurgeResult Scheduler::purge(const std::string& job) {
+  return transact([&](int64_t) {
+    PurgeResult r;
+    const auto it = jobs_.find(job);
+    if (it == jobs_.end()) return r;
+    JobRec& j = *it->second;
+    r.was = j.status.state;
+    if (!is_final(j.status.state)) {
+      r.status = PurgeResult::not_ended;
+      return r;
+    }
+    // An upload claimed before the job ended is still being stored (finish_result or abandon_result follow).
+    for (const Tile& t : j.tiles)
+      if (t.state == TileState::merging) {
+        r.status = PurgeResult::busy;
+        return r;
+      }
+    // An ended job has no live lease (they were revoked when it ended) and is not in queue_.
+    for (auto l = leases_.begin(); l != leases_.end();) {
+      if (l->second.lease.job == job) {
+        dirty_leases_.erase(l->first);
+        l = leases_.erase(l);
+      } else {
+        ++l;
+      }
+    }
+    dirty_jobs_.erase(job);
+    for (auto t = dirty_tiles_.lower_bound({job, INT64_MIN}); t != dirty_tiles_.end() && t->first == job;)
+      t = dirty_tiles_.erase(t);
+    jobs_.erase(it);
+    purged_jobs_.insert(job);
+    sync_needed_ = true;  // the client is told the job is gone
+    r.status = PurgeResult::purged;
     return r;
   });
 }

@@ -118,6 +118,28 @@ struct RaiseResult {
   JobStatus job;                    ///< The job as raised (when raised), before any worker took a tile.
 };
 
+/// Outcome of purging a job.
+struct PurgeResult {
+  /// purged: gone from memory and store; not_ended: queued, running or paused; busy: an upload of one of its tiles is
+  /// being stored (try again); unknown: no such job.
+  enum Status { purged, not_ended, busy, unknown } status = unknown;
+  JobState was = JobState::queued;  ///< The state it had.
+};
+
+/// Which jobs a listing wants: states (empty: all), at most `limit` (0: no limit), older than the job with `after_seq`.
+struct JobQuery {
+  std::set<JobState> states;      ///< Wanted states; empty means every state.
+  size_t limit = 0;               ///< Most jobs in the answer; 0: all.
+  std::optional<uint64_t> after;  ///< Only jobs submitted before the one with this seq (a cursor).
+};
+
+/// One page of a listing, newest first.
+struct JobPage {
+  std::vector<JobStatus> jobs;   ///< The jobs.
+  std::vector<uint64_t> seqs;    ///< Their submission numbers (for cursors), in the same order.
+  bool more = false;             ///< More jobs match after the last one.
+};
+
 /// Counters for /metrics.
 struct SchedulerCounters {
   std::map<JobState, int64_t> jobs;   ///< Jobs by state.
@@ -198,9 +220,10 @@ struct SchedulerChanges {
   std::vector<TileRow> tiles;      ///< Changed tiles.
   std::vector<LeaseRow> leases;    ///< Changed leases.
   std::vector<WorkerRow> workers;  ///< New workers.
+  std::vector<std::string> purged_jobs;  ///< Jobs whose every row (job, tiles, leases, record) goes.
   CounterRow counters;             ///< Counters after the operation.
   /// True when nothing but the counters changed.
-  bool empty() const { return jobs.empty() && tiles.empty() && leases.empty() && workers.empty(); }
+  bool empty() const { return jobs.empty() && tiles.empty() && leases.empty() && workers.empty() && purged_jobs.empty(); }
 };
 
 /// Everything a store holds, for a scheduler starting over it (tile pixels are not loaded).
@@ -253,6 +276,10 @@ class Scheduler {
   std::optional<JobStatus> job(const std::string& id);
   /// All jobs, newest first.
   std::vector<JobStatus> jobs();
+  /// The jobs a query asks for, newest first.
+  JobPage jobs(const JobQuery& query);
+  /// The submission number of a job (what a listing cursor holds), or nothing for an unknown id.
+  std::optional<uint64_t> job_seq(const std::string& id);
 
   /// Registers a worker (announcing `threads` render threads, 0 unknown) and returns its id.
   std::string register_worker(const std::string& name, int64_t threads = 0);
@@ -301,6 +328,9 @@ class Scheduler {
   /// Raises a job's spp (the caller checks it can be exact, server/job_refine.h): its live leases are revoked and every
   /// tile is pending again; a done job is running again. Uploads of leases at the old spp are discarded from then on.
   RaiseResult raise_spp(const std::string& job, uint32_t spp);
+  /// Forgets a done, failed or cancelled job: its job, tile and lease rows (and its stored record) go in one change;
+  /// later requests on its leases are answered as for unknown leases.
+  PurgeResult purge(const std::string& job);
   /// Marks a job whose tiles are all merged done (after its image was written).
   void complete_job(const std::string& job);
   /// Marks an unfinished job failed with a reason.
@@ -377,6 +407,7 @@ class Scheduler {
   SchedulerStore* store_ = nullptr;                   // nullptr: memory only
   std::set<std::string> dirty_jobs_, dirty_leases_, new_workers_;
   std::set<std::pair<std::string, int64_t>> dirty_tiles_;
+  std::set<std::string> purged_jobs_;                 // purged since the last flush
   std::optional<std::pair<std::pair<std::string, int64_t>, std::string_view>> done_pixels_;  // tile -> pixels
   CounterRow flushed_counters_;                       // counters as last stored
   bool sync_needed_ = false;                          // the pending changes include an acknowledgement (see SchedulerStore::sync)

@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <chrono>
 #include <cstring>
 #include <fstream>
 #include <random>
@@ -61,8 +62,10 @@ PutBlobResult DiskBlobStore::put(const std::string& sha, std::string_view bytes)
   }
   const fs::path p = path_of(sha);
   std::error_code ec;
-  // Blobs are immutable and were verified when written: a repeat upload writes nothing.
+  // Blobs are immutable and were verified when written: a repeat upload writes nothing but starts the blob's grace
+  // period (see Collector) again.
   if (fs::is_regular_file(p, ec)) {
+    fs::last_write_time(p, fs::file_time_type::clock::now(), ec);
     r.status = PutBlobResult::existed;
     return r;
   }
@@ -81,6 +84,37 @@ bool DiskBlobStore::has(const std::string& sha) {
 std::optional<fs::path> DiskBlobStore::file(const std::string& sha) {
   if (!has(sha)) return std::nullopt;
   return path_of(sha);
+}
+
+bool DiskBlobStore::touch(const std::string& sha) {
+  if (!has(sha)) return false;
+  std::error_code ec;
+  fs::last_write_time(path_of(sha), fs::file_time_type::clock::now(), ec);
+  return !ec;
+}
+
+std::vector<std::pair<std::string, int64_t>> DiskBlobStore::list() {
+  std::vector<std::pair<std::string, int64_t>> out;
+  std::error_code ec;
+  for (auto it = fs::recursive_directory_iterator(dir_, ec); !ec && it != fs::recursive_directory_iterator();
+       it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (!it->is_regular_file() || !is_sha256_hex(name)) continue;
+    std::error_code tec;
+    const auto t = fs::last_write_time(it->path(), tec);
+    if (tec) continue;  // removed meanwhile
+    const auto sys = fs::file_time_type::clock::to_sys(t);
+    out.emplace_back(name, std::chrono::duration_cast<std::chrono::milliseconds>(sys.time_since_epoch()).count());
+  }
+  if (ec) throw StorageError("cannot list " + dir_.string() + ": " + ec.message());
+  return out;
+}
+
+void DiskBlobStore::remove(const std::string& sha) {
+  if (!is_sha256_hex(sha)) return;
+  std::error_code ec;
+  fs::remove(path_of(sha), ec);
+  if (ec) throw StorageError("cannot remove " + path_of(sha).string() + ": " + ec.message());
 }
 
 std::optional<std::string> DiskBlobStore::read(const std::string& sha) {

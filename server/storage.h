@@ -38,6 +38,13 @@ class BlobStore {
   virtual std::optional<std::filesystem::path> file(const std::string& sha256) = 0;
   /// The blob's bytes, or nothing when it is not stored; throws StorageError on read errors.
   virtual std::optional<std::string> read(const std::string& sha256) = 0;
+  /// Marks a stored blob as just used (a client checked or uploaded it), which keeps it for the collector's grace
+  /// period; false when it is not stored.
+  virtual bool touch(const std::string& sha256) = 0;
+  /// Every stored blob with the time it was last stored or touched (ms since the Unix epoch); throws StorageError.
+  virtual std::vector<std::pair<std::string, int64_t>> list() = 0;
+  /// Deletes a blob (nothing happens when it is not stored); throws StorageError.
+  virtual void remove(const std::string& sha256) = 0;
 };
 
 /// Blobs as files DIR/<2 hex>/<64 hex>, written to a temp file, fsynced and renamed into place.
@@ -52,6 +59,9 @@ class DiskBlobStore final : public BlobStore {
   bool has(const std::string& sha256) override;
   std::optional<std::filesystem::path> file(const std::string& sha256) override;
   std::optional<std::string> read(const std::string& sha256) override;
+  bool touch(const std::string& sha256) override;
+  std::vector<std::pair<std::string, int64_t>> list() override;
+  void remove(const std::string& sha256) override;
 
  private:
   std::filesystem::path path_of(const std::string& sha256) const;
@@ -80,6 +90,10 @@ class JobStore {
   virtual std::optional<uint32_t> tile_state_spp(const std::string& job, int64_t tile) = 0;
   /// The tile's stored state as (spp, EXR bytes), or nothing; throws StorageError.
   virtual std::optional<std::pair<uint32_t, std::string>> tile_state(const std::string& job, int64_t tile) = 0;
+  /// Deletes the job's outputs (its result file); throws StorageError.
+  virtual void remove_outputs(const std::string& job) = 0;
+  /// The jobs that have outputs on disk; throws StorageError.
+  virtual std::vector<std::string> jobs_with_outputs() = 0;
 };
 
 /// Creates a folder and its parents; throws StorageError naming it.

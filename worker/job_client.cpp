@@ -81,6 +81,13 @@ std::vector<JobStatus> list_jobs(HttpClient& http) {
   return protocol::parse_answer<protocol::JobList>(r.body, "job list").jobs;
 }
 
+protocol::JobList list_jobs(HttpClient& http, const protocol::JobListQuery& query) {
+  const std::string target = routes::jobs() + query.to_query();
+  const HttpResponse r = http.send("GET", target);
+  if (r.status != 200) refuse("GET " + target, r);
+  return protocol::parse_answer<protocol::JobList>(r.body, "job list");
+}
+
 namespace {
 // A request that changes a job or a worker; the answer is it as it is now.
 template <class T = JobStatus>
@@ -161,6 +168,10 @@ uint64_t download_result(HttpClient& http, const std::string& id, const fs::path
     throw SubmitError(e.what());
   }
   return r.body.size();
+}
+
+protocol::PurgeAnswer purge_job(HttpClient& http, const std::string& id) {
+  return control<protocol::PurgeAnswer>(http, id, "DELETE", routes::job_purge(id), "purging");
 }
 
 bool cancel_job(HttpClient& http, const std::string& id) {

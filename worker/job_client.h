@@ -4,6 +4,7 @@
 
 #include "worker/http_client.h"
 #include "protocol/messages.h"
+#include "protocol/query.h"
 #include "protocol/worker.h"
 
 #include <atomic>
@@ -63,6 +64,8 @@ uint64_t download_result(HttpClient& http, const std::string& id, const std::fil
 
 /// GET /v1/jobs: every job, newest first; throws SubmitError or HttpError.
 std::vector<JobStatus> list_jobs(HttpClient& http);
+/// GET /v1/jobs?state=&limit=&after=: one page of the jobs a query asks for, with the next page's cursor.
+protocol::JobList list_jobs(HttpClient& http, const protocol::JobListQuery& query);
 
 /// POST /v1/jobs/{id}/retry: the job queued again; throws SubmitError (404, 409 with the coordinator's sentence).
 JobStatus retry_job(HttpClient& http, const std::string& id);
@@ -85,6 +88,10 @@ JobStatus pause_job(HttpClient& http, const std::string& id);
 
 /// POST /v1/jobs/{id}/resume: the job, queued or running again; throws SubmitError (404, 409 not paused).
 JobStatus resume_job(HttpClient& http, const std::string& id);
+
+/// DELETE /v1/jobs/{id}?purge=true: deletes a job that has ended (its rows, pixels and result). Throws SubmitError
+/// (404 unknown, 409 not ended) or HttpError.
+protocol::PurgeAnswer purge_job(HttpClient& http, const std::string& id);
 
 /// DELETE /v1/jobs/{id}; true when cancelled, false when it had already ended (409). Throws for other answers.
 bool cancel_job(HttpClient& http, const std::string& id);

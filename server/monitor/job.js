@@ -30,6 +30,7 @@ export function mount(host, ctx) {
   const ep = ctx.caps.endpoints;
   const path = '/v1/jobs/' + encodeURIComponent(id);
   let job = null, tiles = [], previewKey = '', previewBusy = false, previewUrl = null, selected = -1;
+  let mounted = true, deleted = false;  // a refresh finishing after the page left or the job was deleted draws nothing
 
   const title = el('h1', { id: 'job-title', text: id });
   const stateBadge = el('span', { id: 'job-state' });
@@ -71,7 +72,7 @@ export function mount(host, ctx) {
   cancelB.dataset.action = 'cancel';
   cancelB.dataset.supported = 'yes';
   const deleteB = confirmButton('Delete', 'Click to delete for good',
-    () => act('Delete', 'DELETE', path + '?purge=true', undefined, () => { location.hash = '#/jobs'; }), 'danger');
+    () => act('Delete', 'DELETE', path + '?purge=true', undefined, () => { deleted = true; location.hash = '#/jobs'; }), 'danger');
   deleteB.dataset.action = 'delete';
   deleteB.dataset.supported = ep.purge ? 'yes' : 'no';
   if (!ep.purge) { deleteB.disabled = true; deleteB.title = missing('purge (DELETE ?purge=true)'); }
@@ -199,10 +200,12 @@ export function mount(host, ctx) {
 
   return {
     async refresh() {
+      if (deleted) return;
       let j;
       try {
         j = await api.call('GET', path);
       } catch (e) {
+        if (!mounted) return;
         if (e.status === 404) {
           host.replaceChildren(el('div', { class: 'card empty' }, `No job ${id} on this coordinator. `,
             el('a', { href: '#/jobs', text: 'Back to the jobs' })));
@@ -217,6 +220,9 @@ export function mount(host, ctx) {
       drawTiles();
       await refreshPreview();
     },
-    unmount() { if (previewUrl) URL.revokeObjectURL(previewUrl); },
+    unmount() {
+      mounted = false;
+      if (previewUrl) URL.revokeObjectURL(previewUrl);
+    },
   };
 }

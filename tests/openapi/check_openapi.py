@@ -47,6 +47,10 @@ def check(value, schema, where):
         return [] if schema.get("nullable") else [f"{where}: null is not allowed"]
     for part in schema.get("allOf", []):
         problems += check(value, part, where)
+    if "oneOf" in schema:
+        matching = [part for part in schema["oneOf"] if not check(value, part, where)]
+        if len(matching) != 1:
+            return [f"{where}: matches {len(matching)} of the oneOf schemas, not 1"]
     t = schema.get("type")
     kinds = {"object": dict, "array": list, "string": str, "boolean": bool}
     if t in kinds and not isinstance(value, kinds[t]):
@@ -323,11 +327,30 @@ def exercise(c, tessera, workdir, address):
     if status == 200 and state[:4] != b"\x76\x2f\x31\x01":
         failures.append("a lease's state is not an OpenEXR file")
     c.call("GET", "/v1/leases/l-none/state", expect=404)
-    c.call("DELETE", f"/v1/jobs/{b}", expect=200)
+    c.call("DELETE", f"/v1/jobs/{b}", expect=200)  # cancels the raised job
+    # Listings filtered and paged, and purges: a + b are the jobs so far (both cancelled).
+    _, page = c.call("GET", "/v1/jobs?state=done,cancelled&limit=1", expect=200)
+    if [j["id"] for j in page["jobs"]] != [b] or not page["next"]:
+        failures.append(f"GET /v1/jobs?state=done,cancelled&limit=1: {page}")
+    else:
+        _, rest = c.call("GET", f"/v1/jobs?state=done,cancelled&limit=1&after={page['next']}", expect=200)
+        if [j["id"] for j in rest["jobs"]] != [a] or rest["next"] is not None:
+            failures.append(f"the second page is not job {a} alone: {rest}")
+    c.call("GET", "/v1/jobs?state=finished", expect=400)
+    c.call("GET", "/v1/jobs?limit=0", expect=400)
+    c.call("GET", "/v1/jobs?after=j-none", expect=400)
+    c.call("DELETE", f"/v1/jobs/{b}?purge=maybe", expect=400)
+    c.call("DELETE", "/v1/jobs/j-none?purge=true", expect=404)
+    _, purged = c.call("DELETE", f"/v1/jobs/{b}?purge=true", expect=200)
+    if purged != {"id": b, "purged": True, "was": "cancelled"}:
+        failures.append(f"purge answer: {purged}")
+    c.call("GET", f"/v1/jobs/{b}", expect=404)
+    c.call("DELETE", f"/v1/jobs/{b}?purge=true", expect=404)
 
     # 429: the coordinator runs with --max-queued-jobs 1 and no worker is left.
-    c.call("POST", "/v1/jobs", job, expect=201)
+    _, q = c.call("POST", "/v1/jobs", job, expect=201)
     c.call("POST", "/v1/jobs", job, expect=429)
+    c.call("DELETE", f"/v1/jobs/{q['id']}?purge=true", expect=409)  # queued: not ended
 
 
 def main():

@@ -1,0 +1,156 @@
+#include "protocol/query.h"
+
+#include "protocol/errors.h"
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <stdexcept>
+
+namespace tessera::protocol {
+
+namespace {
+
+int hex_digit(char c) {
+  if (c >= '0' && c <= '9') return c - '0';
+  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+  return -1;
+}
+
+// Percent-decoding ('+' is a space, as in HTML forms).
+std::string decode(std::string_view s) {
+  std::string out;
+  for (size_t i = 0; i < s.size(); ++i) {
+    if (s[i] == '+') {
+      out += ' ';
+    } else if (s[i] == '%') {
+      const int hi = i + 2 < s.size() ? hex_digit(s[i + 1]) : -1;
+      const int lo = i + 2 < s.size() ? hex_digit(s[i + 2]) : -1;
+      if (hi < 0 || lo < 0)
+        throw ProtocolError("query string: bad percent-escape in '" + std::string(s) + "'");
+      if (hi < 2) throw ProtocolError("query string: a control character (%" + std::string(s.substr(i + 1, 2)) + ") in '" +
+                                      std::string(s) + "'");
+      out += char(hi * 16 + lo);
+      i += 2;
+    } else {
+      out += s[i];
+    }
+  }
+  return out;
+}
+
+std::string encode(std::string_view s) {
+  static const char* hex = "0123456789ABCDEF";
+  std::string out;
+  for (const char c : s) {
+    if (std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.' || c == '~' || c == ',') {
+      out += c;
+    } else {
+      out += '%';
+      out += hex[static_cast<unsigned char>(c) >> 4];
+      out += hex[static_cast<unsigned char>(c) & 15];
+    }
+  }
+  return out;
+}
+
+std::string known_list(std::initializer_list<const char*> known) {
+  std::string s;
+  for (const char* k : known) {
+    if (!s.empty()) s += ", ";
+    s += k;
+  }
+  return s.empty() ? "none" : s;
+}
+
+}  // namespace
+
+std::map<std::string, std::string> query_params(std::string_view target, std::initializer_list<const char*> known) {
+  std::map<std::string, std::string> out;
+  const size_t q = target.find('?');
+  if (q == std::string_view::npos) return out;
+  std::string_view rest = target.substr(q + 1);
+  while (!rest.empty()) {
+    const size_t amp = rest.find('&');
+    const std::string_view pair = rest.substr(0, amp);
+    rest = amp == std::string_view::npos ? std::string_view() : rest.substr(amp + 1);
+    if (pair.empty()) continue;
+    const size_t eq = pair.find('=');
+    const std::string key = decode(pair.substr(0, eq));
+    const std::string value = eq == std::string_view::npos ? std::string() : decode(pair.substr(eq + 1));
+    if (std::none_of(known.begin(), known.end(), [&](const char* k) { return key == k; }))
+      throw ProtocolError("unknown query parameter '" + key + "' (allowed: " + known_list(known) + ")");
+    if (!out.emplace(key, value).second) throw ProtocolError("query parameter '" + key + "' is given more than once");
+  }
+  return out;
+}
+
+JobListQuery parse_job_list_query(std::string_view target) {
+  const auto params = query_params(target, {"state", "limit", "after"});
+  JobListQuery q;
+  if (const auto it = params.find("state"); it != params.end()) {
+    std::string_view rest = it->second;
+    while (true) {
+      const size_t comma = rest.find(',');
+      const std::string name(rest.substr(0, comma));
+      try {
+        const JobState s = job_state_from_string(name);
+        if (std::find(q.states.begin(), q.states.end(), s) == q.states.end()) q.states.push_back(s);
+      } catch (const std::invalid_argument&) {
+        std::string all;
+        for (const JobState s : kAllJobStates) {
+          if (!all.empty()) all += ", ";
+          all += to_string(s);
+        }
+        throw ProtocolError("state: '" + name + "' is not a job state (one or more of " + all + ", comma-separated)");
+      }
+      if (comma == std::string_view::npos) break;
+      rest = rest.substr(comma + 1);
+    }
+  }
+  if (const auto it = params.find("limit"); it != params.end()) {
+    const std::string& v = it->second;
+    size_t n = 0;
+    const auto [ptr, ec] = std::from_chars(v.data(), v.data() + v.size(), n);
+    if (v.empty() || ec != std::errc() || ptr != v.data() + v.size() || n < 1 || n > kMaxJobListLimit)
+      throw ProtocolError("limit: '" + v + "' is not a whole number from 1 to " + std::to_string(kMaxJobListLimit));
+    q.limit = n;
+  }
+  if (const auto it = params.find("after"); it != params.end()) {
+    if (it->second.empty()) throw ProtocolError("after: empty (give the \"next\" of the previous page or a job id)");
+    q.after = it->second;
+  }
+  return q;
+}
+
+bool parse_purge_query(std::string_view target) {
+  const auto params = query_params(target, {"purge"});
+  const auto it = params.find("purge");
+  if (it == params.end() || it->second == "false") return false;
+  if (it->second == "true") return true;
+  throw ProtocolError("purge: '" + it->second + "' is not true or false");
+}
+
+std::string JobListQuery::to_query() const {
+  std::string q;
+  const auto add = [&](const char* key, const std::string& value) {
+    q += q.empty() ? '?' : '&';
+    q += key;
+    q += '=';
+    q += encode(value);
+  };
+  if (!states.empty()) {
+    std::string s;
+    for (const JobState st : states) {
+      if (!s.empty()) s += ',';
+      s += to_string(st);
+    }
+    add("state", s);
+  }
+  if (limit > 0) add("limit", std::to_string(limit));
+  if (!after.empty()) add("after", after);
+  return q;
+}
+
+}  // namespace tessera::protocol

@@ -1,0 +1,36 @@
+// Query strings of request targets: GET /v1/jobs?state=S[,S]&limit=N&after=CURSOR and DELETE /v1/jobs/{id}?purge=B.
+// Parsers refuse unknown keys, repeated keys and bad values with a ProtocolError (400) naming them.
+#pragma once
+
+#include "protocol/job.h"
+
+#include <cstddef>
+#include <initializer_list>
+#include <map>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace tessera::protocol {
+
+/// The largest `limit` of a job listing.
+inline constexpr size_t kMaxJobListLimit = 10'000;
+
+/// What a job listing asks for.
+struct JobListQuery {
+  std::vector<JobState> states;  ///< Wanted states; empty: every state.
+  size_t limit = 0;              ///< Most jobs in one answer; 0: all.
+  std::string after;             ///< The `next` cursor of the previous page, or the last job id seen; "": newest.
+  /// The query string for a request target ("" when everything is at its default, else "?...").
+  std::string to_query() const;
+};
+
+/// The decoded key=value pairs of the target's query string (after '?'); throws ProtocolError for keys outside
+/// `known`, repeated keys and bad percent-escapes.
+std::map<std::string, std::string> query_params(std::string_view target, std::initializer_list<const char*> known);
+/// Parses the query of GET /v1/jobs; throws ProtocolError with the sentence answered (400).
+JobListQuery parse_job_list_query(std::string_view target);
+/// Parses the query of DELETE /v1/jobs/{id}: true for purge=true; false for none or purge=false.
+bool parse_purge_query(std::string_view target);
+
+}  // namespace tessera::protocol
