@@ -1,0 +1,188 @@
+// Error estimates for the default sampler (issue 18, section 2): what each candidate predicts against the measured
+// error, and what it costs in relMSE against the default (one Owen-scrambled sequence per pixel), on the five scenes
+// of docs/speed-vs-error.md. Prints a markdown table (docs/error-estimates.md holds a run of it).
+//
+//   ./build/bench/error_estimators [--scale F] [--seeds S] [--ref-spp N] [--spp N,N,...] [--scenes a,b,...]
+//
+// Candidates from the default render's own samples (its colours unchanged, relMSE cost 0): the i.i.d. variance
+// s^2/n (today's variance channel), the half difference h(n/2) and the block-extrapolated estimate
+// (core/block_differences.h). Candidates that change the samples: K = 2 and K = 4 independent replicates of n/K
+// samples (`--replicates K`), whose variance channel is unbiased.
+//
+// For every pixel, the measured error is the mean over S renders (seeds 7 .. 7+S-1) of the squared error against a
+// reference (ref-spp samples, 8 replicates, seed 1000) and the predicted one the mean of the estimate plus the
+// reference's own variance; relMSE weights 1/(R^2 + 0.01) as in the report. Columns: relMSE cost = measured relMSE /
+// the default's; aggregate = predicted / measured relMSE over the frame; p50 and p99 = the median and 99th
+// percentile over pixels of the predicted per-pixel relative error sqrt(mean_c pred/(R^2+0.01)) divided by the same
+// quantile of the measured one (per-pixel distribution; 1 = exact, the S renders leave about 1/sqrt(2S) of noise).
+#include "core/block_differences.h"
+#include "core/path_integrator.h"
+#include "core/render.h"
+#include "core/scene_loader.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace fs = std::filesystem;
+using namespace tessera;
+
+namespace {
+
+// Candidate estimates of a pixel channel's variance of the mean from the default render's samples.
+enum Own { kIid, kHalf, kExtrapolated, kOwnCount };
+const char* const kOwnNames[kOwnCount] = {"i.i.d. s^2/n (today)", "half difference h(n/2)",
+                                          "block-extrapolated (core/block_differences.h)"};
+
+std::vector<std::string> split(const std::string& s) {
+  std::vector<std::string> out;
+  std::stringstream in(s);
+  for (std::string t; std::getline(in, t, ',');) out.push_back(t);
+  return out;
+}
+
+double quantile(std::vector<double> v, double q) {
+  const size_t k = size_t(q * double(v.size() - 1));
+  std::nth_element(v.begin(), v.begin() + ptrdiff_t(k), v.end());
+  return v[k];
+}
+
+// Per pixel and channel (index 3 i + c): summed squared error and summed predicted variance of the mean over renders.
+struct Tally {
+  std::vector<double> se, pred;
+  explicit Tally(size_t n) : se(n, 0.0), pred(n, 0.0) {}
+};
+
+struct Row {
+  double cost, aggregate, p50, p99;
+};
+
+// Frame figures of a tally against the reference (its variance added to every prediction); `base_se`: the default's
+// squared errors, for the cost.
+Row summarise(const Tally& t, const Image& ref, const std::vector<double>& base_se) {
+  const size_t np = size_t(ref.width) * size_t(ref.height);
+  const char* names[3] = {"variance.R", "variance.G", "variance.B"};
+  double meas = 0, pred = 0, base = 0;
+  std::vector<double> pm(np), pp(np);
+  for (size_t i = 0; i < np; ++i) {
+    double a = 0, b = 0;
+    for (size_t c = 0; c < 3; ++c) {
+      const double r = ref.rgb[3 * i + c], w = 1.0 / (r * r + 0.01), vr = ref.extra.at(names[c])[i];
+      a += t.se[3 * i + c] * w;
+      b += (t.pred[3 * i + c] + vr) * w;
+      base += base_se[3 * i + c] * w;
+    }
+    meas += a;
+    pred += b;
+    pm[i] = std::sqrt(a / 3);
+    pp[i] = std::sqrt(b / 3);
+  }
+  return {meas / base, pred / meas, quantile(pp, 0.5) / quantile(pm, 0.5), quantile(pp, 0.99) / quantile(pm, 0.99)};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  double scale = 0.25;
+  int seeds = 16;
+  uint32_t ref_spp = 4096;
+  std::vector<std::string> spps = {"16", "64"};
+  std::vector<std::string> scenes = {"cbox_no_light", "cbox_no_light_refraction", "cbox_area_light", "cbox_env_light",
+                                     "sky_sun"};
+  for (int i = 1; i < argc; ++i) {
+    const std::string k = argv[i];
+    if (i + 1 >= argc) {
+      std::fprintf(stderr, "usage: %s [--scale F] [--seeds S] [--ref-spp N] [--spp N,N] [--scenes a,b]\n", argv[0]);
+      return 2;
+    }
+    const std::string v = argv[++i];
+    if (k == "--scale") scale = std::stod(v);
+    else if (k == "--seeds") seeds = std::stoi(v);
+    else if (k == "--ref-spp") ref_spp = uint32_t(std::stoul(v));
+    else if (k == "--spp") spps = split(v);
+    else if (k == "--scenes") scenes = split(v);
+    else {
+      std::fprintf(stderr, "unknown option %s\n", k.c_str());
+      return 2;
+    }
+  }
+  std::printf("| scene | spp | estimate | relMSE cost | aggregate predicted / measured | p50 | p99 |\n"
+              "|---|---|---|---|---|---|---|\n");
+  for (const std::string& name : scenes) {
+    Scene s = load_scene_file(fs::path(TESSERA_SOURCE_DIR) / "scenes" / (name + ".json")).scene;
+    s.width = std::max(1, int(std::lround(s.width * scale)));
+    s.height = std::max(1, int(std::lround(s.height * scale)));
+    RenderOptions ro;
+    ro.spp = ref_spp;
+    ro.seed = 1000;
+    ro.replicates = 8;
+    ro.variance = true;
+    const Image ref = render(s, ro).image;
+    const size_t np = size_t(s.width) * size_t(s.height);
+    for (const std::string& spp_text : spps) {
+      const uint32_t n = uint32_t(std::stoul(spp_text));
+      // The default sampler, sample by sample (the same samples, in the same order, as render()).
+      std::vector<Tally> own(kOwnCount, Tally(3 * np));
+      tbb::parallel_for(size_t(0), np, [&](size_t i) {
+        const int px = int(i % size_t(s.width)), py = int(i / size_t(s.width));
+        RayCounters rc;
+        for (int seed = 0; seed < seeds; ++seed) {
+          BlockDifferences bd[3];
+          double sum[3] = {0, 0, 0}, sum2[3] = {0, 0, 0};
+          for (uint32_t k = 0; k < n; ++k) {
+            PixelSampler sp = pixel_sampler(7 + uint64_t(seed), px, py, k, 1);
+            const Ray r = s.camera.generate_pixel(px, py, sp.next_2d(), s.width, s.height);
+            const Vec3 L = trace_sample(s, r, sp, rc);
+            for (int c = 0; c < 3; ++c) {
+              bd[c].add(L[c]);
+              sum[c] += L[c];
+              sum2[c] += double(L[c]) * double(L[c]);
+            }
+          }
+          for (size_t c = 0; c < 3; ++c) {
+            const double mean = sum[c] / n, d = mean - ref.rgb[3 * i + c];
+            const double est[kOwnCount] = {std::max(0.0, sum2[c] - n * mean * mean) / (n - 1.0) / n,
+                                           bd[c].half_difference(), bd[c].extrapolated()};
+            for (int e = 0; e < kOwnCount; ++e) {
+              own[size_t(e)].se[3 * i + c] += d * d / seeds;
+              own[size_t(e)].pred[3 * i + c] += est[e] / seeds;
+            }
+          }
+        }
+      });
+      for (int e = 0; e < kOwnCount; ++e) {
+        const Row r = summarise(own[size_t(e)], ref, own[0].se);
+        std::printf("| %s | %u | %s | %.2f | %.3f | %.2f | %.2f |\n", name.c_str(), n, kOwnNames[e], r.cost,
+                    r.aggregate, r.p50, r.p99);
+      }
+      for (uint32_t k : {2u, 4u}) {
+        Tally t(3 * np);
+        for (int seed = 0; seed < seeds; ++seed) {
+          RenderOptions o;
+          o.spp = n;
+          o.seed = 7 + uint64_t(seed);
+          o.replicates = k;
+          o.variance = true;
+          const RenderResult res = render(s, o);
+          const char* names[3] = {"variance.R", "variance.G", "variance.B"};
+          for (size_t i = 0; i < np; ++i)
+            for (size_t c = 0; c < 3; ++c) {
+              const double d = double(res.image.rgb[3 * i + c]) - ref.rgb[3 * i + c];
+              t.se[3 * i + c] += d * d / seeds;
+              t.pred[3 * i + c] += double(res.image.extra.at(names[c])[i]) / seeds;
+            }
+        }
+        const Row r = summarise(t, ref, own[0].se);
+        std::printf("| %s | %u | %u replicates of %u | %.2f | %.3f | %.2f | %.2f |\n", name.c_str(), n, k, n / k,
+                    r.cost, r.aggregate, r.p50, r.p99);
+      }
+      std::fflush(stdout);
+    }
+  }
+}
