@@ -3,10 +3,11 @@
 // of docs/speed-vs-error.md. Prints a markdown table (docs/error-estimates.md holds a run of it).
 //
 //   ./build/bench/error_estimators [--scale F] [--seeds S] [--ref-spp N] [--spp N,N,...] [--scenes a,b,...]
+//                                  [--sweep MAX_SPP]
 //
 // Candidates from the default render's own samples (its colours unchanged, relMSE cost 0): the i.i.d. variance
-// s^2/n (today's variance channel), the half difference h(n/2) and the block-extrapolated estimate
-// (core/block_differences.h). Candidates that change the samples: K = 2 and K = 4 independent replicates of n/K
+// s^2/n (today's variance channel), the half difference h(n/2) and three extrapolations over the block sizes
+// (core/block_differences.h; see top_two, two_level). Candidates that change the samples: K = 2 and K = 4 independent replicates of n/K
 // samples (`--replicates K`), whose variance channel is unbiased.
 //
 // For every pixel, the measured error is the mean over S renders (seeds 7 .. 7+S-1) of the squared error against a
@@ -15,6 +16,7 @@
 // the default's; aggregate = predicted / measured relMSE over the frame; p50 and p99 = the median and 99th
 // percentile over pixels of the predicted per-pixel relative error sqrt(mean_c pred/(R^2+0.01)) divided by the same
 // quantile of the measured one (per-pixel distribution; 1 = exact, the S renders leave about 1/sqrt(2S) of noise).
+#include "bench/error_metrics.h"
 #include "core/block_differences.h"
 #include "core/path_integrator.h"
 #include "core/render.h"
@@ -23,6 +25,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -36,9 +39,23 @@ using namespace tessera;
 namespace {
 
 // Candidate estimates of a pixel channel's variance of the mean from the default render's samples.
-enum Own { kIid, kHalf, kExtrapolated, kOwnCount };
+enum Own { kIid, kHalf, kTop2, kTwoLevel, kPooled, kOwnCount };
 const char* const kOwnNames[kOwnCount] = {"i.i.d. s^2/n (today)", "half difference h(n/2)",
-                                          "block-extrapolated (core/block_differences.h)"};
+                                          "rate h(n/2)/h(n/4), scale h(n/2)", "rate h(n/4)/h(n/8), scale h(n/4)",
+                                          "rate pooled over 3 levels (BlockDifferences::extrapolated)"};
+
+// Variants of the extrapolation (n a power of two >= 8, m = log2 n), against BlockDifferences::extrapolated (the
+// rate pooled over the top three levels): the rate from the top two levels alone (1 and 2 pairs), applied from
+// h(n/2); or from the two below (2 and 4 pairs), applied from h(n/4): h(n/4) r^2 / (1 - r).
+double rate(double upper, double lower) { return lower > 0 ? std::clamp(upper / lower, 1.0 / 16.0, 0.5) : 0.5; }
+double top_two(const BlockDifferences& b, int m) {
+  const double r = rate(b.h(m - 1), b.h(m - 2));
+  return b.h(m - 1) * r / (1.0 - r);
+}
+double two_level(const BlockDifferences& b, int m) {
+  const double r = rate(b.h(m - 2), b.h(m - 3));
+  return b.h(m - 2) * r * r / (1.0 - r);
+}
 
 std::vector<std::string> split(const std::string& s) {
   std::vector<std::string> out;
@@ -86,6 +103,32 @@ Row summarise(const Tally& t, const Image& ref, const std::vector<double>& base_
   return {meas / base, pred / meas, quantile(pp, 0.5) / quantile(pm, 0.5), quantile(pp, 0.99) / quantile(pm, 0.99)};
 }
 
+// The uniform sweep of the report for one scene, by both protocols: the old one (3 renders per row, seeds 1-3 at
+// every spp, so each row's samples are a prefix of the next row's) and the current one (max(3, 1024 / spp) renders
+// per row, seeds no other row uses; bench/speed_vs_error.cpp). Prints mean relMSE and p99 per row.
+void sweep(const std::string& name, const Scene& s, const Image& ref, uint32_t max_spp) {
+  std::printf("| scene | spp | relMSE, 3 renders, seeds 1-3 (old) | renders (current) | relMSE (current) | p99 (current) |\n"
+              "|---|---|---|---|---|---|\n");
+  for (uint32_t spp = 1; spp <= max_spp; spp *= 2) {
+    const auto mean_of = [&](uint64_t seed0, int renders) {
+      Metrics sum;
+      for (int r = 0; r < renders; ++r) {
+        RenderOptions o;
+        o.spp = spp;
+        o.seed = seed0 + uint64_t(r);
+        const Metrics m = metrics(render(s, o).image, ref);
+        sum.rel_mse += m.rel_mse / renders;
+        sum.p99 += m.p99 / renders;
+      }
+      return sum;
+    };
+    const int renders = std::max(3, int(1024 / spp));
+    const Metrics old = mean_of(1, 3), now = mean_of(uint64_t(spp) << 20, renders);
+    std::printf("| %s | %u | %.4g | %d | %.4g | %.4g |\n", name.c_str(), spp, old.rel_mse, renders, now.rel_mse, now.p99);
+    std::fflush(stdout);
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -93,12 +136,13 @@ int main(int argc, char** argv) {
   int seeds = 16;
   uint32_t ref_spp = 4096;
   std::vector<std::string> spps = {"16", "64"};
+  uint32_t sweep_max = 0;  // > 0: print the uniform sweep 1 .. sweep_max spp instead (see sweep())
   std::vector<std::string> scenes = {"cbox_no_light", "cbox_no_light_refraction", "cbox_area_light", "cbox_env_light",
                                      "sky_sun"};
   for (int i = 1; i < argc; ++i) {
     const std::string k = argv[i];
     if (i + 1 >= argc) {
-      std::fprintf(stderr, "usage: %s [--scale F] [--seeds S] [--ref-spp N] [--spp N,N] [--scenes a,b]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--scale F] [--seeds S] [--ref-spp N] [--spp N,N] [--scenes a,b] [--sweep N]\n", argv[0]);
       return 2;
     }
     const std::string v = argv[++i];
@@ -107,12 +151,14 @@ int main(int argc, char** argv) {
     else if (k == "--ref-spp") ref_spp = uint32_t(std::stoul(v));
     else if (k == "--spp") spps = split(v);
     else if (k == "--scenes") scenes = split(v);
+    else if (k == "--sweep") sweep_max = uint32_t(std::stoul(v));
     else {
       std::fprintf(stderr, "unknown option %s\n", k.c_str());
       return 2;
     }
   }
-  std::printf("| scene | spp | estimate | relMSE cost | aggregate predicted / measured | p50 | p99 |\n"
+  if (sweep_max == 0)
+    std::printf("| scene | spp | estimate | relMSE cost | aggregate predicted / measured | p50 | p99 |\n"
               "|---|---|---|---|---|---|---|\n");
   for (const std::string& name : scenes) {
     Scene s = load_scene_file(fs::path(TESSERA_SOURCE_DIR) / "scenes" / (name + ".json")).scene;
@@ -124,9 +170,18 @@ int main(int argc, char** argv) {
     ro.replicates = 8;
     ro.variance = true;
     const Image ref = render(s, ro).image;
+    if (sweep_max > 0) {
+      sweep(name, s, ref, sweep_max);
+      continue;
+    }
     const size_t np = size_t(s.width) * size_t(s.height);
     for (const std::string& spp_text : spps) {
       const uint32_t n = uint32_t(std::stoul(spp_text));
+      const int m = std::bit_width(n) - 1;
+      if (n < 8 || (n & (n - 1)) != 0) {
+        std::fprintf(stderr, "--spp takes powers of two from 8\n");
+        return 2;
+      }
       // The default sampler, sample by sample (the same samples, in the same order, as render()).
       std::vector<Tally> own(kOwnCount, Tally(3 * np));
       tbb::parallel_for(size_t(0), np, [&](size_t i) {
@@ -148,7 +203,8 @@ int main(int argc, char** argv) {
           for (size_t c = 0; c < 3; ++c) {
             const double mean = sum[c] / n, d = mean - ref.rgb[3 * i + c];
             const double est[kOwnCount] = {std::max(0.0, sum2[c] - n * mean * mean) / (n - 1.0) / n,
-                                           bd[c].half_difference(), bd[c].extrapolated()};
+                                           bd[c].half_difference(), top_two(bd[c], m), two_level(bd[c], m),
+                                           bd[c].extrapolated()};
             for (int e = 0; e < kOwnCount; ++e) {
               own[size_t(e)].se[3 * i + c] += d * d / seeds;
               own[size_t(e)].pred[3 * i + c] += est[e] / seeds;

@@ -7,6 +7,7 @@
 //
 // Runs being compared are interleaved (every strategy at one sample count, then the next count) and each timing is
 // the median of --repeats runs, because the machine is shared.
+#include "bench/error_metrics.h"
 #include "core/render.h"
 #include "core/scene_loader.h"
 
@@ -113,34 +114,6 @@ struct Args {
 };
 
 // ---- metrics -------------------------------------------------------------------------------------------------
-
-struct Metrics {
-  double rel_mse = 0;  // mean over pixels and channels of (I - R)^2 / (R^2 + 0.01)
-  double rmse = 0;     // sqrt of mean (I - R)^2
-  double p99 = 0;      // 99th percentile over pixels of sqrt(mean over channels of (I - R)^2 / (R^2 + 0.01))
-};
-
-Metrics metrics(const Image& img, const Image& ref) {
-  Metrics m;
-  const size_t n = size_t(img.width) * size_t(img.height);
-  std::vector<double> per(n);
-  double se = 0, rse = 0;
-  for (size_t i = 0; i < n; ++i) {
-    double pr = 0;
-    for (int c = 0; c < 3; ++c) {
-      const double r = ref.rgb[3 * i + size_t(c)], d = double(img.rgb[3 * i + size_t(c)]) - r;
-      se += d * d;
-      pr += d * d / (r * r + 0.01);
-    }
-    rse += pr;
-    per[i] = std::sqrt(pr / 3);
-  }
-  m.rel_mse = rse / (3.0 * double(n));
-  m.rmse = std::sqrt(se / (3.0 * double(n)));
-  std::nth_element(per.begin(), per.begin() + ptrdiff_t(0.99 * double(n - 1)), per.end());
-  m.p99 = per[size_t(0.99 * double(n - 1))];
-  return m;
-}
 
 // Predicted relMSE of img against ref from the variance channels: mean of (Var(I) + Var(R)) / (R^2 + 0.01).
 double predicted_rel_mse(const Image& img, const Image* ref_for_weights, bool include_ref_var) {

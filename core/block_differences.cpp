@@ -33,9 +33,14 @@ double BlockDifferences::half_difference() const {
 double BlockDifferences::extrapolated() const {
   if (n_ < 4) return half_difference();
   const int top = std::bit_width(n_) - 2;  // level of the two halves
-  const double upper = h(top), lower = h(top - 1);
-  const double r = lower > 0.0 ? std::clamp(upper / lower, 1.0 / 16.0, 0.5) : 0.5;
-  return upper * r / (1.0 - r);
+  // Pairs-weighted ratio of consecutive levels: level top has 1 pair, top - 1 has 2 (at n = 4 only one ratio).
+  double num = h(top), den = h(top - 1);
+  if (top >= 2) {
+    num += 2.0 * h(top - 1);
+    den += 2.0 * h(top - 2);
+  }
+  const double r = den > 0.0 ? std::clamp(num / den, 1.0 / 16.0, 0.5) : 0.5;
+  return h(top) * r / (1.0 - r);
 }
 
 }  // namespace tessera

@@ -26,10 +26,12 @@ class BlockDifferences {
   /// The i.i.d.-exact estimate of the n-sample mean's variance for a power-of-two n >= 2: h(n/2) (equal to
   /// variance / n for independent samples, larger than the true variance for stratified ones).
   double half_difference() const;
-  /// Variance of the mean extrapolated over the block sizes: with r = h(n/2) / h(n/4) clamped to [1/16, 1/2] (the
-  /// decay per doubling of a 2D scrambled net's variance lies between n^-1 for any integrand and n^-3 for smooth
-  /// ones; 1/16 leaves room for the estimate's noise), sum over b >= n of h(n/2) r^(log2(b)-log2(n)+1) =
-  /// h(n/2) r / (1 - r). Needs a power-of-two n >= 4; falls back to half_difference() at n = 2 and returns 0 below.
+  /// Variance of the mean extrapolated over the block sizes, for a power-of-two n >= 8: the decay per doubling
+  /// r = (h(n/2) + 2 h(n/4)) / (h(n/4) + 2 h(n/8)) (the top three levels, each ratio weighted by its pairs), clamped
+  /// to [1/16, 1/2] (a 2D scrambled net's variance falls between n^-1 for any integrand and n^-3 for smooth ones;
+  /// 1/16 leaves room for noise), then sum over b >= n of h(b) = h(n/2) r / (1 - r). At n = 4 the rate is
+  /// h(2) / h(1); at n = 2 it is half_difference(); 0 below. Other counts use their largest power-of-two prefix's
+  /// levels as if they were complete, so use it on powers of two.
   double extrapolated() const;
 
  private:

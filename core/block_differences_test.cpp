@@ -42,11 +42,12 @@ TEST(BlockDifferences, HalfDifferenceIsTheVarianceOfTheMeanForIndependentSamples
 }
 
 TEST(BlockDifferences, ExtrapolatesAGeometricDecay) {
-  // Blocks of 2 with means 1.5, -0.5, 0.5, -1.5 (h(2 samples) = 1) and halves with means 0.5, -0.5 (h(4) = 1/4):
-  // r = 1/4, so the variance of the 8-sample mean is extrapolated as h(4) r / (1 - r) = 1/12.
+  // Pairs differing by 4 (h(1 sample) = 4), blocks of 2 with means 1.5, -0.5, 0.5, -1.5 (h(2) = 1), halves with
+  // means 0.5, -0.5 (h(4) = 1/4): r = (1/4 + 2 x 1) / (1 + 2 x 4) = 1/4, so the variance of the 8-sample mean is
+  // extrapolated as h(4) r / (1 - r) = 1/12.
   BlockDifferences b;
-  for (double x : {1.5, 1.5, -0.5, -0.5, 0.5, 0.5, -1.5, -1.5}) b.add(x);
-  EXPECT_DOUBLE_EQ(b.h(0), 0.0);
+  for (double x : {3.5, -0.5, 1.5, -2.5, 2.5, -1.5, 0.5, -3.5}) b.add(x);
+  EXPECT_DOUBLE_EQ(b.h(0), 4.0);
   EXPECT_DOUBLE_EQ(b.h(1), 1.0);
   EXPECT_DOUBLE_EQ(b.h(2), 0.25);
   EXPECT_DOUBLE_EQ(b.half_difference(), 0.25);
