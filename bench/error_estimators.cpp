@@ -3,12 +3,12 @@
 // of docs/speed-vs-error.md. Prints a markdown table (docs/error-estimates.md holds a run of it).
 //
 //   ./build/bench/error_estimators [--scale F] [--seeds S] [--ref-spp N] [--spp N,N,...] [--scenes a,b,...]
-//                                  [--sweep MAX_SPP]
+//                                  [--sweep MAX_SPP] [--adaptive E,E,...]
 //
 // Candidates from the default render's own samples (its colours unchanged, relMSE cost 0): the i.i.d. variance
 // s^2/n (today's variance channel), the half difference h(n/2) and three extrapolations over the block sizes
-// (core/block_differences.h; see top_two, two_level). Candidates that change the samples: K = 2 and K = 4 independent replicates of n/K
-// samples (`--replicates K`), whose variance channel is unbiased.
+// (core/block_differences.h; see top_two, two_level). Candidates that change the samples: K = 2 and K = 4
+// independent replicates of n/K samples (`--replicates K`), whose variance channel is unbiased.
 //
 // For every pixel, the measured error is the mean over S renders (seeds 7 .. 7+S-1) of the squared error against a
 // reference (ref-spp samples, 8 replicates, seed 1000) and the predicted one the mean of the estimate plus the
@@ -129,6 +129,72 @@ void sweep(const std::string& name, const Scene& s, const Image& ref, uint32_t m
   }
 }
 
+// --target-error's rule (core/adaptive.h: rounds of 16, 32, ... 1024 samples; stop when sqrt(var + (s/n)^2) / s <= E
+// with s = max(mean luminance, 0.1)) with three estimates of var on luminance: the i.i.d. one (today), the rate from
+// the top two levels (conservative in every row measured) and the pooled rate. Simulated here, sample by sample, so
+// the core is unchanged. Prints, per rule and target, the mean spp, the measured p99 (as the report defines it) and
+// the uniform spp that reaches the same p99 (log-log interpolation over uniform renders at 16 .. 1024 spp; saved =
+// 1 - adaptive / uniform in samples, which on this machine are steadier than times).
+void adaptive(const std::string& name, const Scene& s, const Image& ref, const std::vector<double>& targets) {
+  const size_t np = size_t(s.width) * size_t(s.height);
+  std::vector<std::pair<double, double>> uniform;  // (spp, p99)
+  for (uint32_t spp = 16; spp <= 1024; spp *= 2) {
+    RenderOptions o;
+    o.spp = spp;
+    o.seed = 5000 + spp;
+    uniform.push_back({double(spp), metrics(render(s, o).image, ref).p99});
+  }
+  const auto uniform_spp = [&](double p99) {
+    for (size_t i = 0; i + 1 < uniform.size(); ++i) {
+      const auto [n0, e0] = uniform[i];
+      const auto [n1, e1] = uniform[i + 1];
+      if ((e0 >= p99 && e1 <= p99) || (e0 <= p99 && e1 >= p99))
+        return e0 == e1 ? n0 : std::exp(std::log(n0) + std::log(p99 / e0) / std::log(e1 / e0) * std::log(n1 / n0));
+    }
+    const auto [n, e] = p99 < uniform.back().second ? uniform.back() : uniform.front();
+    return n * (e / p99) * (e / p99);  // ideal: error ~ 1 / sqrt(n)
+  };
+  const char* rules[3] = {"i.i.d. (today)", "rate h(n/2)/h(n/4)", "pooled rate"};
+  for (double target : targets)
+    for (int rule = 0; rule < 3; ++rule) {
+      Image img = Image::make(s.width, s.height);
+      std::vector<double> spp(np);
+      tbb::parallel_for(size_t(0), np, [&](size_t i) {
+        const int px = int(i % size_t(s.width)), py = int(i / size_t(s.width));
+        RayCounters rc;
+        BlockDifferences bd;
+        glm::dvec3 sum(0.0);
+        double y2 = 0;
+        uint32_t n = 0;
+        for (uint32_t end = 16;; end = std::min(1024U, 2 * end)) {
+          for (; n < end; ++n) {
+            PixelSampler sp = pixel_sampler(9, px, py, n, 1);
+            const Ray r = s.camera.generate_pixel(px, py, sp.next_2d(), s.width, s.height);
+            const Vec3 L = trace_sample(s, r, sp, rc);
+            const double y = 0.2126 * L.x + 0.7152 * L.y + 0.0722 * L.z;
+            sum += glm::dvec3(L);
+            y2 += y * y;
+            bd.add(y);
+          }
+          const double ym = (0.2126 * sum.x + 0.7152 * sum.y + 0.0722 * sum.z) / n;
+          const double var = rule == 0 ? std::max(0.0, y2 - n * ym * ym) / (n - 1.0) / n
+                             : rule == 1 ? top_two(bd, std::bit_width(n) - 1)
+                                         : bd.extrapolated();
+          const double scale = std::max(ym, 0.1), unseen = scale / n;
+          if (n >= 1024 || std::sqrt(var + unseen * unseen) / scale <= target) break;
+        }
+        img.set(px, py, Vec3(sum / double(n)));
+        spp[i] = n;
+      });
+      double mean = 0;
+      for (double v : spp) mean += v / double(np);
+      const double p99 = metrics(img, ref).p99, u = uniform_spp(p99);
+      std::printf("| %s | %s | %.2g | %.1f | %.4g | %.1f | %.0f%% |\n", name.c_str(), rules[rule], target, mean, p99, u,
+                  100.0 * (1.0 - mean / u));
+      std::fflush(stdout);
+    }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -137,12 +203,13 @@ int main(int argc, char** argv) {
   uint32_t ref_spp = 4096;
   std::vector<std::string> spps = {"16", "64"};
   uint32_t sweep_max = 0;  // > 0: print the uniform sweep 1 .. sweep_max spp instead (see sweep())
+  std::vector<double> targets;  // non-empty: simulate --target-error at these targets instead (see adaptive())
   std::vector<std::string> scenes = {"cbox_no_light", "cbox_no_light_refraction", "cbox_area_light", "cbox_env_light",
                                      "sky_sun"};
   for (int i = 1; i < argc; ++i) {
     const std::string k = argv[i];
     if (i + 1 >= argc) {
-      std::fprintf(stderr, "usage: %s [--scale F] [--seeds S] [--ref-spp N] [--spp N,N] [--scenes a,b] [--sweep N]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--scale F] [--seeds S] [--ref-spp N] [--spp N,N] [--scenes a,b] [--sweep N] [--adaptive E,E]\n", argv[0]);
       return 2;
     }
     const std::string v = argv[++i];
@@ -152,12 +219,16 @@ int main(int argc, char** argv) {
     else if (k == "--spp") spps = split(v);
     else if (k == "--scenes") scenes = split(v);
     else if (k == "--sweep") sweep_max = uint32_t(std::stoul(v));
+    else if (k == "--adaptive")
+      for (const std::string& t : split(v)) targets.push_back(std::stod(t));
     else {
       std::fprintf(stderr, "unknown option %s\n", k.c_str());
       return 2;
     }
   }
-  if (sweep_max == 0)
+  if (!targets.empty())
+    std::printf("| scene | rule | E | mean spp | p99 | uniform spp, same p99 | saved |\n|---|---|---|---|---|---|---|\n");
+  else if (sweep_max == 0)
     std::printf("| scene | spp | estimate | relMSE cost | aggregate predicted / measured | p50 | p99 |\n"
               "|---|---|---|---|---|---|---|\n");
   for (const std::string& name : scenes) {
@@ -172,6 +243,10 @@ int main(int argc, char** argv) {
     const Image ref = render(s, ro).image;
     if (sweep_max > 0) {
       sweep(name, s, ref, sweep_max);
+      continue;
+    }
+    if (!targets.empty()) {
+      adaptive(name, s, ref, targets);
       continue;
     }
     const size_t np = size_t(s.width) * size_t(s.height);
