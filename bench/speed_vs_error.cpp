@@ -7,6 +7,7 @@
 //
 // Runs being compared are interleaved (every strategy at one sample count, then the next count) and each timing is
 // the median of --repeats runs, because the machine is shared.
+#include "bench/error_metrics.h"
 #include "core/render.h"
 #include "core/scene_loader.h"
 
@@ -92,6 +93,15 @@ constexpr const char* kPathDiscussion = R"(## Findings (from the run of commit 0
 // (direct check: empirical variance over the seeds against the mean variance channel) gave 0.93-1.02.
 constexpr int kPredictionSeeds = 64;
 
+// Samples per pixel, summed over a row's renders, that every row of the error-against-time sweep averages its errors
+// over (row at n spp: max(repeats, kSweepSamples / n) renders, with seeds no other row uses). In cbox_area_light two
+// pixels hold a sliver of the light seen edge-on (hit with probability 0.0056 per sample, value 28 against a mean of
+// 0.16): one hit at 16 spp is an error of 1.6 there and 0.01-0.03 of the frame's relMSE. With 3 renders per row and
+// every row reusing seeds 1-3 (each row a prefix of the next), the table showed whether seeds 1-3 happened to hit
+// those pixels in their first n samples (8 spp: none, 0.0021; 16 and 32 spp: the same three hits, 0.0146 and 0.0033)
+// instead of the expected error. 1024 samples see about 11 such hits per row.
+constexpr uint32_t kSweepSamples = 1024;
+
 struct Args {
   fs::path out = fs::path(TESSERA_SOURCE_DIR) / "docs";
   double scale = 0.25;      // resolution factor applied to every scene
@@ -104,34 +114,6 @@ struct Args {
 };
 
 // ---- metrics -------------------------------------------------------------------------------------------------
-
-struct Metrics {
-  double rel_mse = 0;  // mean over pixels and channels of (I - R)^2 / (R^2 + 0.01)
-  double rmse = 0;     // sqrt of mean (I - R)^2
-  double p99 = 0;      // 99th percentile over pixels of sqrt(mean over channels of (I - R)^2 / (R^2 + 0.01))
-};
-
-Metrics metrics(const Image& img, const Image& ref) {
-  Metrics m;
-  const size_t n = size_t(img.width) * size_t(img.height);
-  std::vector<double> per(n);
-  double se = 0, rse = 0;
-  for (size_t i = 0; i < n; ++i) {
-    double pr = 0;
-    for (int c = 0; c < 3; ++c) {
-      const double r = ref.rgb[3 * i + size_t(c)], d = double(img.rgb[3 * i + size_t(c)]) - r;
-      se += d * d;
-      pr += d * d / (r * r + 0.01);
-    }
-    rse += pr;
-    per[i] = std::sqrt(pr / 3);
-  }
-  m.rel_mse = rse / (3.0 * double(n));
-  m.rmse = std::sqrt(se / (3.0 * double(n)));
-  std::nth_element(per.begin(), per.begin() + ptrdiff_t(0.99 * double(n - 1)), per.end());
-  m.p99 = per[size_t(0.99 * double(n - 1))];
-  return m;
-}
 
 // Predicted relMSE of img against ref from the variance channels: mean of (Var(I) + Var(R)) / (R^2 + 0.01).
 double predicted_rel_mse(const Image& img, const Image* ref_for_weights, bool include_ref_var) {
@@ -500,6 +482,10 @@ int main(int argc, char** argv) {
      << "minutes on this machine).\n"
      << "- Error metrics, against the reference, over pixels and RGB channels: relMSE = mean (I-R)^2/(R^2+0.01); RMSE;"
      << " p99 = 99th percentile over pixels of the per-pixel relative error sqrt(mean_c (I-R)^2/(R^2+0.01)).\n"
+     << "- Error against time: the row at n spp averages its errors over max(" << a.repeats << ", " << kSweepSamples
+     << " / n) renders whose seeds no other row uses (times: their median), so that every row sees the rare samples "
+     << "that dominate relMSE (the sliver of the area light inside two pixels of cbox_area_light, hit with probability "
+     << "0.006 per sample).\n"
      << "- References: none of the five scenes has a closed-form pixel value (every pixel integrates over its area "
      << "across edges, and light over occluded area lights or maps), so each reference is a " << a.ref_spp
      << " spp render with 8 independent replicates (unbiased error estimate; core/adaptive.h), with its own "
@@ -516,7 +502,9 @@ int main(int argc, char** argv) {
           << "Predicted relMSE = mean over pixels of (Var(I) + Var(R)) / (R^2 + 0.01) from the variance channels; "
           << "measured = relMSE against the reference. With one stratified sequence per pixel (the default) the "
           << "variance channel is the i.i.d. estimate sample variance / n, which the Owen-scrambled Sobol sampler "
-          << "beats; with K independent replicates (`--replicates K`) it is unbiased.\n\n"
+          << "beats; with K independent replicates (`--replicates K`) it is unbiased. Estimates from the default "
+          << "sampler's own samples (sibling-block differences, extrapolated over the block sizes) are measured in "
+          << "[error-estimates.md](error-estimates.md).\n\n"
           << "Each row sums " << kPredictionSeeds << " renders with different seeds (the aggregate); the last column "
           << "is the range of the ratio over the single renders.\n\n"
           << "| scene | spp | replicates | predicted | measured | measured / predicted | single renders |\n"
@@ -532,8 +520,8 @@ int main(int argc, char** argv) {
     for (uint32_t spp : sweep) {
       RenderOptions o;
       o.spp = spp;
-      o.seed = 1;
-      const Run r = run(s, o, ref.image, a.repeats);
+      o.seed = uint64_t(spp) << 20;  // rows share no seeds (and so no samples)
+      const Run r = run(s, o, ref.image, std::max(a.repeats, int(kSweepSamples / spp)));
       c.push_back({spp, r.seconds, r.m.rel_mse, r.m.rmse, r.m.p99, r.mean_spp, r.cpu_seconds});
       md << "| " << name << " | " << s.width << "x" << s.height << " | " << fmt("%.2e", ref_err[name]) << " | " << spp
          << " | " << fmt("%.4f", r.seconds) << " | " << fmt("%.4f", r.cpu_seconds) << " | " << fmt("%.4g", r.m.rel_mse) << " | " << fmt("%.4g", r.m.rmse)

@@ -1,0 +1,319 @@
+// Error estimates for the default sampler (issue 18, section 2): what each candidate predicts against the measured
+// error, and what it costs in relMSE against the default (one Owen-scrambled sequence per pixel), on the five scenes
+// of docs/speed-vs-error.md. Prints a markdown table (docs/error-estimates.md holds a run of it).
+//
+//   ./build/bench/error_estimators [--scale F] [--seeds S] [--ref-spp N] [--spp N,N,...] [--scenes a,b,...]
+//                                  [--sweep MAX_SPP] [--adaptive E,E,...]
+//
+// Candidates from the default render's own samples (its colours unchanged, relMSE cost 0): the i.i.d. variance
+// s^2/n (today's variance channel), the half difference h(n/2) and three extrapolations over the block sizes
+// (core/block_differences.h; see top_two, two_level). Candidates that change the samples: K = 2 and K = 4
+// independent replicates of n/K samples (`--replicates K`), whose variance channel is unbiased.
+//
+// For every pixel, the measured error is the mean over S renders (seeds 7 .. 7+S-1) of the squared error against a
+// reference (ref-spp samples, 8 replicates, seed 1000) and the predicted one the mean of the estimate plus the
+// reference's own variance; relMSE weights 1/(R^2 + 0.01) as in the report. Columns: relMSE cost = measured relMSE /
+// the default's; aggregate = predicted / measured relMSE over the frame; p50 and p99 = the median and 99th
+// percentile over pixels of the predicted per-pixel relative error sqrt(mean_c pred/(R^2+0.01)) divided by the same
+// quantile of the measured one (per-pixel distribution; 1 = exact, the S renders leave about 1/sqrt(2S) of noise).
+#include "bench/error_metrics.h"
+#include "core/block_differences.h"
+#include "core/path_integrator.h"
+#include "core/render.h"
+#include "core/scene_loader.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace fs = std::filesystem;
+using namespace tessera;
+
+namespace {
+
+// Candidate estimates of a pixel channel's variance of the mean from the default render's samples.
+enum Own { kIid, kHalf, kTop2, kTwoLevel, kPooled, kOwnCount };
+const char* const kOwnNames[kOwnCount] = {"i.i.d. s^2/n (today)", "half difference h(n/2)",
+                                          "rate h(n/2)/h(n/4), scale h(n/2)", "rate h(n/4)/h(n/8), scale h(n/4)",
+                                          "rate pooled over 3 levels (BlockDifferences::extrapolated)"};
+
+// Variants of the extrapolation (n a power of two >= 8, m = log2 n), against BlockDifferences::extrapolated (the
+// rate pooled over the top three levels): the rate from the top two levels alone (1 and 2 pairs), applied from
+// h(n/2); or from the two below (2 and 4 pairs), applied from h(n/4): h(n/4) r^2 / (1 - r).
+double rate(double upper, double lower) { return lower > 0 ? std::clamp(upper / lower, 1.0 / 16.0, 0.5) : 0.5; }
+double top_two(const BlockDifferences& b, int m) {
+  const double r = rate(b.h(m - 1), b.h(m - 2));
+  return b.h(m - 1) * r / (1.0 - r);
+}
+double two_level(const BlockDifferences& b, int m) {
+  const double r = rate(b.h(m - 2), b.h(m - 3));
+  return b.h(m - 2) * r * r / (1.0 - r);
+}
+
+std::vector<std::string> split(const std::string& s) {
+  std::vector<std::string> out;
+  std::stringstream in(s);
+  for (std::string t; std::getline(in, t, ',');) out.push_back(t);
+  return out;
+}
+
+double quantile(std::vector<double> v, double q) {
+  const size_t k = size_t(q * double(v.size() - 1));
+  std::nth_element(v.begin(), v.begin() + ptrdiff_t(k), v.end());
+  return v[k];
+}
+
+// Per pixel and channel (index 3 i + c): summed squared error and summed predicted variance of the mean over renders.
+struct Tally {
+  std::vector<double> se, pred;
+  explicit Tally(size_t n) : se(n, 0.0), pred(n, 0.0) {}
+};
+
+struct Row {
+  double cost, aggregate, p50, p99;
+};
+
+// Frame figures of a tally against the reference (its variance added to every prediction); `base_se`: the default's
+// squared errors, for the cost.
+Row summarise(const Tally& t, const Image& ref, const std::vector<double>& base_se) {
+  const size_t np = size_t(ref.width) * size_t(ref.height);
+  const char* names[3] = {"variance.R", "variance.G", "variance.B"};
+  double meas = 0, pred = 0, base = 0;
+  std::vector<double> pm(np), pp(np);
+  for (size_t i = 0; i < np; ++i) {
+    double a = 0, b = 0;
+    for (size_t c = 0; c < 3; ++c) {
+      const double r = ref.rgb[3 * i + c], w = 1.0 / (r * r + 0.01), vr = ref.extra.at(names[c])[i];
+      a += t.se[3 * i + c] * w;
+      b += (t.pred[3 * i + c] + vr) * w;
+      base += base_se[3 * i + c] * w;
+    }
+    meas += a;
+    pred += b;
+    pm[i] = std::sqrt(a / 3);
+    pp[i] = std::sqrt(b / 3);
+  }
+  return {meas / base, pred / meas, quantile(pp, 0.5) / quantile(pm, 0.5), quantile(pp, 0.99) / quantile(pm, 0.99)};
+}
+
+// The uniform sweep of the report for one scene, by both protocols: the old one (3 renders per row, seeds 1-3 at
+// every spp, so each row's samples are a prefix of the next row's) and the current one (max(3, 1024 / spp) renders
+// per row, seeds no other row uses; bench/speed_vs_error.cpp). Prints mean relMSE and p99 per row.
+void sweep(const std::string& name, const Scene& s, const Image& ref, uint32_t max_spp) {
+  std::printf("| scene | spp | relMSE, 3 renders, seeds 1-3 (old) | renders (current) | relMSE (current) | p99 (current) |\n"
+              "|---|---|---|---|---|---|\n");
+  for (uint32_t spp = 1; spp <= max_spp; spp *= 2) {
+    const auto mean_of = [&](uint64_t seed0, int renders) {
+      Metrics sum;
+      for (int r = 0; r < renders; ++r) {
+        RenderOptions o;
+        o.spp = spp;
+        o.seed = seed0 + uint64_t(r);
+        const Metrics m = metrics(render(s, o).image, ref);
+        sum.rel_mse += m.rel_mse / renders;
+        sum.p99 += m.p99 / renders;
+      }
+      return sum;
+    };
+    const int renders = std::max(3, int(1024 / spp));
+    const Metrics old = mean_of(1, 3), now = mean_of(uint64_t(spp) << 20, renders);
+    std::printf("| %s | %u | %.4g | %d | %.4g | %.4g |\n", name.c_str(), spp, old.rel_mse, renders, now.rel_mse, now.p99);
+    std::fflush(stdout);
+  }
+}
+
+// --target-error's rule (core/adaptive.h: rounds of 16, 32, ... 1024 samples; stop when sqrt(var + (s/n)^2) / s <= E
+// with s = max(mean luminance, 0.1)) with three estimates of var on luminance: the i.i.d. one (today), the rate from
+// the top two levels (conservative in every row measured) and the pooled rate. Simulated here, sample by sample, so
+// the core is unchanged. Prints, per rule and target, the mean spp, the measured p99 (as the report defines it) and
+// the uniform spp that reaches the same p99 (log-log interpolation over uniform renders at 16 .. 1024 spp; saved =
+// 1 - adaptive / uniform in samples, which on this machine are steadier than times).
+void adaptive(const std::string& name, const Scene& s, const Image& ref, const std::vector<double>& targets) {
+  const size_t np = size_t(s.width) * size_t(s.height);
+  std::vector<std::pair<double, double>> uniform;  // (spp, p99)
+  for (uint32_t spp = 16; spp <= 1024; spp *= 2) {
+    RenderOptions o;
+    o.spp = spp;
+    o.seed = 5000 + spp;
+    uniform.push_back({double(spp), metrics(render(s, o).image, ref).p99});
+  }
+  const auto uniform_spp = [&](double p99) {
+    for (size_t i = 0; i + 1 < uniform.size(); ++i) {
+      const auto [n0, e0] = uniform[i];
+      const auto [n1, e1] = uniform[i + 1];
+      if ((e0 >= p99 && e1 <= p99) || (e0 <= p99 && e1 >= p99))
+        return e0 == e1 ? n0 : std::exp(std::log(n0) + std::log(p99 / e0) / std::log(e1 / e0) * std::log(n1 / n0));
+    }
+    const auto [n, e] = p99 < uniform.back().second ? uniform.back() : uniform.front();
+    return n * (e / p99) * (e / p99);  // ideal: error ~ 1 / sqrt(n)
+  };
+  const char* rules[3] = {"i.i.d. (today)", "rate h(n/2)/h(n/4)", "pooled rate"};
+  for (double target : targets)
+    for (int rule = 0; rule < 3; ++rule) {
+      Image img = Image::make(s.width, s.height);
+      std::vector<double> spp(np);
+      tbb::parallel_for(size_t(0), np, [&](size_t i) {
+        const int px = int(i % size_t(s.width)), py = int(i / size_t(s.width));
+        RayCounters rc;
+        BlockDifferences bd;
+        glm::dvec3 sum(0.0);
+        double y2 = 0;
+        uint32_t n = 0;
+        for (uint32_t end = 16;; end = std::min(1024U, 2 * end)) {
+          for (; n < end; ++n) {
+            PixelSampler sp = pixel_sampler(9, px, py, n, 1);
+            const Ray r = s.camera.generate_pixel(px, py, sp.next_2d(), s.width, s.height);
+            const Vec3 L = trace_sample(s, r, sp, rc);
+            const double y = 0.2126 * L.x + 0.7152 * L.y + 0.0722 * L.z;
+            sum += glm::dvec3(L);
+            y2 += y * y;
+            bd.add(y);
+          }
+          const double ym = (0.2126 * sum.x + 0.7152 * sum.y + 0.0722 * sum.z) / n;
+          const double var = rule == 0 ? std::max(0.0, y2 - n * ym * ym) / (n - 1.0) / n
+                             : rule == 1 ? top_two(bd, std::bit_width(n) - 1)
+                                         : bd.extrapolated();
+          const double scale = std::max(ym, 0.1), unseen = scale / n;
+          if (n >= 1024 || std::sqrt(var + unseen * unseen) / scale <= target) break;
+        }
+        img.set(px, py, Vec3(sum / double(n)));
+        spp[i] = n;
+      });
+      double mean = 0;
+      for (double v : spp) mean += v / double(np);
+      const double p99 = metrics(img, ref).p99, u = uniform_spp(p99);
+      std::printf("| %s | %s | %.2g | %.1f | %.4g | %.1f | %.0f%% |\n", name.c_str(), rules[rule], target, mean, p99, u,
+                  100.0 * (1.0 - mean / u));
+      std::fflush(stdout);
+    }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  double scale = 0.25;
+  int seeds = 16;
+  uint32_t ref_spp = 4096;
+  std::vector<std::string> spps = {"16", "64"};
+  uint32_t sweep_max = 0;  // > 0: print the uniform sweep 1 .. sweep_max spp instead (see sweep())
+  std::vector<double> targets;  // non-empty: simulate --target-error at these targets instead (see adaptive())
+  std::vector<std::string> scenes = {"cbox_no_light", "cbox_no_light_refraction", "cbox_area_light", "cbox_env_light",
+                                     "sky_sun"};
+  for (int i = 1; i < argc; ++i) {
+    const std::string k = argv[i];
+    if (i + 1 >= argc) {
+      std::fprintf(stderr, "usage: %s [--scale F] [--seeds S] [--ref-spp N] [--spp N,N] [--scenes a,b] [--sweep N] [--adaptive E,E]\n", argv[0]);
+      return 2;
+    }
+    const std::string v = argv[++i];
+    if (k == "--scale") scale = std::stod(v);
+    else if (k == "--seeds") seeds = std::stoi(v);
+    else if (k == "--ref-spp") ref_spp = uint32_t(std::stoul(v));
+    else if (k == "--spp") spps = split(v);
+    else if (k == "--scenes") scenes = split(v);
+    else if (k == "--sweep") sweep_max = uint32_t(std::stoul(v));
+    else if (k == "--adaptive")
+      for (const std::string& t : split(v)) targets.push_back(std::stod(t));
+    else {
+      std::fprintf(stderr, "unknown option %s\n", k.c_str());
+      return 2;
+    }
+  }
+  if (!targets.empty())
+    std::printf("| scene | rule | E | mean spp | p99 | uniform spp, same p99 | saved |\n|---|---|---|---|---|---|---|\n");
+  else if (sweep_max == 0)
+    std::printf("| scene | spp | estimate | relMSE cost | aggregate predicted / measured | p50 | p99 |\n"
+              "|---|---|---|---|---|---|---|\n");
+  for (const std::string& name : scenes) {
+    Scene s = load_scene_file(fs::path(TESSERA_SOURCE_DIR) / "scenes" / (name + ".json")).scene;
+    s.width = std::max(1, int(std::lround(s.width * scale)));
+    s.height = std::max(1, int(std::lround(s.height * scale)));
+    RenderOptions ro;
+    ro.spp = ref_spp;
+    ro.seed = 1000;
+    ro.replicates = 8;
+    ro.variance = true;
+    const Image ref = render(s, ro).image;
+    if (sweep_max > 0) {
+      sweep(name, s, ref, sweep_max);
+      continue;
+    }
+    if (!targets.empty()) {
+      adaptive(name, s, ref, targets);
+      continue;
+    }
+    const size_t np = size_t(s.width) * size_t(s.height);
+    for (const std::string& spp_text : spps) {
+      const uint32_t n = uint32_t(std::stoul(spp_text));
+      const int m = std::bit_width(n) - 1;
+      if (n < 8 || (n & (n - 1)) != 0) {
+        std::fprintf(stderr, "--spp takes powers of two from 8\n");
+        return 2;
+      }
+      // The default sampler, sample by sample (the same samples, in the same order, as render()).
+      std::vector<Tally> own(kOwnCount, Tally(3 * np));
+      tbb::parallel_for(size_t(0), np, [&](size_t i) {
+        const int px = int(i % size_t(s.width)), py = int(i / size_t(s.width));
+        RayCounters rc;
+        for (int seed = 0; seed < seeds; ++seed) {
+          BlockDifferences bd[3];
+          double sum[3] = {0, 0, 0}, sum2[3] = {0, 0, 0};
+          for (uint32_t k = 0; k < n; ++k) {
+            PixelSampler sp = pixel_sampler(7 + uint64_t(seed), px, py, k, 1);
+            const Ray r = s.camera.generate_pixel(px, py, sp.next_2d(), s.width, s.height);
+            const Vec3 L = trace_sample(s, r, sp, rc);
+            for (int c = 0; c < 3; ++c) {
+              bd[c].add(L[c]);
+              sum[c] += L[c];
+              sum2[c] += double(L[c]) * double(L[c]);
+            }
+          }
+          for (size_t c = 0; c < 3; ++c) {
+            const double mean = sum[c] / n, d = mean - ref.rgb[3 * i + c];
+            const double est[kOwnCount] = {std::max(0.0, sum2[c] - n * mean * mean) / (n - 1.0) / n,
+                                           bd[c].half_difference(), top_two(bd[c], m), two_level(bd[c], m),
+                                           bd[c].extrapolated()};
+            for (int e = 0; e < kOwnCount; ++e) {
+              own[size_t(e)].se[3 * i + c] += d * d / seeds;
+              own[size_t(e)].pred[3 * i + c] += est[e] / seeds;
+            }
+          }
+        }
+      });
+      for (int e = 0; e < kOwnCount; ++e) {
+        const Row r = summarise(own[size_t(e)], ref, own[0].se);
+        std::printf("| %s | %u | %s | %.2f | %.3f | %.2f | %.2f |\n", name.c_str(), n, kOwnNames[e], r.cost,
+                    r.aggregate, r.p50, r.p99);
+      }
+      for (uint32_t k : {2u, 4u}) {
+        Tally t(3 * np);
+        for (int seed = 0; seed < seeds; ++seed) {
+          RenderOptions o;
+          o.spp = n;
+          o.seed = 7 + uint64_t(seed);
+          o.replicates = k;
+          o.variance = true;
+          const RenderResult res = render(s, o);
+          const char* names[3] = {"variance.R", "variance.G", "variance.B"};
+          for (size_t i = 0; i < np; ++i)
+            for (size_t c = 0; c < 3; ++c) {
+              const double d = double(res.image.rgb[3 * i + c]) - ref.rgb[3 * i + c];
+              t.se[3 * i + c] += d * d / seeds;
+              t.pred[3 * i + c] += double(res.image.extra.at(names[c])[i]) / seeds;
+            }
+        }
+        const Row r = summarise(t, ref, own[0].se);
+        std::printf("| %s | %u | %u replicates of %u | %.2f | %.3f | %.2f | %.2f |\n", name.c_str(), n, k, n / k,
+                    r.cost, r.aggregate, r.p50, r.p99);
+      }
+      std::fflush(stdout);
+    }
+  }
+}
