@@ -16,7 +16,7 @@
 #include "protocol/messages.h"
 #include "protocol/routes.h"
 #include "worker/child_process.h"
-#include "worker/http_client.h"
+#include "client/http_client.h"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>

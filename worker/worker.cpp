@@ -5,7 +5,7 @@
 #include "core/scene_loader.h"
 #include "failpoint/failpoint.h"
 #include "worker/asset_cache.h"
-#include "worker/backoff.h"
+#include "client/backoff.h"
 #include "protocol/messages.h"
 #include "protocol/routes.h"
 #include "worker/scene_cache.h"

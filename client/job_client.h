@@ -2,7 +2,7 @@
 // operator's controls over jobs and workers (pause, priority, retry, cancel, the worker list, drain).
 #pragma once
 
-#include "worker/http_client.h"
+#include "client/http_client.h"
 #include "protocol/messages.h"
 #include "protocol/worker.h"
 

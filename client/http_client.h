@@ -1,7 +1,7 @@
 // A small synchronous HTTP/1.1 client (Boost.Beast, plain or TLS) with connect, write and read timeouts.
 #pragma once
 
-#include "worker/tls_client_context.h"
+#include "client/tls_client_context.h"
 
 #include <chrono>
 #include <cstdint>

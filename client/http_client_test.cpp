@@ -1,4 +1,4 @@
-#include "worker/http_client.h"
+#include "client/http_client.h"
 
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/beast/core/flat_buffer.hpp>

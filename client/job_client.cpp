@@ -1,10 +1,10 @@
-#include "worker/job_client.h"
+#include "client/job_client.h"
 
 #include "core/file_io.h"
 #include "core/scene_loader.h"
 #include "core/sha256.h"
 #include "protocol/routes.h"
-#include "worker/backoff.h"
+#include "client/backoff.h"
 
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>

@@ -1,4 +1,4 @@
-#include "worker/http_client.h"
+#include "client/http_client.h"
 
 #include <boost/asio/connect.hpp>
 #include <boost/asio/io_context.hpp>
