@@ -42,7 +42,7 @@ using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 using namespace std::chrono_literals;
 using tessera::farm::HttpClient;
-using tessera::farm::HttpError;
+using tessera::farm::TransportError;
 using tessera::farm::HttpResponse;
 namespace protocol = tessera::protocol;
 namespace routes = tessera::protocol::routes;

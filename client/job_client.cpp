@@ -134,7 +134,7 @@ JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::funct
       last = s;
       if (s.finished()) return s;
       if (!sleep_unless(poll, stop)) return last;
-    } catch (const HttpError& e) {
+    } catch (const TransportError& e) {
       const auto now = std::chrono::steady_clock::now();
       if (failing_since == std::chrono::steady_clock::time_point{}) {
         failing_since = now;

@@ -43,10 +43,10 @@ struct SubmitResult {
 };
 
 /// Hashes the scene's assets, uploads the missing ones (HEAD, then PUT), and POSTs the job. Throws SubmitError with
-/// the coordinator's message for 4xx answers, HttpError when it is unreachable, SceneError for unreadable scenes.
+/// the coordinator's message for 4xx answers, TransportError when it is unreachable, SceneError for unreadable scenes.
 SubmitResult submit_job(HttpClient& http, const SubmitOptions& options);
 
-/// GET /v1/jobs/{id}; throws SubmitError (404 or other errors) or HttpError.
+/// GET /v1/jobs/{id}; throws SubmitError (404 or other errors) or TransportError.
 JobStatus get_job(HttpClient& http, const std::string& id);
 
 /// Polls the job every poll interval until it is done, failed or cancelled, calling progress on each change;
@@ -57,10 +57,10 @@ JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::funct
                        std::chrono::seconds give_up = std::chrono::seconds(120));
 
 /// Downloads the finished job's result.exr to path atomically (temporary file, fsync, rename); throws SubmitError
-/// or HttpError. Returns the number of bytes.
+/// or TransportError. Returns the number of bytes.
 uint64_t download_result(HttpClient& http, const std::string& id, const std::filesystem::path& path);
 
-/// GET /v1/jobs: every job, newest first; throws SubmitError or HttpError.
+/// GET /v1/jobs: every job, newest first; throws SubmitError or TransportError.
 std::vector<JobStatus> list_jobs(HttpClient& http);
 
 /// POST /v1/jobs/{id}/retry: the job queued again; throws SubmitError (404, 409 with the coordinator's sentence).
@@ -69,7 +69,7 @@ JobStatus retry_job(HttpClient& http, const std::string& id);
 /// PATCH /v1/jobs/{id} {"priority": N}: the job with its new priority; throws SubmitError (404, 409 ended).
 JobStatus set_job_priority(HttpClient& http, const std::string& id, int priority);
 
-/// GET /v1/workers: every registered worker; throws SubmitError or HttpError.
+/// GET /v1/workers: every registered worker; throws SubmitError or TransportError.
 std::vector<protocol::WorkerInfo> list_workers(HttpClient& http);
 
 /// POST /v1/workers/{id}/drain (drain true) or /undrain: the worker as it is now; throws SubmitError (404 unknown).
