@@ -44,6 +44,12 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
       ->check(CLI::Range(std::size_t(1024), std::size_t(1) << 24))->capture_default_str();
   c->add_option("--max-connections", a.max_connections, "Open connections; more are answered 503 and closed")
       ->check(CLI::Range(std::size_t(1), std::size_t(1) << 20))->capture_default_str();
+  c->add_option("--max-validations", a.max_validations,
+                "Job submissions whose scenes are checked at once, on threads of their own (never the request handlers')")
+      ->check(CLI::Range(1, 256))->capture_default_str();
+  c->add_option("--validation-queue", a.validation_queue,
+                "Submissions waiting for a check; more get 503 with Retry-After")
+      ->check(CLI::Range(0, 4096))->capture_default_str();
   c->add_flag("-v,--verbose", a.verbose, "Log every lease and connection event");
   return c;
 }
@@ -66,6 +72,8 @@ int run_serve(const ServeArgs& a) {
     o.limits.result_limit = a.max_result_bytes;
     o.header_limit = a.max_header_bytes;
     o.max_connections = a.max_connections;
+    o.admission.validations = a.max_validations;
+    o.admission.queue = a.validation_queue;
     o.handle_signals = true;
     o.tls = server::TlsServerFiles{a.tls_cert, a.tls_key, a.tls_client_ca};
     o.limits.tokens.client = load_token(a.client_token_file, "TESSERA_CLIENT_TOKEN");

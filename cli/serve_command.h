@@ -31,6 +31,8 @@ struct ServeArgs {
   std::size_t max_result_bytes = std::size_t(64) << 20;  ///< Tile result uploads.
   std::size_t max_header_bytes = 64 * 1024;              ///< Request headers.
   std::size_t max_connections = 1024;     ///< Open connections.
+  int max_validations = 2;                ///< Job submissions checked at once (their own threads).
+  int validation_queue = 8;               ///< Submissions waiting for a check before POST /v1/jobs answers 503.
   bool verbose = false;                   ///< Debug logging.
 };
 

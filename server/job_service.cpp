@@ -3,6 +3,7 @@
 #include "core/file_io.h"
 #include "core/scene_loader.h"
 #include "core/tiles.h"
+#include "failpoint/failpoint.h"
 
 #include <spdlog/spdlog.h>
 
@@ -86,6 +87,7 @@ protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
   if (unfinished_jobs() >= limits_.max_queued_jobs) throw queue_full();
   check_assets(sub);
 
+  TESSERA_FAIL_POINT("submit.validate");
   LoadedScene loaded;
   try {
     loaded = load_scene_json(sub.scene, "scene", [&](const std::string& rel, const std::string& jp) -> fs::path {
