@@ -9,6 +9,9 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <thread>
+
 namespace tessera::farm {
 
 namespace fs = std::filesystem;
@@ -62,7 +65,21 @@ SubmitResult submit_job(HttpClient& http, const SubmitOptions& o) {
   job.tile_size = o.tile_size;
   job.priority = o.priority;
   job.name = o.name.empty() ? o.scene.filename().string() : o.name;
-  const HttpResponse r = http.send("POST", routes::jobs(), json(job).dump());
+  const std::string body = json(job).dump();
+  HttpResponse r = http.send("POST", routes::jobs(), body);
+  // 503: every place of the coordinator's admission pool is taken (--max-validations, --validation-queue); nothing was
+  // stored, so the same submission goes again after Retry-After, drawn from [Retry-After, 2 x Retry-After] so that
+  // many clients turned away together spread out.
+  for (bool told = false; r.status == 503; told = true) {
+    int seconds = 1;
+    try {
+      seconds = std::clamp(std::stoi(r.header("retry-after")), 1, 60);
+    } catch (const std::exception&) {
+    }
+    if (!told) spdlog::info("the coordinator is busy checking other submissions; retrying {} in about {} s", o.scene.string(), seconds);
+    std::this_thread::sleep_for(Backoff(std::chrono::seconds(2 * seconds), std::chrono::seconds(2 * seconds)).next());
+    r = http.send("POST", routes::jobs(), body);
+  }
   if (r.status != 201 && r.status != 200) refuse("submitting " + o.scene.string(), r);
   out.job_id = protocol::parse_answer<protocol::SubmitAnswer>(r.body, "job submission").id;
   return out;

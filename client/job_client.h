@@ -42,8 +42,9 @@ struct SubmitResult {
   int assets_uploaded = 0; ///< Assets that were missing and uploaded.
 };
 
-/// Hashes the scene's assets, uploads the missing ones (HEAD, then PUT), and POSTs the job. Throws SubmitError with
-/// the coordinator's message for 4xx answers, TransportError when it is unreachable, SceneError for unreadable scenes.
+/// Hashes the scene's assets, uploads the missing ones (HEAD, then PUT), and POSTs the job, again after Retry-After
+/// while the coordinator answers 503 (its admission pool full). Throws SubmitError with the coordinator's message for
+/// other refusals, TransportError when it is unreachable, SceneError for unreadable scenes.
 SubmitResult submit_job(HttpClient& http, const SubmitOptions& options);
 
 /// GET /v1/jobs/{id}; throws SubmitError (404 or other errors) or TransportError.
