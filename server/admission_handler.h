@@ -35,6 +35,9 @@ class AdmissionHandler final : public HttpHandler {
   HttpResponse handle(HttpRequest&& request) noexcept override { return inner_.handle(std::move(request)); }
   void handle_async(HttpRequest&& request, Reply reply) noexcept override;
 
+  /// Waits for the submissions under way, then ends the pool's threads: after the network threads stopped, so that no
+  /// thread but the caller's is left to take a late stop signal.
+  void join() { pool_.join(); }
   /// Submissions being checked or waiting now.
   int in_flight() const { return in_flight_.load(); }
 

@@ -169,6 +169,7 @@ void Coordinator::run() {
   serve();
   for (auto& t : extra) t.join();
   m.pool.join();
+  m.admission.join();
   if (m.opt.handle_signals) {
     // A supervisor often signals twice (Slurm's scancel reaches both the batch shell, which passes SIGTERM on, and
     // this process). Destroying the signal_set restores the default action, so a late SIGTERM would kill the
