@@ -34,10 +34,12 @@ AdmissionHandler::~AdmissionHandler() {
 
 void AdmissionHandler::handle_async(HttpRequest&& req, Reply reply) noexcept {
   const unsigned version = req.version();
+  bool counted = false;
   try {
     if (!is_submission(req)) return reply(inner_.handle(std::move(req)));
     const int limit = opt_.validations + opt_.queue;
-    if (in_flight_.fetch_add(1) >= limit) {
+    const int ahead = in_flight_.fetch_add(1);
+    if (ahead >= limit) {
       in_flight_.fetch_sub(1);
       spdlog::warn("POST /v1/jobs: 503, {} submission(s) are being checked or waiting (--max-validations {}, "
                    "--validation-queue {})", limit, opt_.validations, opt_.queue);
@@ -47,6 +49,8 @@ void AdmissionHandler::handle_async(HttpRequest&& req, Reply reply) noexcept {
       res.set(http::field::retry_after, std::to_string(opt_.retry_after_seconds));
       return reply(std::move(res));
     }
+    counted = true;
+    if (ahead >= opt_.validations) spdlog::info("POST /v1/jobs: waiting for a scene check ({} submission(s) ahead)", ahead);
     auto owned = std::make_shared<HttpRequest>(std::move(req));
     boost::asio::post(pool_, [this, owned, reply]() {
       HttpResponse res = inner_.handle(std::move(*owned));
@@ -54,6 +58,7 @@ void AdmissionHandler::handle_async(HttpRequest&& req, Reply reply) noexcept {
       reply(std::move(res));
     });
   } catch (const std::exception& e) {
+    if (counted) in_flight_.fetch_sub(1);
     reply(json_error(http::status::internal_server_error, std::string("internal error: ") + e.what(), version));
   }
 }
