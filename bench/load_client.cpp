@@ -1,7 +1,7 @@
 // Load generator for the coordinator's status endpoints: C keep-alive connections, each on its own thread, send GETs
 // round-robin over the given targets for T seconds; prints requests per second and latency percentiles per target.
 // Usage: load_client --url http://127.0.0.1:8470 --connections 16 --seconds 10 [--token-file F] TARGET...
-#include "worker/http_client.h"
+#include "client/http_client.h"
 
 #include <CLI/CLI.hpp>
 

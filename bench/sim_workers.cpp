@@ -16,7 +16,7 @@
 #include "protocol/messages.h"
 #include "protocol/routes.h"
 #include "worker/child_process.h"
-#include "worker/http_client.h"
+#include "client/http_client.h"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -42,7 +42,7 @@ using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 using namespace std::chrono_literals;
 using tessera::farm::HttpClient;
-using tessera::farm::HttpError;
+using tessera::farm::TransportError;
 using tessera::farm::HttpResponse;
 namespace protocol = tessera::protocol;
 namespace routes = tessera::protocol::routes;

@@ -2,8 +2,8 @@
 
 #include "cli/tls_flags.h"
 #include "cli/token.h"
-#include "worker/http_client.h"
-#include "worker/job_client.h"
+#include "client/http_client.h"
+#include "client/job_client.h"
 
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>

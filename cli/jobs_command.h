@@ -1,7 +1,7 @@
 // `tessera jobs`: look at and control a coordinator's jobs (ls, show, pause, resume, priority, retry, cancel, rm).
 #pragma once
 
-#include "worker/http_client.h"
+#include "client/http_client.h"
 
 #include <CLI/CLI.hpp>
 

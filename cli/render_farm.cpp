@@ -7,7 +7,7 @@
 #include "core/image.h"
 #include "server/auth.h"
 #include "worker/child_process.h"
-#include "worker/http_client.h"
+#include "client/http_client.h"
 
 #include <spdlog/spdlog.h>
 

@@ -50,6 +50,12 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
   c->add_option("--blob-grace-minutes", a.blob_grace_minutes,
                 "Delete an asset no job references only this many minutes after it was last uploaded or checked")
       ->check(CLI::Range(0.0, 1e8))->capture_default_str();
+  c->add_option("--max-validations", a.max_validations,
+                "Job submissions whose scenes are checked at once, on threads of their own (never the request handlers')")
+      ->check(CLI::Range(1, 256))->capture_default_str();
+  c->add_option("--validation-queue", a.validation_queue,
+                "Submissions waiting for a check; more get 503 with Retry-After")
+      ->check(CLI::Range(0, 4096))->capture_default_str();
   c->add_flag("-v,--verbose", a.verbose, "Log every lease and connection event");
   return c;
 }
@@ -74,6 +80,8 @@ int run_serve(const ServeArgs& a) {
     o.limits.retention.blob_grace_ms = int64_t(a.blob_grace_minutes * 60'000.0);
     o.header_limit = a.max_header_bytes;
     o.max_connections = a.max_connections;
+    o.admission.validations = a.max_validations;
+    o.admission.queue = a.validation_queue;
     o.handle_signals = true;
     o.tls = server::TlsServerFiles{a.tls_cert, a.tls_key, a.tls_client_ca};
     o.limits.tokens.client = load_token(a.client_token_file, "TESSERA_CLIENT_TOKEN");

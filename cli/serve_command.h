@@ -33,6 +33,8 @@ struct ServeArgs {
   std::size_t max_connections = 1024;     ///< Open connections.
   double retain_finished_hours = 0;       ///< Purge jobs this long after they ended (0: keep forever).
   double blob_grace_minutes = 60;         ///< Keep unreferenced blobs this long after their last upload or check.
+  int max_validations = 2;                ///< Job submissions checked at once (their own threads).
+  int validation_queue = 8;               ///< Submissions waiting for a check before POST /v1/jobs answers 503.
   bool verbose = false;                   ///< Debug logging.
 };
 

@@ -1,8 +1,8 @@
 // `tessera submit`: send a scene to a coordinator, follow its progress, download the result.
 #pragma once
 
-#include "worker/http_client.h"
-#include "worker/job_client.h"
+#include "client/http_client.h"
+#include "client/job_client.h"
 
 #include <CLI/CLI.hpp>
 

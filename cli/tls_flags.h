@@ -1,7 +1,7 @@
 // TLS flags of the commands that talk to a coordinator (`worker`, `submit`): trust and client certificate files.
 #pragma once
 
-#include "worker/tls_client_context.h"
+#include "client/tls_client_context.h"
 
 #include <CLI/CLI.hpp>
 

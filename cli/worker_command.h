@@ -1,7 +1,7 @@
 // `tessera worker`: lease tiles from a coordinator, render them, upload them.
 #pragma once
 
-#include "worker/tls_client_context.h"
+#include "client/tls_client_context.h"
 
 #include <CLI/CLI.hpp>
 

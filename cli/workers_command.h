@@ -1,7 +1,7 @@
 // `tessera workers`: look at a coordinator's workers and drain or undrain one.
 #pragma once
 
-#include "worker/http_client.h"
+#include "client/http_client.h"
 
 #include <CLI/CLI.hpp>
 

@@ -29,6 +29,7 @@ struct LoadOptions {
   std::optional<AreaSampling> area_sampling;     ///< Overrides integrator.area_sampling.
   std::optional<EnvSampling> env_sampling;       ///< Overrides integrator.env_sampling.
   std::optional<SplitMethod> bvh;                ///< Overrides integrator.bvh (sah or median).
+  bool build = true;  ///< Build the BVH and the lights' tables; false stops after validation (a scene to check, not render).
 };
 
 /// Maps an asset path as written in the scene (and the JSON path naming it) to a readable file.
@@ -36,7 +37,7 @@ using AssetResolver = std::function<std::filesystem::path(const std::string& pat
 
 /// A loaded scene with what the loader had to say about it.
 struct LoadedScene {
-  Scene scene;                        ///< The scene, BVH built.
+  Scene scene;                        ///< The scene, BVH built (unless LoadOptions::build is false).
   std::vector<std::string> warnings;  ///< Unknown keys and degenerate input that was skipped.
   std::vector<std::string> notes;     ///< Settings of other integrators that were ignored.
   std::vector<std::string> assets;    ///< Asset paths the scene uses, as written in it.

@@ -68,6 +68,25 @@ TEST_F(SceneLoader, ObjWithPolygonFacesIsTriangulated) {
   EXPECT_EQ(l.scene.triangles.size(), 2u);
 }
 
+TEST_F(SceneLoader, CheckingWithoutBuildingGivesTheSameSceneWithoutItsBvh) {
+  // A submission is checked with build = false: the same hash, size, settings, warnings and assets, no BVH.
+  write("quad.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\nf 1 1 2\n");
+  const fs::path p = write_scene("scene.json", mesh_scene("quad.obj"));
+  const LoadedScene built = load_scene_file(p);
+  LoadOptions check;
+  check.build = false;
+  const LoadedScene checked = load_scene_file(p, check);
+  EXPECT_EQ(checked.scene.hash, built.scene.hash);
+  EXPECT_EQ(checked.scene.width, built.scene.width);
+  EXPECT_EQ(checked.scene.settings.spp, built.scene.settings.spp);
+  EXPECT_EQ(checked.scene.triangles.size(), built.scene.triangles.size());
+  EXPECT_EQ(checked.warnings, built.warnings);
+  ASSERT_EQ(checked.warnings.size(), 1u);  // the zero-area face
+  EXPECT_EQ(checked.assets, built.assets);
+  EXPECT_EQ(built.scene.bvh.triangle_count(), 2u);
+  EXPECT_EQ(checked.scene.bvh.triangle_count(), 0u);
+}
+
 TEST_F(SceneLoader, BadObjVertexIndexNamesJsonPath) {
   write("bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n");
   expect_error(mesh_scene("bad.obj"), {"objects[1].path", "bad.obj", "vertex 7"});

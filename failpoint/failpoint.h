@@ -46,7 +46,7 @@
 namespace tessera::failpoint {
 
 /// Every fail point: where it is and what it is for (docs/testing.md lists the same).
-inline constexpr std::array<std::string_view, 8> kNames = {
+inline constexpr std::array<std::string_view, 9> kNames = {
     "worker.render",          // worker: after the job's scene is ready, before the tile's render (cancellable pause)
     "worker.upload",          // worker: a rendered tile, before its upload
     "worker.upload.corrupt",  // worker: return(nan|size) uploads a tile with a NaN pixel / one column too few
@@ -55,6 +55,7 @@ inline constexpr std::array<std::string_view, 8> kNames = {
     "store.sync",             // coordinator: after a commit, before fdatasync; return makes the flush fail (EIO)
     "assembly.paste",         // coordinator: an upload's pixels, before they are pasted into the job's image
     "assembly.write_result",  // coordinator: all tiles done, before the result EXR is written
+    "submit.validate",        // coordinator: a job submission, before its scene is loaded and checked
 };
 
 /// Whether `name` is a known fail point (checked at compile time by the macros).

@@ -74,7 +74,8 @@ struct Coordinator::Impl {
         api(sched, blobs, store, metrics, wall_ms, with_heartbeat(opt)),
         monitor(api, sched, !opt.limits.tokens.client.empty()),
         pool(std::size_t(opt.handler_threads > 0 ? opt.handler_threads : std::max(2u, std::thread::hardware_concurrency()))),
-        server(ioc, pool, monitor, HttpServerOptions{opt.host, opt.port, opt.read_timeout, opt.header_limit, opt.max_connections, opt.tls}),
+        admission(monitor, opt.admission),
+        server(ioc, pool, admission, HttpServerOptions{opt.host, opt.port, opt.read_timeout, opt.header_limit, opt.max_connections, opt.tls}),
         tick(ioc),
         signals(ioc) {}
 
@@ -114,6 +115,7 @@ struct Coordinator::Impl {
   MonitorHandler monitor;  // the web monitor at /, in front of the API
   asio::io_context ioc;
   asio::thread_pool pool;
+  AdmissionHandler admission;  // submissions on their own pool, in front of the monitor (after ioc: its tasks hold ioc work)
   HttpServer server;
   asio::steady_timer tick;
   asio::signal_set signals;
@@ -178,6 +180,7 @@ void Coordinator::run() {
   serve();
   for (auto& t : extra) t.join();
   m.pool.join();
+  m.admission.join();
   if (m.opt.handle_signals) {
     // A supervisor often signals twice (Slurm's scancel reaches both the batch shell, which passes SIGTERM on, and
     // this process). Destroying the signal_set restores the default action, so a late SIGTERM would kill the

@@ -1,6 +1,7 @@
 // The coordinator process: storage, scheduler, API and HTTP transport wired together, with graceful shutdown.
 #pragma once
 
+#include "server/admission_handler.h"
 #include "server/api.h"
 #include "server/tls_context.h"
 
@@ -28,6 +29,7 @@ struct CoordinatorOptions {
   TlsServerFiles tls;                          ///< HTTPS certificate files (none: plain HTTP).
   int io_threads = 1;                          ///< Network threads.
   int handler_threads = 0;                     ///< Request handler threads (0: max(2, cores)).
+  AdmissionOptions admission;                  ///< Job submissions checked at once and waiting (their own pool).
   bool handle_signals = false;                 ///< Stop gracefully on SIGINT/SIGTERM; re-read the TLS files on SIGHUP.
 };
 

@@ -191,10 +191,13 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
     const bool keep_alive = req.keep_alive();
     auto work = asio::make_work_guard(stream_.get_executor());  // keeps run() going while the pool works
     asio::post(st_->pool, [self = this->shared_from_this(), req = std::move(req), keep_alive, work = std::move(work)]() mutable {
-      HttpResponse res = self->st_->handler.handle(std::move(req));
-      asio::post(self->stream_.get_executor(), [self, res = std::move(res), keep_alive, work = std::move(work)]() mutable {
-        self->write(std::move(res), keep_alive && !self->st_->stopping);
-      });
+      // The handler may answer later from another thread; the work guard travels with the reply.
+      auto reply = [self, keep_alive, work = std::make_shared<decltype(work)>(std::move(work))](HttpResponse res) {
+        asio::post(self->stream_.get_executor(), [self, res = std::move(res), keep_alive, work]() mutable {
+          self->write(std::move(res), keep_alive && !self->st_->stopping);
+        });
+      };
+      self->st_->handler.handle_async(std::move(req), std::move(reply));
     });
   }
 

@@ -11,6 +11,7 @@
 
 #include <chrono>
 #include <cstddef>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -37,6 +38,11 @@ class HttpHandler {
   virtual std::optional<HttpResponse> early_response(const http::request_header<>& /*header*/) noexcept { return std::nullopt; }
   /// Answers a request; runs on the handler pool and must not throw.
   virtual HttpResponse handle(HttpRequest&& request) noexcept = 0;
+  /// Where an answer given later goes; call it exactly once, from any thread.
+  using Reply = std::function<void(HttpResponse)>;
+  /// Answers a request now or later (on another pool): the transport calls this on the handler pool. The default
+  /// answers at once with handle().
+  virtual void handle_async(HttpRequest&& request, Reply reply) noexcept { reply(handle(std::move(request))); }
 };
 
 /// Transport settings.

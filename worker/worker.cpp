@@ -6,7 +6,7 @@
 #include "core/scene_loader.h"
 #include "failpoint/failpoint.h"
 #include "worker/asset_cache.h"
-#include "worker/backoff.h"
+#include "client/backoff.h"
 #include "protocol/messages.h"
 #include "protocol/routes.h"
 #include "worker/scene_cache.h"
@@ -131,7 +131,7 @@ class Heartbeat {
         return;
       }
       spdlog::warn("{}: heartbeat answered {}: {}", prefix_, r.status, r.error_text());
-    } catch (const HttpError& e) {
+    } catch (const TransportError& e) {
       spdlog::warn("{}: heartbeat failed (keeps rendering): {}", prefix_, e.what());
     }
   }
@@ -200,7 +200,7 @@ class Worker {
   bool stopping() const { return stop_.load() > 0; }
 
   // Notes a transport failure (loudly for the first of an outage) and waits before the next attempt.
-  void coordinator_down(const std::string& what, const HttpError& e) {
+  void coordinator_down(const std::string& what, const TransportError& e) {
     if (!down_) spdlog::warn("worker {}: coordinator unreachable ({}): {}; retrying with backoff", name_, what, e.what());
     else spdlog::debug("worker {}: still unreachable: {}", name_, e.what());
     down_ = true;
@@ -235,7 +235,7 @@ class Worker {
       }
       refuse_if_denied(r, "registration");
       spdlog::error("worker {}: registration refused with {}: {}", name_, r.status, r.error_text());
-    } catch (const HttpError& e) {
+    } catch (const TransportError& e) {
       coordinator_down("register", e);
       return false;
     }
@@ -247,7 +247,7 @@ class Worker {
     HttpResponse r;
     try {
       r = http_.send("POST", routes::worker_lease(id_));
-    } catch (const HttpError& e) {
+    } catch (const TransportError& e) {
       coordinator_down("lease", e);
       return std::nullopt;
     }
@@ -287,7 +287,7 @@ class Worker {
         if (!retryable_status(r.status))
           throw std::runtime_error("GET " + target + " answered " + std::to_string(r.status) + ": " + r.error_text());
         spdlog::warn("GET {} answered {}: {}; retrying", target, r.status, r.error_text());
-      } catch (const HttpError& e) {
+      } catch (const TransportError& e) {
         spdlog::warn("{}; retrying", e.what());
       }
       sleep_unless(backoff.next(), interrupted);
@@ -460,7 +460,7 @@ class Worker {
           return;
         }
         spdlog::warn("{}: upload attempt {} answered {}: {}; retrying", pfx, attempt, r.status, r.error_text());
-      } catch (const HttpError& e) {
+      } catch (const TransportError& e) {
         spdlog::warn("{}: upload attempt {} failed: {}; retrying", pfx, attempt, e.what());
       }
       if (!sleep_unless(backoff.next(), [&] { return stop_.load() >= 2; })) {
@@ -504,7 +504,7 @@ class Worker {
           spdlog::warn("{}: {} answered {}: {}", pfx, action, r.status, r.error_text());
           return false;
         }
-      } catch (const HttpError& e) {
+      } catch (const TransportError& e) {
         spdlog::warn("{}: {} failed: {}", pfx, action, e.what());
       }
       std::this_thread::sleep_for(backoff.next());

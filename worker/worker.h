@@ -1,7 +1,7 @@
 // `tessera worker`: registers with a coordinator, leases tiles, renders them and uploads the results.
 #pragma once
 
-#include "worker/http_client.h"
+#include "client/http_client.h"
 
 #include <atomic>
 #include <chrono>

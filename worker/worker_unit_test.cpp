@@ -1,6 +1,6 @@
 #include "core/sha256.h"
 #include "worker/asset_cache.h"
-#include "worker/backoff.h"
+#include "client/backoff.h"
 #include "worker/scene_cache.h"
 
 #include <gtest/gtest.h>

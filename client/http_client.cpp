@@ -1,4 +1,4 @@
-#include "worker/http_client.h"
+#include "client/http_client.h"
 
 #include <boost/asio/connect.hpp>
 #include <boost/asio/io_context.hpp>
@@ -223,7 +223,7 @@ HttpResponse HttpClient::send(const HttpRequest& request) {
   Impl& im = *impl_;
   const std::string what = request.method + " " + url_.to_string() + request.target;
   const http::verb verb = http::string_to_verb(request.method);
-  if (verb == http::verb::unknown) throw HttpError(what + ": unknown method");
+  if (verb == http::verb::unknown) throw TransportError(what + ": unknown method");
 
   http::request<http::string_body> req{verb, url_.base_path + request.target, 11};
   req.set(http::field::host, url_.host + ":" + url_.port);
@@ -241,13 +241,13 @@ HttpResponse HttpClient::send(const HttpRequest& request) {
       error_code ec;
       tcp::resolver resolver(im.ioc);
       const auto endpoints = resolver.resolve(url_.host, url_.port, ec);
-      if (ec) throw HttpError(what + ": cannot resolve " + url_.host + ": " + ec.message());
+      if (ec) throw TransportError(what + ": cannot resolve " + url_.host + ": " + ec.message());
       im.open_stream(url_.host);
       im.lowest().expires_after(im.timeouts.connect);
       ec = im.run([&](auto handler) { im.lowest().async_connect(endpoints, std::move(handler)); });
       if (ec) {
         im.close();
-        throw HttpError(what + ": cannot connect: " + describe(ec, im.timeouts.connect));
+        throw TransportError(what + ": cannot connect: " + describe(ec, im.timeouts.connect));
       }
       // Requests are small writes answered at once: without TCP_NODELAY, Nagle's algorithm holds a request's last
       // segment until the server's delayed ACK (tens of milliseconds per request on loopback).
@@ -258,7 +258,7 @@ HttpResponse HttpClient::send(const HttpRequest& request) {
         if (ec) {
           const std::string why = im.handshake_failure(ec);
           im.close();
-          throw HttpError(what + ": TLS handshake failed: " + why);
+          throw TransportError(what + ": TLS handshake failed: " + why);
         }
       }
       im.connected = true;
@@ -270,7 +270,7 @@ HttpResponse HttpClient::send(const HttpRequest& request) {
       const std::string why = ec == beast::error::timeout ? describe(ec, im.timeouts.write) : im.with_hint(ec);
       im.close();
       if (reused && attempt == 0 && ec != beast::error::timeout) continue;
-      throw HttpError(what + ": cannot send the request: " + why);
+      throw TransportError(what + ": cannot send the request: " + why);
     }
 
     http::response_parser<http::string_body> parser;
@@ -284,8 +284,8 @@ HttpResponse HttpClient::send(const HttpRequest& request) {
       im.close();
       if (reused && attempt == 0 && !got_some && is_stale_connection(ec)) continue;
       if (ec == http::error::body_limit)
-        throw HttpError(what + ": response body larger than " + std::to_string(im.max_response_bytes) + " bytes");
-      throw HttpError(what + ": cannot read the response: " + why);
+        throw TransportError(what + ": response body larger than " + std::to_string(im.max_response_bytes) + " bytes");
+      throw TransportError(what + ": cannot read the response: " + why);
     }
     im.lowest().expires_never();
 

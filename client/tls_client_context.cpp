@@ -1,4 +1,4 @@
-#include "worker/tls_client_context.h"
+#include "client/tls_client_context.h"
 
 #include <openssl/ssl.h>
 

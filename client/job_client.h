@@ -2,7 +2,7 @@
 // operator's controls over jobs and workers (pause, priority, retry, cancel, the worker list, drain).
 #pragma once
 
-#include "worker/http_client.h"
+#include "client/http_client.h"
 #include "protocol/messages.h"
 #include "protocol/query.h"
 #include "protocol/worker.h"
@@ -44,11 +44,12 @@ struct SubmitResult {
   int assets_uploaded = 0; ///< Assets that were missing and uploaded.
 };
 
-/// Hashes the scene's assets, uploads the missing ones (HEAD, then PUT), and POSTs the job. Throws SubmitError with
-/// the coordinator's message for 4xx answers, HttpError when it is unreachable, SceneError for unreadable scenes.
+/// Hashes the scene's assets, uploads the missing ones (HEAD, then PUT), and POSTs the job, again after Retry-After
+/// while the coordinator answers 503 (its admission pool full). Throws SubmitError with the coordinator's message for
+/// other refusals, TransportError when it is unreachable, SceneError for unreadable scenes.
 SubmitResult submit_job(HttpClient& http, const SubmitOptions& options);
 
-/// GET /v1/jobs/{id}; throws SubmitError (404 or other errors) or HttpError.
+/// GET /v1/jobs/{id}; throws SubmitError (404 or other errors) or TransportError.
 JobStatus get_job(HttpClient& http, const std::string& id);
 
 /// Polls the job every poll interval until it is done, failed or cancelled, calling progress on each change;
@@ -59,10 +60,10 @@ JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::funct
                        std::chrono::seconds give_up = std::chrono::seconds(120));
 
 /// Downloads the finished job's result.exr to path atomically (temporary file, fsync, rename); throws SubmitError
-/// or HttpError. Returns the number of bytes.
+/// or TransportError. Returns the number of bytes.
 uint64_t download_result(HttpClient& http, const std::string& id, const std::filesystem::path& path);
 
-/// GET /v1/jobs: every job, newest first; throws SubmitError or HttpError.
+/// GET /v1/jobs: every job, newest first; throws SubmitError or TransportError.
 std::vector<JobStatus> list_jobs(HttpClient& http);
 /// GET /v1/jobs?state=&limit=&after=: one page of the jobs a query asks for, with the next page's cursor.
 protocol::JobList list_jobs(HttpClient& http, const protocol::JobListQuery& query);
@@ -77,7 +78,7 @@ JobStatus set_job_priority(HttpClient& http, const std::string& id, int priority
 /// continued; throws SubmitError (404, 409 with the reason it cannot be raised exactly).
 JobStatus raise_job_spp(HttpClient& http, const std::string& id, uint32_t spp);
 
-/// GET /v1/workers: every registered worker; throws SubmitError or HttpError.
+/// GET /v1/workers: every registered worker; throws SubmitError or TransportError.
 std::vector<protocol::WorkerInfo> list_workers(HttpClient& http);
 
 /// POST /v1/workers/{id}/drain (drain true) or /undrain: the worker as it is now; throws SubmitError (404 unknown).
@@ -90,7 +91,7 @@ JobStatus pause_job(HttpClient& http, const std::string& id);
 JobStatus resume_job(HttpClient& http, const std::string& id);
 
 /// DELETE /v1/jobs/{id}?purge=true: deletes a job that has ended (its rows, pixels and result). Throws SubmitError
-/// (404 unknown, 409 not ended) or HttpError.
+/// (404 unknown, 409 not ended) or TransportError.
 protocol::PurgeAnswer purge_job(HttpClient& http, const std::string& id);
 
 /// DELETE /v1/jobs/{id}; true when cancelled, false when it had already ended (409). Throws for other answers.

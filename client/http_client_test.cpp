@@ -1,4 +1,4 @@
-#include "worker/http_client.h"
+#include "client/http_client.h"
 
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/beast/core/flat_buffer.hpp>
@@ -173,14 +173,14 @@ TEST(HttpClient, ReadTimeoutTurnsASilentServerIntoAnError) {
   try {
     c.send("GET", "/slow");
     FAIL() << "no timeout";
-  } catch (const HttpError& e) {
+  } catch (const TransportError& e) {
     EXPECT_NE(std::string(e.what()).find("timed out after 200 ms"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("GET http://127.0.0.1:"), std::string::npos) << e.what();
   }
   release = true;
 }
 
-TEST(HttpClient, ConnectionRefusedIsAnHttpError) {
+TEST(HttpClient, ConnectionRefusedIsATransportError) {
   // Find a free port by binding and closing.
   asio::io_context ioc;
   tcp::acceptor a(ioc, tcp::endpoint(asio::ip::make_address("127.0.0.1"), 0));
@@ -190,7 +190,7 @@ TEST(HttpClient, ConnectionRefusedIsAnHttpError) {
   try {
     c.send("POST", "/v1/workers", "{}");
     FAIL() << "connected to a closed port";
-  } catch (const HttpError& e) {
+  } catch (const TransportError& e) {
     EXPECT_NE(std::string(e.what()).find("cannot connect"), std::string::npos) << e.what();
   }
 }

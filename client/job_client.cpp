@@ -1,13 +1,16 @@
-#include "worker/job_client.h"
+#include "client/job_client.h"
 
 #include "core/file_io.h"
 #include "core/scene_loader.h"
 #include "core/sha256.h"
 #include "protocol/routes.h"
-#include "worker/backoff.h"
+#include "client/backoff.h"
 
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <thread>
 
 namespace tessera::farm {
 
@@ -63,7 +66,21 @@ SubmitResult submit_job(HttpClient& http, const SubmitOptions& o) {
   job.priority = o.priority;
   job.name = o.name.empty() ? o.scene.filename().string() : o.name;
   job.resumable = o.resumable;
-  const HttpResponse r = http.send("POST", routes::jobs(), json(job).dump());
+  const std::string body = json(job).dump();
+  HttpResponse r = http.send("POST", routes::jobs(), body);
+  // 503: every place of the coordinator's admission pool is taken (--max-validations, --validation-queue); nothing was
+  // stored, so the same submission goes again after Retry-After, drawn from [Retry-After, 2 x Retry-After] so that
+  // many clients turned away together spread out.
+  for (bool told = false; r.status == 503; told = true) {
+    int seconds = 1;
+    try {
+      seconds = std::clamp(std::stoi(r.header("retry-after")), 1, 60);
+    } catch (const std::exception&) {
+    }
+    if (!told) spdlog::info("the coordinator is busy checking other submissions; retrying {} in about {} s", o.scene.string(), seconds);
+    std::this_thread::sleep_for(Backoff(std::chrono::seconds(2 * seconds), std::chrono::seconds(2 * seconds)).next());
+    r = http.send("POST", routes::jobs(), body);
+  }
   if (r.status != 201 && r.status != 200) refuse("submitting " + o.scene.string(), r);
   out.job_id = protocol::parse_answer<protocol::SubmitAnswer>(r.body, "job submission").id;
   return out;
@@ -146,7 +163,7 @@ JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::funct
       last = s;
       if (s.finished()) return s;
       if (!sleep_unless(poll, stop)) return last;
-    } catch (const HttpError& e) {
+    } catch (const TransportError& e) {
       const auto now = std::chrono::steady_clock::now();
       if (failing_since == std::chrono::steady_clock::time_point{}) {
         failing_since = now;

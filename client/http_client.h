@@ -1,7 +1,7 @@
 // A small synchronous HTTP/1.1 client (Boost.Beast, plain or TLS) with connect, write and read timeouts.
 #pragma once
 
-#include "worker/tls_client_context.h"
+#include "client/tls_client_context.h"
 
 #include <chrono>
 #include <cstdint>
@@ -15,8 +15,9 @@
 
 namespace tessera::farm {
 
-/// A transport failure (cannot resolve, connect, send or receive, or a timeout); HTTP error statuses are not errors.
-struct HttpError : std::runtime_error {
+/// The request did not complete: cannot resolve, connect, hand-shake, send or receive, or a timeout. An answer with an
+/// HTTP error status is not one: that is an HttpResponse with the status.
+struct TransportError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
@@ -65,7 +66,7 @@ struct HttpResponse {
 
 /// A connection to one server, reused across requests (keep-alive) and reopened when the server closed it.
 /// For https:// URLs every connection verifies the server's certificate chain and that it names url.host (DNS name
-/// or IP address); a failure is an HttpError saying why, never a fallback to plain HTTP or to no verification.
+/// or IP address); a failure is a TransportError saying why, never a fallback to plain HTTP or to no verification.
 /// Not thread-safe: give each thread its own client.
 class HttpClient {
  public:
@@ -77,7 +78,7 @@ class HttpClient {
   HttpClient(const HttpClient&) = delete;
   HttpClient& operator=(const HttpClient&) = delete;
 
-  /// Sends the request and reads the whole response; throws HttpError (naming method, URL and cause) on transport
+  /// Sends the request and reads the whole response; throws TransportError (naming method, URL and cause) on transport
   /// failures and timeouts. A request on a reused connection that the server had closed is retried once on a fresh one.
   HttpResponse send(const HttpRequest& request);
   /// Shorthand for send() with a method, target and optional JSON body.
