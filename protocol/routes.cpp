@@ -45,6 +45,7 @@ const std::vector<RouteSpec>& route_table() {
       {Endpoint::lease_result, "/v1/leases/{lease}/result", {"PUT"}},
       {Endpoint::lease_fail, "/v1/leases/{lease}/fail", {"POST"}},
       {Endpoint::lease_release, "/v1/leases/{lease}/release", {"POST"}},
+      {Endpoint::events, "/v1/events", {"GET"}},
   };
   return table;
 }
