@@ -44,6 +44,9 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
       ->check(CLI::Range(std::size_t(1024), std::size_t(1) << 24))->capture_default_str();
   c->add_option("--max-connections", a.max_connections, "Open connections; more are answered 503 and closed")
       ->check(CLI::Range(std::size_t(1), std::size_t(1) << 20))->capture_default_str();
+  c->add_option("--max-event-streams", a.max_event_streams,
+                "Open GET /v1/events streams; more are answered 503 (0: none, clients poll)")
+      ->check(CLI::Range(std::size_t(0), std::size_t(1) << 16))->capture_default_str();
   c->add_flag("-v,--verbose", a.verbose, "Log every lease and connection event");
   return c;
 }
@@ -66,6 +69,7 @@ int run_serve(const ServeArgs& a) {
     o.limits.result_limit = a.max_result_bytes;
     o.header_limit = a.max_header_bytes;
     o.max_connections = a.max_connections;
+    o.events.max_subscribers = a.max_event_streams;
     o.handle_signals = true;
     o.tls = server::TlsServerFiles{a.tls_cert, a.tls_key, a.tls_client_ca};
     o.limits.tokens.client = load_token(a.client_token_file, "TESSERA_CLIENT_TOKEN");

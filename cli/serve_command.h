@@ -31,6 +31,7 @@ struct ServeArgs {
   std::size_t max_result_bytes = std::size_t(64) << 20;  ///< Tile result uploads.
   std::size_t max_header_bytes = 64 * 1024;              ///< Request headers.
   std::size_t max_connections = 1024;     ///< Open connections.
+  std::size_t max_event_streams = 64;     ///< Open event streams (0: none).
   bool verbose = false;                   ///< Debug logging.
 };
 
