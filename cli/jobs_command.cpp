@@ -1,7 +1,5 @@
 #include "cli/jobs_command.h"
 
-#include "cli/tls_flags.h"
-#include "cli/token.h"
 #include "worker/http_client.h"
 #include "worker/job_client.h"
 
@@ -35,9 +33,7 @@ CLI::App* add_jobs_command(CLI::App& app, JobsArgs& a) {
       ->check(CLI::IsMember({"ls", "show", "pause", "resume", "priority", "retry", "cancel"}));
   c->add_option("job", a.job, "Job id (all but ls)");
   c->add_option("priority", a.priority, "New priority, higher runs first (priority)");
-  c->add_option("--coordinator", a.coordinator, "Coordinator URL, e.g. http://127.0.0.1:8470")->required();
-  c->add_option("--token-file", a.token_file, "File holding the client token (default: $TESSERA_CLIENT_TOKEN)");
-  add_client_tls_flags(c, a.tls);
+  add_coordinator_access_flags(c, a.access);
   return c;
 }
 
@@ -51,8 +47,8 @@ int run_jobs(const JobsArgs& a) {
     return 2;
   }
   try {
-    farm::HttpClient http(farm::parse_http_url(a.coordinator), {}, uint64_t(2) << 30, a.tls);
-    http.set_bearer_token(load_token(a.token_file, "TESSERA_CLIENT_TOKEN"));
+    const auto client = a.access.client();
+    farm::HttpClient& http = *client;
     if (a.action == "ls") {
       print_table(farm::list_jobs(http));
     } else if (a.action == "show") {

@@ -1,6 +1,7 @@
 // `tessera jobs`: look at and control a coordinator's jobs (ls, show, pause, resume, priority, retry, cancel).
 #pragma once
 
+#include "cli/coordinator_access.h"
 #include "worker/http_client.h"
 
 #include <CLI/CLI.hpp>
@@ -15,9 +16,7 @@ struct JobsArgs {
   std::string action;       ///< ls, show, pause, resume, priority, retry or cancel.
   std::string job;          ///< The job id (all but ls).
   std::optional<int> priority;  ///< The new priority (priority).
-  std::string coordinator;  ///< Coordinator URL.
-  std::string token_file;   ///< File holding the client token (else $TESSERA_CLIENT_TOKEN).
-  farm::ClientTlsFiles tls;  ///< --ca-file, --tls-cert, --tls-key for https:// coordinators.
+  CoordinatorAccess access;     ///< Coordinator URL, token and TLS files.
 };
 
 /// Registers the subcommand's options on `app`.
