@@ -27,7 +27,8 @@ bool SseParser::line(std::string_view text) {
       if (current_.event.empty()) current_.event = "message";
       go_on = on_event_(current_);
     }
-    current_ = SseMessage{};
+    current_.event.clear();
+    current_.data.clear();
     has_data_ = false;
     return go_on;
   }

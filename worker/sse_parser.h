@@ -1,5 +1,6 @@
 // Server-Sent Events as a client reads them: bytes in (split anywhere), whole events out. Comments and fields other
-// than id, event and data are skipped; several data lines join with "\n".
+// than id, event and data are skipped; several data lines join with "\n". As in the SSE standard, an id holds for the
+// events after it until another id comes.
 #pragma once
 
 #include <functional>
@@ -10,7 +11,7 @@ namespace tessera::farm {
 
 /// One received event.
 struct SseMessage {
-  std::string id;     ///< "id:" field ("" when absent).
+  std::string id;     ///< The latest "id:" field ("" before the first).
   std::string event;  ///< "event:" field ("message" when absent, as in the SSE standard).
   std::string data;   ///< The data lines.
 };

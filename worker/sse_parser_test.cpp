@@ -27,6 +27,7 @@ TEST(SseParser, EventsSplitAnywhereAreReassembled) {
     EXPECT_EQ(got[1].event, "tile_done");
     EXPECT_EQ(got[1].data, "a\nb");
     EXPECT_EQ(got[2].event, "message");
+    EXPECT_EQ(got[2].id, "r-2");  // an id holds until the next one
     EXPECT_EQ(got[2].data, "plain");
   }
 }
