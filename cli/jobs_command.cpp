@@ -1,7 +1,5 @@
 #include "cli/jobs_command.h"
 
-#include "cli/tls_flags.h"
-#include "cli/token.h"
 #include "client/http_client.h"
 #include "client/job_client.h"
 
@@ -41,9 +39,7 @@ CLI::App* add_jobs_command(CLI::App& app, JobsArgs& a) {
   c->add_option("--limit", a.limit, "ls: at most this many jobs, newest first")
       ->check(CLI::Range(size_t(1), protocol::kMaxJobListLimit));
   c->add_option("--after", a.after, "ls: the page after this cursor (printed by a listing with --limit) or job id");
-  c->add_option("--coordinator", a.coordinator, "Coordinator URL, e.g. http://127.0.0.1:8470")->required();
-  c->add_option("--token-file", a.token_file, "File holding the client token (default: $TESSERA_CLIENT_TOKEN)");
-  add_client_tls_flags(c, a.tls);
+  add_coordinator_access_flags(c, a.access);
   return c;
 }
 
@@ -61,8 +57,8 @@ int run_jobs(const JobsArgs& a) {
     return 2;
   }
   try {
-    farm::HttpClient http(farm::parse_http_url(a.coordinator), {}, uint64_t(2) << 30, a.tls);
-    http.set_bearer_token(load_token(a.token_file, "TESSERA_CLIENT_TOKEN"));
+    const auto client = a.access.client();
+    farm::HttpClient& http = *client;
     if (a.action == "ls") {
       protocol::JobListQuery q;
       for (const std::string& s : a.states) {

@@ -1,6 +1,7 @@
 // `tessera jobs`: look at and control a coordinator's jobs (ls, show, pause, resume, priority, retry, cancel, rm).
 #pragma once
 
+#include "cli/coordinator_access.h"
 #include "client/http_client.h"
 
 #include <CLI/CLI.hpp>
@@ -20,9 +21,7 @@ struct JobsArgs {
   std::vector<std::string> states;  ///< ls: only jobs in these states.
   size_t limit = 0;         ///< ls: at most this many (0: all).
   std::string after;        ///< ls: the page after this cursor or job id.
-  std::string coordinator;  ///< Coordinator URL.
-  std::string token_file;   ///< File holding the client token (else $TESSERA_CLIENT_TOKEN).
-  farm::ClientTlsFiles tls;  ///< --ca-file, --tls-cert, --tls-key for https:// coordinators.
+  CoordinatorAccess access;     ///< Coordinator URL, token and TLS files.
 };
 
 /// Registers the subcommand's options on `app`.

@@ -56,6 +56,9 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
   c->add_option("--validation-queue", a.validation_queue,
                 "Submissions waiting for a check; more get 503 with Retry-After")
       ->check(CLI::Range(0, 4096))->capture_default_str();
+  c->add_option("--max-event-streams", a.max_event_streams,
+                "Open GET /v1/events streams; more are answered 503 (0: none, clients poll)")
+      ->check(CLI::Range(std::size_t(0), std::size_t(1) << 16))->capture_default_str();
   c->add_flag("-v,--verbose", a.verbose, "Log every lease and connection event");
   return c;
 }
@@ -82,6 +85,7 @@ int run_serve(const ServeArgs& a) {
     o.max_connections = a.max_connections;
     o.admission.validations = a.max_validations;
     o.admission.queue = a.validation_queue;
+    o.events.max_subscribers = a.max_event_streams;
     o.handle_signals = true;
     o.tls = server::TlsServerFiles{a.tls_cert, a.tls_key, a.tls_client_ca};
     o.limits.tokens.client = load_token(a.client_token_file, "TESSERA_CLIENT_TOKEN");

@@ -35,6 +35,7 @@ struct ServeArgs {
   double blob_grace_minutes = 60;         ///< Keep unreferenced blobs this long after their last upload or check.
   int max_validations = 2;                ///< Job submissions checked at once (their own threads).
   int validation_queue = 8;               ///< Submissions waiting for a check before POST /v1/jobs answers 503.
+  std::size_t max_event_streams = 64;     ///< Open event streams (0: none).
   bool verbose = false;                   ///< Debug logging.
 };
 

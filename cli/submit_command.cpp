@@ -1,8 +1,6 @@
 #include "cli/submit_command.h"
 
 #include "cli/progress_bar.h"
-#include "cli/tls_flags.h"
-#include "cli/token.h"
 #include "core/output_file.h"
 #include "core/scene_loader.h"
 
@@ -16,7 +14,7 @@ namespace tessera::cli {
 CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
   auto* c = app.add_subcommand("submit", "Submit a scene to a coordinator and fetch the result");
   c->add_option("scene", a.scene, "Scene file (course JSON format)")->required()->check(CLI::ExistingFile);
-  c->add_option("--coordinator", a.coordinator, "Coordinator URL, e.g. http://127.0.0.1:8470")->required();
+  add_coordinator_access_flags(c, a.access);
   c->add_option("-o,--output", a.output, "Download the finished image to this EXR file");
   c->add_option("--spp", a.spp, "Samples per pixel (default: the scene's)")->check(CLI::Range(1u, 1u << 20));
   c->add_option("--tile", a.tile_size, "Tile edge in pixels")->check(CLI::Range(1, 4096));
@@ -35,8 +33,6 @@ CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
   c->add_option("--max-spp", a.max_spp, "With --target-error: most samples per pixel")
       ->capture_default_str()
       ->check(CLI::Range(1u, 1u << 20));
-  c->add_option("--token-file", a.token_file, "File holding the client token (default: $TESSERA_CLIENT_TOKEN)");
-  add_client_tls_flags(c, a.tls);
   c->add_flag("--resumable", a.resumable,
               "Keep each tile's exact per-pixel sums, so that `tessera jobs spp ID M` can raise the job's spp later "
               "(bitwise as if submitted at M; docs/resume.md)");
@@ -114,8 +110,8 @@ int run_submit(const SubmitArgs& a) {
     }
   }
   try {
-    farm::HttpClient http(farm::parse_http_url(a.coordinator), {}, uint64_t(2) << 30, a.tls);
-    http.set_bearer_token(load_token(a.token_file, "TESSERA_CLIENT_TOKEN"));
+    const auto client = a.access.client();
+    farm::HttpClient& http = *client;
     farm::SubmitOptions o = shared_job_options(a);
     o.tile_size = a.tile_size;
     o.priority = a.priority;

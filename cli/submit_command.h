@@ -1,6 +1,7 @@
 // `tessera submit`: send a scene to a coordinator, follow its progress, download the result.
 #pragma once
 
+#include "cli/coordinator_access.h"
 #include "client/http_client.h"
 #include "client/job_client.h"
 
@@ -16,7 +17,6 @@ namespace tessera::cli {
 /// Options of `tessera submit`.
 struct SubmitArgs {
   std::string scene;                ///< Scene file.
-  std::string coordinator;          ///< Coordinator URL.
   std::string output;               ///< Where to write result.exr (empty: do not download).
   std::optional<uint32_t> spp;      ///< Samples per pixel override.
   int tile_size = protocol::kDefaultTileSize;  ///< Tile edge.
@@ -28,8 +28,7 @@ struct SubmitArgs {
   double target_error = 0.0;        ///< Adaptive sampling target (0: off).
   uint32_t min_spp = protocol::kDefaultMinSpp;  ///< Adaptive sampling: first round.
   uint32_t max_spp = protocol::kDefaultMaxSpp;  ///< Adaptive sampling: most samples per pixel.
-  std::string token_file;           ///< File holding the client token (else $TESSERA_CLIENT_TOKEN).
-  farm::ClientTlsFiles tls;         ///< CA and client certificate files for https:// coordinators.
+  CoordinatorAccess access;         ///< Coordinator URL, token and TLS files.
   bool resumable = false;           ///< Keep each tile's exact sums so `jobs spp` can raise the job's spp later.
   bool detach = false;              ///< Print the job id and return without waiting.
   bool quiet = false;               ///< No progress bar.

@@ -1,7 +1,5 @@
 #include "cli/workers_command.h"
 
-#include "cli/tls_flags.h"
-#include "cli/token.h"
 #include "client/http_client.h"
 #include "client/job_client.h"
 
@@ -38,9 +36,7 @@ CLI::App* add_workers_command(CLI::App& app, WorkersArgs& a) {
       ->required()
       ->check(CLI::IsMember({"ls", "drain", "undrain"}));
   c->add_option("worker", a.worker, "Worker id (drain, undrain)");
-  c->add_option("--coordinator", a.coordinator, "Coordinator URL, e.g. http://127.0.0.1:8470")->required();
-  c->add_option("--token-file", a.token_file, "File holding the client token (default: $TESSERA_CLIENT_TOKEN)");
-  add_client_tls_flags(c, a.tls);
+  add_coordinator_access_flags(c, a.access);
   return c;
 }
 
@@ -50,8 +46,8 @@ int run_workers(const WorkersArgs& a) {
     return 2;
   }
   try {
-    farm::HttpClient http(farm::parse_http_url(a.coordinator), {}, uint64_t(2) << 30, a.tls);
-    http.set_bearer_token(load_token(a.token_file, "TESSERA_CLIENT_TOKEN"));
+    const auto client = a.access.client();
+    farm::HttpClient& http = *client;
     if (a.action == "ls") {
       print_table(farm::list_workers(http));
     } else {

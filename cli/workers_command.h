@@ -1,6 +1,7 @@
 // `tessera workers`: look at a coordinator's workers and drain or undrain one.
 #pragma once
 
+#include "cli/coordinator_access.h"
 #include "client/http_client.h"
 
 #include <CLI/CLI.hpp>
@@ -13,9 +14,7 @@ namespace tessera::cli {
 struct WorkersArgs {
   std::string action;       ///< ls, drain or undrain.
   std::string worker;       ///< The worker id (drain, undrain).
-  std::string coordinator;  ///< Coordinator URL.
-  std::string token_file;   ///< File holding the client token (else $TESSERA_CLIENT_TOKEN).
-  farm::ClientTlsFiles tls;  ///< --ca-file, --tls-cert, --tls-key for https:// coordinators.
+  CoordinatorAccess access;  ///< Coordinator URL, token and TLS files.
 };
 
 /// Registers the subcommand's options on `app`.

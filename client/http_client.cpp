@@ -8,6 +8,7 @@
 #include <boost/beast/core/tcp_stream.hpp>
 #include <boost/beast/http/empty_body.hpp>
 #include <boost/beast/http/parser.hpp>
+#include <boost/beast/http/buffer_body.hpp>
 #include <boost/beast/http/read.hpp>
 #include <boost/beast/http/string_body.hpp>
 #include <boost/beast/http/write.hpp>
@@ -17,6 +18,7 @@
 #include <openssl/x509_vfy.h>
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <charconv>
 #include <optional>
@@ -189,6 +191,34 @@ bool is_stale_connection(const error_code& ec) {
          ec == asio::error::broken_pipe || ec == asio::error::connection_aborted || ec == ssl::error::stream_truncated;
 }
 
+// The Beast request for `request` to `url`, with the bearer token when there is one.
+http::request<http::string_body> beast_request(const HttpUrl& url, const std::string& token, const HttpRequest& request,
+                                               http::verb verb) {
+  http::request<http::string_body> req{verb, url.base_path + request.target, 11};
+  req.set(http::field::host, url.host + ":" + url.port);
+  req.set(http::field::user_agent, "tessera/" TESSERA_VERSION);
+  if (!request.content_type.empty()) req.set(http::field::content_type, request.content_type);
+  for (const auto& [k, v] : request.headers) req.set(k, v);
+  if (!token.empty()) req.set(http::field::authorization, "Bearer " + token);
+  req.body() = request.body;
+  req.keep_alive(true);
+  req.prepare_payload();
+  return req;
+}
+
+// Status and header fields (names lowercased) of a received header.
+template <class Header>
+HttpResponse response_head(const Header& h) {
+  HttpResponse out;
+  out.status = int(h.result_int());
+  for (const auto& field : h) {
+    std::string name(field.name_string());
+    std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    out.headers[name] = std::string(field.value());
+  }
+  return out;
+}
+
 }  // namespace
 
 HttpClient::HttpClient(HttpUrl url, HttpTimeouts timeouts, uint64_t max_response_bytes, const ClientTlsFiles& tls)
@@ -206,7 +236,47 @@ HttpClient::HttpClient(HttpUrl url, HttpTimeouts timeouts, uint64_t max_response
   }
 }
 
+HttpClient::HttpClient(HttpUrl url, std::unique_ptr<Impl> impl, std::string token)
+    : url_(std::move(url)), token_(std::move(token)), impl_(std::move(impl)) {}
+
 HttpClient::~HttpClient() { impl_->close(); }
+
+std::unique_ptr<HttpClient> HttpClient::another() const {
+  auto im = std::make_unique<Impl>();
+  im->tls_context = impl_->tls_context;
+  im->timeouts = impl_->timeouts;
+  im->max_response_bytes = impl_->max_response_bytes;
+  return std::unique_ptr<HttpClient>(new HttpClient(url_, std::move(im), token_));
+}
+
+void HttpClient::connect(const std::string& what) {
+  Impl& im = *impl_;
+  if (im.connected) return;
+  error_code ec;
+  tcp::resolver resolver(im.ioc);
+  const auto endpoints = resolver.resolve(url_.host, url_.port, ec);
+  if (ec) throw TransportError(what + ": cannot resolve " + url_.host + ": " + ec.message());
+  im.open_stream(url_.host);
+  im.lowest().expires_after(im.timeouts.connect);
+  ec = im.run([&](auto handler) { im.lowest().async_connect(endpoints, std::move(handler)); });
+  if (ec) {
+    im.close();
+    throw TransportError(what + ": cannot connect: " + describe(ec, im.timeouts.connect));
+  }
+  // Requests are small writes answered at once: without TCP_NODELAY, Nagle's algorithm holds a request's last
+  // segment until the server's delayed ACK (tens of milliseconds per request on loopback).
+  im.lowest().socket().set_option(tcp::no_delay(true), ec);
+  if (im.tls) {
+    im.lowest().expires_after(im.timeouts.connect);
+    ec = im.run([&](auto handler) { im.tls->async_handshake(ssl::stream_base::client, std::move(handler)); });
+    if (ec) {
+      const std::string why = im.handshake_failure(ec);
+      im.close();
+      throw TransportError(what + ": TLS handshake failed: " + why);
+    }
+  }
+  im.connected = true;
+}
 
 void HttpClient::close() { impl_->close(); }
 
@@ -225,44 +295,11 @@ HttpResponse HttpClient::send(const HttpRequest& request) {
   const http::verb verb = http::string_to_verb(request.method);
   if (verb == http::verb::unknown) throw TransportError(what + ": unknown method");
 
-  http::request<http::string_body> req{verb, url_.base_path + request.target, 11};
-  req.set(http::field::host, url_.host + ":" + url_.port);
-  req.set(http::field::user_agent, "tessera/" TESSERA_VERSION);
-  if (!request.content_type.empty()) req.set(http::field::content_type, request.content_type);
-  for (const auto& [k, v] : request.headers) req.set(k, v);
-  if (!token_.empty()) req.set(http::field::authorization, "Bearer " + token_);
-  req.body() = request.body;
-  req.keep_alive(true);
-  req.prepare_payload();
+  const http::request<http::string_body> req = beast_request(url_, token_, request, verb);
 
   for (int attempt = 0;; ++attempt) {
     const bool reused = im.connected;
-    if (!im.connected) {
-      error_code ec;
-      tcp::resolver resolver(im.ioc);
-      const auto endpoints = resolver.resolve(url_.host, url_.port, ec);
-      if (ec) throw TransportError(what + ": cannot resolve " + url_.host + ": " + ec.message());
-      im.open_stream(url_.host);
-      im.lowest().expires_after(im.timeouts.connect);
-      ec = im.run([&](auto handler) { im.lowest().async_connect(endpoints, std::move(handler)); });
-      if (ec) {
-        im.close();
-        throw TransportError(what + ": cannot connect: " + describe(ec, im.timeouts.connect));
-      }
-      // Requests are small writes answered at once: without TCP_NODELAY, Nagle's algorithm holds a request's last
-      // segment until the server's delayed ACK (tens of milliseconds per request on loopback).
-      im.lowest().socket().set_option(tcp::no_delay(true), ec);
-      if (im.tls) {
-        im.lowest().expires_after(im.timeouts.connect);
-        ec = im.run([&](auto handler) { im.tls->async_handshake(ssl::stream_base::client, std::move(handler)); });
-        if (ec) {
-          const std::string why = im.handshake_failure(ec);
-          im.close();
-          throw TransportError(what + ": TLS handshake failed: " + why);
-        }
-      }
-      im.connected = true;
-    }
+    connect(what);
 
     im.lowest().expires_after(im.timeouts.write);
     error_code ec = im.run_on_stream([&](auto& stream, auto handler) { http::async_write(stream, req, std::move(handler)); });
@@ -290,17 +327,76 @@ HttpResponse HttpClient::send(const HttpRequest& request) {
     im.lowest().expires_never();
 
     auto res = parser.release();
-    HttpResponse out;
-    out.status = int(res.result_int());
+    HttpResponse out = response_head(res);
     out.body = std::move(res.body());
-    for (const auto& field : res) {
-      std::string name(field.name_string());
-      std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-      out.headers[name] = std::string(field.value());
-    }
     if (!res.keep_alive()) im.close();
     return out;
   }
+}
+
+HttpResponse HttpClient::stream(const HttpRequest& request, std::chrono::milliseconds idle,
+                                const std::function<bool(std::string_view)>& on_data, const std::function<bool()>& stop) {
+  Impl& im = *impl_;
+  const std::string what = request.method + " " + url_.to_string() + request.target;
+  const http::verb verb = http::string_to_verb(request.method);
+  if (verb == http::verb::unknown) throw TransportError(what + ": unknown method");
+  http::request<http::string_body> req = beast_request(url_, token_, request, verb);
+  req.keep_alive(false);
+  im.close();  // a connection of its own
+  struct Closer {
+    Impl& im;
+    ~Closer() { im.close(); }
+  } closer{im};
+  connect(what);
+  im.lowest().expires_after(im.timeouts.write);
+  error_code ec = im.run_on_stream([&](auto& stream, auto handler) { http::async_write(stream, req, std::move(handler)); });
+  if (ec) throw TransportError(what + ": cannot send the request: " + (ec == beast::error::timeout ? describe(ec, im.timeouts.write) : im.with_hint(ec)));
+
+  http::response_parser<http::buffer_body> parser;
+  parser.body_limit(boost::none);
+  im.lowest().expires_after(im.timeouts.read);
+  ec = im.run_on_stream([&](auto& stream, auto handler) { http::async_read_header(stream, im.buffer, parser, std::move(handler)); });
+  if (ec) throw TransportError(what + ": cannot read the response: " + (ec == beast::error::timeout ? describe(ec, im.timeouts.read) : im.with_hint(ec)));
+  HttpResponse out = response_head(parser.get());
+  const bool streaming = out.status == 200;
+  if (streaming && !on_data({})) return out;
+  std::array<char, 8192> buf;
+  while (!parser.is_done()) {
+    parser.get().body().data = buf.data();
+    parser.get().body().size = buf.size();
+    im.lowest().expires_after(streaming ? idle : im.timeouts.read);
+    // As im.run_on_stream(), but asking `stop` every 100 ms while the read waits.
+    bool done = false;
+    ec = asio::error::would_block;
+    im.ioc.restart();
+    const auto on_read = [&](error_code e, std::size_t) {
+      ec = e;
+      done = true;
+    };
+    if (im.tls) http::async_read_some(*im.tls, im.buffer, parser, on_read);
+    else http::async_read_some(*im.plain, im.buffer, parser, on_read);
+    while (!done) {
+      im.ioc.run_for(std::chrono::milliseconds(100));
+      if (!done && stop && stop()) {
+        im.lowest().cancel();
+        im.ioc.run();
+        return out;
+      }
+    }
+    if (ec == http::error::need_buffer) ec = {};
+    if (ec) {
+      const std::chrono::milliseconds limit = streaming ? idle : im.timeouts.read;
+      throw TransportError(what + ": the stream broke: " + (ec == beast::error::timeout ? describe(ec, limit) : im.with_hint(ec)));
+    }
+    const std::string_view got(buf.data(), buf.size() - parser.get().body().size);
+    if (!streaming) {
+      if (out.body.size() + got.size() > (std::size_t(1) << 20)) throw TransportError(what + ": refusal body too large");
+      out.body.append(got);
+    } else if (!got.empty() && !on_data(got)) {
+      break;
+    }
+  }
+  return out;
 }
 
 }  // namespace tessera::farm

@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
@@ -81,6 +82,17 @@ class HttpClient {
   /// Sends the request and reads the whole response; throws TransportError (naming method, URL and cause) on transport
   /// failures and timeouts. A request on a reused connection that the server had closed is retried once on a fresh one.
   HttpResponse send(const HttpRequest& request);
+  /// Sends the request on a connection of its own and reads the answer's header. For a 200 answer, calls on_data
+  /// once with an empty view when the header has arrived (the stream is open), then with each piece of the body as
+  /// it arrives, until on_data returns false or the body ends; a quiet spell longer than `idle` is an TransportError.
+  /// Other answers are returned whole (body read within the read timeout) without calling on_data. While waiting
+  /// for bytes, `stop` is asked every 100 ms; true ends the stream. The connection is closed afterwards. Throws
+  /// TransportError on transport failures.
+  HttpResponse stream(const HttpRequest& request, std::chrono::milliseconds idle,
+                      const std::function<bool(std::string_view)>& on_data, const std::function<bool()>& stop = {});
+  /// A new client for the same server with the same timeouts, TLS settings and token (e.g. to read a stream on
+  /// one while sending requests on the other).
+  std::unique_ptr<HttpClient> another() const;
   /// Shorthand for send() with a method, target and optional JSON body.
   HttpResponse send(std::string method, std::string target, std::string body = {},
                     std::string content_type = "application/json");
@@ -93,6 +105,8 @@ class HttpClient {
 
  private:
   struct Impl;
+  HttpClient(HttpUrl url, std::unique_ptr<Impl> impl, std::string token);
+  void connect(const std::string& what);                  // opens the connection (and TLS) unless open
   HttpUrl url_;
   std::string token_;
   std::unique_ptr<Impl> impl_;

@@ -3,8 +3,10 @@
 #include "core/file_io.h"
 #include "core/scene_loader.h"
 #include "core/sha256.h"
+#include "protocol/events.h"
 #include "protocol/routes.h"
 #include "client/backoff.h"
+#include "client/sse_parser.h"
 
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
@@ -148,9 +150,68 @@ JobStatus raise_job_spp(HttpClient& http, const std::string& id, uint32_t spp) {
   return control(http, id, "PATCH", routes::job(id), "raising the spp of", json(protocol::JobPatch{std::nullopt, spp}).dump());
 }
 
+namespace {
+
+// Calls progress when the status differs from `last` in what a progress display shows; then it becomes `last`.
+void report(const JobStatus& s, JobStatus& last, const std::function<void(const JobStatus&)>& progress) {
+  if (progress && (s.tiles.done != last.tiles.done || s.state != last.state || s.tiles.total != last.tiles.total))
+    progress(s);
+  last = s;
+}
+
+// Follows the job on GET /v1/events: once the stream is open, its status (every later change arrives as an event),
+// then its job events and a done tile count from tile_done events. Returns true when the job ended or stop() said
+// so; false when the stream was refused or broke first (the caller polls).
+bool follow_events(HttpClient& http, const std::string& id, const std::function<void(const JobStatus&)>& progress,
+                   const std::function<bool()>& stop, JobStatus& last) {
+  namespace ev = protocol::events;
+  bool ended = false;
+  SseParser parser([&](const SseMessage& m) {
+    if (m.event == ev::kJob) {
+      const JobStatus s = protocol::parse_answer<JobStatus>(m.data, "job event");
+      if (s.id != id) return true;
+      report(s, last, progress);
+    } else if (m.event == ev::kTileDone) {
+      if (protocol::parse_answer<protocol::TileEvent>(m.data, "tile event").job != id) return true;
+      JobStatus s = last;
+      s.tiles.done = std::min(s.tiles.total, s.tiles.done + 1);
+      report(s, last, progress);
+    } else if (m.event == ev::kResync) {
+      report(get_job(http, id), last, progress);
+    }
+    ended = last.finished();
+    return !ended;
+  });
+  HttpRequest req;
+  req.target = routes::events();
+  req.headers["Accept"] = "text/event-stream";
+  try {
+    const HttpResponse r = http.another()->stream(req, std::chrono::seconds(60), [&](std::string_view bytes) {
+      if (!bytes.empty()) return parser.feed(bytes);
+      report(get_job(http, id), last, progress);  // the stream is open: from here on no change is missed
+      ended = last.finished();
+      return !ended;
+    }, stop);
+    if (r.status != 200) {
+      spdlog::info("job {}: no event stream ({}: {}); polling", id, r.status, r.error_text());
+      return false;
+    }
+  } catch (const TransportError& e) {
+    spdlog::info("job {}: event stream unavailable ({}); polling", id, e.what());
+    return false;
+  } catch (const ProtocolError& e) {
+    spdlog::warn("job {}: unreadable event ({}); polling", id, e.what());
+    return false;
+  }
+  return ended || (stop && stop());
+}
+
+}  // namespace
+
 JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::function<void(const JobStatus&)>& progress,
                        const std::function<bool()>& stop, std::chrono::milliseconds poll, std::chrono::seconds give_up) {
   JobStatus last;
+  if (follow_events(http, id, progress, stop, last)) return last;
   Backoff backoff(poll, std::chrono::milliseconds(5000));
   auto failing_since = std::chrono::steady_clock::time_point{};
   while (true) {
@@ -158,9 +219,7 @@ JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::funct
       const JobStatus s = get_job(http, id);
       failing_since = {};
       backoff.reset();
-      if (progress && (s.tiles.done != last.tiles.done || s.state != last.state || s.tiles.total != last.tiles.total))
-        progress(s);
-      last = s;
+      report(s, last, progress);
       if (s.finished()) return s;
       if (!sleep_unless(poll, stop)) return last;
     } catch (const TransportError& e) {

@@ -52,9 +52,10 @@ SubmitResult submit_job(HttpClient& http, const SubmitOptions& options);
 /// GET /v1/jobs/{id}; throws SubmitError (404 or other errors) or TransportError.
 JobStatus get_job(HttpClient& http, const std::string& id);
 
-/// Polls the job every poll interval until it is done, failed or cancelled, calling progress on each change;
-/// transport errors are retried with backoff (the coordinator may be restarting) up to `give_up` in a row.
-/// Returns early (with the last status) when stop() says true.
+/// Follows the job until it is done, failed or cancelled, calling progress on each change: on the coordinator's
+/// event stream (GET /v1/events, on a second connection) while it is available, else (refused, e.g. 503, or broken)
+/// by polling every poll interval, where transport errors are retried with backoff (the coordinator may be
+/// restarting) up to `give_up` in a row. Returns early (with the last status) when stop() says true.
 JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::function<void(const JobStatus&)>& progress,
                        const std::function<bool()>& stop, std::chrono::milliseconds poll = std::chrono::milliseconds(200),
                        std::chrono::seconds give_up = std::chrono::seconds(120));

@@ -46,6 +46,7 @@ const std::vector<RouteSpec>& route_table() {
       {Endpoint::lease_fail, "/v1/leases/{lease}/fail", {"POST"}},
       {Endpoint::lease_release, "/v1/leases/{lease}/release", {"POST"}},
       {Endpoint::lease_state, "/v1/leases/{lease}/state", {"GET"}},
+      {Endpoint::events, "/v1/events", {"GET"}},
   };
   return table;
 }

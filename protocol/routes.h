@@ -12,7 +12,7 @@ namespace tessera::protocol {
 /// The endpoints a request target can name.
 enum class Endpoint {
   none, healthz, metrics, blob, jobs, job, job_result, job_preview, job_spec, job_retry, job_pause, job_resume, workers, worker_drain, worker_undrain, worker_lease,
-  lease_heartbeat, lease_result, lease_fail, lease_release, lease_state
+  lease_heartbeat, lease_result, lease_fail, lease_release, lease_state, events
 };
 
 /// One route: its path pattern ("{name}" is the one path parameter) and the methods it accepts.
@@ -60,6 +60,7 @@ inline std::string lease_result(std::string_view lease) { return path(Endpoint::
 inline std::string lease_fail(std::string_view lease) { return path(Endpoint::lease_fail, lease); }
 inline std::string lease_release(std::string_view lease) { return path(Endpoint::lease_release, lease); }
 inline std::string lease_state(std::string_view lease) { return path(Endpoint::lease_state, lease); }
+inline std::string events() { return path(Endpoint::events); }
 }  // namespace routes
 
 }  // namespace tessera::protocol

@@ -32,11 +32,11 @@ AdmissionHandler::~AdmissionHandler() {
   pool_.join();
 }
 
-void AdmissionHandler::handle_async(HttpRequest&& req, Reply reply) noexcept {
+void AdmissionHandler::handle_async(HttpRequest&& req, Reply done) noexcept {
   const unsigned version = req.version();
   bool counted = false;
   try {
-    if (!is_submission(req)) return reply(inner_.handle(std::move(req)));
+    if (!is_submission(req)) return done(inner_.reply(std::move(req)));
     const int limit = opt_.validations + opt_.queue;
     const int ahead = in_flight_.fetch_add(1);
     if (ahead >= limit) {
@@ -47,19 +47,19 @@ void AdmissionHandler::handle_async(HttpRequest&& req, Reply reply) noexcept {
                                     "busy: " + std::to_string(limit) + " submissions are being checked or waiting "
                                     "(--max-validations, --validation-queue); retry later", version);
       res.set(http::field::retry_after, std::to_string(opt_.retry_after_seconds));
-      return reply(std::move(res));
+      return done({std::move(res), nullptr});
     }
     counted = true;
     if (ahead >= opt_.validations) spdlog::info("POST /v1/jobs: waiting for a scene check ({} submission(s) ahead)", ahead);
     auto owned = std::make_shared<HttpRequest>(std::move(req));
-    boost::asio::post(pool_, [this, owned, reply]() {
+    boost::asio::post(pool_, [this, owned, done]() {
       HttpResponse res = inner_.handle(std::move(*owned));
       in_flight_.fetch_sub(1);
-      reply(std::move(res));
+      done({std::move(res), nullptr});
     });
   } catch (const std::exception& e) {
     if (counted) in_flight_.fetch_sub(1);
-    reply(json_error(http::status::internal_server_error, std::string("internal error: ") + e.what(), version));
+    done({json_error(http::status::internal_server_error, std::string("internal error: ") + e.what(), version), nullptr});
   }
 }
 

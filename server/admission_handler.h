@@ -33,7 +33,8 @@ class AdmissionHandler final : public HttpHandler {
     return inner_.early_response(header);
   }
   HttpResponse handle(HttpRequest&& request) noexcept override { return inner_.handle(std::move(request)); }
-  void handle_async(HttpRequest&& request, Reply reply) noexcept override;
+  HttpReply reply(HttpRequest&& request) noexcept override { return inner_.reply(std::move(request)); }
+  void handle_async(HttpRequest&& request, Reply done) noexcept override;
 
   /// Waits for the submissions under way, then ends the pool's threads: after the network threads stopped, so that no
   /// thread but the caller's is left to take a late stop signal.

@@ -35,7 +35,8 @@ Access route_access(RouteId route, http::verb method) {
     case RouteId::job_pause:
     case RouteId::job_resume:
     case RouteId::worker_drain:
-    case RouteId::worker_undrain: return Access::client;
+    case RouteId::worker_undrain:
+    case RouteId::events: return Access::client;
     case RouteId::workers: return method == http::verb::get ? Access::client : Access::worker;  // POST: registration
     case RouteId::worker_lease:
     case RouteId::lease_heartbeat:
@@ -48,17 +49,20 @@ Access route_access(RouteId route, http::verb method) {
   return Access::client;  // unreachable for matched routes; the strictest answer otherwise
 }
 
-Api::Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock, ApiOptions options)
+Api::Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock, ApiOptions options,
+         EventBus& bus, FarmEvents& events)
     : metrics_(metrics),
       opt_(options),
       jobs_(scheduler, blobs, jobs, metrics, clock,
-            AdmissionLimits{opt_.max_queued_jobs, opt_.retry_after_seconds, opt_.max_job_pixels, opt_.max_job_samples}),
+            AdmissionLimits{opt_.max_queued_jobs, opt_.retry_after_seconds, opt_.max_job_pixels, opt_.max_job_samples},
+            events),
       collector_(jobs_, scheduler, blobs, clock, opt_.retention),
       jobs_handler_(jobs_, collector_),
-      leases_handler_(scheduler, jobs_, metrics, clock),
-      workers_handler_(scheduler, opt_.heartbeat_seconds),
+      leases_handler_(scheduler, jobs_, metrics, clock, events),
+      workers_handler_(scheduler, opt_.heartbeat_seconds, events),
       blobs_handler_(blobs),
-      health_handler_(scheduler, metrics, clock) {}
+      health_handler_(scheduler, metrics, clock),
+      events_handler_(bus) {}
 
 std::size_t Api::body_limit(const http::request_header<>& h) {
   const Route r = match_route(h.target());
@@ -115,6 +119,8 @@ HttpResponse Api::handle(HttpRequest&& req) noexcept {
           res.set(http::field::allow, allow);
         } else if (auto denied = check_access(route, req.base())) {
           res = std::move(*denied);
+        } else if (route.id == RouteId::events) {
+          res = events_handler_.open(req).response;  // only the header: reply() is the streaming path
         } else {
           res = handler_for(route.id).handle(route.id, route.param, req);
         }
@@ -144,6 +150,20 @@ HttpResponse Api::handle(HttpRequest&& req) noexcept {
   return res;
 }
 
+HttpReply Api::reply(HttpRequest&& req) noexcept {
+  try {
+    const Route route = match_route(req.target());
+    if (route.id == RouteId::events && req.method() == http::verb::get && !check_access(route, req.base())) {
+      metrics_.observe_request("GET " + route.name, 0.0);
+      return events_handler_.open(req);
+    }
+  } catch (const std::exception& e) {
+    spdlog::error("GET /v1/events: internal error: {}", e.what());
+    return {json_error(http::status::internal_server_error, std::string("internal error: ") + e.what(), req.version()), nullptr};
+  }
+  return {handle(std::move(req)), nullptr};
+}
+
 ResourceHandler& Api::handler_for(RouteId route) {
   switch (route) {
     case RouteId::healthz:
@@ -166,6 +186,7 @@ ResourceHandler& Api::handler_for(RouteId route) {
     case RouteId::lease_fail:
     case RouteId::lease_release:
     case RouteId::lease_state: return leases_handler_;
+    case RouteId::events:
     case RouteId::none: break;
   }
   throw ApiError(404, "no such endpoint");

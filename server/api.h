@@ -7,6 +7,9 @@
 #include "server/auth.h"
 #include "server/blobs_handler.h"
 #include "server/collector.h"
+#include "server/event_bus.h"
+#include "server/events_handler.h"
+#include "server/farm_events.h"
 #include "server/http_server.h"
 #include "server/job_service.h"
 #include "server/jobs_handler.h"
@@ -60,11 +63,15 @@ Access route_access(RouteId route, http::verb method);
 /// The HTTP handler implementing docs/protocol.md.
 class Api final : public HttpHandler {
  public:
-  /// An API over the given state; all references must outlive it.
-  Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock, ApiOptions options);
+  /// An API over the given state, publishing changes through `events` and streaming `bus` at GET /v1/events; all
+  /// references must outlive it.
+  Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock, ApiOptions options,
+      EventBus& bus, FarmEvents& events);
   std::size_t body_limit(const http::request_header<>& header) override;
   std::optional<HttpResponse> early_response(const http::request_header<>& header) noexcept override;
   HttpResponse handle(HttpRequest&& request) noexcept override;
+  /// As handle(), but GET /v1/events (once its token is checked) is answered with a stream.
+  HttpReply reply(HttpRequest&& request) noexcept override;
   /// After a restart: finishes jobs whose every tile was stored but whose result was not written yet.
   void recover() { jobs_.recover(); }
   /// Purges finished jobs past their retention time and collects unreferenced blobs (see Collector::sweep).
@@ -83,6 +90,7 @@ class Api final : public HttpHandler {
   WorkersHandler workers_handler_;
   BlobsHandler blobs_handler_;
   HealthHandler health_handler_;
+  EventsHandler events_handler_;
 };
 
 }  // namespace tessera::server

@@ -71,11 +71,14 @@ struct Coordinator::Impl {
         blobs(opt.data_dir / "blobs"),
         store(opt.data_dir),
         sched(SchedulerConfig{int64_t(opt.lease_seconds * 1000.0), 3, 2, random_hex(3)}, wall_ms, store),
-        api(sched, blobs, store, metrics, wall_ms, with_heartbeat(opt)),
+        bus(opt.events, random_hex(4)),
+        farm_events(bus),
+        api(sched, blobs, store, metrics, wall_ms, with_heartbeat(opt), bus, farm_events),
         monitor(api, sched, !opt.limits.tokens.client.empty()),
         pool(std::size_t(opt.handler_threads > 0 ? opt.handler_threads : std::max(2u, std::thread::hardware_concurrency()))),
         admission(monitor, opt.admission),
-        server(ioc, pool, admission, HttpServerOptions{opt.host, opt.port, opt.read_timeout, opt.header_limit, opt.max_connections, opt.tls}),
+        server(ioc, pool, admission,
+               HttpServerOptions{opt.host, opt.port, opt.read_timeout, opt.header_limit, opt.max_connections, opt.stream_idle, opt.tls}),
         tick(ioc),
         signals(ioc) {}
 
@@ -92,6 +95,7 @@ struct Coordinator::Impl {
       const uint64_t expiries = sched.counters().lease_expiries;  // counters() reclaims expired leases
       if (expiries > last_expiries) spdlog::warn("{} lease(s) expired; their tiles are pending again", expiries - last_expiries);
       last_expiries = expiries;
+      farm_events.workers_checked(sched.workers());  // workers lost (offline) or back since the last tick
       if (++ticks % kSweepTicks == 0) asio::post(pool, [this] { sweep(); });  // deletes files: not on the network thread
       arm_tick();
     });
@@ -110,6 +114,8 @@ struct Coordinator::Impl {
   DiskBlobStore blobs;
   DurableStore store;  // jobs, tiles, leases, workers and job records in DIR/tessera.db
   Scheduler sched;
+  EventBus bus;             // GET /v1/events
+  FarmEvents farm_events;   // what handlers and the tick publish to the bus
   Metrics metrics;
   Api api;
   MonitorHandler monitor;  // the web monitor at /, in front of the API
@@ -217,6 +223,7 @@ void Coordinator::stop() {
   asio::post(m.ioc, [&m] {
     if (m.stopped.exchange(true)) return;
     m.server.shutdown();
+    m.bus.close();  // every event stream ends
     m.tick.cancel();
     boost::system::error_code ec;
     m.signals.cancel(ec);

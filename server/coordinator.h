@@ -3,6 +3,7 @@
 
 #include "server/admission_handler.h"
 #include "server/api.h"
+#include "server/event_bus.h"
 #include "server/tls_context.h"
 
 #include <boost/asio/ip/tcp.hpp>
@@ -26,6 +27,8 @@ struct CoordinatorOptions {
   std::chrono::milliseconds read_timeout{30'000};  ///< Whole-request read timeout.
   std::size_t header_limit = 64 * 1024;        ///< Largest request header.
   std::size_t max_connections = 1024;          ///< Open connections (more get 503).
+  EventBusOptions events;                      ///< GET /v1/events: open streams (more get 503), queues, resume ring.
+  std::chrono::milliseconds stream_idle{15'000};  ///< An event stream writes a keep-alive comment after this long quiet.
   TlsServerFiles tls;                          ///< HTTPS certificate files (none: plain HTTP).
   int io_threads = 1;                          ///< Network threads.
   int handler_threads = 0;                     ///< Request handler threads (0: max(2, cores)).

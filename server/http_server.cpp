@@ -3,7 +3,9 @@
 #include <boost/asio/dispatch.hpp>
 #include <boost/asio/executor_work_guard.hpp>
 #include <boost/asio/post.hpp>
+#include <boost/asio/steady_timer.hpp>
 #include <boost/asio/strand.hpp>
+#include <boost/asio/write.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/ssl.hpp>
 #include <nlohmann/json.hpp>
@@ -40,7 +42,8 @@ class SessionBase {
   virtual ~SessionBase() = default;
   // Starts the connection's work (handshake or first read) on its strand.
   virtual void run() = 0;
-  // Called at shutdown: a connection waiting for its next request is closed now; a busy one closes after answering.
+  // Called at shutdown: a connection waiting for its next request is closed now; a busy one closes after answering; a
+  // streamed body ends (its last chunk is written) and its connection closes.
   virtual void stop_if_idle() = 0;
 };
 
@@ -72,7 +75,8 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
 
  public:
   Session(tcp::socket&& socket, std::shared_ptr<ssl::context> tls, std::shared_ptr<HttpServer::State> st, uint64_t id)
-      : tls_(std::move(tls)), stream_(make_stream(std::move(socket), tls_.get())), st_(std::move(st)), id_(id) {}
+      : tls_(std::move(tls)), stream_(make_stream(std::move(socket), tls_.get())), st_(std::move(st)), id_(id),
+        idle_timer_(stream_.get_executor()) {}
 
   ~Session() override {
     std::lock_guard lock(st_->mu);
@@ -89,6 +93,10 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
 
   void stop_if_idle() override {
     asio::dispatch(stream_.get_executor(), [self = this->shared_from_this()] {
+      if (self->body_) {
+        self->end_requested_ = true;
+        return self->pump();
+      }
       if (self->waiting_ && (!self->parser_ || !self->parser_->got_some())) self->lowest().cancel();
     });
   }
@@ -192,12 +200,13 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
     auto work = asio::make_work_guard(stream_.get_executor());  // keeps run() going while the pool works
     asio::post(st_->pool, [self = this->shared_from_this(), req = std::move(req), keep_alive, work = std::move(work)]() mutable {
       // The handler may answer later from another thread; the work guard travels with the reply.
-      auto reply = [self, keep_alive, work = std::make_shared<decltype(work)>(std::move(work))](HttpResponse res) {
-        asio::post(self->stream_.get_executor(), [self, res = std::move(res), keep_alive, work]() mutable {
-          self->write(std::move(res), keep_alive && !self->st_->stopping);
+      auto done = [self, keep_alive, work = std::make_shared<decltype(work)>(std::move(work))](HttpReply reply) {
+        asio::post(self->stream_.get_executor(), [self, reply = std::move(reply), keep_alive, work]() mutable {
+          if (reply.stream) return self->start_stream(std::move(reply.response), std::move(reply.stream));
+          self->write(std::move(reply.response), keep_alive && !self->st_->stopping);
         });
       };
-      self->st_->handler.handle_async(std::move(req), std::move(reply));
+      self->st_->handler.handle_async(std::move(req), std::move(done));
     });
   }
 
@@ -216,6 +225,108 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
       if (!sp->keep_alive()) return self->close();
       self->read_header();
     });
+  }
+
+  // A streamed answer: the header at once, then the stream's chunks as they come (chunked over HTTP/1.1; raw bytes
+  // ended by the close over HTTP/1.0), idle text after stream_idle of quiet, and the connection's end when the stream
+  // ends. A read on the socket notices a client that closes its side (bytes it sends are ignored).
+  void start_stream(HttpResponse head, std::shared_ptr<BodyStream> body) {
+    body_ = std::move(body);
+    chunked_ = head.version() >= 11;
+    head.keep_alive(false);
+    head.body().clear();
+    if (chunked_) head.chunked(true);
+    else head.erase(http::field::content_length);
+    auto header = std::make_shared<HttpResponse>(std::move(head));
+    auto sr = std::make_shared<http::response_serializer<http::string_body>>(*header);
+    writing_ = true;
+    lowest().expires_after(st_->opt.read_timeout);
+    http::async_write_header(stream_, *sr, [self = this->shared_from_this(), header, sr](beast::error_code ec, std::size_t) {
+      self->writing_ = false;
+      self->lowest().expires_never();
+      if (ec) return self->end_stream();
+      self->watch_client();
+      self->arm_idle();
+      std::weak_ptr<Session> weak = self;
+      self->body_->start([weak] {
+        if (auto s = weak.lock()) asio::post(s->stream_.get_executor(), [s] { s->pump(); });
+      });
+      if (self->st_->stopping) self->end_requested_ = true;
+      self->pump();
+    });
+  }
+
+  // Writes what the stream has, unless a write is in flight (its completion pumps again).
+  void pump() {
+    if (!body_ || writing_ || stream_done_) return;
+    BodyStream::Chunk c = body_->next();
+    if (end_requested_) c.last = true;
+    if (c.text.empty() && !c.last) return;
+    write_chunk(std::move(c.text), c.last);
+  }
+
+  void write_chunk(std::string text, bool last) {
+    out_.clear();
+    if (chunked_ && !text.empty()) {
+      static constexpr char kHex[] = "0123456789abcdef";
+      std::string size;
+      for (std::size_t n = text.size(); n > 0; n /= 16) size.insert(size.begin(), kHex[n % 16]);
+      out_ = size + "\r\n" + text + "\r\n";
+    } else if (!chunked_) {
+      out_ = std::move(text);
+    }
+    if (chunked_ && last) out_ += "0\r\n\r\n";
+    wrote_since_idle_ = true;
+    if (out_.empty()) return end_stream();
+    writing_ = true;
+    lowest().expires_after(st_->opt.read_timeout);  // a client that stops reading is closed
+    asio::async_write(stream_, asio::buffer(out_), [self = this->shared_from_this(), last](beast::error_code ec, std::size_t) {
+      self->writing_ = false;
+      self->lowest().expires_never();
+      if (ec) {
+        spdlog::debug("connection {}: stream write failed: {}", self->id_, ec.message());
+        return self->end_stream();
+      }
+      if (last) return self->end_stream();
+      self->pump();
+    });
+  }
+
+  void arm_idle() {
+    idle_timer_.expires_after(st_->opt.stream_idle);
+    idle_timer_.async_wait([self = this->shared_from_this()](beast::error_code ec) {
+      if (ec || self->stream_done_) return;
+      if (!self->wrote_since_idle_ && !self->writing_) {
+        if (std::string idle = self->body_->idle_text(); !idle.empty()) self->write_chunk(std::move(idle), false);
+      }
+      self->wrote_since_idle_ = false;
+      self->arm_idle();
+    });
+  }
+
+  void watch_client() {
+    watching_ = true;
+    lowest().socket().async_read_some(asio::buffer(drain_), [self = this->shared_from_this()](beast::error_code ec, std::size_t) {
+      self->watching_ = false;
+      if (!ec && !self->stream_done_) return self->watch_client();
+      if (!self->stream_done_) spdlog::debug("connection {}: the stream's client went away", self->id_);
+      self->end_stream();
+    });
+  }
+
+  // Ends the stream once: tells the body, stops the timer and the client watch, and closes when nothing is in flight.
+  void end_stream() {
+    if (!stream_done_) {
+      stream_done_ = true;
+      body_->stop();
+      idle_timer_.cancel();
+    }
+    if (writing_ || watching_) {
+      beast::error_code ignored;
+      lowest().socket().cancel(ignored);  // their completions come back here
+      return;
+    }
+    close();
   }
 
   // With TLS, first sends close_notify (for at most a second). Then half-closes, and reads and discards what the
@@ -261,6 +372,16 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
   bool waiting_ = false;
   bool closing_ = false;
   std::array<char, 4096> drain_;
+  // A streamed answer (start_stream).
+  asio::steady_timer idle_timer_;
+  std::shared_ptr<BodyStream> body_;
+  std::string out_;               // the chunk being written
+  bool chunked_ = false;
+  bool writing_ = false;
+  bool watching_ = false;         // the client watch's read is pending
+  bool wrote_since_idle_ = false;
+  bool end_requested_ = false;    // shutdown: the next write is the last
+  bool stream_done_ = false;
 };
 
 namespace {

@@ -1,5 +1,5 @@
 // HTTP transport: an async Boost.Beast listener (plain or TLS) and per-connection sessions that hand whole requests
-// to a handler.
+// to a handler and write its answer, whole or as a stream of chunks.
 #pragma once
 
 #include "server/tls_context.h"
@@ -15,6 +15,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 
 namespace tessera::server {
 
@@ -28,6 +29,34 @@ using HttpResponse = http::response<http::string_body>;
 /// A JSON error response `{"error": text}` with the given status (bytes that are not UTF-8 become U+FFFD).
 HttpResponse json_error(http::status status, const std::string& text, unsigned version = 11);
 
+/// A response body written as it is produced (e.g. Server-Sent Events), after a header sent at once. The transport
+/// calls start() once, then next() on the connection's strand whenever ready() was called and no write is in flight,
+/// and stop() once when the stream ends for any reason (last chunk, client gone, write timeout, server shutdown).
+class BodyStream {
+ public:
+  /// What to write now.
+  struct Chunk {
+    std::string text;   ///< Bytes to write (empty: nothing yet).
+    bool last = false;  ///< The body ends after these bytes.
+  };
+  virtual ~BodyStream() = default;
+  /// Starts the stream; `ready` may be called from any thread (it never blocks) whenever next() has something.
+  virtual void start(std::function<void()> ready) = 0;
+  /// The bytes to write now.
+  virtual Chunk next() = 0;
+  /// The stream ended; no more calls follow.
+  virtual void stop() = 0;
+  /// Written when nothing else was for the server's stream_idle time, so idle proxies keep the connection (empty: none).
+  virtual std::string idle_text() const { return {}; }
+};
+
+/// A handler's answer: a whole response, or (with `stream`) a header whose body the stream writes. A streamed answer
+/// ends its connection; over HTTP/1.1 it is sent chunked.
+struct HttpReply {
+  HttpResponse response;               ///< The response (its header only, when streamed).
+  std::shared_ptr<BodyStream> stream;  ///< The body, when streamed.
+};
+
 /// The application behind the transport.
 class HttpHandler {
  public:
@@ -38,11 +67,13 @@ class HttpHandler {
   virtual std::optional<HttpResponse> early_response(const http::request_header<>& /*header*/) noexcept { return std::nullopt; }
   /// Answers a request; runs on the handler pool and must not throw.
   virtual HttpResponse handle(HttpRequest&& request) noexcept = 0;
+  /// Answers a request, possibly with a streamed body; runs on the handler pool.
+  virtual HttpReply reply(HttpRequest&& request) noexcept { return {handle(std::move(request)), nullptr}; }
   /// Where an answer given later goes; call it exactly once, from any thread.
-  using Reply = std::function<void(HttpResponse)>;
+  using Reply = std::function<void(HttpReply)>;
   /// Answers a request now or later (on another pool): the transport calls this on the handler pool. The default
-  /// answers at once with handle().
-  virtual void handle_async(HttpRequest&& request, Reply reply) noexcept { reply(handle(std::move(request))); }
+  /// answers at once with reply().
+  virtual void handle_async(HttpRequest&& request, Reply done) noexcept { done(reply(std::move(request))); }
 };
 
 /// Transport settings.
@@ -52,12 +83,15 @@ struct HttpServerOptions {
   std::chrono::milliseconds read_timeout{30'000};      ///< A whole request (or keep-alive idle time) must fit in it.
   std::size_t header_limit = 64 * 1024;                ///< Largest request header (larger ones get 431).
   std::size_t max_connections = 1024;                  ///< Open connections; more are answered 503 and closed.
+  std::chrono::milliseconds stream_idle{15'000};       ///< A streamed body writes its idle text after this long quiet.
   TlsServerFiles tls;                                  ///< Certificate files (none: plain HTTP).
 };
 
 /// Accepts connections and runs one session per connection (each on its own strand); requests are answered on a
 /// separate handler pool so slow handlers never block the network threads. With TLS, the handshake is part of the
 /// first request: it must finish within the read timeout and its connection counts against the connection limit.
+/// A streamed body has no read timeout; each of its writes must finish within the read timeout (a client that stops
+/// reading is closed), and a client that closes its side ends the stream at once.
 class HttpServer {
  public:
   /// Reads the TLS files (if any), binds and listens (throws std::runtime_error naming the file or address on
@@ -71,7 +105,8 @@ class HttpServer {
   boost::asio::ip::tcp::endpoint endpoint() const;
   /// Starts accepting connections.
   void start();
-  /// Stops accepting, closes idle connections, and lets in-flight requests finish (their connections then close).
+  /// Stops accepting, closes idle connections, ends streamed bodies, and lets in-flight requests finish (their
+  /// connections then close).
   void shutdown();
   /// Reads the TLS files again for connections accepted from now on (open connections keep their session); on
   /// failure throws std::runtime_error and keeps serving with the previous certificate. A no-op without TLS.

@@ -2,6 +2,7 @@
 #include "server/coordinator.h"
 #include "server/test_coordinator.h"
 #include "server/test_http_client.h"
+#include "server/test_sse_client.h"
 
 #include "core/render.h"
 #include "core/scene_loader.h"
@@ -624,6 +625,137 @@ TEST_F(HttpTest, HostileBodiesAndAssetPathsAreClear400s) {
   const Reply r = call(http::verb::get, "/v1/jobs/\xff\xfe");
   EXPECT_EQ(r.status, 404u);
   EXPECT_NE(r.js()["error"].get<std::string>().find("no job"), std::string::npos) << r.body;
+}
+
+// ---- GET /v1/events ----
+
+using testing::SseEvent;
+using testing::SseReader;
+
+
+TEST_F(HttpTest, EventStreamCarriesJobTileAndWorkerEventsInOrder) {
+  SseReader events(server_->endpoint(), "/v1/events");
+  ASSERT_EQ(events.status(), 200);
+  EXPECT_NE(events.headers().find("text/event-stream"), std::string::npos) << events.headers();
+  EXPECT_NE(events.headers().find("chunked"), std::string::npos) << events.headers();
+  const std::string w = register_worker("ev");
+  const std::string id = submit(small_cbox(job_for("cbox_no_light.json")));
+  json l = call(http::verb::post, "/v1/workers/" + w + "/lease").js();
+  ASSERT_EQ(call(http::verb::post, "/v1/leases/" + l["lease"].get<std::string>() + "/fail", R"({"error":"boom"})").status, 200u);
+  l = call(http::verb::post, "/v1/workers/" + w + "/lease").js();
+  const PixelWindow win{l["window"][0], l["window"][1], l["window"][2], l["window"][3]};
+  const fs::path scratch = server_->data_dir() / "client";
+  fs::create_directories(scratch);
+  const std::string exr = tile_exr(scratch, Image::make(win.x1 - win.x0, win.y1 - win.y0), win, 40, 30);
+  ASSERT_EQ(call(http::verb::put, "/v1/leases/" + l["lease"].get<std::string>() + "/result", exr).status, 200u);
+  ASSERT_EQ(call(http::verb::delete_, "/v1/jobs/" + id).status, 200u);
+
+  std::vector<SseEvent> got;
+  for (int i = 0; i < 8; ++i) {
+    auto e = events.next();
+    ASSERT_TRUE(e) << "stream ended after " << i << " events";
+    got.push_back(*e);
+  }
+  std::vector<std::string> names;
+  for (const auto& e : got) names.push_back(e.event);
+  EXPECT_EQ(names, (std::vector<std::string>{"worker_seen", "job", "job", "tile_leased", "tile_failed", "tile_leased",
+                                             "tile_done", "job"}));
+  EXPECT_EQ(json::parse(got[0].data)["reason"], "registered");
+  EXPECT_EQ(json::parse(got[0].data)["worker"]["id"], w);
+  EXPECT_EQ(json::parse(got[1].data)["state"], "queued");
+  EXPECT_EQ(json::parse(got[1].data)["id"], id);
+  EXPECT_EQ(json::parse(got[2].data)["state"], "running");
+  EXPECT_EQ(json::parse(got[3].data)["tile"], 0);
+  EXPECT_EQ(json::parse(got[3].data)["worker"], w);
+  EXPECT_EQ(json::parse(got[4].data)["error"], "boom");
+  EXPECT_EQ(json::parse(got[6].data)["job"], id);
+  EXPECT_EQ(json::parse(got[6].data)["tile"], json::parse(got[5].data)["tile"]);
+  EXPECT_EQ(json::parse(got[7].data)["state"], "cancelled");  // a tile done changes no job state
+  // Ids are "<run>-<n>", n counting up by one.
+  for (size_t i = 0; i < got.size(); ++i) {
+    const std::string& gid = got[i].id;
+    ASSERT_NE(gid.find('-'), std::string::npos) << gid;
+    EXPECT_EQ(gid.substr(gid.find('-') + 1), std::to_string(i + 1));
+  }
+
+  // A client that reconnects with Last-Event-ID gets what came after it; one with an unknown id is told to resync.
+  SseReader resumed(server_->endpoint(), "/v1/events", {{"Last-Event-ID", got[5].id}});
+  for (size_t i = 6; i < got.size(); ++i) {
+    const auto e = resumed.next();
+    ASSERT_TRUE(e);
+    EXPECT_EQ(e->id, got[i].id);
+    EXPECT_EQ(e->data, got[i].data);
+  }
+  SseReader stale(server_->endpoint(), "/v1/events", {{"Last-Event-ID", "elsewhere-3"}});
+  const auto first = stale.next();
+  ASSERT_TRUE(first);
+  EXPECT_EQ(first->event, "resync");
+}
+
+TEST_F(HttpTest, ShutdownEndsEveryEventStream) {
+  SseReader a(server_->endpoint(), "/v1/events"), b(server_->endpoint(), "/v1/events");
+  ASSERT_EQ(a.status(), 200);
+  ASSERT_EQ(b.status(), 200);
+  server_.reset();  // returns only once run() did, which needs every stream to have ended
+  EXPECT_TRUE(a.ended());
+  EXPECT_TRUE(b.ended());
+}
+
+class EventsTest : public HttpTest {
+ protected:
+  void configure(CoordinatorOptions& o) override {
+    o.limits.tokens = AccessTokens{"client-token-0123456789abcdef", "worker-token-0123456789abcdef"};
+    o.events.max_subscribers = 2;
+    o.stream_idle = std::chrono::milliseconds(20);
+  }
+  const std::pair<std::string, std::string> client_{"Authorization", "Bearer client-token-0123456789abcdef"};
+};
+
+TEST_F(EventsTest, TokenIsCheckedStreamsAreLimitedAndIdleStreamsKeptAlive) {
+  SseReader none(server_->endpoint(), "/v1/events");
+  EXPECT_EQ(none.status(), 401);
+  EXPECT_NE(none.body().find("token"), std::string::npos);
+  SseReader worker(server_->endpoint(), "/v1/events", {{"Authorization", "Bearer worker-token-0123456789abcdef"}});
+  EXPECT_EQ(worker.status(), 403);
+  auto a = std::make_unique<SseReader>(server_->endpoint(), "/v1/events", std::vector{client_});
+  SseReader b(server_->endpoint(), "/v1/events", {client_});
+  ASSERT_EQ(a->status(), 200);
+  ASSERT_EQ(b.status(), 200);
+  SseReader third(server_->endpoint(), "/v1/events", {client_});
+  EXPECT_EQ(third.status(), 503);
+  EXPECT_NE(third.body().find("too many event streams (the limit is 2)"), std::string::npos);
+  // Nothing happens: the stream still writes keep-alive comments.
+  const auto idle = b.next(true);
+  ASSERT_TRUE(idle);
+  EXPECT_EQ(idle->event, ":");
+  EXPECT_EQ(idle->data, ": keep-alive");
+  // A client that goes away frees its stream: the server notices the close without writing to it.
+  a->close();
+  a.reset();
+  int status = 0;
+  for (int i = 0; i < 1000 && status != 200; ++i) {  // bounded: a broken server fails, a slow one passes
+    SseReader again(server_->endpoint(), "/v1/events", {client_});
+    status = again.status();
+    if (status != 200) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_EQ(status, 200);
+}
+
+class DroppingEventsTest : public HttpTest {
+ protected:
+  void configure(CoordinatorOptions& o) override { o.events.queue_limit = 0; }  // every subscriber is "too slow"
+};
+
+TEST_F(DroppingEventsTest, ASubscriberThatFallsBehindIsDroppedAndOthersGoOn) {
+  SseReader slow(server_->endpoint(), "/v1/events");
+  ASSERT_EQ(slow.status(), 200);
+  register_worker("w");  // publishes an event the subscriber has no room for
+  EXPECT_FALSE(slow.next().has_value());
+  EXPECT_TRUE(slow.ended());
+  bool said = false;
+  for (const auto& c : slow.comments()) said |= c.find("fell behind") != std::string::npos;
+  EXPECT_TRUE(said);
+  EXPECT_EQ(call(http::verb::get, "/healthz").status, 200u);  // the coordinator goes on
 }
 
 }  // namespace

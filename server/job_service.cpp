@@ -53,8 +53,9 @@ const char* to_string(UploadOutcome o) {
 }
 
 JobService::JobService(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock,
-                       AdmissionLimits limits)
-    : sched_(scheduler), blobs_(blobs), jobs_(jobs), metrics_(metrics), clock_(std::move(clock)), limits_(limits) {}
+                       AdmissionLimits limits, FarmEvents& events)
+    : sched_(scheduler), blobs_(blobs), jobs_(jobs), metrics_(metrics), clock_(std::move(clock)), limits_(limits),
+      events_(events) {}
 
 int64_t JobService::unfinished_jobs() {
   const SchedulerCounters c = sched_.counters();
@@ -152,6 +153,7 @@ protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
   spdlog::info("job {}: submitted '{}' {}x{} spp {} seed {} tile {} priority {} ({} tiles)", id, p.name, p.width,
                p.height, p.spp, p.seed, p.tile_size, p.priority, TileGrid(p.width, p.height, p.tile_size).count());
   for (const auto& w : loaded.warnings) spdlog::warn("job {}: {}", id, w);
+  announce(id);
   return {id, loaded.warnings};
 }
 
@@ -192,6 +194,7 @@ protocol::JobStatus JobService::cancel(const std::string& id) {
     throw ApiError(409, "job " + id + " already ended (" + to_string(s->state) + ")");
   drop_image(id);
   spdlog::info("job {}: cancelled, {} lease(s) revoked", id, c.revoked_leases);
+  events_.job(*s);
   return std::move(*s);
 }
 
@@ -206,6 +209,7 @@ protocol::JobStatus JobService::retry(const std::string& id) {
   }
   spdlog::info("job {}: retried after it was {}; {} tile(s) to render, done tiles kept", id, to_string(r.was),
                r.pending);
+  announce(id);
   if (r.pending == 0 && !sched_.job(id)->tiles.leased) finalize(id);  // every tile was done: only the result is missing
   return status(id);
 }
@@ -216,7 +220,7 @@ protocol::JobStatus JobService::pause(const std::string& id) {
   if (r.status == PauseResult::wrong_state)
     throw ApiError(409, "job " + id + " is " + to_string(r.was) + ": only queued or running jobs can be paused");
   spdlog::info("job {}: paused (was {})", id, to_string(r.was));
-  return status(id);
+  return announce(id);
 }
 
 protocol::JobStatus JobService::resume(const std::string& id) {
@@ -225,7 +229,7 @@ protocol::JobStatus JobService::resume(const std::string& id) {
   if (r.status == PauseResult::wrong_state)
     throw ApiError(409, "job " + id + " is " + to_string(r.was) + ": only paused jobs can be resumed");
   spdlog::info("job {}: resumed", id);
-  return status(id);
+  return announce(id);
 }
 
 protocol::JobStatus JobService::set_priority(const std::string& id, int priority) {
@@ -234,7 +238,7 @@ protocol::JobStatus JobService::set_priority(const std::string& id, int priority
   if (r.status == PriorityResult::ended)
     throw ApiError(409, "job " + id + " is " + to_string(r.was) + ": only a job that has not ended can change priority");
   spdlog::info("job {}: priority {}", id, priority);
-  return status(id);
+  return announce(id);
 }
 
 protocol::JobSpec JobService::spec(const std::string& id) {
@@ -290,8 +294,17 @@ void JobService::drop_image(const std::string& job) {
   images_.erase(job);
 }
 
-void JobService::after_failure(const std::string& job, const FailResult& f) {
-  if (f.job_failed) drop_image(job);
+void JobService::after_failure(const ResultClaim& tile, const std::string& error, const FailResult& f) {
+  events_.tile(protocol::events::kTileFailed, {tile.job, tile.tile, tile.worker, std::nullopt, error});
+  if (!f.job_failed) return;
+  drop_image(tile.job);
+  announce(tile.job);
+}
+
+protocol::JobStatus JobService::announce(const std::string& job) {
+  protocol::JobStatus s = status(job);
+  events_.job(s);
+  return s;
 }
 
 UploadOutcome JobService::accept_tile(const std::string& lease, const std::string& exr, uint64_t rays) {
@@ -328,7 +341,7 @@ UploadOutcome JobService::accept_tile(const std::string& lease, const std::strin
     const FailResult f = sched_.fail(lease, "invalid result: " + *check.error);
     spdlog::warn("job {} tile {} worker {}: invalid result: {}{}", pre.job, pre.tile, pre.worker, *check.error,
                  f.job_failed ? " (job failed)" : f.blocklisted ? " (worker blocklisted for the job)" : "");
-    after_failure(pre.job, f);
+    after_failure(pre, "invalid result: " + *check.error, f);
     throw ApiError(422, "invalid result: " + *check.error);
   }
 
@@ -350,6 +363,7 @@ UploadOutcome JobService::accept_tile(const std::string& lease, const std::strin
   }
   metrics_.add_rays(rays, clock_());
   spdlog::info("job {} tile {} worker {}: merged", c.job, c.tile, c.worker);
+  events_.tile(protocol::events::kTileDone, {c.job, c.tile, c.worker, std::nullopt, std::nullopt});
   if (last) finalize(c.job);
   return UploadOutcome::accepted;
 }
@@ -360,7 +374,7 @@ void JobService::record_failure(const std::string& lease, const std::string& err
   if (f.status == FailResult::unknown) throw ApiError(404, "unknown lease " + lease);
   spdlog::warn("job {} tile {} worker {}: failed: {}{}", info.job, info.tile, info.worker, error,
                f.job_failed ? " (job failed)" : f.blocklisted ? " (worker blocklisted for the job)" : "");
-  after_failure(info.job, f);
+  after_failure(info, error, f);
 }
 
 void JobService::recover() {
@@ -449,10 +463,12 @@ void JobService::finalize(const std::string& job) {
     spdlog::error("job {}: writing the result failed: {}", job, e.what());
     sched_.fail_job(job, std::string("writing the result failed: ") + e.what());
     drop_image(job);
+    announce(job);
     return;
   }
   sched_.complete_job(job);
   drop_image(job);
+  announce(job);
   spdlog::info("job {}: done, result written in {:.3f}s", job,
                std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
 }

@@ -6,6 +6,7 @@
 #include "protocol/messages.h"
 #include "protocol/query.h"
 #include "server/assembly.h"
+#include "server/farm_events.h"
 #include "server/metrics.h"
 #include "server/scheduler.h"
 #include "server/storage.h"
@@ -36,12 +37,13 @@ enum class UploadOutcome { accepted, duplicate, discarded };
 /// The name the protocol gives an outcome ("accepted", "duplicate", "discarded").
 const char* to_string(UploadOutcome o);
 
-/// Jobs from submission to result. Thread-safe.
+/// Jobs from submission to result. Thread-safe. Every change of a job, and every tile done or failed, is published
+/// to `events` after it happened.
 class JobService {
  public:
   /// A service over the given state; all references must outlive it.
   JobService(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock,
-             AdmissionLimits limits);
+             AdmissionLimits limits, FarmEvents& events);
 
   /// Checks the submission (asset paths, uploaded assets, the scene as `tessera render` loads it, size limits),
   /// stores its spec and queues it. Throws ApiError: 400 for bad input, 429 when the queue is full.
@@ -109,7 +111,8 @@ class JobService {
   std::shared_ptr<JobImage> image_for(const std::string& job, int width, int height);
   void drop_image(const std::string& job);
   void finalize(const std::string& job);
-  void after_failure(const std::string& job, const FailResult& f);
+  void after_failure(const ResultClaim& tile, const std::string& error, const FailResult& f);
+  protocol::JobStatus announce(const std::string& job);  // the job's snapshot, published as a job event
 
   Scheduler& sched_;
   BlobStore& blobs_;
@@ -117,6 +120,7 @@ class JobService {
   Metrics& metrics_;
   ClockMs clock_;
   AdmissionLimits limits_;
+  FarmEvents& events_;
   std::mutex mu_;
   std::mutex admit_mu_;                                      // makes the queued-jobs check and add_job one step
   std::mutex raise_mu_;                                      // one raise_spp at a time (checks, scheduler, record)

@@ -35,6 +35,8 @@ HttpResponse LeasesHandler::lease(const std::string& worker, unsigned version) {
   if (r.status == AcquireResult::no_work) return HttpResponse{http::status::no_content, version};
   const Lease l = jobs_.with_state(r.lease);
   spdlog::debug("job {} tile {} worker {}: leased as {}", l.job, l.tile, l.worker, l.id);
+  if (const auto s = sched_.job(l.job)) events_.job_if_state_changed(*s);  // queued -> running at the first lease
+  events_.tile(protocol::events::kTileLeased, {l.job, l.tile, l.worker, l.id, std::nullopt});
   return json_response(http::status::ok, l, version);
 }
 

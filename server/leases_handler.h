@@ -1,6 +1,7 @@
 // Worker endpoints of tiles: ask for a lease, heartbeat it, upload its result, report a failure, hand it back.
 #pragma once
 
+#include "server/farm_events.h"
 #include "server/job_service.h"
 #include "server/metrics.h"
 #include "server/resource_handler.h"
@@ -12,8 +13,9 @@ namespace tessera::server {
 class LeasesHandler final : public ResourceHandler {
  public:
   /// Endpoints over the given state (which must outlive it).
-  LeasesHandler(Scheduler& scheduler, JobService& jobs, Metrics& metrics, ClockMs clock)
-      : sched_(scheduler), jobs_(jobs), metrics_(metrics), clock_(std::move(clock)) {}
+  /// Publishes each lease granted (and its job's start) to `events`.
+  LeasesHandler(Scheduler& scheduler, JobService& jobs, Metrics& metrics, ClockMs clock, FarmEvents& events)
+      : sched_(scheduler), jobs_(jobs), metrics_(metrics), clock_(std::move(clock)), events_(events) {}
   HttpResponse handle(protocol::Endpoint endpoint, const std::string& id, HttpRequest& req) override;
 
  private:
@@ -25,6 +27,7 @@ class LeasesHandler final : public ResourceHandler {
   JobService& jobs_;
   Metrics& metrics_;
   ClockMs clock_;
+  FarmEvents& events_;
 };
 
 }  // namespace tessera::server

@@ -108,6 +108,12 @@ HttpResponse MonitorHandler::handle(HttpRequest&& req) noexcept {
   return api_.handle(std::move(req));
 }
 
+HttpReply MonitorHandler::reply(HttpRequest&& req) noexcept {
+  const std::string_view path = path_of(req.target());
+  if (is_monitor_path(path) || path.ends_with("/tiles")) return {handle(std::move(req)), nullptr};
+  return api_.reply(std::move(req));
+}
+
 HttpResponse MonitorHandler::serve_static(const HttpRequest& req) const {
   const std::string_view path = path_of(req.target());
   const std::string_view name = path == "/" ? std::string_view("index.html") : path.substr(kPrefix.size());

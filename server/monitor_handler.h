@@ -18,6 +18,8 @@ class MonitorHandler final : public HttpHandler {
   std::size_t body_limit(const http::request_header<>& header) override;
   std::optional<HttpResponse> early_response(const http::request_header<>& header) noexcept override;
   HttpResponse handle(HttpRequest&& request) noexcept override;
+  /// The API's streamed answers (GET /v1/events) pass through; everything else is handle().
+  HttpReply reply(HttpRequest&& request) noexcept override;
 
  private:
   HttpResponse serve_static(const HttpRequest& req) const;

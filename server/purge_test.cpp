@@ -3,6 +3,8 @@
 // after their grace period; listings filter by state and page with a cursor.
 #include "server/collector.h"
 #include "server/database.h"
+#include "server/event_bus.h"
+#include "server/farm_events.h"
 #include "server/job_service.h"
 
 #include "core/sha256.h"
@@ -34,6 +36,8 @@ struct PurgeTest : ::testing::Test {
   std::unique_ptr<DiskBlobStore> blobs;
   std::unique_ptr<Scheduler> sched;
   Metrics metrics;
+  EventBus bus{EventBusOptions{}, "purge"};
+  FarmEvents events{bus};
   std::unique_ptr<JobService> service;
   std::unique_ptr<Collector> collector;
   RetentionOptions retention{std::optional<int64_t>(3'600'000), 60'000};
@@ -51,7 +55,7 @@ struct PurgeTest : ::testing::Test {
     store = std::make_unique<DurableStore>(dir);
     blobs = std::make_unique<DiskBlobStore>(dir / "blobs");
     sched = std::make_unique<Scheduler>(SchedulerConfig{10'000, 3, 2, "p"}, clock, *store);
-    service = std::make_unique<JobService>(*sched, *blobs, *store, metrics, clock, AdmissionLimits{});
+    service = std::make_unique<JobService>(*sched, *blobs, *store, metrics, clock, AdmissionLimits{}, events);
     collector = std::make_unique<Collector>(*service, *sched, *blobs, clock, retention);
   }
   void reopen() {

@@ -21,6 +21,8 @@ HttpResponse WorkersHandler::handle(Endpoint endpoint, const std::string& id, Ht
   const std::string id_new = sched_.register_worker(hello.name, hello.threads);
   spdlog::info("worker {}: registered '{}' ({} threads, version {})", id_new, hello.name, hello.threads,
                hello.version.empty() ? "?" : hello.version);
+  for (const protocol::WorkerInfo& w : sched_.workers())
+    if (w.id == id_new) events_.worker_registered(w);
   const protocol::Registration reg{id_new, double(sched_.config().lease_ms) / 1000.0, double(heartbeat_seconds_)};
   HttpResponse res = json_response(http::status::created, reg, v);
   res.set(http::field::location, protocol::routes::workers() + "/" + id_new);

@@ -1,6 +1,7 @@
 // Workers: registration, the list and drain/undrain.
 #pragma once
 
+#include "server/farm_events.h"
 #include "server/resource_handler.h"
 #include "server/scheduler.h"
 
@@ -9,13 +10,16 @@ namespace tessera::server {
 /// POST and GET /v1/workers, POST /v1/workers/{wid}/drain and /undrain.
 class WorkersHandler final : public ResourceHandler {
  public:
-  /// Registers and controls workers with `scheduler` (which must outlive it) and announces this heartbeat period.
-  WorkersHandler(Scheduler& scheduler, int heartbeat_seconds) : sched_(scheduler), heartbeat_seconds_(heartbeat_seconds) {}
+  /// Registers and controls workers with `scheduler` (which must outlive it), announces this heartbeat period and
+  /// publishes registrations to `events`.
+  WorkersHandler(Scheduler& scheduler, int heartbeat_seconds, FarmEvents& events)
+      : sched_(scheduler), heartbeat_seconds_(heartbeat_seconds), events_(events) {}
   HttpResponse handle(protocol::Endpoint endpoint, const std::string& id, HttpRequest& req) override;
 
  private:
   Scheduler& sched_;
   int heartbeat_seconds_;
+  FarmEvents& events_;
 };
 
 }  // namespace tessera::server

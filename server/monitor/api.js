@@ -1,5 +1,7 @@
 // Talking to the coordinator: the bearer token (kept in sessionStorage, never in a URL), JSON calls, the preview
 // image, which endpoints this coordinator has, and the event stream when it exists.
+import { SseParser } from './sse.js';
+
 const TOKEN_KEY = 'tessera.clientToken';
 
 export class ApiError extends Error {
@@ -74,28 +76,24 @@ export async function capabilities() {
 
 /**
  * Reads GET /v1/events (Server-Sent Events) with the bearer header (EventSource cannot send one) and calls
- * onEvent(type, data) per event. Resolves when the stream ends; rejects on errors.
+ * onEvent({id, type, data}) per event, after onOpen() once the stream is open; with lastEventId, the coordinator
+ * first sends what came after it (or a resync event). Resolves when the stream ends; rejects on errors.
  */
-export async function streamEvents(onEvent, signal) {
-  const res = await fetch('/v1/events', { headers: headers({ Accept: 'text/event-stream' }), signal, cache: 'no-store' });
-  if (!res.ok) throw await errorOf(res);
+export async function streamEvents(onEvent, onOpen, lastEventId, signal) {
+  const extra = { Accept: 'text/event-stream' };
+  if (lastEventId) extra['Last-Event-ID'] = lastEventId;
+  const res = await fetch('/v1/events', { headers: headers(extra), signal, cache: 'no-store' });
+  if (!res.ok) {
+    const err = await errorOf(res);
+    if (err.isAuth) authListener(err);
+    throw err;
+  }
+  onOpen();
+  const parser = new SseParser(onEvent);
   const reader = res.body.pipeThrough(new TextDecoderStream()).getReader();
-  let buffer = '';
   for (;;) {
     const { value, done } = await reader.read();
     if (done) return;
-    buffer += value.replace(/\r\n?/g, '\n');
-    let end;
-    while ((end = buffer.indexOf('\n\n')) >= 0) {
-      const block = buffer.slice(0, end);
-      buffer = buffer.slice(end + 2);
-      let type = 'message';
-      const data = [];
-      for (const line of block.split('\n')) {
-        if (line.startsWith('event:')) type = line.slice(6).trim();
-        else if (line.startsWith('data:')) data.push(line.slice(5).replace(/^ /, ''));
-      }
-      if (data.length) onEvent(type, data.join('\n'));
-    }
+    parser.feed(value);
   }
 }

@@ -59,6 +59,7 @@ $('token-form').addEventListener('submit', async (ev) => {
   }
   $('token-dialog').hidden = true;
   refresh();
+  wakeEvents();
 });
 
 $('token-button').addEventListener('click', () => askToken(''));
@@ -109,24 +110,39 @@ function schedulePolling() {
   state.timer = setInterval(refresh, state.eventsLive ? POLL_WITH_EVENTS_MS : POLL_MS);
 }
 
-let eventTimer = null;
+// Every event goes to the page first (the tile map and the job list apply tile and job events at once); what a
+// page does not apply itself, and every resync, brings a refresh (a burst of events becomes one). The count of
+// events received is exposed as data-events on <body>.
+let eventTimer = null, lastEventId = '', eventCount = 0, wakeEvents = () => {};
+function onEvent(e) {
+  lastEventId = e.id || lastEventId;
+  document.body.dataset.events = String(++eventCount);
+  let data = null;
+  try { data = JSON.parse(e.data); } catch (_) { /* not JSON: refresh below */ }
+  const applied = e.type !== 'resync' && data !== null && state.view && state.view.onEvent && state.view.onEvent(e.type, data);
+  if (applied) return;
+  clearTimeout(eventTimer);
+  eventTimer = setTimeout(refresh, 100);
+}
+
 async function followEvents() {
   if (!state.caps.endpoints.events) return;
   for (;;) {
     if ($('token-dialog').hidden) {
       try {
-        const stream = api.streamEvents(() => {
-          clearTimeout(eventTimer);
-          eventTimer = setTimeout(refresh, 100);  // a burst of tile events becomes one refresh
-        });
-        state.eventsLive = true;
-        schedulePolling();
-        await stream;
+        await api.streamEvents(onEvent, () => {
+          state.eventsLive = true;
+          document.body.dataset.eventsLive = 'true';
+          schedulePolling();
+          refresh();  // what changed before the stream opened
+        }, lastEventId);
       } catch (_) { /* fall back to polling until the stream is back */ }
       state.eventsLive = false;
+      document.body.dataset.eventsLive = 'false';
       schedulePolling();
     }
-    await new Promise((r) => setTimeout(r, 3000));
+    // Again in 3 s, or as soon as a token is entered.
+    await new Promise((r) => { wakeEvents = r; setTimeout(r, 3000); });
   }
 }
 

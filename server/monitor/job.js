@@ -220,6 +220,44 @@ export function mount(host, ctx) {
       drawTiles();
       await refreshPreview();
     },
+    /** Applies an event of the stream (true: applied, no refresh needed). */
+    onEvent(type, d) {
+      if (!job) return false;
+      if (type === 'job') {
+        if (d.id !== id) return true;
+        job = d;
+        drawHead();
+        refreshPreview().catch(() => {});
+        return true;
+      }
+      if (type === 'tile_leased' || type === 'tile_done' || type === 'tile_failed') {
+        if (d.job !== id) return true;
+        const t = tiles.find((x) => x.index === d.tile);
+        if (!t) return false;
+        const was = t.state;
+        if (type === 'tile_leased') {
+          Object.assign(t, { state: 'leased', worker: d.worker, worker_name: null });
+        } else if (type === 'tile_done') {
+          Object.assign(t, { state: 'done', worker: null, worker_name: null });
+          // Tiles the map turned done from events (the browser test reads it).
+          map.grid.dataset.eventTilesDone = String(Number(map.grid.dataset.eventTilesDone || 0) + 1);
+        } else {
+          Object.assign(t, { state: 'pending', worker: null, worker_name: null });
+          if (Array.isArray(t.failures)) t.failures.push({ worker: d.worker, error: d.error || '' });
+          else t.failures = { ...(t.failures || {}), [d.worker]: d.error || '' };
+        }
+        const c = job.tiles;
+        if (was !== t.state) {
+          if (was in c) c[was] = Math.max(0, c[was] - 1);
+          if (t.state in c) c[t.state] += 1;
+        }
+        drawHead();
+        drawTiles();
+        if (type === 'tile_done') refreshPreview().catch(() => {});
+        return true;
+      }
+      return type === 'worker_seen' || type === 'worker_lost';  // not shown on this page
+    },
     unmount() {
       mounted = false;
       if (previewUrl) URL.revokeObjectURL(previewUrl);

@@ -56,5 +56,25 @@ export function mount(host) {
       jobs = body.jobs || [];
       draw();
     },
+    /** Applies an event of the stream (true: applied, no refresh needed). */
+    onEvent(type, d) {
+      if (type === 'job') {
+        const i = jobs.findIndex((j) => j.id === d.id);
+        if (i >= 0) jobs[i] = d;
+        else jobs.unshift(d);
+        draw();
+        return true;
+      }
+      if (type === 'tile_leased' || type === 'tile_done') {
+        const j = jobs.find((x) => x.id === d.job);
+        if (!j) return false;
+        const c = j.tiles;
+        if (type === 'tile_leased') { c.pending = Math.max(0, c.pending - 1); c.leased += 1; }
+        else { c.leased = Math.max(0, c.leased - 1); c.done = Math.min(c.total, c.done + 1); }
+        draw();
+        return true;
+      }
+      return type !== 'tile_failed';  // a failure may change the job: refresh; worker events are not shown here
+    },
   };
 }

@@ -217,6 +217,28 @@ def main():
         if "client.token" in d.current_url or client_token in d.current_url:
             fail("the token appears in the URL")
 
+        # The page's SSE parser (server/monitor/sse.js), fed a stream cut at every position.
+        parsed = d.execute_async_script("""
+            const done = arguments[arguments.length - 1];
+            import('/monitor/sse.js').then(({ SseParser }) => {
+              const text = 'retry: 1000\\n\\n: keep-alive\\n\\nid: r-1\\nevent: job\\ndata: {"id":"j"}\\n\\n' +
+                           'id: r-2\\r\\nevent: tile_done\\r\\ndata: a\\r\\ndata: b\\r\\n\\r\\ndata: plain\\n\\n';
+              const results = [];
+              for (let cut = 0; cut <= text.length; cut++) {
+                const got = [];
+                const p = new SseParser((e) => got.push(e.id + '|' + e.type + '|' + e.data));
+                p.feed(text.slice(0, cut));
+                p.feed(text.slice(cut));
+                results.push(got.join(' / '));
+              }
+              done(results);
+            }, (e) => done(['error: ' + e]));""")
+        want = 'r-1|job|{"id":"j"} / r-2|tile_done|a\nb / r-2|message|plain'
+        bad = [(i, r) for i, r in enumerate(parsed) if r != want]
+        if bad:
+            fail(f"the page's SSE parser: {bad[:3]} (want {want!r})")
+        print(f"SSE parser: {len(parsed)} split points parsed alike")
+
         # The job list shows the job, running (the holder's leases started it).
         row = f'tr[data-job="{job}"]'
         wait_for("state running in the list", lambda: any("running" in r.text for r in visible(d, row)))
@@ -226,6 +248,8 @@ def main():
         wait_for("the held tiles leased by holder", lambda: len(
             [t for t in d.find_elements(By.CSS_SELECTOR, '#tilemap .tile[data-state="leased"]') if "holder" in t.get_attribute("title")]) == HELD)
 
+        if ep["events"]:
+            wait_for("the event stream open", lambda: d.find_element(By.TAG_NAME, "body").get_attribute("data-events-live") == "true")
         # A real worker renders everything else; the page follows tile by tile.
         worker = start([TESSERA, "worker", "--coordinator", base, "--token-file", worker_path, "--threads", "1",
                         "--name", "render-1", "--cache", os.path.join(WORK, "cache")], "worker.log")
@@ -233,6 +257,13 @@ def main():
         wait_for("the free tiles done on the map", lambda: tiles_in(d, "done") == TOTAL_TILES - HELD)
         if tiles_in(d, "leased") != HELD:
             fail("the held tiles are not shown leased")
+        if ep["events"]:
+            # The map was fed by the event stream, not only by polling.
+            from_events = int(d.find_element(By.ID, "tilemap").get_attribute("data-event-tiles-done") or 0)
+            received = int(d.find_element(By.TAG_NAME, "body").get_attribute("data-events") or 0)
+            if from_events < 1 or received < from_events:
+                fail(f"the tile map did not follow the event stream: {from_events} tiles done from {received} events")
+            print(f"events: {received} received, {from_events} tiles turned done from them")
         wait_for("the partial preview", lambda: d.execute_script(
             "const i = document.getElementById('preview'); return !i.hidden && i.complete && i.naturalWidth === arguments[1] "
             "&& i.dataset.tilesDone === String(arguments[0]);", TOTAL_TILES - HELD, WIDTH))

@@ -31,7 +31,9 @@ struct State {
   DurableStore store{dir};  // as the coordinator wires it: scheduler state and job records in SQLite
   Scheduler sched{SchedulerConfig{30'000, 3, 2, "fz"}, [this] { return now; }, store};
   Metrics metrics;
-  Api api{sched, blobs, store, metrics, [this] { return now; }, options()};
+  EventBus bus{EventBusOptions{}, "fz"};
+  FarmEvents events{bus};
+  Api api{sched, blobs, store, metrics, [this] { return now; }, options(), bus, events};
 
   static ApiOptions options() {
     ApiOptions o;

@@ -60,7 +60,8 @@ static_assert(kClientTimeoutSeconds >= 3 * kCloseBoundSeconds);
 const std::vector<std::string> kServeLimits = {
     "--read-timeout-seconds", std::to_string(kReadTimeoutSeconds), "--max-connections", "16", "--max-queued-jobs", "4",
     "--max-json-bytes",       "65536",  "--max-blob-bytes",  "1048576",  "--max-result-bytes", "4194304",
-    "--max-header-bytes",     "8192",   "--max-job-pixels",  "1048576",  "--max-job-samples",  "1e8"};
+    "--max-header-bytes",     "8192",   "--max-job-pixels",  "1048576",  "--max-job-samples",  "1e8",
+    "--max-event-streams",    "4"};
 
 std::string slurp(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
@@ -176,6 +177,19 @@ class Conn {
     if (n > 0) return false;
     end_ = end_of(n, errno);
     return true;
+  }
+  /// Reads a response's status line only (0 if the connection ends first), e.g. of a stream that never ends.
+  unsigned read_status() {
+    char buf[4096];
+    while (pending_.find("\r\n") == std::string::npos) {
+      const ssize_t n = ::recv(fd_, buf, sizeof buf, 0);
+      if (n <= 0) {
+        end_ = end_of(n, errno);
+        return 0;
+      }
+      pending_.append(buf, size_t(n));
+    }
+    return pending_.starts_with("HTTP/1.1 ") && pending_.size() >= 12 ? unsigned(std::stoi(pending_.substr(9, 3))) : 0;
   }
   /// Reads one response (status 0 if the connection ends first).
   Reply read(bool head = false) {
@@ -486,6 +500,34 @@ void HostileFarm::check_case(const json& c, const std::map<std::string, std::str
       if (after != 200) std::this_thread::sleep_for(std::chrono::milliseconds(100));
     }
     EXPECT_EQ(after, 200u) << "closing connections did not free their slots";
+    r = before;
+  } else if (kind == "event_streams") {
+    // Event streams whose clients never read a byte, until the server refuses one; the coordinator goes on.
+    std::vector<std::unique_ptr<Conn>> open;
+    for (int i = 0; i < 10; ++i) {
+      auto conn = std::make_unique<Conn>(port_);
+      ASSERT_TRUE(conn->ok());
+      conn->send(request_bytes("GET", "/v1/events", "", {}, true));
+      if (i < 4) {
+        open.push_back(std::move(conn));  // never read
+        continue;
+      }
+      r = conn->read();
+      break;
+    }
+    EXPECT_EQ(call("GET", "/healthz").status, 200u) << "never-reading streams held up the coordinator";
+    EXPECT_EQ(r.headers.count("Retry-After"), 1u);
+    // Closing them frees their streams.
+    const Reply before = r;
+    open.clear();
+    unsigned after = 0;
+    for (int i = 0; i < 100 && after != 200; ++i) {
+      Conn again(port_);
+      again.send(request_bytes("GET", "/v1/events", "", {}, true));
+      after = again.read_status();
+      if (after != 200) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    EXPECT_EQ(after, 200u) << "closing event streams did not free them";
     r = before;
   } else if (kind == "queue_full") {
     std::vector<std::string> fillers;

@@ -182,6 +182,47 @@ class Coordinator:
             failures.extend(f"{where}: {p}" for p in problems)
 
 
+class EventStream:
+    """GET /v1/events held open; next() returns its events (name, id, data) with each data validated against the
+    schema x-events gives for its name."""
+
+    def __init__(self, c):
+        self.conn = http.client.HTTPConnection(c.host, int(c.port), timeout=30)
+        self.conn.request("GET", "/v1/events", headers={"Accept": "text/event-stream"})
+        self.r = self.conn.getresponse()
+        c.validate("GET", "/v1/events", self.r.status, self.r.getheader("Content-Type", ""), b"")
+        media = DOC["paths"]["/v1/events"]["get"]["responses"]["200"]["content"]["text/event-stream"]
+        self.schemas = media["x-events"]
+        if self.r.status != 200:
+            failures.append(f"GET /v1/events: {self.r.status} {self.r.read()[:200]!r}")
+
+    def next(self):
+        fields = {}
+        while True:
+            line = self.r.readline()
+            if not line:
+                return None
+            line = line.decode().rstrip("\n")
+            if line == "":
+                if "event" in fields:
+                    break
+                fields = {}
+                continue
+            if line.startswith(":"):
+                continue
+            key, _, value = line.partition(": ")
+            fields[key] = value
+        name, data = fields["event"], json.loads(fields.get("data", "null"))
+        if name not in self.schemas:
+            failures.append(f"GET /v1/events: event {name!r} is not in x-events")
+        else:
+            failures.extend(f"GET /v1/events: event {name}: {p}" for p in check(data, self.schemas[name], "data"))
+        return name, fields.get("id"), data
+
+    def close(self):
+        self.conn.close()
+
+
 def sphere_scene(size):
     return {
         "integrator": {"type": "intersection_test", "spp": 1, "point_light_position": [0, 3, 3],
@@ -195,6 +236,7 @@ def sphere_scene(size):
 
 
 def exercise(c, tessera, workdir, address):
+    events = EventStream(c)  # open from the start: every event below is validated when read at the end
     c.call("GET", "/healthz", expect=200)
     c.call("GET", "/metrics", expect=200)
 
@@ -313,6 +355,24 @@ def exercise(c, tessera, workdir, address):
         failures.append("result.exr is not an OpenEXR file")
     c.call("GET", f"/v1/jobs/{b}/preview.png", expect=200)
     c.call("GET", "/v1/jobs", expect=200)
+
+    # The stream saw all of it, in order, ending with job b done.
+    seen, ids = [], []
+    while True:
+        e = events.next()
+        if e is None:
+            failures.append(f"GET /v1/events ended before job {b} was done; saw {seen}")
+            break
+        seen.append(e[0])
+        ids.append(int(e[1].rsplit("-", 1)[1]))
+        if e[0] == "job" and e[2]["id"] == b and e[2]["state"] == "done":
+            break
+    events.close()
+    for name in ("job", "tile_leased", "tile_done", "tile_failed", "worker_seen"):
+        if name not in seen:
+            failures.append(f"GET /v1/events: no {name} event in {seen}")
+    if ids != list(range(1, len(ids) + 1)):
+        failures.append(f"GET /v1/events: ids are not 1, 2, 3, ...: {ids}")
 
     # Raised to 2 spp: running again, each tile's lease names its stored state, which the worker can fetch.
     c.call("PATCH", f"/v1/jobs/{b}", {"spp": 1}, expect=409)  # not higher

@@ -1,0 +1,21 @@
+#include "cli/coordinator_access.h"
+
+#include "cli/tls_flags.h"
+#include "cli/token.h"
+
+namespace tessera::cli {
+
+std::unique_ptr<farm::HttpClient> CoordinatorAccess::client() const {
+  auto http = std::make_unique<farm::HttpClient>(farm::parse_http_url(coordinator), farm::HttpTimeouts{},
+                                                 uint64_t(2) << 30, tls);
+  http->set_bearer_token(load_token(token_file, "TESSERA_CLIENT_TOKEN"));
+  return http;
+}
+
+void add_coordinator_access_flags(CLI::App* command, CoordinatorAccess& access) {
+  command->add_option("--coordinator", access.coordinator, "Coordinator URL, e.g. http://127.0.0.1:8470")->required();
+  command->add_option("--token-file", access.token_file, "File holding the client token (default: $TESSERA_CLIENT_TOKEN)");
+  add_client_tls_flags(command, access.tls);
+}
+
+}  // namespace tessera::cli

@@ -1,0 +1,29 @@
+// How the client commands (`submit`, `jobs`, `workers`) reach a coordinator: its URL, the client token and the TLS
+// files, registered as flags once and turned into one authenticated HTTP client.
+#pragma once
+
+#include "client/http_client.h"
+#include "client/tls_client_context.h"
+
+#include <CLI/CLI.hpp>
+
+#include <memory>
+#include <string>
+
+namespace tessera::cli {
+
+/// A coordinator and the client's credentials for it.
+struct CoordinatorAccess {
+  std::string coordinator;   ///< Coordinator URL.
+  std::string token_file;    ///< File holding the client token (else $TESSERA_CLIENT_TOKEN).
+  farm::ClientTlsFiles tls;  ///< --ca-file, --tls-cert, --tls-key for https:// coordinators.
+
+  /// A client for the coordinator sending the client token (when there is one); throws std::invalid_argument for a
+  /// bad URL or TLS file and std::runtime_error for an unreadable token file.
+  std::unique_ptr<farm::HttpClient> client() const;
+};
+
+/// Registers --coordinator (required), --token-file and the TLS flags on `command`, filling `access`.
+void add_coordinator_access_flags(CLI::App* command, CoordinatorAccess& access);
+
+}  // namespace tessera::cli

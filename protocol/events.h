@@ -1,0 +1,45 @@
+// The events of GET /v1/events (Server-Sent Events, docs/protocol.md "Events"): their names and payloads.
+#pragma once
+
+#include "protocol/job.h"
+#include "protocol/worker.h"
+
+#include <nlohmann/json_fwd.hpp>
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+namespace tessera::protocol {
+
+/// Event names (the SSE `event:` field).
+namespace events {
+inline constexpr const char* kJob = "job";                  ///< A job changed state (or priority); data: JobStatus.
+inline constexpr const char* kTileLeased = "tile_leased";   ///< data: TileEvent (with lease).
+inline constexpr const char* kTileDone = "tile_done";       ///< data: TileEvent.
+inline constexpr const char* kTileFailed = "tile_failed";   ///< data: TileEvent (with error).
+inline constexpr const char* kWorkerSeen = "worker_seen";   ///< data: WorkerEvent (reason registered or back).
+inline constexpr const char* kWorkerLost = "worker_lost";   ///< data: WorkerEvent (reason offline).
+inline constexpr const char* kResync = "resync";            ///< Events were missed: reload the state; data: {}.
+}  // namespace events
+
+/// What happened to one tile.
+struct TileEvent {
+  std::string job;                    ///< Job id.
+  int64_t tile = 0;                   ///< Tile index.
+  std::string worker;                 ///< The worker that leased, rendered or failed it.
+  std::optional<std::string> lease;   ///< The lease (tile_leased).
+  std::optional<std::string> error;   ///< The worker's error text (tile_failed).
+};
+void to_json(nlohmann::json& j, const TileEvent& e);
+void from_json(const nlohmann::json& j, TileEvent& e);
+
+/// A worker that came or went.
+struct WorkerEvent {
+  std::string reason;   ///< "registered", "back" (seen again after being offline) or "offline".
+  WorkerInfo worker;    ///< The worker as it is now.
+};
+void to_json(nlohmann::json& j, const WorkerEvent& e);
+void from_json(const nlohmann::json& j, WorkerEvent& e);
+
+}  // namespace tessera::protocol
