@@ -1,4 +1,4 @@
-// `tessera jobs`: look at and control a coordinator's jobs (ls, show, pause, resume, priority, retry, cancel).
+// `tessera jobs`: look at and control a coordinator's jobs (ls, show, tiles, requeue, pause, resume, priority, retry, cancel).
 #pragma once
 
 #include "worker/http_client.h"
@@ -12,9 +12,10 @@ namespace tessera::cli {
 
 /// Options of `tessera jobs`.
 struct JobsArgs {
-  std::string action;       ///< ls, show, pause, resume, priority, retry or cancel.
+  std::string action;       ///< ls, show, tiles, requeue, pause, resume, priority, retry or cancel.
   std::string job;          ///< The job id (all but ls).
-  std::optional<int> priority;  ///< The new priority (priority).
+  std::optional<int> priority;  ///< The new priority (priority), or the tile number (requeue).
+  bool tiles = false;       ///< show: print the tile table too.
   std::string coordinator;  ///< Coordinator URL.
   std::string token_file;   ///< File holding the client token (else $TESSERA_CLIENT_TOKEN).
   farm::ClientTlsFiles tls;  ///< --ca-file, --tls-cert, --tls-key for https:// coordinators.

@@ -1,5 +1,7 @@
 #include "protocol/messages.h"
 
+#include "protocol/tile.h"
+
 #include <charconv>
 
 #include "core/bvh.h"
@@ -276,11 +278,25 @@ HeartbeatReport parse_heartbeat_report(const std::string& body) {
   return HeartbeatReport{request_uint(j, "rays", 0)};
 }
 
-void to_json(json& j, const FailReport& f) { j = {{"error", f.error}}; }
+void to_json(json& j, const FailReport& f) {
+  j = {{"error", f.error}};
+  if (!f.log.empty()) j["log"] = f.log;
+}
 
 FailReport parse_fail_report(const std::string& body) {
-  const json j = parse_request_object(body, {"error"}, true);
-  return FailReport{request_string(j, "error", FailReport{}.error)};
+  const json j = parse_request_object(body, {"error", "log"}, true);
+  FailReport f{request_string(j, "error", FailReport{}.error), {}};
+  if (!j.contains("log")) return f;
+  const json& log = j["log"];
+  if (!log.is_array() || log.size() > kMaxFailureLogLines)
+    throw ProtocolError("'log' must be an array of at most " + std::to_string(kMaxFailureLogLines) + " strings");
+  for (const json& line : log) {
+    if (!line.is_string() || line.get_ref<const std::string&>().size() > kMaxFailureLogLineBytes)
+      throw ProtocolError("'log' lines must be strings of at most " + std::to_string(kMaxFailureLogLineBytes) +
+                          " bytes");
+    f.log.push_back(line.get<std::string>());
+  }
+  return f;
 }
 
 void parse_empty_request(const std::string& body) { parse_request_object(body, {}, true); }

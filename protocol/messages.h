@@ -130,6 +130,7 @@ HeartbeatReport parse_heartbeat_report(const std::string& body);
 /// Body of POST /v1/leases/{lease}/fail.
 struct FailReport {
   std::string error = "(no error text)";  ///< What went wrong.
+  std::vector<std::string> log;           ///< The worker's last log lines about the lease (see protocol/tile.h bounds).
 };
 void to_json(nlohmann::json& j, const FailReport& f);
 FailReport parse_fail_report(const std::string& body);

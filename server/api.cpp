@@ -34,6 +34,8 @@ Access route_access(RouteId route, http::verb method) {
     case RouteId::job_retry:
     case RouteId::job_pause:
     case RouteId::job_resume:
+    case RouteId::job_tiles:
+    case RouteId::job_tile_requeue:
     case RouteId::worker_drain:
     case RouteId::worker_undrain: return Access::client;
     case RouteId::workers: return method == http::verb::get ? Access::client : Access::worker;  // POST: registration
@@ -53,6 +55,7 @@ Api::Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metric
       jobs_(scheduler, blobs, jobs, metrics, clock,
             AdmissionLimits{opt_.max_queued_jobs, opt_.retry_after_seconds, opt_.max_job_pixels, opt_.max_job_samples}),
       jobs_handler_(jobs_),
+      tiles_handler_(jobs_),
       leases_handler_(scheduler, jobs_, metrics, clock),
       workers_handler_(scheduler, opt_.heartbeat_seconds),
       blobs_handler_(blobs),
@@ -155,6 +158,8 @@ ResourceHandler& Api::handler_for(RouteId route) {
     case RouteId::job_retry:
     case RouteId::job_pause:
     case RouteId::job_resume: return jobs_handler_;
+    case RouteId::job_tiles:
+    case RouteId::job_tile_requeue: return tiles_handler_;
     case RouteId::workers:
     case RouteId::worker_drain:
     case RouteId::worker_undrain: return workers_handler_;

@@ -14,6 +14,7 @@
 #include "server/health_handler.h"
 #include "server/scheduler.h"
 #include "server/storage.h"
+#include "server/tiles_handler.h"
 #include "server/workers_handler.h"
 
 #include <cstddef>
@@ -74,6 +75,7 @@ class Api final : public HttpHandler {
   ApiOptions opt_;
   JobService jobs_;
   JobsHandler jobs_handler_;
+  TilesHandler tiles_handler_;
   LeasesHandler leases_handler_;
   WorkersHandler workers_handler_;
   BlobsHandler blobs_handler_;

@@ -72,7 +72,7 @@ struct Coordinator::Impl {
         store(opt.data_dir),
         sched(SchedulerConfig{int64_t(opt.lease_seconds * 1000.0), 3, 2, random_hex(3)}, wall_ms, store),
         api(sched, blobs, store, metrics, wall_ms, with_heartbeat(opt)),
-        monitor(api, sched, !opt.limits.tokens.client.empty()),
+        monitor(api, !opt.limits.tokens.client.empty()),
         pool(std::size_t(opt.handler_threads > 0 ? opt.handler_threads : std::max(2u, std::thread::hardware_concurrency()))),
         server(ioc, pool, monitor, HttpServerOptions{opt.host, opt.port, opt.read_timeout, opt.header_limit, opt.max_connections, opt.tls}),
         tick(ioc),

@@ -136,13 +136,13 @@ void Scheduler::flush_locked() {
     const auto it = jobs_.find(key.first);
     if (it == jobs_.end()) continue;
     const Tile& t = it->second->tiles[size_t(key.second)];
-    TileRow row{key.first, key.second, t.state, t.lease, t.failures, std::nullopt};
+    TileRow row{key.first, key.second, t.state, t.lease, t.failures, std::nullopt, t.logs, t.attempts, t.render_ms, t.rays};
     if (pixels && pixels->first == key && !pixels->second.empty()) row.pixels = pixels->second;
     c.tiles.push_back(std::move(row));
   }
   for (const std::string& id : dirty_leases_) {
     const auto it = leases_.find(id);
-    if (it != leases_.end()) c.leases.push_back(LeaseRow{it->second.lease, it->second.state});
+    if (it != leases_.end()) c.leases.push_back(LeaseRow{it->second.lease, it->second.state, it->second.granted_ms});
   }
   for (const std::string& id : new_workers_) {
     const auto it = workers_.find(id);
@@ -187,6 +187,10 @@ void Scheduler::restore_locked(SchedulerSnapshot snap, int64_t now) {
     t.state = row.state;
     t.lease = std::move(row.lease);
     t.failures = std::move(row.failures);
+    t.logs = std::move(row.logs);
+    t.attempts = row.attempts;
+    t.render_ms = row.render_ms;
+    t.rays = row.rays;
   }
   for (LeaseRow& row : snap.leases) {
     const auto jt = jobs_.find(row.lease.job);
@@ -200,7 +204,8 @@ void Scheduler::restore_locked(SchedulerSnapshot snap, int64_t now) {
     row.lease.spp = p.spp;
     row.lease.seed = p.seed;
     row.lease.scene_hash = p.scene_hash;
-    LeaseRec rec{row.lease, row.state};
+    LeaseRec rec{row.lease, row.state, row.granted_ms};
+    if (rec.granted_ms <= 0) rec.granted_ms = now;  // stored before grant times were: the timeout counts from now
     if (rec.state == LeaseState::live) {
       const Tile& t = jt->second->tiles[size_t(rec.lease.tile)];
       if (is_final(jt->second->status.state) || t.state != TileState::leased || t.lease != rec.lease.id) {
@@ -279,22 +284,37 @@ std::optional<JobStatus> Scheduler::job(const std::string& id) {
   });
 }
 
-std::optional<std::vector<TileView>> Scheduler::tiles(const std::string& job) {
-  return transact([&](int64_t) -> std::optional<std::vector<TileView>> {
+std::optional<protocol::TileList> Scheduler::tiles(const std::string& job) {
+  return transact([&](int64_t) -> std::optional<protocol::TileList> {
     const auto it = jobs_.find(job);
     if (it == jobs_.end()) return std::nullopt;
-    std::vector<TileView> out;
-    out.reserve(it->second->tiles.size());
+    const JobParams& p = it->second->status.params;
+    const TileGrid grid(p.width, p.height, p.tile_size);
+    const auto name_of = [&](const std::string& worker) {
+      const auto w = workers_.find(worker);
+      return w == workers_.end() ? std::string() : w->second.name;
+    };
+    protocol::TileList out{job, {}};
+    out.tiles.reserve(it->second->tiles.size());
     for (size_t i = 0; i < it->second->tiles.size(); ++i) {
       const Tile& t = it->second->tiles[i];
-      TileView v{int64_t(i), t.state, {}, {}, t.failures};
+      protocol::TileInfo v;
+      v.index = int64_t(i);
+      v.window = grid.window(v.index);
+      v.state = to_string(t.state);
+      v.attempts = t.attempts;
+      if (t.render_ms >= 0) v.render_seconds = double(t.render_ms) / 1000.0;
+      v.rays = t.rays;
       const auto l = t.state == TileState::pending || t.state == TileState::done ? leases_.end() : leases_.find(t.lease);
       if (l != leases_.end()) {
         v.worker = l->second.lease.worker;
-        const auto w = workers_.find(v.worker);
-        if (w != workers_.end()) v.worker_name = w->second.name;
+        v.worker_name = name_of(*v.worker);
       }
-      out.push_back(std::move(v));
+      for (const auto& [worker, error] : t.failures) {
+        const auto log = t.logs.find(worker);
+        v.failures.push_back({worker, name_of(worker), error, log == t.logs.end() ? std::vector<std::string>{} : log->second});
+      }
+      out.tiles.push_back(std::move(v));
     }
     return out;
   });
@@ -434,8 +454,10 @@ AcquireResult Scheduler::acquire(const std::string& worker) {
       rec.lease.seed = p.seed;
       rec.lease.scene_hash = p.scene_hash;
       rec.lease.deadline_ms = now + config_.lease_ms;
+      rec.granted_ms = now;
       j->tiles[size_t(tile)].state = TileState::leased;
       j->tiles[size_t(tile)].lease = rec.lease.id;
+      ++j->tiles[size_t(tile)].attempts;
       touch_tile(*j, tile);
       if (j->status.state == JobState::queued) {
         j->status.state = JobState::running;
@@ -467,6 +489,7 @@ HeartbeatResult Scheduler::heartbeat(const std::string& lease, uint64_t rays) {
     }
     // The new deadline is not stored: a restarted coordinator gives every live lease a fresh one anyway.
     it->second.lease.deadline_ms = now + config_.lease_ms;
+    it->second.rays += rays;
     if (rays) {
       JobRec& j = *jobs_.at(it->second.lease.job);
       j.status.rays += rays;
@@ -534,7 +557,7 @@ ResultClaim Scheduler::claim_result(const std::string& lease) {
 }
 
 FinishResult Scheduler::finish_result(const std::string& lease, uint64_t rays, std::string_view pixels) {
-  return transact([&](int64_t) {
+  return transact([&](int64_t now) {
     FinishResult r;
     const auto it = leases_.find(lease);
     if (it == leases_.end()) throw std::logic_error("finish_result: unknown lease " + lease);
@@ -545,9 +568,12 @@ FinishResult Scheduler::finish_result(const std::string& lease, uint64_t rays, s
       throw std::logic_error("finish_result: tile " + std::to_string(tile) + " of " + j.status.id +
                              " is not claimed by lease " + lease);
     const JobStatus before = j.status;
+    const Tile tile_before = t;
     const uint64_t rays_before = rays_, rendered_before = tiles_rendered_;
     t.state = TileState::done;
     t.lease.clear();
+    t.render_ms = std::max<int64_t>(0, now - it->second.granted_ms);
+    t.rays = it->second.rays + rays;
     ++j.status.tiles.done;
     ++tiles_rendered_;
     j.status.rays += rays;
@@ -563,8 +589,7 @@ FinishResult Scheduler::finish_result(const std::string& lease, uint64_t rays, s
     try {
       flush_locked();  // here rather than after: a tile the store did not take must not look done
     } catch (...) {
-      t.state = TileState::merging;
-      t.lease = lease;
+      t = tile_before;
       j.status = before;
       rays_ = rays_before;
       tiles_rendered_ = rendered_before;
@@ -588,7 +613,7 @@ void Scheduler::abandon_result(const std::string& lease) {
   });
 }
 
-FailResult Scheduler::fail(const std::string& lease, const std::string& error) {
+FailResult Scheduler::fail(const std::string& lease, const std::string& error, const std::vector<std::string>& log) {
   return transact([&](int64_t now) {
     FailResult r;
     const auto it = leases_.find(lease);
@@ -605,26 +630,36 @@ FailResult Scheduler::fail(const std::string& lease, const std::string& error) {
       if (l.state == LeaseState::live) end_lease_locked(l, LeaseState::failed);
       return r;
     }
-    const bool was_live = l.state == LeaseState::live;
-    end_lease_locked(l, LeaseState::failed);
-    if (was_live && t.lease == lease) return_to_pending_locked(j, l.lease.tile);
-    const std::string& w = l.lease.worker;
-    t.failures[w] = error;
-    const int n = ++j.worker_failures[w];
-    j.worker_last_error[w] = error;
-    touch_tile(j, l.lease.tile);
-    touch_job(j);
-    r.blocklisted = n == config_.worker_failure_limit;
-    if (int(t.failures.size()) >= config_.tile_failure_workers) {
-      finish_job_locked(j, JobState::failed, now,
-                        "tile " + std::to_string(l.lease.tile) + " failed on " + std::to_string(t.failures.size()) +
-                            " workers: " + join_worker_errors(t.failures));
-      r.job_failed = true;
-      return r;
-    }
-    r.job_failed = fail_if_all_blocklisted_locked(j, now);
-    return r;
+    return record_failure_locked(j, l, error, log, now);
   });
+}
+
+FailResult Scheduler::record_failure_locked(JobRec& j, LeaseRec& l, const std::string& error,
+                                            std::vector<std::string> log, int64_t now) {
+  FailResult r;
+  r.status = FailResult::recorded;
+  Tile& t = j.tiles[size_t(l.lease.tile)];
+  const bool was_live = l.state == LeaseState::live;
+  end_lease_locked(l, LeaseState::failed);
+  if (was_live && t.lease == l.lease.id) return_to_pending_locked(j, l.lease.tile);
+  const std::string& w = l.lease.worker;
+  t.failures[w] = error;
+  if (log.empty()) t.logs.erase(w);
+  else t.logs[w] = std::move(log);
+  const int n = ++j.worker_failures[w];
+  j.worker_last_error[w] = error;
+  touch_tile(j, l.lease.tile);
+  touch_job(j);
+  r.blocklisted = n == config_.worker_failure_limit;
+  if (int(t.failures.size()) >= config_.tile_failure_workers) {
+    finish_job_locked(j, JobState::failed, now,
+                      "tile " + std::to_string(l.lease.tile) + " failed on " + std::to_string(t.failures.size()) +
+                          " workers: " + join_worker_errors(t.failures));
+    r.job_failed = true;
+    return r;
+  }
+  r.job_failed = fail_if_all_blocklisted_locked(j, now);
+  return r;
 }
 
 bool Scheduler::release(const std::string& lease) {
@@ -662,8 +697,9 @@ RetryResult Scheduler::retry(const std::string& job) {
     j.worker_last_error.clear();
     for (int64_t i = 0; i < j.status.tiles.total; ++i) {
       Tile& t = j.tiles[size_t(i)];
-      if (t.failures.empty()) continue;
+      if (t.failures.empty() && t.logs.empty()) continue;
       t.failures.clear();
+      t.logs.clear();
       touch_tile(j, i);
     }
     const bool all_done = j.status.tiles.done == j.status.tiles.total;
@@ -675,6 +711,49 @@ RetryResult Scheduler::retry(const std::string& job) {
     touch_job(j);
     r.status = RetryResult::retried;
     r.pending = int64_t(j.pending.size());
+    return r;
+  });
+}
+
+RequeueResult Scheduler::requeue(const std::string& job, int64_t tile) {
+  return transact([&](int64_t) {
+    RequeueResult r;
+    const auto it = jobs_.find(job);
+    if (it == jobs_.end()) return r;
+    JobRec& j = *it->second;
+    r.job_state = j.status.state;
+    r.tiles = j.status.tiles.total;
+    if (tile < 0 || tile >= j.status.tiles.total) {
+      r.status = RequeueResult::no_tile;
+      return r;
+    }
+    if (j.status.state == JobState::queued || j.status.state == JobState::done || j.status.state == JobState::cancelled) {
+      r.status = RequeueResult::wrong_job_state;
+      return r;
+    }
+    Tile& t = j.tiles[size_t(tile)];
+    r.was = t.state;
+    if (t.state == TileState::merging || (t.state == TileState::pending && t.failures.empty())) {
+      r.status = RequeueResult::wrong_tile_state;
+      return r;
+    }
+    if (t.state == TileState::leased) {
+      const auto l = leases_.find(t.lease);
+      if (l != leases_.end() && l->second.state == LeaseState::live) end_lease_locked(l->second, LeaseState::revoked);
+      r.revoked = true;
+    }
+    if (t.state == TileState::done) {
+      --j.status.tiles.done;
+      t.render_ms = -1;
+      t.rays = 0;
+      touch_job(j);
+    }
+    t.failures.clear();
+    t.logs.clear();
+    if (t.state != TileState::pending) return_to_pending_locked(j, tile);
+    touch_tile(j, tile);
+    sync_needed_ = true;
+    r.status = RequeueResult::requeued;
     return r;
   });
 }

@@ -80,6 +80,12 @@ std::vector<JobStatus> list_jobs(HttpClient& http) {
   return protocol::parse_answer<protocol::JobList>(r.body, "job list").jobs;
 }
 
+protocol::TileList get_job_tiles(HttpClient& http, const std::string& id) {
+  const HttpResponse r = http.send("GET", routes::job_tiles(id));
+  if (r.status != 200) refuse("GET " + routes::job_tiles(id), r);
+  return protocol::parse_answer<protocol::TileList>(r.body, "tiles of job " + id);
+}
+
 namespace {
 // A request that changes a job or a worker; the answer is it as it is now.
 template <class T = JobStatus>
@@ -95,6 +101,11 @@ std::vector<protocol::WorkerInfo> list_workers(HttpClient& http) {
   const HttpResponse r = http.send("GET", routes::workers());
   if (r.status != 200) refuse("GET " + routes::workers(), r);
   return protocol::parse_answer<protocol::WorkerList>(r.body, "worker list").workers;
+}
+
+protocol::TileInfo requeue_tile(HttpClient& http, const std::string& id, int64_t tile) {
+  return control<protocol::TileInfo>(http, id + " tile " + std::to_string(tile), "POST", routes::job_tile_requeue(id, tile),
+                                     "requeueing");
 }
 
 protocol::WorkerInfo drain_worker(HttpClient& http, const std::string& id, bool drain) {

@@ -4,6 +4,7 @@
 
 #include "worker/http_client.h"
 #include "protocol/messages.h"
+#include "protocol/tile.h"
 #include "protocol/worker.h"
 
 #include <atomic>
@@ -77,6 +78,12 @@ protocol::WorkerInfo drain_worker(HttpClient& http, const std::string& id, bool 
 
 /// POST /v1/jobs/{id}/pause: the job, now paused; throws SubmitError (404, 409 with the coordinator's sentence).
 JobStatus pause_job(HttpClient& http, const std::string& id);
+
+/// GET /v1/jobs/{id}/tiles: every tile's state, worker, attempts, render time, rays and failures; throws SubmitError.
+protocol::TileList get_job_tiles(HttpClient& http, const std::string& id);
+
+/// POST /v1/jobs/{id}/tiles/{n}/requeue: the tile, pending again; throws SubmitError (404, 409 with the sentence).
+protocol::TileInfo requeue_tile(HttpClient& http, const std::string& id, int64_t tile);
 
 /// POST /v1/jobs/{id}/resume: the job, queued or running again; throws SubmitError (404, 409 not paused).
 JobStatus resume_job(HttpClient& http, const std::string& id);

@@ -6,8 +6,10 @@
 #include "failpoint/failpoint.h"
 #include "worker/asset_cache.h"
 #include "worker/backoff.h"
+#include "worker/recent_log.h"
 #include "protocol/messages.h"
 #include "protocol/routes.h"
+#include "protocol/tile.h"
 #include "worker/scene_cache.h"
 
 #include <spdlog/spdlog.h>
@@ -150,6 +152,9 @@ class Heartbeat {
 
 class Worker {
   static constexpr uint64_t kMaxResponse = uint64_t(2) << 30;  // blobs and specs
+  static constexpr size_t kFailureLogLines = 20;       // log lines sent with a failure report
+  static constexpr size_t kFailureLogLineBytes = 400;  // each cut to this (the coordinator takes up to 1000)
+  static_assert(kFailureLogLines <= protocol::kMaxFailureLogLines && kFailureLogLineBytes <= protocol::kMaxFailureLogLineBytes);
 
   // Heartbeats must fail fast enough to be retried within a lease: at most 2 s to connect and 5 s per phase.
   static HttpTimeouts heartbeat_timeouts(const HttpTimeouts& t) {
@@ -497,7 +502,9 @@ class Worker {
 
   void report_failure(const Lease& l, const std::string& pfx, const std::string& error) {
     ++stats_.tiles_failed;
-    if (post_lease_message(pfx, "fail", routes::lease_fail(l.id), protocol::FailReport{error}, 10)) spdlog::info("{}: failure reported", pfx);
+    // The report carries the last lines logged about this lease (their prefix is `pfx: `), bounded in count and size.
+    const protocol::FailReport report{error, recent_.log().lines_with(pfx + ":", kFailureLogLines, kFailureLogLineBytes)};
+    if (post_lease_message(pfx, "fail", routes::lease_fail(l.id), report, 10)) spdlog::info("{}: failure reported", pfx);
   }
 
   void release(const Lease& l, const std::string& pfx) {
@@ -505,6 +512,7 @@ class Worker {
     if (post_lease_message(pfx, "release", routes::lease_release(l.id), json::object(), 3)) spdlog::info("{}: tile handed back", pfx);
   }
 
+  RecentLogScope recent_;  // first: it sees everything the worker logs
   const WorkerOptions& opt_;
   const std::atomic<int>& stop_;
   HttpUrl url_;
