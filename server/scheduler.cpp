@@ -71,6 +71,8 @@ LeaseState lease_state_from_string(std::string_view s) {
 Scheduler::Scheduler(SchedulerConfig config, ClockMs clock) : config_(std::move(config)), clock_(std::move(clock)) {
   if (!clock_) throw std::invalid_argument("scheduler needs a clock");
   if (config_.lease_ms <= 0) throw std::invalid_argument("lease length must be positive");
+  if (config_.worker_failure_limit < 1) throw std::invalid_argument("the worker failure limit must be at least 1");
+  if (config_.tile_failure_workers < 1) throw std::invalid_argument("the tile failure workers must be at least 1");
 }
 
 Scheduler::Scheduler(SchedulerConfig config, ClockMs clock, SchedulerStore& store)

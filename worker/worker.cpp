@@ -356,6 +356,15 @@ class Worker {
         // Tests fail the render here, or hold it until released (a pause ends when the tile is cancelled, as a
         // long render would).
         TESSERA_FAIL_POINT_CANCELLABLE("worker.render", [&] { return cancel.load(); });
+        TESSERA_FAIL_POINT_RETURN("worker.render.fail_tiles", [&](const std::string& tiles) {
+          for (size_t i = 0; i < tiles.size();) {
+            const size_t comma = std::min(tiles.find(',', i), tiles.size());
+            if (tiles.substr(i, comma - i) == std::to_string(l.tile))
+              throw std::runtime_error("fail point worker.render.fail_tiles: tile " + std::to_string(l.tile) +
+                                       " fails on every worker");
+            i = comma + 1;
+          }
+        });
         RenderOptions ro;
         scene->sampling.apply_to(ro);
         ro.seed = l.seed;
