@@ -165,6 +165,7 @@ void SamplingSettings::apply_to(RenderOptions& o) const {
 
 void to_json(json& j, const JobSubmission& s) {
   j = {{"scene", s.scene}, {"assets", s.assets}, {"tile_size", s.tile_size}, {"priority", s.priority}, {"name", s.name}};
+  if (s.tile_timeout_seconds != kDefaultTileTimeoutSeconds) j["tile_timeout_seconds"] = s.tile_timeout_seconds;
   put_sampling(j, s.sampling);
 }
 
@@ -179,7 +180,7 @@ int request_priority(const json& j) {
 JobSubmission parse_job_submission(const std::string& body) {
   const json j = parse_request_object(
       body, {"scene", "assets", "spp", "seed", "tile_size", "priority", "name", "integrator", "target_error", "min_spp",
-             "max_spp", "error_floor", "replicates", "area_sampling", "env_sampling", "bvh"},
+             "max_spp", "error_floor", "replicates", "area_sampling", "env_sampling", "bvh", "tile_timeout_seconds"},
       false);
   JobSubmission s;
   if (!j.contains("scene")) throw ProtocolError("'scene' is missing");
@@ -189,6 +190,7 @@ JobSubmission parse_job_submission(const std::string& body) {
   s.tile_size = int(request_int(j, "tile_size", kDefaultTileSize, 1, 4096));
   s.priority = request_priority(j);
   s.name = request_string(j, "name", "");
+  s.tile_timeout_seconds = request_int(j, "tile_timeout_seconds", kDefaultTileTimeoutSeconds, 1, kMaxTileTimeoutSeconds);
   s.sampling = request_sampling(j);
   return s;
 }

@@ -51,6 +51,7 @@ struct JobSubmission {
   int tile_size = kDefaultTileSize;                 ///< Tile edge in pixels.
   int priority = kDefaultPriority;                  ///< Higher runs first.
   std::string name;                                 ///< Label.
+  int64_t tile_timeout_seconds = kDefaultTileTimeoutSeconds;  ///< A lease older than this is revoked (a failure).
 };
 /// The submission's JSON (sampling settings at their defaults are left out).
 void to_json(nlohmann::json& j, const JobSubmission& s);

@@ -78,6 +78,7 @@ constexpr AddedColumn kAddedColumns[] = {
     {"tiles", "rays", "INTEGER NOT NULL DEFAULT 0"},
     {"tiles", "logs", "TEXT NOT NULL DEFAULT '{}'"},
     {"leases", "granted_ms", "INTEGER NOT NULL DEFAULT 0"},
+    {"jobs", "tile_timeout_s", "INTEGER NOT NULL DEFAULT 3600"},
 };
 
 }  // namespace
@@ -284,8 +285,8 @@ void DurableStore::apply(const SchedulerChanges& c) {
     const JobParams& p = s.params;
     Statement& st = db_.statement(
         "INSERT INTO jobs(id, seq, name, priority, width, height, tile_size, spp, seed, scene_hash, state, created_ms,"
-        " started_ms, finished_ms, error, rays, workers, worker_failures, worker_last_error)"
-        " VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)"
+        " started_ms, finished_ms, error, rays, workers, worker_failures, worker_last_error, tile_timeout_s)"
+        " VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)"
         " ON CONFLICT(id) DO UPDATE SET priority = excluded.priority, state = excluded.state, started_ms = excluded.started_ms,"
         " finished_ms = excluded.finished_ms, error = excluded.error, rays = excluded.rays, workers = excluded.workers,"
         " worker_failures = excluded.worker_failures, worker_last_error = excluded.worker_last_error");
@@ -295,7 +296,7 @@ void DurableStore::apply(const SchedulerChanges& c) {
     st.bind(13, s.started_ms).bind(14, s.finished_ms);
     if (s.error) st.bind_text(15, *s.error);
     st.bind(16, int64_t(s.rays)).bind_text(17, json(s.workers).dump()).bind_text(18, json(r.worker_failures).dump());
-    st.bind_text(19, map_json(r.worker_last_error).dump());
+    st.bind_text(19, map_json(r.worker_last_error).dump()).bind(20, p.tile_timeout_seconds);
     st.run();
   }
   for (const TileRow& r : c.tiles) {
@@ -356,7 +357,7 @@ SchedulerSnapshot DurableStore::load() {
   {
     Statement& st = db_.statement(
         "SELECT id, seq, name, priority, width, height, tile_size, spp, seed, scene_hash, state, created_ms, started_ms,"
-        " finished_ms, error, rays, workers, worker_failures, worker_last_error FROM jobs ORDER BY seq");
+        " finished_ms, error, rays, workers, worker_failures, worker_last_error, tile_timeout_s FROM jobs ORDER BY seq");
     while (st.step()) {
       JobRow r;
       JobStatus& s = r.status;
@@ -387,6 +388,7 @@ SchedulerSnapshot DurableStore::load() {
       }
       r.worker_failures = json_map<int>(st.text(17), "worker failures");
       r.worker_last_error = json_map<std::string>(st.text(18), "worker errors");
+      s.params.tile_timeout_seconds = st.integer(19);
       snap.jobs.push_back(std::move(r));
     }
   }

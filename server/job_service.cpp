@@ -120,6 +120,7 @@ protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
   JobParams p;
   p.name = sub.name;
   p.priority = sub.priority;
+  p.tile_timeout_seconds = sub.tile_timeout_seconds;
   p.width = s.width;
   p.height = s.height;
   p.tile_size = sub.tile_size;

@@ -877,16 +877,31 @@ void Scheduler::return_to_pending_locked(JobRec& j, int64_t tile) {
 }
 
 void Scheduler::expire_locked(int64_t now) {
+  std::vector<std::string> timed_out;  // handled after the loop: failing a job ends other leases of live_leases_
   for (auto it = live_leases_.begin(); it != live_leases_.end();) {
     LeaseRec& l = leases_.at(*it);
     ++it;  // end_lease_locked erases l's entry
-    if (now <= l.lease.deadline_ms) continue;
+    if (now <= l.lease.deadline_ms) {
+      if (now - l.granted_ms > jobs_.at(l.lease.job)->status.params.tile_timeout_seconds * 1000)
+        timed_out.push_back(l.lease.id);
+      continue;
+    }
     end_lease_locked(l, LeaseState::expired);
     ++lease_expiries_;
     spdlog::info("job {} tile {} worker {}: lease {} expired", l.lease.job, l.lease.tile, l.lease.worker, l.lease.id);
     JobRec& j = *jobs_.at(l.lease.job);
     Tile& t = j.tiles[size_t(l.lease.tile)];
     if (t.state == TileState::leased && t.lease == l.lease.id) return_to_pending_locked(j, l.lease.tile);
+  }
+  for (const std::string& id : timed_out) {
+    LeaseRec& l = leases_.at(id);
+    if (l.state != LeaseState::live) continue;  // revoked when an earlier timeout failed its job
+    JobRec& j = *jobs_.at(l.lease.job);
+    const std::string error = "tile timed out after " + std::to_string(j.status.params.tile_timeout_seconds) + " s";
+    spdlog::warn("job {} tile {} worker {}: lease {} revoked: {}", l.lease.job, l.lease.tile, l.lease.worker, l.lease.id,
+                 error);
+    const FailResult f = record_failure_locked(j, l, error, {}, now);
+    if (f.job_failed) spdlog::warn("job {}: failed: {}", j.status.id, j.status.error.value_or(""));
   }
 }
 

@@ -225,7 +225,8 @@ class SchedulerStore {
 };
 
 /// The job/tile/lease state machine. Thread-safe: each call takes one lock and is one atomic step. Expired leases are
-/// reclaimed at the start of every call, so behaviour depends only on the injected clock.
+/// reclaimed at the start of every call, and leases older than their job's tile_timeout_seconds (since the grant) are
+/// revoked as failures of their workers ("tile timed out after N s"), so behaviour depends only on the injected clock.
 class Scheduler {
  public:
   /// A scheduler reading time from `clock`, keeping its state in memory only.

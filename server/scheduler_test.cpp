@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <memory>
 
 namespace tessera::server {
@@ -657,6 +658,35 @@ TEST_F(SchedulerTest, RequeueRendersADoneOrLeasedTileAgainAndRefusesOtherStates)
   EXPECT_TRUE(s.tiles(j)->tiles[size_t(bad.tile)].failures.empty());
   s.cancel(j);
   EXPECT_EQ(s.requeue(j, 0).status, RequeueResult::wrong_job_state);
+}
+
+TEST_F(SchedulerTest, ALeaseOlderThanTheTileTimeoutIsRevokedAsAFailureEvenWithHeartbeats) {
+  JobParams p;
+  p.width = 64;
+  p.height = 64;
+  p.tile_size = 64;  // one tile
+  p.tile_timeout_seconds = 25;
+  const std::string j = s.add_job(p);
+  const std::string a = s.register_worker("a"), b = s.register_worker("b"), c = s.register_worker("c");
+  for (const std::string& w : {a, b, c}) {
+    EXPECT_FALSE(s.job(j)->finished());  // fewer than 3 workers failed the tile so far
+    const Lease l = lease(w);
+    for (int i = 0; i < 5; ++i) {  // heartbeats every 5 s keep the 10 s lease alive, but not past 25 s since grant
+      now += 5'000;
+      EXPECT_EQ(s.heartbeat(l.id).status, HeartbeatResult::ok);
+    }
+    now += 1;
+    EXPECT_EQ(s.heartbeat(l.id).status, HeartbeatResult::gone);  // the worker abandons the tile
+    const auto tiles = s.tiles(j);
+    ASSERT_EQ(tiles->tiles[0].state, "pending");
+    const auto& failures = tiles->tiles[0].failures;
+    const auto mine = std::find_if(failures.begin(), failures.end(), [&](const auto& f) { return f.worker == w; });
+    ASSERT_NE(mine, failures.end());
+    EXPECT_EQ(mine->error, "tile timed out after 25 s");
+  }
+  const auto st = s.job(j);
+  EXPECT_EQ(st->state, JobState::failed);  // the tile failed on 3 workers
+  EXPECT_NE(st->error->find("tile timed out after 25 s"), std::string::npos);
 }
 
 TEST_F(SchedulerTest, CancelQueuedJob) {

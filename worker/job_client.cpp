@@ -61,6 +61,7 @@ SubmitResult submit_job(HttpClient& http, const SubmitOptions& o) {
   job.sampling = o.sampling;
   job.tile_size = o.tile_size;
   job.priority = o.priority;
+  job.tile_timeout_seconds = o.tile_timeout_seconds;
   job.name = o.name.empty() ? o.scene.filename().string() : o.name;
   const HttpResponse r = http.send("POST", routes::jobs(), json(job).dump());
   if (r.status != 201 && r.status != 200) refuse("submitting " + o.scene.string(), r);

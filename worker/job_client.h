@@ -32,6 +32,7 @@ struct SubmitOptions {
   protocol::SamplingSettings sampling; ///< How to sample (spp 0: the scene's).
   int tile_size = protocol::kDefaultTileSize;  ///< Tile edge in pixels.
   int priority = protocol::kDefaultPriority;   ///< Higher runs first.
+  int64_t tile_timeout_seconds = protocol::kDefaultTileTimeoutSeconds;  ///< A lease older than this is revoked.
   std::string name;                    ///< Job label (default: the scene's file name).
   std::optional<std::filesystem::path> asset_root;  ///< Assets may lie anywhere below this folder.
 };
