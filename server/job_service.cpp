@@ -330,7 +330,7 @@ void JobService::record_failure(const std::string& lease, const protocol::FailRe
 
 protocol::TileList JobService::tiles(const std::string& id) {
   auto t = sched_.tiles(id);
-  if (!t) throw ApiError(404, "no such job: " + id);
+  if (!t) throw ApiError(404, "no job " + id);
   return std::move(*t);
 }
 
@@ -340,7 +340,7 @@ protocol::TileInfo JobService::requeue_tile(const std::string& id, const std::st
   if (ec != std::errc() || end != tile.data() + tile.size()) n = -1;
   const RequeueResult r = sched_.requeue(id, n);
   switch (r.status) {
-    case RequeueResult::unknown: throw ApiError(404, "no such job: " + id);
+    case RequeueResult::unknown: throw ApiError(404, "no job " + id);
     case RequeueResult::no_tile:
       throw ApiError(404, "job " + id + " has no tile '" + tile + "' (its tiles are 0.." + std::to_string(r.tiles - 1) + ")");
     case RequeueResult::wrong_job_state:
