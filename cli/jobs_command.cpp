@@ -22,17 +22,39 @@ void print_table(const std::vector<protocol::JobStatus>& jobs) {
   }
 }
 
+// One line per tile (index, state, worker, attempts, render seconds, rays, failing workers), then each failure with the
+// log lines its worker sent.
+void print_tiles(const protocol::TileList& list) {
+  std::printf("%6s %-8s %-24s %8s %9s %14s %8s\n", "TILE", "STATE", "WORKER", "ATTEMPTS", "SECONDS", "RAYS", "FAILURES");
+  for (const protocol::TileInfo& t : list.tiles) {
+    const std::string worker = t.worker ? *t.worker + (t.worker_name && !t.worker_name->empty() ? " (" + *t.worker_name + ")" : "") : "-";
+    char seconds[32] = "-";
+    if (t.render_seconds) std::snprintf(seconds, sizeof seconds, "%.3f", *t.render_seconds);
+    std::printf("%6lld %-8s %-24s %8lld %9s %14llu %8zu\n", static_cast<long long>(t.index), t.state.c_str(),
+                worker.c_str(), static_cast<long long>(t.attempts), seconds,
+                static_cast<unsigned long long>(t.rays), t.failures.size());
+  }
+  for (const protocol::TileInfo& t : list.tiles)
+    for (const protocol::TileFailure& f : t.failures) {
+      const std::string who = f.worker + (f.worker_name.empty() ? "" : " (" + f.worker_name + ")");
+      std::printf("\ntile %lld failed on %s: %s\n", static_cast<long long>(t.index), who.c_str(), f.error.c_str());
+      for (const std::string& line : f.log) std::printf("  | %s\n", line.c_str());
+    }
+}
+
 }  // namespace
 
 CLI::App* add_jobs_command(CLI::App& app, JobsArgs& a) {
   auto* c = app.add_subcommand("jobs", "List and control a coordinator's jobs");
   c->add_option("action", a.action, "ls: list; show ID: the job as JSON; pause ID: no new leases (running tiles "
-                                    "finish); resume ID; priority ID N: lease its tiles in a new order; spp ID M: raise a --resumable job to M samples per pixel, continuing its stored tiles; retry ID: render a failed or cancelled job's missing tiles; "
+                                    "finish); resume ID; tiles ID: one line per tile, then failures with their log "
+                                    "lines; requeue ID N: render tile N again; priority ID N: lease its tiles in a new order; spp ID M: raise a --resumable job to M samples per pixel, continuing its stored tiles; retry ID: render a failed or cancelled job's missing tiles; "
                                     "cancel ID; rm ID: cancel it, or with --purge delete an ended job, its tiles and result")
       ->required()
-      ->check(CLI::IsMember({"ls", "show", "pause", "resume", "priority", "spp", "retry", "cancel", "rm"}));
+      ->check(CLI::IsMember({"ls", "show", "tiles", "requeue", "pause", "resume", "priority", "spp", "retry", "cancel", "rm"}));
   c->add_option("job", a.job, "Job id (all but ls)");
-  c->add_option("value", a.priority, "New priority, higher runs first (priority); new samples per pixel (spp)");
+  c->add_option("value", a.priority, "New priority, higher runs first (priority); new samples per pixel (spp); the tile number (requeue)");
+  c->add_flag("--tiles", a.tiles, "show: print the tile table after the job");
   c->add_flag("--purge", a.purge, "rm: delete a done, failed or cancelled job entirely (rows, tile pixels, result)");
   c->add_option("--state", a.states, "ls: only jobs in these states (queued, running, paused, done, failed, cancelled)")
       ->delimiter(',');
@@ -54,6 +76,10 @@ int run_jobs(const JobsArgs& a) {
   }
   if (a.action == "spp" && (!a.priority || *a.priority < 1)) {
     spdlog::error("jobs spp needs a job id and the new samples per pixel (a positive number)");
+    return 2;
+  }
+  if (a.action == "requeue" && !a.priority) {
+    spdlog::error("jobs requeue needs a job id and a tile number");
     return 2;
   }
   try {
@@ -79,6 +105,12 @@ int run_jobs(const JobsArgs& a) {
       std::printf("%s: purged (was %s)\n", p.id.c_str(), protocol::to_string(p.was));
     } else if (a.action == "show") {
       std::printf("%s\n", nlohmann::json(farm::get_job(http, a.job)).dump(2).c_str());
+      if (a.tiles) print_tiles(farm::get_job_tiles(http, a.job));
+    } else if (a.action == "tiles") {
+      print_tiles(farm::get_job_tiles(http, a.job));
+    } else if (a.action == "requeue") {
+      const protocol::TileInfo t = farm::requeue_tile(http, a.job, *a.priority);
+      std::printf("%s tile %lld: %s again\n", a.job.c_str(), static_cast<long long>(t.index), t.state.c_str());
     } else if (a.action == "pause" || a.action == "resume") {
       const protocol::JobStatus s = a.action == "pause" ? farm::pause_job(http, a.job) : farm::resume_job(http, a.job);
       std::printf("%s: %s\n", s.id.c_str(), protocol::to_string(s.state));

@@ -1,4 +1,5 @@
-// `tessera jobs`: look at and control a coordinator's jobs (ls, show, pause, resume, priority, retry, cancel, rm).
+// `tessera jobs`: look at and control a coordinator's jobs (ls, show, tiles, requeue, pause, resume, priority, spp,
+// retry, cancel, rm).
 #pragma once
 
 #include "cli/coordinator_access.h"
@@ -14,9 +15,10 @@ namespace tessera::cli {
 
 /// Options of `tessera jobs`.
 struct JobsArgs {
-  std::string action;       ///< ls, show, pause, resume, priority, spp, retry, cancel or rm.
+  std::string action;       ///< ls, show, tiles, requeue, pause, resume, priority, spp, retry, cancel or rm.
   std::string job;          ///< The job id (all but ls).
-  std::optional<int> priority;  ///< The new priority (priority) or samples per pixel (spp).
+  std::optional<int> priority;  ///< The new priority (priority), samples per pixel (spp) or tile number (requeue).
+  bool tiles = false;       ///< show: print the tile table too.
   bool purge = false;       ///< rm: delete an ended job entirely (else rm cancels).
   std::vector<std::string> states;  ///< ls: only jobs in these states.
   size_t limit = 0;         ///< ls: at most this many (0: all).

@@ -15,6 +15,12 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
   c->add_option("--data", a.data, "Data folder: blobs/, jobs/<id>/ (created if missing)")->required();
   c->add_option("--ready-file", a.ready_file, "Write the bound host:port here once listening");
   c->add_option("--lease-seconds", a.lease_seconds, "Lease length in seconds")->check(CLI::Range(0.05, 86400.0))->capture_default_str();
+  c->add_option("--worker-failure-limit", a.worker_failure_limit,
+                 "Failures on one job after which a worker is blocklisted for that job")
+      ->check(CLI::Range(1, 1000))->capture_default_str();
+  c->add_option("--tile-failure-workers", a.tile_failure_workers,
+                "Distinct workers failing one tile that fail its job")
+      ->check(CLI::Range(1, 1000))->capture_default_str();
   c->add_option("--heartbeat-seconds", a.heartbeat_seconds, "Heartbeat interval announced to workers")
       ->check(CLI::Range(1, 3600))->capture_default_str();
   c->add_option("--read-timeout-seconds", a.read_timeout_seconds, "A whole request must arrive within this time")
@@ -71,6 +77,8 @@ int run_serve(const ServeArgs& a) {
     o.data_dir = a.data;
     o.lease_seconds = a.lease_seconds;
     o.heartbeat_seconds = a.heartbeat_seconds;
+    o.worker_failure_limit = a.worker_failure_limit;
+    o.tile_failure_workers = a.tile_failure_workers;
     o.read_timeout = std::chrono::milliseconds(int64_t(a.read_timeout_seconds * 1000));
     o.handler_threads = a.threads;
     o.limits.max_queued_jobs = a.max_queued_jobs;

@@ -15,6 +15,8 @@ struct ServeArgs {
   std::string data;                       ///< Data folder (blobs, jobs).
   std::string ready_file;                 ///< Written with the bound host:port once listening.
   double lease_seconds = 30;              ///< Lease length.
+  int worker_failure_limit = 2;           ///< Failures on one job after which a worker is blocklisted for it.
+  int tile_failure_workers = 3;           ///< Distinct workers failing one tile that fail the job.
   int heartbeat_seconds = 5;              ///< Heartbeat interval announced to workers.
   double read_timeout_seconds = 30;       ///< Whole-request read timeout.
   int threads = 0;                        ///< Request handler threads (0: cores).

@@ -19,6 +19,10 @@ CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
   c->add_option("--spp", a.spp, "Samples per pixel (default: the scene's)")->check(CLI::Range(1u, 1u << 20));
   c->add_option("--tile", a.tile_size, "Tile edge in pixels")->check(CLI::Range(1, 4096));
   c->add_option("--priority", a.priority, "Job priority (higher first)");
+  c->add_option("--tile-timeout", a.tile_timeout_seconds,
+                "Seconds a tile's lease may last from its grant; older leases are revoked and count as a failure of "
+                "their worker")
+      ->check(CLI::Range(int64_t(1), protocol::kMaxTileTimeoutSeconds))->capture_default_str();
   c->add_option("--seed", a.seed, "Sample seed");
   c->add_option("--name", a.name, "Job label (default: the scene's file name)");
   c->add_option("--integrator", a.integrator, "Render with this integrator whatever the scene says")
@@ -115,6 +119,7 @@ int run_submit(const SubmitArgs& a) {
     farm::SubmitOptions o = shared_job_options(a);
     o.tile_size = a.tile_size;
     o.priority = a.priority;
+    o.tile_timeout_seconds = a.tile_timeout_seconds;
     o.name = a.name;
     o.resumable = a.resumable;
     if (a.detach) {

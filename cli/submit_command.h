@@ -21,6 +21,7 @@ struct SubmitArgs {
   std::optional<uint32_t> spp;      ///< Samples per pixel override.
   int tile_size = protocol::kDefaultTileSize;  ///< Tile edge.
   int priority = protocol::kDefaultPriority;   ///< Job priority.
+  int64_t tile_timeout_seconds = protocol::kDefaultTileTimeoutSeconds;  ///< --tile-timeout.
   uint64_t seed = 0;                ///< Sample seed.
   std::string name;                 ///< Job label.
   std::string integrator;           ///< "direct": submit scenes of other integrator types.

@@ -66,6 +66,7 @@ SubmitResult submit_job(HttpClient& http, const SubmitOptions& o) {
   job.sampling = o.sampling;
   job.tile_size = o.tile_size;
   job.priority = o.priority;
+  job.tile_timeout_seconds = o.tile_timeout_seconds;
   job.name = o.name.empty() ? o.scene.filename().string() : o.name;
   job.resumable = o.resumable;
   const std::string body = json(job).dump();
@@ -107,6 +108,12 @@ protocol::JobList list_jobs(HttpClient& http, const protocol::JobListQuery& quer
   return protocol::parse_answer<protocol::JobList>(r.body, "job list");
 }
 
+protocol::TileList get_job_tiles(HttpClient& http, const std::string& id) {
+  const HttpResponse r = http.send("GET", routes::job_tiles(id));
+  if (r.status != 200) refuse("GET " + routes::job_tiles(id), r);
+  return protocol::parse_answer<protocol::TileList>(r.body, "tiles of job " + id);
+}
+
 namespace {
 // A request that changes a job or a worker; the answer is it as it is now.
 template <class T = JobStatus>
@@ -122,6 +129,11 @@ std::vector<protocol::WorkerInfo> list_workers(HttpClient& http) {
   const HttpResponse r = http.send("GET", routes::workers());
   if (r.status != 200) refuse("GET " + routes::workers(), r);
   return protocol::parse_answer<protocol::WorkerList>(r.body, "worker list").workers;
+}
+
+protocol::TileInfo requeue_tile(HttpClient& http, const std::string& id, int64_t tile) {
+  return control<protocol::TileInfo>(http, id + " tile " + std::to_string(tile), "POST", routes::job_tile_requeue(id, tile),
+                                     "requeueing");
 }
 
 protocol::WorkerInfo drain_worker(HttpClient& http, const std::string& id, bool drain) {

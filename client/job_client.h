@@ -5,6 +5,7 @@
 #include "client/http_client.h"
 #include "protocol/messages.h"
 #include "protocol/query.h"
+#include "protocol/tile.h"
 #include "protocol/worker.h"
 
 #include <atomic>
@@ -32,6 +33,7 @@ struct SubmitOptions {
   protocol::SamplingSettings sampling; ///< How to sample (spp 0: the scene's).
   int tile_size = protocol::kDefaultTileSize;  ///< Tile edge in pixels.
   int priority = protocol::kDefaultPriority;   ///< Higher runs first.
+  int64_t tile_timeout_seconds = protocol::kDefaultTileTimeoutSeconds;  ///< A lease older than this is revoked.
   std::string name;                    ///< Job label (default: the scene's file name).
   std::optional<std::filesystem::path> asset_root;  ///< Assets may lie anywhere below this folder.
   bool resumable = false;              ///< Tiles keep their exact sums, so the spp can be raised later.
@@ -87,6 +89,12 @@ protocol::WorkerInfo drain_worker(HttpClient& http, const std::string& id, bool 
 
 /// POST /v1/jobs/{id}/pause: the job, now paused; throws SubmitError (404, 409 with the coordinator's sentence).
 JobStatus pause_job(HttpClient& http, const std::string& id);
+
+/// GET /v1/jobs/{id}/tiles: every tile's state, worker, attempts, render time, rays and failures; throws SubmitError.
+protocol::TileList get_job_tiles(HttpClient& http, const std::string& id);
+
+/// POST /v1/jobs/{id}/tiles/{n}/requeue: the tile, pending again; throws SubmitError (404, 409 with the sentence).
+protocol::TileInfo requeue_tile(HttpClient& http, const std::string& id, int64_t tile);
 
 /// POST /v1/jobs/{id}/resume: the job, queued or running again; throws SubmitError (404, 409 not paused).
 JobStatus resume_job(HttpClient& http, const std::string& id);

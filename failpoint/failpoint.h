@@ -46,8 +46,9 @@
 namespace tessera::failpoint {
 
 /// Every fail point: where it is and what it is for (docs/testing.md lists the same).
-inline constexpr std::array<std::string_view, 9> kNames = {
+inline constexpr std::array<std::string_view, 10> kNames = {
     "worker.render",          // worker: after the job's scene is ready, before the tile's render (cancellable pause)
+    "worker.render.fail_tiles",  // worker: return(N,M,...) fails the render of the listed tiles (on every worker)
     "worker.upload",          // worker: a rendered tile, before its upload
     "worker.upload.corrupt",  // worker: return(nan|size) uploads a tile with a NaN pixel / one column too few
     "worker.upload.repeat",   // worker: return sends an acknowledged upload once more

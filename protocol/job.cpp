@@ -43,6 +43,7 @@ void to_json(json& j, const JobStatus& s) {
        {"seed", s.params.seed},
        {"tile_size", s.params.tile_size},
        {"scene_hash", s.params.scene_hash},
+       {"tile_timeout_seconds", s.params.tile_timeout_seconds},
        {"tiles", {{"total", s.tiles.total}, {"done", s.tiles.done}, {"leased", s.tiles.leased}, {"pending", s.tiles.pending}}},
        {"created_ms", s.created_ms},
        {"started_ms", optional_json(s.started_ms)},
@@ -72,6 +73,7 @@ void from_json(const json& j, JobStatus& s) {
   p.seed = answer_field_or<uint64_t>(j, "seed", kMsg, 0);
   p.tile_size = answer_field_or<int>(j, "tile_size", kMsg, kDefaultTileSize);
   p.scene_hash = answer_field_or<std::string>(j, "scene_hash", kMsg, "");
+  p.tile_timeout_seconds = answer_field_or<int64_t>(j, "tile_timeout_seconds", kMsg, kDefaultTileTimeoutSeconds);
   if (j.contains("tiles") && j["tiles"].is_object()) {
     const json& t = j["tiles"];
     s.tiles.total = answer_field_or<int64_t>(t, "total", "job tiles", 0);

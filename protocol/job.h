@@ -36,6 +36,7 @@ struct JobParams {
   uint32_t spp = 1;                     ///< Samples per pixel.
   uint64_t seed = 0;                    ///< Sample seed.
   std::string scene_hash;               ///< The loader's content hash of scene and assets.
+  int64_t tile_timeout_seconds = kDefaultTileTimeoutSeconds;  ///< A lease older than this (since grant) is revoked.
 };
 
 /// Tile counts of a job.

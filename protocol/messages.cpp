@@ -1,5 +1,7 @@
 #include "protocol/messages.h"
 
+#include "protocol/tile.h"
+
 #include <charconv>
 
 #include "core/bvh.h"
@@ -163,6 +165,7 @@ void SamplingSettings::apply_to(RenderOptions& o) const {
 
 void to_json(json& j, const JobSubmission& s) {
   j = {{"scene", s.scene}, {"assets", s.assets}, {"tile_size", s.tile_size}, {"priority", s.priority}, {"name", s.name}};
+  if (s.tile_timeout_seconds != kDefaultTileTimeoutSeconds) j["tile_timeout_seconds"] = s.tile_timeout_seconds;
   put_sampling(j, s.sampling);
   if (s.resumable) j["resumable"] = true;
 }
@@ -178,7 +181,8 @@ int request_priority(const json& j) {
 JobSubmission parse_job_submission(const std::string& body) {
   const json j = parse_request_object(
       body, {"scene", "assets", "spp", "seed", "tile_size", "priority", "name", "integrator", "target_error", "min_spp",
-             "max_spp", "error_floor", "replicates", "area_sampling", "env_sampling", "bvh", "resumable"},
+             "max_spp", "error_floor", "replicates", "area_sampling", "env_sampling", "bvh", "resumable",
+             "tile_timeout_seconds"},
       false);
   JobSubmission s;
   if (!j.contains("scene")) throw ProtocolError("'scene' is missing");
@@ -188,6 +192,7 @@ JobSubmission parse_job_submission(const std::string& body) {
   s.tile_size = int(request_int(j, "tile_size", kDefaultTileSize, 1, 4096));
   s.priority = request_priority(j);
   s.name = request_string(j, "name", "");
+  s.tile_timeout_seconds = request_int(j, "tile_timeout_seconds", kDefaultTileTimeoutSeconds, 1, kMaxTileTimeoutSeconds);
   s.sampling = request_sampling(j);
   if (j.contains("resumable")) {
     if (!j["resumable"].is_boolean()) throw ProtocolError("'resumable' must be true or false (got " + j["resumable"].dump() + ")");
@@ -299,11 +304,25 @@ HeartbeatReport parse_heartbeat_report(const std::string& body) {
   return HeartbeatReport{request_uint(j, "rays", 0)};
 }
 
-void to_json(json& j, const FailReport& f) { j = {{"error", f.error}}; }
+void to_json(json& j, const FailReport& f) {
+  j = {{"error", f.error}};
+  if (!f.log.empty()) j["log"] = f.log;
+}
 
 FailReport parse_fail_report(const std::string& body) {
-  const json j = parse_request_object(body, {"error"}, true);
-  return FailReport{request_string(j, "error", FailReport{}.error)};
+  const json j = parse_request_object(body, {"error", "log"}, true);
+  FailReport f{request_string(j, "error", FailReport{}.error), {}};
+  if (!j.contains("log")) return f;
+  const json& log = j["log"];
+  if (!log.is_array() || log.size() > kMaxFailureLogLines)
+    throw ProtocolError("'log' must be an array of at most " + std::to_string(kMaxFailureLogLines) + " strings");
+  for (const json& line : log) {
+    if (!line.is_string() || line.get_ref<const std::string&>().size() > kMaxFailureLogLineBytes)
+      throw ProtocolError("'log' lines must be strings of at most " + std::to_string(kMaxFailureLogLineBytes) +
+                          " bytes");
+    f.log.push_back(line.get<std::string>());
+  }
+  return f;
 }
 
 void parse_empty_request(const std::string& body) { parse_request_object(body, {}, true); }

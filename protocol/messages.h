@@ -53,6 +53,7 @@ struct JobSubmission {
   std::string name;                                 ///< Label.
   /// Keep each pixel's exact sums with its tile, so the job's spp can be raised later (docs/resume.md).
   bool resumable = false;
+  int64_t tile_timeout_seconds = kDefaultTileTimeoutSeconds;  ///< A lease older than this is revoked (a failure).
 };
 /// The submission's JSON (sampling settings at their defaults are left out).
 void to_json(nlohmann::json& j, const JobSubmission& s);
@@ -138,6 +139,7 @@ HeartbeatReport parse_heartbeat_report(const std::string& body);
 /// Body of POST /v1/leases/{lease}/fail.
 struct FailReport {
   std::string error = "(no error text)";  ///< What went wrong.
+  std::vector<std::string> log;           ///< The worker's last log lines about the lease (see protocol/tile.h bounds).
 };
 void to_json(nlohmann::json& j, const FailReport& f);
 FailReport parse_fail_report(const std::string& body);

@@ -1,5 +1,6 @@
 #include "protocol/messages.h"
 #include "protocol/routes.h"
+#include "protocol/tile.h"
 #include "protocol/worker.h"
 
 #include <gtest/gtest.h>
@@ -11,7 +12,7 @@ using nlohmann::json;
 
 TEST(Routes, BuildersAndTheMatcherAgree) {
   for (const RouteSpec& r : route_table()) {
-    const std::string target = path(r.endpoint, "x-1");
+    const std::string target = path(r.endpoint, "x-1", "7");
     const RouteMatch m = match_route(target + "?q=1");
     ASSERT_NE(m.route, nullptr) << target;
     EXPECT_EQ(m.route->endpoint, r.endpoint) << target;
@@ -20,6 +21,13 @@ TEST(Routes, BuildersAndTheMatcherAgree) {
     }
   }
   EXPECT_EQ(routes::lease_result("l-3"), "/v1/leases/l-3/result");
+  EXPECT_EQ(routes::job_tile_requeue("j-2", 5), "/v1/jobs/j-2/tiles/5/requeue");
+  const RouteMatch requeue = match_route("/v1/jobs/j-2/tiles/5/requeue");
+  ASSERT_NE(requeue.route, nullptr);
+  EXPECT_EQ(requeue.route->endpoint, Endpoint::job_tile_requeue);
+  EXPECT_EQ(requeue.param, "j-2");
+  EXPECT_EQ(requeue.param2, "5");
+  EXPECT_EQ(match_route("/v1/jobs/j-2/tiles/5").route, nullptr);
   EXPECT_EQ(match_route("/v1/jobs/").route, nullptr);
   EXPECT_EQ(match_route("//v1/jobs").route, nullptr);
   EXPECT_EQ(match_route("v1/jobs").route, nullptr);
@@ -138,6 +146,45 @@ TEST(Messages, AJobPatchCarriesAPriorityAndOrAnSpp) {
   EXPECT_THROW(parse_job_patch(""), ProtocolError);
   EXPECT_THROW(parse_job_patch(R"({"priority": "high"})"), ProtocolError);
   EXPECT_THROW(parse_job_patch(R"({"priority": 2147483648})"), ProtocolError);
+}
+
+TEST(Messages, AFailReportCarriesBoundedLogLines) {
+  const FailReport f = parse_fail_report(R"({"error": "boom", "log": ["a", "b"]})");
+  EXPECT_EQ(f.error, "boom");
+  EXPECT_EQ(f.log, (std::vector<std::string>{"a", "b"}));
+  EXPECT_TRUE(parse_fail_report(R"({"error": "boom"})").log.empty());
+  EXPECT_EQ(json(f), json::parse(R"({"error": "boom", "log": ["a", "b"]})"));
+  EXPECT_THROW(parse_fail_report(R"({"error": "x", "lines": []})"), ProtocolError);  // unknown keys are refused
+  EXPECT_THROW(parse_fail_report(R"({"log": "one line"})"), ProtocolError);
+  EXPECT_THROW(parse_fail_report(R"({"log": [1]})"), ProtocolError);
+  EXPECT_THROW(parse_fail_report(json{{"log", std::vector<std::string>(kMaxFailureLogLines + 1, "x")}}.dump()), ProtocolError);
+  EXPECT_THROW(parse_fail_report(json{{"log", {std::string(kMaxFailureLogLineBytes + 1, 'x')}}}.dump()), ProtocolError);
+}
+
+TEST(Messages, TileListRoundTrips) {
+  TileList l{"j-1", {}};
+  TileInfo t;
+  t.index = 3;
+  t.window = {64, 0, 128, 64};
+  t.state = "done";
+  t.attempts = 2;
+  t.render_seconds = 1.25;
+  t.rays = 99;
+  t.failures = {{"w-1", "alpha", "boom", {"x", "y"}}};
+  l.tiles.push_back(t);
+  TileInfo leased;
+  leased.state = "leased";
+  leased.worker = "w-2";
+  leased.worker_name = "beta";
+  l.tiles.push_back(leased);
+  const TileList back = json(l).get<TileList>();
+  ASSERT_EQ(back.tiles.size(), 2u);
+  EXPECT_EQ(back.job, "j-1");
+  EXPECT_EQ(back.tiles[0].window, t.window);
+  EXPECT_EQ(back.tiles[0].render_seconds, 1.25);
+  EXPECT_EQ(back.tiles[0].failures[0].log, t.failures[0].log);
+  EXPECT_EQ(back.tiles[1].worker, "w-2");
+  EXPECT_TRUE(json(l)["tiles"][1]["render_seconds"].is_null());
 }
 
 TEST(Messages, WorkerListRoundTrips) {

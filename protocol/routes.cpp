@@ -37,6 +37,8 @@ const std::vector<RouteSpec>& route_table() {
       {Endpoint::job_retry, "/v1/jobs/{id}/retry", {"POST"}},
       {Endpoint::job_pause, "/v1/jobs/{id}/pause", {"POST"}},
       {Endpoint::job_resume, "/v1/jobs/{id}/resume", {"POST"}},
+      {Endpoint::job_tiles, "/v1/jobs/{id}/tiles", {"GET"}},
+      {Endpoint::job_tile_requeue, "/v1/jobs/{id}/tiles/{n}/requeue", {"POST"}},
       {Endpoint::workers, "/v1/workers", {"GET", "POST"}},
       {Endpoint::worker_drain, "/v1/workers/{wid}/drain", {"POST"}},
       {Endpoint::worker_undrain, "/v1/workers/{wid}/undrain", {"POST"}},
@@ -59,9 +61,10 @@ RouteMatch match_route(std::string_view target) {
   for (const RouteSpec& r : route_table()) {
     const std::vector<std::string_view> want = segments(r.pattern);
     if (want.size() != got.size()) continue;
-    RouteMatch m{&r, {}};
+    RouteMatch m{&r, {}, {}};
+    int params = 0;
     for (size_t i = 0; i < want.size() && m.route; ++i) {
-      if (is_param(want[i])) m.param = got[i];
+      if (is_param(want[i])) (params++ == 0 ? m.param : m.param2) = got[i];
       else if (want[i] != got[i]) m.route = nullptr;
     }
     if (m.route) return m;
@@ -69,13 +72,16 @@ RouteMatch match_route(std::string_view target) {
   return {};
 }
 
-std::string path(Endpoint endpoint, std::string_view param) {
+std::string path(Endpoint endpoint, std::string_view param, std::string_view param2) {
   for (const RouteSpec& r : route_table()) {
     if (r.endpoint != endpoint) continue;
-    const size_t open = r.pattern.find('{');
-    if (open == std::string_view::npos) return std::string(r.pattern);
-    const size_t close = r.pattern.find('}', open);
-    return std::string(r.pattern.substr(0, open)) + std::string(param) + std::string(r.pattern.substr(close + 1));
+    std::string out;
+    int params = 0;
+    for (std::string_view s : segments(r.pattern)) {
+      out += '/';
+      out += is_param(s) ? (params++ == 0 ? param : param2) : s;
+    }
+    return out;
   }
   throw std::invalid_argument("no route for this endpoint");
 }

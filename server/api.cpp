@@ -34,6 +34,8 @@ Access route_access(RouteId route, http::verb method) {
     case RouteId::job_retry:
     case RouteId::job_pause:
     case RouteId::job_resume:
+    case RouteId::job_tiles:
+    case RouteId::job_tile_requeue:
     case RouteId::worker_drain:
     case RouteId::worker_undrain:
     case RouteId::events: return Access::client;
@@ -58,6 +60,7 @@ Api::Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metric
             events),
       collector_(jobs_, scheduler, blobs, clock, opt_.retention),
       jobs_handler_(jobs_, collector_),
+      tiles_handler_(jobs_),
       leases_handler_(scheduler, jobs_, metrics, clock, events),
       workers_handler_(scheduler, opt_.heartbeat_seconds, events),
       blobs_handler_(blobs),
@@ -177,6 +180,8 @@ ResourceHandler& Api::handler_for(RouteId route) {
     case RouteId::job_retry:
     case RouteId::job_pause:
     case RouteId::job_resume: return jobs_handler_;
+    case RouteId::job_tiles:
+    case RouteId::job_tile_requeue: return tiles_handler_;
     case RouteId::workers:
     case RouteId::worker_drain:
     case RouteId::worker_undrain: return workers_handler_;

@@ -18,6 +18,7 @@
 #include "server/health_handler.h"
 #include "server/scheduler.h"
 #include "server/storage.h"
+#include "server/tiles_handler.h"
 #include "server/workers_handler.h"
 
 #include <cstddef>
@@ -86,6 +87,7 @@ class Api final : public HttpHandler {
   JobService jobs_;
   Collector collector_;
   JobsHandler jobs_handler_;
+  TilesHandler tiles_handler_;
   LeasesHandler leases_handler_;
   WorkersHandler workers_handler_;
   BlobsHandler blobs_handler_;

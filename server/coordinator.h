@@ -22,6 +22,8 @@ struct CoordinatorOptions {
   unsigned short port = 8470;                  ///< Port (0: an ephemeral one).
   std::filesystem::path data_dir;              ///< Holds tessera.db, blobs/, jobs/ and tmp/.
   double lease_seconds = 30;                   ///< Lease length.
+  int worker_failure_limit = SchedulerConfig{}.worker_failure_limit;  ///< Failures blocklisting a worker for a job.
+  int tile_failure_workers = SchedulerConfig{}.tile_failure_workers;  ///< Workers failing one tile that fail its job.
   int heartbeat_seconds = 5;                   ///< Heartbeat interval announced to workers.
   ApiOptions limits;                           ///< Body sizes, queued jobs, job size, access tokens.
   std::chrono::milliseconds read_timeout{30'000};  ///< Whole-request read timeout.

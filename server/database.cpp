@@ -67,6 +67,22 @@ CREATE TABLE IF NOT EXISTS tile_states(job TEXT NOT NULL, idx INTEGER NOT NULL, 
   PRIMARY KEY(job, idx));
 )sql";
 
+// Columns added after version 1 was released: older files gain them with these defaults (the schema version stays,
+// since a version-1 reader ignores them and nothing it writes contradicts them).
+struct AddedColumn {
+  const char* table;
+  const char* column;
+  const char* declaration;
+};
+constexpr AddedColumn kAddedColumns[] = {
+    {"tiles", "attempts", "INTEGER NOT NULL DEFAULT 0"},
+    {"tiles", "render_ms", "INTEGER NOT NULL DEFAULT -1"},
+    {"tiles", "rays", "INTEGER NOT NULL DEFAULT 0"},
+    {"tiles", "logs", "TEXT NOT NULL DEFAULT '{}'"},
+    {"leases", "granted_ms", "INTEGER NOT NULL DEFAULT 0"},
+    {"jobs", "tile_timeout_s", "INTEGER NOT NULL DEFAULT 3600"},
+};
+
 }  // namespace
 
 // ---- Statement
@@ -223,6 +239,13 @@ DurableStore::DurableStore(const fs::path& dir)
   }
   Transaction tx(db_);
   db_.exec(kSchema);
+  for (const AddedColumn& c : kAddedColumns) {
+    Statement& has = db_.statement(std::string("SELECT count(*) FROM pragma_table_info('") + c.table + "') WHERE name = ?");
+    has.bind_text(1, c.column);
+    const bool present = has.step() && has.integer(0) > 0;
+    has.reset();
+    if (!present) db_.exec(std::string("ALTER TABLE ") + c.table + " ADD COLUMN " + c.column + " " + c.declaration);
+  }
   Statement& get = db_.statement("SELECT value FROM meta WHERE key = 'schema_version'");
   if (get.step()) {
     const int64_t v = get.integer(0);
@@ -273,8 +296,8 @@ void DurableStore::apply(const SchedulerChanges& c) {
     const JobParams& p = s.params;
     Statement& st = db_.statement(
         "INSERT INTO jobs(id, seq, name, priority, width, height, tile_size, spp, seed, scene_hash, state, created_ms,"
-        " started_ms, finished_ms, error, rays, workers, worker_failures, worker_last_error)"
-        " VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)"
+        " started_ms, finished_ms, error, rays, workers, worker_failures, worker_last_error, tile_timeout_s)"
+        " VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)"
         " ON CONFLICT(id) DO UPDATE SET priority = excluded.priority, spp = excluded.spp, state = excluded.state,"
         " started_ms = excluded.started_ms,"
         " finished_ms = excluded.finished_ms, error = excluded.error, rays = excluded.rays, workers = excluded.workers,"
@@ -285,30 +308,36 @@ void DurableStore::apply(const SchedulerChanges& c) {
     st.bind(13, s.started_ms).bind(14, s.finished_ms);
     if (s.error) st.bind_text(15, *s.error);
     st.bind(16, int64_t(s.rays)).bind_text(17, json(s.workers).dump()).bind_text(18, json(r.worker_failures).dump());
-    st.bind_text(19, map_json(r.worker_last_error).dump());
+    st.bind_text(19, map_json(r.worker_last_error).dump()).bind(20, p.tile_timeout_seconds);
     st.run();
   }
   for (const TileRow& r : c.tiles) {
     if (r.pixels) TESSERA_FAIL_POINT("store.tile_commit");
     const std::string failures = map_json(r.failures).dump();
+    const std::string logs = json(r.logs).dump();
     Statement& up = db_.statement(
-        "UPDATE tiles SET state = ?, lease = ?, failures = ?, pixels = coalesce(?, pixels) WHERE job = ? AND idx = ?");
+        "UPDATE tiles SET state = ?, lease = ?, failures = ?, pixels = coalesce(?, pixels), attempts = ?, render_ms = ?,"
+        " rays = ?, logs = ? WHERE job = ? AND idx = ?");
     up.bind_text(1, to_string(r.state)).bind_text(2, r.lease).bind_text(3, failures);
     if (r.pixels) up.bind_blob(4, *r.pixels);
-    up.bind_text(5, r.job).bind(6, r.index);
+    up.bind(5, r.attempts).bind(6, r.render_ms).bind(7, int64_t(r.rays)).bind_text(8, logs);
+    up.bind_text(9, r.job).bind(10, r.index);
     up.run();
     if (db_.changes() > 0) continue;
-    Statement& ins = db_.statement("INSERT INTO tiles(job, idx, state, lease, failures, pixels) VALUES(?,?,?,?,?,?)");
+    Statement& ins = db_.statement(
+        "INSERT INTO tiles(job, idx, state, lease, failures, pixels, attempts, render_ms, rays, logs)"
+        " VALUES(?,?,?,?,?,?,?,?,?,?)");
     ins.bind_text(1, r.job).bind(2, r.index).bind_text(3, to_string(r.state)).bind_text(4, r.lease).bind_text(5, failures);
     if (r.pixels) ins.bind_blob(6, *r.pixels);
+    ins.bind(7, r.attempts).bind(8, r.render_ms).bind(9, int64_t(r.rays)).bind_text(10, logs);
     ins.run();
   }
   for (const LeaseRow& r : c.leases) {
     Statement& st = db_.statement(
-        "INSERT INTO leases(id, job, tile, worker, deadline_ms, state) VALUES(?,?,?,?,?,?)"
+        "INSERT INTO leases(id, job, tile, worker, deadline_ms, state, granted_ms) VALUES(?,?,?,?,?,?,?)"
         " ON CONFLICT(id) DO UPDATE SET deadline_ms = excluded.deadline_ms, state = excluded.state");
     st.bind_text(1, r.lease.id).bind_text(2, r.lease.job).bind(3, r.lease.tile).bind_text(4, r.lease.worker);
-    st.bind(5, r.lease.deadline_ms).bind_text(6, to_string(r.state));
+    st.bind(5, r.lease.deadline_ms).bind_text(6, to_string(r.state)).bind(7, r.granted_ms);
     st.run();
   }
   for (const WorkerRow& r : c.workers)
@@ -353,7 +382,7 @@ SchedulerSnapshot DurableStore::load() {
   {
     Statement& st = db_.statement(
         "SELECT id, seq, name, priority, width, height, tile_size, spp, seed, scene_hash, state, created_ms, started_ms,"
-        " finished_ms, error, rays, workers, worker_failures, worker_last_error FROM jobs ORDER BY seq");
+        " finished_ms, error, rays, workers, worker_failures, worker_last_error, tile_timeout_s FROM jobs ORDER BY seq");
     while (st.step()) {
       JobRow r;
       JobStatus& s = r.status;
@@ -384,11 +413,12 @@ SchedulerSnapshot DurableStore::load() {
       }
       r.worker_failures = json_map<int>(st.text(17), "worker failures");
       r.worker_last_error = json_map<std::string>(st.text(18), "worker errors");
+      s.params.tile_timeout_seconds = st.integer(19);
       snap.jobs.push_back(std::move(r));
     }
   }
   {
-    Statement& st = db_.statement("SELECT job, idx, state, lease, failures FROM tiles");
+    Statement& st = db_.statement("SELECT job, idx, state, lease, failures, attempts, render_ms, rays, logs FROM tiles");
     while (st.step()) {
       TileRow r;
       r.job = st.text(0);
@@ -400,11 +430,15 @@ SchedulerSnapshot DurableStore::load() {
       }
       r.lease = st.text(3);
       r.failures = json_map<std::string>(st.text(4), "tile failures");
+      r.attempts = st.integer(5);
+      r.render_ms = st.integer(6);
+      r.rays = uint64_t(st.integer(7));
+      r.logs = json_map<std::vector<std::string>>(st.text(8), "tile failure logs");
       snap.tiles.push_back(std::move(r));
     }
   }
   {
-    Statement& st = db_.statement("SELECT id, job, tile, worker, deadline_ms, state FROM leases");
+    Statement& st = db_.statement("SELECT id, job, tile, worker, deadline_ms, state, granted_ms FROM leases");
     while (st.step()) {
       LeaseRow r;
       r.lease.id = st.text(0);
@@ -417,6 +451,7 @@ SchedulerSnapshot DurableStore::load() {
       } catch (const std::invalid_argument& e) {
         throw StorageError("lease " + r.lease.id + ": " + e.what());
       }
+      r.granted_ms = st.integer(6);
       snap.leases.push_back(std::move(r));
     }
   }

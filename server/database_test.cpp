@@ -156,6 +156,33 @@ TEST_F(DatabaseTest, APausedJobStaysPausedAcrossARestart) {
   EXPECT_EQ(lease(w).tile, 1);
 }
 
+TEST_F(DatabaseTest, TileDetailsSurviveARestart) {
+  const std::string j = job();  // 2 tiles
+  const std::string w = sched->register_worker("w");
+  const Lease l0 = lease(w);
+  sched->fail(l0.id, "bad", {"a log line"});
+  const Lease l1 = lease(w);  // tile 0 again
+  now += 2'000;
+  upload(l1, 1.0f);
+  const Lease l2 = lease(w);  // tile 1, live across the restart
+  now += 1'000;
+  reopen();
+  const auto tiles = sched->tiles(j);
+  ASSERT_TRUE(tiles);
+  const protocol::TileInfo& t0 = tiles->tiles[0];
+  EXPECT_EQ(t0.attempts, 2);
+  ASSERT_TRUE(t0.render_seconds);
+  EXPECT_DOUBLE_EQ(*t0.render_seconds, 2.0);
+  EXPECT_EQ(t0.rays, 100u);
+  ASSERT_EQ(t0.failures.size(), 1u);
+  EXPECT_EQ(t0.failures[0].log, std::vector<std::string>{"a log line"});
+  EXPECT_EQ(tiles->tiles[1].attempts, 1);
+  EXPECT_EQ(tiles->tiles[1].worker, w);
+  now += 500;  // the live lease's grant time was stored: its render time counts from the grant before the restart
+  upload(l2, 2.0f);
+  EXPECT_DOUBLE_EQ(*sched->tiles(j)->tiles[1].render_seconds, 1.5);
+}
+
 TEST_F(DatabaseTest, AChangedPriorityIsStored) {
   const std::string j = job();  // priority 3
   ASSERT_EQ(sched->set_priority(j, 11).status, PriorityResult::changed);
@@ -286,7 +313,7 @@ TEST_F(DatabaseTest, ABatchIsStoredWhollyOrNotAtAll) {
   row.status.state = JobState::failed;
   SchedulerChanges c;
   c.jobs.push_back(row);
-  c.tiles.push_back(TileRow{j, 0, TileState::done, "", {}, std::nullopt});  // done without pixels
+  c.tiles.push_back(TileRow{j, 0, TileState::done, "", {}, std::nullopt, {}, 0, -1, 0});  // done without pixels
   EXPECT_THROW(store->apply(c), StorageError);
   reopen();
   EXPECT_EQ(sched->job(j)->state, JobState::queued);

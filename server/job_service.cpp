@@ -129,6 +129,7 @@ protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
   JobParams p;
   p.name = sub.name;
   p.priority = sub.priority;
+  p.tile_timeout_seconds = sub.tile_timeout_seconds;
   p.width = s.width;
   p.height = s.height;
   p.tile_size = sub.tile_size;
@@ -368,13 +369,43 @@ UploadOutcome JobService::accept_tile(const std::string& lease, const std::strin
   return UploadOutcome::accepted;
 }
 
-void JobService::record_failure(const std::string& lease, const std::string& error) {
+void JobService::record_failure(const std::string& lease, const protocol::FailReport& report) {
   const ResultClaim info = sched_.check_result(lease);
-  const FailResult f = sched_.fail(lease, error);
+  const FailResult f = sched_.fail(lease, report.error, report.log);
   if (f.status == FailResult::unknown) throw ApiError(404, "unknown lease " + lease);
-  spdlog::warn("job {} tile {} worker {}: failed: {}{}", info.job, info.tile, info.worker, error,
+  spdlog::warn("job {} tile {} worker {}: failed: {}{}", info.job, info.tile, info.worker, report.error,
                f.job_failed ? " (job failed)" : f.blocklisted ? " (worker blocklisted for the job)" : "");
-  after_failure(info, error, f);
+  after_failure(info, report.error, f);
+}
+
+protocol::TileList JobService::tiles(const std::string& id) {
+  auto t = sched_.tiles(id);
+  if (!t) throw ApiError(404, "no job " + id);
+  return std::move(*t);
+}
+
+protocol::TileInfo JobService::requeue_tile(const std::string& id, const std::string& tile) {
+  int64_t n = -1;
+  const auto [end, ec] = std::from_chars(tile.data(), tile.data() + tile.size(), n);
+  if (ec != std::errc() || end != tile.data() + tile.size()) n = -1;
+  const RequeueResult r = sched_.requeue(id, n);
+  switch (r.status) {
+    case RequeueResult::unknown: throw ApiError(404, "no job " + id);
+    case RequeueResult::no_tile:
+      throw ApiError(404, "job " + id + " has no tile '" + tile + "' (its tiles are 0.." + std::to_string(r.tiles - 1) + ")");
+    case RequeueResult::wrong_job_state:
+      throw ApiError(409, "job " + id + " is " + to_string(r.job_state) +
+                              (r.job_state == JobState::queued ? ": none of its tiles has been rendered yet"
+                               : r.job_state == JobState::done ? ": its result is written; submit it again to re-render"
+                                                               : ": retry it first"));
+    case RequeueResult::wrong_tile_state:
+      throw ApiError(409, "tile " + tile + " of job " + id +
+                              (r.was == TileState::merging ? " is being merged; requeue it when it is done"
+                                                           : " is pending already and has not failed"));
+    case RequeueResult::requeued: break;
+  }
+  spdlog::info("job {} tile {}: requeued (was {}{})", id, n, to_string(r.was), r.revoked ? ", lease revoked" : "");
+  return tiles(id).tiles.at(size_t(n));
 }
 
 void JobService::recover() {

@@ -5,6 +5,7 @@
 
 #include "protocol/messages.h"
 #include "protocol/query.h"
+#include "protocol/tile.h"
 #include "server/assembly.h"
 #include "server/farm_events.h"
 #include "server/metrics.h"
@@ -83,8 +84,13 @@ class JobService {
   /// Validates and merges an uploaded tile (rays add to the job's count); ApiError 404 unknown lease, 422 invalid
   /// (counted as the worker's failure). The upload that completes the job writes its result.
   UploadOutcome accept_tile(const std::string& lease, const std::string& exr, uint64_t rays);
-  /// Records a worker's failure report; ApiError 404 for unknown leases.
-  void record_failure(const std::string& lease, const std::string& error);
+  /// Records a worker's failure report with the log lines it sent; ApiError 404 for unknown leases.
+  void record_failure(const std::string& lease, const protocol::FailReport& report);
+  /// Every tile of a job (state, worker, attempts, render time, rays, failures with log lines); ApiError 404.
+  protocol::TileList tiles(const std::string& id);
+  /// Renders tile `tile` (its number as in the URL) of a running, paused or failed job again; the tile as it is now.
+  /// ApiError 404 unknown job or tile, 409 for other job states, a pending tile without failures or one being merged.
+  protocol::TileInfo requeue_tile(const std::string& id, const std::string& tile);
 
   /// Deletes a done, failed or cancelled job: its rows, tile pixels and spec (one store change), then its result file.
   /// ApiError 404 unknown, 409 not ended (or an upload of it is being stored). Returns its state before.

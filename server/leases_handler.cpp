@@ -16,7 +16,7 @@ HttpResponse LeasesHandler::handle(Endpoint endpoint, const std::string& id, Htt
     case Endpoint::lease_heartbeat: return heartbeat(id, req);
     case Endpoint::lease_result: return result(id, req);
     case Endpoint::lease_fail:
-      jobs_.record_failure(id, protocol::parse_fail_report(req.body()).error);
+      jobs_.record_failure(id, protocol::parse_fail_report(req.body()));
       return json_response(http::status::ok, {{"status", "recorded"}}, v);
     case Endpoint::lease_release:
       protocol::parse_empty_request(req.body());

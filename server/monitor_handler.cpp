@@ -27,15 +27,7 @@ std::string_view path_of(std::string_view target) { return target.substr(0, targ
 
 bool is_monitor_path(std::string_view path) { return path == "/" || path.starts_with(kPrefix); }
 
-// The job id of "/v1/jobs/{id}/tiles", or empty.
-std::string tiles_job(std::string_view path) {
-  constexpr std::string_view head = "/v1/jobs/", tail = "/tiles";
-  if (!path.starts_with(head) || !path.ends_with(tail) || path.size() <= head.size() + tail.size()) return {};
-  const std::string_view id = path.substr(head.size(), path.size() - head.size() - tail.size());
-  return id.find('/') == std::string_view::npos ? std::string(id) : std::string();
-}
-
-// True when the protocol's route table has `method target` (the monitor then uses it instead of its fallback).
+// True when the protocol's route table has `method target` (the page shows the controls it can use).
 bool api_has(std::string_view target, http::verb method) {
   const protocol::RouteMatch m = protocol::match_route(target);
   return m.route && std::find(m.route->methods.begin(), m.route->methods.end(), http::to_string(method)) != m.route->methods.end();
@@ -68,8 +60,7 @@ HttpResponse monitor_response(http::status status, std::string body, const char*
 
 }  // namespace
 
-MonitorHandler::MonitorHandler(HttpHandler& api, Scheduler& scheduler, bool tokens_required)
-    : api_(api), sched_(scheduler), tokens_required_(tokens_required) {}
+MonitorHandler::MonitorHandler(HttpHandler& api, bool tokens_required) : api_(api), tokens_required_(tokens_required) {}
 
 std::size_t MonitorHandler::body_limit(const http::request_header<>& header) {
   return is_monitor_path(path_of(header.target())) ? 0 : api_.body_limit(header);
@@ -78,12 +69,6 @@ std::size_t MonitorHandler::body_limit(const http::request_header<>& header) {
 std::optional<HttpResponse> MonitorHandler::early_response(const http::request_header<>& header) noexcept {
   const std::string_view path = path_of(header.target());
   if (is_monitor_path(path)) return std::nullopt;  // the page itself needs no token
-  const std::string job = tiles_job(path);
-  if (!job.empty() && !api_has(path, header.method()) && header.method() == http::verb::get) {
-    http::request_header<> as_job = header;  // the fallback needs what GET /v1/jobs/{id} needs
-    as_job.target("/v1/jobs/" + job);
-    return api_.early_response(as_job);
-  }
   return api_.early_response(header);
 }
 
@@ -100,8 +85,6 @@ HttpResponse MonitorHandler::handle(HttpRequest&& req) noexcept {
       if (path == std::string(kPrefix) + std::string(kCapabilities)) return capabilities(req);
       return serve_static(req);
     }
-    const std::string job = tiles_job(path);
-    if (!job.empty() && req.method() == http::verb::get && !api_has(path, http::verb::get)) return job_tiles(std::move(req), job);
   } catch (const std::exception& e) {
     return json_error(http::status::internal_server_error, std::string("internal error: ") + e.what(), req.version());
   }
@@ -145,30 +128,6 @@ HttpResponse MonitorHandler::capabilities(const HttpRequest& req) const {
         {"events", api_has("/v1/events", V::get)}}}};
   HttpResponse res = monitor_response(http::status::ok, body.dump(), "application/json", req.version());
   res.set(http::field::cache_control, "no-store");
-  return res;
-}
-
-// Fallback for coordinators whose API has no GET /v1/jobs/{id}/tiles: each tile's state and lease holder from the
-// scheduler. GET /v1/jobs/{id} answers first, so the token check and the 404 for unknown jobs are the API's own.
-HttpResponse MonitorHandler::job_tiles(HttpRequest&& req, const std::string& job) {
-  HttpRequest as_job = req;
-  as_job.target("/v1/jobs/" + job);
-  HttpResponse res = api_.handle(std::move(as_job));
-  if (res.result() != http::status::ok) return res;
-  const auto tiles = sched_.tiles(job);
-  if (!tiles) return json_error(http::status::not_found, "no such job: " + job, req.version());
-  nlohmann::json list = nlohmann::json::array();
-  for (const TileView& t : *tiles) {
-    nlohmann::json failures = nlohmann::json::array();
-    for (const auto& [worker, error] : t.failures) failures.push_back({{"worker", worker}, {"error", error}});
-    list.push_back({{"index", t.index},
-                    {"state", t.state == TileState::merging ? "leased" : to_string(t.state)},
-                    {"worker", t.worker.empty() ? nlohmann::json() : nlohmann::json(t.worker)},
-                    {"worker_name", t.worker_name.empty() ? nlohmann::json() : nlohmann::json(t.worker_name)},
-                    {"failures", std::move(failures)}});
-  }
-  res.body() = nlohmann::json{{"tiles", std::move(list)}}.dump();
-  res.prepare_payload();
   return res;
 }
 

@@ -3,7 +3,6 @@
 #pragma once
 
 #include "server/http_server.h"
-#include "server/scheduler.h"
 
 #include <optional>
 
@@ -12,9 +11,9 @@ namespace tessera::server {
 /// An HttpHandler that serves the monitor and forwards everything else to `api`.
 class MonitorHandler final : public HttpHandler {
  public:
-  /// `api` answers every request that is not the monitor's; `scheduler` backs the tile map's fallback endpoint.
-  /// `tokens_required` is reported to the page so it asks for the client token before its first call.
-  MonitorHandler(HttpHandler& api, Scheduler& scheduler, bool tokens_required);
+  /// `api` answers every request that is not the monitor's; `tokens_required` is reported to the page so it asks for
+  /// the client token before its first call.
+  MonitorHandler(HttpHandler& api, bool tokens_required);
   std::size_t body_limit(const http::request_header<>& header) override;
   std::optional<HttpResponse> early_response(const http::request_header<>& header) noexcept override;
   HttpResponse handle(HttpRequest&& request) noexcept override;
@@ -24,10 +23,8 @@ class MonitorHandler final : public HttpHandler {
  private:
   HttpResponse serve_static(const HttpRequest& req) const;
   HttpResponse capabilities(const HttpRequest& req) const;
-  HttpResponse job_tiles(HttpRequest&& req, const std::string& job);
 
   HttpHandler& api_;
-  Scheduler& sched_;
   bool tokens_required_;
 };
 

@@ -72,6 +72,8 @@ LeaseState lease_state_from_string(std::string_view s) {
 Scheduler::Scheduler(SchedulerConfig config, ClockMs clock) : config_(std::move(config)), clock_(std::move(clock)) {
   if (!clock_) throw std::invalid_argument("scheduler needs a clock");
   if (config_.lease_ms <= 0) throw std::invalid_argument("lease length must be positive");
+  if (config_.worker_failure_limit < 1) throw std::invalid_argument("the worker failure limit must be at least 1");
+  if (config_.tile_failure_workers < 1) throw std::invalid_argument("the tile failure workers must be at least 1");
 }
 
 Scheduler::Scheduler(SchedulerConfig config, ClockMs clock, SchedulerStore& store)
@@ -138,13 +140,13 @@ void Scheduler::flush_locked() {
     const auto it = jobs_.find(key.first);
     if (it == jobs_.end()) continue;
     const Tile& t = it->second->tiles[size_t(key.second)];
-    TileRow row{key.first, key.second, t.state, t.lease, t.failures, std::nullopt};
+    TileRow row{key.first, key.second, t.state, t.lease, t.failures, std::nullopt, t.logs, t.attempts, t.render_ms, t.rays};
     if (pixels && pixels->first == key && !pixels->second.empty()) row.pixels = pixels->second;
     c.tiles.push_back(std::move(row));
   }
   for (const std::string& id : dirty_leases_) {
     const auto it = leases_.find(id);
-    if (it != leases_.end()) c.leases.push_back(LeaseRow{it->second.lease, it->second.state});
+    if (it != leases_.end()) c.leases.push_back(LeaseRow{it->second.lease, it->second.state, it->second.granted_ms});
   }
   for (const std::string& id : new_workers_) {
     const auto it = workers_.find(id);
@@ -191,6 +193,10 @@ void Scheduler::restore_locked(SchedulerSnapshot snap, int64_t now) {
     t.state = row.state;
     t.lease = std::move(row.lease);
     t.failures = std::move(row.failures);
+    t.logs = std::move(row.logs);
+    t.attempts = row.attempts;
+    t.render_ms = row.render_ms;
+    t.rays = row.rays;
   }
   for (LeaseRow& row : snap.leases) {
     const auto jt = jobs_.find(row.lease.job);
@@ -204,7 +210,8 @@ void Scheduler::restore_locked(SchedulerSnapshot snap, int64_t now) {
     row.lease.spp = p.spp;
     row.lease.seed = p.seed;
     row.lease.scene_hash = p.scene_hash;
-    LeaseRec rec{row.lease, row.state};
+    LeaseRec rec{row.lease, row.state, row.granted_ms};
+    if (rec.granted_ms <= 0) rec.granted_ms = now;  // stored before grant times were: the timeout counts from now
     if (rec.state == LeaseState::live) {
       const Tile& t = jt->second->tiles[size_t(rec.lease.tile)];
       if (is_final(jt->second->status.state) || t.state != TileState::leased || t.lease != rec.lease.id) {
@@ -283,22 +290,37 @@ std::optional<JobStatus> Scheduler::job(const std::string& id) {
   });
 }
 
-std::optional<std::vector<TileView>> Scheduler::tiles(const std::string& job) {
-  return transact([&](int64_t) -> std::optional<std::vector<TileView>> {
+std::optional<protocol::TileList> Scheduler::tiles(const std::string& job) {
+  return transact([&](int64_t) -> std::optional<protocol::TileList> {
     const auto it = jobs_.find(job);
     if (it == jobs_.end()) return std::nullopt;
-    std::vector<TileView> out;
-    out.reserve(it->second->tiles.size());
+    const JobParams& p = it->second->status.params;
+    const TileGrid grid(p.width, p.height, p.tile_size);
+    const auto name_of = [&](const std::string& worker) {
+      const auto w = workers_.find(worker);
+      return w == workers_.end() ? std::string() : w->second.name;
+    };
+    protocol::TileList out{job, {}};
+    out.tiles.reserve(it->second->tiles.size());
     for (size_t i = 0; i < it->second->tiles.size(); ++i) {
       const Tile& t = it->second->tiles[i];
-      TileView v{int64_t(i), t.state, {}, {}, t.failures};
+      protocol::TileInfo v;
+      v.index = int64_t(i);
+      v.window = grid.window(v.index);
+      v.state = to_string(t.state);
+      v.attempts = t.attempts;
+      if (t.render_ms >= 0) v.render_seconds = double(t.render_ms) / 1000.0;
+      v.rays = t.rays;
       const auto l = t.state == TileState::pending || t.state == TileState::done ? leases_.end() : leases_.find(t.lease);
       if (l != leases_.end()) {
         v.worker = l->second.lease.worker;
-        const auto w = workers_.find(v.worker);
-        if (w != workers_.end()) v.worker_name = w->second.name;
+        v.worker_name = name_of(*v.worker);
       }
-      out.push_back(std::move(v));
+      for (const auto& [worker, error] : t.failures) {
+        const auto log = t.logs.find(worker);
+        v.failures.push_back({worker, name_of(worker), error, log == t.logs.end() ? std::vector<std::string>{} : log->second});
+      }
+      out.tiles.push_back(std::move(v));
     }
     return out;
   });
@@ -465,8 +487,10 @@ AcquireResult Scheduler::acquire(const std::string& worker) {
       rec.lease.seed = p.seed;
       rec.lease.scene_hash = p.scene_hash;
       rec.lease.deadline_ms = now + config_.lease_ms;
+      rec.granted_ms = now;
       j->tiles[size_t(tile)].state = TileState::leased;
       j->tiles[size_t(tile)].lease = rec.lease.id;
+      ++j->tiles[size_t(tile)].attempts;
       touch_tile(*j, tile);
       if (j->status.state == JobState::queued) {
         j->status.state = JobState::running;
@@ -498,6 +522,7 @@ HeartbeatResult Scheduler::heartbeat(const std::string& lease, uint64_t rays) {
     }
     // The new deadline is not stored: a restarted coordinator gives every live lease a fresh one anyway.
     it->second.lease.deadline_ms = now + config_.lease_ms;
+    it->second.rays += rays;
     if (rays) {
       JobRec& j = *jobs_.at(it->second.lease.job);
       j.status.rays += rays;
@@ -566,7 +591,7 @@ ResultClaim Scheduler::claim_result(const std::string& lease) {
 }
 
 FinishResult Scheduler::finish_result(const std::string& lease, uint64_t rays, std::string_view pixels) {
-  return transact([&](int64_t) {
+  return transact([&](int64_t now) {
     FinishResult r;
     const auto it = leases_.find(lease);
     if (it == leases_.end()) throw std::logic_error("finish_result: unknown lease " + lease);
@@ -577,9 +602,12 @@ FinishResult Scheduler::finish_result(const std::string& lease, uint64_t rays, s
       throw std::logic_error("finish_result: tile " + std::to_string(tile) + " of " + j.status.id +
                              " is not claimed by lease " + lease);
     const JobStatus before = j.status;
+    const Tile tile_before = t;
     const uint64_t rays_before = rays_, rendered_before = tiles_rendered_;
     t.state = TileState::done;
     t.lease.clear();
+    t.render_ms = std::max<int64_t>(0, now - it->second.granted_ms);
+    t.rays = it->second.rays + rays;
     ++j.status.tiles.done;
     ++tiles_rendered_;
     j.status.rays += rays;
@@ -595,8 +623,7 @@ FinishResult Scheduler::finish_result(const std::string& lease, uint64_t rays, s
     try {
       flush_locked();  // here rather than after: a tile the store did not take must not look done
     } catch (...) {
-      t.state = TileState::merging;
-      t.lease = lease;
+      t = tile_before;
       j.status = before;
       rays_ = rays_before;
       tiles_rendered_ = rendered_before;
@@ -620,7 +647,7 @@ void Scheduler::abandon_result(const std::string& lease) {
   });
 }
 
-FailResult Scheduler::fail(const std::string& lease, const std::string& error) {
+FailResult Scheduler::fail(const std::string& lease, const std::string& error, const std::vector<std::string>& log) {
   return transact([&](int64_t now) {
     FailResult r;
     const auto it = leases_.find(lease);
@@ -637,26 +664,36 @@ FailResult Scheduler::fail(const std::string& lease, const std::string& error) {
       if (l.state == LeaseState::live) end_lease_locked(l, LeaseState::failed);
       return r;
     }
-    const bool was_live = l.state == LeaseState::live;
-    end_lease_locked(l, LeaseState::failed);
-    if (was_live && t.lease == lease) return_to_pending_locked(j, l.lease.tile);
-    const std::string& w = l.lease.worker;
-    t.failures[w] = error;
-    const int n = ++j.worker_failures[w];
-    j.worker_last_error[w] = error;
-    touch_tile(j, l.lease.tile);
-    touch_job(j);
-    r.blocklisted = n == config_.worker_failure_limit;
-    if (int(t.failures.size()) >= config_.tile_failure_workers) {
-      finish_job_locked(j, JobState::failed, now,
-                        "tile " + std::to_string(l.lease.tile) + " failed on " + std::to_string(t.failures.size()) +
-                            " workers: " + join_worker_errors(t.failures));
-      r.job_failed = true;
-      return r;
-    }
-    r.job_failed = fail_if_all_blocklisted_locked(j, now);
-    return r;
+    return record_failure_locked(j, l, error, log, now);
   });
+}
+
+FailResult Scheduler::record_failure_locked(JobRec& j, LeaseRec& l, const std::string& error,
+                                            std::vector<std::string> log, int64_t now) {
+  FailResult r;
+  r.status = FailResult::recorded;
+  Tile& t = j.tiles[size_t(l.lease.tile)];
+  const bool was_live = l.state == LeaseState::live;
+  end_lease_locked(l, LeaseState::failed);
+  if (was_live && t.lease == l.lease.id) return_to_pending_locked(j, l.lease.tile);
+  const std::string& w = l.lease.worker;
+  t.failures[w] = error;
+  if (log.empty()) t.logs.erase(w);
+  else t.logs[w] = std::move(log);
+  const int n = ++j.worker_failures[w];
+  j.worker_last_error[w] = error;
+  touch_tile(j, l.lease.tile);
+  touch_job(j);
+  r.blocklisted = n == config_.worker_failure_limit;
+  if (int(t.failures.size()) >= config_.tile_failure_workers) {
+    finish_job_locked(j, JobState::failed, now,
+                      "tile " + std::to_string(l.lease.tile) + " failed on " + std::to_string(t.failures.size()) +
+                          " workers: " + join_worker_errors(t.failures));
+    r.job_failed = true;
+    return r;
+  }
+  r.job_failed = fail_if_all_blocklisted_locked(j, now);
+  return r;
 }
 
 bool Scheduler::release(const std::string& lease) {
@@ -694,8 +731,9 @@ RetryResult Scheduler::retry(const std::string& job) {
     j.worker_last_error.clear();
     for (int64_t i = 0; i < j.status.tiles.total; ++i) {
       Tile& t = j.tiles[size_t(i)];
-      if (t.failures.empty()) continue;
+      if (t.failures.empty() && t.logs.empty()) continue;
       t.failures.clear();
+      t.logs.clear();
       touch_tile(j, i);
     }
     const bool all_done = j.status.tiles.done == j.status.tiles.total;
@@ -707,6 +745,49 @@ RetryResult Scheduler::retry(const std::string& job) {
     touch_job(j);
     r.status = RetryResult::retried;
     r.pending = int64_t(j.pending.size());
+    return r;
+  });
+}
+
+RequeueResult Scheduler::requeue(const std::string& job, int64_t tile) {
+  return transact([&](int64_t) {
+    RequeueResult r;
+    const auto it = jobs_.find(job);
+    if (it == jobs_.end()) return r;
+    JobRec& j = *it->second;
+    r.job_state = j.status.state;
+    r.tiles = j.status.tiles.total;
+    if (tile < 0 || tile >= j.status.tiles.total) {
+      r.status = RequeueResult::no_tile;
+      return r;
+    }
+    if (j.status.state == JobState::queued || j.status.state == JobState::done || j.status.state == JobState::cancelled) {
+      r.status = RequeueResult::wrong_job_state;
+      return r;
+    }
+    Tile& t = j.tiles[size_t(tile)];
+    r.was = t.state;
+    if (t.state == TileState::merging || (t.state == TileState::pending && t.failures.empty())) {
+      r.status = RequeueResult::wrong_tile_state;
+      return r;
+    }
+    if (t.state == TileState::leased) {
+      const auto l = leases_.find(t.lease);
+      if (l != leases_.end() && l->second.state == LeaseState::live) end_lease_locked(l->second, LeaseState::revoked);
+      r.revoked = true;
+    }
+    if (t.state == TileState::done) {
+      --j.status.tiles.done;
+      t.render_ms = -1;
+      t.rays = 0;
+      touch_job(j);
+    }
+    t.failures.clear();
+    t.logs.clear();
+    if (t.state != TileState::pending) return_to_pending_locked(j, tile);
+    touch_tile(j, tile);
+    sync_needed_ = true;
+    r.status = RequeueResult::requeued;
     return r;
   });
 }
@@ -909,16 +990,31 @@ void Scheduler::return_to_pending_locked(JobRec& j, int64_t tile) {
 }
 
 void Scheduler::expire_locked(int64_t now) {
+  std::vector<std::string> timed_out;  // handled after the loop: failing a job ends other leases of live_leases_
   for (auto it = live_leases_.begin(); it != live_leases_.end();) {
     LeaseRec& l = leases_.at(*it);
     ++it;  // end_lease_locked erases l's entry
-    if (now <= l.lease.deadline_ms) continue;
+    if (now <= l.lease.deadline_ms) {
+      if (now - l.granted_ms > jobs_.at(l.lease.job)->status.params.tile_timeout_seconds * 1000)
+        timed_out.push_back(l.lease.id);
+      continue;
+    }
     end_lease_locked(l, LeaseState::expired);
     ++lease_expiries_;
     spdlog::info("job {} tile {} worker {}: lease {} expired", l.lease.job, l.lease.tile, l.lease.worker, l.lease.id);
     JobRec& j = *jobs_.at(l.lease.job);
     Tile& t = j.tiles[size_t(l.lease.tile)];
     if (t.state == TileState::leased && t.lease == l.lease.id) return_to_pending_locked(j, l.lease.tile);
+  }
+  for (const std::string& id : timed_out) {
+    LeaseRec& l = leases_.at(id);
+    if (l.state != LeaseState::live) continue;  // revoked when an earlier timeout failed its job
+    JobRec& j = *jobs_.at(l.lease.job);
+    const std::string error = "tile timed out after " + std::to_string(j.status.params.tile_timeout_seconds) + " s";
+    spdlog::warn("job {} tile {} worker {}: lease {} revoked: {}", l.lease.job, l.lease.tile, l.lease.worker, l.lease.id,
+                 error);
+    const FailResult f = record_failure_locked(j, l, error, {}, now);
+    if (f.job_failed) spdlog::warn("job {}: failed: {}", j.status.id, j.status.error.value_or(""));
   }
 }
 

@@ -6,6 +6,7 @@
 #include "protocol/job.h"
 #include "protocol/worker.h"
 #include "protocol/messages.h"
+#include "protocol/tile.h"
 
 #include <cstdint>
 #include <functional>
@@ -165,13 +166,15 @@ TileState tile_state_from_string(std::string_view s);
 /// Parses a stored lease state name; throws std::invalid_argument for unknown names.
 LeaseState lease_state_from_string(std::string_view s);
 
-/// One tile as the monitor shows it.
-struct TileView {
-  int64_t index = 0;                            ///< Tile number.
-  TileState state = TileState::pending;         ///< Where it is.
-  std::string worker;                           ///< Worker holding its live lease (leased or merging), else empty.
-  std::string worker_name;                      ///< That worker's self-reported name.
-  std::map<std::string, std::string> failures;  ///< Worker -> last error text on this tile.
+/// Outcome of requeueing one tile.
+struct RequeueResult {
+  /// requeued: pending again; wrong_job_state: the job is queued, done or cancelled; wrong_tile_state: the tile is
+  /// pending without failures or an upload of it is being stored; no_tile: no such tile; unknown: no such job.
+  enum Status { requeued, wrong_job_state, wrong_tile_state, no_tile, unknown } status = unknown;
+  JobState job_state = JobState::queued;     ///< The job's state.
+  TileState was = TileState::pending;        ///< The tile's state before.
+  int64_t tiles = 0;                         ///< Tiles in the job.
+  bool revoked = false;                      ///< A live lease on it was revoked.
 };
 
 /// A job as the store keeps it: its snapshot (tile counts are derived from the tiles) and its failure bookkeeping.
@@ -190,12 +193,17 @@ struct TileRow {
   std::string lease;                              ///< The live or claiming lease.
   std::map<std::string, std::string> failures;    ///< Worker -> last error text on this tile.
   std::optional<std::string_view> pixels;         ///< The validated tile's bytes (float32 RGB rows), when it became done.
+  std::map<std::string, std::vector<std::string>> logs;  ///< Worker -> log lines sent with its last failure.
+  int64_t attempts = 0;                           ///< Leases granted for it.
+  int64_t render_ms = -1;                         ///< Lease grant to upload of the accepted result (-1: none yet).
+  uint64_t rays = 0;                              ///< Rays of the accepted result's lease.
 };
 
 /// A lease as the store keeps it.
 struct LeaseRow {
   Lease lease;                             ///< What was granted (window, spp, seed are derived from the job on load).
   LeaseState state = LeaseState::live;     ///< Where it is.
+  int64_t granted_ms = 0;                  ///< When it was granted (the tile timeout counts from here).
 };
 
 /// A registered worker.
@@ -251,7 +259,8 @@ class SchedulerStore {
 };
 
 /// The job/tile/lease state machine. Thread-safe: each call takes one lock and is one atomic step. Expired leases are
-/// reclaimed at the start of every call, so behaviour depends only on the injected clock.
+/// reclaimed at the start of every call, and leases older than their job's tile_timeout_seconds (since the grant) are
+/// revoked as failures of their workers ("tile timed out after N s"), so behaviour depends only on the injected clock.
 class Scheduler {
  public:
   /// A scheduler reading time from `clock`, keeping its state in memory only.
@@ -308,8 +317,9 @@ class Scheduler {
   /// Returns a claimed tile to pending (its merge failed for a reason that is not the worker's).
   void abandon_result(const std::string& lease);
 
-  /// Records that the lease's worker could not render its tile; see docs/protocol.md for blocklists and job failure.
-  FailResult fail(const std::string& lease, const std::string& error);
+  /// Records that the lease's worker could not render its tile, with the log lines it sent; see docs/protocol.md for
+  /// blocklists and job failure.
+  FailResult fail(const std::string& lease, const std::string& error, const std::vector<std::string>& log = {});
   /// Hands a live lease's tile back without counting a failure; false for an unknown lease.
   bool release(const std::string& lease);
 
@@ -321,6 +331,10 @@ class Scheduler {
   /// Pauses a queued or running job: it gets no new leases; its live leases go on and their uploads are accepted (a
   /// paused job whose last tile lands is done, see ResultClaim::last).
   PauseResult pause(const std::string& job);
+  /// Renders a tile of a running, paused or failed job again: a done tile becomes pending (its stored pixels stay until
+  /// a new upload replaces them), a leased one loses its lease (revoked: the worker's heartbeat answers 410), a pending
+  /// one that failed forgets its failures (its workers' failure counts stay). A failed job renders it when retried.
+  RequeueResult requeue(const std::string& job, int64_t tile);
   /// Resumes a paused job: running again if it had started, else queued.
   PauseResult resume(const std::string& job);
   /// Changes the priority of a job that has not ended; its next tiles are leased in the new order.
@@ -340,8 +354,9 @@ class Scheduler {
   void expire();
   /// Current counters.
   SchedulerCounters counters();
-  /// Every tile of a job in index order, or nothing for an unknown job.
-  std::optional<std::vector<TileView>> tiles(const std::string& job);
+  /// Every tile of a job in index order with its lease holder, attempts, render time, rays and failures, or nothing
+  /// for an unknown job.
+  std::optional<protocol::TileList> tiles(const std::string& job);
   /// Ids of jobs that are running (or paused after starting) with every tile done (a restart came between the last
   /// tile and the result file).
   std::vector<std::string> unfinalized_jobs();
@@ -351,6 +366,10 @@ class Scheduler {
     TileState state = TileState::pending;
     std::string lease;                               // live lease or claiming lease
     std::map<std::string, std::string> failures;     // worker -> last error text
+    std::map<std::string, std::vector<std::string>> logs;  // worker -> log lines of its last failure
+    int64_t attempts = 0;                            // leases granted
+    int64_t render_ms = -1;                          // grant to upload of the accepted result
+    uint64_t rays = 0;                               // rays of the accepted result's lease
   };
   struct JobRec {
     JobStatus status;
@@ -363,6 +382,8 @@ class Scheduler {
   struct LeaseRec {
     Lease lease;
     LeaseState state = LeaseState::live;
+    int64_t granted_ms = 0;
+    uint64_t rays = 0;  // reported by heartbeats (not stored: a restarted lease counts from zero)
   };
   struct WorkerRec {
     std::string name;
@@ -387,6 +408,10 @@ class Scheduler {
   bool all_present_blocklisted_locked(const JobRec& j, int64_t now, size_t* present) const;
   bool fail_if_all_blocklisted_locked(JobRec& j, int64_t now);
   void expire_locked(int64_t now);
+  /// Counts a failure of the lease's worker on its tile (ends the lease, returns the tile to pending, blocklists the
+  /// worker, fails the job by the thresholds of SchedulerConfig).
+  FailResult record_failure_locked(JobRec& j, LeaseRec& l, const std::string& error, std::vector<std::string> log,
+                                   int64_t now);
   /// Hands a tile back to the queue: pending, no lease, leasable again.
   void return_to_pending_locked(JobRec& j, int64_t tile);
   void end_lease_locked(LeaseRec& l, LeaseState to);

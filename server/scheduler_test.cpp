@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <memory>
 
 namespace tessera::server {
@@ -651,6 +652,111 @@ TEST_F(SchedulerTest, ADrainedWorkerFinishesItsTileThenGetsNoWorkUntilUndrained)
   EXPECT_EQ(s.set_drained(a, false)->state, protocol::WorkerState::idle);
   EXPECT_EQ(lease(a).tile, 1);
   EXPECT_FALSE(s.set_drained("w-none", true));
+}
+
+TEST_F(SchedulerTest, TileDetailsCountAttemptsTimeRaysAndFailuresWithTheirLogLines) {
+  const std::string j = job();  // 2x2 tiles
+  const std::string a = s.register_worker("alpha"), b = s.register_worker("beta");
+  const Lease first = lease(a);  // tile 0
+  ASSERT_EQ(first.tile, 0);
+  now += 500;
+  ASSERT_EQ(s.fail(first.id, "out of memory", {"line one", "line two"}).status, FailResult::recorded);
+  const Lease second = lease(b);  // tile 0 again
+  ASSERT_EQ(second.tile, 0);
+  now += 1'000;
+  ASSERT_EQ(s.heartbeat(second.id, 300).status, HeartbeatResult::ok);
+  now += 1'500;
+  ASSERT_EQ(upload(second.id), ResultClaim::proceed);  // 10 more rays with the upload
+  const Lease third = lease(b);  // tile 1, still leased
+
+  const auto tiles = s.tiles(j);
+  ASSERT_TRUE(tiles);
+  EXPECT_EQ(tiles->job, j);
+  ASSERT_EQ(tiles->tiles.size(), 4u);
+  const protocol::TileInfo& t0 = tiles->tiles[0];
+  EXPECT_EQ(t0.state, "done");
+  EXPECT_EQ(t0.window, (PixelWindow{0, 0, 64, 64}));
+  EXPECT_EQ(t0.attempts, 2);
+  ASSERT_TRUE(t0.render_seconds);
+  EXPECT_DOUBLE_EQ(*t0.render_seconds, 2.5);  // the accepted lease's grant to its upload
+  EXPECT_EQ(t0.rays, 310u);
+  EXPECT_FALSE(t0.worker);
+  ASSERT_EQ(t0.failures.size(), 1u);
+  EXPECT_EQ(t0.failures[0].worker, a);
+  EXPECT_EQ(t0.failures[0].worker_name, "alpha");
+  EXPECT_EQ(t0.failures[0].error, "out of memory");
+  EXPECT_EQ(t0.failures[0].log, (std::vector<std::string>{"line one", "line two"}));
+  const protocol::TileInfo& t1 = tiles->tiles[1];
+  EXPECT_EQ(t1.state, "leased");
+  EXPECT_EQ(t1.worker, b);
+  EXPECT_EQ(t1.worker_name, "beta");
+  EXPECT_EQ(t1.attempts, 1);
+  EXPECT_FALSE(t1.render_seconds);
+  EXPECT_EQ(tiles->tiles[3].attempts, 0);
+  EXPECT_EQ(tiles->tiles[3].state, "pending");
+  EXPECT_FALSE(s.tiles("j-nobody"));
+  (void)third;
+}
+
+TEST_F(SchedulerTest, RequeueRendersADoneOrLeasedTileAgainAndRefusesOtherStates) {
+  const std::string j = job();  // 4 tiles
+  const std::string w = s.register_worker("a");
+  EXPECT_EQ(s.requeue(j, 0).status, RequeueResult::wrong_job_state);  // queued: nothing rendered yet
+  const Lease l0 = lease(w);
+  ASSERT_EQ(upload(l0.id), ResultClaim::proceed);
+  const Lease l1 = lease(w);
+  EXPECT_EQ(s.requeue(j, 2).status, RequeueResult::wrong_tile_state);  // pending, never failed
+  EXPECT_EQ(s.requeue(j, 4).status, RequeueResult::no_tile);
+  EXPECT_EQ(s.requeue(j, -1).status, RequeueResult::no_tile);
+  EXPECT_EQ(s.requeue("j-nobody", 0).status, RequeueResult::unknown);
+
+  const RequeueResult done = s.requeue(j, 0);
+  EXPECT_EQ(done.status, RequeueResult::requeued);
+  EXPECT_EQ(done.was, TileState::done);
+  EXPECT_EQ(s.job(j)->tiles.done, 0);
+  const RequeueResult leased = s.requeue(j, 1);
+  EXPECT_EQ(leased.status, RequeueResult::requeued);
+  EXPECT_TRUE(leased.revoked);
+  EXPECT_EQ(s.heartbeat(l1.id).status, HeartbeatResult::gone);  // the worker abandons it
+  EXPECT_EQ(lease(w).tile, 0);  // rendered again, lowest first
+  EXPECT_EQ(lease(w).tile, 1);
+  EXPECT_EQ(s.tiles(j)->tiles[0].attempts, 2);
+
+  const Lease bad = lease(w);  // tile 2 fails once: a failed pending tile can be requeued (its failures forgotten)
+  s.fail(bad.id, "boom");
+  EXPECT_EQ(s.requeue(j, bad.tile).status, RequeueResult::requeued);
+  EXPECT_TRUE(s.tiles(j)->tiles[size_t(bad.tile)].failures.empty());
+  s.cancel(j);
+  EXPECT_EQ(s.requeue(j, 0).status, RequeueResult::wrong_job_state);
+}
+
+TEST_F(SchedulerTest, ALeaseOlderThanTheTileTimeoutIsRevokedAsAFailureEvenWithHeartbeats) {
+  JobParams p;
+  p.width = 64;
+  p.height = 64;
+  p.tile_size = 64;  // one tile
+  p.tile_timeout_seconds = 25;
+  const std::string j = s.add_job(p);
+  const std::string a = s.register_worker("a"), b = s.register_worker("b"), c = s.register_worker("c");
+  for (const std::string& w : {a, b, c}) {
+    EXPECT_FALSE(s.job(j)->finished());  // fewer than 3 workers failed the tile so far
+    const Lease l = lease(w);
+    for (int i = 0; i < 5; ++i) {  // heartbeats every 5 s keep the 10 s lease alive, but not past 25 s since grant
+      now += 5'000;
+      EXPECT_EQ(s.heartbeat(l.id).status, HeartbeatResult::ok);
+    }
+    now += 1;
+    EXPECT_EQ(s.heartbeat(l.id).status, HeartbeatResult::gone);  // the worker abandons the tile
+    const auto tiles = s.tiles(j);
+    ASSERT_EQ(tiles->tiles[0].state, "pending");
+    const auto& failures = tiles->tiles[0].failures;
+    const auto mine = std::find_if(failures.begin(), failures.end(), [&](const auto& f) { return f.worker == w; });
+    ASSERT_NE(mine, failures.end());
+    EXPECT_EQ(mine->error, "tile timed out after 25 s");
+  }
+  const auto st = s.job(j);
+  EXPECT_EQ(st->state, JobState::failed);  // the tile failed on 3 workers
+  EXPECT_NE(st->error->find("tile timed out after 25 s"), std::string::npos);
 }
 
 TEST_F(SchedulerTest, CancelQueuedJob) {

@@ -7,8 +7,10 @@
 #include "failpoint/failpoint.h"
 #include "worker/asset_cache.h"
 #include "client/backoff.h"
+#include "worker/recent_log.h"
 #include "protocol/messages.h"
 #include "protocol/routes.h"
+#include "protocol/tile.h"
 #include "worker/scene_cache.h"
 
 #include <spdlog/spdlog.h>
@@ -151,6 +153,9 @@ class Heartbeat {
 
 class Worker {
   static constexpr uint64_t kMaxResponse = uint64_t(2) << 30;  // blobs and specs
+  static constexpr size_t kFailureLogLines = 20;       // log lines sent with a failure report
+  static constexpr size_t kFailureLogLineBytes = 400;  // each cut to this (the coordinator takes up to 1000)
+  static_assert(kFailureLogLines <= protocol::kMaxFailureLogLines && kFailureLogLineBytes <= protocol::kMaxFailureLogLineBytes);
 
   // Heartbeats must fail fast enough to be retried within a lease: at most 2 s to connect and 5 s per phase.
   static HttpTimeouts heartbeat_timeouts(const HttpTimeouts& t) {
@@ -352,6 +357,15 @@ class Worker {
         // Tests fail the render here, or hold it until released (a pause ends when the tile is cancelled, as a
         // long render would).
         TESSERA_FAIL_POINT_CANCELLABLE("worker.render", [&] { return cancel.load(); });
+        TESSERA_FAIL_POINT_RETURN("worker.render.fail_tiles", [&](const std::string& tiles) {
+          for (size_t i = 0; i < tiles.size();) {
+            const size_t comma = std::min(tiles.find(',', i), tiles.size());
+            if (tiles.substr(i, comma - i) == std::to_string(l.tile))
+              throw std::runtime_error("fail point worker.render.fail_tiles: tile " + std::to_string(l.tile) +
+                                       " fails on every worker");
+            i = comma + 1;
+          }
+        });
         // A resumable job's tile rendered before (state_spp samples per pixel): continue from its exact sums.
         std::optional<StoredRender> previous;
         if (l.state_spp > 0) previous = stored_tile(l, scene->sampling.replicates, [&] { return cancel.load(); });
@@ -514,7 +528,9 @@ class Worker {
 
   void report_failure(const Lease& l, const std::string& pfx, const std::string& error) {
     ++stats_.tiles_failed;
-    if (post_lease_message(pfx, "fail", routes::lease_fail(l.id), protocol::FailReport{error}, 10)) spdlog::info("{}: failure reported", pfx);
+    // The report carries the last lines logged about this lease (their prefix is `pfx: `), bounded in count and size.
+    const protocol::FailReport report{error, recent_.log().lines_with(pfx + ":", kFailureLogLines, kFailureLogLineBytes)};
+    if (post_lease_message(pfx, "fail", routes::lease_fail(l.id), report, 10)) spdlog::info("{}: failure reported", pfx);
   }
 
   void release(const Lease& l, const std::string& pfx) {
@@ -522,6 +538,7 @@ class Worker {
     if (post_lease_message(pfx, "release", routes::lease_release(l.id), json::object(), 3)) spdlog::info("{}: tile handed back", pfx);
   }
 
+  RecentLogScope recent_;  // first: it sees everything the worker logs
   const WorkerOptions& opt_;
   const std::atomic<int>& stop_;
   HttpUrl url_;

@@ -1,9 +1,11 @@
 #include "core/sha256.h"
 #include "worker/asset_cache.h"
 #include "client/backoff.h"
+#include "worker/recent_log.h"
 #include "worker/scene_cache.h"
 
 #include <gtest/gtest.h>
+#include <spdlog/spdlog.h>
 
 #include <fstream>
 
@@ -29,6 +31,19 @@ TEST(Backoff, GrowsToTheCapWithJitterAndResets) {
   }
   b.reset();
   EXPECT_LE(b.next().count(), 100);
+}
+
+TEST(RecentLog, KeepsTheLastLinesAboutOneLeaseBounded) {
+  RecentLogScope scope;
+  for (int i = 0; i < 30; ++i) spdlog::info("worker=w-1 job=j-1 tile=0 lease=l-1: step {}", i);
+  spdlog::info("worker=w-1 job=j-1 tile=1 lease=l-12: another lease");
+  spdlog::info("unrelated line");
+  const auto lines = scope.log().lines_with("lease=l-1:", 20, 1000);
+  ASSERT_EQ(lines.size(), 20u);
+  EXPECT_NE(lines.front().find("step 10"), std::string::npos);  // oldest first, the last 20
+  EXPECT_NE(lines.back().find("step 29"), std::string::npos);
+  EXPECT_EQ(scope.log().lines_with("lease=l-1:", 5, 10).back().size(), 10u);  // each cut to the byte bound
+  EXPECT_EQ(scope.log().lines_with("lease=l-12:", 20, 1000).size(), 1u);
 }
 
 TEST(LruCache, EvictsTheLeastRecentlyUsed) {

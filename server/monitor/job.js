@@ -137,7 +137,7 @@ export function mount(host, ctx) {
     for (const t of tiles) {
       const s = shownTileState(t);
       n[s] = (n[s] || 0) + 1;
-      if (t.state === 'leased' && t.worker) workers.set(t.worker, t.worker_name || t.worker);
+      if (s === 'leased' && t.worker) workers.set(t.worker, t.worker_name || t.worker);
     }
     tileCounts.replaceChildren(
       ...['done', 'leased', 'pending', 'failed'].map((s) =>
@@ -154,28 +154,29 @@ export function mount(host, ctx) {
     if (selected < 0 || !job) return;
     const t = tiles.find((x) => x.index === selected);
     if (!t) return;
-    const [x0, y0, x1, y1] = tileWindow(job, selected);
+    const [x0, y0, x1, y1] = t.window || tileWindow(job, selected);
     const rows = [
-      ['State', shownTileState(t)],
+      ['State', t.state],
       ['Pixels', `[${x0}, ${x1}) × [${y0}, ${y1})`],
       ['Worker', t.worker ? `${t.worker_name || ''} (${t.worker})` : '–'],
+      ['Attempts', String(t.attempts ?? 0)],
+      ['Render time', t.render_seconds == null ? '–' : `${t.render_seconds.toFixed(2)} s`],
+      ['Rays', t.rays ? t.rays.toLocaleString('en-US') : '–'],
     ];
-    const skip = new Set(['index', 'state', 'worker', 'worker_name', 'failures', 'log', 'logs', 'window']);
-    for (const [k, v] of Object.entries(t)) if (!skip.has(k) && v !== null) rows.push([k.replace(/_/g, ' '), String(v)]);
-    let failures = t.failures || [];
-    if (!Array.isArray(failures)) failures = Object.entries(failures).map(([worker, error]) => ({ worker, error }));
-    const logs = [].concat(t.log || t.logs || []);
-    const requeue = ep.requeue && t.state !== 'done'
-      ? el('button', { type: 'button', text: 'Requeue tile', onclick: () => act('Requeue', 'POST', `${path}/tiles/${selected}/requeue`) })
+    const failures = t.failures || [];
+    // A requeue renders a done tile again, or hands back a failed one; the coordinator answers 409 otherwise.
+    const requeue = ep.requeue && (t.state === 'done' || failures.length) && !['done', 'cancelled'].includes(job.state)
+      ? el('button', { type: 'button', id: 'tile-requeue', text: 'Requeue tile', onclick: () => act('Requeue', 'POST', `${path}/tiles/${selected}/requeue`) })
       : null;
     detail.replaceChildren(...[
       el('h3', {}, `Tile ${selected}`, requeue),
       el('dl', { class: 'kv' }, rows.map(([k, v]) => [el('dt', { text: k }), el('dd', { text: v })])),
       failures.length
-        ? el('div', {}, el('h4', { text: 'Failures' }),
-            el('pre', { class: 'log', text: failures.map((f) => `${f.worker}: ${f.error}`).join('\n') }))
+        ? el('div', { class: 'tile-failures' }, el('h4', { text: 'Failures' }),
+            ...failures.map((f) => el('div', { class: 'tile-failure' },
+              el('p', { class: 'failure-head', text: `${f.worker_name ? f.worker_name + ' ' : ''}(${f.worker}): ${f.error}` }),
+              (f.log || []).length ? el('pre', { class: 'log', text: f.log.join('\n') }) : el('p', { class: 'sub', text: 'No log lines sent.' }))))
         : el('p', { class: 'sub', text: 'No failures on this tile.' }),
-      logs.length ? el('div', {}, el('h4', { text: 'Log' }), el('pre', { class: 'log', text: logs.join('\n') })) : null,
     ].filter(Boolean));
   }
 

@@ -11,10 +11,11 @@ export function workerColor(id) {
   return `hsl(${WORKER_HUES[h % WORKER_HUES.length]} 75% 62%)`;
 }
 
-/** The state a tile is drawn in: its own, or 'failed' for a pending tile that has failed on some worker. */
+/** The state a tile is drawn in: its own ('merging' is drawn as leased), or 'failed' for a pending tile that has
+ *  failed on some worker. */
 export function shownTileState(t) {
-  const failures = t.failures || [];
-  return t.state === 'pending' && (failures.length || Object.keys(failures).length) ? 'failed' : t.state;
+  if (t.state === 'merging') return 'leased';
+  return t.state === 'pending' && (t.failures || []).length ? 'failed' : t.state;
 }
 
 export function tileWindow(job, index) {
@@ -68,11 +69,11 @@ export class TileMap {
       const c = this.cells[t.index];
       if (!c) continue;
       const s = shownTileState(t);
-      const worker = t.state === 'leased' ? (t.worker_name || t.worker || '') : '';
+      const worker = s === 'leased' ? (t.worker_name || t.worker || '') : '';
       if (c.dataset.state !== s) c.dataset.state = s;
       if ((c.dataset.worker || '') !== (t.worker || '')) {
         c.dataset.worker = t.worker || '';
-        c.style.setProperty('--worker', t.worker && t.state === 'leased' ? workerColor(t.worker) : '');
+        c.style.setProperty('--worker', t.worker && s === 'leased' ? workerColor(t.worker) : '');
       }
       c.title = `Tile ${t.index}: ${s}${worker ? ' on ' + worker : ''}`;
     }

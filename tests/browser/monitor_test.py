@@ -161,7 +161,8 @@ def main():
     ready = os.path.join(WORK, "ready")
     # Long leases: the held tiles stay leased for the whole test, whatever the machine's speed.
     serve = start([TESSERA, "serve", "--data", os.path.join(WORK, "data"), "--listen", "127.0.0.1:0",
-                   "--ready-file", ready, "--lease-seconds", "600", "--client-token-file", client_path,
+                   "--ready-file", ready, "--lease-seconds", "600", "--tile-failure-workers", "1",
+                   "--client-token-file", client_path,
                    "--worker-token-file", worker_path], "serve.log")
     wait_for("the coordinator", lambda: os.path.exists(ready) and open(ready).read().strip())
     base = "http://" + open(ready).read().strip()
@@ -269,6 +270,9 @@ def main():
             "&& i.dataset.tilesDone === String(arguments[0]);", TOTAL_TILES - HELD, WIDTH))
         click(d, '#tilemap .tile[data-state="leased"]', "a leased tile")
         wait_for("the tile details", lambda: "holder" in d.find_element(By.ID, "tile-detail").text)
+        click(d, '#tilemap .tile[data-state="done"]', "a done tile")
+        wait_for("a done tile's details from GET /v1/jobs/{id}/tiles", lambda: all(
+            w in d.find_element(By.ID, "tile-detail").text for w in ("Attempts", "Render time", "Rays", "No failures")))
         d.save_screenshot(os.path.join(ARTEFACTS, "monitor-job-mid-render.png"))
 
         if ep["pause"] and ep["resume"]:
@@ -327,6 +331,35 @@ def main():
         else:
             wait_for("the workers notice", lambda: visible(d, "#workers-unavailable"))
             print("workers/drain: not on this coordinator (the page says so)")
+
+        # A job that fails part-way (the scripted worker reports a failure with log lines; --tile-failure-workers 1
+        # fails the job at once): the tile details show the failure and its log lines, and Retry on the page renders
+        # only the tiles that were not done.
+        status, body = client.call("POST", "/v1/jobs", {"scene": sphere_scene(), "assets": {}, "tile_size": TILE,
+                                                         "seed": 4, "name": "browser-test failing"})
+        failing = body["id"]
+        status, lease = workerside.call("POST", f"/v1/workers/{holder}/lease")
+        if status != 200 or lease["job"] != failing:
+            fail(f"the holder did not get a tile of the failing job: {status} {lease}")
+        log = ["render of tile %d: out of memory after 3 GiB" % lease["tile"], "scripted worker gives up"]
+        workerside.call("POST", f"/v1/leases/{lease['lease']}/fail", {"error": "out of memory (scripted)", "log": log})
+        if client.call("GET", f"/v1/jobs/{failing}")[1]["state"] != "failed":
+            fail("the failing job did not fail")
+        d.get(base + f"/#/jobs/{failing}")
+        wait_for("the failing job's tile map", lambda: tiles_in(d, "failed") == 1)
+        click(d, f'#tilemap .tile[data-index="{lease["tile"]}"]', "the failed tile")
+        wait_for("the failure and its log lines in the tile details", lambda: all(
+            w in d.find_element(By.ID, "tile-detail").text for w in ("out of memory (scripted)", log[0], log[1], "Attempts")))
+        d.save_screenshot(os.path.join(ARTEFACTS, "monitor-tile-details.png"))
+        if ep["drain"]:
+            for w in client.call("GET", "/v1/workers")[1]["workers"]:
+                client.call("POST", f"/v1/workers/{w['id']}/undrain")
+        click(d, '[data-action="retry"]', "the retry button")
+        wait_for("the retried job done on the page", lambda: "done" in d.find_element(By.ID, "job-state").text)
+        attempts = [t["attempts"] for t in client.call("GET", f"/v1/jobs/{failing}/tiles")[1]["tiles"]]
+        if sorted(attempts) != [1] * (TOTAL_TILES - 1) + [2]:
+            fail(f"retry leased tiles more than once besides the failed one: attempts {attempts}")
+        print("retry from the page: the failed tile leased twice, every other tile once")
         stop(worker)
 
         # A poll of the job page that was in flight when the job was deleted may have logged its 404; nothing else.

@@ -291,7 +291,19 @@ def exercise(c, tessera, workdir, address):
     c.call("PUT", "/v1/leases/l-none/result", b"x", "image/x-exr", expect=404)
     _, l2 = c.call("POST", f"/v1/workers/{w1['id']}/lease", expect=200)
     c.call("POST", f"/v1/leases/{l2['lease']}/fail", {"error": "x", "more": 1}, expect=400)
-    c.call("POST", f"/v1/leases/{l2['lease']}/fail", {"error": "openapi test"}, expect=200)  # 2nd: blocklisted
+    c.call("POST", f"/v1/leases/{l2['lease']}/fail", {"error": "x", "log": "one line"}, expect=400)
+    c.call("POST", f"/v1/leases/{l2['lease']}/fail", {"error": "openapi test", "log": ["a line", "another"]},
+           expect=200)  # 2nd: blocklisted
+    _, tiles = c.call("GET", f"/v1/jobs/{a}/tiles", expect=200)
+    failed = tiles["tiles"][l2["tile"]]["failures"]
+    if not failed or failed[0]["log"] != ["a line", "another"]:
+        failures.append(f"GET /v1/jobs/{{id}}/tiles: tile {l2['tile']} does not show the reported failure: {failed}")
+    c.call("GET", "/v1/jobs/j-none/tiles", expect=404)
+    c.call("POST", f"/v1/jobs/{a}/tiles/{l2['tile']}/requeue", {"x": 1}, expect=400)
+    c.call("POST", f"/v1/jobs/{a}/tiles/{l2['tile']}/requeue", expect=200)  # it failed: its failures are forgotten
+    c.call("POST", f"/v1/jobs/{a}/tiles/{l2['tile']}/requeue", expect=409)  # pending, no failures
+    c.call("POST", f"/v1/jobs/{a}/tiles/999/requeue", expect=404)
+    c.call("POST", "/v1/jobs/j-none/tiles/0/requeue", expect=404)
     c.call("POST", "/v1/leases/l-none/fail", expect=404)
     c.call("POST", f"/v1/workers/{w1['id']}/lease", expect=204)
     _, l3 = c.call("POST", f"/v1/workers/{w2['id']}/lease", expect=200)

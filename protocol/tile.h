@@ -1,0 +1,54 @@
+// One job's tiles as the protocol describes them: answer of GET /v1/jobs/{id}/tiles (docs/protocol.md, "Tiles").
+#pragma once
+
+#include "core/image.h"
+
+#include <nlohmann/json_fwd.hpp>
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace tessera::protocol {
+
+/// The most log lines a failure report carries, and the longest line (bytes); longer reports are refused (400).
+inline constexpr size_t kMaxFailureLogLines = 50;
+inline constexpr size_t kMaxFailureLogLineBytes = 1000;
+
+/// A worker's latest failure on a tile.
+struct TileFailure {
+  std::string worker;             ///< Worker id.
+  std::string worker_name;        ///< Its self-reported name ("" when unknown).
+  std::string error;              ///< What it reported (or "tile timed out after N s").
+  std::vector<std::string> log;   ///< The log lines it sent with the report, oldest first.
+};
+
+/// One tile of a job.
+struct TileInfo {
+  int64_t index = 0;                         ///< Tile number.
+  PixelWindow window;                        ///< Its pixels, half-open, row 0 at the top.
+  std::string state = "pending";             ///< pending, leased, merging (an upload is being stored) or done.
+  std::optional<std::string> worker;         ///< Worker holding its live lease (leased, merging).
+  std::optional<std::string> worker_name;    ///< That worker's name.
+  int64_t attempts = 0;                      ///< Leases granted for it.
+  std::optional<double> render_seconds;      ///< Lease grant to upload of the accepted result (done tiles).
+  uint64_t rays = 0;                         ///< Rays the accepted result's worker reported (done tiles).
+  std::vector<TileFailure> failures;         ///< Each failing worker's latest failure, by worker id.
+};
+
+/// Answer of GET /v1/jobs/{id}/tiles.
+struct TileList {
+  std::string job;               ///< Job id.
+  std::vector<TileInfo> tiles;   ///< Every tile in index order.
+};
+
+void to_json(nlohmann::json& j, const TileFailure& f);
+void from_json(const nlohmann::json& j, TileFailure& f);
+void to_json(nlohmann::json& j, const TileInfo& t);
+/// Reads a tile object; index and state are required; throws ProtocolError naming the field.
+void from_json(const nlohmann::json& j, TileInfo& t);
+void to_json(nlohmann::json& j, const TileList& l);
+void from_json(const nlohmann::json& j, TileList& l);
+
+}  // namespace tessera::protocol

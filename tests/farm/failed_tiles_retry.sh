@@ -1,0 +1,51 @@
+#!/usr/bin/env bash
+# The retry proof: a fail point (worker.render.fail_tiles) makes tiles 5 and 6 fail on every worker, so the job fails
+# part-way; the tiles endpoint shows each failure with the log lines its worker sent. The coordinator and the workers
+# are restarted without the fail point, `tessera jobs retry` queues the job again, and the tiles endpoint and the
+# workers' logs show that only the tiles that were not done were leased again. The result equals a single-process
+# render bitwise.
+source "$(dirname "$0")/common.sh"
+
+write_sphere_scene "$WORK/s.json" 32 16 4  # 8 tiles of 8x8
+"$TESSERA" render "$WORK/s.json" -o "$WORK/ref.exr" -q --seed 3
+start_serve --worker-failure-limit 2 --tile-failure-workers 2
+ADDRESS=$(head -n1 "$WORK/ready")
+JOB=$("$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 8 --seed 3 --detach 2>"$WORK/submit.log") \
+  || fail "submit failed"
+for w in a b; do FAIL_POINTS='worker.render.fail_tiles=return(5,6)' start_worker "$w" --threads 1; done
+job_state() { "$TESSERA" jobs show "$JOB" --coordinator "$URL" 2>/dev/null | grep -q "\"state\": \"$1\""; }
+wait_for job_state failed || fail "the job did not fail"
+for w in a b; do wait_for log_has "$WORK/$w.log" "failure reported" || fail "worker $w reported no failure"; done
+kill -TERM "${PIDS[@]:1}" 2>/dev/null || true
+for p in "${PIDS[@]:1}"; do wait_for bash -c "! kill -0 $p 2>/dev/null" || fail "worker $p did not stop"; done
+
+"$TESSERA" jobs tiles "$JOB" --coordinator "$URL" >"$WORK/tiles-failed.txt" 2>&1 || fail "jobs tiles failed"
+log_has "$WORK/tiles-failed.txt" "^tile [56] failed on w-[^ ]+ \\([ab]\\): fail point worker.render.fail_tiles" \
+  || fail "the tile table does not show the failures"
+log_has "$WORK/tiles-failed.txt" "^  \\| .*cannot render the tile: fail point worker.render.fail_tiles" \
+  || fail "the tile table does not show the log lines the worker sent"
+DONE_BEFORE=$(grep -cE '^ +[0-9]+ done ' "$WORK/tiles-failed.txt" || true)
+[ "$DONE_BEFORE" -ge 1 ] && [ "$DONE_BEFORE" -le 6 ] || fail "$DONE_BEFORE tiles done before the failure"
+grep -E '^ +[0-9]+ done ' "$WORK/tiles-failed.txt" | awk '{print $1, $4}' >"$WORK/done-before.txt"
+
+# Restart the coordinator on the same data and port, without fail points anywhere.
+kill -TERM "$SERVE_PID"
+wait_for bash -c "! kill -0 $SERVE_PID 2>/dev/null" || fail "the coordinator did not stop"
+LISTEN=$ADDRESS start_serve
+"$TESSERA" jobs retry "$JOB" --coordinator "$URL" >"$WORK/retry.log" 2>&1 || fail "jobs retry failed"
+MISSING=$((8 - DONE_BEFORE))
+log_has "$WORK/retry.log" "^$JOB: running again, $MISSING of 8 tiles to render" || fail "retry: $(cat "$WORK/retry.log")"
+start_worker c --threads 1
+wait_for job_state done || fail "the retried job did not finish"
+LEASED=$(grep -c "leased window" "$WORK/c.log")
+[ "$LEASED" = "$MISSING" ] || fail "the worker leased $LEASED tiles after the retry, not the $MISSING missing ones"
+"$TESSERA" jobs tiles "$JOB" --coordinator "$URL" >"$WORK/tiles-done.txt" 2>&1 || fail "jobs tiles failed"
+# The tiles done before the failure kept their attempt counts (not leased again); every tile is done.
+while read -r idx attempts; do
+  log_has "$WORK/tiles-done.txt" "^ +$idx done .* $attempts +[0-9.]+ +[0-9]+ +0$" \
+    || fail "tile $idx, done before the failure, was leased again: $(grep -E "^ +$idx " "$WORK/tiles-done.txt")"
+done <"$WORK/done-before.txt"
+[ "$(grep -cE '^ +[0-9]+ done ' "$WORK/tiles-done.txt")" = 8 ] || fail "not every tile is done"
+curl -sS -f -o "$WORK/out.exr" "$URL/v1/jobs/$JOB/result.exr" || fail "no result"
+"$EXR_COMPARE" "$WORK/ref.exr" "$WORK/out.exr" || fail "the retried job's result differs from a single-process render"
+echo "PASS (done before the failure: $DONE_BEFORE, leased after the retry: $LEASED)"
