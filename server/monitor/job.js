@@ -40,7 +40,14 @@ export function mount(host, ctx) {
   const tileCounts = el('div', { class: 'legend', id: 'tile-legend' });
   const detail = el('div', { class: 'tile-detail', id: 'tile-detail' },
     el('p', { class: 'sub', text: 'Click a tile for its worker, failures and log lines.' }));
-  const map = new TileMap((i) => { selected = i; drawDetail(); });
+  const map = new TileMap((i) => { selected = i; drawDetail(); reloadTiles().catch(() => {}); });
+  // The tile list as the coordinator has it (events carry states only: attempts, times, rays and logs come from here).
+  async function reloadTiles() {
+    const body = await api.call('GET', path + '/tiles');
+    tiles = Array.isArray(body) ? body : body.tiles || [];
+    drawTiles();
+    drawDetail();
+  }
   const img = el('img', { id: 'preview', alt: 'Partial image of the job', hidden: true });
   const imgNote = el('p', { class: 'sub', id: 'preview-note', text: 'The image appears as tiles are done.' });
 
@@ -237,7 +244,7 @@ export function mount(host, ctx) {
         if (!t) return false;
         const was = t.state;
         if (type === 'tile_leased') {
-          Object.assign(t, { state: 'leased', worker: d.worker, worker_name: null });
+          Object.assign(t, { state: 'leased', worker: d.worker, worker_name: null, attempts: (t.attempts || 0) + 1 });
         } else if (type === 'tile_done') {
           Object.assign(t, { state: 'done', worker: null, worker_name: null });
           // Tiles the map turned done from events (the browser test reads it).
@@ -254,6 +261,7 @@ export function mount(host, ctx) {
         }
         drawHead();
         drawTiles();
+        if (d.tile === selected) reloadTiles().catch(() => {});  // the open details show the stored figures
         if (type === 'tile_done') refreshPreview().catch(() => {});
         return true;
       }
