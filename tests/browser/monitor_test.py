@@ -335,8 +335,10 @@ def main():
         # A job that fails part-way (the scripted worker reports a failure with log lines; --tile-failure-workers 1
         # fails the job at once): the tile details show the failure and its log lines, and Retry on the page renders
         # only the tiles that were not done.
+        # Priority 100: the holder's lease request below must get a tile of this job even while an earlier step's job
+        # still has pending tiles (leases go to the highest priority first).
         status, body = client.call("POST", "/v1/jobs", {"scene": sphere_scene(), "assets": {}, "tile_size": TILE,
-                                                         "seed": 4, "name": "browser-test failing"})
+                                                         "seed": 4, "priority": 100, "name": "browser-test failing"})
         failing = body["id"]
         status, lease = workerside.call("POST", f"/v1/workers/{holder}/lease")
         if status != 200 or lease["job"] != failing:
