@@ -2,6 +2,9 @@
 
 #include "cli/tls_flags.h"
 #include "cli/token.h"
+#include "client/job_client.h"
+
+#include <spdlog/spdlog.h>
 
 namespace tessera::cli {
 
@@ -10,6 +13,20 @@ std::unique_ptr<farm::HttpClient> CoordinatorAccess::client() const {
                                                  uint64_t(2) << 30, tls);
   http->set_bearer_token(load_token(token_file, "TESSERA_CLIENT_TOKEN"));
   return http;
+}
+
+int run_with_coordinator(const CoordinatorAccess& access, std::string_view command,
+                         const std::function<int(farm::HttpClient&)>& body) {
+  try {
+    const auto client = access.client();
+    return body(*client);
+  } catch (const farm::SubmitError& e) {
+    spdlog::error("{}", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    spdlog::error("{}: {}", command, e.what());
+    return 1;
+  }
 }
 
 void add_coordinator_access_flags(CLI::App* command, CoordinatorAccess& access) {

@@ -7,8 +7,10 @@
 
 #include <CLI/CLI.hpp>
 
+#include <functional>
 #include <memory>
 #include <string>
+#include <string_view>
 
 namespace tessera::cli {
 
@@ -22,6 +24,12 @@ struct CoordinatorAccess {
   /// bad URL or TLS file and std::runtime_error for an unreadable token file.
   std::unique_ptr<farm::HttpClient> client() const;
 };
+
+/// Runs `body` with a client for the coordinator and turns what it throws into the client commands' exit codes:
+/// 2 (logged) for a request the coordinator refused (farm::SubmitError), 1 (logged with `command`) for any other
+/// failure; otherwise `body`'s own code.
+int run_with_coordinator(const CoordinatorAccess& access, std::string_view command,
+                         const std::function<int(farm::HttpClient&)>& body);
 
 /// Registers --coordinator (required), --token-file and the TLS flags on `command`, filling `access`.
 void add_coordinator_access_flags(CLI::App* command, CoordinatorAccess& access);

@@ -82,9 +82,7 @@ int run_jobs(const JobsArgs& a) {
     spdlog::error("jobs requeue needs a job id and a tile number");
     return 2;
   }
-  try {
-    const auto client = a.access.client();
-    farm::HttpClient& http = *client;
+  return run_with_coordinator(a.access, "jobs " + a.action, [&](farm::HttpClient& http) {
     if (a.action == "ls") {
       protocol::JobListQuery q;
       for (const std::string& s : a.states) {
@@ -133,13 +131,7 @@ int run_jobs(const JobsArgs& a) {
       std::printf("%s: cancelled\n", a.job.c_str());
     }
     return 0;
-  } catch (const farm::SubmitError& e) {
-    spdlog::error("{}", e.what());
-    return 2;
-  } catch (const std::exception& e) {
-    spdlog::error("jobs {}: {}", a.action, e.what());
-    return 1;
-  }
+  });
 }
 
 }  // namespace tessera::cli

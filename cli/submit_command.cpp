@@ -113,9 +113,7 @@ int run_submit(const SubmitArgs& a) {
       return 2;
     }
   }
-  try {
-    const auto client = a.access.client();
-    farm::HttpClient& http = *client;
+  return run_with_coordinator(a.access, "submit", [&](farm::HttpClient& http) {
     farm::SubmitOptions o = shared_job_options(a);
     o.tile_size = a.tile_size;
     o.priority = a.priority;
@@ -128,13 +126,7 @@ int run_submit(const SubmitArgs& a) {
       return 0;
     }
     return submit_and_wait(http, o, a.output, a.quiet, {});
-  } catch (const farm::SubmitError& e) {
-    spdlog::error("{}", e.what());
-    return 2;
-  } catch (const std::exception& e) {
-    spdlog::error("submit: {}", e.what());
-    return 1;
-  }
+  });
 }
 
 }  // namespace tessera::cli

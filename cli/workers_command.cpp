@@ -45,9 +45,7 @@ int run_workers(const WorkersArgs& a) {
     spdlog::error("workers {} needs a worker id", a.action);
     return 2;
   }
-  try {
-    const auto client = a.access.client();
-    farm::HttpClient& http = *client;
+  return run_with_coordinator(a.access, "workers " + a.action, [&](farm::HttpClient& http) {
     if (a.action == "ls") {
       print_table(farm::list_workers(http));
     } else {
@@ -55,13 +53,7 @@ int run_workers(const WorkersArgs& a) {
       std::printf("%s: %s\n", w.id.c_str(), protocol::to_string(w.state));
     }
     return 0;
-  } catch (const farm::SubmitError& e) {
-    spdlog::error("{}", e.what());
-    return 2;
-  } catch (const std::exception& e) {
-    spdlog::error("workers {}: {}", a.action, e.what());
-    return 1;
-  }
+  });
 }
 
 }  // namespace tessera::cli
