@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 #include <openssl/ssl.h>
 #include <openssl/x509_vfy.h>
+#include <poll.h>
 
 #include <algorithm>
 #include <array>
@@ -165,6 +166,15 @@ struct HttpClient::Impl {
     return reason;
   }
 
+  // Whether the server has closed (or written to) the idle kept-alive connection: readable before any request was
+  // sent means an end of stream, a TLS close_notify or bytes nobody asked for; either way it cannot carry a request.
+  bool peer_closed() {
+    pollfd p{};
+    p.fd = lowest().socket().native_handle();
+    p.events = POLLIN;
+    return ::poll(&p, 1, 0) != 0;
+  }
+
   void close() {
     error_code ignored;
     if (plain || tls) {
@@ -296,8 +306,12 @@ HttpResponse HttpClient::send(const HttpRequest& request) {
   if (verb == http::verb::unknown) throw TransportError(what + ": unknown method");
 
   const http::request<http::string_body> req = beast_request(url_, token_, request, verb);
+  // A request whose answer was lost may have been carried out; only these may go again without the caller knowing.
+  const bool idempotent = verb == http::verb::get || verb == http::verb::head || verb == http::verb::put ||
+                          verb == http::verb::delete_ || verb == http::verb::options;
 
   for (int attempt = 0;; ++attempt) {
+    if (im.connected && im.peer_closed()) im.close();
     const bool reused = im.connected;
     connect(what);
 
@@ -319,7 +333,11 @@ HttpResponse HttpClient::send(const HttpRequest& request) {
       const bool got_some = parser.got_some();
       const std::string why = ec == beast::error::timeout ? describe(ec, im.timeouts.read) : im.with_hint(ec);
       im.close();
-      if (reused && attempt == 0 && !got_some && is_stale_connection(ec)) continue;
+      if (reused && attempt == 0 && !got_some && is_stale_connection(ec)) {
+        if (idempotent) continue;
+        throw TransportError(what + ": the server closed the connection without an answer (" + why +
+                             "); the request may or may not have been carried out");
+      }
       if (ec == http::error::body_limit)
         throw TransportError(what + ": response body larger than " + std::to_string(im.max_response_bytes) + " bytes");
       throw TransportError(what + ": cannot read the response: " + why);

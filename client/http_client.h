@@ -80,7 +80,9 @@ class HttpClient {
   HttpClient& operator=(const HttpClient&) = delete;
 
   /// Sends the request and reads the whole response; throws TransportError (naming method, URL and cause) on transport
-  /// failures and timeouts. A request on a reused connection that the server had closed is retried once on a fresh one.
+  /// failures and timeouts. A kept-alive connection the server has closed is replaced before sending; a request
+  /// that could not be written on a reused connection goes once more on a fresh one, and so does a GET, HEAD, PUT,
+  /// DELETE or OPTIONS whose answer did not start (a POST or PATCH then throws: it may have been carried out).
   HttpResponse send(const HttpRequest& request);
   /// Sends the request on a connection of its own and reads the answer's header. For a 200 answer, calls on_data
   /// once with an empty view when the header has arrived (the stream is open), then with each piece of the body as

@@ -139,25 +139,78 @@ TEST(HttpClient, SendsAndReceivesOverOneKeptAliveConnection) {
   EXPECT_EQ(server.connections.load(), 1);
 }
 
-TEST(HttpClient, ReconnectsWhenTheServerClosedTheConnection) {
+// Answers one request on the connection, saying keep-alive.
+void answer_one(tcp::socket& s, boost::beast::flat_buffer& buf) {
+  http::request<http::string_body> req;
+  http::read(s, buf, req);
+  http::response<http::string_body> res{http::status::ok, 11};
+  res.body() = std::string(req.target());
+  res.keep_alive(true);
+  res.prepare_payload();
+  http::write(s, res);
+}
+
+TEST(HttpClient, ReplacesAKeptAliveConnectionTheServerClosed) {
   // The server answers one request per connection but does not say so (keep-alive), then closes.
-  TestServer server([](tcp::socket& s) {
+  std::atomic<int> closed{0};
+  TestServer server([&](tcp::socket& s) {
     boost::beast::flat_buffer buf;
-    http::request<http::string_body> req;
-    http::read(s, buf, req);
-    http::response<http::string_body> res{http::status::ok, 11};
-    res.body() = std::string(req.target());
-    res.keep_alive(true);
-    res.prepare_payload();
-    http::write(s, res);
+    answer_one(s, buf);
     s.shutdown(tcp::socket::shutdown_both);
     s.close();
+    ++closed;
   });
   HttpClient c(parse_http_url(server.url()));
   EXPECT_EQ(c.send("POST", "/1").body, "/1");
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));  // let the close arrive
+  while (closed.load() == 0) std::this_thread::yield();  // the close has reached the client's socket (loopback)
   EXPECT_EQ(c.send("POST", "/2").body, "/2");
   EXPECT_EQ(server.connections.load(), 2);
+}
+
+// The server answers a connection's first request, then reads the next one and closes without an answer.
+class LosesSecondAnswer {
+ public:
+  LosesSecondAnswer()
+      : server_([this](tcp::socket& s) {
+          boost::beast::flat_buffer buf;
+          answer_one(s, buf);
+          ++requests;
+          http::request<http::string_body> req;
+          http::read(s, buf, req);
+          ++requests;
+          s.shutdown(tcp::socket::shutdown_both);
+          s.close();
+        }) {}
+  std::string url() const { return server_.url(); }
+  int connections() const { return server_.connections.load(); }
+  std::atomic<int> requests{0};
+
+ private:
+  TestServer server_;
+};
+
+TEST(HttpClient, AnIdempotentRequestWhoseAnswerWasLostGoesOnceMore) {
+  LosesSecondAnswer server;
+  HttpClient c(parse_http_url(server.url()));
+  EXPECT_EQ(c.send("GET", "/1").body, "/1");
+  EXPECT_EQ(c.send("PUT", "/2", "x").body, "/2");  // lost on the first connection, answered on a second
+  EXPECT_EQ(server.requests.load(), 3);
+  EXPECT_EQ(server.connections(), 2);
+}
+
+TEST(HttpClient, APostWhoseAnswerWasLostIsNotSentAgain) {
+  LosesSecondAnswer server;
+  HttpClient c(parse_http_url(server.url()));
+  EXPECT_EQ(c.send("GET", "/1").body, "/1");
+  try {
+    c.send("POST", "/v1/jobs", "{}");
+    FAIL() << "a lost answer to a POST was not reported";
+  } catch (const TransportError& e) {
+    EXPECT_NE(std::string(e.what()).find("may or may not have been carried out"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(server.requests.load(), 2);  // the POST reached the server once
+  EXPECT_EQ(server.connections(), 1);
+  EXPECT_EQ(c.send("GET", "/3").body, "/3");  // the client goes on with a fresh connection
 }
 
 TEST(HttpClient, ReadTimeoutTurnsASilentServerIntoAnError) {
