@@ -20,6 +20,9 @@ inline constexpr const char* kTileDone = "tile_done";       ///< data: TileEvent
 inline constexpr const char* kTileFailed = "tile_failed";   ///< data: TileEvent (with error).
 inline constexpr const char* kWorkerSeen = "worker_seen";   ///< data: WorkerEvent (reason registered or back).
 inline constexpr const char* kWorkerLost = "worker_lost";   ///< data: WorkerEvent (reason offline).
+inline constexpr const char* kTileRequeued = "tile_requeued";    ///< An operator requeued a tile; data: TileEvent.
+inline constexpr const char* kJobRemoved = "job_removed";        ///< A job was purged; data: PurgeAnswer.
+inline constexpr const char* kWorkerChanged = "worker_changed";  ///< data: WorkerEvent (reason draining or undrained).
 inline constexpr const char* kResync = "resync";            ///< Events were missed: reload the state; data: {}.
 }  // namespace events
 
@@ -27,7 +30,7 @@ inline constexpr const char* kResync = "resync";            ///< Events were mis
 struct TileEvent {
   std::string job;                    ///< Job id.
   int64_t tile = 0;                   ///< Tile index.
-  std::string worker;                 ///< The worker that leased, rendered or failed it.
+  std::string worker;                 ///< The worker that leased, rendered or failed it ("" for tile_requeued).
   std::optional<std::string> lease;   ///< The lease (tile_leased).
   std::optional<std::string> error;   ///< The worker's error text (tile_failed).
 };
@@ -36,7 +39,7 @@ void from_json(const nlohmann::json& j, TileEvent& e);
 
 /// A worker that came or went.
 struct WorkerEvent {
-  std::string reason;   ///< "registered", "back" (seen again after being offline) or "offline".
+  std::string reason;   ///< "registered", "back" (seen again after being offline), "offline", "draining", "undrained".
   WorkerInfo worker;    ///< The worker as it is now.
 };
 void to_json(nlohmann::json& j, const WorkerEvent& e);

@@ -31,6 +31,16 @@ void FarmEvents::job_if_state_changed(const protocol::JobStatus& status) {
 
 void FarmEvents::tile(const char* name, const protocol::TileEvent& event) { bus_.publish(name, dump(json(event))); }
 
+void FarmEvents::job_removed(const protocol::PurgeAnswer& purged) {
+  std::lock_guard lock(mu_);
+  job_states_.erase(purged.id);
+  bus_.publish(ev::kJobRemoved, dump(json(purged)));
+}
+
+void FarmEvents::worker_drained(const protocol::WorkerInfo& worker, bool drained) {
+  bus_.publish(ev::kWorkerChanged, dump(json(protocol::WorkerEvent{drained ? "draining" : "undrained", worker})));
+}
+
 void FarmEvents::worker_registered(const protocol::WorkerInfo& worker) {
   std::lock_guard lock(mu_);
   worker_states_[worker.id] = worker.state;

@@ -4,6 +4,7 @@
 
 #include "protocol/events.h"
 #include "protocol/job.h"
+#include "protocol/messages.h"
 #include "protocol/worker.h"
 #include "server/event_bus.h"
 
@@ -27,6 +28,10 @@ class FarmEvents {
   void job_if_state_changed(const protocol::JobStatus& status);
   /// A tile event (protocol::events::kTileLeased, kTileDone or kTileFailed).
   void tile(const char* name, const protocol::TileEvent& event);
+  /// An ended job's rows were deleted (purged on request or by the retention sweep).
+  void job_removed(const protocol::PurgeAnswer& purged);
+  /// A worker was drained or undrained by an operator.
+  void worker_drained(const protocol::WorkerInfo& worker, bool drained);
   /// A worker registered.
   void worker_registered(const protocol::WorkerInfo& worker);
   /// A periodic look at every worker: publishes worker_lost for those that went offline since the previous look and

@@ -692,6 +692,37 @@ TEST_F(HttpTest, EventStreamCarriesJobTileAndWorkerEventsInOrder) {
   EXPECT_EQ(first->event, "resync");
 }
 
+TEST_F(HttpTest, OperatorsDrainsRequeuesAndPurgesArePublished) {
+  SseReader events(server_->endpoint(), "/v1/events");
+  ASSERT_EQ(events.status(), 200);
+  const std::string w = register_worker("op");
+  ASSERT_EQ(call(http::verb::post, "/v1/workers/" + w + "/drain", "").status, 200u);
+  ASSERT_EQ(call(http::verb::post, "/v1/workers/" + w + "/undrain", "").status, 200u);
+  const std::string id = submit(small_cbox(job_for("cbox_no_light.json")));
+  const json l = call(http::verb::post, "/v1/workers/" + w + "/lease").js();
+  const int64_t tile = l["tile"];
+  ASSERT_EQ(call(http::verb::post, "/v1/jobs/" + id + "/tiles/" + std::to_string(tile) + "/requeue", "").status, 200u);
+  ASSERT_EQ(call(http::verb::delete_, "/v1/jobs/" + id).status, 200u);
+  ASSERT_EQ(call(http::verb::delete_, "/v1/jobs/" + id + "?purge=true").status, 200u);
+
+  std::vector<SseEvent> got;
+  for (int i = 0; i < 9; ++i) {
+    auto e = events.next();
+    ASSERT_TRUE(e) << "stream ended after " << i << " events";
+    got.push_back(*e);
+  }
+  std::vector<std::string> names;
+  for (const auto& e : got) names.push_back(e.event);
+  EXPECT_EQ(names, (std::vector<std::string>{"worker_seen", "worker_changed", "worker_changed", "job", "job",
+                                             "tile_leased", "tile_requeued", "job", "job_removed"}));
+  EXPECT_EQ(json::parse(got[1].data)["reason"], "draining");
+  EXPECT_EQ(json::parse(got[1].data)["worker"]["id"], w);
+  EXPECT_EQ(json::parse(got[1].data)["worker"]["state"], "draining");
+  EXPECT_EQ(json::parse(got[2].data)["reason"], "undrained");
+  EXPECT_EQ(json::parse(got[6].data), (json{{"job", id}, {"tile", tile}, {"worker", ""}}));
+  EXPECT_EQ(json::parse(got[8].data), (json{{"id", id}, {"purged", true}, {"was", "cancelled"}}));
+}
+
 TEST_F(HttpTest, ShutdownEndsEveryEventStream) {
   SseReader a(server_->endpoint(), "/v1/events"), b(server_->endpoint(), "/v1/events");
   ASSERT_EQ(a.status(), 200);

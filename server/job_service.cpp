@@ -405,6 +405,7 @@ protocol::TileInfo JobService::requeue_tile(const std::string& id, const std::st
     case RequeueResult::requeued: break;
   }
   spdlog::info("job {} tile {}: requeued (was {}{})", id, n, to_string(r.was), r.revoked ? ", lease revoked" : "");
+  events_.tile(protocol::events::kTileRequeued, {id, n, "", std::nullopt, std::nullopt});
   return tiles(id).tiles.at(size_t(n));
 }
 
@@ -440,6 +441,7 @@ protocol::JobState JobService::purge(const std::string& id) {
   // The rows are gone (a restart deletes the file if this fails: see recover).
   jobs_.remove_outputs(id);
   spdlog::info("job {}: purged (was {})", id, to_string(r.was));
+  events_.job_removed({id, r.was});
   return r.was;
 }
 

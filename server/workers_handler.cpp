@@ -14,6 +14,7 @@ HttpResponse WorkersHandler::handle(Endpoint endpoint, const std::string& id, Ht
     const std::optional<protocol::WorkerInfo> w = sched_.set_drained(id, drain);
     if (!w) throw protocol::ApiError(404, "no worker " + id);
     spdlog::info("worker {}: {}", id, drain ? "draining (no new tiles)" : "undrained");
+    events_.worker_drained(*w, drain);
     return json_response(http::status::ok, *w, v);
   }
   if (req.method() == http::verb::get) return json_response(http::status::ok, protocol::WorkerList{sched_.workers()}, v);
