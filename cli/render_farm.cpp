@@ -57,7 +57,7 @@ std::string wait_for_ready(const fs::path& ready, farm::ChildProcess& serve) {
     if (farm::child_exited(serve))
       throw std::runtime_error("the coordinator " + farm::describe_exit(serve) + " before it was ready; its log:\n" +
                                farm::tail_of_file(serve.log, 20));
-    std::this_thread::sleep_for(20ms);
+    std::this_thread::sleep_for(5ms);
   }
   throw std::runtime_error("the coordinator did not write " + ready.string() + " within 30 s; its log:\n" +
                            farm::tail_of_file(serve.log, 20));
@@ -94,29 +94,35 @@ int run_render_farm(const RenderArgs& a) {
                                          "coordinator", dir / "serve.log"));
     const std::string address = wait_for_ready(ready, children[0]);
     const std::string url = "http://" + address;
-    const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
-    const int threads = a.threads > 0 ? a.threads : std::max(1, int(cores) / a.workers);
-    for (int i = 0; i < a.workers; ++i)
-      children.push_back(farm::spawn_child({self, "worker", "--coordinator", url, "--threads", std::to_string(threads),
-                                            "--cache", (dir / "cache").string(), "--name", "local-" + std::to_string(i),
-                                            "--token-file", (dir / "worker.token").string()},
-                                           "worker " + std::to_string(i), dir / ("worker-" + std::to_string(i) + ".log")));
-    if (!a.quiet)
-      std::fprintf(stderr, "coordinator on %s, %d worker(s) with %d thread(s) each\n", url.c_str(), a.workers, threads);
-
     farm::HttpClient http(farm::parse_http_url(url));
     http.set_bearer_token(client_token);
     farm::SubmitOptions o = shared_job_options(a);
     o.tile_size = a.farm_tile;
     o.sampling = sampling_settings(a, a.spp.value_or(0));  // 0: the scene's spp
     o.resumable = a.resumable;  // the result then carries the state channels, as `render --resumable` writes them
-    rc = submit_and_wait(http, o, a.output, a.quiet, [&] {
-      if (InterruptGuard::interrupted()) return true;
-      // Every worker gone means no progress is possible.
-      bool all_workers_gone = true;
-      for (size_t i = 1; i < children.size(); ++i) all_workers_gone &= farm::child_exited(children[i]);
-      return all_workers_gone || farm::child_exited(children[0]);
-    });
+    // The workers start once the job is in: their first lease request finds work instead of an empty queue (after
+    // which a worker waits 50-100 ms before asking again).
+    const auto start_workers = [&] {
+      const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+      const int threads = a.threads > 0 ? a.threads : std::max(1, int(cores) / a.workers);
+      for (int i = 0; i < a.workers; ++i)
+        children.push_back(farm::spawn_child({self, "worker", "--coordinator", url, "--threads", std::to_string(threads),
+                                              "--cache", (dir / "cache").string(), "--name", "local-" + std::to_string(i),
+                                              "--token-file", (dir / "worker.token").string()},
+                                             "worker " + std::to_string(i), dir / ("worker-" + std::to_string(i) + ".log")));
+      if (!a.quiet)
+        std::fprintf(stderr, "coordinator on %s, %d worker(s) with %d thread(s) each\n", url.c_str(), a.workers, threads);
+    };
+    rc = submit_and_wait(
+        http, o, a.output, a.quiet,
+        [&] {
+          if (InterruptGuard::interrupted()) return true;
+          // Every worker gone means no progress is possible.
+          bool all_workers_gone = children.size() > 1;
+          for (size_t i = 1; i < children.size(); ++i) all_workers_gone &= farm::child_exited(children[i]);
+          return all_workers_gone || farm::child_exited(children[0]);
+        },
+        start_workers);
     if (rc == 0 && (a.half || !a.preview.empty())) {
       const ExrImage img = read_exr(a.output);
       if (a.half) {

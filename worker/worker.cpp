@@ -12,6 +12,7 @@
 #include "protocol/routes.h"
 #include "protocol/tile.h"
 #include "worker/scene_cache.h"
+#include "worker/upload_queue.h"
 
 #include <spdlog/spdlog.h>
 #include <tbb/global_control.h>
@@ -167,12 +168,14 @@ class Worker {
   Worker(const WorkerOptions& opt, const std::atomic<int>& stop)
       : opt_(opt), stop_(stop), url_(parse_http_url(opt.coordinator)), http_(url_, opt.timeouts, kMaxResponse, opt.tls),
         heartbeat_http_(url_, heartbeat_timeouts(opt.timeouts), kMaxResponse, opt.tls),
+        upload_http_(url_, opt.timeouts, kMaxResponse, opt.tls),
         cache_(opt.cache_dir.empty() ? default_cache_dir() : opt.cache_dir), scenes_(opt.scene_cache_jobs),
         idle_(100ms, opt.max_idle_wait), retry_(200ms, opt.max_retry_wait) {
     name_ = opt.name.empty() ? default_name() : opt.name;
     threads_ = opt.threads > 0 ? opt.threads : int(std::max(1u, std::thread::hardware_concurrency()));
     http_.set_bearer_token(opt.token);
     heartbeat_http_.set_bearer_token(opt.token);
+    upload_http_.set_bearer_token(opt.token);
   }
 
   WorkerStats run() {
@@ -196,6 +199,8 @@ class Worker {
         sleep_unless(retry_.next(), [&] { return stopping(); });
       }
     }
+    uploads_.wait_idle();  // the last tile's upload finishes (a second stop request cuts its retries short)
+    std::lock_guard lock(stats_mutex_);
     spdlog::info("worker {} stopping: {} tiles uploaded, {} dropped, {} failed, {} released", id_.empty() ? name_ : id_,
                  stats_.tiles_uploaded, stats_.tiles_dropped, stats_.tiles_failed, stats_.tiles_released);
     return stats_;
@@ -203,6 +208,12 @@ class Worker {
 
  private:
   bool stopping() const { return stop_.load() > 0; }
+
+  // Counts a tile's outcome (from the render loop or the upload thread).
+  void count(int64_t WorkerStats::*outcome) {
+    std::lock_guard lock(stats_mutex_);
+    ++(stats_.*outcome);
+  }
 
   // Notes a transport failure (loudly for the first of an outage) and waits before the next attempt.
   void coordinator_down(const std::string& what, const TransportError& e) {
@@ -388,7 +399,7 @@ class Worker {
         result.reset();
       } catch (const Gone& e) {
         spdlog::warn("{}: dropping the tile: {}", pfx, e.what());
-        ++stats_.tiles_dropped;
+        count(&WorkerStats::tiles_dropped);
         return;
       } catch (const std::exception& e) {
         failure = e.what();
@@ -405,12 +416,21 @@ class Worker {
         release(l, pfx);
       } else {
         spdlog::info("{}: lease revoked, tile dropped", pfx);
-        ++stats_.tiles_dropped;
+        count(&WorkerStats::tiles_dropped);
       }
       return;
     }
     spdlog::info("{}: rendered in {:.3f}s ({} rays)", pfx, result->seconds, result->counters.rays);
-    upload(l, pfx, *result, width, height);
+    // Encoded and sent while the next tile is leased and rendered; the lease stays live meanwhile (its deadline is a
+    // lease length after the last heartbeat), and a worker that dies here loses only leases, which expire.
+    uploads_.post([this, l, pfx, res = std::make_shared<RenderResult>(std::move(*result)), width, height] {
+      try {
+        upload(l, pfx, *res, width, height);
+      } catch (const std::exception& e) {
+        spdlog::error("{}: upload stopped: {}; tile dropped", pfx, e.what());
+        count(&WorkerStats::tiles_dropped);
+      }
+    });
   }
 
   // The lease's tile as the coordinator stored it (GET /v1/leases/{lease}/state): its pixels and exact sums.
@@ -442,12 +462,12 @@ class Worker {
     Backoff backoff(200ms, opt_.max_retry_wait);
     for (int attempt = 1;; ++attempt) {
       try {
-        const HttpResponse r = http_.send(req);
+        const HttpResponse r = upload_http_.send(req);
         if (r.status == 200) {
           const json j = json::parse(r.body, nullptr, false);
           const std::string status = j.is_object() ? j.value("status", "") : "";
           spdlog::info("{}: upload {}", pfx, status.empty() ? "acknowledged" : status);
-          ++stats_.tiles_uploaded;
+          count(&WorkerStats::tiles_uploaded);
           bool again = false;  // tests send the result again, as a worker that missed the answer would
           TESSERA_FAIL_POINT_RETURN("worker.upload.repeat", [&](const std::string&) { again = true; });
           if (again) continue;
@@ -455,22 +475,22 @@ class Worker {
         }
         if (r.status == 410) {
           spdlog::info("{}: upload discarded (job cancelled or failed)", pfx);
-          ++stats_.tiles_dropped;
+          count(&WorkerStats::tiles_dropped);
           return;
         }
         if (r.status == 422) {
           spdlog::error("{}: the coordinator refused the result as invalid: {}", pfx, r.error_text());
-          ++stats_.tiles_failed;
+          count(&WorkerStats::tiles_failed);
           return;
         }
         if (r.status == 404) {
           spdlog::warn("{}: the coordinator does not know the lease any more; tile dropped", pfx);
-          ++stats_.tiles_dropped;
+          count(&WorkerStats::tiles_dropped);
           return;
         }
         if (!retryable_status(r.status)) {
           spdlog::error("{}: upload answered {}: {}; tile dropped", pfx, r.status, r.error_text());
-          ++stats_.tiles_dropped;
+          count(&WorkerStats::tiles_dropped);
           return;
         }
         spdlog::warn("{}: upload attempt {} answered {}: {}; retrying", pfx, attempt, r.status, r.error_text());
@@ -479,7 +499,7 @@ class Worker {
       }
       if (!sleep_unless(backoff.next(), [&] { return stop_.load() >= 2; })) {
         spdlog::warn("{}: asked to stop again while the coordinator is unreachable; abandoning the upload", pfx);
-        ++stats_.tiles_dropped;
+        count(&WorkerStats::tiles_dropped);
         return;
       }
     }
@@ -527,14 +547,14 @@ class Worker {
   }
 
   void report_failure(const Lease& l, const std::string& pfx, const std::string& error) {
-    ++stats_.tiles_failed;
+    count(&WorkerStats::tiles_failed);
     // The report carries the last lines logged about this lease (their prefix is `pfx: `), bounded in count and size.
     const protocol::FailReport report{error, recent_.log().lines_with(pfx + ":", kFailureLogLines, kFailureLogLineBytes)};
     if (post_lease_message(pfx, "fail", routes::lease_fail(l.id), report, 10)) spdlog::info("{}: failure reported", pfx);
   }
 
   void release(const Lease& l, const std::string& pfx) {
-    ++stats_.tiles_released;
+    count(&WorkerStats::tiles_released);
     if (post_lease_message(pfx, "release", routes::lease_release(l.id), json::object(), 3)) spdlog::info("{}: tile handed back", pfx);
   }
 
@@ -544,6 +564,7 @@ class Worker {
   HttpUrl url_;
   HttpClient http_;
   HttpClient heartbeat_http_;  // used only by the heartbeat thread
+  HttpClient upload_http_;     // used only by the upload thread
   AssetCache cache_;
   LruCache<PreparedJob> scenes_;
   Backoff idle_, retry_;
@@ -551,7 +572,9 @@ class Worker {
   int threads_ = 1;
   std::chrono::milliseconds heartbeat_period_{5000};
   bool down_ = false;
-  WorkerStats stats_;
+  std::mutex stats_mutex_;
+  WorkerStats stats_;    // guarded by stats_mutex_
+  UploadQueue uploads_;  // last: destroyed first, after the upload in flight has finished
 };
 
 }  // namespace
