@@ -38,6 +38,9 @@ CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
   c->add_option("--asset-root", a.asset_root, "Allow asset paths anywhere below this folder");
   c->add_option("--tile", a.tile_size, "Tile edge in pixels for the thread scheduler")->check(CLI::Range(1, 4096));
   c->add_flag("-q,--quiet", a.quiet, "No progress bar");
+  c->add_flag("--timing", a.timing,
+              "Print where the wall time went: load (with the BVH build), film set-up, the threaded render and its "
+              "idle thread time, the write");
   c->add_option("--workers", a.workers,
                 "Render through a private coordinator and N worker processes on this machine (0: in this process)")
       ->check(CLI::Range(0, 256));
@@ -217,8 +220,21 @@ int run_render(const RenderArgs& given) {
       wo.metadata["tessera:partial"] = std::to_string(done) + " of " + std::to_string(pixels_total) + " pixels";
     }
     if (res.cancelled || ro.keep_state) write_state_channels(res.state, res.image);
+    const auto t_write = std::chrono::steady_clock::now();
     write_exr(a.output, res.image, wo);
     if (!a.preview.empty()) write_png_srgb(a.preview, res.image);
+    if (a.timing) {
+      const double write_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_write).count();
+      const double film_s = res.seconds - res.parallel_seconds;
+      const double total = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_load).count();
+      const double outside = total - res.parallel_seconds;
+      std::fprintf(stderr,
+                   "timing: load %.3fs + film %.3fs + threaded render %.3fs on %d thread(s), idle %.3f thread-s "
+                   "(%.2f%%) + write %.3fs = %.3fs; outside the threaded render %.3fs (%.2f%%)\n",
+                   load_s, film_s, res.parallel_seconds, res.threads, res.idle_thread_seconds,
+                   res.parallel_seconds > 0 ? 100.0 * res.idle_thread_seconds / (res.threads * res.parallel_seconds) : 0.0,
+                   write_s, total, outside, total > 0 ? 100.0 * outside / total : 0.0);
+    }
     if (res.counters.nonfinite > 0)
       spdlog::warn("{} sample(s) were NaN or Inf and were counted as zero", res.counters.nonfinite);
     const double pixels = double(res.window.width()) * double(res.window.height());

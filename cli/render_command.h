@@ -29,6 +29,7 @@ struct RenderArgs {
   std::string asset_root;               ///< Allow assets anywhere below this folder.
   int tile_size = 16;                   ///< Thread tile edge.
   bool quiet = false;                   ///< No progress bar.
+  bool timing = false;                  ///< Print where the wall time went (load, film, threads, write).
   int workers = 0;                      ///< >0: render through a local coordinator and this many worker processes.
   int farm_tile = 64;                   ///< Farm tile edge (with --workers; the farm's default tile size).
   float target_error = 0.f;             ///< Adaptive sampling target (relative standard error); 0: off.

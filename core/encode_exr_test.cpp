@@ -1,6 +1,7 @@
 #include "core/image.h"
 
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <fstream>
 #include <iterator>
@@ -31,6 +32,29 @@ TEST(EncodeExr, GivesTheBytesWriteExrWrites) {
 }
 
 // decode_exr reads from memory what read_exr reads from a file, and refuses short, foreign and cut-off bytes in words.
+TEST(EncodeExr, CompressedBytesDoNotDependOnTheThreadCount) {
+  // Many line blocks, noisy values: each block is compressed on OpenEXR's pool, as many threads as the render may use.
+  Image img = Image::make(97, 211);
+  uint32_t x = 12345;
+  for (float& v : img.rgb) {
+    x = x * 1664525u + 1013904223u;
+    v = float(x >> 8) * 0x1p-24f;
+  }
+  for (const ExrCompression c : {ExrCompression::kZip, ExrCompression::kPiz}) {
+    ExrWriteOptions o;
+    o.compression = c;
+    std::vector<std::vector<uint8_t>> encoded;
+    for (const size_t threads : {size_t(1), size_t(2), size_t(7)}) {
+      tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+      encoded.push_back(encode_exr(img, o));
+    }
+    EXPECT_EQ(encoded[0], encoded[1]);
+    EXPECT_EQ(encoded[0], encoded[2]);
+    EXPECT_EQ(decode_exr(std::string_view(reinterpret_cast<const char*>(encoded[2].data()), encoded[2].size())).pixels.rgb,
+              img.rgb);
+  }
+}
+
 TEST(DecodeExr, ReadsTheBytesEncodeExrGivesAndRefusesBrokenOnes) {
   Image img = Image::make(4, 3);
   for (size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = float(i) * 0.5f - 1.f;

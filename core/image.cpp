@@ -12,9 +12,11 @@
 #include <OpenEXR/ImfStdIO.h>
 #include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/ImfTileDescription.h>
+#include <OpenEXR/ImfThreading.h>
 #include <OpenEXR/ImfVersion.h>
 #include <Imath/half.h>
 #include <png.h>
+#include <tbb/global_control.h>
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -26,6 +28,7 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <mutex>
 #include <span>
 #include <string_view>
 #include <system_error>
@@ -336,6 +339,20 @@ ExrImage read_exr_stream(Imf::IStream& stream, int version) {
   return out;
 }
 
+// Threads for compressing an EXR: as many as the render may use (--threads). Each line block is compressed on its
+// own, so the file's bytes do not depend on the count; OpenEXR's pool is resized only when the count changes.
+int exr_threads() {
+  static std::mutex mu;
+  static int pool = 0;
+  const int want = int(std::max<size_t>(1, tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)));
+  std::lock_guard lock(mu);
+  if (want != pool) {
+    Imf::setGlobalThreadCount(want);
+    pool = want;
+  }
+  return want;
+}
+
 std::vector<uint8_t> encode_exr_impl(const char* name, const Image& img, const ExrWriteOptions& opt) {
   check_rgb_shape(img);
   if (img.width == 0 || img.height == 0) throw std::runtime_error("an EXR cannot hold an empty image");
@@ -393,7 +410,7 @@ std::vector<uint8_t> encode_exr_impl(const char* name, const Image& img, const E
 
   MemoryOStream stream(name);
   {
-    Imf::OutputFile out(stream, header);
+    Imf::OutputFile out(stream, header, opt.compression == ExrCompression::kNone ? 0 : exr_threads());
     out.setFrameBuffer(fb);
     out.writePixels(img.height);
   }  // the destructor completes the file (its line offset table)

@@ -3,7 +3,9 @@
 #include "core/path_integrator.h"
 
 #include <tbb/enumerable_thread_specific.h>
+#include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <chrono>
@@ -146,8 +148,11 @@ RenderResult render(const Scene& scene, const RenderOptions& opt) {
   std::atomic<uint64_t> rays_done{0};
   std::atomic<bool> cancelled{false};
 
+  tbb::enumerable_thread_specific<double> busy_seconds(0.0);  // per thread: time spent on tiles
+  const auto t_parallel = std::chrono::steady_clock::now();
   tbb::parallel_for(tbb::blocked_range<int>(0, ntiles, 1), [&](const tbb::blocked_range<int>& range) {
     RayCounters& c = counters.local();
+    const auto t_range = std::chrono::steady_clock::now();
     for (int t = range.begin(); t != range.end(); ++t) {
       const bool over_budget = opt.tile_budget > 0 && started.fetch_add(1) >= opt.tile_budget;
       const uint64_t before = c.rays;
@@ -181,7 +186,14 @@ RenderResult render(const Scene& scene, const RenderOptions& opt) {
                                     std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()});
       }
     }
+    busy_seconds.local() += std::chrono::duration<double>(std::chrono::steady_clock::now() - t_range).count();
   });
+  res.parallel_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_parallel).count();
+  res.threads = int(std::min<size_t>(size_t(tbb::this_task_arena::max_concurrency()),
+                                      tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)));
+  double busy = 0.0;
+  for (const double b : busy_seconds) busy += b;
+  res.idle_thread_seconds = std::max(0.0, double(res.threads) * res.parallel_seconds - busy);
   for (const RayCounters& c : counters) {
     res.counters.camera += c.camera;
     res.counters.rays += c.rays;

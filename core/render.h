@@ -61,6 +61,11 @@ struct RenderResult {
   PixelWindow window;   ///< Where the image lies in the full picture.
   RayCounters counters; ///< Ray counts.
   double seconds = 0;   ///< Wall time.
+  double parallel_seconds = 0;  ///< Wall time of the threaded part (the rest, seconds - this, is film set-up).
+  /// Thread time without a tile during the threaded part, summed over the threads the render could use: the tail
+  /// of the last tiles, and any thread that never joined. 0 is perfect; threads x parallel_seconds is all idle.
+  double idle_thread_seconds = 0;
+  int threads = 1;      ///< Threads the render could use (the task arena's concurrency).
   bool cancelled = false;  ///< True when stopped by `cancel` or `tile_budget` (some pixels are then unfinished).
   /// Samples of every pixel (0: not rendered, when cancelled) and, with keep_state, the exact accumulators.
   RenderState state;

@@ -10,6 +10,8 @@
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
 #include <gtest/gtest.h>
+
+#include <cstdio>
 #include <nlohmann/json.hpp>
 #include <sys/wait.h>
 
@@ -162,6 +164,28 @@ TEST_F(CliRender, ProgressReportsTilesRaysAndEta) {
   // On a pipe the bar prints a line per 10%: the last one has every tile.
   EXPECT_NE(r.err.find("100%  15/15 tiles"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("ETA"), std::string::npos) << r.err;
+}
+
+// --timing accounts for the wall time: its parts add up, and the idle thread time lies within the threads' time.
+TEST_F(CliRender, TimingAccountsForTheWallTime) {
+  const CliRun r = tessera({scene().string(), "-o", f("t.exr"), "-q", "--threads", "2", "--timing"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  double load = 0, film = 0, threaded = 0, idle = 0, idle_pct = 0, write = 0, total = 0, outside = 0, outside_pct = 0;
+  int threads = 0;
+  const size_t at = r.err.find("timing: ");
+  ASSERT_NE(at, std::string::npos) << r.err;
+  ASSERT_EQ(std::sscanf(r.err.c_str() + at,
+                        "timing: load %lfs + film %lfs + threaded render %lfs on %d thread(s), idle %lf thread-s (%lf%%) "
+                        "+ write %lfs = %lfs; outside the threaded render %lfs (%lf%%)",
+                        &load, &film, &threaded, &threads, &idle, &idle_pct, &write, &total, &outside, &outside_pct),
+            10)
+      << r.err;
+  EXPECT_GE(threads, 1);
+  EXPECT_LE(threads, 2);
+  EXPECT_GE(idle, 0.0);
+  EXPECT_LE(idle, threads * threaded + 0.0005);
+  EXPECT_NEAR(load + film + threaded + write, total, 0.003);  // each figure is rounded to 1 ms
+  EXPECT_NEAR(outside, total - threaded, 0.002);
 }
 
 // The job API carries every sampling option (protocol::SamplingSettings): through the farm they change the pixels
