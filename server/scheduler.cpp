@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <algorithm>
+#include <limits>
 #include <stdexcept>
 #include <type_traits>
 
@@ -165,6 +166,7 @@ void Scheduler::flush_locked() {
 }
 
 void Scheduler::restore_locked(SchedulerSnapshot snap, int64_t now) {
+  next_expiry_check_ms_ = 0;  // restored leases get new deadlines: the next operation looks at them all
   next_seq_ = std::max<uint64_t>(1, snap.counters.next_seq);
   tiles_rendered_ = snap.counters.tiles_rendered;
   lease_expiries_ = snap.counters.lease_expiries;
@@ -499,6 +501,7 @@ AcquireResult Scheduler::acquire(const std::string& worker) {
       }
       live_leases_.insert(rec.lease.id);
       dirty_leases_.insert(rec.lease.id);
+      next_expiry_check_ms_ = std::min(next_expiry_check_ms_, expiry_check_ms(rec));
       r.status = AcquireResult::granted;
       r.lease = rec.lease;
       leases_.emplace(rec.lease.id, std::move(rec));
@@ -989,7 +992,13 @@ void Scheduler::return_to_pending_locked(JobRec& j, int64_t tile) {
   touch_tile(j, tile);
 }
 
+int64_t Scheduler::expiry_check_ms(const LeaseRec& l) const {
+  return std::min(l.lease.deadline_ms, l.granted_ms + jobs_.at(l.lease.job)->status.params.tile_timeout_seconds * 1000) + 1;
+}
+
 void Scheduler::expire_locked(int64_t now) {
+  if (now < next_expiry_check_ms_) return;  // nothing can have expired: every operation would otherwise scan them all
+  next_expiry_check_ms_ = std::numeric_limits<int64_t>::max();
   std::vector<std::string> timed_out;  // handled after the loop: failing a job ends other leases of live_leases_
   for (auto it = live_leases_.begin(); it != live_leases_.end();) {
     LeaseRec& l = leases_.at(*it);
@@ -997,6 +1006,8 @@ void Scheduler::expire_locked(int64_t now) {
     if (now <= l.lease.deadline_ms) {
       if (now - l.granted_ms > jobs_.at(l.lease.job)->status.params.tile_timeout_seconds * 1000)
         timed_out.push_back(l.lease.id);
+      else
+        next_expiry_check_ms_ = std::min(next_expiry_check_ms_, expiry_check_ms(l));
       continue;
     }
     end_lease_locked(l, LeaseState::expired);

@@ -428,6 +428,11 @@ class Scheduler {
   std::map<QueueKey, JobRec*> queue_;                 // active (queued/running) jobs in scheduling order
   std::map<std::string, LeaseRec> leases_;            // every lease ever granted (answers 410 vs 404)
   std::set<std::string> live_leases_;
+  // When lease l next needs a look: the first moment it has expired or timed out.
+  int64_t expiry_check_ms(const LeaseRec& l) const;
+  // No live lease can expire or time out before this (a lower bound: heartbeats only move deadlines later), so
+  // expire_locked skips its scan of live_leases_ until then.
+  int64_t next_expiry_check_ms_ = 0;
   std::map<std::string, WorkerRec> workers_;
   SchedulerStore* store_ = nullptr;                   // nullptr: memory only
   std::set<std::string> dirty_jobs_, dirty_leases_, new_workers_;
