@@ -759,6 +759,33 @@ TEST_F(SchedulerTest, ALeaseOlderThanTheTileTimeoutIsRevokedAsAFailureEvenWithHe
   EXPECT_NE(st->error->find("tile timed out after 25 s"), std::string::npos);
 }
 
+TEST_F(SchedulerTest, EachLeaseExpiresOrTimesOutOnTimeWhateverTheOtherLeasesDo) {
+  JobParams p;
+  p.width = 64;
+  p.height = 64;
+  p.tile_size = 64;  // one tile per job
+  const std::string slow = s.add_job(p);  // the default tile timeout (an hour)
+  const std::string w = s.register_worker("a"), v = s.register_worker("b");
+  const Lease a = lease(w);  // at t: lease until t + 10 s
+  now += 5'000;
+  EXPECT_EQ(s.heartbeat(a.id).status, HeartbeatResult::ok);  // until t + 15 s
+  p.tile_timeout_seconds = 2;
+  const std::string quick = s.add_job(p);
+  const Lease b = lease(v);  // at t + 5 s, timed out after t + 7 s: earlier than anything the first lease needs
+  EXPECT_EQ(b.job, quick);
+  now += 2'000;
+  EXPECT_EQ(s.heartbeat(b.id).status, HeartbeatResult::ok);
+  now += 1;
+  EXPECT_EQ(s.heartbeat(b.id).status, HeartbeatResult::gone);
+  EXPECT_EQ(s.tiles(quick)->tiles[0].state, "pending");
+  EXPECT_EQ(s.heartbeat(a.id).status, HeartbeatResult::ok);  // until t + 17.001 s
+  now += 10'000;
+  EXPECT_EQ(s.tiles(slow)->tiles[0].state, "leased");
+  now += 1;
+  EXPECT_EQ(s.tiles(slow)->tiles[0].state, "pending");  // expired, seen by an operation that is not about it
+  EXPECT_EQ(s.heartbeat(a.id).status, HeartbeatResult::gone);
+}
+
 TEST_F(SchedulerTest, CancelQueuedJob) {
   const std::string j = job();
   EXPECT_EQ(s.cancel(j).status, CancelResult::cancelled);
