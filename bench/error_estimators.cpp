@@ -27,6 +27,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <array>
 #include <cstdio>
 #include <filesystem>
 #include <sstream>
@@ -202,6 +203,7 @@ int main(int argc, char** argv) {
   int seeds = 16;
   uint32_t ref_spp = 4096;
   std::vector<std::string> spps = {"16", "64"};
+  bool replicates = true;  // --replicates 0: skip the replicate rows (two more renders per seed)
   uint32_t sweep_max = 0;  // > 0: print the uniform sweep 1 .. sweep_max spp instead (see sweep())
   std::vector<double> targets;  // non-empty: simulate --target-error at these targets instead (see adaptive())
   std::vector<std::string> scenes = {"cbox_no_light", "cbox_no_light_refraction", "cbox_area_light", "cbox_env_light",
@@ -209,7 +211,7 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string k = argv[i];
     if (i + 1 >= argc) {
-      std::fprintf(stderr, "usage: %s [--scale F] [--seeds S] [--ref-spp N] [--spp N,N] [--scenes a,b] [--sweep N] [--adaptive E,E]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--scale F] [--seeds S] [--ref-spp N] [--spp N,N] [--scenes a,b] [--sweep N] [--adaptive E,E] [--replicates 0|1]\n", argv[0]);
       return 2;
     }
     const std::string v = argv[++i];
@@ -219,6 +221,7 @@ int main(int argc, char** argv) {
     else if (k == "--spp") spps = split(v);
     else if (k == "--scenes") scenes = split(v);
     else if (k == "--sweep") sweep_max = uint32_t(std::stoul(v));
+    else if (k == "--replicates") replicates = v != "0";
     else if (k == "--adaptive")
       for (const std::string& t : split(v)) targets.push_back(std::stod(t));
     else {
@@ -259,6 +262,8 @@ int main(int argc, char** argv) {
       }
       // The default sampler, sample by sample (the same samples, in the same order, as render()).
       std::vector<Tally> own(kOwnCount, Tally(3 * np));
+      // Per seed, pixel and channel: h(n/2), h(n/4), h(n/8), for rates pooled over a window of pixels below.
+      std::vector<std::array<double, 3>> levels(size_t(seeds) * 3 * np);
       tbb::parallel_for(size_t(0), np, [&](size_t i) {
         const int px = int(i % size_t(s.width)), py = int(i / size_t(s.width));
         RayCounters rc;
@@ -276,6 +281,7 @@ int main(int argc, char** argv) {
             }
           }
           for (size_t c = 0; c < 3; ++c) {
+            levels[(size_t(seed) * np + i) * 3 + c] = {bd[c].h(m - 1), bd[c].h(m - 2), bd[c].h(m - 3)};
             const double mean = sum[c] / n, d = mean - ref.rgb[3 * i + c];
             const double est[kOwnCount] = {std::max(0.0, sum2[c] - n * mean * mean) / (n - 1.0) / n,
                                            bd[c].half_difference(), top_two(bd[c], m), two_level(bd[c], m),
@@ -292,6 +298,32 @@ int main(int argc, char** argv) {
         std::printf("| %s | %u | %s | %.2f | %.3f | %.2f | %.2f |\n", name.c_str(), n, kOwnNames[e], r.cost,
                     r.aggregate, r.p50, r.p99);
       }
+      // The pooled rate with its three levels summed over a (2R+1)^2 window of pixels (clipped at the frame), applied
+      // to the pixel's own h(n/2): the ratio of sums is far less noisy, hence less biased, than one pixel's ratio.
+      for (const int radius : {1, 2, 4}) {
+        Tally t(3 * np);
+        t.se = own[0].se;
+        tbb::parallel_for(size_t(0), np, [&](size_t i) {
+          const int px = int(i % size_t(s.width)), py = int(i / size_t(s.width));
+          for (int seed = 0; seed < seeds; ++seed)
+            for (size_t c = 0; c < 3; ++c) {
+              double up = 0, down = 0;
+              for (int y = std::max(0, py - radius); y <= std::min(s.height - 1, py + radius); ++y)
+                for (int x = std::max(0, px - radius); x <= std::min(s.width - 1, px + radius); ++x) {
+                  const auto& l = levels[(size_t(seed) * np + size_t(y) * size_t(s.width) + size_t(x)) * 3 + c];
+                  up += l[0] + 2 * l[1];
+                  down += l[1] + 2 * l[2];
+                }
+              const double r = rate(up, down), h = levels[(size_t(seed) * np + i) * 3 + c][0];
+              t.pred[3 * i + c] += h * r / (1.0 - r) / seeds;
+            }
+        });
+        const Row r = summarise(t, ref, own[0].se);
+        std::printf("| %s | %u | rate pooled over 3 levels and %dx%d pixels | %.2f | %.3f | %.2f | %.2f |\n",
+                    name.c_str(), n, 2 * radius + 1, 2 * radius + 1, r.cost, r.aggregate, r.p50, r.p99);
+      }
+      std::fflush(stdout);
+      if (!replicates) continue;
       for (uint32_t k : {2u, 4u}) {
         Tally t(3 * np);
         for (int seed = 0; seed < seeds; ++seed) {
