@@ -81,6 +81,7 @@ constexpr AddedColumn kAddedColumns[] = {
     {"tiles", "logs", "TEXT NOT NULL DEFAULT '{}'"},
     {"leases", "granted_ms", "INTEGER NOT NULL DEFAULT 0"},
     {"jobs", "tile_timeout_s", "INTEGER NOT NULL DEFAULT 3600"},
+    {"workers", "drained", "INTEGER NOT NULL DEFAULT 0"},
 };
 
 }  // namespace
@@ -341,7 +342,11 @@ void DurableStore::apply(const SchedulerChanges& c) {
     st.run();
   }
   for (const WorkerRow& r : c.workers)
-    db_.statement("INSERT OR REPLACE INTO workers(id, name) VALUES(?,?)").bind_text(1, r.id).bind_text(2, r.name).run();
+    db_.statement("INSERT OR REPLACE INTO workers(id, name, drained) VALUES(?,?,?)")
+        .bind_text(1, r.id)
+        .bind_text(2, r.name)
+        .bind(3, int64_t(r.drained))
+        .run();
   const std::pair<const char*, uint64_t> counters[] = {{"next_seq", c.counters.next_seq},
                                                        {"tiles_rendered", c.counters.tiles_rendered},
                                                        {"lease_expiries", c.counters.lease_expiries},
@@ -456,8 +461,8 @@ SchedulerSnapshot DurableStore::load() {
     }
   }
   {
-    Statement& st = db_.statement("SELECT id, name FROM workers");
-    while (st.step()) snap.workers.push_back(WorkerRow{st.text(0), st.text(1)});
+    Statement& st = db_.statement("SELECT id, name, drained FROM workers");
+    while (st.step()) snap.workers.push_back(WorkerRow{st.text(0), st.text(1), st.integer(2) != 0});
   }
   tx.commit();
   return snap;

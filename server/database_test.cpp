@@ -156,6 +156,18 @@ TEST_F(DatabaseTest, APausedJobStaysPausedAcrossARestart) {
   EXPECT_EQ(lease(w).tile, 1);
 }
 
+TEST_F(DatabaseTest, ADrainedWorkerStaysDrainedAcrossARestart) {
+  job();
+  const std::string w = sched->register_worker("w"), v = sched->register_worker("v");
+  ASSERT_TRUE(sched->set_drained(w, true));
+  reopen();
+  EXPECT_EQ(sched->acquire(w).status, AcquireResult::no_work);
+  EXPECT_EQ(sched->acquire(v).status, AcquireResult::granted);  // only the drained one
+  ASSERT_TRUE(sched->set_drained(w, false));
+  reopen();
+  EXPECT_EQ(sched->acquire(w).status, AcquireResult::granted);
+}
+
 TEST_F(DatabaseTest, TileDetailsSurviveARestart) {
   const std::string j = job();  // 2 tiles
   const std::string w = sched->register_worker("w");

@@ -151,7 +151,7 @@ void Scheduler::flush_locked() {
   }
   for (const std::string& id : new_workers_) {
     const auto it = workers_.find(id);
-    if (it != workers_.end()) c.workers.push_back(WorkerRow{id, it->second.name});
+    if (it != workers_.end()) c.workers.push_back(WorkerRow{id, it->second.name, it->second.drained});
   }
   c.purged_jobs.assign(purged_jobs_.begin(), purged_jobs_.end());
   // On failure the dirty sets stay, so the next operation writes these rows again.
@@ -172,7 +172,10 @@ void Scheduler::restore_locked(SchedulerSnapshot snap, int64_t now) {
   lease_expiries_ = snap.counters.lease_expiries;
   rays_ = snap.counters.rays;
   flushed_counters_ = snap.counters;
-  for (const WorkerRow& w : snap.workers) workers_[w.id] = WorkerRec{w.name, now};  // downtime counts against nobody
+  for (const WorkerRow& w : snap.workers) {
+    WorkerRec& rec = workers_[w.id] = WorkerRec{w.name, now};  // downtime counts against nobody
+    rec.drained = w.drained;
+  }
   for (JobRow& row : snap.jobs) {
     auto rec = std::make_unique<JobRec>();
     const JobParams& p = row.status.params;
@@ -398,6 +401,7 @@ std::optional<protocol::WorkerInfo> Scheduler::set_drained(const std::string& wo
   return transact([&](int64_t now) -> std::optional<protocol::WorkerInfo> {
     const auto it = workers_.find(worker);
     if (it == workers_.end()) return std::nullopt;
+    if (it->second.drained != drained) new_workers_.insert(worker);  // stored: a restart keeps the worker drained
     it->second.drained = drained;
     return worker_info_locked(it->first, it->second, now);
   });

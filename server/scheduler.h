@@ -208,8 +208,9 @@ struct LeaseRow {
 
 /// A registered worker.
 struct WorkerRow {
-  std::string id;    ///< Worker id.
-  std::string name;  ///< Its self-reported name.
+  std::string id;        ///< Worker id.
+  std::string name;      ///< Its self-reported name.
+  bool drained = false;  ///< An operator drained it (no new leases until undrained).
 };
 
 /// Counters and the id sequence, kept so a restarted coordinator continues them.
@@ -227,7 +228,7 @@ struct SchedulerChanges {
   std::vector<JobRow> jobs;        ///< Changed jobs.
   std::vector<TileRow> tiles;      ///< Changed tiles.
   std::vector<LeaseRow> leases;    ///< Changed leases.
-  std::vector<WorkerRow> workers;  ///< New workers.
+  std::vector<WorkerRow> workers;  ///< New workers, and workers drained or undrained.
   std::vector<std::string> purged_jobs;  ///< Jobs whose every row (job, tiles, leases, record) goes.
   CounterRow counters;             ///< Counters after the operation.
   /// True when nothing but the counters changed.
