@@ -206,6 +206,51 @@ void adaptive(const std::string& name, const Scene& s, const Image& ref, const s
     }
 }
 
+// --levels: the level profile of the scene's median pixels (those whose measured relative error at the largest spp
+// lies between the 40th and 60th percentile; green channel): the geometric mean over them of h(2b) / h(b) from the
+// levels averaged over the renders at the largest spp, and of the measured Var_2n / Var_n between successive spp
+// (the decay the extrapolations have to guess; the reference's own variance is in both).
+void print_levels(const std::string& name, const Image& ref, const std::vector<uint32_t>& counts,
+                  const std::vector<std::vector<Tally>>& own, const std::vector<std::vector<std::vector<double>>>& sums,
+                  int seeds) {
+  const size_t np = size_t(ref.width) * size_t(ref.height), last = counts.size() - 1;
+  std::vector<double> err(np);
+  for (size_t i = 0; i < np; ++i) {
+    const double r = ref.rgb[3 * i + 1];
+    err[i] = own[last][0].se[3 * i + 1] / (r * r + 0.01);
+  }
+  const double lo = quantile(err, 0.4), hi = quantile(err, 0.6);
+  const size_t levels = sums[last][1].size();
+  std::vector<double> log_level(levels > 0 ? levels - 1 : 0, 0.0), log_var(last, 0.0);
+  std::vector<size_t> n_level(log_level.size(), 0), n_var(last, 0);
+  size_t band = 0;
+  for (size_t i = 0; i < np; ++i) {
+    if (err[i] < lo || err[i] > hi) continue;
+    ++band;
+    const std::vector<double>& l = sums[last][3 * i + 1];
+    for (size_t j = 0; j + 1 < l.size(); ++j)
+      if (l[j] > 0 && l[j + 1] > 0) {
+        log_level[j] += std::log(l[j + 1] / l[j]);
+        ++n_level[j];
+      }
+    for (size_t c = 0; c < last; ++c) {
+      const double a = own[c][0].se[3 * i + 1], b = own[c + 1][0].se[3 * i + 1];
+      if (a > 0 && b > 0 && counts[c + 1] == 2 * counts[c]) {
+        log_var[c] += std::log(b / a);
+        ++n_var[c];
+      }
+    }
+  }
+  std::printf("| %s | %zu of %zu, %d renders |", name.c_str(), band, np, seeds);
+  for (size_t j = 0; j < log_level.size(); ++j)
+    std::printf("%s %.3f", j ? "," : "", n_level[j] ? std::exp(log_level[j] / double(n_level[j])) : 0.0);
+  std::printf(" |");
+  for (size_t c = 0; c < log_var.size(); ++c)
+    std::printf("%s %.3f", c ? "," : "", n_var[c] ? std::exp(log_var[c] / double(n_var[c])) : 0.0);
+  std::printf(" |\n");
+  std::fflush(stdout);
+}
+
 // --closed-forms: integrands of one pixel's sample stream whose variance is taken over `seeds` seeds (each an
 // independently scrambled stream), against the mean of each estimate, at n = 16 .. 256. The first five use the
 // first 2D draw u (the pixel's position in a render); the last multiplies an edge in u by an edge in the second
@@ -284,18 +329,19 @@ int main(int argc, char** argv) {
   std::vector<std::string> spps = {"16", "64"};
   bool replicates = true;  // --replicates 0: skip the replicate rows (two more renders per seed and spp)
   bool closed = false;
+  bool levels_only = false;  // --levels: the median pixels' level profile instead of the estimate rows
   uint32_t sweep_max = 0;  // > 0: print the uniform sweep 1 .. sweep_max spp instead (see sweep())
   std::vector<double> targets;  // non-empty: simulate --target-error at these targets instead (see adaptive())
   std::vector<std::string> scenes = {"cbox_no_light", "cbox_no_light_refraction", "cbox_area_light", "cbox_env_light",
                                      "sky_sun"};
   for (int i = 1; i < argc; ++i) {
     const std::string k = argv[i];
-    if (k == "--closed-forms") {
-      closed = true;
+    if (k == "--closed-forms" || k == "--levels") {
+      (k == "--levels" ? levels_only : closed) = true;
       continue;
     }
     if (i + 1 >= argc) {
-      std::fprintf(stderr, "usage: %s [--scale F] [--seeds S] [--ref-spp N] [--spp N,N] [--scenes a,b] [--replicates 0|1] [--sweep N] [--adaptive E,E] [--closed-forms]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--scale F] [--seeds S] [--ref-spp N] [--spp N,N] [--scenes a,b] [--replicates 0|1] [--sweep N] [--adaptive E,E] [--closed-forms] [--levels]\n", argv[0]);
       return 2;
     }
     const std::string v = argv[++i];
@@ -330,6 +376,9 @@ int main(int argc, char** argv) {
   std::sort(counts.begin(), counts.end());
   if (!targets.empty())
     std::printf("| scene | rule | E | mean spp | p99 | uniform spp, same p99 | saved |\n|---|---|---|---|---|---|---|\n");
+  else if (levels_only)
+    std::printf("| scene | pixels | h(2b) / h(b) for b = 1, 2, 4, ... | measured Var_2n / Var_n for n = %u, %u, ... |\n"
+                "|---|---|---|---|\n", counts.front(), 2 * counts.front());
   else if (sweep_max == 0)
     std::printf("| scene | spp | estimate | relMSE cost | aggregate predicted / measured | p50 | p99 |\n"
               "|---|---|---|---|---|---|---|\n");
@@ -392,6 +441,10 @@ int main(int argc, char** argv) {
         }
       }
     });
+    if (levels_only) {
+      print_levels(name, ref, counts, own, level_sums, seeds);
+      continue;
+    }
     for (size_t ci = 0; ci < nc; ++ci) {
       const uint32_t n = counts[ci];
       const std::vector<double>& base = own[ci][0].se;
