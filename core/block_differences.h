@@ -2,11 +2,13 @@
 // sample blocks. Samples [k 2^j, (k+1) 2^j) of a pixel form a scrambled (0,j,2)-net in every 2D draw, so for block
 // means m of size b, E[(m_left - m_right)^2] / 4 = h(b) = Var_b - Var_2b exactly, where Var_b is the variance of a
 // b-sample mean; the variance of the n-sample mean is the sum of h over the block sizes b >= n, which the samples do
-// not contain and which is extrapolated from the sizes below n.
+// not contain and which is extrapolated from the sizes below n (docs/error-estimates.md measures how well).
 #pragma once
 
 #include <array>
 #include <cstdint>
+#include <span>
+#include <vector>
 
 namespace tessera {
 
@@ -23,16 +25,31 @@ class BlockDifferences {
   /// h(2^level): mean over the complete sibling pairs of blocks of 2^level samples of (difference of means)^2 / 4;
   /// 0 without a complete pair.
   double h(int level) const;
+  /// h(1), h(2), ..., h(2^top) with 2^top = n/2 the largest block size that has a complete pair (empty below 2).
+  std::vector<double> levels() const;
   /// The i.i.d.-exact estimate of the n-sample mean's variance for a power-of-two n >= 2: h(n/2) (equal to
   /// variance / n for independent samples, larger than the true variance for stratified ones).
   double half_difference() const;
-  /// Variance of the mean extrapolated over the block sizes, for a power-of-two n >= 8: the decay per doubling
-  /// r = (h(n/2) + 2 h(n/4)) / (h(n/4) + 2 h(n/8)) (the top three levels, each ratio weighted by its pairs), clamped
-  /// to [1/16, 1/2] (a 2D scrambled net's variance falls between n^-1 for any integrand and n^-3 for smooth ones;
-  /// 1/16 leaves room for noise), then sum over b >= n of h(b) = h(n/2) r / (1 - r). At n = 4 the rate is
-  /// h(2) / h(1); at n = 2 it is half_difference(); 0 below. Other counts use their largest power-of-two prefix's
-  /// levels as if they were complete, so use it on powers of two.
+  /// pooled_rate(levels()).
   double extrapolated() const;
+  /// two_doubling_rate(levels()).
+  double two_doubling() const;
+
+  // Extrapolations as functions of the levels alone (the last one being h(n/2) of a power-of-two n), so that they
+  // also apply to levels averaged over renders. Each is h(n/2) r / (1 - r), the sum over b >= n of a geometric
+  // continuation with decay r per doubling, r clamped to [1/16, 1/2] (a scrambled 2D net's variance falls between
+  // n^-1, any square-integrable integrand, and about n^-3, smooth ones; 1/16 leaves room for noise).
+
+  /// r from the top three levels, each ratio weighted by its pairs: (h(n/2) + 2 h(n/4)) / (h(n/4) + 2 h(n/8)); at
+  /// n = 4 h(2) / h(1), at n = 2 no extrapolation (h(1)); 0 below.
+  static double pooled_rate(std::span<const double> levels);
+  /// r^2 from two doublings of the top four levels: (h(n/2) + 2 h(n/4)) / (h(n/8) + 2 h(n/16)). A (0,m,2)-net's
+  /// levels alternate between odd and even m (an axis-aligned edge is cut by every other level's strata), and a
+  /// ratio of equal mixes of adjacent levels cancels that. Below 16 samples pooled_rate.
+  static double two_doubling_rate(std::span<const double> levels);
+  /// The same r^2 from the four levels below the top, (h(n/4) + 2 h(n/8)) / (h(n/16) + 2 h(n/32)), so that it does
+  /// not share a sample difference with h(n/2) (h(n/4) / h(n/16) at n = 16); below 16 samples pooled_rate.
+  static double two_doubling_rate_below(std::span<const double> levels);
 
  private:
   std::array<double, kLevels> open_{};  // sum of the incomplete left block of each level (bit j of n_ set)
