@@ -1,5 +1,7 @@
 #include "core/bvh.h"
 
+#include "core/bvh_kernels.h"
+
 #include <emmintrin.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -15,6 +17,7 @@
 #include <limits>
 #include <cstdlib>
 #include <stdexcept>
+#include <string>
 
 #if defined(__linux__)
 #include <sys/mman.h>
@@ -53,7 +56,11 @@ constexpr int kMaxBins = 32;
 constexpr size_t kParallelBinThreshold = 64 * 1024;  // refs; below this binning runs on one thread
 constexpr size_t kParallelTaskThreshold = 4 * 1024;  // refs; below this subtrees build on one thread
 constexpr int kForceMedianDepth = 40;  // binary split depth past which splits use the object median (bounded depth)
-constexpr int kWidth = 4;              // children per node and primitives per packet
+using bvh_layout::kLastPacket;
+using bvh_layout::kLeafBit;
+using bvh_layout::kNoPrim;
+constexpr int kNodeWidth = bvh_layout::kNodeWidth;
+constexpr int kPacketWidth = bvh_layout::kPacketWidth;
 
 // SAH constants for the 4-wide tree with 4-wide leaf packets, in units of one packet (four primitives) test. A
 // binary split becomes half of a 4-wide node on average, and a 4-box SSE slab test is cheaper than a 4-triangle
@@ -61,7 +68,7 @@ constexpr int kWidth = 4;              // children per node and primitives per p
 constexpr float kTraversalCost = 0.5f;
 constexpr float kPacketCost = 1.f;
 
-inline uint32_t packets_for(uint32_t prims) { return (prims + kWidth - 1) / kWidth; }
+inline uint32_t packets_for(uint32_t prims) { return (prims + kPacketWidth - 1) / kPacketWidth; }
 
 // A build reference: the primitive's box with its id in lo's fourth lane, 32 bytes, loaded as two SSE vectors.
 // Its "centroid" is lo + hi (twice the centre; only compared and binned, so the factor does not matter).
@@ -227,7 +234,7 @@ struct Bvh::Builder {
     if (n == 1) return false;
     const uint32_t max_leaf = leaf_limit();
     // One packet's worth of primitives: a leaf is one 4-wide test; no split can be cheaper than that.
-    if (n <= max_leaf && n <= uint32_t(kWidth)) return false;
+    if (n <= max_leaf && n <= uint32_t(kPacketWidth)) return false;
 
     const int axis = r.cbox.max_extent();
     const Vec3 ext = r.cbox.diagonal();
@@ -344,7 +351,7 @@ struct Bvh::Builder {
       Packet& pk = out[p];
       pk = Packet{};
       const bool tri = i < r.end && refs[i].id < ntri;
-      for (int lane = 0; lane < kWidth; ++lane) {
+      for (int lane = 0; lane < kPacketWidth; ++lane) {
         if (i < r.end && (refs[i].id < ntri) == tri) {
           const uint32_t id = refs[i++].id;
           pk.id[lane] = id;
@@ -378,7 +385,7 @@ struct Bvh::Builder {
   // Builds the node at index idx over a range already split into a and b: opens the child with the largest area
   // until there are four children or none can be split, then recurses into the interior children.
   void build_node(uint32_t idx, const Range& a, const Range& b) {
-    std::array<Child, kWidth> c;
+    std::array<Child, kNodeWidth> c;
     c[0].r = a;
     c[1].r = b;
     int nc = 2;
@@ -386,7 +393,7 @@ struct Bvh::Builder {
       // Both halves will be opened: split them side by side (near the root, partitions are serial otherwise).
       tbb::parallel_invoke([&] { c[0].decide(*this); }, [&] { c[1].decide(*this); });
     }
-    while (nc < kWidth) {
+    while (nc < kNodeWidth) {
       int best = -1;
       float best_area = -1.f;
       for (int k = 0; k < nc; ++k) {
@@ -415,8 +422,9 @@ struct Bvh::Builder {
     const uint32_t base = interior ? next_node.fetch_add(uint32_t(interior), std::memory_order_relaxed) : 0;
 
     Node& node = bvh.nodes_[idx];
+    std::fill(std::begin(node.pad), std::end(node.pad), 0u);
     uint32_t next = base;
-    for (int k = 0; k < kWidth; ++k) {
+    for (int k = 0; k < kNodeWidth; ++k) {
       if (k < nc) {
         const Bounds3& bx = c[k].r.box;
         for (int ax = 0; ax < 3; ++ax) {
@@ -431,7 +439,6 @@ struct Bvh::Builder {
         }
         node.child[k] = 0;
       }
-      node.pad[k] = 0;
     }
 
     tbb::task_group tg;
@@ -537,13 +544,13 @@ Bvh Bvh::build(std::span<const Triangle> triangles, std::span<const Sphere> sphe
   } else {
     // The whole scene is one leaf: a root with a single child.
     Node& node = bvh.nodes_[root_idx];
-    for (int k = 0; k < kWidth; ++k) {
+    std::fill(std::begin(node.pad), std::end(node.pad), 0u);
+    for (int k = 0; k < kNodeWidth; ++k) {
       for (int ax = 0; ax < 3; ++ax) {
         node.box[2 * ax][k] = k == 0 ? root.box.lo[ax] : kInfinity;
         node.box[2 * ax + 1][k] = k == 0 ? root.box.hi[ax] : -kInfinity;
       }
       node.child[k] = 0;
-      node.pad[k] = 0;
     }
     node.child[0] = b.emit_leaf(root);
   }
@@ -553,295 +560,85 @@ Bvh Bvh::build(std::span<const Triangle> triangles, std::span<const Sphere> sphe
 }
 
 // ------------------------------------------------------------------------------------------------------------
-// Traversal.
+// Queries: per-ray constants here, traversal in the kernels of the chosen SimdPath (core/bvh_kernels.h).
+
+namespace bvh_kernels {
+
+bool triangle_fallback(const float (&s)[9], float sz, float tmax, HitRecord* out) {
+  const detail::Sheared sh{s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7], s[8]};
+  const auto h = detail::intersect_sheared_double(sh, sz, tmax);
+  if (!h) return false;
+  *out = HitRecord{h->t, h->b1, h->b2, 0};
+  return true;
+}
+
+bool sphere_hit(const TraceRay& r, float cx, float cy, float cz, float radius, float tmax, float* t) {
+  const auto th = intersect_sphere(Sphere{Vec3(cx, cy, cz), radius}, *r.ray, tmax);
+  if (!th) return false;
+  *t = *th;
+  return true;
+}
+
+}  // namespace bvh_kernels
 
 namespace {
 
-// Per-ray constants of the 4-wide slab test. The arithmetic per lane is exactly slab_test()'s (bounds.h): near
-// and far planes chosen by the direction's sign, (plane - o) * inv_d, the far distance scaled by 1 + 2*gamma(3),
-// and max/min that keep the running value when the new distance is NaN (MAXPS/MINPS return their second operand
-// on unordered inputs).
-struct SimdBoxRay {
-  __m128 o[3], inv_d[3];
-  int near_row[3], far_row[3];  // rows of Node::box
-  explicit SimdBoxRay(const BoxRay& br) {
-    for (int a = 0; a < 3; ++a) {
-      o[a] = _mm_set1_ps(br.o[a]);
-      inv_d[a] = _mm_set1_ps(br.inv_d[a]);
-      near_row[a] = 2 * a + (br.neg[a] ? 1 : 0);
-      far_row[a] = 2 * a + (br.neg[a] ? 0 : 1);
-    }
-  }
-};
+const bvh_kernels::Kernels& kernels_of(SimdPath p) {
+  static const bvh_kernels::Kernels* const table[] = {&bvh_kernels::kSse2, &bvh_kernels::kAvx2,
+                                                      &bvh_kernels::kAvx512};
+  return *table[size_t(p)];
+}
 
-constexpr float kFarScale = 1.f + 2.f * gamma(3);
-
-// Slab test of the four child boxes against (0, tmax); returns the mask of boxes entered and their entry distances.
-template <class NodeT>
-inline int slab_test4(const NodeT& n, const SimdBoxRay& r, __m128 tmax, __m128* t_entry) {
-  const __m128 scale = _mm_set1_ps(kFarScale);
-  __m128 t0 = _mm_setzero_ps(), t1 = tmax;
+// The kernels' per-ray constants: BoxRay's (core/bounds.h) and WatertightRay's (core/triangle.h).
+bvh_kernels::TraceRay trace_ray(const Ray& ray) {
+  const BoxRay br(ray);
+  const WatertightRay wr(ray);
+  bvh_kernels::TraceRay t;
   for (int a = 0; a < 3; ++a) {
-    const __m128 tn = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[r.near_row[a]]), r.o[a]), r.inv_d[a]);
-    const __m128 tf =
-        _mm_mul_ps(_mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[r.far_row[a]]), r.o[a]), r.inv_d[a]), scale);
-    t0 = _mm_max_ps(tn, t0);  // tn > t0 ? tn : t0
-    t1 = _mm_min_ps(tf, t1);  // tf < t1 ? tf : t1
+    t.o[a] = br.o[a];
+    t.inv_d[a] = br.inv_d[a];
+    t.near_row[a] = 2 * a + (br.neg[a] ? 1 : 0);
+    t.far_row[a] = 2 * a + (br.neg[a] ? 0 : 1);
   }
-  *t_entry = t0;
-  return _mm_movemask_ps(_mm_cmple_ps(t0, t1));
+  t.far_scale = 1.f + 2.f * gamma(3);
+  t.kx = wr.kx;
+  t.ky = wr.ky;
+  t.kz = wr.kz;
+  t.ox = wr.o[wr.kx];
+  t.oy = wr.o[wr.ky];
+  t.oz = wr.o[wr.kz];
+  t.sx = wr.sx;
+  t.sy = wr.sy;
+  t.sz = wr.sz;
+  t.tmax = ray.tmax;
+  t.ray = &ray;
+  return t;
 }
-
-// Per-ray constants of the 4-wide watertight test (the same as WatertightRay, broadcast).
-struct SimdTriRay {
-  const WatertightRay& wr;
-  __m128 ox, oy, oz, sx, sy, sz;
-  explicit SimdTriRay(const WatertightRay& w)
-      : wr(w),
-        ox(_mm_set1_ps(w.o[w.kx])),
-        oy(_mm_set1_ps(w.o[w.ky])),
-        oz(_mm_set1_ps(w.o[w.kz])),
-        sx(_mm_set1_ps(w.sx)),
-        sy(_mm_set1_ps(w.sy)),
-        sz(_mm_set1_ps(w.sz)) {}
-};
-
-// Results of four triangle tests: lanes that hit in (0, tmax), with t and the barycentrics of p1 and p2.
-struct Lanes4 {
-  alignas(16) float t[4];
-  alignas(16) float b1[4];
-  alignas(16) float b2[4];
-};
-
-// The watertight test (triangle.h) on the four triangles of a packet, lane by lane with the same operations in
-// the same order, so t and the barycentrics are bitwise those of intersect_triangle(). Lanes whose float edge
-// functions are zero or whose determinant is not finite go to the same double-precision fallback.
-// `valid` is the mask of used lanes. Returns the mask of lanes that hit; fills `out` for them when given.
-inline int intersect_triangles4(const float (&v)[3][3][4], int valid, const SimdTriRay& r, float tmax,
-                                Lanes4* out) {
-  const WatertightRay& w = r.wr;
-  const __m128 az = _mm_sub_ps(_mm_load_ps(v[0][w.kz]), r.oz);
-  const __m128 bz = _mm_sub_ps(_mm_load_ps(v[1][w.kz]), r.oz);
-  const __m128 cz = _mm_sub_ps(_mm_load_ps(v[2][w.kz]), r.oz);
-  const __m128 ax = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(v[0][w.kx]), r.ox), _mm_mul_ps(r.sx, az));
-  const __m128 ay = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(v[0][w.ky]), r.oy), _mm_mul_ps(r.sy, az));
-  const __m128 bx = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(v[1][w.kx]), r.ox), _mm_mul_ps(r.sx, bz));
-  const __m128 by = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(v[1][w.ky]), r.oy), _mm_mul_ps(r.sy, bz));
-  const __m128 cx = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(v[2][w.kx]), r.ox), _mm_mul_ps(r.sx, cz));
-  const __m128 cy = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(v[2][w.ky]), r.oy), _mm_mul_ps(r.sy, cz));
-
-  const __m128 e0 = _mm_sub_ps(_mm_mul_ps(bx, cy), _mm_mul_ps(by, cx));
-  const __m128 e1 = _mm_sub_ps(_mm_mul_ps(cx, ay), _mm_mul_ps(cy, ax));
-  const __m128 e2 = _mm_sub_ps(_mm_mul_ps(ax, by), _mm_mul_ps(ay, bx));
-  const __m128 det = _mm_add_ps(_mm_add_ps(e0, e1), e2);
-
-  const __m128 zero = _mm_setzero_ps();
-  const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
-  const __m128 finite = _mm_cmple_ps(_mm_and_ps(det, abs_mask), _mm_set1_ps(std::numeric_limits<float>::max()));
-  const __m128 any_zero = _mm_or_ps(_mm_or_ps(_mm_cmpeq_ps(e0, zero), _mm_cmpeq_ps(e1, zero)), _mm_cmpeq_ps(e2, zero));
-  const int fallback = _mm_movemask_ps(any_zero) | (_mm_movemask_ps(finite) ^ 0xf);
-  const int fb = fallback & valid;
-
-  const __m128 neg = _mm_or_ps(_mm_or_ps(_mm_cmplt_ps(e0, zero), _mm_cmplt_ps(e1, zero)), _mm_cmplt_ps(e2, zero));
-  const __m128 pos = _mm_or_ps(_mm_or_ps(_mm_cmpgt_ps(e0, zero), _mm_cmpgt_ps(e1, zero)), _mm_cmpgt_ps(e2, zero));
-  int hit = valid & ~fallback & ~_mm_movemask_ps(_mm_and_ps(neg, pos));
-  if (!hit && !fb) return 0;
-
-  const __m128 inv_det = _mm_div_ps(_mm_set1_ps(1.f), det);
-  const __m128 szaz = _mm_mul_ps(r.sz, az), szbz = _mm_mul_ps(r.sz, bz), szcz = _mm_mul_ps(r.sz, cz);
-  const __m128 t = _mm_mul_ps(
-      _mm_add_ps(_mm_add_ps(_mm_mul_ps(e0, szaz), _mm_mul_ps(e1, szbz)), _mm_mul_ps(e2, szcz)), inv_det);
-  hit &= _mm_movemask_ps(_mm_and_ps(_mm_cmpgt_ps(t, zero), _mm_cmplt_ps(t, _mm_set1_ps(tmax))));
-  if (out && hit) {
-    _mm_store_ps(out->t, t);
-    _mm_store_ps(out->b1, _mm_mul_ps(e1, inv_det));
-    _mm_store_ps(out->b2, _mm_mul_ps(e2, inv_det));
-  }
-  if (fb) {
-    alignas(16) float s[9][4];
-    _mm_store_ps(s[0], ax); _mm_store_ps(s[1], ay); _mm_store_ps(s[2], az);
-    _mm_store_ps(s[3], bx); _mm_store_ps(s[4], by); _mm_store_ps(s[5], bz);
-    _mm_store_ps(s[6], cx); _mm_store_ps(s[7], cy); _mm_store_ps(s[8], cz);
-    for (int m = fb; m; m &= m - 1) {
-      const int k = std::countr_zero(unsigned(m));
-      const detail::Sheared sh{s[0][k], s[1][k], s[2][k], s[3][k], s[4][k], s[5][k], s[6][k], s[7][k], s[8][k]};
-      if (const auto h = detail::intersect_sheared_double(sh, w.sz, tmax)) {
-        hit |= 1 << k;
-        if (!out) return hit;
-        out->t[k] = h->t;
-        out->b1[k] = h->b1;
-        out->b2[k] = h->b2;
-      }
-    }
-  }
-  return hit;
-}
-
-inline int valid_lanes(const uint32_t (&id)[4]) {
-  const __m128i ids = _mm_load_si128(reinterpret_cast<const __m128i*>(id));
-  return _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(ids, _mm_set1_epi32(-1)))) ^ 0xf;
-}
-
-// Asks for the cache lines a child reference will touch first: a node's two lines or a leaf's first packet.
-template <class NodeT, class PacketT>
-inline void prefetch_child(uint32_t ref, const NodeT* nodes, const PacketT* packets, uint32_t leaf_bit) {
-  const char* p = (ref & leaf_bit) ? reinterpret_cast<const char*>(packets + (ref & ~leaf_bit))
-                                   : reinterpret_cast<const char*>(nodes + ref);
-  _mm_prefetch(p, _MM_HINT_T0);
-  _mm_prefetch(p + 64, _MM_HINT_T0);
-  if (ref & leaf_bit) _mm_prefetch(p + 128, _MM_HINT_T0);
-}
-
-struct StackEntry {
-  uint32_t ref;
-  float t;  // entry distance when pushed
-};
-
-constexpr int kStackSize = 3 * Bvh::kMaxDepth + 4;
 
 }  // namespace
 
+void Bvh::set_simd_path(SimdPath p) {
+  if (!simd_path_supported(p))
+    throw std::invalid_argument("Bvh: this CPU cannot run the " + std::string(kSimdPathNames[size_t(p)]) +
+                                " kernels");
+  path_ = p;
+}
+
 std::optional<Hit> Bvh::intersect(const Ray& ray) const {
   if (nodes_.empty() || !ray.valid()) return std::nullopt;
-  const BoxRay br(ray);
-  const SimdBoxRay sr(br);
-  const WatertightRay wr(ray);
-  const SimdTriRay tr(wr);
-  float tmax = ray.tmax;
-  Hit best{};
-  bool found = false;
-
-  StackEntry stack[kStackSize];
-  int sp = 0;
-  uint32_t ref = 0;
-  for (;;) {
-    while (!(ref & kLeafBit)) {
-      const Node& n = nodes_[ref];
-      __m128 tn;
-      const int mask = slab_test4(n, sr, _mm_set1_ps(tmax), &tn);
-      if (mask == 0) goto pop;
-      const int c0 = std::countr_zero(unsigned(mask));
-      const int rest = mask & (mask - 1);
-      if (rest == 0) {
-        ref = n.child[c0];
-        continue;
-      }
-      alignas(16) float t[4];
-      _mm_store_ps(t, tn);
-      const int c1 = std::countr_zero(unsigned(rest));
-      if ((rest & (rest - 1)) == 0) {
-        // Two boxes: visit the nearer first.
-        const bool swap = t[c1] < t[c0];
-        const int near = swap ? c1 : c0, far = swap ? c0 : c1;
-        stack[sp++] = {n.child[far], t[far]};
-        prefetch_child(n.child[far], nodes_.data(), packets_.data(), kLeafBit);
-        ref = n.child[near];
-        continue;
-      }
-      // Three or four: sort by entry distance, farthest pushed first, nearest visited now.
-      StackEntry e[4];
-      int ne = 0;
-      for (int m = mask; m; m &= m - 1) {
-        const int k = std::countr_zero(unsigned(m));
-        StackEntry x{n.child[k], t[k]};
-        int j = ne++;
-        while (j > 0 && e[j - 1].t < x.t) {
-          e[j] = e[j - 1];
-          --j;
-        }
-        e[j] = x;
-      }
-      for (int k = 0; k < ne - 1; ++k) {
-        stack[sp++] = e[k];
-        prefetch_child(e[k].ref, nodes_.data(), packets_.data(), kLeafBit);
-      }
-      ref = e[ne - 1].ref;
-    }
-    // Leaf.
-    for (const Packet* pk = &packets_[ref & ~kLeafBit];; ++pk) {
-      const uint32_t id0 = pk->id[0] & ~kLastPacket;
-      const int valid = valid_lanes(pk->id);
-      if (id0 < num_triangles_) {
-        Lanes4 lanes;
-        for (int m = intersect_triangles4(pk->v, valid, tr, tmax, &lanes); m; m &= m - 1) {
-          const int k = std::countr_zero(unsigned(m));
-          if (lanes.t[k] < tmax) {  // lanes in order, as a sequential loop would accept them
-            tmax = lanes.t[k];
-            best = Hit{lanes.t[k], lanes.b1[k], lanes.b2[k], k == 0 ? id0 : pk->id[k]};
-            found = true;
-          }
-        }
-      } else {
-        for (int m = valid; m; m &= m - 1) {
-          const int k = std::countr_zero(unsigned(m));
-          const Sphere s{Vec3(pk->v[0][0][k], pk->v[0][1][k], pk->v[0][2][k]), pk->v[1][0][k]};
-          if (auto th = intersect_sphere(s, ray, tmax)) {
-            tmax = *th;
-            best = Hit{*th, 0.f, 0.f, k == 0 ? id0 : pk->id[k]};
-            found = true;
-          }
-        }
-      }
-      if (pk->id[0] & kLastPacket) break;
-    }
-  pop:
-    for (;;) {
-      if (sp == 0) {
-        if (!found) return std::nullopt;
-        return best;
-      }
-      const StackEntry& e = stack[--sp];
-      if (e.t <= tmax) {  // the slab test against the shortened ray, given it passed against the longer one
-        ref = e.ref;
-        break;
-      }
-    }
-  }
+  const bvh_kernels::Tree tree{nodes_.data(), packets_.data(), num_triangles_};
+  bvh_kernels::HitRecord h;
+  if (!kernels_of(path_).intersect(tree, trace_ray(ray), &h)) return std::nullopt;
+  return Hit{h.t, h.b1, h.b2, h.prim};
 }
 
 bool Bvh::occluded(const Ray& ray) const {
   if (nodes_.empty() || !ray.valid()) return false;
-  const BoxRay br(ray);
-  const SimdBoxRay sr(br);
-  const WatertightRay wr(ray);
-  const SimdTriRay tr(wr);
-  const float tmax = ray.tmax;
-  const __m128 tmax4 = _mm_set1_ps(tmax);
-
-  uint32_t stack[kStackSize];
-  int sp = 0;
-  uint32_t ref = 0;
-  for (;;) {
-    while (!(ref & kLeafBit)) {
-      const Node& n = nodes_[ref];
-      __m128 tn;
-      int mask = slab_test4(n, sr, tmax4, &tn);
-      if (mask == 0) goto pop;
-      ref = n.child[std::countr_zero(unsigned(mask))];
-      for (mask &= mask - 1; mask; mask &= mask - 1) {
-        const uint32_t c = n.child[std::countr_zero(unsigned(mask))];
-        stack[sp++] = c;
-        prefetch_child(c, nodes_.data(), packets_.data(), kLeafBit);
-      }
-    }
-    for (const Packet* pk = &packets_[ref & ~kLeafBit];; ++pk) {
-      const int valid = valid_lanes(pk->id);
-      if ((pk->id[0] & ~kLastPacket) < num_triangles_) {
-        if (intersect_triangles4(pk->v, valid, tr, tmax, nullptr)) return true;
-      } else {
-        for (int m = valid; m; m &= m - 1) {
-          const int k = std::countr_zero(unsigned(m));
-          const Sphere s{Vec3(pk->v[0][0][k], pk->v[0][1][k], pk->v[0][2][k]), pk->v[1][0][k]};
-          if (intersect_sphere(s, ray, tmax)) return true;
-        }
-      }
-      if (pk->id[0] & kLastPacket) break;
-    }
-  pop:
-    if (sp == 0) return false;
-    ref = stack[--sp];
-  }
+  const bvh_kernels::Tree tree{nodes_.data(), packets_.data(), num_triangles_};
+  return kernels_of(path_).occluded(tree, trace_ray(ray));
 }
+
+size_t Bvh::memory_bytes() const { return nodes_.size() * sizeof(Node) + packets_.size() * sizeof(Packet); }
 
 BvhStats Bvh::stats() const {
   BvhStats s;
@@ -863,7 +660,7 @@ BvhStats Bvh::stats() const {
       s.max_depth = std::max(s.max_depth, it.depth);
       size_t prims = 0;
       for (const Packet* pk = &packets_[it.ref & ~kLeafBit];; ++pk) {
-        prims += size_t(std::popcount(unsigned(valid_lanes(pk->id))));
+        for (int k = 0; k < kPacketWidth; ++k) prims += pk->id[k] != kNoPrim;
         if (pk->id[0] & kLastPacket) break;
       }
       cost += it.rel * double(prims);
@@ -871,7 +668,7 @@ BvhStats Bvh::stats() const {
     }
     cost += it.rel;
     const Node& n = nodes_[it.ref];
-    for (int k = 0; k < kWidth; ++k) {
+    for (int k = 0; k < kNodeWidth; ++k) {
       const Bounds3 b{Vec3(n.box[0][k], n.box[2][k], n.box[4][k]), Vec3(n.box[1][k], n.box[3][k], n.box[5][k])};
       if (b.empty()) continue;
       const double rel = root_area > 0 ? b.surface_area() / root_area : 1.0;
