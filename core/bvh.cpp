@@ -383,7 +383,7 @@ struct Bvh::Builder {
   };
 
   // Builds the node at index idx over a range already split into a and b: opens the child with the largest area
-  // until there are four children or none can be split, then recurses into the interior children.
+  // until there are kNodeWidth children or none can be split, then recurses into the interior children.
   void build_node(uint32_t idx, const Range& a, const Range& b) {
     std::array<Child, kNodeWidth> c;
     c[0].r = a;

@@ -8,7 +8,7 @@
 namespace tessera::bvh_layout {
 
 /// Children per interior node.
-inline constexpr int kNodeWidth = 4;
+inline constexpr int kNodeWidth = 8;
 /// Primitives per leaf packet.
 inline constexpr int kPacketWidth = 4;
 /// Maximum depth of a built tree; traversal stacks are sized by it.
@@ -28,9 +28,9 @@ inline constexpr uint32_t kNoPrim = 0xffffffffu;
 struct alignas(64) Node {
   float box[6][kNodeWidth];     ///< Child boxes, structure of arrays.
   uint32_t child[kNodeWidth];   ///< Child references.
-  uint32_t pad[4];              ///< Zero; pads the node to two cache lines.
+  uint32_t pad[8];              ///< Zero; pads the node to four cache lines.
 };
-static_assert(sizeof(Node) == 128);
+static_assert(sizeof(Node) == 256);
 
 /// kPacketWidth primitives of one kind, structure of arrays. Triangles: v[vertex][axis][lane]. Spheres:
 /// v[0][axis][lane] is the centre and v[1][0][lane] the radius. id[lane] is the primitive id (kNoPrim if unused);

@@ -160,7 +160,7 @@ TEST(BvhSimdPaths, MeshesGiveBitwiseTheSameHits) {
     const Vec3 centre = inner.centroid(), ext = inner.diagonal();
     inner = Bounds3{centre - 0.2f * ext, centre + 0.2f * ext};
     outer = Bounds3{centre - 1.5f * ext, centre + 1.5f * ext};
-    const size_t n = testing::scaled(60000);
+    const size_t n = testing::scaled(25000);
     const size_t hits_in = expect_same_on_all_paths(bvh, feature_rays(c.mesh, inner, n, seed++), c.name);
     const size_t hits_out = expect_same_on_all_paths(bvh, feature_rays(c.mesh, outer, n, seed++), c.name);
     EXPECT_GT(hits_in, n / 2) << c.name;

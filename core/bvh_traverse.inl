@@ -5,7 +5,8 @@
 //
 // The rules every path follows, so that all return bitwise the same hit (core/bvh_kernels.h):
 // * Slab tests per lane with exactly slab_test()'s operations (core/bounds.h).
-// * Children visited nearest first, ties by slot; the same stack discipline and pop-time culling.
+// * Children visited nearest first by the same sort keys (entry distance, then slot); the same stack discipline
+//   and pop-time culling.
 // * Triangle tests per lane with exactly intersect_triangle()'s operations (core/triangle.h), lanes accepted in
 //   order with t < tmax, and the same double-precision fallback.
 
@@ -19,39 +20,83 @@ using bvh_layout::kPacketWidth;
 using bvh_layout::Node;
 using bvh_layout::Packet;
 
-static_assert(kNodeWidth == 4 && kPacketWidth == 4);
+static_assert(kNodeWidth == 8 && kPacketWidth == 4);
 
 inline int lowest(unsigned m) { return __builtin_ctz(m); }
 
-// Per-ray constants of the 4-wide slab test: the per-lane arithmetic is slab_test()'s (core/bounds.h): near and far
-// planes chosen by the direction's sign, (plane - o) * inv_d, the far distance scaled by 1 + 2 gamma(3), and
-// max/min that keep the running value when the new distance is NaN (MAXPS/MINPS return their second operand on
-// unordered inputs).
-struct BoxRay4 {
-  __m128 o[3], inv_d[3], scale;
+// Per-ray constants of the slab test. The arithmetic per lane is slab_test()'s (core/bounds.h): near and far planes
+// chosen by the direction's sign, (plane - o) * inv_d, the far distance scaled by 1 + 2 gamma(3), and max/min that
+// keep the running value when the new distance is NaN (MAXPS/MINPS return their second operand on unordered
+// inputs). The entry distance is therefore in [0, +inf] and never NaN.
+#if defined(__AVX2__)
+using VF = __m256;
+inline VF vset1(float x) { return _mm256_set1_ps(x); }
+inline VF vload(const float* p) { return _mm256_load_ps(p); }
+inline VF vsub(VF a, VF b) { return _mm256_sub_ps(a, b); }
+inline VF vmul(VF a, VF b) { return _mm256_mul_ps(a, b); }
+inline VF vmax(VF a, VF b) { return _mm256_max_ps(a, b); }
+inline VF vmin(VF a, VF b) { return _mm256_min_ps(a, b); }
+#if defined(__AVX512VL__)
+inline unsigned vle_mask(VF a, VF b) { return _cvtmask8_u32(_mm256_cmp_ps_mask(a, b, _CMP_LE_OQ)); }
+#else
+inline unsigned vle_mask(VF a, VF b) { return unsigned(_mm256_movemask_ps(_mm256_cmp_ps(a, b, _CMP_LE_OQ))); }
+#endif
+// Sort keys of the eight entry distances: the distance's bits with the slot in the three lowest (distances are
+// non-negative, so their bits order like the floats).
+inline void vkeys(VF t, uint32_t* keys) {
+  const __m256i k = _mm256_or_si256(_mm256_and_si256(_mm256_castps_si256(t), _mm256_set1_epi32(~7)),
+                                    _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+  _mm256_store_si256(reinterpret_cast<__m256i*>(keys), k);
+}
+#else
+// Two SSE halves, lanes 0-3 and 4-7, with the same per-lane operations.
+struct VF {
+  __m128 lo, hi;
+};
+inline VF vset1(float x) { return VF{_mm_set1_ps(x), _mm_set1_ps(x)}; }
+inline VF vload(const float* p) { return VF{_mm_load_ps(p), _mm_load_ps(p + 4)}; }
+inline VF vsub(VF a, VF b) { return VF{_mm_sub_ps(a.lo, b.lo), _mm_sub_ps(a.hi, b.hi)}; }
+inline VF vmul(VF a, VF b) { return VF{_mm_mul_ps(a.lo, b.lo), _mm_mul_ps(a.hi, b.hi)}; }
+inline VF vmax(VF a, VF b) { return VF{_mm_max_ps(a.lo, b.lo), _mm_max_ps(a.hi, b.hi)}; }
+inline VF vmin(VF a, VF b) { return VF{_mm_min_ps(a.lo, b.lo), _mm_min_ps(a.hi, b.hi)}; }
+inline unsigned vle_mask(VF a, VF b) {
+  return unsigned(_mm_movemask_ps(_mm_cmple_ps(a.lo, b.lo))) |
+         unsigned(_mm_movemask_ps(_mm_cmple_ps(a.hi, b.hi))) << 4;
+}
+inline void vkeys(VF t, uint32_t* keys) {
+  const __m128i m = _mm_set1_epi32(~7);
+  _mm_store_si128(reinterpret_cast<__m128i*>(keys),
+                  _mm_or_si128(_mm_and_si128(_mm_castps_si128(t.lo), m), _mm_setr_epi32(0, 1, 2, 3)));
+  _mm_store_si128(reinterpret_cast<__m128i*>(keys + 4),
+                  _mm_or_si128(_mm_and_si128(_mm_castps_si128(t.hi), m), _mm_setr_epi32(4, 5, 6, 7)));
+}
+#endif
+
+struct BoxRay8 {
+  VF o[3], inv_d[3], scale;
   int near_row[3], far_row[3];
-  explicit BoxRay4(const TraceRay& r) : scale(_mm_set1_ps(r.far_scale)) {
+  explicit BoxRay8(const TraceRay& r) : scale(vset1(r.far_scale)) {
     for (int a = 0; a < 3; ++a) {
-      o[a] = _mm_set1_ps(r.o[a]);
-      inv_d[a] = _mm_set1_ps(r.inv_d[a]);
+      o[a] = vset1(r.o[a]);
+      inv_d[a] = vset1(r.inv_d[a]);
       near_row[a] = r.near_row[a];
       far_row[a] = r.far_row[a];
     }
   }
 };
 
-// Slab test of a node's child boxes against (0, tmax); returns the mask of boxes entered and their entry distances.
-inline unsigned node_test(const Node& n, const BoxRay4& r, __m128 tmax, __m128* t_entry) {
-  __m128 t0 = _mm_setzero_ps(), t1 = tmax;
+// Slab test of a node's eight child boxes against (0, tmax); returns the mask of boxes entered and their entry
+// distances.
+inline unsigned node_test(const Node& n, const BoxRay8& r, VF tmax, VF* t_entry) {
+  VF t0 = vset1(0.f), t1 = tmax;
   for (int a = 0; a < 3; ++a) {
-    const __m128 tn = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[r.near_row[a]]), r.o[a]), r.inv_d[a]);
-    const __m128 tf =
-        _mm_mul_ps(_mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[r.far_row[a]]), r.o[a]), r.inv_d[a]), r.scale);
-    t0 = _mm_max_ps(tn, t0);  // tn > t0 ? tn : t0
-    t1 = _mm_min_ps(tf, t1);  // tf < t1 ? tf : t1
+    const VF tn = vmul(vsub(vload(n.box[r.near_row[a]]), r.o[a]), r.inv_d[a]);
+    const VF tf = vmul(vmul(vsub(vload(n.box[r.far_row[a]]), r.o[a]), r.inv_d[a]), r.scale);
+    t0 = vmax(tn, t0);  // tn > t0 ? tn : t0
+    t1 = vmin(tf, t1);  // tf < t1 ? tf : t1
   }
   *t_entry = t0;
-  return unsigned(_mm_movemask_ps(_mm_cmple_ps(t0, t1)));
+  return vle_mask(t0, t1);
 }
 
 // Per-ray constants of the 4-wide watertight test.
@@ -146,25 +191,40 @@ inline unsigned valid_lanes(const uint32_t (&id)[4]) {
   return unsigned(_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(ids, _mm_set1_epi32(-1))))) ^ 0xfu;
 }
 
-// Asks for the cache lines a child reference will touch first: a node's two lines or a leaf's first packet.
+// Asks for the cache lines a child reference will touch first: a node's four lines or a leaf's first packet.
 inline void prefetch_child(uint32_t ref, const Tree& tree) {
   const char* p = (ref & kLeafBit) ? reinterpret_cast<const char*>(tree.packets + (ref & ~kLeafBit))
                                    : reinterpret_cast<const char*>(tree.nodes + ref);
   _mm_prefetch(p, _MM_HINT_T0);
   _mm_prefetch(p + 64, _MM_HINT_T0);
-  if (ref & kLeafBit) _mm_prefetch(p + 128, _MM_HINT_T0);
+  _mm_prefetch(p + 128, _MM_HINT_T0);
+  if (!(ref & kLeafBit)) _mm_prefetch(p + 192, _MM_HINT_T0);
 }
 
 struct StackEntry {
   uint32_t ref;
-  float t;  // entry distance when pushed
+  float t;  // entry distance when pushed, its three lowest bits cleared (never above the exact entry distance)
 };
 
 // Deep enough for any tree the builder makes (kMaxDepth levels, kNodeWidth - 1 pushes each).
 constexpr int kStackSize = (kNodeWidth - 1) * bvh_layout::kMaxDepth + 4;
 
+inline float key_distance(uint32_t key) { return __builtin_bit_cast(float, key & ~7u); }
+
+// Sorts n keys (distinct: each carries its slot) in descending order, so the nearest child comes last.
+inline void sort_descending(uint32_t* k, int n) {
+  for (int i = 1; i < n; ++i) {
+    const uint32_t x = k[i];
+    int j = i;
+    for (; j > 0 && k[j - 1] < x; --j) k[j] = k[j - 1];
+    k[j] = x;
+  }
+}
+
+// The closest hit. Children are visited nearest first by their sort keys (entry distance, then slot), the others
+// pushed farthest first; a popped entry whose entry distance lies beyond the closest hit so far is dropped.
 bool intersect(const Tree& tree, const TraceRay& ray, HitRecord* out) {
-  const BoxRay4 sr(ray);
+  const BoxRay8 sr(ray);
   const TriRay4 tr(ray);
   float tmax = ray.tmax;
   HitRecord best{};
@@ -176,45 +236,41 @@ bool intersect(const Tree& tree, const TraceRay& ray, HitRecord* out) {
   for (;;) {
     while (!(ref & kLeafBit)) {
       const Node& n = tree.nodes[ref];
-      __m128 tn;
-      const unsigned mask = node_test(n, sr, _mm_set1_ps(tmax), &tn);
+      VF tn;
+      const unsigned mask = node_test(n, sr, vset1(tmax), &tn);
       if (mask == 0) goto pop;
-      const int c0 = lowest(mask);
       const unsigned rest = mask & (mask - 1);
       if (rest == 0) {
-        ref = n.child[c0];
+        ref = n.child[lowest(mask)];
         continue;
       }
-      alignas(16) float t[4];
-      _mm_store_ps(t, tn);
-      const int c1 = lowest(rest);
+      alignas(32) uint32_t keys[8];
+      vkeys(tn, keys);
       if ((rest & (rest - 1)) == 0) {
-        // Two boxes: visit the nearer first (the lower slot on a tie).
-        const bool swap = t[c1] < t[c0];
-        const int near = swap ? c1 : c0, far = swap ? c0 : c1;
-        stack[sp++] = {n.child[far], t[far]};
-        prefetch_child(n.child[far], tree);
-        ref = n.child[near];
+        // Two boxes: visit the nearer first.
+        uint32_t near = keys[lowest(mask)], far = keys[lowest(rest)];
+        if (far < near) {
+          const uint32_t x = near;
+          near = far;
+          far = x;
+        }
+        const uint32_t fref = n.child[far & 7];
+        stack[sp++] = {fref, key_distance(far)};
+        prefetch_child(fref, tree);
+        ref = n.child[near & 7];
         continue;
       }
-      // Three or four: sort by entry distance (ties by slot), farthest pushed first, nearest visited now.
-      StackEntry e[4];
+      // Three or more: sort by key, push the farthest first, visit the nearest now.
+      uint32_t k[8];
       int ne = 0;
-      for (unsigned m = mask; m; m &= m - 1) {
-        const int k = lowest(m);
-        const StackEntry x{n.child[k], t[k]};
-        int j = ne++;
-        while (j > 0 && e[j - 1].t < x.t) {
-          e[j] = e[j - 1];
-          --j;
-        }
-        e[j] = x;
+      for (unsigned m = mask; m; m &= m - 1) k[ne++] = keys[lowest(m)];
+      sort_descending(k, ne);
+      for (int i = 0; i < ne - 1; ++i) {
+        const uint32_t c = n.child[k[i] & 7];
+        stack[sp++] = {c, key_distance(k[i])};
+        prefetch_child(c, tree);
       }
-      for (int k = 0; k < ne - 1; ++k) {
-        stack[sp++] = e[k];
-        prefetch_child(e[k].ref, tree);
-      }
-      ref = e[ne - 1].ref;
+      ref = n.child[k[ne - 1] & 7];
     }
     // Leaf.
     for (const Packet* pk = tree.packets + (ref & ~kLeafBit);; ++pk) {
@@ -258,11 +314,12 @@ bool intersect(const Tree& tree, const TraceRay& ray, HitRecord* out) {
   }
 }
 
+// Any hit: children in slot order, stopping at the first hit (the answer does not depend on the order).
 bool occluded(const Tree& tree, const TraceRay& ray) {
-  const BoxRay4 sr(ray);
+  const BoxRay8 sr(ray);
   const TriRay4 tr(ray);
   const float tmax = ray.tmax;
-  const __m128 tmax4 = _mm_set1_ps(tmax);
+  const VF tmax8 = vset1(tmax);
 
   uint32_t stack[kStackSize];
   int sp = 0;
@@ -270,8 +327,8 @@ bool occluded(const Tree& tree, const TraceRay& ray) {
   for (;;) {
     while (!(ref & kLeafBit)) {
       const Node& n = tree.nodes[ref];
-      __m128 tn;
-      unsigned mask = node_test(n, sr, tmax4, &tn);
+      VF tn;
+      unsigned mask = node_test(n, sr, tmax8, &tn);
       if (mask == 0) goto pop;
       ref = n.child[lowest(mask)];
       for (mask &= mask - 1; mask; mask &= mask - 1) {
