@@ -40,7 +40,7 @@ inline constexpr std::string_view kSplitMethodNames[] = {"sah", "median"};
 /// Build parameters.
 struct BvhOptions {
   SplitMethod split = SplitMethod::kSah;  ///< Split strategy.
-  int max_leaf_prims = 4;                 ///< Upper bound on primitives per leaf when a split is possible.
+  int max_leaf_prims = 8;                 ///< Upper bound on primitives per leaf when a split is possible.
   int bins = 16;                          ///< SAH bins per axis.
 };
 

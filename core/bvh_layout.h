@@ -10,7 +10,7 @@ namespace tessera::bvh_layout {
 /// Children per interior node.
 inline constexpr int kNodeWidth = 8;
 /// Primitives per leaf packet.
-inline constexpr int kPacketWidth = 4;
+inline constexpr int kPacketWidth = 8;
 /// Maximum depth of a built tree; traversal stacks are sized by it.
 inline constexpr int kMaxDepth = 96;
 
@@ -35,10 +35,10 @@ static_assert(sizeof(Node) == 256);
 /// kPacketWidth primitives of one kind, structure of arrays. Triangles: v[vertex][axis][lane]. Spheres:
 /// v[0][axis][lane] is the centre and v[1][0][lane] the radius. id[lane] is the primitive id (kNoPrim if unused);
 /// id[0] also carries kLastPacket.
-struct alignas(16) Packet {
+struct alignas(32) Packet {
   float v[3][3][kPacketWidth];  ///< Vertices or sphere data.
   uint32_t id[kPacketWidth];    ///< Primitive ids.
 };
-static_assert(sizeof(Packet) == 160);
+static_assert(sizeof(Packet) == 320);
 
 }  // namespace tessera::bvh_layout

@@ -20,7 +20,7 @@ using bvh_layout::kPacketWidth;
 using bvh_layout::Node;
 using bvh_layout::Packet;
 
-static_assert(kNodeWidth == 8 && kPacketWidth == 4);
+static_assert(kNodeWidth == 8 && kPacketWidth == 8);
 
 inline int lowest(unsigned m) { return __builtin_ctz(m); }
 
@@ -36,6 +36,23 @@ inline VF vsub(VF a, VF b) { return _mm256_sub_ps(a, b); }
 inline VF vmul(VF a, VF b) { return _mm256_mul_ps(a, b); }
 inline VF vmax(VF a, VF b) { return _mm256_max_ps(a, b); }
 inline VF vmin(VF a, VF b) { return _mm256_min_ps(a, b); }
+inline VF vadd(VF a, VF b) { return _mm256_add_ps(a, b); }
+inline VF vdiv(VF a, VF b) { return _mm256_div_ps(a, b); }
+inline VF vand(VF a, VF b) { return _mm256_and_ps(a, b); }
+inline VF vor(VF a, VF b) { return _mm256_or_ps(a, b); }
+inline VF vxor(VF a, VF b) { return _mm256_xor_ps(a, b); }
+inline VF veq(VF a, VF b) { return _mm256_cmp_ps(a, b, _CMP_EQ_OQ); }
+inline VF vlt(VF a, VF b) { return _mm256_cmp_ps(a, b, _CMP_LT_OQ); }
+inline VF vgt(VF a, VF b) { return _mm256_cmp_ps(a, b, _CMP_GT_OQ); }
+inline VF vle(VF a, VF b) { return _mm256_cmp_ps(a, b, _CMP_LE_OQ); }
+inline VF vbits(uint32_t x) { return _mm256_castsi256_ps(_mm256_set1_epi32(int(x))); }
+inline unsigned vmask(VF a) { return unsigned(_mm256_movemask_ps(a)); }
+inline void vstore(float* p, VF a) { _mm256_store_ps(p, a); }
+// Mask of the lanes whose id is not kNoPrim.
+inline unsigned vvalid(const uint32_t* id) {
+  const __m256i ids = _mm256_load_si256(reinterpret_cast<const __m256i*>(id));
+  return unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(ids, _mm256_set1_epi32(-1))))) ^ 0xffu;
+}
 #if defined(__AVX512VL__)
 inline unsigned vle_mask(VF a, VF b) { return _cvtmask8_u32(_mm256_cmp_ps_mask(a, b, _CMP_LE_OQ)); }
 #else
@@ -59,6 +76,33 @@ inline VF vsub(VF a, VF b) { return VF{_mm_sub_ps(a.lo, b.lo), _mm_sub_ps(a.hi, 
 inline VF vmul(VF a, VF b) { return VF{_mm_mul_ps(a.lo, b.lo), _mm_mul_ps(a.hi, b.hi)}; }
 inline VF vmax(VF a, VF b) { return VF{_mm_max_ps(a.lo, b.lo), _mm_max_ps(a.hi, b.hi)}; }
 inline VF vmin(VF a, VF b) { return VF{_mm_min_ps(a.lo, b.lo), _mm_min_ps(a.hi, b.hi)}; }
+inline VF vadd(VF a, VF b) { return VF{_mm_add_ps(a.lo, b.lo), _mm_add_ps(a.hi, b.hi)}; }
+inline VF vdiv(VF a, VF b) { return VF{_mm_div_ps(a.lo, b.lo), _mm_div_ps(a.hi, b.hi)}; }
+inline VF vand(VF a, VF b) { return VF{_mm_and_ps(a.lo, b.lo), _mm_and_ps(a.hi, b.hi)}; }
+inline VF vor(VF a, VF b) { return VF{_mm_or_ps(a.lo, b.lo), _mm_or_ps(a.hi, b.hi)}; }
+inline VF vxor(VF a, VF b) { return VF{_mm_xor_ps(a.lo, b.lo), _mm_xor_ps(a.hi, b.hi)}; }
+inline VF veq(VF a, VF b) { return VF{_mm_cmpeq_ps(a.lo, b.lo), _mm_cmpeq_ps(a.hi, b.hi)}; }
+inline VF vlt(VF a, VF b) { return VF{_mm_cmplt_ps(a.lo, b.lo), _mm_cmplt_ps(a.hi, b.hi)}; }
+inline VF vgt(VF a, VF b) { return VF{_mm_cmpgt_ps(a.lo, b.lo), _mm_cmpgt_ps(a.hi, b.hi)}; }
+inline VF vle(VF a, VF b) { return VF{_mm_cmple_ps(a.lo, b.lo), _mm_cmple_ps(a.hi, b.hi)}; }
+inline VF vbits(uint32_t x) {
+  const __m128 v = _mm_castsi128_ps(_mm_set1_epi32(int(x)));
+  return VF{v, v};
+}
+inline unsigned vmask(VF a) {
+  return unsigned(_mm_movemask_ps(a.lo)) | unsigned(_mm_movemask_ps(a.hi)) << 4;
+}
+inline void vstore(float* p, VF a) {
+  _mm_store_ps(p, a.lo);
+  _mm_store_ps(p + 4, a.hi);
+}
+inline unsigned vvalid(const uint32_t* id) {
+  const __m128i none = _mm_set1_epi32(-1);
+  const __m128i lo = _mm_load_si128(reinterpret_cast<const __m128i*>(id));
+  const __m128i hi = _mm_load_si128(reinterpret_cast<const __m128i*>(id + 4));
+  return (unsigned(_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(lo, none)))) |
+          unsigned(_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(hi, none)))) << 4) ^ 0xffu;
+}
 inline unsigned vle_mask(VF a, VF b) {
   return unsigned(_mm_movemask_ps(_mm_cmple_ps(a.lo, b.lo))) |
          unsigned(_mm_movemask_ps(_mm_cmple_ps(a.hi, b.hi))) << 4;
@@ -99,77 +143,73 @@ inline unsigned node_test(const Node& n, const BoxRay8& r, VF tmax, VF* t_entry)
   return vle_mask(t0, t1);
 }
 
-// Per-ray constants of the 4-wide watertight test.
-struct TriRay4 {
+// Per-ray constants of the watertight test.
+struct TriRay8 {
   const TraceRay& r;
-  __m128 ox, oy, oz, sx, sy, sz;
-  explicit TriRay4(const TraceRay& tr)
-      : r(tr),
-        ox(_mm_set1_ps(tr.ox)),
-        oy(_mm_set1_ps(tr.oy)),
-        oz(_mm_set1_ps(tr.oz)),
-        sx(_mm_set1_ps(tr.sx)),
-        sy(_mm_set1_ps(tr.sy)),
-        sz(_mm_set1_ps(tr.sz)) {}
+  VF ox, oy, oz, sx, sy, sz;
+  explicit TriRay8(const TraceRay& tr)
+      : r(tr), ox(vset1(tr.ox)), oy(vset1(tr.oy)), oz(vset1(tr.oz)), sx(vset1(tr.sx)), sy(vset1(tr.sy)),
+        sz(vset1(tr.sz)) {}
 };
 
-// Results of four triangle tests: t and the barycentrics of p1 and p2 for the lanes that hit.
-struct Lanes4 {
-  alignas(16) float t[4];
-  alignas(16) float b1[4];
-  alignas(16) float b2[4];
+// Results of eight triangle tests: t and the barycentrics of p1 and p2 for the lanes that hit.
+struct Lanes8 {
+  alignas(32) float t[8];
+  alignas(32) float b1[8];
+  alignas(32) float b2[8];
 };
 
-// The watertight test (core/triangle.h) on the four triangles of a packet, lane by lane with the same operations in
-// the same order, so t and the barycentrics are bitwise those of intersect_triangle(). Lanes whose float edge
+// The watertight test (core/triangle.h) on the eight triangles of a packet, lane by lane with the same operations
+// in the same order, so t and the barycentrics are bitwise those of intersect_triangle(). Lanes whose float edge
 // functions are zero or whose determinant is not finite go to the same double-precision fallback. `valid` is the
 // mask of used lanes. Returns the mask of lanes that hit in (0, tmax); fills `out` for them when given (with no
 // `out`, it may stop at the first hit).
-inline unsigned triangles4(const float (&v)[3][3][4], unsigned valid, const TriRay4& r, float tmax, Lanes4* out) {
+inline unsigned triangles8(const Packet& pk, unsigned valid, const TriRay8& r, float tmax, Lanes8* out) {
   const TraceRay& w = r.r;
-  const __m128 az = _mm_sub_ps(_mm_load_ps(v[0][w.kz]), r.oz);
-  const __m128 bz = _mm_sub_ps(_mm_load_ps(v[1][w.kz]), r.oz);
-  const __m128 cz = _mm_sub_ps(_mm_load_ps(v[2][w.kz]), r.oz);
-  const __m128 ax = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(v[0][w.kx]), r.ox), _mm_mul_ps(r.sx, az));
-  const __m128 ay = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(v[0][w.ky]), r.oy), _mm_mul_ps(r.sy, az));
-  const __m128 bx = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(v[1][w.kx]), r.ox), _mm_mul_ps(r.sx, bz));
-  const __m128 by = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(v[1][w.ky]), r.oy), _mm_mul_ps(r.sy, bz));
-  const __m128 cx = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(v[2][w.kx]), r.ox), _mm_mul_ps(r.sx, cz));
-  const __m128 cy = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(v[2][w.ky]), r.oy), _mm_mul_ps(r.sy, cz));
+  const auto& v = pk.v;
+  const VF az = vsub(vload(v[0][w.kz]), r.oz);
+  const VF bz = vsub(vload(v[1][w.kz]), r.oz);
+  const VF cz = vsub(vload(v[2][w.kz]), r.oz);
+  const VF ax = vsub(vsub(vload(v[0][w.kx]), r.ox), vmul(r.sx, az));
+  const VF ay = vsub(vsub(vload(v[0][w.ky]), r.oy), vmul(r.sy, az));
+  const VF bx = vsub(vsub(vload(v[1][w.kx]), r.ox), vmul(r.sx, bz));
+  const VF by = vsub(vsub(vload(v[1][w.ky]), r.oy), vmul(r.sy, bz));
+  const VF cx = vsub(vsub(vload(v[2][w.kx]), r.ox), vmul(r.sx, cz));
+  const VF cy = vsub(vsub(vload(v[2][w.ky]), r.oy), vmul(r.sy, cz));
 
-  const __m128 e0 = _mm_sub_ps(_mm_mul_ps(bx, cy), _mm_mul_ps(by, cx));
-  const __m128 e1 = _mm_sub_ps(_mm_mul_ps(cx, ay), _mm_mul_ps(cy, ax));
-  const __m128 e2 = _mm_sub_ps(_mm_mul_ps(ax, by), _mm_mul_ps(ay, bx));
-  const __m128 det = _mm_add_ps(_mm_add_ps(e0, e1), e2);
+  const VF e0 = vsub(vmul(bx, cy), vmul(by, cx));
+  const VF e1 = vsub(vmul(cx, ay), vmul(cy, ax));
+  const VF e2 = vsub(vmul(ax, by), vmul(ay, bx));
+  const VF det = vadd(vadd(e0, e1), e2);
 
-  const __m128 zero = _mm_setzero_ps();
-  const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
-  const __m128 finite = _mm_cmple_ps(_mm_and_ps(det, abs_mask), _mm_castsi128_ps(_mm_set1_epi32(0x7f7fffff)));
-  const __m128 any_zero =
-      _mm_or_ps(_mm_or_ps(_mm_cmpeq_ps(e0, zero), _mm_cmpeq_ps(e1, zero)), _mm_cmpeq_ps(e2, zero));
-  const unsigned fallback = unsigned(_mm_movemask_ps(any_zero)) | (unsigned(_mm_movemask_ps(finite)) ^ 0xfu);
+  // Fallback lanes: an edge function is zero, or the determinant is not finite (|det| > FLT_MAX, or NaN).
+  const VF zero = vset1(0.f);
+  const unsigned fallback =
+      vmask(vor(vor(vor(veq(e0, zero), veq(e1, zero)), veq(e2, zero)),
+                vgt(vand(det, vbits(0x7fffffffu)), vbits(0x7f7fffffu)))) |
+      (vmask(veq(det, det)) ^ 0xffu);
   const unsigned fb = fallback & valid;
-
-  const __m128 neg = _mm_or_ps(_mm_or_ps(_mm_cmplt_ps(e0, zero), _mm_cmplt_ps(e1, zero)), _mm_cmplt_ps(e2, zero));
-  const __m128 pos = _mm_or_ps(_mm_or_ps(_mm_cmpgt_ps(e0, zero), _mm_cmpgt_ps(e1, zero)), _mm_cmpgt_ps(e2, zero));
-  unsigned hit = valid & ~fallback & ~unsigned(_mm_movemask_ps(_mm_and_ps(neg, pos)));
+  // Elsewhere all three are finite and non-zero: the signs are mixed exactly when a sign bit differs.
+  const unsigned mixed = vmask(vor(vxor(e0, e1), vxor(e0, e2)));
+  unsigned hit = valid & ~fallback & ~mixed;
   if (!hit && !fb) return 0;
 
-  const __m128 inv_det = _mm_div_ps(_mm_set1_ps(1.f), det);
-  const __m128 szaz = _mm_mul_ps(r.sz, az), szbz = _mm_mul_ps(r.sz, bz), szcz = _mm_mul_ps(r.sz, cz);
-  const __m128 t = _mm_mul_ps(
-      _mm_add_ps(_mm_add_ps(_mm_mul_ps(e0, szaz), _mm_mul_ps(e1, szbz)), _mm_mul_ps(e2, szcz)), inv_det);
-  hit &= unsigned(_mm_movemask_ps(_mm_and_ps(_mm_cmpgt_ps(t, zero), _mm_cmplt_ps(t, _mm_set1_ps(tmax)))));
-  if (out && hit) {
-    _mm_store_ps(out->t, t);
-    _mm_store_ps(out->b1, _mm_mul_ps(e1, inv_det));
-    _mm_store_ps(out->b2, _mm_mul_ps(e2, inv_det));
+  if (hit) {
+    const VF inv_det = vdiv(vset1(1.f), det);
+    const VF szaz = vmul(r.sz, az), szbz = vmul(r.sz, bz), szcz = vmul(r.sz, cz);
+    const VF t = vmul(vadd(vadd(vmul(e0, szaz), vmul(e1, szbz)), vmul(e2, szcz)), inv_det);
+    hit &= vmask(vand(vgt(t, zero), vlt(t, vset1(tmax))));
+    if (out && hit) {
+      vstore(out->t, t);
+      vstore(out->b1, vmul(e1, inv_det));
+      vstore(out->b2, vmul(e2, inv_det));
+    }
   }
   if (fb) {
-    alignas(16) float s[9][4];
-    _mm_store_ps(s[0], ax); _mm_store_ps(s[1], ay); _mm_store_ps(s[2], az);
-    _mm_store_ps(s[3], bx); _mm_store_ps(s[4], by); _mm_store_ps(s[5], bz);
-    _mm_store_ps(s[6], cx); _mm_store_ps(s[7], cy); _mm_store_ps(s[8], cz);
+    alignas(32) float s[9][8];
+    vstore(s[0], ax); vstore(s[1], ay); vstore(s[2], az);
+    vstore(s[3], bx); vstore(s[4], by); vstore(s[5], bz);
+    vstore(s[6], cx); vstore(s[7], cy); vstore(s[8], cz);
     for (unsigned m = fb; m; m &= m - 1) {
       const int k = lowest(m);
       const float sh[9] = {s[0][k], s[1][k], s[2][k], s[3][k], s[4][k], s[5][k], s[6][k], s[7][k], s[8][k]};
@@ -186,19 +226,14 @@ inline unsigned triangles4(const float (&v)[3][3][4], unsigned valid, const TriR
   return hit;
 }
 
-inline unsigned valid_lanes(const uint32_t (&id)[4]) {
-  const __m128i ids = _mm_load_si128(reinterpret_cast<const __m128i*>(id));
-  return unsigned(_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(ids, _mm_set1_epi32(-1))))) ^ 0xfu;
-}
-
-// Asks for the cache lines a child reference will touch first: a node's four lines or a leaf's first packet.
+// Asks for the cache lines a child reference will touch first: a node's four lines or most of a leaf's first packet.
 inline void prefetch_child(uint32_t ref, const Tree& tree) {
   const char* p = (ref & kLeafBit) ? reinterpret_cast<const char*>(tree.packets + (ref & ~kLeafBit))
                                    : reinterpret_cast<const char*>(tree.nodes + ref);
   _mm_prefetch(p, _MM_HINT_T0);
   _mm_prefetch(p + 64, _MM_HINT_T0);
   _mm_prefetch(p + 128, _MM_HINT_T0);
-  if (!(ref & kLeafBit)) _mm_prefetch(p + 192, _MM_HINT_T0);
+  _mm_prefetch(p + 192, _MM_HINT_T0);
 }
 
 struct StackEntry {
@@ -225,7 +260,7 @@ inline void sort_descending(uint32_t* k, int n) {
 // pushed farthest first; a popped entry whose entry distance lies beyond the closest hit so far is dropped.
 bool intersect(const Tree& tree, const TraceRay& ray, HitRecord* out) {
   const BoxRay8 sr(ray);
-  const TriRay4 tr(ray);
+  const TriRay8 tr(ray);
   float tmax = ray.tmax;
   HitRecord best{};
   bool found = false;
@@ -275,10 +310,10 @@ bool intersect(const Tree& tree, const TraceRay& ray, HitRecord* out) {
     // Leaf.
     for (const Packet* pk = tree.packets + (ref & ~kLeafBit);; ++pk) {
       const uint32_t id0 = pk->id[0] & ~kLastPacket;
-      const unsigned valid = valid_lanes(pk->id);
+      const unsigned valid = vvalid(pk->id);
       if (id0 < tree.num_triangles) {
-        Lanes4 lanes;
-        for (unsigned m = triangles4(pk->v, valid, tr, tmax, &lanes); m; m &= m - 1) {
+        Lanes8 lanes;
+        for (unsigned m = triangles8(*pk, valid, tr, tmax, &lanes); m; m &= m - 1) {
           const int k = lowest(m);
           if (lanes.t[k] < tmax) {  // lanes in order, as a sequential loop would accept them
             tmax = lanes.t[k];
@@ -317,7 +352,7 @@ bool intersect(const Tree& tree, const TraceRay& ray, HitRecord* out) {
 // Any hit: children in slot order, stopping at the first hit (the answer does not depend on the order).
 bool occluded(const Tree& tree, const TraceRay& ray) {
   const BoxRay8 sr(ray);
-  const TriRay4 tr(ray);
+  const TriRay8 tr(ray);
   const float tmax = ray.tmax;
   const VF tmax8 = vset1(tmax);
 
@@ -338,9 +373,9 @@ bool occluded(const Tree& tree, const TraceRay& ray) {
       }
     }
     for (const Packet* pk = tree.packets + (ref & ~kLeafBit);; ++pk) {
-      const unsigned valid = valid_lanes(pk->id);
+      const unsigned valid = vvalid(pk->id);
       if ((pk->id[0] & ~kLastPacket) < tree.num_triangles) {
-        if (triangles4(pk->v, valid, tr, tmax, nullptr)) return true;
+        if (triangles8(*pk, valid, tr, tmax, nullptr)) return true;
       } else {
         for (unsigned m = valid; m; m &= m - 1) {
           const int k = lowest(m);
