@@ -62,9 +62,8 @@ using bvh_layout::kNoPrim;
 constexpr int kNodeWidth = bvh_layout::kNodeWidth;
 constexpr int kPacketWidth = bvh_layout::kPacketWidth;
 
-// SAH constants for the 4-wide tree with 4-wide leaf packets, in units of one packet (four primitives) test. A
-// binary split becomes half of a 4-wide node on average, and a 4-box SSE slab test is cheaper than a 4-triangle
-// watertight test.
+// SAH constants of the binary build, in units of one leaf packet (eight primitives) test: they decide between a
+// leaf and a split for small ranges, where a split must shrink the children's boxes to half the area to pay.
 constexpr float kTraversalCost = 0.5f;
 constexpr float kPacketCost = 1.f;
 
@@ -102,10 +101,12 @@ struct Box4 {
     _mm_store_ps(h, hi);
     return Bounds3{Vec3(l[0], l[1], l[2]), Vec3(h[0], h[1], h[2])};
   }
+  // 2 (dx dy + dy dz + dz dx), in registers; 0 for an empty box.
   float area() const {
-    alignas(16) float d[4];
-    _mm_store_ps(d, _mm_max_ps(_mm_sub_ps(hi, lo), _mm_setzero_ps()));  // 0 for an empty box
-    return 2.f * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0]);
+    const __m128 d = _mm_max_ps(_mm_sub_ps(hi, lo), _mm_setzero_ps());
+    const __m128 p = _mm_mul_ps(d, _mm_shuffle_ps(d, d, _MM_SHUFFLE(3, 0, 2, 1)));  // dx dy, dy dz, dz dx
+    const __m128 sum = _mm_add_ss(_mm_add_ss(p, _mm_shuffle_ps(p, p, _MM_SHUFFLE(1, 1, 1, 1))), _mm_movehl_ps(p, p));
+    return 2.f * _mm_cvtss_f32(sum);
   }
 };
 
@@ -145,10 +146,9 @@ struct BinMapper {
     const __m128 f = _mm_mul_ps(_mm_sub_ps(c2, lo), scale);
     return _mm_cvttps_epi32(_mm_min_ps(_mm_max_ps(f, _mm_setzero_ps()), top));
   }
-  int bin(__m128 c2, int axis) const {
-    alignas(16) int k[4];
-    _mm_store_si128(reinterpret_cast<__m128i*>(k), bins(c2));
-    return k[axis];
+  template <int Axis>
+  int bin(__m128 c2) const {
+    return _mm_cvtsi128_si32(_mm_shuffle_epi32(bins(c2), _MM_SHUFFLE(Axis, Axis, Axis, Axis)));
   }
 };
 
@@ -177,17 +177,36 @@ struct Bvh::Builder {
 
   uint32_t leaf_limit() const { return uint32_t(std::clamp(opt.max_leaf_prims, 1, 255)); }
 
+  static void bin_ref(Bins& acc, const BinMapper& m, const BuildRef& ref) {
+    const __m128 lo = ref.vlo(), hi = ref.vhi();
+    const __m128i k = m.bins(_mm_add_ps(lo, hi));
+    const int kx = _mm_cvtsi128_si32(k);
+    const int ky = _mm_cvtsi128_si32(_mm_shuffle_epi32(k, _MM_SHUFFLE(1, 1, 1, 1)));
+    const int kz = _mm_cvtsi128_si32(_mm_shuffle_epi32(k, _MM_SHUFFLE(2, 2, 2, 2)));
+    acc.box[0][kx].extend(lo, hi);
+    ++acc.count[0][kx];
+    acc.box[1][ky].extend(lo, hi);
+    ++acc.count[1][ky];
+    acc.box[2][kz].extend(lo, hi);
+    ++acc.count[2][kz];
+  }
+
+  // Bins refs[begin, end) into acc. Long runs alternate between two sets of bins, so that neighbours (which tend to
+  // fall in the same bins) do not wait on each other's read-modify-write.
   void bin_into(Bins& acc, const BinMapper& m, size_t begin, size_t end) const {
-    alignas(16) int k[4];
-    for (size_t i = begin; i != end; ++i) {
-      const BuildRef& ref = refs[i];
-      const __m128 lo = ref.vlo(), hi = ref.vhi();
-      _mm_store_si128(reinterpret_cast<__m128i*>(k), m.bins(_mm_add_ps(lo, hi)));
-      for (int a = 0; a < 3; ++a) {
-        acc.box[a][k[a]].extend(lo, hi);
-        ++acc.count[a][k[a]];
-      }
+    const BuildRef* p = refs.data();
+    if (end - begin < 256) {
+      for (size_t i = begin; i != end; ++i) bin_ref(acc, m, p[i]);
+      return;
     }
+    Bins other(acc.nb);
+    size_t i = begin;
+    for (; i + 1 < end; i += 2) {
+      bin_ref(acc, m, p[i]);
+      bin_ref(other, m, p[i + 1]);
+    }
+    if (i != end) bin_ref(acc, m, p[i]);
+    acc.merge(other);
   }
 
   Bins bin_range(const BinMapper& m, int nb, size_t begin, size_t end) const {
@@ -228,12 +247,87 @@ struct Bvh::Builder {
     bound(rr);
   }
 
+  // Moves the references of [first, last) whose bin on Axis is below `split` to the front and returns the first of
+  // the others. Blocks of kBlock references are classified without branches, recording the misplaced ones, which
+  // are then swapped in pairs (as in Edelkamp and Weiss's BlockQuicksort): the classification's outcome is random
+  // per reference, so branching on it would mispredict about every other time.
+  template <int Axis>
+  static BuildRef* partition(const BinMapper& m, int split, BuildRef* first, BuildRef* last) {
+    constexpr int kBlock = 64;
+    const auto left_of = [&](const BuildRef& x) { return m.bin<Axis>(x.c2()) < split; };
+    uint8_t off_l[kBlock], off_r[kBlock];
+    int num_l = 0, num_r = 0, start_l = 0, start_r = 0;
+    while (last - first > 2 * kBlock) {
+      if (num_l == 0) {
+        start_l = 0;
+        for (int i = 0; i < kBlock; ++i) {
+          off_l[num_l] = uint8_t(i);
+          num_l += !left_of(first[i]);
+        }
+      }
+      if (num_r == 0) {
+        start_r = 0;
+        for (int i = 0; i < kBlock; ++i) {
+          off_r[num_r] = uint8_t(i);
+          num_r += left_of(*(last - 1 - i));
+        }
+      }
+      const int num = std::min(num_l, num_r);
+      for (int j = 0; j < num; ++j) std::swap(first[off_l[start_l + j]], *(last - 1 - off_r[start_r + j]));
+      num_l -= num;
+      num_r -= num;
+      start_l += num;
+      start_r += num;
+      if (num_l == 0) first += kBlock;
+      if (num_r == 0) last -= kBlock;
+    }
+    // Left: at most one classified block with misplaced references, and an unclassified middle. The block's
+    // misplaced references are gathered at its inner end (offsets increase away from the outer end, so each swap
+    // target holds a placed reference or the misplaced one itself); the rest is partitioned with branches.
+    if (num_l > 0) {
+      BuildRef* block_end = first + kBlock;
+      for (int j = num_l - 1; j >= 0; --j) std::swap(first[off_l[start_l + j]], *--block_end);
+      return finish_partition<Axis>(m, split, block_end, last);
+    }
+    if (num_r > 0) {
+      BuildRef* block_begin = last - kBlock;
+      for (int j = num_r - 1; j >= 0; --j) std::swap(*(last - 1 - off_r[start_r + j]), *block_begin++);
+      return finish_partition<Axis>(m, split, first, block_begin);
+    }
+    return finish_partition<Axis>(m, split, first, last);
+  }
+
+  // Hoare partition of [lo, hi) with branches: for the small rest.
+  template <int Axis>
+  static BuildRef* finish_partition(const BinMapper& m, int split, BuildRef* lo, BuildRef* hi) {
+    for (;;) {
+      while (lo < hi && m.bin<Axis>(lo->c2()) < split) ++lo;
+      while (lo < hi && m.bin<Axis>((hi - 1)->c2()) >= split) --hi;
+      if (lo >= hi) return lo;
+      std::swap(*lo, *(hi - 1));
+      ++lo;
+      --hi;
+    }
+  }
+
+  // Bounds of the centroids of [first, last).
+  static Box4 centroid_bounds(const BuildRef* first, const BuildRef* last) {
+    Box4 a = Box4::empty(), b = Box4::empty();
+    for (; last - first >= 2; first += 2) {
+      a.extend(first[0].c2());
+      b.extend(first[1].c2());
+    }
+    if (first != last) a.extend(first->c2());
+    a.extend(b);
+    return a;
+  }
+
   // Decides whether r becomes a leaf (false) or is split (true, refs partitioned into l and rr).
   bool split(const Range& r, Range& l, Range& rr) {
     const uint32_t n = r.size();
     if (n == 1) return false;
     const uint32_t max_leaf = leaf_limit();
-    // One packet's worth of primitives: a leaf is one 4-wide test; no split can be cheaper than that.
+    // One packet's worth of primitives: a leaf is one packet test; no split can be cheaper than that.
     if (n <= max_leaf && n <= uint32_t(kPacketWidth)) return false;
 
     const int axis = r.cbox.max_extent();
@@ -255,8 +349,9 @@ struct Bvh::Builder {
       return true;
     }
 
-    // No more bins than references: small ranges are the most numerous, and their cost is mostly per bin.
-    const int nb = std::clamp(std::min(opt.bins, int(n)), 2, kMaxBins);
+    // Fewer bins for smaller ranges (8 + n / 16, at most opt.bins): small ranges are the most numerous, and their
+    // cost is mostly per bin.
+    const int nb = std::clamp(std::min(opt.bins, 8 + int(n / 16)), 2, kMaxBins);
     const BinMapper m(r.cbox, nb);
     const Bins bins = bin_range(m, nb, r.begin, r.end);
 
@@ -302,34 +397,19 @@ struct Bvh::Builder {
     }
     if (n <= max_leaf && leaf_cost <= split_cost) return false;
 
-    // Partition by bin, gathering both sides' centroid bounds on the way; the boxes come from the bins.
-    Box4 lc = Box4::empty(), rc = Box4::empty();
-    BuildRef* lo = refs.data() + r.begin;
-    BuildRef* hi = refs.data() + r.end;
-    for (;;) {
-      __m128 c;
-      while (lo < hi && m.bin(c = lo->c2(), best_axis) < best_split) {
-        lc.extend(c);
-        ++lo;
-      }
-      while (lo < hi && m.bin(c = (hi - 1)->c2(), best_axis) >= best_split) {
-        rc.extend(c);
-        --hi;
-      }
-      if (lo >= hi) break;
-      std::swap(*lo, *(hi - 1));
-      lc.extend(lo->c2());
-      rc.extend((hi - 1)->c2());
-      ++lo;
-      --hi;
-    }
-    const uint32_t mid = uint32_t(lo - refs.data());
+    // Partition by bin; the boxes come from the bins, the centroid bounds from a pass over each side.
+    BuildRef* const first = refs.data() + r.begin;
+    BuildRef* const last = refs.data() + r.end;
+    BuildRef* const cut = best_axis == 0   ? partition<0>(m, best_split, first, last)
+                          : best_axis == 1 ? partition<1>(m, best_split, first, last)
+                                           : partition<2>(m, best_split, first, last);
+    const uint32_t mid = uint32_t(cut - refs.data());
     if (mid == r.begin || mid == r.end) {  // unreachable with exact binning; stay safe
       halves(r, r.begin + n / 2, l, rr);
       return true;
     }
-    l = Range{r.begin, mid, best_lbox.bounds(), lc.bounds(), r.depth + 1};
-    rr = Range{mid, r.end, best_rbox.bounds(), rc.bounds(), r.depth + 1};
+    l = Range{r.begin, mid, best_lbox.bounds(), centroid_bounds(first, cut).bounds(), r.depth + 1};
+    rr = Range{mid, r.end, best_rbox.bounds(), centroid_bounds(cut, last).bounds(), r.depth + 1};
     return true;
   }
 
@@ -349,7 +429,6 @@ struct Bvh::Builder {
     uint32_t i = r.begin;
     for (uint32_t p = 0; p < count; ++p) {
       Packet& pk = out[p];
-      pk = Packet{};
       const bool tri = i < r.end && refs[i].id < ntri;
       for (int lane = 0; lane < kPacketWidth; ++lane) {
         if (i < r.end && (refs[i].id < ntri) == tri) {
@@ -358,15 +437,24 @@ struct Bvh::Builder {
           if (tri) {
             const Triangle& t = triangles[id];
             const Vec3* v[3] = {&t.p0, &t.p1, &t.p2};
-            for (int k = 0; k < 3; ++k)
-              for (int a = 0; a < 3; ++a) pk.v[k][a][lane] = (*v[k])[a];
+            for (int k = 0; k < 3; ++k) {
+              pk.v[k][0][lane] = v[k]->x;
+              pk.v[k][1][lane] = v[k]->y;
+              pk.v[k][2][lane] = v[k]->z;
+            }
           } else {
             const Sphere& s = spheres[id - ntri];
-            for (int a = 0; a < 3; ++a) pk.v[0][a][lane] = s.center[a];
+            pk.v[0][0][lane] = s.center.x;
+            pk.v[0][1][lane] = s.center.y;
+            pk.v[0][2][lane] = s.center.z;
             pk.v[1][0][lane] = s.radius;
+            pk.v[1][1][lane] = pk.v[1][2][lane] = 0.f;
+            for (int a = 0; a < 3; ++a) pk.v[2][a][lane] = 0.f;
           }
         } else {
-          pk.id[lane] = kNoPrim;
+          pk.id[lane] = kNoPrim;  // unused: zero data, masked out by its id
+          for (int k = 0; k < 3; ++k)
+            for (int a = 0; a < 3; ++a) pk.v[k][a][lane] = 0.f;
         }
       }
     }
@@ -382,6 +470,21 @@ struct Bvh::Builder {
     void decide(Builder& b) { state = b.split(r, l, rr) ? kSplit : kLeaf; }
   };
 
+  // Decides the children not decided yet, in parallel when more than one is large.
+  void decide_all(std::array<Child, kNodeWidth>& c, int nc) {
+    int pending[kNodeWidth], np = 0, large = 0;
+    for (int k = 0; k < nc; ++k) {
+      if (c[k].state != Child::kUnknown) continue;
+      pending[np++] = k;
+      large += c[k].r.size() > kParallelTaskThreshold;
+    }
+    if (large >= 2) {
+      tbb::parallel_for(0, np, [&](int i) { c[pending[i]].decide(*this); });
+    } else {
+      for (int i = 0; i < np; ++i) c[pending[i]].decide(*this);
+    }
+  }
+
   // Builds the node at index idx over a range already split into a and b: opens the child with the largest area
   // until there are kNodeWidth children or none can be split, then recurses into the interior children.
   void build_node(uint32_t idx, const Range& a, const Range& b) {
@@ -389,33 +492,27 @@ struct Bvh::Builder {
     c[0].r = a;
     c[1].r = b;
     int nc = 2;
-    if (a.size() > kParallelTaskThreshold && b.size() > kParallelTaskThreshold) {
-      // Both halves will be opened: split them side by side (near the root, partitions are serial otherwise).
-      tbb::parallel_invoke([&] { c[0].decide(*this); }, [&] { c[1].decide(*this); });
-    }
-    while (nc < kNodeWidth) {
+    // Every child is decided (leaf or split) before the next one is opened: the children that will be decided
+    // anyway are split side by side when they are large, which keeps both threads busy near the root (where a
+    // split's partition is serial). The tree is the same as deciding them one at a time.
+    for (;;) {
+      decide_all(c, nc);
+      if (nc == kNodeWidth) break;
       int best = -1;
       float best_area = -1.f;
       for (int k = 0; k < nc; ++k) {
-        if (c[k].state == Child::kLeaf) continue;
+        if (c[k].state != Child::kSplit) continue;
         const float ar = c[k].area();
         if (ar > best_area) { best_area = ar; best = k; }
       }
       if (best < 0) break;
-      Child& ch = c[best];
-      if (ch.state == Child::kUnknown) {
-        ch.decide(*this);
-        if (ch.state == Child::kLeaf) continue;
-      }
-      const Range l = ch.l, rr = ch.rr;
+      const Range l = c[best].l, rr = c[best].rr;
       c[best] = Child{};
       c[best].r = l;
       c[nc] = Child{};
       c[nc].r = rr;
       ++nc;
     }
-    for (int k = 0; k < nc; ++k)
-      if (c[k].state == Child::kUnknown) c[k].decide(*this);
 
     int interior = 0;
     for (int k = 0; k < nc; ++k) interior += c[k].state == Child::kSplit;
@@ -522,12 +619,12 @@ Bvh Bvh::build(std::span<const Triangle> triangles, std::span<const Sphere> sphe
     refs.resize(w);
   }
   if (refs.empty()) return bvh;
-  Range root;
-  root.begin = 0;
-  root.end = uint32_t(refs.size());
-  root.box = acc.box.bounds();
-  root.cbox = acc.cbox.bounds();
-  bvh.bounds_ = root.box;
+  Range root_range;
+  root_range.begin = 0;
+  root_range.end = uint32_t(refs.size());
+  root_range.box = acc.box.bounds();
+  root_range.cbox = acc.cbox.bounds();
+  bvh.bounds_ = root_range.box;
 
   // Upper bounds: every node but the root has at least two children and every leaf at least one primitive, so
   // nodes <= leaves <= references; a leaf never has more packets than primitives. The storage is not initialised,
@@ -539,7 +636,7 @@ Bvh Bvh::build(std::span<const Triangle> triangles, std::span<const Sphere> sphe
   Builder b(options, refs, triangles, spheres, bvh);
   const uint32_t root_idx = b.next_node.fetch_add(1);
   Range l, r;
-  if (b.split(root, l, r)) {
+  if (b.split(root_range, l, r)) {
     b.build_node(root_idx, l, r);
   } else {
     // The whole scene is one leaf: a root with a single child.
@@ -547,12 +644,12 @@ Bvh Bvh::build(std::span<const Triangle> triangles, std::span<const Sphere> sphe
     std::fill(std::begin(node.pad), std::end(node.pad), 0u);
     for (int k = 0; k < kNodeWidth; ++k) {
       for (int ax = 0; ax < 3; ++ax) {
-        node.box[2 * ax][k] = k == 0 ? root.box.lo[ax] : kInfinity;
-        node.box[2 * ax + 1][k] = k == 0 ? root.box.hi[ax] : -kInfinity;
+        node.box[2 * ax][k] = k == 0 ? root_range.box.lo[ax] : kInfinity;
+        node.box[2 * ax + 1][k] = k == 0 ? root_range.box.hi[ax] : -kInfinity;
       }
       node.child[k] = 0;
     }
-    node.child[0] = b.emit_leaf(root);
+    node.child[0] = b.emit_leaf(root_range);
   }
   bvh.nodes_.resize(b.next_node.load());
   bvh.packets_.resize(b.next_packet.load());
