@@ -669,8 +669,8 @@ bool triangle_fallback(const float (&s)[9], float sz, float tmax, HitRecord* out
   return true;
 }
 
-bool sphere_hit(const TraceRay& r, float cx, float cy, float cz, float radius, float tmax, float* t) {
-  const auto th = intersect_sphere(Sphere{Vec3(cx, cy, cz), radius}, *r.ray, tmax);
+bool sphere_hit(const Ray& ray, float cx, float cy, float cz, float radius, float tmax, float* t) {
+  const auto th = intersect_sphere(Sphere{Vec3(cx, cy, cz), radius}, ray, tmax);
   if (!th) return false;
   *t = *th;
   return true;
@@ -686,50 +686,8 @@ const bvh_kernels::Kernels& kernels_of(SimdPath p) {
   return *table[size_t(p)];
 }
 
-// The kernels' per-ray constants: BoxRay's (core/bounds.h) and WatertightRay's (core/triangle.h), bitwise, without
-// branches on the direction (random rays would mispredict them) and without glm's indexing.
-bvh_kernels::TraceRay trace_ray(const Ray& ray) {
-  const float d[3] = {ray.d.x, ray.d.y, ray.d.z};
-  // Vectors are built with set, not loaded from arrays just written: a wide load of narrow stores stalls.
-  const __m128 inv = _mm_div_ps(_mm_set1_ps(1.f), _mm_setr_ps(d[0], d[1], d[2], 1.f));  // BoxRay's 1.f / d
-  const int signs = _mm_movemask_ps(inv);                            // BoxRay::neg
-  bvh_kernels::TraceRay t;
-  t.o[0] = ray.o.x;
-  t.o[1] = ray.o.y;
-  t.o[2] = ray.o.z;
-  alignas(16) float inv_d[4];
-  _mm_store_ps(inv_d, inv);
-  t.inv_d[0] = inv_d[0];
-  t.inv_d[1] = inv_d[1];
-  t.inv_d[2] = inv_d[2];
-  t.near_row[0] = signs & 1;
-  t.near_row[1] = 2 + ((signs >> 1) & 1);
-  t.near_row[2] = 4 + ((signs >> 2) & 1);
-  t.far_row[0] = 1 - (signs & 1);
-  t.far_row[1] = 3 - ((signs >> 1) & 1);
-  t.far_row[2] = 5 - ((signs >> 2) & 1);
-  t.far_scale = 1.f + 2.f * gamma(3);
-  // max_abs_dimension(d): the largest |d| (the first on ties), from a table of the three comparisons.
-  const float ax = std::abs(d[0]), ay = std::abs(d[1]), az = std::abs(d[2]);
-  static constexpr int8_t kLargest[8] = {2, 1, 2, 1, 2, 2, 0, 0};  // index (ax >= ay) * 4 + (ax >= az) * 2 + (ay >= az)
-  const int kz = kLargest[(ax >= ay) * 4 + (ax >= az) * 2 + (ay >= az)];
-  // kx, ky follow kz cyclically, swapped when d[kz] < 0 (WatertightRay keeps the winding that way).
-  static constexpr int8_t kNext[3][2][2] = {{{1, 2}, {2, 1}}, {{2, 0}, {0, 2}}, {{0, 1}, {1, 0}}};
-  const int neg_z = d[kz] < 0.f ? 1 : 0;
-  t.kx = kNext[kz][neg_z][0];
-  t.ky = kNext[kz][neg_z][1];
-  t.kz = kz;
-  t.ox = t.o[t.kx];
-  t.oy = t.o[t.ky];
-  t.oz = t.o[kz];
-  alignas(16) float shear[4];  // d[kx] / d[kz], d[ky] / d[kz], 1 / d[kz]
-  _mm_store_ps(shear, _mm_div_ps(_mm_setr_ps(d[t.kx], d[t.ky], 1.f, 1.f), _mm_set1_ps(d[kz])));
-  t.sx = shear[0];
-  t.sy = shear[1];
-  t.sz = shear[2];
-  t.tmax = ray.tmax;
-  t.ray = &ray;
-  return t;
+bvh_kernels::RayData ray_data(const Ray& r) {
+  return bvh_kernels::RayData{{r.o.x, r.o.y, r.o.z}, {r.d.x, r.d.y, r.d.z}, r.tmax, &r};
 }
 
 }  // namespace
@@ -742,17 +700,17 @@ void Bvh::set_simd_path(SimdPath p) {
 }
 
 std::optional<Hit> Bvh::intersect(const Ray& ray) const {
-  if (nodes_.empty() || !ray.valid()) return std::nullopt;
-  const bvh_kernels::Tree tree{nodes_.data(), packets_.data(), num_triangles_};
+  if (nodes_.empty()) return std::nullopt;
+  const bvh_kernels::Tree tree{nodes_.data(), packets_.data(), num_triangles_, 1.f + 2.f * gamma(3)};
   bvh_kernels::HitRecord h;
-  if (!kernels_of(path_).intersect(tree, trace_ray(ray), &h)) return std::nullopt;
+  if (!kernels_of(path_).intersect(tree, ray_data(ray), &h)) return std::nullopt;
   return Hit{h.t, h.b1, h.b2, h.prim};
 }
 
 bool Bvh::occluded(const Ray& ray) const {
-  if (nodes_.empty() || !ray.valid()) return false;
-  const bvh_kernels::Tree tree{nodes_.data(), packets_.data(), num_triangles_};
-  return kernels_of(path_).occluded(tree, trace_ray(ray));
+  if (nodes_.empty()) return false;
+  const bvh_kernels::Tree tree{nodes_.data(), packets_.data(), num_triangles_, 1.f + 2.f * gamma(3)};
+  return kernels_of(path_).occluded(tree, ray_data(ray));
 }
 
 size_t Bvh::memory_bytes() const { return nodes_.size() * sizeof(Node) + packets_.size() * sizeof(Packet); }

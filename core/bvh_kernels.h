@@ -14,17 +14,12 @@ struct Ray;
 
 namespace bvh_kernels {
 
-/// Per-ray constants, computed once per query by core/bvh.cpp.
-struct TraceRay {
-  float o[3];                   ///< Origin (slab test).
-  float inv_d[3];               ///< 1 / direction, +-inf for zero components (BoxRay in core/bounds.h).
-  int near_row[3], far_row[3];  ///< Rows of Node::box holding each axis's near and far plane for this direction.
-  float far_scale;              ///< 1 + 2 gamma(3): the far distance's conservative widening.
-  int kx, ky, kz;               ///< The watertight test's axis permutation (WatertightRay in core/triangle.h).
-  float ox, oy, oz;             ///< Origin in the permuted axes.
-  float sx, sy, sz;             ///< Shear constants.
-  float tmax;                   ///< Far end of the ray.
-  const Ray* ray;               ///< The ray itself, for sphere tests.
+/// A query's ray: core/ray.h's Ray as plain floats, and the Ray itself for sphere tests.
+struct RayData {
+  float o[3];      ///< Origin.
+  float d[3];      ///< Direction.
+  float tmax;      ///< Far end of the ray.
+  const Ray* ray;  ///< The same ray.
 };
 
 /// A closest hit as the kernels report it.
@@ -39,14 +34,16 @@ struct Tree {
   const bvh_layout::Node* nodes;      ///< Interior nodes; the root is nodes[0].
   const bvh_layout::Packet* packets;  ///< Leaf packets.
   uint32_t num_triangles;             ///< Primitive ids below this are triangles, the rest spheres.
+  float far_scale;                    ///< 1 + 2 gamma(3): the slab test's conservative widening of far distances.
 };
 
-/// One SimdPath's kernels.
+/// One SimdPath's kernels. Both check the ray as Ray::valid() does (an invalid ray hits nothing) and compute the
+/// per-ray constants of BoxRay (core/bounds.h) and WatertightRay (core/triangle.h) bitwise.
 struct Kernels {
-  /// Closest hit of a valid ray in (0, r.tmax); fills *hit and returns true when there is one.
-  bool (*intersect)(const Tree& tree, const TraceRay& r, HitRecord* hit);
+  /// Closest hit in (0, r.tmax); fills *hit and returns true when there is one.
+  bool (*intersect)(const Tree& tree, const RayData& r, HitRecord* hit);
   /// True when anything is hit in (0, r.tmax).
-  bool (*occluded)(const Tree& tree, const TraceRay& r);
+  bool (*occluded)(const Tree& tree, const RayData& r);
 };
 
 /// The SSE2 kernels (core/bvh_sse2.cpp).
@@ -60,9 +57,9 @@ extern const Kernels kAvx512;
 /// vertices s = {ax, ay, az, bx, by, bz, cx, cy, cz}; compiled for the baseline ISA in core/bvh.cpp.
 bool triangle_fallback(const float (&s)[9], float sz, float tmax, HitRecord* out);
 
-/// intersect_sphere (core/sphere.h) of r's ray with the sphere (c, radius) in (0, tmax); compiled for the
-/// baseline ISA in core/bvh.cpp.
-bool sphere_hit(const TraceRay& r, float cx, float cy, float cz, float radius, float tmax, float* t);
+/// intersect_sphere (core/sphere.h) of ray with the sphere (c, radius) in (0, tmax); compiled for the baseline ISA
+/// in core/bvh.cpp.
+bool sphere_hit(const Ray& ray, float cx, float cy, float cz, float radius, float tmax, float* t);
 
 }  // namespace bvh_kernels
 }  // namespace tessera

@@ -116,41 +116,85 @@ inline void vkeys(VF t, uint32_t* keys) {
 }
 #endif
 
-struct BoxRay8 {
+// Ray::valid() (core/ray.h) and the per-ray constants of BoxRay (core/bounds.h) and WatertightRay
+// (core/triangle.h), bitwise: the same IEEE divisions, lane by lane.
+struct RaySetup {
+  // Slab test.
   VF o[3], inv_d[3], scale;
-  int near_row[3], far_row[3];
-  explicit BoxRay8(const TraceRay& r) : scale(vset1(r.far_scale)) {
-    for (int a = 0; a < 3; ++a) {
-      o[a] = vset1(r.o[a]);
-      inv_d[a] = vset1(r.inv_d[a]);
-      near_row[a] = r.near_row[a];
-      far_row[a] = r.far_row[a];
-    }
-  }
+  long near_off[3], far_off[3];  // byte offsets in a Node of the rows holding each axis's near and far planes
+  // Watertight test.
+  int kx, ky, kz;
+  VF ox, oy, oz, sx, sy, sz;
+  float sz1;  // sz as a scalar, for the double-precision fallback
+  float tmax;
+  const Ray* ray;
 };
+
+inline bool setup(const Tree& tree, const RayData& in, RaySetup& s) {
+  const __m128 o = _mm_setr_ps(in.o[0], in.o[1], in.o[2], 0.f);
+  const __m128 d = _mm_setr_ps(in.d[0], in.d[1], in.d[2], 1.f);
+  const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
+  const __m128 largest = _mm_castsi128_ps(_mm_set1_epi32(0x7f7fffff));
+  const int finite = _mm_movemask_ps(_mm_and_ps(_mm_cmple_ps(_mm_and_ps(o, abs_mask), largest),
+                                                _mm_cmple_ps(_mm_and_ps(d, abs_mask), largest)));
+  const int nonzero = _mm_movemask_ps(_mm_cmpneq_ps(d, _mm_setzero_ps())) & 7;
+  if (finite != 0xf || !nonzero || in.tmax != in.tmax) return false;
+
+  const __m128 inv = _mm_div_ps(_mm_set1_ps(1.f), d);  // BoxRay: 1.f / d per component
+  const int neg = _mm_movemask_ps(inv);                // BoxRay::neg
+  alignas(16) float inv_d[4];
+  _mm_store_ps(inv_d, inv);
+  for (int a = 0; a < 3; ++a) {
+    s.o[a] = vset1(in.o[a]);
+    s.inv_d[a] = vset1(inv_d[a]);
+    const int n = (neg >> a) & 1;
+    s.near_off[a] = long(2 * a + n) * long(sizeof(Node::box[0]));
+    s.far_off[a] = long(2 * a + 1 - n) * long(sizeof(Node::box[0]));
+  }
+  s.scale = vset1(tree.far_scale);
+
+  // WatertightRay: kz the largest |d| (the first on ties), kx and ky the next axes cyclically, swapped when
+  // d[kz] < 0; shear constants d[kx] / d[kz], d[ky] / d[kz] and 1 / d[kz].
+  const float ax = __builtin_fabsf(in.d[0]), ay = __builtin_fabsf(in.d[1]), az = __builtin_fabsf(in.d[2]);
+  static constexpr int8_t kLargest[8] = {2, 1, 2, 1, 2, 2, 0, 0};  // (ax >= ay) * 4 + (ax >= az) * 2 + (ay >= az)
+  static constexpr int8_t kNext[3][2][2] = {{{1, 2}, {2, 1}}, {{2, 0}, {0, 2}}, {{0, 1}, {1, 0}}};
+  const int kz = kLargest[(ax >= ay) * 4 + (ax >= az) * 2 + (ay >= az)];
+  const float dz = in.d[kz];
+  const int nz = dz < 0.f ? 1 : 0;
+  s.kx = kNext[kz][nz][0];
+  s.ky = kNext[kz][nz][1];
+  s.kz = kz;
+  alignas(16) float shear[4];
+  _mm_store_ps(shear, _mm_div_ps(_mm_setr_ps(in.d[s.kx], in.d[s.ky], 1.f, 1.f), _mm_set1_ps(dz)));
+  s.ox = vset1(in.o[s.kx]);
+  s.oy = vset1(in.o[s.ky]);
+  s.oz = vset1(in.o[kz]);
+  s.sx = vset1(shear[0]);
+  s.sy = vset1(shear[1]);
+  s.sz = vset1(shear[2]);
+  s.sz1 = shear[2];
+  s.tmax = in.tmax;
+  s.ray = in.ray;
+  return true;
+}
 
 // Slab test of a node's eight child boxes against (0, tmax); returns the mask of boxes entered and their entry
 // distances.
-inline unsigned node_test(const Node& n, const BoxRay8& r, VF tmax, VF* t_entry) {
+inline const float* row(const Node& n, long off) {
+  return reinterpret_cast<const float*>(reinterpret_cast<const char*>(&n) + off);
+}
+
+inline unsigned node_test(const Node& n, const RaySetup& r, VF tmax, VF* t_entry) {
   VF t0 = vset1(0.f), t1 = tmax;
   for (int a = 0; a < 3; ++a) {
-    const VF tn = vmul(vsub(vload(n.box[r.near_row[a]]), r.o[a]), r.inv_d[a]);
-    const VF tf = vmul(vmul(vsub(vload(n.box[r.far_row[a]]), r.o[a]), r.inv_d[a]), r.scale);
+    const VF tn = vmul(vsub(vload(row(n, r.near_off[a])), r.o[a]), r.inv_d[a]);
+    const VF tf = vmul(vmul(vsub(vload(row(n, r.far_off[a])), r.o[a]), r.inv_d[a]), r.scale);
     t0 = vmax(tn, t0);  // tn > t0 ? tn : t0
     t1 = vmin(tf, t1);  // tf < t1 ? tf : t1
   }
   *t_entry = t0;
   return vle_mask(t0, t1);
 }
-
-// Per-ray constants of the watertight test.
-struct TriRay8 {
-  const TraceRay& r;
-  VF ox, oy, oz, sx, sy, sz;
-  explicit TriRay8(const TraceRay& tr)
-      : r(tr), ox(vset1(tr.ox)), oy(vset1(tr.oy)), oz(vset1(tr.oz)), sx(vset1(tr.sx)), sy(vset1(tr.sy)),
-        sz(vset1(tr.sz)) {}
-};
 
 // Results of eight triangle tests: t and the barycentrics of p1 and p2 for the lanes that hit.
 struct Lanes8 {
@@ -164,8 +208,8 @@ struct Lanes8 {
 // functions are zero or whose determinant is not finite go to the same double-precision fallback. `valid` is the
 // mask of used lanes. Returns the mask of lanes that hit in (0, tmax); fills `out` for them when given (with no
 // `out`, it may stop at the first hit).
-inline unsigned triangles8(const Packet& pk, unsigned valid, const TriRay8& r, float tmax, Lanes8* out) {
-  const TraceRay& w = r.r;
+inline unsigned triangles8(const Packet& pk, unsigned valid, const RaySetup& r, float tmax, Lanes8* out) {
+  const RaySetup& w = r;
   const auto& v = pk.v;
   const VF az = vsub(vload(v[0][w.kz]), r.oz);
   const VF bz = vsub(vload(v[1][w.kz]), r.oz);
@@ -214,7 +258,7 @@ inline unsigned triangles8(const Packet& pk, unsigned valid, const TriRay8& r, f
       const int k = lowest(m);
       const float sh[9] = {s[0][k], s[1][k], s[2][k], s[3][k], s[4][k], s[5][k], s[6][k], s[7][k], s[8][k]};
       HitRecord h;
-      if (triangle_fallback(sh, w.sz, tmax, &h)) {
+      if (triangle_fallback(sh, w.sz1, tmax, &h)) {
         hit |= 1u << k;
         if (!out) return hit;
         out->t[k] = h.t;
@@ -258,9 +302,11 @@ inline void sort_descending(uint32_t* k, int n) {
 
 // The closest hit. Children are visited nearest first by their sort keys (entry distance, then slot), the others
 // pushed farthest first; a popped entry whose entry distance lies beyond the closest hit so far is dropped.
-bool intersect(const Tree& tree, const TraceRay& ray, HitRecord* out) {
-  const BoxRay8 sr(ray);
-  const TriRay8 tr(ray);
+bool intersect(const Tree& tree, const RayData& in, HitRecord* out) {
+  RaySetup ray;
+  if (!setup(tree, in, ray)) return false;
+  const RaySetup& sr = ray;
+  const RaySetup& tr = ray;
   float tmax = ray.tmax;
   HitRecord best{};
   bool found = false;
@@ -325,7 +371,7 @@ bool intersect(const Tree& tree, const TraceRay& ray, HitRecord* out) {
         for (unsigned m = valid; m; m &= m - 1) {
           const int k = lowest(m);
           float th;
-          if (sphere_hit(ray, pk->v[0][0][k], pk->v[0][1][k], pk->v[0][2][k], pk->v[1][0][k], tmax, &th)) {
+          if (sphere_hit(*ray.ray, pk->v[0][0][k], pk->v[0][1][k], pk->v[0][2][k], pk->v[1][0][k], tmax, &th)) {
             tmax = th;
             best = HitRecord{th, 0.f, 0.f, k == 0 ? id0 : pk->id[k]};
             found = true;
@@ -350,9 +396,11 @@ bool intersect(const Tree& tree, const TraceRay& ray, HitRecord* out) {
 }
 
 // Any hit: children in slot order, stopping at the first hit (the answer does not depend on the order).
-bool occluded(const Tree& tree, const TraceRay& ray) {
-  const BoxRay8 sr(ray);
-  const TriRay8 tr(ray);
+bool occluded(const Tree& tree, const RayData& in) {
+  RaySetup ray;
+  if (!setup(tree, in, ray)) return false;
+  const RaySetup& sr = ray;
+  const RaySetup& tr = ray;
   const float tmax = ray.tmax;
   const VF tmax8 = vset1(tmax);
 
@@ -380,7 +428,7 @@ bool occluded(const Tree& tree, const TraceRay& ray) {
         for (unsigned m = valid; m; m &= m - 1) {
           const int k = lowest(m);
           float th;
-          if (sphere_hit(ray, pk->v[0][0][k], pk->v[0][1][k], pk->v[0][2][k], pk->v[1][0][k], tmax, &th))
+          if (sphere_hit(*ray.ray, pk->v[0][0][k], pk->v[0][1][k], pk->v[0][2][k], pk->v[1][0][k], tmax, &th))
             return true;
         }
       }
