@@ -661,14 +661,6 @@ Bvh Bvh::build(std::span<const Triangle> triangles, std::span<const Sphere> sphe
 
 namespace bvh_kernels {
 
-bool triangle_fallback(const float (&s)[9], float sz, float tmax, HitRecord* out) {
-  const detail::Sheared sh{s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7], s[8]};
-  const auto h = detail::intersect_sheared_double(sh, sz, tmax);
-  if (!h) return false;
-  *out = HitRecord{h->t, h->b1, h->b2, 0};
-  return true;
-}
-
 bool sphere_hit(const Ray& ray, float cx, float cy, float cz, float radius, float tmax, float* t) {
   const auto th = intersect_sphere(Sphere{Vec3(cx, cy, cz), radius}, ray, tmax);
   if (!th) return false;

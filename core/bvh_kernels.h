@@ -53,10 +53,6 @@ extern const Kernels kAvx2;
 /// The AVX-512 kernels (core/bvh_avx512.cpp).
 extern const Kernels kAvx512;
 
-/// The watertight test's double-precision finish (detail::intersect_sheared_double in core/triangle.h) on sheared
-/// vertices s = {ax, ay, az, bx, by, bz, cx, cy, cz}; compiled for the baseline ISA in core/bvh.cpp.
-bool triangle_fallback(const float (&s)[9], float sz, float tmax, HitRecord* out);
-
 /// intersect_sphere (core/sphere.h) of ray with the sphere (c, radius) in (0, tmax); compiled for the baseline ISA
 /// in core/bvh.cpp.
 bool sphere_hit(const Ray& ray, float cx, float cy, float cz, float radius, float tmax, float* t);

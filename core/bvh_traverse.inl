@@ -4,7 +4,9 @@
 // compiled for a wide instruction set can be picked by the linker for code that runs on a narrower CPU.
 //
 // The rules every path follows, so that all return bitwise the same hit (core/bvh_kernels.h):
-// * Slab tests per lane with exactly slab_test()'s operations (core/bounds.h).
+// * The same slab test per lane: slab_test()'s operations (core/bounds.h), except that the far distance multiplies by
+//   1/d and 1 + 2 gamma(3) premultiplied (one rounding more, still at least the exact distance: the four
+//   roundings shrink it by at most (1 - 2^-24)^4, which 1 + 2 gamma(3) more than makes up).
 // * Children visited nearest first by the same sort keys (entry distance, then slot); the same stack discipline
 //   and pop-time culling.
 // * Triangle tests per lane with exactly intersect_triangle()'s operations (core/triangle.h), lanes accepted in
@@ -24,10 +26,14 @@ static_assert(kNodeWidth == 8 && kPacketWidth == 8);
 
 inline int lowest(unsigned m) { return __builtin_ctz(m); }
 
-// Per-ray constants of the slab test. The arithmetic per lane is slab_test()'s (core/bounds.h): near and far planes
-// chosen by the direction's sign, (plane - o) * inv_d, the far distance scaled by 1 + 2 gamma(3), and max/min that
-// keep the running value when the new distance is NaN (MAXPS/MINPS return their second operand on unordered
-// inputs). The entry distance is therefore in [0, +inf] and never NaN.
+// The double-precision finish of the watertight test, compiled here (no call: a call would make the compiler save
+// every vector register around the leaf loop).
+#include "core/sheared_double.h"
+
+// Vector operations on eight lanes. The slab test per lane (node_test below): near and far planes chosen by the
+// direction's sign, (plane - o) * inv_d for the near distance and (plane - o) * (inv_d (1 + 2 gamma(3))) for the far
+// one, and max/min that keep the running value when the new distance is NaN (MAXPS/MINPS return their second
+// operand on unordered inputs). The entry distance is therefore in [0, +inf] and never NaN.
 #if defined(__AVX2__)
 using VF = __m256;
 inline VF vset1(float x) { return _mm256_set1_ps(x); }
@@ -120,7 +126,7 @@ inline void vkeys(VF t, uint32_t* keys) {
 // (core/triangle.h), bitwise: the same IEEE divisions, lane by lane.
 struct RaySetup {
   // Slab test.
-  VF o[3], inv_d[3], scale;
+  VF o[3], inv_d[3], inv_d_far[3];  // inv_d_far: inv_d * (1 + 2 gamma(3)), rounded
   long near_off[3], far_off[3];  // byte offsets in a Node of the rows holding each axis's near and far planes
   // Watertight test.
   int kx, ky, kz;
@@ -151,7 +157,7 @@ inline bool setup(const Tree& tree, const RayData& in, RaySetup& s) {
     s.near_off[a] = long(2 * a + n) * long(sizeof(Node::box[0]));
     s.far_off[a] = long(2 * a + 1 - n) * long(sizeof(Node::box[0]));
   }
-  s.scale = vset1(tree.far_scale);
+  for (int a = 0; a < 3; ++a) s.inv_d_far[a] = vset1(inv_d[a] * tree.far_scale);
 
   // WatertightRay: kz the largest |d| (the first on ties), kx and ky the next axes cyclically, swapped when
   // d[kz] < 0; shear constants d[kx] / d[kz], d[ky] / d[kz] and 1 / d[kz].
@@ -184,11 +190,11 @@ inline const float* row(const Node& n, long off) {
   return reinterpret_cast<const float*>(reinterpret_cast<const char*>(&n) + off);
 }
 
-inline unsigned node_test(const Node& n, const RaySetup& r, VF tmax, VF* t_entry) {
+[[gnu::always_inline]] inline unsigned node_test(const Node& n, const RaySetup& r, VF tmax, VF* t_entry) {
   VF t0 = vset1(0.f), t1 = tmax;
   for (int a = 0; a < 3; ++a) {
     const VF tn = vmul(vsub(vload(row(n, r.near_off[a])), r.o[a]), r.inv_d[a]);
-    const VF tf = vmul(vmul(vsub(vload(row(n, r.far_off[a])), r.o[a]), r.inv_d[a]), r.scale);
+    const VF tf = vmul(vsub(vload(row(n, r.far_off[a])), r.o[a]), r.inv_d_far[a]);
     t0 = vmax(tn, t0);  // tn > t0 ? tn : t0
     t1 = vmin(tf, t1);  // tf < t1 ? tf : t1
   }
@@ -208,7 +214,8 @@ struct Lanes8 {
 // functions are zero or whose determinant is not finite go to the same double-precision fallback. `valid` is the
 // mask of used lanes. Returns the mask of lanes that hit in (0, tmax); fills `out` for them when given (with no
 // `out`, it may stop at the first hit).
-inline unsigned triangles8(const Packet& pk, unsigned valid, const RaySetup& r, float tmax, Lanes8* out) {
+[[gnu::always_inline]] inline unsigned triangles8(const Packet& pk, unsigned valid, const RaySetup& r, float tmax,
+                                                  Lanes8* out) {
   const RaySetup& w = r;
   const auto& v = pk.v;
   const VF az = vsub(vload(v[0][w.kz]), r.oz);
@@ -257,13 +264,13 @@ inline unsigned triangles8(const Packet& pk, unsigned valid, const RaySetup& r, 
     for (unsigned m = fb; m; m &= m - 1) {
       const int k = lowest(m);
       const float sh[9] = {s[0][k], s[1][k], s[2][k], s[3][k], s[4][k], s[5][k], s[6][k], s[7][k], s[8][k]};
-      HitRecord h;
-      if (triangle_fallback(sh, w.sz1, tmax, &h)) {
+      float t, b0, b1, b2;
+      if (finish_sheared_double(sh, w.sz1, tmax, &t, &b0, &b1, &b2)) {
         hit |= 1u << k;
         if (!out) return hit;
-        out->t[k] = h.t;
-        out->b1[k] = h.b1;
-        out->b2[k] = h.b2;
+        out->t[k] = t;
+        out->b1[k] = b1;
+        out->b2[k] = b2;
       }
     }
   }
