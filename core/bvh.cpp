@@ -18,6 +18,7 @@
 #include <cstdlib>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 #if defined(__linux__)
 #include <sys/mman.h>
@@ -535,14 +536,17 @@ struct Bvh::Builder {
   static constexpr uint32_t kNone = 0xffffffffu;
   using Costs = std::array<float, kNodeWidth>;  // cost of a subtree in k slots at index k - 1
 
+  // Trivially constructible: the array is sized by an upper bound and only the used part may be touched.
   struct BinaryNode {
-    Bounds3 box;
+    float lo[3], hi[3];        // bounds
     uint32_t begin, end;       // references
     uint32_t left, right;      // children, kNone for a leaf
     uint8_t pick[kNodeWidth];  // pick[0]: slots of left's forest when this is a wide node (right gets the rest);
                                // pick[k - 1], k >= 2: slots of left's forest in k slots, 0 when this takes one
     bool leaf() const { return left == kNone; }
+    Bounds3 box() const { return Bounds3{Vec3(lo[0], lo[1], lo[2]), Vec3(hi[0], hi[1], hi[2])}; }
   };
+  static_assert(std::is_trivially_default_constructible_v<BinaryNode>);
 
   std::vector<BinaryNode, detail::UninitAllocator<BinaryNode>> binary;
   std::atomic<uint32_t> next_binary{0};
@@ -580,7 +584,10 @@ struct Bvh::Builder {
   // Builds the binary tree over r into binary[idx] and below; returns the subtree's costs.
   Costs build_binary(uint32_t idx, const Range& r) {
     BinaryNode& n = binary[idx];
-    n.box = r.box;
+    for (int a = 0; a < 3; ++a) {
+      n.lo[a] = r.box.lo[a];
+      n.hi[a] = r.box.hi[a];
+    }
     n.begin = r.begin;
     n.end = r.end;
     Range a, b;
@@ -642,7 +649,7 @@ struct Bvh::Builder {
     uint32_t next = base;
     for (int k = 0; k < nk; ++k) {
       const BinaryNode& c = binary[kids[size_t(k)]];
-      set_slot(node, k, c.box, c.leaf() ? emit_leaf(c.begin, c.end) : next++);
+      set_slot(node, k, c.box(), c.leaf() ? emit_leaf(c.begin, c.end) : next++);
     }
     clear_slots(node, nk);
 
