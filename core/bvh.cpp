@@ -409,9 +409,9 @@ struct Bvh::Builder {
       return true;
     }
 
-    // Fewer bins for smaller ranges (8 + n / 16, at most opt.bins): small ranges are the most numerous, and their
+    // Fewer bins for smaller ranges (4 + n / 16, at most opt.bins): small ranges are the most numerous, and their
     // cost is mostly per bin.
-    const int nb = std::clamp(std::min(opt.bins, 8 + int(n / 16)), 2, kMaxBins);
+    const int nb = std::clamp(std::min(opt.bins, 4 + int(n / 16)), 2, kMaxBins);
     const BinMapper m(r.cbox, nb);
     const Bins bins = bin_range(m, nb, r.begin, r.end);
 
