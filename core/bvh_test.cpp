@@ -157,6 +157,16 @@ TEST(Bvh, LargeBuildIsTheSameOnAnyThreadCount) {
     ASSERT_EQ(x->prim, y->prim) << "ray " << i;
   }
   EXPECT_GT(hits, testing::scaled(20000) / 10);
+  // And the parallel partition put every reference on its side: hits match brute force.
+  for (size_t i = 0; i < testing::scaled(100); ++i) {
+    const Ray r{Vec3(u(rng), u(rng), u(rng)) * 20.f, Vec3(u(rng), u(rng), u(rng))};
+    const auto expect = brute_force(s, r);
+    const auto got = three.intersect(r);
+    ASSERT_EQ(expect.has_value(), got.has_value()) << "ray " << i;
+    if (expect) {
+      ASSERT_EQ(expect->t, got->t) << "ray " << i;
+    }
+  }
 }
 
 TEST(Bvh, MultiPacketAndMixedLeavesMatchBruteForce) {
