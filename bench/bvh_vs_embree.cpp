@@ -16,12 +16,14 @@
 #include "core/math.h"
 #include "core/mesh.h"
 #include "core/ray.h"
+#include "core/simd_path.h"
 
 #include <embree3/rtcore.h>
 #include <tbb/info.h>
 #include <xmmintrin.h>
 
 #include <algorithm>
+#include <atomic>
 #include <array>
 #include <chrono>
 #include <cinttypes>
@@ -42,7 +44,6 @@ namespace {
 using namespace tessera;
 using Clock = std::chrono::steady_clock;
 
-constexpr int kReps = 3;
 
 // ------------------------------------------------------------------------------------------------------------
 // Environment: machine, commit, build configuration.
@@ -82,6 +83,14 @@ std::string commit_description() {
   const std::string dirty =
       first_line_of("git -C '" + dir + "' status --porcelain --untracked-files=no 2>/dev/null");
   return head + (dirty.empty() ? " (clean tracked tree)" : " (tracked files modified: -dirty)");
+}
+
+// The first three fields of /proc/loadavg.
+std::string load_average() {
+  std::ifstream in("/proc/loadavg");
+  std::string a, b, c;
+  if (!(in >> a >> b >> c)) return "unknown";
+  return a + " " + b + " " + c;
 }
 
 [[noreturn]] void die(const char* what) {
@@ -298,9 +307,9 @@ struct ClosestResults {
   void resize(size_t n) { t.resize(n); prim.resize(n); }
 };
 
-double tessera_closest(const Bvh& bvh, const std::vector<Ray>& rays, ClosestResults& out) {
+double tessera_closest(const Bvh& bvh, const std::vector<Ray>& rays, size_t begin, size_t end, ClosestResults& out) {
   double sum = 0.0;
-  for (size_t i = 0, n = rays.size(); i < n; ++i) {
+  for (size_t i = begin; i < end; ++i) {
     const std::optional<Hit> h = bvh.intersect(rays[i]);
     if (h) {
       out.t[i] = h->t;
@@ -314,9 +323,9 @@ double tessera_closest(const Bvh& bvh, const std::vector<Ray>& rays, ClosestResu
   return sum;
 }
 
-double tessera_anyhit(const Bvh& bvh, const std::vector<Ray>& rays, std::vector<uint8_t>& out) {
+double tessera_anyhit(const Bvh& bvh, const std::vector<Ray>& rays, size_t begin, size_t end, std::vector<uint8_t>& out) {
   uint64_t count = 0;
-  for (size_t i = 0, n = rays.size(); i < n; ++i) {
+  for (size_t i = begin; i < end; ++i) {
     const bool occ = bvh.occluded(rays[i]);
     out[i] = occ;
     count += occ;
@@ -343,11 +352,11 @@ inline void fill_rtc_ray(RTCRay& er, const Ray& r) {
   er.flags = 0;
 }
 
-double embree_closest(RTCScene scene, const std::vector<Ray>& rays, ClosestResults& out) {
+double embree_closest(RTCScene scene, const std::vector<Ray>& rays, size_t begin, size_t end, ClosestResults& out) {
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   double sum = 0.0;
-  for (size_t i = 0, n = rays.size(); i < n; ++i) {
+  for (size_t i = begin; i < end; ++i) {
     alignas(16) RTCRayHit rh;
     fill_rtc_ray(rh.ray, rays[i]);
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
@@ -365,11 +374,11 @@ double embree_closest(RTCScene scene, const std::vector<Ray>& rays, ClosestResul
   return sum;
 }
 
-double embree_anyhit(RTCScene scene, const std::vector<Ray>& rays, std::vector<uint8_t>& out) {
+double embree_anyhit(RTCScene scene, const std::vector<Ray>& rays, size_t begin, size_t end, std::vector<uint8_t>& out) {
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   uint64_t count = 0;
-  for (size_t i = 0, n = rays.size(); i < n; ++i) {
+  for (size_t i = begin; i < end; ++i) {
     alignas(16) RTCRay er;
     fill_rtc_ray(er, rays[i]);
     rtcOccluded1(scene, &ctx, &er);
@@ -383,44 +392,106 @@ double embree_anyhit(RTCScene scene, const std::vector<Ray>& rays, std::vector<u
 // ------------------------------------------------------------------------------------------------------------
 // Measurement.
 
-enum Impl { kTessera = 0, kEmbreeDefault = 1, kEmbreeRobust = 2, kImpls = 3 };
-constexpr std::array<const char*, kImpls> kImplNames = {"tessera", "embree_default", "embree_robust"};
+// The implementations, in column order: Tessera on each SimdPath this CPU runs, then Embree default and robust.
+struct Impl {
+  std::string name;       // column header
+  std::string csv_name;   // CSV name
+  bool tessera = false;
+  SimdPath path = SimdPath::kSse2;  // Tessera only
+  int embree = -1;        // 0 default, 1 robust
+};
+
+std::vector<Impl> make_impls() {
+  std::vector<Impl> v;
+  for (SimdPath p : supported_simd_paths()) {
+    const std::string n(kSimdPathNames[size_t(p)]);
+    v.push_back({"T-" + n, "tessera_" + n, true, p, -1});
+  }
+  v.push_back({"Emb-def", "embree_default", false, SimdPath::kSse2, 0});
+  v.push_back({"Emb-rob", "embree_robust", false, SimdPath::kSse2, 1});
+  return v;
+}
+
+const std::vector<Impl>& impls() {
+  static const std::vector<Impl> v = make_impls();
+  return v;
+}
+int num_impls() { return int(impls().size()); }
+int embree_impl(int e) { return num_impls() - 2 + e; }
+// Tessera's default path (best_simd_path()): the last Tessera column.
+int tessera_default_impl() { return num_impls() - 3; }
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
+// Build time of Tessera (one build serves every SimdPath) and of the two Embree scenes, and their sizes.
 struct BuildRow {
   std::string scene;
   size_t triangles = 0;
-  std::array<double, kImpls> best_s{};
+  std::array<double, 3> best_s{};    // wall time: Tessera, Embree default, Embree robust
+  std::array<double, 3> best_cpu{};  // CPU time of all the process's threads, same order
+  std::array<double, 3> bytes{};     // acceleration structure bytes, same order
   BvhStats stats;
 };
+
+// Embree's allocations as its device memory monitor reports them (bytes allocated minus bytes freed).
+std::atomic<int64_t> g_embree_bytes{0};
+bool on_embree_memory(void* /*user*/, ssize_t bytes, bool /*post*/) {
+  g_embree_bytes.fetch_add(int64_t(bytes), std::memory_order_relaxed);
+  return true;
+}
 
 struct Built {
   Bvh bvh;
   std::array<RTCScene, 2> embree{};  // default, robust
 };
 
-// Builds everything kReps times (implementation order rotated per repetition) and keeps the last of each.
-Built build_all(RTCDevice device, const Scene& s, BuildRow& row) {
+// CPU time of all the process's threads in seconds (user and system: page faults count).
+double process_seconds() {
+  timespec ts;
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+}
+
+// CPU time of the calling thread in seconds: time the thread spent descheduled (other processes share the machine)
+// does not count.
+double thread_seconds() {
+  timespec ts;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+}
+
+// Builds everything reps times (order rotated per repetition) and keeps the last of each; each builder's previous
+// structure is freed before it builds again. Embree's bytes are the net allocation of rtcCommitScene (the
+// geometry's buffers are made before and not counted).
+Built build_all(RTCDevice device, const Scene& s, int reps, BuildRow& row) {
   Built out;
   row.scene = s.name;
   row.triangles = s.triangles.size();
   row.best_s.fill(std::numeric_limits<double>::infinity());
-  for (int rep = 0; rep < kReps; ++rep) {
-    for (int k = 0; k < kImpls; ++k) {
-      const int impl = (rep + k) % kImpls;
-      if (impl == kTessera) {
+  row.best_cpu.fill(std::numeric_limits<double>::infinity());
+  for (int rep = 0; rep < reps; ++rep) {
+    for (int k = 0; k < 3; ++k) {
+      const int which = (rep + k) % 3;  // 0 Tessera, 1 Embree default, 2 Embree robust
+      if (which == 0) {
+        out.bvh = Bvh{};  // the previous tree is freed first, as the previous Embree scene is below
+        const double c0 = process_seconds();
         const auto t0 = Clock::now();
-        Bvh bvh = Bvh::build(s.triangles, {}, BvhOptions{});
-        row.best_s[impl] = std::min(row.best_s[impl], seconds_since(t0));
-        out.bvh = std::move(bvh);
+        out.bvh = Bvh::build(s.triangles, {}, BvhOptions{});
+        row.best_s[0] = std::min(row.best_s[0], seconds_since(t0));
+        row.best_cpu[0] = std::min(row.best_cpu[0], process_seconds() - c0);
+        row.bytes[0] = double(out.bvh.memory_bytes());
       } else {
-        const int e = impl - 1;
-        RTCScene scene = new_embree_scene(device, s.mesh, impl == kEmbreeRobust);
+        const int e = which - 1;
+        if (out.embree[e]) rtcReleaseScene(out.embree[e]);
+        out.embree[e] = nullptr;
+        RTCScene scene = new_embree_scene(device, s.mesh, e == 1);
+        const int64_t before = g_embree_bytes.load();
+        const double c0 = process_seconds();
         const auto t0 = Clock::now();
         rtcCommitScene(scene);
-        row.best_s[impl] = std::min(row.best_s[impl], seconds_since(t0));
-        if (out.embree[e]) rtcReleaseScene(out.embree[e]);
+        row.best_s[which] = std::min(row.best_s[which], seconds_since(t0));
+        row.best_cpu[which] = std::min(row.best_cpu[which], process_seconds() - c0);
+        row.bytes[which] = double(g_embree_bytes.load() - before);
         out.embree[e] = scene;
       }
     }
@@ -432,8 +503,8 @@ Built build_all(RTCDevice device, const Scene& s, BuildRow& row) {
 struct ThroughputRow {
   std::string scene, rays, query;
   size_t n = 0;
-  std::array<double, kImpls> best_s{};
-  std::array<double, kImpls> checksum{};
+  std::vector<double> best_s = std::vector<double>(size_t(num_impls()), std::numeric_limits<double>::infinity());
+  std::vector<double> checksum = std::vector<double>(size_t(num_impls()), 0.0);
   double mrays(int impl) const { return double(n) / best_s[impl] / 1e6; }
 };
 
@@ -448,18 +519,29 @@ struct CheckRow {
   std::array<double, 2> prim_match{};      // fraction of both-hit rays reporting the same triangle
   std::array<double, 2> anyhit_agree{};    // occluded/not agreement, any hit, vs default / robust
   double ours_self = 0;                    // Tessera: occluded() == intersect().has_value()
+  double paths_agree = 1;                  // rays where every SimdPath gave bitwise the same t, prim, occlusion
 };
 
 // Scene units (both scenes span ~2): a t difference this large is not rounding but a different surface, e.g. a
 // ray that slipped through a crack between adjacent triangles and hit the far side of a closed mesh.
 constexpr double kFarDt = 1e-3;
 
-CheckRow cross_check(const std::string& scene, const std::string& rays_name,
-                     const std::array<ClosestResults, kImpls>& c, const std::array<std::vector<uint8_t>, kImpls>& a) {
+CheckRow cross_check(const std::string& scene, const std::string& rays_name, const std::vector<ClosestResults>& c,
+                     const std::vector<std::vector<uint8_t>>& a) {
   CheckRow row;
   row.scene = scene;
   row.rays = rays_name;
+  const int kTessera = tessera_default_impl();
   const size_t n = c[kTessera].t.size();
+  size_t paths_same = 0;
+  for (size_t i = 0; i < n; ++i) {
+    bool same = true;
+    for (int k = 1; k <= kTessera; ++k)
+      same = same && std::memcmp(&c[k].t[i], &c[0].t[i], sizeof(float)) == 0 && c[k].prim[i] == c[0].prim[i] &&
+             a[k][i] == a[0][i];
+    paths_same += same;
+  }
+  row.paths_agree = double(paths_same) / double(n);
   row.n = n;
   size_t ours_hits = 0, self = 0;
   for (size_t i = 0; i < n; ++i) {
@@ -470,7 +552,7 @@ CheckRow cross_check(const std::string& scene, const std::string& rays_name,
   row.ours_hit_frac = double(ours_hits) / double(n);
   row.ours_self = double(self) / double(n);
   for (int e = 0; e < 2; ++e) {
-    const int impl = e + 1;
+    const int impl = embree_impl(e);
     size_t agree = 0, both = 0, same_prim = 0, any_agree = 0, far = 0;
     double max_rel = 0.0, max_abs = 0.0;
     for (size_t i = 0; i < n; ++i) {
@@ -497,33 +579,56 @@ CheckRow cross_check(const std::string& scene, const std::string& rays_name,
   return row;
 }
 
-// Runs closest and any hit for all three implementations kReps times (order rotated per repetition), keeping
-// the best time of each; single thread (this one).
-void measure(const Scene& s, const Built& b, const std::string& rays_name, const std::vector<Ray>& rays,
+// Runs closest and any hit for every implementation on one thread (this one). The rays are cut into chunks of
+// kChunk; each repetition runs every chunk on every implementation, in an order rotated per chunk and repetition,
+// and an implementation's time is the sum over chunks of its best time for the chunk (thread CPU time), so
+// interference from other processes is filtered per chunk rather than per run.
+void measure(const Scene& s, Built& b, const std::string& rays_name, const std::vector<Ray>& rays, int reps,
              std::vector<ThroughputRow>& rows, std::vector<CheckRow>& checks) {
-  ThroughputRow closest{s.name, rays_name, "closest", rays.size(), {}, {}};
-  ThroughputRow anyhit{s.name, rays_name, "any-hit", rays.size(), {}, {}};
-  closest.best_s.fill(std::numeric_limits<double>::infinity());
-  anyhit.best_s.fill(std::numeric_limits<double>::infinity());
-  std::array<ClosestResults, kImpls> cres;
-  std::array<std::vector<uint8_t>, kImpls> ares;
-  for (int i = 0; i < kImpls; ++i) {
+  constexpr size_t kChunk = 65536;
+  ThroughputRow closest{s.name, rays_name, "closest", rays.size()};
+  ThroughputRow anyhit{s.name, rays_name, "any-hit", rays.size()};
+  const int ni = num_impls();
+  std::vector<ClosestResults> cres(static_cast<size_t>(ni));
+  std::vector<std::vector<uint8_t>> ares(static_cast<size_t>(ni));
+  for (int i = 0; i < ni; ++i) {
     cres[i].resize(rays.size());
     ares[i].resize(rays.size());
   }
-  for (int rep = 0; rep < kReps; ++rep) {
-    for (int k = 0; k < kImpls; ++k) {
-      const int impl = (rep + k) % kImpls;
-      auto t0 = Clock::now();
-      closest.checksum[impl] = impl == kTessera ? tessera_closest(b.bvh, rays, cres[impl])
-                                                : embree_closest(b.embree[impl - 1], rays, cres[impl]);
-      closest.best_s[impl] = std::min(closest.best_s[impl], seconds_since(t0));
-      t0 = Clock::now();
-      anyhit.checksum[impl] = impl == kTessera ? tessera_anyhit(b.bvh, rays, ares[impl])
-                                               : embree_anyhit(b.embree[impl - 1], rays, ares[impl]);
-      anyhit.best_s[impl] = std::min(anyhit.best_s[impl], seconds_since(t0));
+  const size_t chunks = (rays.size() + kChunk - 1) / kChunk;
+  const double inf = std::numeric_limits<double>::infinity();
+  std::vector<double> best_c(chunks * size_t(ni), inf), best_a(chunks * size_t(ni), inf);
+  std::vector<double> sum_c(chunks * size_t(ni), 0.0), sum_a(chunks * size_t(ni), 0.0);
+  for (int rep = 0; rep < reps; ++rep) {
+    for (size_t c = 0; c < chunks; ++c) {
+      const size_t begin = c * kChunk, end = std::min(rays.size(), begin + kChunk);
+      for (int k = 0; k < ni; ++k) {
+        const int impl = int((size_t(rep) + c + size_t(k)) % size_t(ni));
+        const Impl& im = impls()[size_t(impl)];
+        if (im.tessera) b.bvh.set_simd_path(im.path);
+        const size_t slot = c * size_t(ni) + size_t(impl);
+        double t0 = thread_seconds();
+        sum_c[slot] = im.tessera ? tessera_closest(b.bvh, rays, begin, end, cres[impl])
+                                 : embree_closest(b.embree[im.embree], rays, begin, end, cres[impl]);
+        best_c[slot] = std::min(best_c[slot], thread_seconds() - t0);
+        t0 = thread_seconds();
+        sum_a[slot] = im.tessera ? tessera_anyhit(b.bvh, rays, begin, end, ares[impl])
+                                 : embree_anyhit(b.embree[im.embree], rays, begin, end, ares[impl]);
+        best_a[slot] = std::min(best_a[slot], thread_seconds() - t0);
+      }
     }
   }
+  for (int i = 0; i < ni; ++i) {
+    closest.best_s[i] = anyhit.best_s[i] = 0.0;
+    for (size_t c = 0; c < chunks; ++c) {
+      const size_t slot = c * size_t(ni) + size_t(i);
+      closest.best_s[i] += best_c[slot];
+      anyhit.best_s[i] += best_a[slot];
+      closest.checksum[i] += sum_c[slot];
+      anyhit.checksum[i] += sum_a[slot];
+    }
+  }
+  b.bvh.set_simd_path(best_simd_path());
   rows.push_back(closest);
   rows.push_back(anyhit);
   checks.push_back(cross_check(s.name, rays_name, cres, ares));
@@ -532,8 +637,9 @@ void measure(const Scene& s, const Built& b, const std::string& rays_name, const
 // ------------------------------------------------------------------------------------------------------------
 
 void print_usage(std::FILE* f) {
-  std::fputs("usage: bvh_vs_embree [--quick] [--csv]\n"
+  std::fputs("usage: bvh_vs_embree [--quick] [--csv] [--reps N]\n"
              "  --quick  ~100k rays per set and a 200k-triangle sphere (smoke test)\n"
+             "  --reps N repetitions: each figure is the best of N (default 5)\n"
              "  --csv    also print the results as CSV after the tables\n",
              f);
 }
@@ -542,12 +648,19 @@ void print_usage(std::FILE* f) {
 
 int main(int argc, char** argv) {
   bool quick = false, csv = false;
+  int reps = 5;
   for (int i = 1; i < argc; ++i) {
     const std::string_view a = argv[i];
     if (a == "--quick") {
       quick = true;
     } else if (a == "--csv") {
       csv = true;
+    } else if (a == "--reps" && i + 1 < argc) {
+      reps = std::atoi(argv[++i]);
+      if (reps < 1 || reps > 1000) {
+        std::fprintf(stderr, "bvh_vs_embree: --reps wants a count from 1 to 1000\n");
+        return 2;
+      }
     } else if (a == "--help" || a == "-h") {
       print_usage(stdout);
       return 0;
@@ -569,6 +682,7 @@ int main(int argc, char** argv) {
     return 3;
   }
   rtcSetDeviceErrorFunction(device, on_embree_error, nullptr);
+  rtcSetDeviceMemoryMonitorFunction(device, on_embree_memory, nullptr);
   const ssize_t tasking = rtcGetDeviceProperty(device, RTC_DEVICE_PROPERTY_TASKING_SYSTEM);
   const char* tasking_name = tasking == 0 ? "internal" : tasking == 1 ? "TBB" : tasking == 2 ? "PPL" : "unknown";
 
@@ -576,9 +690,16 @@ int main(int argc, char** argv) {
   std::printf("commit:  %s\n", commit_description().c_str());
   std::printf("machine: %s, nproc %u, TBB default concurrency %d\n", cpu_model().c_str(),
               std::thread::hardware_concurrency(), tbb::info::default_concurrency());
-  std::printf("build:   %s, TESSERA_NATIVE=%s (Tessera compiled for %s; Embree dispatches to the best ISA at run time)\n",
+  std::printf("build:   %s, TESSERA_NATIVE=%s (Tessera compiled for %s, its traversal kernels for SSE2, AVX2 and\n"
+              "         AVX-512 in separate files, chosen at run time; Embree dispatches to the best ISA at run time)\n",
               TESSERA_BUILD_TYPE, TESSERA_NATIVE_BUILD ? "ON" : "OFF",
               TESSERA_NATIVE_BUILD ? "-march=native" : "baseline x86-64 (SSE2)");
+  std::string paths;
+  for (const Impl& im : impls())
+    if (im.tessera) paths += (paths.empty() ? "" : ", ") + im.name;
+  std::printf("paths:   %s (this CPU's; default %s)\n", paths.c_str(), kSimdPathNames[size_t(best_simd_path())].data());
+  std::printf("load:    %s (1, 5, 15 min load average at the start; other processes share the machine)\n",
+              load_average().c_str());
   const unsigned csr = _mm_getcsr();
   std::printf("mxcsr:   FTZ %s, DAZ %s (left at the process default; both libraries trace under the same mode)\n",
               (csr & 0x8000u) ? "on" : "off", (csr & 0x0040u) ? "on" : "off");
@@ -593,7 +714,7 @@ int main(int argc, char** argv) {
   for (auto& s : scenes) finish_scene(s);
 
   std::printf("mode:    %s: %d x %d camera rays and %zu incoherent rays per scene; sphere %zu triangles; best of %d\n\n",
-              quick ? "--quick" : "full", res, res, n_incoherent, scenes[1].triangles.size(), kReps);
+              quick ? "--quick" : "full", res, res, n_incoherent, scenes[1].triangles.size(), reps);
   std::fflush(stdout);
 
   std::vector<BuildRow> builds;
@@ -602,81 +723,105 @@ int main(int argc, char** argv) {
   uint64_t seed = 0x7e55e7a2024ull;
   for (const Scene& s : scenes) {
     BuildRow br;
-    Built b = build_all(device, s, br);
+    Built b = build_all(device, s, reps, br);
     builds.push_back(br);
-    measure(s, b, "coherent", camera_rays(s.camera, res), rows, checks);
-    measure(s, b, "incoherent", incoherent_rays(s.bounds, n_incoherent, seed++), rows, checks);
+    measure(s, b, "coherent", camera_rays(s.camera, res), reps, rows, checks);
+    measure(s, b, "incoherent", incoherent_rays(s.bounds, n_incoherent, seed++), reps, rows, checks);
     for (RTCScene e : b.embree) rtcReleaseScene(e);
   }
 
   // ---- Tables.
-  std::printf("Traversal: single thread, Mrays/s, best of %d. ratio = Tessera / Embree (1.00 = parity, < 1 = Tessera slower)\n",
-              kReps);
-  std::printf("%-7s %-10s %-8s %8s | %8s %8s %8s | %8s %8s\n", "scene", "rays", "query", "n", "Tessera",
-              "Emb-def", "Emb-rob", "ours/def", "ours/rob");
-  std::printf("%s\n", std::string(92, '-').c_str());
+  const int nt = tessera_default_impl() + 1;  // Tessera columns
+  const int def = embree_impl(0), rob = embree_impl(1);
+  std::printf("Traversal: single thread, Mrays/s from thread CPU time, per 65536-ray chunk best of %d, summed over chunks.\n"
+              "Tessera on each SIMD path (T-...), Embree default and robust. ratio = Tessera path / Embree default\n"
+              "(1.00 = parity, < 1 = Tessera slower); last column: Tessera's default path / Embree robust\n",
+              reps);
+  std::printf("%-7s %-10s %-8s %8s |", "scene", "rays", "query", "n");
+  for (int i = 0; i < num_impls(); ++i) std::printf(" %8s", impls()[size_t(i)].name.c_str());
+  std::printf(" |");
+  for (int i = 0; i < nt; ++i) std::printf(" %8s", (impls()[size_t(i)].name.substr(2) + "/def").c_str());
+  std::printf(" %8s\n", "dflt/rob");
+  const size_t width = size_t(40 + 9 * num_impls() + 2 + 9 * (nt + 1));
+  std::printf("%s\n", std::string(width, '-').c_str());
   for (const auto& r : rows) {
-    std::printf("%-7s %-10s %-8s %8zu | %8.2f %8.2f %8.2f | %8.2f %8.2f\n", r.scene.c_str(), r.rays.c_str(),
-                r.query.c_str(), r.n, r.mrays(kTessera), r.mrays(kEmbreeDefault), r.mrays(kEmbreeRobust),
-                r.mrays(kTessera) / r.mrays(kEmbreeDefault), r.mrays(kTessera) / r.mrays(kEmbreeRobust));
+    std::printf("%-7s %-10s %-8s %8zu |", r.scene.c_str(), r.rays.c_str(), r.query.c_str(), r.n);
+    for (int i = 0; i < num_impls(); ++i) std::printf(" %8.2f", r.mrays(i));
+    std::printf(" |");
+    for (int i = 0; i < nt; ++i) std::printf(" %8.2f", r.mrays(i) / r.mrays(def));
+    std::printf(" %8.2f\n", r.mrays(nt - 1) / r.mrays(rob));
   }
 
-  std::printf("\nBuild: all %d TBB threads, ms, best of %d (Tessera: Bvh::build; Embree: rtcCommitScene only).\n"
-              "time ratio = Tessera / Embree (> 1 = Tessera slower)\n",
-              tbb::info::default_concurrency(), kReps);
-  std::printf("%-7s %9s | %9s %9s %9s | %8s %8s | %s\n", "scene", "triangles", "Tessera", "Emb-def", "Emb-rob",
-              "ours/def", "ours/rob", "Tessera tree: nodes, depth, SAH cost");
-  std::printf("%s\n", std::string(110, '-').c_str());
+  std::printf("\nBuild: all %d TBB threads, ms, best of %d (Tessera: Bvh::build, one tree for every path; Embree: rtcCommitScene only).\n"
+              "wall: elapsed time; cpu: CPU time of all the process's threads during the build (less sensitive to other\n"
+              "processes than wall time on a shared machine). time ratio = Tessera / Embree (> 1 = Tessera slower).\n"
+              "B/tri: bytes of the acceleration structure per triangle\n"
+              "(Tessera: Bvh::memory_bytes(), nodes and leaf packets; Embree: net bytes rtcCommitScene allocated, from the\n"
+              "device memory monitor)\n",
+              tbb::info::default_concurrency(), reps);
+  std::printf("%-7s %9s %-4s | %9s %9s %9s | %8s %8s | %8s %8s %8s | %s\n", "scene", "triangles", "time", "Tessera",
+              "Emb-def", "Emb-rob", "ours/def", "ours/rob", "B/tri T", "B/tri def", "B/tri rob",
+              "Tessera tree: nodes, depth, SAH cost");
+  std::printf("%s\n", std::string(145, '-').c_str());
   for (const auto& b : builds) {
-    std::printf("%-7s %9zu | %9.3f %9.3f %9.3f | %8.2f %8.2f | %zu, %d, %.2f\n", b.scene.c_str(), b.triangles,
-                b.best_s[kTessera] * 1e3, b.best_s[kEmbreeDefault] * 1e3, b.best_s[kEmbreeRobust] * 1e3,
-                b.best_s[kTessera] / b.best_s[kEmbreeDefault], b.best_s[kTessera] / b.best_s[kEmbreeRobust],
-                b.stats.nodes, b.stats.max_depth, b.stats.sah_cost);
+    const double tri = double(std::max<size_t>(b.triangles, 1));
+    std::printf("%-7s %9zu %-4s | %9.3f %9.3f %9.3f | %8.2f %8.2f | %8.1f %8.1f %8.1f | %zu, %d, %.2f\n",
+                b.scene.c_str(), b.triangles, "wall", b.best_s[0] * 1e3, b.best_s[1] * 1e3, b.best_s[2] * 1e3,
+                b.best_s[0] / b.best_s[1], b.best_s[0] / b.best_s[2], b.bytes[0] / tri, b.bytes[1] / tri,
+                b.bytes[2] / tri, b.stats.nodes, b.stats.max_depth, b.stats.sah_cost);
+    std::printf("%-7s %9s %-4s | %9.3f %9.3f %9.3f | %8.2f %8.2f |\n", "", "", "cpu", b.best_cpu[0] * 1e3,
+                b.best_cpu[1] * 1e3, b.best_cpu[2] * 1e3, b.best_cpu[0] / b.best_cpu[1], b.best_cpu[0] / b.best_cpu[2]);
   }
 
-  std::printf("\nCross-check, Tessera vs Embree default / robust (same rays; reported, not asserted)\n");
-  std::printf("%-7s %-10s %6s | %-17s %-17s %-17s %-11s %-15s | %-17s | %s\n", "scene", "rays", "hit%",
-              "closest agree%", "max rel |dt|", "max abs |dt|", "far", "same prim%", "any-hit agree%", "self%");
-  std::printf("%s\n", std::string(142, '-').c_str());
+  std::printf("\nCross-check, Tessera (default path) vs Embree default / robust (same rays; reported, not asserted)\n");
+  std::printf("%-7s %-10s %6s | %-17s %-17s %-17s %-11s %-15s | %-17s | %-8s | %s\n", "scene", "rays", "hit%",
+              "closest agree%", "max rel |dt|", "max abs |dt|", "far", "same prim%", "any-hit agree%", "self%",
+              "paths same%");
+  std::printf("%s\n", std::string(156, '-').c_str());
   for (const auto& c : checks) {
-    std::printf("%-7s %-10s %6.2f | %8.4f/%-8.4f %8.2e/%-8.2e %8.2e/%-8.2e %5zu/%-5zu %7.3f/%-7.3f | %8.4f/%-8.4f | %.4f\n",
+    std::printf("%-7s %-10s %6.2f | %8.4f/%-8.4f %8.2e/%-8.2e %8.2e/%-8.2e %5zu/%-5zu %7.3f/%-7.3f | %8.4f/%-8.4f | %8.4f | %.4f\n",
                 c.scene.c_str(), c.rays.c_str(), 100 * c.ours_hit_frac, 100 * c.closest_agree[0],
                 100 * c.closest_agree[1], c.max_rel_dt[0], c.max_rel_dt[1], c.max_abs_dt[0], c.max_abs_dt[1],
                 c.far[0], c.far[1], 100 * c.prim_match[0], 100 * c.prim_match[1], 100 * c.anyhit_agree[0],
-                100 * c.anyhit_agree[1], 100 * c.ours_self);
+                100 * c.anyhit_agree[1], 100 * c.ours_self, 100 * c.paths_agree);
   }
   std::printf("(x/y = vs Embree default / robust. hit%%: Tessera closest-hit hit rate. same prim%%: of rays both hit.\n"
               " far: rays both hit whose t differ by more than %g, i.e. different surfaces were hit (on a closed mesh:\n"
               " one ray slipped through a crack between triangles and hit the far side).\n"
               " self%%: Tessera occluded() agrees with intersect() hit/miss. A large relative |dt| with a tiny absolute |dt|\n"
-              " means a hit very near the ray origin, where ~1e-7 of rounding in t is a large fraction of t.)\n",
+              " means a hit very near the ray origin, where ~1e-7 of rounding in t is a large fraction of t.\n"
+              " paths same%%: rays on which every Tessera SIMD path gave bitwise the same t, primitive and occlusion.)\n",
               kFarDt);
 
-  std::printf("\nChecksums (closest: sum of hit t; any-hit: occluded count), Tessera / Embree default / robust\n");
+  std::printf("\nChecksums (closest: sum of hit t; any-hit: occluded count), in column order\n");
   for (const auto& r : rows) {
-    std::printf("%-7s %-10s %-8s %.6e / %.6e / %.6e\n", r.scene.c_str(), r.rays.c_str(), r.query.c_str(),
-                r.checksum[kTessera], r.checksum[kEmbreeDefault], r.checksum[kEmbreeRobust]);
+    std::printf("%-7s %-10s %-8s", r.scene.c_str(), r.rays.c_str(), r.query.c_str());
+    for (int i = 0; i < num_impls(); ++i) std::printf("%s%.6e", i ? " / " : " ", r.checksum[i]);
+    std::printf("\n");
   }
 
   if (csv) {
     std::printf("\n# CSV\n");
     std::printf("section,scene,rays,query,n,impl,seconds,mrays_per_s,checksum\n");
     for (const auto& r : rows)
-      for (int i = 0; i < kImpls; ++i)
+      for (int i = 0; i < num_impls(); ++i)
         std::printf("traversal,%s,%s,%s,%zu,%s,%.6f,%.4f,%.9e\n", r.scene.c_str(), r.rays.c_str(), r.query.c_str(),
-                    r.n, kImplNames[i], r.best_s[i], r.mrays(i), r.checksum[i]);
-    std::printf("section,scene,triangles,impl,seconds\n");
+                    r.n, impls()[size_t(i)].csv_name.c_str(), r.best_s[i], r.mrays(i), r.checksum[i]);
+    std::printf("section,scene,triangles,impl,seconds,cpu_seconds,bytes\n");
+    const char* build_names[3] = {"tessera", "embree_default", "embree_robust"};
     for (const auto& b : builds)
-      for (int i = 0; i < kImpls; ++i)
-        std::printf("build,%s,%zu,%s,%.6f\n", b.scene.c_str(), b.triangles, kImplNames[i], b.best_s[i]);
-    std::printf("section,scene,rays,n,embree,ours_hit_frac,closest_agree,max_rel_dt,max_abs_dt,far,prim_match,anyhit_agree\n");
+      for (int i = 0; i < 3; ++i)
+        std::printf("build,%s,%zu,%s,%.6f,%.6f,%.0f\n", b.scene.c_str(), b.triangles, build_names[i], b.best_s[i],
+                    b.best_cpu[i], b.bytes[i]);
+    std::printf("section,scene,rays,n,embree,ours_hit_frac,closest_agree,max_rel_dt,max_abs_dt,far,prim_match,anyhit_agree,paths_agree\n");
     for (const auto& c : checks)
       for (int e = 0; e < 2; ++e)
-        std::printf("check,%s,%s,%zu,%s,%.6f,%.6f,%.3e,%.3e,%zu,%.6f,%.6f\n", c.scene.c_str(), c.rays.c_str(),
-                    c.n, kImplNames[e + 1], c.ours_hit_frac, c.closest_agree[e], c.max_rel_dt[e], c.max_abs_dt[e],
-                    c.far[e], c.prim_match[e], c.anyhit_agree[e]);
+        std::printf("check,%s,%s,%zu,%s,%.6f,%.6f,%.3e,%.3e,%zu,%.6f,%.6f,%.6f\n", c.scene.c_str(), c.rays.c_str(),
+                    c.n, build_names[e + 1], c.ours_hit_frac, c.closest_agree[e], c.max_rel_dt[e], c.max_abs_dt[e],
+                    c.far[e], c.prim_match[e], c.anyhit_agree[e], c.paths_agree);
   }
 
+  std::printf("\nload average at the end: %s\n", load_average().c_str());
   std::printf("\ntotal wall time %.1f s\n", seconds_since(t_start));
   rtcReleaseDevice(device);
   if (std::fflush(stdout) != 0) die("writing stdout failed");

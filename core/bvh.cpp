@@ -1,5 +1,7 @@
 #include "core/bvh.h"
 
+#include "core/bvh_kernels.h"
+
 #include <emmintrin.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -15,6 +17,8 @@
 #include <limits>
 #include <cstdlib>
 #include <stdexcept>
+#include <string>
+#include <type_traits>
 
 #if defined(__linux__)
 #include <sys/mman.h>
@@ -52,16 +56,20 @@ namespace {
 constexpr int kMaxBins = 32;
 constexpr size_t kParallelBinThreshold = 64 * 1024;  // refs; below this binning runs on one thread
 constexpr size_t kParallelTaskThreshold = 4 * 1024;  // refs; below this subtrees build on one thread
+constexpr size_t kParallelPartition = 256 * 1024;    // refs; below this a partition runs on one thread
 constexpr int kForceMedianDepth = 40;  // binary split depth past which splits use the object median (bounded depth)
-constexpr int kWidth = 4;              // children per node and primitives per packet
+using bvh_layout::kLastPacket;
+using bvh_layout::kLeafBit;
+using bvh_layout::kNoPrim;
+constexpr int kNodeWidth = bvh_layout::kNodeWidth;
+constexpr int kPacketWidth = bvh_layout::kPacketWidth;
 
-// SAH constants for the 4-wide tree with 4-wide leaf packets, in units of one packet (four primitives) test. A
-// binary split becomes half of a 4-wide node on average, and a 4-box SSE slab test is cheaper than a 4-triangle
-// watertight test.
+// SAH constants of the binary build, in units of one leaf packet (eight primitives) test: they decide between a
+// leaf and a split for small ranges, where a split must shrink the children's boxes to half the area to pay.
 constexpr float kTraversalCost = 0.5f;
 constexpr float kPacketCost = 1.f;
 
-inline uint32_t packets_for(uint32_t prims) { return (prims + kWidth - 1) / kWidth; }
+inline uint32_t packets_for(uint32_t prims) { return (prims + kPacketWidth - 1) / kPacketWidth; }
 
 // A build reference: the primitive's box with its id in lo's fourth lane, 32 bytes, loaded as two SSE vectors.
 // Its "centroid" is lo + hi (twice the centre; only compared and binned, so the factor does not matter).
@@ -95,10 +103,12 @@ struct Box4 {
     _mm_store_ps(h, hi);
     return Bounds3{Vec3(l[0], l[1], l[2]), Vec3(h[0], h[1], h[2])};
   }
+  // 2 (dx dy + dy dz + dz dx), in registers; 0 for an empty box.
   float area() const {
-    alignas(16) float d[4];
-    _mm_store_ps(d, _mm_max_ps(_mm_sub_ps(hi, lo), _mm_setzero_ps()));  // 0 for an empty box
-    return 2.f * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0]);
+    const __m128 d = _mm_max_ps(_mm_sub_ps(hi, lo), _mm_setzero_ps());
+    const __m128 p = _mm_mul_ps(d, _mm_shuffle_ps(d, d, _MM_SHUFFLE(3, 0, 2, 1)));  // dx dy, dy dz, dz dx
+    const __m128 sum = _mm_add_ss(_mm_add_ss(p, _mm_shuffle_ps(p, p, _MM_SHUFFLE(1, 1, 1, 1))), _mm_movehl_ps(p, p));
+    return 2.f * _mm_cvtss_f32(sum);
   }
 };
 
@@ -138,10 +148,9 @@ struct BinMapper {
     const __m128 f = _mm_mul_ps(_mm_sub_ps(c2, lo), scale);
     return _mm_cvttps_epi32(_mm_min_ps(_mm_max_ps(f, _mm_setzero_ps()), top));
   }
-  int bin(__m128 c2, int axis) const {
-    alignas(16) int k[4];
-    _mm_store_si128(reinterpret_cast<__m128i*>(k), bins(c2));
-    return k[axis];
+  template <int Axis>
+  int bin(__m128 c2) const {
+    return _mm_cvtsi128_si32(_mm_shuffle_epi32(bins(c2), _MM_SHUFFLE(Axis, Axis, Axis, Axis)));
   }
 };
 
@@ -170,17 +179,36 @@ struct Bvh::Builder {
 
   uint32_t leaf_limit() const { return uint32_t(std::clamp(opt.max_leaf_prims, 1, 255)); }
 
+  static void bin_ref(Bins& acc, const BinMapper& m, const BuildRef& ref) {
+    const __m128 lo = ref.vlo(), hi = ref.vhi();
+    const __m128i k = m.bins(_mm_add_ps(lo, hi));
+    const int kx = _mm_cvtsi128_si32(k);
+    const int ky = _mm_cvtsi128_si32(_mm_shuffle_epi32(k, _MM_SHUFFLE(1, 1, 1, 1)));
+    const int kz = _mm_cvtsi128_si32(_mm_shuffle_epi32(k, _MM_SHUFFLE(2, 2, 2, 2)));
+    acc.box[0][kx].extend(lo, hi);
+    ++acc.count[0][kx];
+    acc.box[1][ky].extend(lo, hi);
+    ++acc.count[1][ky];
+    acc.box[2][kz].extend(lo, hi);
+    ++acc.count[2][kz];
+  }
+
+  // Bins refs[begin, end) into acc. Long runs alternate between two sets of bins, so that neighbours (which tend to
+  // fall in the same bins) do not wait on each other's read-modify-write.
   void bin_into(Bins& acc, const BinMapper& m, size_t begin, size_t end) const {
-    alignas(16) int k[4];
-    for (size_t i = begin; i != end; ++i) {
-      const BuildRef& ref = refs[i];
-      const __m128 lo = ref.vlo(), hi = ref.vhi();
-      _mm_store_si128(reinterpret_cast<__m128i*>(k), m.bins(_mm_add_ps(lo, hi)));
-      for (int a = 0; a < 3; ++a) {
-        acc.box[a][k[a]].extend(lo, hi);
-        ++acc.count[a][k[a]];
-      }
+    const BuildRef* p = refs.data();
+    if (end - begin < 256) {
+      for (size_t i = begin; i != end; ++i) bin_ref(acc, m, p[i]);
+      return;
     }
+    Bins other(acc.nb);
+    size_t i = begin;
+    for (; i + 1 < end; i += 2) {
+      bin_ref(acc, m, p[i]);
+      bin_ref(other, m, p[i + 1]);
+    }
+    if (i != end) bin_ref(acc, m, p[i]);
+    acc.merge(other);
   }
 
   Bins bin_range(const BinMapper& m, int nb, size_t begin, size_t end) const {
@@ -221,13 +249,146 @@ struct Bvh::Builder {
     bound(rr);
   }
 
+  // Moves the references of [first, last) whose bin on Axis is below `split` to the front and returns the first of
+  // the others. Blocks of kBlock references are classified without branches, recording the misplaced ones, which
+  // are then swapped in pairs (as in Edelkamp and Weiss's BlockQuicksort): the classification's outcome is random
+  // per reference, so branching on it would mispredict about every other time.
+  template <int Axis>
+  static BuildRef* partition(const BinMapper& m, int split, BuildRef* first, BuildRef* last) {
+    constexpr int kBlock = 64;
+    const auto left_of = [&](const BuildRef& x) { return m.bin<Axis>(x.c2()) < split; };
+    uint8_t off_l[kBlock], off_r[kBlock];
+    int num_l = 0, num_r = 0, start_l = 0, start_r = 0;
+    while (last - first > 2 * kBlock) {
+      if (num_l == 0) {
+        start_l = 0;
+        for (int i = 0; i < kBlock; ++i) {
+          off_l[num_l] = uint8_t(i);
+          num_l += !left_of(first[i]);
+        }
+      }
+      if (num_r == 0) {
+        start_r = 0;
+        for (int i = 0; i < kBlock; ++i) {
+          off_r[num_r] = uint8_t(i);
+          num_r += left_of(*(last - 1 - i));
+        }
+      }
+      const int num = std::min(num_l, num_r);
+      for (int j = 0; j < num; ++j) std::swap(first[off_l[start_l + j]], *(last - 1 - off_r[start_r + j]));
+      num_l -= num;
+      num_r -= num;
+      start_l += num;
+      start_r += num;
+      if (num_l == 0) first += kBlock;
+      if (num_r == 0) last -= kBlock;
+    }
+    // Left: at most one classified block with misplaced references, and an unclassified middle. The block's
+    // misplaced references are gathered at its inner end (offsets increase away from the outer end, so each swap
+    // target holds a placed reference or the misplaced one itself); the rest is partitioned with branches.
+    if (num_l > 0) {
+      BuildRef* block_end = first + kBlock;
+      for (int j = num_l - 1; j >= 0; --j) std::swap(first[off_l[start_l + j]], *--block_end);
+      return finish_partition<Axis>(m, split, block_end, last);
+    }
+    if (num_r > 0) {
+      BuildRef* block_begin = last - kBlock;
+      for (int j = num_r - 1; j >= 0; --j) std::swap(*(last - 1 - off_r[start_r + j]), *block_begin++);
+      return finish_partition<Axis>(m, split, first, block_begin);
+    }
+    return finish_partition<Axis>(m, split, first, last);
+  }
+
+  // partition() for any size: ranges of kParallelPartition references or more are cut into fixed chunks partitioned
+  // in parallel, then the right-side references left of the final cut are swapped with the left-side ones right of
+  // it, in a fixed pairing. The result depends only on the input, never on the threads.
+  template <int Axis>
+  static BuildRef* partition_any(const BinMapper& m, int split, BuildRef* first, BuildRef* last) {
+    constexpr size_t kChunk = 32 * 1024;
+    const size_t n = size_t(last - first);
+    if (n < kParallelPartition) return partition<Axis>(m, split, first, last);
+    const size_t chunks = (n + kChunk - 1) / kChunk;
+    std::vector<size_t> cuts(chunks);  // left-side count of each chunk
+    tbb::parallel_for(size_t(0), chunks, [&](size_t c) {
+      BuildRef* b = first + c * kChunk;
+      BuildRef* e = first + std::min(n, (c + 1) * kChunk);
+      cuts[c] = size_t(partition<Axis>(m, split, b, e) - b);
+    });
+    size_t left = 0;
+    for (size_t c = 0; c < chunks; ++c) left += cuts[c];
+    // Misplaced runs, in order: right-side references before `left`, left-side ones from `left` on.
+    struct Run {
+      size_t begin, end;
+    };
+    std::vector<Run> wrong_r, wrong_l;
+    for (size_t c = 0; c < chunks; ++c) {
+      const size_t b = c * kChunk, e = std::min(n, (c + 1) * kChunk), k = b + cuts[c];
+      if (std::min(e, left) > k) wrong_r.push_back({k, std::min(e, left)});  // right side, left of the cut
+      if (k > std::max(b, left)) wrong_l.push_back({std::max(b, left), k});  // left side, right of the cut
+    }
+    // Swap the i-th misplaced reference of one list with the i-th of the other, in pieces of kChunk pairs.
+    size_t total = 0;
+    for (const Run& x : wrong_r) total += x.end - x.begin;
+    const size_t pieces = (total + kChunk - 1) / kChunk;
+    const auto len = [](const Run& x) { return x.end - x.begin; };
+    tbb::parallel_for(size_t(0), pieces, [&](size_t p) {
+      const size_t skip = p * kChunk;
+      size_t count = std::min(total, skip + kChunk) - skip;
+      size_t ri = 0, li = 0, ro = skip, lo = skip;  // run index and offset in it, per list
+      while (ro >= len(wrong_r[ri])) ro -= len(wrong_r[ri++]);
+      while (lo >= len(wrong_l[li])) lo -= len(wrong_l[li++]);
+      while (count > 0) {
+        const size_t step = std::min({count, len(wrong_r[ri]) - ro, len(wrong_l[li]) - lo});
+        std::swap_ranges(first + wrong_r[ri].begin + ro, first + wrong_r[ri].begin + ro + step,
+                         first + wrong_l[li].begin + lo);
+        count -= step;
+        ro += step;
+        lo += step;
+        if (ro == len(wrong_r[ri])) {
+          ++ri;
+          ro = 0;
+        }
+        if (lo == len(wrong_l[li])) {
+          ++li;
+          lo = 0;
+        }
+      }
+    });
+    return first + left;
+  }
+
+  // Hoare partition of [lo, hi) with branches: for the small rest.
+  template <int Axis>
+  static BuildRef* finish_partition(const BinMapper& m, int split, BuildRef* lo, BuildRef* hi) {
+    for (;;) {
+      while (lo < hi && m.bin<Axis>(lo->c2()) < split) ++lo;
+      while (lo < hi && m.bin<Axis>((hi - 1)->c2()) >= split) --hi;
+      if (lo >= hi) return lo;
+      std::swap(*lo, *(hi - 1));
+      ++lo;
+      --hi;
+    }
+  }
+
+  // Bounds of the centroids of [first, last).
+  static Box4 centroid_bounds(const BuildRef* first, const BuildRef* last) {
+    Box4 a = Box4::empty(), b = Box4::empty();
+    for (; last - first >= 2; first += 2) {
+      a.extend(first[0].c2());
+      b.extend(first[1].c2());
+    }
+    if (first != last) a.extend(first->c2());
+    a.extend(b);
+    return a;
+  }
+
   // Decides whether r becomes a leaf (false) or is split (true, refs partitioned into l and rr).
   bool split(const Range& r, Range& l, Range& rr) {
     const uint32_t n = r.size();
     if (n == 1) return false;
     const uint32_t max_leaf = leaf_limit();
-    // One packet's worth of primitives: a leaf is one 4-wide test; no split can be cheaper than that.
-    if (n <= max_leaf && n <= uint32_t(kWidth)) return false;
+    // One packet's worth of primitives: a leaf is one packet test; no split can be cheaper than that.
+    if (n <= max_leaf && n <= uint32_t(kPacketWidth)) return false;
 
     const int axis = r.cbox.max_extent();
     const Vec3 ext = r.cbox.diagonal();
@@ -248,8 +409,9 @@ struct Bvh::Builder {
       return true;
     }
 
-    // No more bins than references: small ranges are the most numerous, and their cost is mostly per bin.
-    const int nb = std::clamp(std::min(opt.bins, int(n)), 2, kMaxBins);
+    // Fewer bins for smaller ranges (4 + n / 16, at most opt.bins): small ranges are the most numerous, and their
+    // cost is mostly per bin.
+    const int nb = std::clamp(std::min(opt.bins, 4 + int(n / 16)), 2, kMaxBins);
     const BinMapper m(r.cbox, nb);
     const Bins bins = bin_range(m, nb, r.begin, r.end);
 
@@ -295,39 +457,25 @@ struct Bvh::Builder {
     }
     if (n <= max_leaf && leaf_cost <= split_cost) return false;
 
-    // Partition by bin, gathering both sides' centroid bounds on the way; the boxes come from the bins.
-    Box4 lc = Box4::empty(), rc = Box4::empty();
-    BuildRef* lo = refs.data() + r.begin;
-    BuildRef* hi = refs.data() + r.end;
-    for (;;) {
-      __m128 c;
-      while (lo < hi && m.bin(c = lo->c2(), best_axis) < best_split) {
-        lc.extend(c);
-        ++lo;
-      }
-      while (lo < hi && m.bin(c = (hi - 1)->c2(), best_axis) >= best_split) {
-        rc.extend(c);
-        --hi;
-      }
-      if (lo >= hi) break;
-      std::swap(*lo, *(hi - 1));
-      lc.extend(lo->c2());
-      rc.extend((hi - 1)->c2());
-      ++lo;
-      --hi;
-    }
-    const uint32_t mid = uint32_t(lo - refs.data());
+    // Partition by bin; the boxes come from the bins, the centroid bounds from a pass over each side.
+    BuildRef* const first = refs.data() + r.begin;
+    BuildRef* const last = refs.data() + r.end;
+    BuildRef* const cut = best_axis == 0   ? partition_any<0>(m, best_split, first, last)
+                          : best_axis == 1 ? partition_any<1>(m, best_split, first, last)
+                                           : partition_any<2>(m, best_split, first, last);
+    const uint32_t mid = uint32_t(cut - refs.data());
     if (mid == r.begin || mid == r.end) {  // unreachable with exact binning; stay safe
       halves(r, r.begin + n / 2, l, rr);
       return true;
     }
-    l = Range{r.begin, mid, best_lbox.bounds(), lc.bounds(), r.depth + 1};
-    rr = Range{mid, r.end, best_rbox.bounds(), rc.bounds(), r.depth + 1};
+    l = Range{r.begin, mid, best_lbox.bounds(), centroid_bounds(first, cut).bounds(), r.depth + 1};
+    rr = Range{mid, r.end, best_rbox.bounds(), centroid_bounds(cut, last).bounds(), r.depth + 1};
     return true;
   }
 
-  // Writes refs[r] as packets (triangles first, then spheres) and returns the leaf's child reference.
-  uint32_t emit_leaf(const Range& r) {
+  // Writes refs[begin, end) as packets (triangles first, then spheres) and returns the leaf's child reference.
+  uint32_t emit_leaf(uint32_t begin, uint32_t end) {
+    const Range r{begin, end, {}, {}, 0};
     uint32_t nt = 0;
     const uint32_t ntri = bvh.num_triangles_;
     for (uint32_t i = r.begin; i < r.end; ++i) nt += refs[i].id < ntri;
@@ -342,24 +490,32 @@ struct Bvh::Builder {
     uint32_t i = r.begin;
     for (uint32_t p = 0; p < count; ++p) {
       Packet& pk = out[p];
-      pk = Packet{};
       const bool tri = i < r.end && refs[i].id < ntri;
-      for (int lane = 0; lane < kWidth; ++lane) {
+      for (int lane = 0; lane < kPacketWidth; ++lane) {
         if (i < r.end && (refs[i].id < ntri) == tri) {
           const uint32_t id = refs[i++].id;
           pk.id[lane] = id;
           if (tri) {
             const Triangle& t = triangles[id];
             const Vec3* v[3] = {&t.p0, &t.p1, &t.p2};
-            for (int k = 0; k < 3; ++k)
-              for (int a = 0; a < 3; ++a) pk.v[k][a][lane] = (*v[k])[a];
+            for (int k = 0; k < 3; ++k) {
+              pk.v[k][0][lane] = v[k]->x;
+              pk.v[k][1][lane] = v[k]->y;
+              pk.v[k][2][lane] = v[k]->z;
+            }
           } else {
             const Sphere& s = spheres[id - ntri];
-            for (int a = 0; a < 3; ++a) pk.v[0][a][lane] = s.center[a];
+            pk.v[0][0][lane] = s.center.x;
+            pk.v[0][1][lane] = s.center.y;
+            pk.v[0][2][lane] = s.center.z;
             pk.v[1][0][lane] = s.radius;
+            pk.v[1][1][lane] = pk.v[1][2][lane] = 0.f;
+            for (int a = 0; a < 3; ++a) pk.v[2][a][lane] = 0.f;
           }
         } else {
-          pk.id[lane] = kNoPrim;
+          pk.id[lane] = kNoPrim;  // unused: zero data, masked out by its id
+          for (int k = 0; k < 3; ++k)
+            for (int a = 0; a < 3; ++a) pk.v[k][a][lane] = 0.f;
         }
       }
     }
@@ -367,85 +523,149 @@ struct Bvh::Builder {
     return kLeafBit | first;
   }
 
-  struct Child {
-    Range r;
-    Range l, rr;  // halves when split
-    enum State : uint8_t { kUnknown, kLeaf, kSplit } state = kUnknown;
-    float area() const { return r.box.surface_area(); }
-    void decide(Builder& b) { state = b.split(r, l, rr) ? kSplit : kLeaf; }
-  };
+  // ---- The binary tree, and its collapse into the wide tree.
+  //
+  // The builder first makes a binary tree (every range split once, by split()), then chooses which of its inner
+  // nodes become wide nodes, so that the sum of their areas (the expected number of wide node visits of a ray
+  // through the root, by the surface area heuristic) is least with at most kNodeWidth children each; the leaves are
+  // the binary leaves either way. A subtree's costs are the least cost of representing it in k = 1..kNodeWidth
+  // slots of its parent: in one slot it is a leaf or a wide node, in more its children may share the slots.
+  // (A wide tree built top-down by opening the largest child had half-empty nodes at the bottom: 4.2 children per
+  // node against 6 here.)
 
-  // Builds the node at index idx over a range already split into a and b: opens the child with the largest area
-  // until there are four children or none can be split, then recurses into the interior children.
-  void build_node(uint32_t idx, const Range& a, const Range& b) {
-    std::array<Child, kWidth> c;
-    c[0].r = a;
-    c[1].r = b;
-    int nc = 2;
+  static constexpr uint32_t kNone = 0xffffffffu;
+  using Costs = std::array<float, kNodeWidth>;  // cost of a subtree in k slots at index k - 1
+
+  // Trivially constructible: the array is sized by an upper bound and only the used part may be touched.
+  struct BinaryNode {
+    float lo[3], hi[3];        // bounds
+    uint32_t begin, end;       // references
+    uint32_t left, right;      // children, kNone for a leaf
+    uint8_t pick[kNodeWidth];  // pick[0]: slots of left's forest when this is a wide node (right gets the rest);
+                               // pick[k - 1], k >= 2: slots of left's forest in k slots, 0 when this takes one
+    bool leaf() const { return left == kNone; }
+    Bounds3 box() const { return Bounds3{Vec3(lo[0], lo[1], lo[2]), Vec3(hi[0], hi[1], hi[2])}; }
+  };
+  static_assert(std::is_trivially_default_constructible_v<BinaryNode>);
+
+  std::vector<BinaryNode, detail::UninitAllocator<BinaryNode>> binary;
+  std::atomic<uint32_t> next_binary{0};
+
+  // The least-cost choices at inner node n (area a) from its children's costs; returns n's costs.
+  static Costs collapse(BinaryNode& n, float a, const Costs& l, const Costs& r) {
+    Costs c;
+    float best = kInfinity;
+    int best_a = 1;
+    for (int k = 1; k < kNodeWidth; ++k) {
+      const float x = l[size_t(k - 1)] + r[size_t(kNodeWidth - k - 1)];
+      if (x < best) {
+        best = x;
+        best_a = k;
+      }
+    }
+    c[0] = a + best;
+    n.pick[0] = uint8_t(best_a);
+    for (int k = 2; k <= kNodeWidth; ++k) {
+      float bk = c[0];
+      int ak = 0;
+      for (int i = 1; i < k; ++i) {
+        const float x = l[size_t(i - 1)] + r[size_t(k - i - 1)];
+        if (x < bk) {
+          bk = x;
+          ak = i;
+        }
+      }
+      c[size_t(k - 1)] = bk;
+      n.pick[k - 1] = uint8_t(ak);
+    }
+    return c;
+  }
+
+  // Builds the binary tree over r into binary[idx] and below; returns the subtree's costs.
+  Costs build_binary(uint32_t idx, const Range& r) {
+    BinaryNode& n = binary[idx];
+    for (int a = 0; a < 3; ++a) {
+      n.lo[a] = r.box.lo[a];
+      n.hi[a] = r.box.hi[a];
+    }
+    n.begin = r.begin;
+    n.end = r.end;
+    Range a, b;
+    if (!split(r, a, b)) {
+      n.left = n.right = kNone;
+      return Costs{};  // a leaf costs the same wherever it hangs
+    }
+    const uint32_t li = next_binary.fetch_add(2, std::memory_order_relaxed);
+    n.left = li;
+    n.right = li + 1;
+    Costs cl, cr;
     if (a.size() > kParallelTaskThreshold && b.size() > kParallelTaskThreshold) {
-      // Both halves will be opened: split them side by side (near the root, partitions are serial otherwise).
-      tbb::parallel_invoke([&] { c[0].decide(*this); }, [&] { c[1].decide(*this); });
+      tbb::parallel_invoke([&] { cl = build_binary(li, a); }, [&] { cr = build_binary(li + 1, b); });
+    } else {
+      cl = build_binary(li, a);
+      cr = build_binary(li + 1, b);
     }
-    while (nc < kWidth) {
-      int best = -1;
-      float best_area = -1.f;
-      for (int k = 0; k < nc; ++k) {
-        if (c[k].state == Child::kLeaf) continue;
-        const float ar = c[k].area();
-        if (ar > best_area) { best_area = ar; best = k; }
-      }
-      if (best < 0) break;
-      Child& ch = c[best];
-      if (ch.state == Child::kUnknown) {
-        ch.decide(*this);
-        if (ch.state == Child::kLeaf) continue;
-      }
-      const Range l = ch.l, rr = ch.rr;
-      c[best] = Child{};
-      c[best].r = l;
-      c[nc] = Child{};
-      c[nc].r = rr;
-      ++nc;
+    return collapse(n, r.box.surface_area(), cl, cr);
+  }
+
+  // Appends to kids the roots of the forest that stands for subtree m in k slots.
+  void expand(uint32_t m, int k, std::array<uint32_t, kNodeWidth>& kids, int& nk) const {
+    const BinaryNode& n = binary[m];
+    if (n.leaf() || k == 1 || n.pick[k - 1] == 0) {
+      kids[size_t(nk++)] = m;
+      return;
     }
-    for (int k = 0; k < nc; ++k)
-      if (c[k].state == Child::kUnknown) c[k].decide(*this);
+    const int a = n.pick[k - 1];
+    expand(n.left, a, kids, nk);
+    expand(n.right, k - a, kids, nk);
+  }
+
+  static void set_slot(Node& node, int k, const Bounds3& b, uint32_t child) {
+    for (int ax = 0; ax < 3; ++ax) {
+      node.box[2 * ax][k] = b.lo[ax];
+      node.box[2 * ax + 1][k] = b.hi[ax];
+    }
+    node.child[k] = child;
+  }
+
+  // Fills slots [from, kNodeWidth) with empty boxes (lo +inf, hi -inf), which no ray enters, and zeroes the padding.
+  static void clear_slots(Node& node, int from) {
+    for (int k = from; k < kNodeWidth; ++k) set_slot(node, k, Bounds3{}, 0);
+    std::fill(std::begin(node.pad), std::end(node.pad), 0u);
+  }
+
+  // Writes wide node idx for inner binary node m and, recursively (in parallel for large subtrees), everything below.
+  void emit_node(uint32_t idx, uint32_t m) {
+    const BinaryNode& n = binary[m];
+    std::array<uint32_t, kNodeWidth> kids;
+    int nk = 0;
+    expand(n.left, n.pick[0], kids, nk);
+    expand(n.right, kNodeWidth - n.pick[0], kids, nk);
 
     int interior = 0;
-    for (int k = 0; k < nc; ++k) interior += c[k].state == Child::kSplit;
+    for (int k = 0; k < nk; ++k) interior += !binary[kids[size_t(k)]].leaf();
     const uint32_t base = interior ? next_node.fetch_add(uint32_t(interior), std::memory_order_relaxed) : 0;
-
     Node& node = bvh.nodes_[idx];
     uint32_t next = base;
-    for (int k = 0; k < kWidth; ++k) {
-      if (k < nc) {
-        const Bounds3& bx = c[k].r.box;
-        for (int ax = 0; ax < 3; ++ax) {
-          node.box[2 * ax][k] = bx.lo[ax];
-          node.box[2 * ax + 1][k] = bx.hi[ax];
-        }
-        node.child[k] = c[k].state == Child::kLeaf ? emit_leaf(c[k].r) : next++;
-      } else {
-        for (int ax = 0; ax < 3; ++ax) {
-          node.box[2 * ax][k] = kInfinity;
-          node.box[2 * ax + 1][k] = -kInfinity;
-        }
-        node.child[k] = 0;
-      }
-      node.pad[k] = 0;
+    for (int k = 0; k < nk; ++k) {
+      const BinaryNode& c = binary[kids[size_t(k)]];
+      set_slot(node, k, c.box(), c.leaf() ? emit_leaf(c.begin, c.end) : next++);
     }
+    clear_slots(node, nk);
 
     tbb::task_group tg;
     bool spawned = false;
     next = base;
-    for (int k = 0; k < nc; ++k) {
-      if (c[k].state != Child::kSplit) continue;
+    for (int k = 0; k < nk; ++k) {
+      const uint32_t ck = kids[size_t(k)];
+      const BinaryNode& c = binary[ck];
+      if (c.leaf()) continue;
       const uint32_t ci = next++;
-      const Child& ch = c[k];
-      if (ch.r.size() > kParallelTaskThreshold) {
-        tg.run([this, ci, l = ch.l, rr = ch.rr] { build_node(ci, l, rr); });
+      if (c.end - c.begin > kParallelTaskThreshold) {
+        tg.run([this, ci, ck] { emit_node(ci, ck); });
         spawned = true;
       } else {
-        build_node(ci, ch.l, ch.rr);
+        emit_node(ci, ck);
       }
     }
     if (spawned) tg.wait();
@@ -515,12 +735,12 @@ Bvh Bvh::build(std::span<const Triangle> triangles, std::span<const Sphere> sphe
     refs.resize(w);
   }
   if (refs.empty()) return bvh;
-  Range root;
-  root.begin = 0;
-  root.end = uint32_t(refs.size());
-  root.box = acc.box.bounds();
-  root.cbox = acc.cbox.bounds();
-  bvh.bounds_ = root.box;
+  Range root_range;
+  root_range.begin = 0;
+  root_range.end = uint32_t(refs.size());
+  root_range.box = acc.box.bounds();
+  root_range.cbox = acc.cbox.bounds();
+  bvh.bounds_ = root_range.box;
 
   // Upper bounds: every node but the root has at least two children and every leaf at least one primitive, so
   // nodes <= leaves <= references; a leaf never has more packets than primitives. The storage is not initialised,
@@ -530,22 +750,18 @@ Bvh Bvh::build(std::span<const Triangle> triangles, std::span<const Sphere> sphe
   bvh.packets_.resize(n);
 
   Builder b(options, refs, triangles, spheres, bvh);
+  // A binary tree over n references has at most 2n - 1 nodes; only the used part is touched.
+  b.binary.resize(2 * n);
+  b.next_binary.store(1);
+  b.build_binary(0, root_range);
   const uint32_t root_idx = b.next_node.fetch_add(1);
-  Range l, r;
-  if (b.split(root, l, r)) {
-    b.build_node(root_idx, l, r);
-  } else {
+  if (b.binary[0].leaf()) {
     // The whole scene is one leaf: a root with a single child.
     Node& node = bvh.nodes_[root_idx];
-    for (int k = 0; k < kWidth; ++k) {
-      for (int ax = 0; ax < 3; ++ax) {
-        node.box[2 * ax][k] = k == 0 ? root.box.lo[ax] : kInfinity;
-        node.box[2 * ax + 1][k] = k == 0 ? root.box.hi[ax] : -kInfinity;
-      }
-      node.child[k] = 0;
-      node.pad[k] = 0;
-    }
-    node.child[0] = b.emit_leaf(root);
+    Builder::set_slot(node, 0, root_range.box, b.emit_leaf(root_range.begin, root_range.end));
+    Builder::clear_slots(node, 1);
+  } else {
+    b.emit_node(root_idx, 0);
   }
   bvh.nodes_.resize(b.next_node.load());
   bvh.packets_.resize(b.next_packet.load());
@@ -553,295 +769,55 @@ Bvh Bvh::build(std::span<const Triangle> triangles, std::span<const Sphere> sphe
 }
 
 // ------------------------------------------------------------------------------------------------------------
-// Traversal.
+// Queries: per-ray constants here, traversal in the kernels of the chosen SimdPath (core/bvh_kernels.h).
+
+namespace bvh_kernels {
+
+bool sphere_hit(const Ray& ray, float cx, float cy, float cz, float radius, float tmax, float* t) {
+  const auto th = intersect_sphere(Sphere{Vec3(cx, cy, cz), radius}, ray, tmax);
+  if (!th) return false;
+  *t = *th;
+  return true;
+}
+
+}  // namespace bvh_kernels
 
 namespace {
 
-// Per-ray constants of the 4-wide slab test. The arithmetic per lane is exactly slab_test()'s (bounds.h): near
-// and far planes chosen by the direction's sign, (plane - o) * inv_d, the far distance scaled by 1 + 2*gamma(3),
-// and max/min that keep the running value when the new distance is NaN (MAXPS/MINPS return their second operand
-// on unordered inputs).
-struct SimdBoxRay {
-  __m128 o[3], inv_d[3];
-  int near_row[3], far_row[3];  // rows of Node::box
-  explicit SimdBoxRay(const BoxRay& br) {
-    for (int a = 0; a < 3; ++a) {
-      o[a] = _mm_set1_ps(br.o[a]);
-      inv_d[a] = _mm_set1_ps(br.inv_d[a]);
-      near_row[a] = 2 * a + (br.neg[a] ? 1 : 0);
-      far_row[a] = 2 * a + (br.neg[a] ? 0 : 1);
-    }
-  }
-};
-
-constexpr float kFarScale = 1.f + 2.f * gamma(3);
-
-// Slab test of the four child boxes against (0, tmax); returns the mask of boxes entered and their entry distances.
-template <class NodeT>
-inline int slab_test4(const NodeT& n, const SimdBoxRay& r, __m128 tmax, __m128* t_entry) {
-  const __m128 scale = _mm_set1_ps(kFarScale);
-  __m128 t0 = _mm_setzero_ps(), t1 = tmax;
-  for (int a = 0; a < 3; ++a) {
-    const __m128 tn = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[r.near_row[a]]), r.o[a]), r.inv_d[a]);
-    const __m128 tf =
-        _mm_mul_ps(_mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[r.far_row[a]]), r.o[a]), r.inv_d[a]), scale);
-    t0 = _mm_max_ps(tn, t0);  // tn > t0 ? tn : t0
-    t1 = _mm_min_ps(tf, t1);  // tf < t1 ? tf : t1
-  }
-  *t_entry = t0;
-  return _mm_movemask_ps(_mm_cmple_ps(t0, t1));
+const bvh_kernels::Kernels& kernels_of(SimdPath p) {
+  static const bvh_kernels::Kernels* const table[] = {&bvh_kernels::kSse2, &bvh_kernels::kAvx2,
+                                                      &bvh_kernels::kAvx512};
+  return *table[size_t(p)];
 }
 
-// Per-ray constants of the 4-wide watertight test (the same as WatertightRay, broadcast).
-struct SimdTriRay {
-  const WatertightRay& wr;
-  __m128 ox, oy, oz, sx, sy, sz;
-  explicit SimdTriRay(const WatertightRay& w)
-      : wr(w),
-        ox(_mm_set1_ps(w.o[w.kx])),
-        oy(_mm_set1_ps(w.o[w.ky])),
-        oz(_mm_set1_ps(w.o[w.kz])),
-        sx(_mm_set1_ps(w.sx)),
-        sy(_mm_set1_ps(w.sy)),
-        sz(_mm_set1_ps(w.sz)) {}
-};
-
-// Results of four triangle tests: lanes that hit in (0, tmax), with t and the barycentrics of p1 and p2.
-struct Lanes4 {
-  alignas(16) float t[4];
-  alignas(16) float b1[4];
-  alignas(16) float b2[4];
-};
-
-// The watertight test (triangle.h) on the four triangles of a packet, lane by lane with the same operations in
-// the same order, so t and the barycentrics are bitwise those of intersect_triangle(). Lanes whose float edge
-// functions are zero or whose determinant is not finite go to the same double-precision fallback.
-// `valid` is the mask of used lanes. Returns the mask of lanes that hit; fills `out` for them when given.
-inline int intersect_triangles4(const float (&v)[3][3][4], int valid, const SimdTriRay& r, float tmax,
-                                Lanes4* out) {
-  const WatertightRay& w = r.wr;
-  const __m128 az = _mm_sub_ps(_mm_load_ps(v[0][w.kz]), r.oz);
-  const __m128 bz = _mm_sub_ps(_mm_load_ps(v[1][w.kz]), r.oz);
-  const __m128 cz = _mm_sub_ps(_mm_load_ps(v[2][w.kz]), r.oz);
-  const __m128 ax = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(v[0][w.kx]), r.ox), _mm_mul_ps(r.sx, az));
-  const __m128 ay = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(v[0][w.ky]), r.oy), _mm_mul_ps(r.sy, az));
-  const __m128 bx = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(v[1][w.kx]), r.ox), _mm_mul_ps(r.sx, bz));
-  const __m128 by = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(v[1][w.ky]), r.oy), _mm_mul_ps(r.sy, bz));
-  const __m128 cx = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(v[2][w.kx]), r.ox), _mm_mul_ps(r.sx, cz));
-  const __m128 cy = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(v[2][w.ky]), r.oy), _mm_mul_ps(r.sy, cz));
-
-  const __m128 e0 = _mm_sub_ps(_mm_mul_ps(bx, cy), _mm_mul_ps(by, cx));
-  const __m128 e1 = _mm_sub_ps(_mm_mul_ps(cx, ay), _mm_mul_ps(cy, ax));
-  const __m128 e2 = _mm_sub_ps(_mm_mul_ps(ax, by), _mm_mul_ps(ay, bx));
-  const __m128 det = _mm_add_ps(_mm_add_ps(e0, e1), e2);
-
-  const __m128 zero = _mm_setzero_ps();
-  const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
-  const __m128 finite = _mm_cmple_ps(_mm_and_ps(det, abs_mask), _mm_set1_ps(std::numeric_limits<float>::max()));
-  const __m128 any_zero = _mm_or_ps(_mm_or_ps(_mm_cmpeq_ps(e0, zero), _mm_cmpeq_ps(e1, zero)), _mm_cmpeq_ps(e2, zero));
-  const int fallback = _mm_movemask_ps(any_zero) | (_mm_movemask_ps(finite) ^ 0xf);
-  const int fb = fallback & valid;
-
-  const __m128 neg = _mm_or_ps(_mm_or_ps(_mm_cmplt_ps(e0, zero), _mm_cmplt_ps(e1, zero)), _mm_cmplt_ps(e2, zero));
-  const __m128 pos = _mm_or_ps(_mm_or_ps(_mm_cmpgt_ps(e0, zero), _mm_cmpgt_ps(e1, zero)), _mm_cmpgt_ps(e2, zero));
-  int hit = valid & ~fallback & ~_mm_movemask_ps(_mm_and_ps(neg, pos));
-  if (!hit && !fb) return 0;
-
-  const __m128 inv_det = _mm_div_ps(_mm_set1_ps(1.f), det);
-  const __m128 szaz = _mm_mul_ps(r.sz, az), szbz = _mm_mul_ps(r.sz, bz), szcz = _mm_mul_ps(r.sz, cz);
-  const __m128 t = _mm_mul_ps(
-      _mm_add_ps(_mm_add_ps(_mm_mul_ps(e0, szaz), _mm_mul_ps(e1, szbz)), _mm_mul_ps(e2, szcz)), inv_det);
-  hit &= _mm_movemask_ps(_mm_and_ps(_mm_cmpgt_ps(t, zero), _mm_cmplt_ps(t, _mm_set1_ps(tmax))));
-  if (out && hit) {
-    _mm_store_ps(out->t, t);
-    _mm_store_ps(out->b1, _mm_mul_ps(e1, inv_det));
-    _mm_store_ps(out->b2, _mm_mul_ps(e2, inv_det));
-  }
-  if (fb) {
-    alignas(16) float s[9][4];
-    _mm_store_ps(s[0], ax); _mm_store_ps(s[1], ay); _mm_store_ps(s[2], az);
-    _mm_store_ps(s[3], bx); _mm_store_ps(s[4], by); _mm_store_ps(s[5], bz);
-    _mm_store_ps(s[6], cx); _mm_store_ps(s[7], cy); _mm_store_ps(s[8], cz);
-    for (int m = fb; m; m &= m - 1) {
-      const int k = std::countr_zero(unsigned(m));
-      const detail::Sheared sh{s[0][k], s[1][k], s[2][k], s[3][k], s[4][k], s[5][k], s[6][k], s[7][k], s[8][k]};
-      if (const auto h = detail::intersect_sheared_double(sh, w.sz, tmax)) {
-        hit |= 1 << k;
-        if (!out) return hit;
-        out->t[k] = h->t;
-        out->b1[k] = h->b1;
-        out->b2[k] = h->b2;
-      }
-    }
-  }
-  return hit;
+bvh_kernels::RayData ray_data(const Ray& r) {
+  return bvh_kernels::RayData{{r.o.x, r.o.y, r.o.z}, {r.d.x, r.d.y, r.d.z}, r.tmax, &r};
 }
-
-inline int valid_lanes(const uint32_t (&id)[4]) {
-  const __m128i ids = _mm_load_si128(reinterpret_cast<const __m128i*>(id));
-  return _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(ids, _mm_set1_epi32(-1)))) ^ 0xf;
-}
-
-// Asks for the cache lines a child reference will touch first: a node's two lines or a leaf's first packet.
-template <class NodeT, class PacketT>
-inline void prefetch_child(uint32_t ref, const NodeT* nodes, const PacketT* packets, uint32_t leaf_bit) {
-  const char* p = (ref & leaf_bit) ? reinterpret_cast<const char*>(packets + (ref & ~leaf_bit))
-                                   : reinterpret_cast<const char*>(nodes + ref);
-  _mm_prefetch(p, _MM_HINT_T0);
-  _mm_prefetch(p + 64, _MM_HINT_T0);
-  if (ref & leaf_bit) _mm_prefetch(p + 128, _MM_HINT_T0);
-}
-
-struct StackEntry {
-  uint32_t ref;
-  float t;  // entry distance when pushed
-};
-
-constexpr int kStackSize = 3 * Bvh::kMaxDepth + 4;
 
 }  // namespace
 
-std::optional<Hit> Bvh::intersect(const Ray& ray) const {
-  if (nodes_.empty() || !ray.valid()) return std::nullopt;
-  const BoxRay br(ray);
-  const SimdBoxRay sr(br);
-  const WatertightRay wr(ray);
-  const SimdTriRay tr(wr);
-  float tmax = ray.tmax;
-  Hit best{};
-  bool found = false;
+void Bvh::set_simd_path(SimdPath p) {
+  if (!simd_path_supported(p))
+    throw std::invalid_argument("Bvh: this CPU cannot run the " + std::string(kSimdPathNames[size_t(p)]) +
+                                " kernels");
+  path_ = p;
+}
 
-  StackEntry stack[kStackSize];
-  int sp = 0;
-  uint32_t ref = 0;
-  for (;;) {
-    while (!(ref & kLeafBit)) {
-      const Node& n = nodes_[ref];
-      __m128 tn;
-      const int mask = slab_test4(n, sr, _mm_set1_ps(tmax), &tn);
-      if (mask == 0) goto pop;
-      const int c0 = std::countr_zero(unsigned(mask));
-      const int rest = mask & (mask - 1);
-      if (rest == 0) {
-        ref = n.child[c0];
-        continue;
-      }
-      alignas(16) float t[4];
-      _mm_store_ps(t, tn);
-      const int c1 = std::countr_zero(unsigned(rest));
-      if ((rest & (rest - 1)) == 0) {
-        // Two boxes: visit the nearer first.
-        const bool swap = t[c1] < t[c0];
-        const int near = swap ? c1 : c0, far = swap ? c0 : c1;
-        stack[sp++] = {n.child[far], t[far]};
-        prefetch_child(n.child[far], nodes_.data(), packets_.data(), kLeafBit);
-        ref = n.child[near];
-        continue;
-      }
-      // Three or four: sort by entry distance, farthest pushed first, nearest visited now.
-      StackEntry e[4];
-      int ne = 0;
-      for (int m = mask; m; m &= m - 1) {
-        const int k = std::countr_zero(unsigned(m));
-        StackEntry x{n.child[k], t[k]};
-        int j = ne++;
-        while (j > 0 && e[j - 1].t < x.t) {
-          e[j] = e[j - 1];
-          --j;
-        }
-        e[j] = x;
-      }
-      for (int k = 0; k < ne - 1; ++k) {
-        stack[sp++] = e[k];
-        prefetch_child(e[k].ref, nodes_.data(), packets_.data(), kLeafBit);
-      }
-      ref = e[ne - 1].ref;
-    }
-    // Leaf.
-    for (const Packet* pk = &packets_[ref & ~kLeafBit];; ++pk) {
-      const uint32_t id0 = pk->id[0] & ~kLastPacket;
-      const int valid = valid_lanes(pk->id);
-      if (id0 < num_triangles_) {
-        Lanes4 lanes;
-        for (int m = intersect_triangles4(pk->v, valid, tr, tmax, &lanes); m; m &= m - 1) {
-          const int k = std::countr_zero(unsigned(m));
-          if (lanes.t[k] < tmax) {  // lanes in order, as a sequential loop would accept them
-            tmax = lanes.t[k];
-            best = Hit{lanes.t[k], lanes.b1[k], lanes.b2[k], k == 0 ? id0 : pk->id[k]};
-            found = true;
-          }
-        }
-      } else {
-        for (int m = valid; m; m &= m - 1) {
-          const int k = std::countr_zero(unsigned(m));
-          const Sphere s{Vec3(pk->v[0][0][k], pk->v[0][1][k], pk->v[0][2][k]), pk->v[1][0][k]};
-          if (auto th = intersect_sphere(s, ray, tmax)) {
-            tmax = *th;
-            best = Hit{*th, 0.f, 0.f, k == 0 ? id0 : pk->id[k]};
-            found = true;
-          }
-        }
-      }
-      if (pk->id[0] & kLastPacket) break;
-    }
-  pop:
-    for (;;) {
-      if (sp == 0) {
-        if (!found) return std::nullopt;
-        return best;
-      }
-      const StackEntry& e = stack[--sp];
-      if (e.t <= tmax) {  // the slab test against the shortened ray, given it passed against the longer one
-        ref = e.ref;
-        break;
-      }
-    }
-  }
+std::optional<Hit> Bvh::intersect(const Ray& ray) const {
+  if (nodes_.empty()) return std::nullopt;
+  const bvh_kernels::Tree tree{nodes_.data(), packets_.data(), num_triangles_, 1.f + 2.f * gamma(3)};
+  bvh_kernels::HitRecord h;
+  if (!kernels_of(path_).intersect(tree, ray_data(ray), &h)) return std::nullopt;
+  return Hit{h.t, h.b1, h.b2, h.prim};
 }
 
 bool Bvh::occluded(const Ray& ray) const {
-  if (nodes_.empty() || !ray.valid()) return false;
-  const BoxRay br(ray);
-  const SimdBoxRay sr(br);
-  const WatertightRay wr(ray);
-  const SimdTriRay tr(wr);
-  const float tmax = ray.tmax;
-  const __m128 tmax4 = _mm_set1_ps(tmax);
-
-  uint32_t stack[kStackSize];
-  int sp = 0;
-  uint32_t ref = 0;
-  for (;;) {
-    while (!(ref & kLeafBit)) {
-      const Node& n = nodes_[ref];
-      __m128 tn;
-      int mask = slab_test4(n, sr, tmax4, &tn);
-      if (mask == 0) goto pop;
-      ref = n.child[std::countr_zero(unsigned(mask))];
-      for (mask &= mask - 1; mask; mask &= mask - 1) {
-        const uint32_t c = n.child[std::countr_zero(unsigned(mask))];
-        stack[sp++] = c;
-        prefetch_child(c, nodes_.data(), packets_.data(), kLeafBit);
-      }
-    }
-    for (const Packet* pk = &packets_[ref & ~kLeafBit];; ++pk) {
-      const int valid = valid_lanes(pk->id);
-      if ((pk->id[0] & ~kLastPacket) < num_triangles_) {
-        if (intersect_triangles4(pk->v, valid, tr, tmax, nullptr)) return true;
-      } else {
-        for (int m = valid; m; m &= m - 1) {
-          const int k = std::countr_zero(unsigned(m));
-          const Sphere s{Vec3(pk->v[0][0][k], pk->v[0][1][k], pk->v[0][2][k]), pk->v[1][0][k]};
-          if (intersect_sphere(s, ray, tmax)) return true;
-        }
-      }
-      if (pk->id[0] & kLastPacket) break;
-    }
-  pop:
-    if (sp == 0) return false;
-    ref = stack[--sp];
-  }
+  if (nodes_.empty()) return false;
+  const bvh_kernels::Tree tree{nodes_.data(), packets_.data(), num_triangles_, 1.f + 2.f * gamma(3)};
+  return kernels_of(path_).occluded(tree, ray_data(ray));
 }
+
+size_t Bvh::memory_bytes() const { return nodes_.size() * sizeof(Node) + packets_.size() * sizeof(Packet); }
 
 BvhStats Bvh::stats() const {
   BvhStats s;
@@ -863,7 +839,7 @@ BvhStats Bvh::stats() const {
       s.max_depth = std::max(s.max_depth, it.depth);
       size_t prims = 0;
       for (const Packet* pk = &packets_[it.ref & ~kLeafBit];; ++pk) {
-        prims += size_t(std::popcount(unsigned(valid_lanes(pk->id))));
+        for (int k = 0; k < kPacketWidth; ++k) prims += pk->id[k] != kNoPrim;
         if (pk->id[0] & kLastPacket) break;
       }
       cost += it.rel * double(prims);
@@ -871,7 +847,7 @@ BvhStats Bvh::stats() const {
     }
     cost += it.rel;
     const Node& n = nodes_[it.ref];
-    for (int k = 0; k < kWidth; ++k) {
+    for (int k = 0; k < kNodeWidth; ++k) {
       const Bounds3 b{Vec3(n.box[0][k], n.box[2][k], n.box[4][k]), Vec3(n.box[1][k], n.box[3][k], n.box[5][k])};
       if (b.empty()) continue;
       const double rel = root_area > 0 ? b.surface_area() / root_area : 1.0;

@@ -1,9 +1,11 @@
-// Bounding volume hierarchy over triangles and spheres: binned-SAH build of a 4-wide tree with SSE2 node and
-// 4-triangle leaf tests, closest-hit and any-hit queries.
+// Bounding volume hierarchy over triangles and spheres: binned-SAH build of a 4-wide tree with SIMD node and
+// 4-triangle leaf tests, closest-hit and any-hit queries through kernels chosen at run time (core/simd_path.h).
 #pragma once
 
 #include "core/bounds.h"
+#include "core/bvh_layout.h"
 #include "core/ray.h"
+#include "core/simd_path.h"
 #include "core/sphere.h"
 #include "core/triangle.h"
 
@@ -38,16 +40,16 @@ inline constexpr std::string_view kSplitMethodNames[] = {"sah", "median"};
 /// Build parameters.
 struct BvhOptions {
   SplitMethod split = SplitMethod::kSah;  ///< Split strategy.
-  int max_leaf_prims = 4;                 ///< Upper bound on primitives per leaf when a split is possible.
+  int max_leaf_prims = 8;                 ///< Upper bound on primitives per leaf when a split is possible.
   int bins = 16;                          ///< SAH bins per axis.
 };
 
-/// Shape of a built hierarchy (the traced tree is 4-wide: each interior node holds up to four child boxes).
+/// Shape of a built hierarchy (the traced tree is bvh_layout::kNodeWidth wide).
 struct BvhStats {
-  size_t nodes = 0;         ///< Total nodes: 4-wide interior nodes plus leaves.
+  size_t nodes = 0;         ///< Total nodes: interior nodes plus leaves.
   size_t leaves = 0;        ///< Leaf nodes.
   int max_depth = 0;        ///< Deepest leaf (root = 0).
-  double sah_cost = 0.0;    ///< Expected cost per ray (4-wide node visit 1, one primitive 1), relative to the root area.
+  double sah_cost = 0.0;    ///< Expected cost per ray (node visit 1, one primitive 1), relative to the root area.
 };
 
 namespace detail {
@@ -84,7 +86,7 @@ struct UninitAllocator {
 class Bvh {
  public:
   /// Maximum depth a built tree reaches; traversal stacks are sized by it.
-  static constexpr int kMaxDepth = 96;
+  static constexpr int kMaxDepth = bvh_layout::kMaxDepth;
 
   Bvh() = default;
 
@@ -106,32 +108,18 @@ class Bvh {
   Bounds3 bounds() const { return bounds_; }
   /// Node count, depth and SAH cost of the built tree.
   BvhStats stats() const;
+  /// Bytes of the acceleration structure: nodes and leaf packets (which hold copies of the primitives).
+  size_t memory_bytes() const;
+
+  /// The kernels queries run: best_simd_path() unless set_simd_path() chose another.
+  SimdPath simd_path() const { return path_; }
+  /// Runs later queries with path p's kernels (for tests and benchmarks: every path returns bitwise the same hits).
+  /// Throws std::invalid_argument when this CPU cannot run p.
+  void set_simd_path(SimdPath p);
 
  private:
-  // Child references: an interior child is the index of its node; a leaf child has kLeafBit set and the index of
-  // its first packet below it (the leaf's packets run to the one flagged kLastPacket).
-  static constexpr uint32_t kLeafBit = 0x80000000u;
-  static constexpr uint32_t kLastPacket = 0x80000000u;  // set in id[0] of a leaf's last packet
-  static constexpr uint32_t kNoPrim = 0xffffffffu;      // id of an unused packet lane
-
-  // 4-wide interior node, 128 bytes (two cache lines): the child boxes as structure of arrays so four slab tests
-  // run at once. box[2a][k] / box[2a+1][k] are the low / high planes of child k on axis a. Unused slots hold an
-  // empty box (lo = +inf, hi = -inf), which no ray enters.
-  struct alignas(64) Node {
-    float box[6][4];
-    uint32_t child[4];
-    uint32_t pad[4];
-  };
-  static_assert(sizeof(Node) == 128);
-
-  // Four primitives of one kind, structure of arrays. Triangles: v[vertex][axis][lane]. Spheres: v[0][axis][lane]
-  // is the centre and v[1][0][lane] the radius. id[lane] is the primitive id (kNoPrim if unused; lane 0 is always
-  // used); id[0] also carries kLastPacket.
-  struct alignas(16) Packet {
-    float v[3][3][4];
-    uint32_t id[4];
-  };
-  static_assert(sizeof(Packet) == 160);
+  using Node = bvh_layout::Node;
+  using Packet = bvh_layout::Packet;
 
   struct Builder;
 
@@ -141,6 +129,7 @@ class Bvh {
   Bounds3 bounds_;
   uint32_t num_triangles_ = 0;
   uint32_t num_spheres_ = 0;
+  SimdPath path_ = best_simd_path();
 };
 
 }  // namespace tessera

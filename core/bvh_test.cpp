@@ -5,6 +5,9 @@
 
 #include <gtest/gtest.h>
 
+#include <tbb/task_arena.h>
+
+#include <bit>
 #include <random>
 
 namespace tessera {
@@ -118,6 +121,50 @@ TEST(Bvh, ParallelBuildOfLargeInputMatchesBruteForce) {
     ASSERT_EQ(expect.has_value(), got.has_value());
     if (expect) {
       ASSERT_EQ(expect->t, got->t);
+    }
+  }
+}
+
+TEST(Bvh, LargeBuildIsTheSameOnAnyThreadCount) {
+  // Large enough for the parallel partition (chunks partitioned side by side, then misplaced runs swapped): the tree,
+  // and with it every hit, must not depend on how many threads built it.
+  const Soup s = random_soup(340000, 21);  // about 300k references: the root split is partitioned in parallel
+  auto build_on = [&](int threads) {
+    tbb::task_arena arena(threads);
+    Bvh bvh;
+    arena.execute([&] { bvh = Bvh::build(s.tris, s.spheres); });
+    return bvh;
+  };
+  const Bvh one = build_on(1), three = build_on(3);
+  const BvhStats a = one.stats(), b = three.stats();
+  EXPECT_EQ(a.nodes, b.nodes);
+  EXPECT_EQ(a.leaves, b.leaves);
+  EXPECT_EQ(a.max_depth, b.max_depth);
+  EXPECT_EQ(a.sah_cost, b.sah_cost);
+  EXPECT_EQ(one.memory_bytes(), three.memory_bytes());
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  size_t hits = 0;
+  for (size_t i = 0; i < testing::scaled(20000); ++i) {
+    const Ray r{Vec3(u(rng), u(rng), u(rng)) * 20.f, Vec3(u(rng), u(rng), u(rng))};
+    const auto x = one.intersect(r), y = three.intersect(r);
+    ASSERT_EQ(x.has_value(), y.has_value()) << "ray " << i;
+    if (!x) continue;
+    ++hits;
+    ASSERT_EQ(std::bit_cast<uint32_t>(x->t), std::bit_cast<uint32_t>(y->t)) << "ray " << i;
+    ASSERT_EQ(std::bit_cast<uint32_t>(x->b1), std::bit_cast<uint32_t>(y->b1)) << "ray " << i;
+    ASSERT_EQ(std::bit_cast<uint32_t>(x->b2), std::bit_cast<uint32_t>(y->b2)) << "ray " << i;
+    ASSERT_EQ(x->prim, y->prim) << "ray " << i;
+  }
+  EXPECT_GT(hits, testing::scaled(20000) / 10);
+  // And the parallel partition put every reference on its side: hits match brute force.
+  for (size_t i = 0; i < testing::scaled(100); ++i) {
+    const Ray r{Vec3(u(rng), u(rng), u(rng)) * 20.f, Vec3(u(rng), u(rng), u(rng))};
+    const auto expect = brute_force(s, r);
+    const auto got = three.intersect(r);
+    ASSERT_EQ(expect.has_value(), got.has_value()) << "ray " << i;
+    if (expect) {
+      ASSERT_EQ(expect->t, got->t) << "ray " << i;
     }
   }
 }
