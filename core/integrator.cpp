@@ -37,8 +37,7 @@ Vec3 direct_lighting(const Scene& scene, const SurfaceHit& h, const Vec3& n, con
     const float d2 = length_squared(d);
     const float cos_s = glm::dot(n, d) / std::sqrt(d2);
     if (cos_s > 0.f && glm::dot(h.sp.n, d) * glm::dot(h.sp.n, n) > 0.f) {
-      ++counters.rays;
-      if (!scene.bvh.occluded(spawn_ray_to(h.sp, pl.position))) L += f * cos_s * pl.flux / (4.f * kPi * d2);
+      if (!trace_occluded(scene, spawn_ray_to(h.sp, pl.position), counters)) L += f * cos_s * pl.flux / (4.f * kPi * d2);
     }
   }
   for (const AreaLight& light : scene.area_lights) {
@@ -52,9 +51,8 @@ Vec3 direct_lighting(const Scene& scene, const SurfaceHit& h, const Vec3& n, con
       const float dist = glm::length(wi);
       const float cos_s = glm::dot(n, wi) / dist;
       if (!(cos_s > 0.f) || glm::dot(h.sp.n, wi) * glm::dot(h.sp.n, n) <= 0.f) continue;
-      ++counters.rays;
       const SurfacePoint target{ls.p, ls.p_error, ls.n};
-      if (scene.bvh.occluded(spawn_ray_to(h.sp, target))) continue;
+      if (trace_occluded(scene, spawn_ray_to(h.sp, target), counters)) continue;
       sum += f * ls.radiance * cos_s / ls.pdf;
     }
     L += sum / float(st.light_samples);
@@ -64,8 +62,7 @@ Vec3 direct_lighting(const Scene& scene, const SurfaceHit& h, const Vec3& n, con
     const Frame frame = Frame::from_z(n);
     auto visible = [&](const Vec3& wi) {
       if (glm::dot(h.sp.n, wi) * glm::dot(h.sp.n, n) <= 0.f) return false;  // below the geometric surface
-      ++counters.rays;
-      return !scene.bvh.occluded(spawn_ray(h.sp, wi));
+      return !trace_occluded(scene, spawn_ray(h.sp, wi), counters);
     };
     EnvSampling mode = st.env_sampling;
     if (env.constant() && (mode == EnvSampling::kMis || mode == EnvSampling::kImportance)) mode = EnvSampling::kCosine;
@@ -114,8 +111,7 @@ Vec3 trace_radiance(const Scene& scene, Ray r, PixelSampler& sampler, RayCounter
   ++counters.camera;
   Vec3 L(0.f);
   for (int depth = 0;; ++depth) {
-    ++counters.rays;
-    const auto hit = scene.bvh.intersect(r);
+    const auto hit = trace_closest(scene, r, depth == 0 ? RayKind::kCamera : RayKind::kSpecular, counters);
     if (!hit) {
       if (scene.environment) L += scene.environment->radiance(glm::normalize(r.d));
       break;

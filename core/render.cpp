@@ -152,6 +152,7 @@ RenderResult render(const Scene& scene, const RenderOptions& opt) {
   const auto t_parallel = std::chrono::steady_clock::now();
   tbb::parallel_for(tbb::blocked_range<int>(0, ntiles, 1), [&](const tbb::blocked_range<int>& range) {
     RayCounters& c = counters.local();
+    c.recorder = opt.recorder;
     const auto t_range = std::chrono::steady_clock::now();
     for (int t = range.begin(); t != range.end(); ++t) {
       const bool over_budget = opt.tile_budget > 0 && started.fetch_add(1) >= opt.tile_budget;
