@@ -64,14 +64,21 @@ inline float u32_to_unit(uint32_t x) { return std::min(float(x) * 0x1p-32f, 0x1.
 class PixelSampler {
  public:
   /// The stream for sample `index` of pixel (px, py) under `seed`.
-  PixelSampler(uint64_t seed, int px, int py, uint32_t index)
-      : key_(hash_combine(hash_combine(hash_combine(uint32_t(seed), uint32_t(seed >> 32)), uint32_t(px)), uint32_t(py))),
-        index_(index) {}
+  PixelSampler(uint64_t seed, int px, int py, uint32_t index) : PixelSampler(pixel_key(seed, px, py), index) {}
+
+  /// The same stream from the pixel's key, pixel_key(seed, px, py), hashed once for all the pixel's samples.
+  PixelSampler(uint32_t key, uint32_t index) : key_(key), reversed_index_(reverse_bits(index)) {}
+
+  /// The hash of (seed, px, py) that every sample stream of the pixel starts from.
+  static constexpr uint32_t pixel_key(uint64_t seed, int px, int py) {
+    return hash_combine(hash_combine(hash_combine(uint32_t(seed), uint32_t(seed >> 32)), uint32_t(px)), uint32_t(py));
+  }
 
   /// Next 2D sample in [0,1)^2.
   Vec2 next_2d() {
     const uint32_t dim_seed = hash_combine(key_, dim_++);
-    const uint32_t i = owen_scramble(index_, hash_u32(dim_seed));  // shuffle the sample order per dimension
+    // Shuffle the sample order per dimension: i = owen_scramble(index, hash_u32(dim_seed)).
+    const uint32_t i = reverse_bits(laine_karras(reversed_index_, hash_u32(dim_seed)));
     // Sobol dimensions 0 (van der Corput: i reversed) and 1, Owen-scrambled; scrambling starts by reversing the
     // bits, so both are scrambled from their reversed forms.
     const uint32_t x = reverse_bits(laine_karras(i, hash_combine(dim_seed, 0x51ed27U)));
@@ -82,13 +89,13 @@ class PixelSampler {
   /// Next 1D sample in [0,1).
   float next_1d() {
     const uint32_t dim_seed = hash_combine(key_, dim_++);
-    const uint32_t i = owen_scramble(index_, hash_u32(dim_seed));
+    const uint32_t i = reverse_bits(laine_karras(reversed_index_, hash_u32(dim_seed)));
     return u32_to_unit(reverse_bits(laine_karras(i, hash_combine(dim_seed, 0x7a3b1U))));
   }
 
  private:
   uint32_t key_;
-  uint32_t index_;
+  uint32_t reversed_index_;  // the sample index, bit-reversed once for every draw's scrambling
   uint32_t dim_ = 0;
 };
 
