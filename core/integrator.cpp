@@ -66,8 +66,11 @@ Vec3 direct_lighting(const Scene& scene, const SurfaceHit& h, const Vec3& n, con
     };
     EnvSampling mode = st.env_sampling;
     if (env.constant() && (mode == EnvSampling::kMis || mode == EnvSampling::kImportance)) mode = EnvSampling::kCosine;
-    const Vec2 u_light = sampler.next_2d();
-    const Vec2 u_bsdf = sampler.next_2d();
+    // Two draws whatever the mode (the stream stays the same), each computed only when the mode uses it.
+    const bool light_draw = mode != EnvSampling::kCosine;
+    const bool bsdf_draw = mode == EnvSampling::kCosine || mode == EnvSampling::kMis;
+    const Vec2 u_light = light_draw ? sampler.next_2d() : sampler.skip_2d();
+    const Vec2 u_bsdf = bsdf_draw ? sampler.next_2d() : sampler.skip_2d();
     switch (mode) {
       case EnvSampling::kUniform: {
         const Vec3 wi = sample_uniform_sphere(u_light);
@@ -94,8 +97,10 @@ Vec3 direct_lighting(const Scene& scene, const SurfaceHit& h, const Vec3& n, con
           const float cb = glm::dot(n, wi);
           if (cb > 0.f && visible(wi)) {
             const float pdf_b = cb * kInvPi;
-            const float w = power_heuristic(pdf_b, env.pdf(wi));
-            L += f * env.radiance(wi) * cb * w / pdf_b;
+            float pdf_l;
+            const Vec3 le = env.radiance_and_pdf(wi, &pdf_l);
+            const float w = power_heuristic(pdf_b, pdf_l);
+            L += f * le * cb * w / pdf_b;
           }
         }
         break;

@@ -78,8 +78,9 @@ Vec3 trace_path(const Scene& scene, Ray r, PixelSampler& sampler, RayCounters& c
     if (!hit) {
       if (scene.environment) {
         const Vec3 d = glm::normalize(r.d);
-        const float lp = after_delta ? 0.f : scene.environment->pdf(d);
-        L += beta * scene.environment->radiance(d) * emission_weight(st.profile, after_delta, bsdf_pdf, lp);
+        float lp = 0.f;
+        const Vec3 le = after_delta ? scene.environment->radiance(d) : scene.environment->radiance_and_pdf(d, &lp);
+        L += beta * le * emission_weight(st.profile, after_delta, bsdf_pdf, lp);
       }
       break;
     }

@@ -86,6 +86,12 @@ class PixelSampler {
     return {u32_to_unit(x), u32_to_unit(y)};
   }
 
+  /// Skips the next 2D draw (whose value the caller does not need): later draws are those next_2d() would leave.
+  Vec2 skip_2d() {
+    ++dim_;
+    return Vec2(0.f);
+  }
+
   /// Next 1D sample in [0,1).
   float next_1d() {
     const uint32_t dim_seed = hash_combine(key_, dim_++);
