@@ -22,11 +22,13 @@ void PixelAccumulator::add(const Vec3& L) {
   const double y = luminance_d(l);
   y_sum_ += y;
   y_sum2_ += y * y;
-  double* r = rep_[n_ % k_];
-  r[0] += l.x;
-  r[1] += l.y;
-  r[2] += l.z;
-  r[3] += y;
+  if (k_ > 1) {  // one replicate's sums would equal sum_ and y_sum_, and are never read
+    double* r = rep_[n_ % k_];
+    r[0] += l.x;
+    r[1] += l.y;
+    r[2] += l.z;
+    r[3] += y;
+  }
   ++n_;
 }
 

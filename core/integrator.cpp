@@ -37,8 +37,7 @@ Vec3 direct_lighting(const Scene& scene, const SurfaceHit& h, const Vec3& n, con
     const float d2 = length_squared(d);
     const float cos_s = glm::dot(n, d) / std::sqrt(d2);
     if (cos_s > 0.f && glm::dot(h.sp.n, d) * glm::dot(h.sp.n, n) > 0.f) {
-      ++counters.rays;
-      if (!scene.bvh.occluded(spawn_ray_to(h.sp, pl.position))) L += f * cos_s * pl.flux / (4.f * kPi * d2);
+      if (!trace_occluded(scene, spawn_ray_to(h.sp, pl.position), counters)) L += f * cos_s * pl.flux / (4.f * kPi * d2);
     }
   }
   for (const AreaLight& light : scene.area_lights) {
@@ -52,9 +51,8 @@ Vec3 direct_lighting(const Scene& scene, const SurfaceHit& h, const Vec3& n, con
       const float dist = glm::length(wi);
       const float cos_s = glm::dot(n, wi) / dist;
       if (!(cos_s > 0.f) || glm::dot(h.sp.n, wi) * glm::dot(h.sp.n, n) <= 0.f) continue;
-      ++counters.rays;
       const SurfacePoint target{ls.p, ls.p_error, ls.n};
-      if (scene.bvh.occluded(spawn_ray_to(h.sp, target))) continue;
+      if (trace_occluded(scene, spawn_ray_to(h.sp, target), counters)) continue;
       sum += f * ls.radiance * cos_s / ls.pdf;
     }
     L += sum / float(st.light_samples);
@@ -64,13 +62,15 @@ Vec3 direct_lighting(const Scene& scene, const SurfaceHit& h, const Vec3& n, con
     const Frame frame = Frame::from_z(n);
     auto visible = [&](const Vec3& wi) {
       if (glm::dot(h.sp.n, wi) * glm::dot(h.sp.n, n) <= 0.f) return false;  // below the geometric surface
-      ++counters.rays;
-      return !scene.bvh.occluded(spawn_ray(h.sp, wi));
+      return !trace_occluded(scene, spawn_ray(h.sp, wi), counters);
     };
     EnvSampling mode = st.env_sampling;
     if (env.constant() && (mode == EnvSampling::kMis || mode == EnvSampling::kImportance)) mode = EnvSampling::kCosine;
-    const Vec2 u_light = sampler.next_2d();
-    const Vec2 u_bsdf = sampler.next_2d();
+    // Two draws whatever the mode (the stream stays the same), each computed only when the mode uses it.
+    const bool light_draw = mode != EnvSampling::kCosine;
+    const bool bsdf_draw = mode == EnvSampling::kCosine || mode == EnvSampling::kMis;
+    const Vec2 u_light = light_draw ? sampler.next_2d() : sampler.skip_2d();
+    const Vec2 u_bsdf = bsdf_draw ? sampler.next_2d() : sampler.skip_2d();
     switch (mode) {
       case EnvSampling::kUniform: {
         const Vec3 wi = sample_uniform_sphere(u_light);
@@ -97,8 +97,10 @@ Vec3 direct_lighting(const Scene& scene, const SurfaceHit& h, const Vec3& n, con
           const float cb = glm::dot(n, wi);
           if (cb > 0.f && visible(wi)) {
             const float pdf_b = cb * kInvPi;
-            const float w = power_heuristic(pdf_b, env.pdf(wi));
-            L += f * env.radiance(wi) * cb * w / pdf_b;
+            float pdf_l;
+            const Vec3 le = env.radiance_and_pdf(wi, &pdf_l);
+            const float w = power_heuristic(pdf_b, pdf_l);
+            L += f * le * cb * w / pdf_b;
           }
         }
         break;
@@ -114,8 +116,7 @@ Vec3 trace_radiance(const Scene& scene, Ray r, PixelSampler& sampler, RayCounter
   ++counters.camera;
   Vec3 L(0.f);
   for (int depth = 0;; ++depth) {
-    ++counters.rays;
-    const auto hit = scene.bvh.intersect(r);
+    const auto hit = trace_closest(scene, r, depth == 0 ? RayKind::kCamera : RayKind::kSpecular, counters);
     if (!hit) {
       if (scene.environment) L += scene.environment->radiance(glm::normalize(r.d));
       break;

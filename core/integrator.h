@@ -2,10 +2,12 @@
 // light from every light at the first diffuse surface.
 #pragma once
 
+#include "core/ray_recorder.h"
 #include "core/sampler.h"
 #include "core/scene.h"
 
 #include <cstdint>
+#include <optional>
 
 namespace tessera {
 
@@ -14,7 +16,22 @@ struct RayCounters {
   uint64_t camera = 0;     ///< Camera rays.
   uint64_t rays = 0;       ///< All rays traced (camera, specular, shadow, BSDF).
   uint64_t nonfinite = 0;  ///< Samples that came out NaN or Inf and were dropped (counted as zero).
+  RayRecorder* recorder = nullptr;  ///< When set, receives every traced ray (RenderOptions::recorder).
 };
+
+/// Closest hit of r, a ray of the given kind: counted in counters.rays and shown to counters.recorder when set.
+inline std::optional<Hit> trace_closest(const Scene& scene, const Ray& r, RayKind kind, RayCounters& counters) {
+  ++counters.rays;
+  if (counters.recorder) [[unlikely]] counters.recorder->record(kind, r);
+  return scene.bvh.intersect(r);
+}
+
+/// Whether shadow ray r is blocked: counted in counters.rays and shown to counters.recorder when set.
+inline bool trace_occluded(const Scene& scene, const Ray& r, RayCounters& counters) {
+  ++counters.rays;
+  if (counters.recorder) [[unlikely]] counters.recorder->record(RayKind::kShadow, r);
+  return scene.bvh.occluded(r);
+}
 
 /// Radiance arriving along camera ray r; never NaN or Inf (such samples are counted and return zero).
 Vec3 trace_radiance(const Scene& scene, Ray r, PixelSampler& sampler, RayCounters& counters);

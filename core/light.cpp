@@ -147,10 +147,11 @@ Vec2 direction_to_uv(const Vec3& d) {
 
 Vec3 uv_to_direction(Vec2 uv, float* sin_theta) {
   const float theta = uv.y * kPi, phi = uv.x * 2.f * kPi;
-  const float st = portable_sin(theta);
+  const SinCos t = portable_sincos(theta), p = portable_sincos(phi);
+  const float st = t.sin;
   *sin_theta = st;
   // Inverse of direction_to_uv: d.x = sin(theta) sin(phi), d.z = -sin(theta) cos(phi).
-  return {st * portable_sin(phi), portable_cos(theta), -st * portable_cos(phi)};
+  return {st * p.sin, t.cos, -st * p.cos};
 }
 
 }  // namespace
@@ -200,6 +201,18 @@ LightSample Environment::sample(Vec2 u) const {
   if (!(st > 0.f) || !(pdf_uv > 0.f)) return {local, Vec3(0.f), Vec3(0.f), 0.f};
   const Vec3 d = to_world * local;
   return {d, Vec3(0.f), radiance(d), pdf_uv / (2.f * kPi * kPi * st)};
+}
+
+Vec3 Environment::radiance_and_pdf(const Vec3& d, float* pdf) const {
+  if (constant()) {
+    *pdf = 1.f / (4.f * kPi);
+    return scale * texture.color;
+  }
+  const Vec3 local = to_local * d;
+  const Vec2 uv = direction_to_uv(local);
+  const float st = std::sqrt(local.x * local.x + local.z * local.z);
+  *pdf = st > 0.f ? dist.pdf(uv) / (2.f * kPi * kPi * st) : 0.f;
+  return scale * texture.lookup_latlong(uv);
 }
 
 float Environment::pdf(const Vec3& d) const {

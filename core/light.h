@@ -118,6 +118,8 @@ struct Environment {
   LightSample sample(Vec2 u) const;
   /// Solid-angle density of sample() for direction d.
   float pdf(const Vec3& d) const;
+  /// radiance(d), and pdf(d) in *pdf, bitwise as the two calls but with one lookup of d's map coordinates.
+  Vec3 radiance_and_pdf(const Vec3& d, float* pdf) const;
 };
 
 /// Luminance of linear Rec.709 RGB.

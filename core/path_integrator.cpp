@@ -17,10 +17,7 @@ Vec3 sample_lights(const Scene& scene, const SurfaceHit& h, const Bsdf& bsdf, co
   const IntegratorSettings& st = scene.settings;
   const Vec3 n = h.ns;
   Vec3 L(0.f);
-  auto unoccluded = [&](const Ray& ray) {
-    ++counters.rays;
-    return !scene.bvh.occluded(ray);
-  };
+  auto unoccluded = [&](const Ray& ray) { return !trace_occluded(scene, ray, counters); };
   if (scene.point_light) {
     const PointLight& pl = *scene.point_light;
     const Vec3 d = pl.position - h.sp.p;
@@ -76,13 +73,14 @@ Vec3 trace_path(const Scene& scene, Ray r, PixelSampler& sampler, RayCounters& c
   float bsdf_pdf = 0.f;     // density of the last BSDF sample
   Vec3 prev_p(0.f);         // the vertex the current ray left
   for (int depth = 0;; ++depth) {
-    ++counters.rays;
-    const auto hit = scene.bvh.intersect(r);
+    const RayKind kind = depth == 0 ? RayKind::kCamera : after_delta ? RayKind::kSpecular : RayKind::kBounce;
+    const auto hit = trace_closest(scene, r, kind, counters);
     if (!hit) {
       if (scene.environment) {
         const Vec3 d = glm::normalize(r.d);
-        const float lp = after_delta ? 0.f : scene.environment->pdf(d);
-        L += beta * scene.environment->radiance(d) * emission_weight(st.profile, after_delta, bsdf_pdf, lp);
+        float lp = 0.f;
+        const Vec3 le = after_delta ? scene.environment->radiance(d) : scene.environment->radiance_and_pdf(d, &lp);
+        L += beta * le * emission_weight(st.profile, after_delta, bsdf_pdf, lp);
       }
       break;
     }

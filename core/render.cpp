@@ -16,23 +16,50 @@
 
 namespace tessera {
 
+namespace {
+
+// The seed of replicate r of K >= 2: each replicate is its own scrambled sequence.
+uint64_t replicate_seed(uint64_t seed, uint32_t r) { return seed ^ ((uint64_t(r) + 1) * 0x9E3779B97F4A7C15ULL); }
+
+}  // namespace
+
 PixelSampler pixel_sampler(uint64_t seed, int px, int row, uint32_t s, uint32_t replicates) {
   if (replicates <= 1) return PixelSampler(seed, px, row, s);
   // Replicate r = s mod K is its own scrambled sequence: the seed is mixed with r, the index is s / K.
-  const uint64_t r = s % replicates;
-  return PixelSampler(seed ^ ((r + 1) * 0x9E3779B97F4A7C15ULL), px, row, s / replicates);
+  return PixelSampler(replicate_seed(seed, s % replicates), px, row, s / replicates);
 }
 
 namespace {
 
-// Adds samples [acc.count(), end) of pixel (px, row) to acc, in order.
+// One sample of pixel (px, row) from its sampler.
+inline Vec3 sample_pixel(const Scene& scene, int px, int row, PixelSampler sampler, RayCounters& counters) {
+  const Ray r = scene.camera.generate_pixel(px, row, sampler.next_2d(), scene.width, scene.height);
+  return trace_sample(scene, r, sampler, counters);
+}
+
+// Adds samples [acc.count(), end) of pixel (px, row) to acc, in order: the samplers of pixel_sampler(), with the
+// pixel's keys hashed once.
 void add_samples(const Scene& scene, int px, int row, uint64_t seed, uint32_t end, uint32_t replicates,
                  PixelAccumulator& acc, RayCounters& counters) {
-  for (uint32_t s = acc.count(); s < end; ++s) {
-    PixelSampler sampler = pixel_sampler(seed, px, row, s, replicates);
-    const Ray r = scene.camera.generate_pixel(px, row, sampler.next_2d(), scene.width, scene.height);
-    acc.add(trace_sample(scene, r, sampler, counters));
+  if (replicates <= 1) {
+    const uint32_t key = PixelSampler::pixel_key(seed, px, row);
+    for (uint32_t s = acc.count(); s < end; ++s) {
+      PixelSampler sampler(key, s);
+      const Ray r = scene.camera.generate_pixel(px, row, sampler.next_2d(), scene.width, scene.height);
+      acc.add(trace_sample(scene, r, sampler, counters));
+    }
+    return;
   }
+  if (replicates > kMaxReplicates) {
+    for (uint32_t s = acc.count(); s < end; ++s)
+      acc.add(sample_pixel(scene, px, row, pixel_sampler(seed, px, row, s, replicates), counters));
+    return;
+  }
+  uint32_t keys[kMaxReplicates];
+  const uint32_t k = replicates;
+  for (uint32_t r = 0; r < k; ++r) keys[r] = PixelSampler::pixel_key(replicate_seed(seed, r), px, row);
+  for (uint32_t s = acc.count(); s < end; ++s)
+    acc.add(sample_pixel(scene, px, row, PixelSampler(keys[s % k], s / k), counters));
 }
 
 }  // namespace
@@ -152,6 +179,7 @@ RenderResult render(const Scene& scene, const RenderOptions& opt) {
   const auto t_parallel = std::chrono::steady_clock::now();
   tbb::parallel_for(tbb::blocked_range<int>(0, ntiles, 1), [&](const tbb::blocked_range<int>& range) {
     RayCounters& c = counters.local();
+    c.recorder = opt.recorder;
     const auto t_range = std::chrono::steady_clock::now();
     for (int t = range.begin(); t != range.end(); ++t) {
       const bool over_budget = opt.tile_budget > 0 && started.fetch_add(1) >= opt.tile_budget;

@@ -53,6 +53,8 @@ struct RenderOptions {
   /// has the window's size (and the variance channels when `variance` is set), no pixel has more than spp samples,
   /// keep_state needs an exact previous state, and adaptive sampling cannot continue a pixel.
   const StoredRender* previous = nullptr;
+  /// When set, receives every ray the render traces, from its threads (see core/ray_recorder.h); pixels are the same.
+  RayRecorder* recorder = nullptr;
 };
 
 /// A rendered window.

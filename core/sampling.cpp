@@ -26,7 +26,8 @@ Vec3 sample_cosine_hemisphere(Vec2 u) {
       r = o.y;
       theta = kPi / 2.f - (kPi / 4.f) * (o.x / o.y);
     }
-    d = r * Vec2(portable_cos(theta), portable_sin(theta));
+    const SinCos sc = portable_sincos(theta);
+    d = r * Vec2(sc.cos, sc.sin);
   }
   const float z = std::sqrt(std::max(0.f, 1.f - d.x * d.x - d.y * d.y));
   return {d.x, d.y, z};
@@ -35,15 +36,15 @@ Vec3 sample_cosine_hemisphere(Vec2 u) {
 Vec3 sample_uniform_sphere(Vec2 u) {
   const float z = 1.f - 2.f * u.x;
   const float r = std::sqrt(std::max(0.f, 1.f - z * z));
-  const float phi = 2.f * kPi * u.y;
-  return {r * portable_cos(phi), r * portable_sin(phi), z};
+  const SinCos sc = portable_sincos(2.f * kPi * u.y);
+  return {r * sc.cos, r * sc.sin, z};
 }
 
 Vec3 sample_uniform_cone(Vec2 u, float cos_max) {
   const float cos_t = (1.f - u.x) + u.x * cos_max;
   const float sin_t = std::sqrt(std::max(0.f, 1.f - cos_t * cos_t));
-  const float phi = 2.f * kPi * u.y;
-  return {sin_t * portable_cos(phi), sin_t * portable_sin(phi), cos_t};
+  const SinCos sc = portable_sincos(2.f * kPi * u.y);
+  return {sin_t * sc.cos, sin_t * sc.sin, cos_t};
 }
 
 Vec2 sample_uniform_triangle(Vec2 u) {
@@ -100,7 +101,8 @@ bool SphericalRectangle::init(const Vec3& o, const Vec3& corner, const Vec3& ex,
 RectSample SphericalRectangle::sample(Vec2 u) const {
   // Invert the solid angle along x: pick the spherical-rectangle slice au, then the height within it.
   const float au = u.x * S + k;
-  const float fu = (portable_cos(au) * b0 - b1) / portable_sin(au);
+  const SinCos sc = portable_sincos(au);
+  const float fu = (sc.cos * b0 - b1) / sc.sin;
   float cu = std::copysign(1.f, fu) / std::sqrt(fu * fu + b0 * b0);
   cu = std::clamp(cu, -1.f, 1.f);
   float xu = -(cu * z0) / std::sqrt(std::max(0.f, 1.f - cu * cu));

@@ -1,5 +1,7 @@
 #include "core/scene.h"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 
@@ -7,6 +9,10 @@ namespace tessera {
 
 void Scene::finish(const BvhOptions& bvh_options) {
   bvh = Bvh::build(triangles, spheres, bvh_options);
+  triangle_surfaces.resize(triangles.size());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, triangles.size(), 16384), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i != r.end(); ++i) triangle_surfaces[i] = triangle_surface(triangles[i]);
+  });
   for (auto& l : area_lights) l.finish();
   if (environment) environment->finish();
 }
@@ -16,7 +22,7 @@ SurfaceHit Scene::surface(const Ray& r, const Hit& h) const {
   const uint32_t ntri = bvh.triangle_count();
   if (h.prim < ntri) {
     const float b0 = 1.f - h.b1 - h.b2;
-    s.sp = triangle_surface_point(triangles[h.prim], b0, h.b1, h.b2);
+    s.sp = triangle_surface_point(triangles[h.prim], triangle_surfaces[h.prim], b0, h.b1, h.b2);
     const PrimAttr& a = triangle_attr[h.prim];
     if (a.flip) s.sp.n = -s.sp.n;
     s.ns = s.sp.n;

@@ -102,6 +102,7 @@ struct Scene {
   /// the camera (core/camera_frame.h), so the camera sits at (0, 0, 0).
   glm::dvec3 frame_origin{0.0};
   std::vector<Triangle> triangles;         ///< Triangles, in the scene's (camera-centred) coordinates.
+  std::vector<TriangleSurface> triangle_surfaces;  ///< Per triangle: normal and error term of its points (finish()).
   std::vector<PrimAttr> triangle_attr;     ///< Per triangle.
   std::vector<TriangleShading> triangle_shading;  ///< Shading data of triangles that have some.
   std::vector<Sphere> spheres;             ///< Spheres.

@@ -2,7 +2,21 @@
 
 namespace tessera {
 
-SurfacePoint triangle_surface_point(const Triangle& tri, float b0, float b1, float b2) {
+TriangleSurface triangle_surface(const Triangle& tri) {
+  TriangleSurface ts;
+  // The watertight test computes a ray's distance to the triangle's plane from vertex differences (p_i - origin),
+  // rounded relative to the triangle's extent, with no "t > deltaT" rejection: an origin closer to the plane than
+  // that error can re-hit the triangle (or a coplanar neighbour) at t > 0. The point error alone can be zero (a
+  // plane at y = 0 has exact y coordinates), so the bound also covers the extent's rounding.
+  const Vec3 extent = glm::max(glm::abs(tri.p1 - tri.p0), glm::max(glm::abs(tri.p2 - tri.p0), glm::abs(tri.p2 - tri.p1)));
+  ts.extent_error = gamma(12) * max_component(extent);
+  const Vec3d n = glm::cross(Vec3d(tri.p1) - Vec3d(tri.p0), Vec3d(tri.p2) - Vec3d(tri.p0));
+  const double len = glm::length(n);
+  ts.n = len > 0.0 ? Vec3(n / len) : Vec3(0.f, 0.f, 1.f);
+  return ts;
+}
+
+SurfacePoint triangle_surface_point(const Triangle& tri, const TriangleSurface& ts, float b0, float b1, float b2) {
   SurfacePoint sp;
   // Interpolated in double with the weights renormalised (b0 = 1 - b1 - b2 was rounded), so the point lies on the
   // triangle's plane up to one final rounding: the error bound stays an ulp even 1e5 units from the origin, where
@@ -11,16 +25,13 @@ SurfacePoint triangle_surface_point(const Triangle& tri, float b0, float b1, flo
   const double w0 = double(b0) / sum, w1 = double(b1) / sum, w2 = double(b2) / sum;
   sp.p = Vec3(w0 * Vec3d(tri.p0) + w1 * Vec3d(tri.p1) + w2 * Vec3d(tri.p2));
   sp.p_error = 2.f * kMachineEpsilon * glm::abs(sp.p);
-  // The watertight test computes a ray's distance to the triangle's plane from vertex differences (p_i - origin),
-  // rounded relative to the triangle's extent, with no "t > deltaT" rejection: an origin closer to the plane than
-  // that error can re-hit the triangle (or a coplanar neighbour) at t > 0. The point error alone can be zero (a
-  // plane at y = 0 has exact y coordinates), so the bound also covers the extent's rounding.
-  const Vec3 extent = glm::max(glm::abs(tri.p1 - tri.p0), glm::max(glm::abs(tri.p2 - tri.p0), glm::abs(tri.p2 - tri.p1)));
-  sp.p_error += Vec3(gamma(12) * max_component(extent));
-  const Vec3d n = glm::cross(Vec3d(tri.p1) - Vec3d(tri.p0), Vec3d(tri.p2) - Vec3d(tri.p0));
-  const double len = glm::length(n);
-  sp.n = len > 0.0 ? Vec3(n / len) : Vec3(0.f, 0.f, 1.f);
+  sp.p_error += Vec3(ts.extent_error);
+  sp.n = ts.n;
   return sp;
+}
+
+SurfacePoint triangle_surface_point(const Triangle& tri, float b0, float b1, float b2) {
+  return triangle_surface_point(tri, triangle_surface(tri), b0, b1, b2);
 }
 
 SurfacePoint sphere_surface_point(const Sphere& s, const Ray& r, float t) {

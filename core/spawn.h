@@ -15,9 +15,22 @@ struct SurfacePoint {
   Vec3 n;        ///< Unit geometric normal (orientation as the primitive defines it).
 };
 
+/// What a triangle's surface points share: its unit geometric normal and the part of the error bound that covers
+/// the rounding of the ray/triangle test (gamma(12) times the triangle's extent).
+struct TriangleSurface {
+  Vec3 n;              ///< Unit normal of the winding (p1 - p0) x (p2 - p0), from double precision.
+  float extent_error;  ///< Added to every axis of a surface point's error bound.
+};
+
+/// The shared part of triangle_surface_point, computed once per triangle (Scene keeps one per triangle).
+TriangleSurface triangle_surface(const Triangle& tri);
+
 /// The point on a triangle at barycentrics (b0, b1, b2), with the error bound gamma(7)*sum|bi*pi| plus gamma(12)
 /// times the triangle's extent (the rounding of the ray/triangle test), so rays spawned from it clear its plane.
 SurfacePoint triangle_surface_point(const Triangle& tri, float b0, float b1, float b2);
+
+/// triangle_surface_point with the triangle's shared part given (bitwise the same point).
+SurfacePoint triangle_surface_point(const Triangle& tri, const TriangleSurface& ts, float b0, float b1, float b2);
 
 /// The point where ray r meets sphere s at t, re-projected onto the sphere in double precision.
 SurfacePoint sphere_surface_point(const Sphere& s, const Ray& r, float t);

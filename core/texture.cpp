@@ -23,7 +23,14 @@ Vec3 Texture::lookup(Vec2 st, bool clamp_t) const {
   const float x = st.x * float(w) - 0.5f, y = st.y * float(h) - 0.5f;
   const float fx = std::floor(x), fy = std::floor(y);
   const float tx = x - fx, ty = y - fy;
+  // v mod n in [0, n) for the integer-valued v = floor(...): inside the image as it is, else by integer remainder
+  // (what the exact double fmod gives for |v| < 2^31), and by fmod beyond.
   auto wrap = [](float v, int n) {
+    if (v >= 0.f && v < float(n)) return int(v);
+    if (std::abs(v) < 2147483648.f) {
+      const int i = int(v) % n;
+      return i < 0 ? i + n : i;
+    }
     const double m = std::fmod(double(v), double(n));
     int i = int(m < 0 ? m + n : m);
     return i >= n ? 0 : i;

@@ -22,10 +22,19 @@ double cos_poly(double r) {
                                                                                           r2 * (1.0 / 479001600))))));
 }
 
+// floor(v), exactly as std::floor (which is exact in every libm variant), without a library call for |v| < 2^52:
+// truncation to an integer is exact there, and one below it when it rounded a negative value up. The argument is
+// never -0 here (x * 2/pi + 0.5 is not), the only value whose floor's sign this would lose.
+double floor_exact(double v) {
+  if (!(std::abs(v) < 4503599627370496.0)) return std::floor(v);  // already an integer, infinite or NaN
+  const double t = double(int64_t(v));
+  return t > v ? t - 1.0 : t;
+}
+
 // x = k pi/2 + r with |r| <= pi/4; the quadrant is k mod 4.
 double reduce(float x, int* quadrant) {
   const double xd = double(x);
-  const double k = std::floor(xd * kTwoOverPi + 0.5);  // floor is exact in every libm variant
+  const double k = floor_exact(xd * kTwoOverPi + 0.5);
   *quadrant = int(int64_t(k) & 3);
   return (xd - k * kPio2Hi) - k * kPio2Lo;
 }
@@ -51,6 +60,18 @@ float portable_cos(float x) {
     case 1: return float(-sin_poly(r));
     case 2: return float(-cos_poly(r));
     default: return float(sin_poly(r));
+  }
+}
+
+SinCos portable_sincos(float x) {
+  int q;
+  const double r = reduce(x, &q);
+  const double s = sin_poly(r), c = cos_poly(r);
+  switch (q) {
+    case 0: return {float(s), float(c)};
+    case 1: return {float(c), float(-s)};
+    case 2: return {float(-s), float(-c)};
+    default: return {float(-c), float(s)};
   }
 }
 

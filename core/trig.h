@@ -10,4 +10,12 @@ float portable_sin(float x);
 /// cos(x), as portable_sin.
 float portable_cos(float x);
 
+/// Sine and cosine of one angle, each bitwise equal to portable_sin(x) and portable_cos(x), from one reduction.
+struct SinCos {
+  float sin;  ///< portable_sin(x).
+  float cos;  ///< portable_cos(x).
+};
+/// portable_sin(x) and portable_cos(x) together.
+SinCos portable_sincos(float x);
+
 }  // namespace tessera

@@ -4,7 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <random>
 
 namespace tessera {
@@ -37,6 +39,20 @@ TEST(PortableTrig, SpecialValuesAndSymmetry) {
     EXPECT_EQ(portable_cos(x), portable_cos(-x)) << x;
   }
   EXPECT_EQ(1e-20f, portable_sin(1e-20f));
+}
+
+// portable_sincos is bitwise the pair of portable_sin and portable_cos, in every quadrant and far out.
+TEST(PortableTrig, SinCosIsBitwiseTheSeparateFunctions) {
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> near(-7.f, 7.f), far(-1e6f, 1e6f);
+  for (int i = 0; i < 200000; ++i) {
+    const float x = i % 4 == 3 ? far(rng) : near(rng);
+    const SinCos sc = portable_sincos(x);
+    ASSERT_EQ(std::bit_cast<uint32_t>(sc.sin), std::bit_cast<uint32_t>(portable_sin(x))) << x;
+    ASSERT_EQ(std::bit_cast<uint32_t>(sc.cos), std::bit_cast<uint32_t>(portable_cos(x))) << x;
+  }
+  for (const float x : {0.f, -0.f, 1e-30f, 3.4e38f, -3.4e38f, 2.f * 3.14159265f, 4.5e15f})
+    EXPECT_EQ(std::bit_cast<uint32_t>(portable_sincos(x).sin), std::bit_cast<uint32_t>(portable_sin(x))) << x;
 }
 
 }  // namespace
