@@ -23,23 +23,36 @@ constexpr uint32_t hash_combine(uint32_t seed, uint32_t v) { return hash_u32(see
 
 /// Reverses the bit order of a 32-bit word.
 constexpr uint32_t reverse_bits(uint32_t x) {
-  x = ((x >> 1) & 0x55555555U) | ((x & 0x55555555U) << 1);
-  x = ((x >> 2) & 0x33333333U) | ((x & 0x33333333U) << 2);
+  x = __builtin_bswap32(x);
   x = ((x >> 4) & 0x0f0f0f0fU) | ((x & 0x0f0f0f0fU) << 4);
-  x = ((x >> 8) & 0x00ff00ffU) | ((x & 0x00ff00ffU) << 8);
-  return (x >> 16) | (x << 16);
+  x = ((x >> 2) & 0x33333333U) | ((x & 0x33333333U) << 2);
+  return ((x >> 1) & 0x55555555U) | ((x & 0x55555555U) << 1);
 }
 
-/// Nested uniform (Owen) scrambling of a 32-bit fixed-point value, as a hash applied in reversed bit order
-/// (Laine-Karras permutation, Burley 2020): each bit is flipped by a hash of the bits above it.
-constexpr uint32_t owen_scramble(uint32_t x, uint32_t seed) {
-  x = reverse_bits(x);
+/// The Laine-Karras permutation (Burley 2020) of a bit-reversed value: each bit is flipped by a hash of the bits
+/// below it, which in reversed order are the bits above it.
+constexpr uint32_t laine_karras(uint32_t x, uint32_t seed) {
   x += seed;
   x ^= x * 0x6c50b47cU;
   x ^= x * 0xb82f1e52U;
   x ^= x * 0xc7afe638U;
   x ^= x * 0x8d22f6e6U;
-  return reverse_bits(x);
+  return x;
+}
+
+/// Nested uniform (Owen) scrambling of a 32-bit fixed-point value, as a hash applied in reversed bit order
+/// (Laine-Karras permutation, Burley 2020): each bit is flipped by a hash of the bits above it.
+constexpr uint32_t owen_scramble(uint32_t x, uint32_t seed) { return reverse_bits(laine_karras(reverse_bits(x), seed)); }
+
+/// The second dimension of the (0,2)-sequence (Sobol dimension 1, the Pascal matrix mod 2) at index i, in reversed
+/// bit order: digit r (weight 2^-(r+1)) is bit r, the parity of the set bits c of i whose positions contain r's
+/// (binomial(c, r) odd, by Lucas' theorem): a superset-parity transform over the five bits of the bit position.
+constexpr uint32_t sobol1_reversed(uint32_t i) {
+  i ^= (i >> 1) & 0x55555555U;
+  i ^= (i >> 2) & 0x33333333U;
+  i ^= (i >> 4) & 0x0f0f0f0fU;
+  i ^= (i >> 8) & 0x00ff00ffU;
+  return i ^ (i >> 16);
 }
 
 /// 32-bit fixed point to a float in [0, 1).
@@ -59,12 +72,10 @@ class PixelSampler {
   Vec2 next_2d() {
     const uint32_t dim_seed = hash_combine(key_, dim_++);
     const uint32_t i = owen_scramble(index_, hash_u32(dim_seed));  // shuffle the sample order per dimension
-    uint32_t x = reverse_bits(i);  // Sobol dimension 0: van der Corput
-    uint32_t y = 0;                // Sobol dimension 1
-    for (uint32_t v = 1U << 31, k = i; k != 0; k >>= 1, v ^= v >> 1)
-      if (k & 1U) y ^= v;
-    x = owen_scramble(x, hash_combine(dim_seed, 0x51ed27U));
-    y = owen_scramble(y, hash_combine(dim_seed, 0x2f1c9dU));
+    // Sobol dimension 0 (van der Corput: the reversed index) and dimension 1, each Owen-scrambled; both are built in
+    // reversed bit order, where the scramble works, and reversed once.
+    const uint32_t x = reverse_bits(laine_karras(i, hash_combine(dim_seed, 0x51ed27U)));
+    const uint32_t y = reverse_bits(laine_karras(sobol1_reversed(i), hash_combine(dim_seed, 0x2f1c9dU)));
     return {u32_to_unit(x), u32_to_unit(y)};
   }
 
@@ -72,7 +83,7 @@ class PixelSampler {
   float next_1d() {
     const uint32_t dim_seed = hash_combine(key_, dim_++);
     const uint32_t i = owen_scramble(index_, hash_u32(dim_seed));
-    return u32_to_unit(owen_scramble(reverse_bits(i), hash_combine(dim_seed, 0x7a3b1U)));
+    return u32_to_unit(reverse_bits(laine_karras(i, hash_combine(dim_seed, 0x7a3b1U))));
   }
 
  private:

@@ -80,6 +80,26 @@ TEST(PixelSampler, PowerOfTwoSampleCountsAreStratifiedInEveryDraw) {
   }
 }
 
+TEST(PixelSampler, FastSecondDimensionIsThePascalMatrix) {
+  // sobol1_reversed(i) bit r = parity of the bits c of i with binomial(c, r) odd, by definition (column by column).
+  uint32_t i = 1;
+  for (int k = 0; k < 20000; ++k, i = hash_u32(i) >> (k % 32)) {
+    uint32_t want = 0;
+    for (int c = 0; c < 32; ++c) {
+      if (!(i >> c & 1U)) continue;
+      uint32_t column = 0;
+      for (int r = 0; r <= c; ++r) {
+        uint64_t binom = 1;  // binomial(c, r) mod 2 by the recurrence over rows, kept small
+        for (int j = 0; j < r; ++j) binom = binom * uint64_t(c - j) / uint64_t(j + 1);
+        if (binom & 1U) column |= 1U << r;
+      }
+      want ^= column;
+    }
+    EXPECT_EQ(sobol1_reversed(i), want) << i;
+  }
+  EXPECT_EQ(reverse_bits(0x12345678U), 0x1e6a2c48U);
+}
+
 TEST(PixelSampler, DrawsAreDecorrelated) {
   // The 2D draws of one pixel are scrambled independently: the same sample index gives different points per draw.
   PixelSampler s(1, 0, 0, 0);
