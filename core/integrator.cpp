@@ -40,12 +40,14 @@ Vec3 direct_lighting(const Scene& scene, const SurfaceHit& h, const Vec3& n, con
       if (!trace_occluded(scene, spawn_ray_to(h.sp, pl.position), counters)) L += f * cos_s * pl.flux / (4.f * kPi * d2);
     }
   }
+  bool first = st.pair_light_with_pixel;  // the first light draw is paired with the pixel position (the last 2D draw)
   for (const AreaLight& light : scene.area_lights) {
     Vec3 sum(0.f);
     for (int k = 0; k < st.light_samples; ++k) {
-      const float u_part = sampler.next_1d();
-      const Vec2 u = sampler.next_2d();
-      const LightSample ls = light.sample(h.sp.p, u_part, u, st.area_sampling);
+      const float u_part = light.parts() > 1 ? sampler.next_1d() : 0.f;
+      const Vec2 u = first ? sampler.next_2d_paired() : sampler.next_2d();
+      first = false;
+      const LightSample ls = light.sample(h.sp.p, n, u_part, u, st.area_sampling);
       if (!(ls.pdf > 0.f) || max_component(ls.radiance) <= 0.f) continue;
       const Vec3 wi = ls.p - h.sp.p;
       const float dist = glm::length(wi);

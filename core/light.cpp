@@ -2,6 +2,7 @@
 #include "core/trig.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace tessera {
@@ -39,6 +40,34 @@ LightSample from_area(const Vec3& p, const Vec3& q, const Vec3& nq, float pdf_a,
   return {q, nq, radiance, float(double(pdf_a) * d2 / cos_l)};
 }
 
+// Corner weights of a bilinear warp, floored at kBilinearWeightFloor x the largest; false when none is positive.
+bool floor_weights(std::array<float, 4>& w) {
+  const float top = std::max(std::max(w[0], w[1]), std::max(w[2], w[3]));
+  if (!(top > 0.f)) return false;
+  for (float& x : w) x = std::max(x, kBilinearWeightFloor * top);
+  return true;
+}
+
+// The far warp's corner weights for rectangle rc seen from p with normal n: the unoccluded contribution
+// cos_p cos_light / d^2 at each corner, up to the light's distance h from p (the same for every point of the
+// rectangle): (n . (q - p)) h / d^4 with h factored out. Floored; false when the rectangle lies below p's horizon
+// (then n . (q - p) <= 0 over all of it, being affine in the rectangle's coordinates).
+bool far_weights(const AreaLight::Rect& rc, const Vec3& p, const Vec3& n, std::array<float, 4>& w) {
+  const auto g = [&](const Vec3& q) {
+    const Vec3 d = q - p;
+    const float d2 = glm::dot(d, d);
+    return glm::dot(n, d) / (d2 * d2);
+  };
+  w = {g(rc.corner), g(rc.corner + rc.ex), g(rc.corner + rc.ey), g(rc.corner + rc.ex + rc.ey)};
+  return floor_weights(w);
+}
+
+// The near warp's corner weights: the cosines at p towards the corners of the spherical rectangle, floored.
+bool near_weights(const SphericalRectangle& sr, const Vec3& n, std::array<float, 4>& w) {
+  w = sr.corner_cosines(n);
+  return floor_weights(w);
+}
+
 }  // namespace
 
 bool AreaLight::by_solid_angle(const Rect& rc, const Vec3& p, AreaSampling mode) {
@@ -47,7 +76,19 @@ bool AreaLight::by_solid_angle(const Rect& rc, const Vec3& p, AreaSampling mode)
           rc.area > kAutoSolidAngleRatio * length_squared(rc.corner + 0.5f * (rc.ex + rc.ey) - p));
 }
 
+bool AreaLight::projected_near(const Rect& rc, const Vec3& p) {
+  return rc.area > kAutoProjectedRatio * length_squared(rc.corner + 0.5f * (rc.ex + rc.ey) - p);
+}
+
 float AreaLight::pdf(const Vec3& p, const Vec3& q, const Vec3& nq, AreaSampling mode) const {
+  return pdf(p, nullptr, q, nq, mode);
+}
+
+float AreaLight::pdf(const Vec3& p, const Vec3& n, const Vec3& q, const Vec3& nq, AreaSampling mode) const {
+  return pdf(p, &n, q, nq, mode);
+}
+
+float AreaLight::pdf(const Vec3& p, const Vec3* n, const Vec3& q, const Vec3& nq, AreaSampling mode) const {
   const Vec3d w = Vec3d(p) - Vec3d(q);
   const double d2 = glm::dot(w, w);
   const double cos_l = glm::dot(Vec3d(nq), w) / std::sqrt(d2);
@@ -62,22 +103,37 @@ float AreaLight::pdf(const Vec3& p, const Vec3& q, const Vec3& nq, AreaSampling 
     }
     return by_area;
   }
-  // A rectangle sampled by solid angle has density pick / (its solid angle); every other part pick / area / cos.
+  // A rectangle sampled by solid angle has density pick / (its solid angle), times the warp's density with a
+  // receiver normal; every other part pick / area / cos, times the far warp's density.
+  const bool warp = n && mode == AreaSampling::kAuto;
   for (const Rect& rc : rects) {
-    if (!by_solid_angle(rc, p, mode)) continue;
+    if (!warp && !by_solid_angle(rc, p, mode)) continue;
     const Vec3 d = q - rc.corner;
     const float size = std::max(glm::length(rc.ex), glm::length(rc.ey));
     if (std::abs(glm::dot(d, rc.n)) > 1e-4f * size) continue;
     const float a = glm::dot(d, rc.ex) / glm::dot(rc.ex, rc.ex), b = glm::dot(d, rc.ey) / glm::dot(rc.ey, rc.ey);
     if (a < -1e-4f || a > 1.0001f || b < -1e-4f || b > 1.0001f) continue;
+    std::array<float, 4> wt;
+    if (warp && !projected_near(rc, p))
+      return far_weights(rc, p, *n, wt) ? by_area * bilinear_marginals_pdf(Vec2(std::clamp(a, 0.f, 1.f), std::clamp(b, 0.f, 1.f)), wt) : 0.f;
     SphericalRectangle sr;
     if (glm::dot(rc.n, p - rc.corner) <= 0.f || !sr.init(p, rc.corner, rc.ex, rc.ey) || !(sr.solid_angle() > 0.f)) return 0.f;
-    return rc.area / total_area / sr.solid_angle();
+    const float pick_over_s = rc.area / total_area / sr.solid_angle();
+    if (!warp) return pick_over_s;
+    return near_weights(sr, *n, wt) ? pick_over_s * bilinear_marginals_pdf(sr.invert(q), wt) : 0.f;
   }
   return by_area;
 }
 
 LightSample AreaLight::sample(const Vec3& p, float u_part, Vec2 u, AreaSampling mode) const {
+  return sample(p, nullptr, u_part, u, mode);
+}
+
+LightSample AreaLight::sample(const Vec3& p, const Vec3& n, float u_part, Vec2 u, AreaSampling mode) const {
+  return sample(p, &n, u_part, u, mode);
+}
+
+LightSample AreaLight::sample(const Vec3& p, const Vec3* n, float u_part, Vec2 u, AreaSampling mode) const {
   if (sphere) {
     const Vec3 c = sphere->center;
     const float r = sphere->radius;
@@ -102,17 +158,27 @@ LightSample AreaLight::sample(const Vec3& p, float u_part, Vec2 u, AreaSampling 
     return ls;
   }
   if (total_area <= 0.f) return {p, Vec3(0.f), Vec3(0.f), 0.f};
-  float part_pdf;
-  int part;
-  part_by_area.sample(u_part, &part_pdf, &part);
+  float part_pdf = 1.f;
+  int part = 0;
   const int nparts = part_by_area.size();
+  if (nparts > 1) part_by_area.sample(u_part, &part_pdf, &part);
   const float pick = part_pdf / float(nparts);  // probability of this part
   if (part < int(rects.size())) {
     const Rect& rc = rects[size_t(part)];
-    if (by_solid_angle(rc, p, mode)) {
+    const bool warp = n && mode == AreaSampling::kAuto;  // by the unoccluded contribution (see AreaSampling::kAuto)
+    if (warp ? projected_near(rc, p) : by_solid_angle(rc, p, mode)) {
       SphericalRectangle sr;
       if (glm::dot(rc.n, p - rc.corner) <= 0.f || !sr.init(p, rc.corner, rc.ex, rc.ey)) return {p, rc.n, Vec3(0.f), 0.f};
-      const RectSample s = sr.sample(u);
+      float warp_pdf = 1.f;
+      if (warp) {
+        std::array<float, 4> w;
+        if (!near_weights(sr, *n, w)) return {p, rc.n, Vec3(0.f), 0.f};  // the rectangle lies below p's horizon
+        const WarpSample b = sample_bilinear_marginals(u, w);
+        u = b.p;
+        warp_pdf = b.pdf;
+      }
+      RectSample s = sr.sample(u);
+      s.pdf *= warp_pdf;
       // Re-projected onto the rectangle in double precision so the point's error bound is one rounding.
       const Vec3d d = Vec3d(s.p) - Vec3d(rc.corner);
       const double a = std::clamp(glm::dot(d, Vec3d(rc.ex)) / glm::dot(Vec3d(rc.ex), Vec3d(rc.ex)), 0.0, 1.0);
@@ -120,8 +186,16 @@ LightSample AreaLight::sample(const Vec3& p, float u_part, Vec2 u, AreaSampling 
       const Vec3 q = on_plane(rc.corner, rc.ex, rc.ey, a, b);
       return {q, rc.n, radiance, s.pdf * pick, rounded_once_error(q) + gamma(2) * (glm::abs(rc.ex) + glm::abs(rc.ey))};
     }
+    float warp_pdf = 1.f;
+    if (warp) {
+      std::array<float, 4> w;
+      if (!far_weights(rc, p, *n, w)) return {p, rc.n, Vec3(0.f), 0.f};  // the rectangle lies below p's horizon
+      const WarpSample b = sample_bilinear_marginals(u, w);
+      u = b.p;
+      warp_pdf = b.pdf;
+    }
     const Vec3 q = on_plane(rc.corner, rc.ex, rc.ey, u.x, u.y);
-    LightSample ls = from_area(p, q, rc.n, 1.f / rc.area, radiance);
+    LightSample ls = from_area(p, q, rc.n, warp_pdf / rc.area, radiance);
     ls.pdf *= pick;
     ls.p_error = rounded_once_error(q) + gamma(2) * (glm::abs(rc.ex) + glm::abs(rc.ey));
     return ls;

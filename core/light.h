@@ -22,7 +22,12 @@ struct PointLight {
 
 /// How area lights are sampled (issue 5's comparisons select the baseline).
 enum class AreaSampling {
-  kAuto,        ///< Per shading point: solid angle when it is close to a rectangle, by area when far (default).
+  /// The default. Without a receiver normal (the path tracer): per shading point, rectangles by solid angle when it
+  /// is close to them, by area when far. With one (the direct integrator): rectangles approximately in proportion
+  /// to their unoccluded contribution, by projected solid angle when close (spherical rectangles warped by the
+  /// cosines towards their corners, Hart et al. 2020) and by area warped by the contributions of their corners when
+  /// far. Other triangles by area, spheres by cone in both cases.
+  kAuto,
   kSolidAngle,  ///< Spherical rectangles for rectangles, uniform cones for spheres.
   kArea,        ///< Uniform points by area (the baseline).
 };
@@ -35,6 +40,19 @@ inline constexpr std::string_view kAreaSamplingNames[] = {"auto", "solid_angle",
 /// have nearly equal variance and area sampling is ~40% cheaper; close up area sampling's 1/d^2 spikes dominate
 /// (docs/speed-vs-error.md, "Area light").
 inline constexpr float kAutoSolidAngleRatio = 1.f;
+
+/// With AreaSampling::kAuto and a receiver normal, a rectangle is sampled by projected solid angle when its area
+/// exceeds this times the squared distance to its centre (the point is closer than about 2.2 times the light's
+/// width), otherwise by area warped by its corners' unoccluded contributions (cos at the receiver x cos at the light
+/// / distance^2), which costs no trigonometry. The warped area's variance is 10-20 times projected solid angle's at
+/// any distance (the contribution's 1/d^4 peaks between the corners), but beyond this distance both are below 1e-3
+/// relative, under the noise of anything that shadows the light (measured in core/light_test.cpp and
+/// docs/speed-vs-error.md, "Area light").
+inline constexpr float kAutoProjectedRatio = 0.2f;
+
+/// Floor of the warps' corner weights, relative to the largest: keeps the density positive over the whole rectangle,
+/// so that no point where the integrand is positive is missed (and the weight of a sample stays bounded).
+inline constexpr float kBilinearWeightFloor = 0.01f;
 
 /// How the environment is sampled at a diffuse point.
 enum class EnvSampling {
@@ -78,8 +96,16 @@ struct AreaLight {
 
   /// Finalises the part distribution; call after filling rects/tris/sphere.
   void finish();
-  /// One direct-lighting sample towards point p (u selects the part, u2 the point).
+  /// One direct-lighting sample towards point p (u_part selects the part, u the point).
   LightSample sample(const Vec3& p, float u_part, Vec2 u, AreaSampling mode) const;
+  /// One direct-lighting sample towards point p whose surface receives light on the side of the unit normal n: as
+  /// sample(p, u_part, u, mode), except that AreaSampling::kAuto samples rectangles in proportion to (approximately)
+  /// their unoccluded contribution at p (see kAuto). pdf() does not describe these samples.
+  LightSample sample(const Vec3& p, const Vec3& n, float u_part, Vec2 u, AreaSampling mode) const;
+  /// Solid-angle density with which sample(p, n, ..., mode) returns the point q (normal nq) of this light.
+  float pdf(const Vec3& p, const Vec3& n, const Vec3& q, const Vec3& nq, AreaSampling mode) const;
+  /// Number of parts (rectangles and triangles) among which u_part chooses; 0 for a sphere.
+  int parts() const { return int(rects.size() + tris.size()); }
   /// Solid-angle density with which sample(p, ..., mode) returns the point q (normal nq) of this light: what
   /// multiple importance sampling needs when a BSDF-sampled ray from p hits the light at q.
   float pdf(const Vec3& p, const Vec3& q, const Vec3& nq, AreaSampling mode) const;
@@ -87,6 +113,11 @@ struct AreaLight {
  private:
   // Whether sample() draws from rectangle rc by solid angle (else by area) for a shading point p.
   static bool by_solid_angle(const Rect& rc, const Vec3& p, AreaSampling mode);
+  // Whether sample(p, n, ...) in kAuto mode draws from rectangle rc by projected solid angle (else by warped area).
+  static bool projected_near(const Rect& rc, const Vec3& p);
+  // Both sample()s and both pdf()s; n is null without a receiver normal.
+  LightSample sample(const Vec3& p, const Vec3* n, float u_part, Vec2 u, AreaSampling mode) const;
+  float pdf(const Vec3& p, const Vec3* n, const Vec3& q, const Vec3& nq, AreaSampling mode) const;
 };
 
 }  // namespace tessera

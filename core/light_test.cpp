@@ -1,9 +1,12 @@
 // Light tests: environment-map orientation exactly as FORMAT.md states it, the environment's importance sampling
 // (density consistent and normalised), spherical-rectangle sampling (solid angle, unbiased irradiance, and lower
-// variance than area sampling at the same sample count).
+// variance than area sampling at the same sample count), and the direct integrator's rectangle sampling with a
+// receiver normal (density by chi-square, unbiased irradiance also under a partly hidden light, lower variance).
 #include "core/light.h"
 
+#include "core/chi_square.h"
 #include "core/test_closed_forms.h"
+#include "core/test_scale.h"
 
 #include <gtest/gtest.h>
 
@@ -203,6 +206,127 @@ TEST(SphericalRectangleSampling, AutoPicksSolidAngleNearAndAreaFarAndStaysUnbias
     const MeanVar m = mean_var(got);
     EXPECT_NEAR(m.mean, ref, 5.0 * std::sqrt(m.var / n) + 1e-6 * ref) << "auto at y=" << c.p.y;
   }
+}
+
+// The part of polygon poly on the positive side of the plane through p with normal n (Sutherland-Hodgman).
+std::vector<Vec3d> clip_above(const std::vector<Vec3d>& poly, const Vec3d& p, const Vec3d& n) {
+  std::vector<Vec3d> out;
+  for (size_t i = 0; i < poly.size(); ++i) {
+    const Vec3d a = poly[i], b = poly[(i + 1) % poly.size()];
+    const double da = glm::dot(a - p, n), db = glm::dot(b - p, n);
+    if (da >= 0) out.push_back(a);
+    if ((da < 0) != (db < 0)) out.push_back(a + (b - a) * (da / (da - db)));
+  }
+  return out;
+}
+
+// Irradiance at p (normal n) from the rectangle corner + s ex + t ey of radiance 1, hidden part excluded.
+double rect_irradiance(const Vec3& p, const Vec3& n, const AreaLight::Rect& rc) {
+  const std::vector<Vec3d> poly = {Vec3d(rc.corner), Vec3d(rc.corner + rc.ex), Vec3d(rc.corner + rc.ex + rc.ey),
+                                   Vec3d(rc.corner + rc.ey)};
+  const std::vector<Vec3d> above = clip_above(poly, Vec3d(p), Vec3d(n));
+  return above.size() < 3 ? 0.0 : testing::polygon_irradiance(Vec3d(p), Vec3d(n), above, 1.0);
+}
+
+// Irradiance estimates at p with normal n from sample(p, n, ...) in the given mode.
+std::vector<double> irradiance_samples(const AreaLight& light, const Vec3& p, const Vec3& n, AreaSampling mode, int count,
+                                       uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  std::vector<double> out;
+  for (int k = 0; k < count; ++k) {
+    const float up = U(rng);
+    const Vec2 u(U(rng), U(rng));
+    const LightSample s = light.sample(p, n, up, u, mode);
+    const Vec3 w = s.p - p;
+    const double cos_s = double(glm::dot(n, w)) / double(glm::length(w));
+    out.push_back(s.pdf > 0.f && cos_s > 0.0 ? double(s.radiance.x) * cos_s / double(s.pdf) : 0.0);
+  }
+  return out;
+}
+
+struct ReceiverCase {
+  const char* what;
+  Vec3 p, n;
+};
+
+// Under the 1 x 1 light at height 1 (facing down): close (projected solid angle) and far (warped area), the normal up
+// or tilted so that part of the light is below the horizon.
+const ReceiverCase kReceivers[] = {
+    {"close, facing up", Vec3(0.1f, 0.4f, -0.2f), Vec3(0.f, 1.f, 0.f)},
+    {"close, tilted: light partly hidden", Vec3(0.1f, 0.6f, -0.2f), glm::normalize(Vec3(1.f, 0.4f, 0.f))},
+    {"close, a wall beside the light", Vec3(-0.7f, 0.8f, 0.f), Vec3(1.f, 0.f, 0.f)},
+    {"far, facing up", Vec3(0.8f, -1.5f, 0.4f), Vec3(0.f, 1.f, 0.f)},
+    {"far, tilted: light partly hidden", Vec3(0.3f, -1.4f, 0.1f), glm::normalize(Vec3(1.f, 0.05f, 0.f))},
+    {"far, a wall", Vec3(-2.5f, 0.2f, 0.3f), Vec3(1.f, 0.f, 0.f)},
+};
+
+TEST(ProjectedRectangleSampling, SamplesFollowTheDensity) {
+  // Chi-square of the sampled points against pdf(p, n, ...), over a chart of the rectangle in its own coordinates.
+  const AreaLight light = unit_rect_light(1.f);
+  const AreaLight::Rect& rc = light.rects[0];
+  for (const ReceiverCase& c : kReceivers) {
+    testing::DirectionChart chart;
+    chart.to_dir = [&](double x, double y) -> std::optional<std::pair<glm::dvec3, double>> {
+      const glm::dvec3 q = glm::dvec3(rc.corner) + x * glm::dvec3(rc.ex) + y * glm::dvec3(rc.ey);
+      const glm::dvec3 w = q - glm::dvec3(c.p);
+      const double d2 = glm::dot(w, w), cos_l = -glm::dot(glm::dvec3(rc.n), w) / std::sqrt(d2);
+      return std::make_pair(w / std::sqrt(d2), double(rc.area) * cos_l / d2);
+    };
+    chart.from_dir = [&](const glm::dvec3& w) -> std::optional<glm::dvec2> {
+      const double t = glm::dot(glm::dvec3(rc.corner) - glm::dvec3(c.p), glm::dvec3(rc.n)) / glm::dot(w, glm::dvec3(rc.n));
+      const glm::dvec3 d = glm::dvec3(c.p) + t * w - glm::dvec3(rc.corner);
+      return glm::dvec2(glm::dot(d, glm::dvec3(rc.ex)), glm::dot(d, glm::dvec3(rc.ey)));
+    };
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<float> U(0.f, 1.f);
+    const auto pdf = [&](const glm::dvec3& w) {
+      const auto uv = chart.from_dir(w);
+      const Vec3 q = rc.corner + float(uv->x) * rc.ex + float(uv->y) * rc.ey;
+      return double(light.pdf(c.p, c.n, q, rc.n, AreaSampling::kAuto));
+    };
+    const auto r = testing::chi_square_test(
+        chart, pdf,
+        [&]() -> std::optional<glm::dvec3> {
+          const float up = U(rng);
+          const Vec2 u(U(rng), U(rng));
+          const LightSample s = light.sample(c.p, c.n, up, u, AreaSampling::kAuto);
+          if (!(s.pdf > 0.f)) return std::nullopt;
+          EXPECT_NEAR(s.pdf, light.pdf(c.p, c.n, s.p, s.n, AreaSampling::kAuto), 2e-3f * s.pdf) << c.what;
+          return glm::normalize(glm::dvec3(s.p) - glm::dvec3(c.p));
+        },
+        int(testing::scaled(100000)), 12, 12);
+    EXPECT_TRUE(r.message.empty()) << c.what << ": " << r.message;
+    EXPECT_GT(r.p_value, 0.01 / std::size(kReceivers)) << c.what << ": chi^2 " << r.statistic << " with " << r.dof << " dof";
+  }
+}
+
+TEST(ProjectedRectangleSampling, UnbiasedAndLowerVarianceThanSolidAngleAndArea) {
+  // Per case the warps beat area sampling. Solid angle sampling does better on a wall beside the light, where the
+  // cosine rises steeply across the spherical rectangle's first coordinate and the corners' linear fit is poor
+  // (measured: relative variance 3.4e-2 warped against 2.9e-2), and far away on a wall (3.3e-3 against 4.0e-4: the
+  // warped area's 1/d^4 peak; both small), but summed over the cases the warps have under half of its variance
+  // (1.56 against 3.98; the partly hidden lights dominate).
+  const AreaLight light = unit_rect_light(1.f);
+  const int n = 1 << 14;
+  double sum_warped = 0, sum_solid = 0;
+  for (const ReceiverCase& c : kReceivers) {
+    const double ref = rect_irradiance(c.p, c.n, light.rects[0]);
+    const MeanVar pr = mean_var(irradiance_samples(light, c.p, c.n, AreaSampling::kAuto, n, 1));
+    EXPECT_NEAR(pr.mean, ref, 5.0 * std::sqrt(pr.var / n) + 1e-6 * ref) << c.what;
+    const MeanVar sa = mean_var(irradiance_samples(light, c.p, c.n, AreaSampling::kSolidAngle, n, 2));
+    const MeanVar ar = mean_var(irradiance_samples(light, c.p, c.n, AreaSampling::kArea, n, 3));
+    EXPECT_NEAR(sa.mean, ref, 5.0 * std::sqrt(sa.var / n) + 1e-6 * ref) << c.what;
+    EXPECT_NEAR(ar.mean, ref, 5.0 * std::sqrt(ar.var / n) + 1e-6 * ref) << c.what;
+    std::printf("%-36s E=%.5f  variance / E^2: warped %.2e, solid angle %.2e, area %.2e\n", c.what, ref,
+                pr.var / (ref * ref), sa.var / (ref * ref), ar.var / (ref * ref));
+    EXPECT_LT(pr.var, 0.5 * ar.var) << c.what;
+    sum_warped += pr.var / (ref * ref);
+    sum_solid += sa.var / (ref * ref);
+  }
+  EXPECT_LT(sum_warped, 0.5 * sum_solid);
+  // Entirely below the horizon: no sample, no light.
+  EXPECT_EQ(light.sample(Vec3(0.f, 0.5f, 0.f), Vec3(0.f, -1.f, 0.f), 0.5f, Vec2(0.5f), AreaSampling::kAuto).pdf, 0.f);
 }
 
 TEST(AreaLightSampling, TrianglesAndSpheresAreUnbiased) {

@@ -144,6 +144,11 @@ TEST_F(RenderTest, RectangleLightOverPlaneMatchesPolygonIrradiance) {
   s["integrator"]["area_sampling"] = "area";
   const double v_area = check_rect_light(load(s), w, h, "area sampling");
   std::printf("rectangle light: mean pixel variance, area / spherical rectangle = %.2f\n", v_area / v_solid);
+  // The default: projected solid angle close up, warped area farther (the floor is 1 below a 1 x 1 light).
+  s["integrator"]["area_sampling"] = "auto";
+  const double v_auto = check_rect_light(load(s), w, h, "auto (warped)");
+  std::printf("rectangle light: mean pixel variance, spherical rectangle / auto = %.2f\n", v_solid / v_auto);
+  EXPECT_GT(v_solid / v_auto, 1.5);
   // Measured 16.0 (same spp, one light sample each); the pixel-footprint part of the variance is common to both.
   EXPECT_GT(v_area / v_solid, 4.0);
   // Four light samples per camera sample: still unbiased, and the light-sampling part of the variance drops.

@@ -60,6 +60,35 @@ Vec2 sample_uniform_triangle(Vec2 u) {
   return {b1, 1.f - b0 - b1};
 }
 
+float sample_linear(float u, float a, float b) {
+  // Inverts the CDF (a x + (b - a) x^2 / 2) / ((a + b) / 2) = u, with the root written without cancellation.
+  if (u == 0.f && a == 0.f) return 0.f;
+  const float x = u * (a + b) / (a + std::sqrt((1.f - u) * a * a + u * b * b));
+  return std::min(x, 0x1.fffffep-1f);
+}
+
+float linear_pdf(float x, float a, float b) {
+  const float sum = a + b;
+  return sum > 0.f ? 2.f * ((1.f - x) * a + x * b) / sum : 0.f;
+}
+
+WarpSample sample_bilinear_marginals(Vec2 u, const std::array<float, 4>& w) {
+  const Vec2 p(sample_linear(u.x, w[0] + w[2], w[1] + w[3]), sample_linear(u.y, w[0] + w[1], w[2] + w[3]));
+  return {p, bilinear_marginals_pdf(p, w)};
+}
+
+float bilinear_marginals_pdf(Vec2 p, const std::array<float, 4>& w) {
+  return linear_pdf(p.x, w[0] + w[2], w[1] + w[3]) * linear_pdf(p.y, w[0] + w[1], w[2] + w[3]);
+}
+
+std::array<float, 4> SphericalRectangle::corner_cosines(const Vec3& n) const {
+  const Vec3 nl(glm::dot(n, x_), glm::dot(n, y_), glm::dot(n, z_));
+  const auto c = [&](float x, float y, float ysq) {
+    return (nl.x * x + nl.y * y + nl.z * z0) / std::sqrt(x * x + ysq + z0sq);
+  };
+  return {c(x0, y0, y0sq), c(x1, y0, y0sq), c(x0, y1, y1sq), c(x1, y1, y1sq)};
+}
+
 bool SphericalRectangle::init(const Vec3& o, const Vec3& corner, const Vec3& ex, const Vec3& ey) {
   o_ = o;
   const float exl = glm::length(ex), eyl = glm::length(ey);
@@ -114,6 +143,21 @@ RectSample SphericalRectangle::sample(Vec2 u) const {
   const float yv = (hv2 < 1.f - 1e-6f) ? (hv * dd) / std::sqrt(1.f - hv2) : y1;
   const Vec3 p = o_ + xu * x_ + std::clamp(yv, y0, y1) * y_ + z0 * z_;
   return {p, 1.f / S};
+}
+
+Vec2 SphericalRectangle::invert(const Vec3& q) const {
+  const Vec3 d = q - o_;
+  const float xq = std::clamp(glm::dot(d, x_), x0, x1), yq = std::clamp(glm::dot(d, y_), y0, y1);
+  // u.x: the solid angle of the part of the rectangle left of xq, over the whole's.
+  float ux = 0.f;
+  SphericalRectangle left;
+  if (xq > x0 && left.init(o_, o_ + x0 * x_ + y0 * y_ + z0 * z_, (xq - x0) * x_, (y1 - y0) * y_))
+    ux = std::min(1.f, left.solid_angle() / S);
+  // u.y: where yq lies between the heights h0 and h1 of sample()'s slice through xq.
+  const float dd2 = xq * xq + z0sq;
+  const float h0 = y0 / std::sqrt(dd2 + y0sq), h1 = y1 / std::sqrt(dd2 + y1sq), hq = yq / std::sqrt(dd2 + yq * yq);
+  const float uy = h1 > h0 ? std::clamp((hq - h0) / (h1 - h0), 0.f, 1.f) : 0.f;
+  return {ux, uy};
 }
 
 Distribution1D::Distribution1D(std::span<const float> weights) {

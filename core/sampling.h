@@ -4,6 +4,7 @@
 
 #include "core/math.h"
 
+#include <array>
 #include <span>
 #include <vector>
 
@@ -32,6 +33,29 @@ Vec3 sample_uniform_cone(Vec2 u, float cos_max);
 /// Uniform barycentrics (b1, b2) over a triangle (b0 = 1 - b1 - b2).
 Vec2 sample_uniform_triangle(Vec2 u);
 
+/// A point of [0,1)^2 and its density.
+struct WarpSample {
+  Vec2 p;     ///< The point.
+  float pdf;  ///< Density on the unit square.
+};
+
+/// A point x of [0,1) with density proportional to (1 - x) a + x b (a, b >= 0, not both 0), u in [0,1).
+float sample_linear(float u, float a, float b);
+
+/// Density of sample_linear at x.
+float linear_pdf(float x, float a, float b);
+
+/// Samples the product of the two marginals of the bilinear interpolation of the corner weights
+/// w = {w(0,0), w(1,0), w(0,1), w(1,1)} (non-negative, not all zero): x linear from w(0,0) + w(0,1) to
+/// w(1,0) + w(1,1), y linear from w(0,0) + w(1,0) to w(0,1) + w(1,1), each inverted from its own coordinate of u.
+/// A separable stand-in for the bilinear density of Hart et al. (2020), whose conditional in x waits on y: equal
+/// when the weights have rank one, measured as good for cosine warps over area lights, and the two square roots
+/// run side by side. Stratification of u carries over to each coordinate.
+WarpSample sample_bilinear_marginals(Vec2 u, const std::array<float, 4>& w);
+
+/// Density of sample_bilinear_marginals at p.
+float bilinear_marginals_pdf(Vec2 p, const std::array<float, 4>& w);
+
 /// A point sampled on a spherical rectangle and its solid-angle density.
 struct RectSample {
   Vec3 p;     ///< Point on the rectangle.
@@ -46,8 +70,14 @@ struct SphericalRectangle {
   bool init(const Vec3& o, const Vec3& corner, const Vec3& ex, const Vec3& ey);
   /// Solid angle subtended at o.
   float solid_angle() const { return S; }
-  /// A uniformly distributed point (in solid angle) on the rectangle.
+  /// A uniformly distributed point (in solid angle) on the rectangle. u = (0,0), (1,0), (0,1), (1,1) map to the
+  /// corners corner, corner+ex, corner+ey, corner+ex+ey, and the map is continuous in between.
   RectSample sample(Vec2 u) const;
+  /// The u with which sample(u) returns the point q of the rectangle (clamped to [0,1]^2).
+  Vec2 invert(const Vec3& q) const;
+  /// Cosines between the unit vector n and the directions from o to the four corners, in the order of sample()'s
+  /// corners: the weights of a bilinear warp that makes sample() approximately proportional to projected solid angle.
+  std::array<float, 4> corner_cosines(const Vec3& n) const;
 
  private:
   Vec3 o_, x_, y_, z_;

@@ -77,6 +77,9 @@ struct IntegratorSettings {
   int light_samples = 1;              ///< Area-light samples per camera sample.
   AreaSampling area_sampling = AreaSampling::kAuto;  ///< Area light strategy.
   EnvSampling env_sampling = EnvSampling::kMis;           ///< Environment strategy.
+  /// Direct integrator: the first area-light draw of a camera sample is stratified jointly with its pixel position
+  /// (PixelSampler::next_2d_paired); false draws it independently (a baseline for bench/speed_vs_error).
+  bool pair_light_with_pixel = true;
   IntegratorKind integrator = IntegratorKind::kDirect;    ///< Integrator.
   PathProfile profile = PathProfile::kMis;                ///< Path tracer: light gathering.
   float rr_threshold = 0.1f;  ///< Path tracer: Russian roulette once the throughput's largest channel is below this.
