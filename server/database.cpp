@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <tuple>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
@@ -111,6 +112,13 @@ Statement& Statement::bind_blob(int i, std::string_view v) {
   return *this;
 }
 
+Statement& Statement::bind_blob_uncopied(int i, std::string_view v) {
+  static const char empty = 0;
+  if (sqlite3_bind_blob64(stmt_, i, v.empty() ? &empty : v.data(), v.size(), SQLITE_STATIC) != SQLITE_OK)
+    fail(db_, "binding parameter " + std::to_string(i) + " of '" + sql_head(sql_) + "'");
+  return *this;
+}
+
 Statement& Statement::bind_null(int i) {
   if (sqlite3_bind_null(stmt_, i) != SQLITE_OK) fail(db_, "binding parameter " + std::to_string(i) + " of '" + sql_head(sql_) + "'");
   return *this;
@@ -202,6 +210,17 @@ Statement& Database::statement(const std::string& sql) {
 
 int64_t Database::changes() const { return sqlite3_changes64(db_); }
 
+void Database::on_commit(std::function<void(int frames)> hook) {
+  commit_hook_ = std::move(hook);
+  sqlite3_wal_hook(
+      db_,
+      [](void* self, sqlite3*, const char*, int frames) {
+        static_cast<Database*>(self)->commit_hook_(frames);
+        return SQLITE_OK;
+      },
+      this);
+}
+
 Transaction::Transaction(Database& db) : db_(db) { db_.exec("BEGIN IMMEDIATE"); }
 
 Transaction::~Transaction() {
@@ -220,15 +239,17 @@ void Transaction::commit() {
 
 // ---- DurableStore
 
-DurableStore::DurableStore(const fs::path& dir)
-    : jobs_dir_(dir / "jobs"), scratch_(dir / "tmp"), db_((make_dirs(dir), dir / "tessera.db")) {
+DurableStore::DurableStore(const fs::path& dir, Durability durability)
+    : durability_(durability), jobs_dir_(dir / "jobs"), scratch_(dir / "tmp"), db_((make_dirs(dir), dir / "tessera.db")),
+      group_([this] { flush_log(); }) {
   make_dirs(jobs_dir_);
   make_dirs(scratch_);
   // Uploads being validated and results being written when the last run was killed.
   leftovers_removed_ = remove_leftovers(scratch_, true) + remove_leftovers(jobs_dir_);
   // Commits survive a process crash without waiting for the disk; sync() makes them survive a power cut when the
-  // scheduler acknowledges something, outside its lock (see SchedulerStore::sync).
-  db_.exec("PRAGMA synchronous=NORMAL");
+  // scheduler acknowledges something, outside its lock (see SchedulerStore::sync). A store that only has to survive
+  // the process lets SQLite skip its own flushes too (at checkpoints and when the file is made).
+  db_.exec(durability_ == Durability::machine ? "PRAGMA synchronous=NORMAL" : "PRAGMA synchronous=OFF");
   // Purged jobs' pages are returned to the file system (see give_back_free_pages). The mode is set before the first
   // table is created; a database made by an older build is rewritten once (VACUUM) to switch to it.
   Statement& mode = db_.statement("PRAGMA auto_vacuum");
@@ -259,23 +280,43 @@ DurableStore::DurableStore(const fs::path& dir)
     db_.statement("INSERT INTO meta(key, value) VALUES('schema_version', ?)").bind(1, int64_t(kSchemaVersion)).run();
   }
   tx.commit();
+  // From here on the log is checkpointed by a thread of its own, never inside a commit.
+  checkpointer_ = std::make_unique<WalCheckpointer>(
+      db_.file(), durability_ == Durability::machine, kCheckpointFrames,
+      [this](const std::function<void()>& checkpoint) {
+        std::lock_guard lock(mu_);
+        checkpoint();
+      });
+  db_.on_commit([this](int frames) { checkpointer_->committed(frames); });
 }
 
-DurableStore::~DurableStore() {
-  if (wal_fd_ >= 0) ::close(wal_fd_);
+DurableStore::~DurableStore() = default;  // group_, then checkpointer_, then db_ (the connection's last checkpoint)
+
+DurableStore::LogFile::~LogFile() {
+  if (fd >= 0) ::close(fd);
 }
 
 void DurableStore::sync() {
+  if (durability_ == Durability::process) return;
+  group_.flush();
+}
+
+void DurableStore::sync_async(std::function<void()> then) {
+  if (durability_ == Durability::process) return then();
+  group_.after_flush(std::move(then));
+}
+
+void DurableStore::flush_log() {
   int fd = -1;
   {
     std::lock_guard lock(wal_mu_);
     struct stat st {};
-    if (wal_fd_ >= 0 && (::fstat(wal_fd_, &st) != 0 || st.st_nlink == 0)) {  // the log was removed and made anew
-      ::close(wal_fd_);
-      wal_fd_ = -1;
+    if (wal_fd_.fd >= 0 && (::fstat(wal_fd_.fd, &st) != 0 || st.st_nlink == 0)) {  // the log was removed and made anew
+      ::close(wal_fd_.fd);
+      wal_fd_.fd = -1;
     }
-    if (wal_fd_ < 0) wal_fd_ = ::open((db_.file().string() + "-wal").c_str(), O_RDONLY | O_CLOEXEC);
-    fd = wal_fd_;
+    if (wal_fd_.fd < 0) wal_fd_.fd = ::open((db_.file().string() + "-wal").c_str(), O_RDONLY | O_CLOEXEC);
+    fd = wal_fd_.fd;
   }
   bool flush_fails = false;  // set by tests to take the failure path below
   TESSERA_FAIL_POINT_RETURN("store.sync", [&](const std::string&) { flush_fails = true; });
@@ -295,14 +336,17 @@ void DurableStore::apply(const SchedulerChanges& c) {
   for (const JobRow& r : c.jobs) {
     const JobStatus& s = r.status;
     const JobParams& p = s.params;
-    Statement& st = db_.statement(
+    // The list of workers is rewritten only when it changed (it can be as long as the farm).
+    static const std::string kUpsert =
         "INSERT INTO jobs(id, seq, name, priority, width, height, tile_size, spp, seed, scene_hash, state, created_ms,"
         " started_ms, finished_ms, error, rays, workers, worker_failures, worker_last_error, tile_timeout_s)"
         " VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)"
         " ON CONFLICT(id) DO UPDATE SET priority = excluded.priority, spp = excluded.spp, state = excluded.state,"
         " started_ms = excluded.started_ms,"
-        " finished_ms = excluded.finished_ms, error = excluded.error, rays = excluded.rays, workers = excluded.workers,"
-        " worker_failures = excluded.worker_failures, worker_last_error = excluded.worker_last_error");
+        " finished_ms = excluded.finished_ms, error = excluded.error, rays = excluded.rays,"
+        " worker_failures = excluded.worker_failures, worker_last_error = excluded.worker_last_error";
+    static const std::string kUpsertWithWorkers = kUpsert + ", workers = excluded.workers";
+    Statement& st = db_.statement(r.workers_changed ? kUpsertWithWorkers : kUpsert);
     st.bind_text(1, s.id).bind(2, int64_t(r.seq)).bind_text(3, p.name).bind(4, int64_t(p.priority));
     st.bind(5, int64_t(p.width)).bind(6, int64_t(p.height)).bind(7, int64_t(p.tile_size)).bind(8, int64_t(p.spp));
     st.bind(9, int64_t(p.seed)).bind_text(10, p.scene_hash).bind_text(11, to_string(s.state)).bind(12, s.created_ms);
@@ -320,7 +364,7 @@ void DurableStore::apply(const SchedulerChanges& c) {
         "UPDATE tiles SET state = ?, lease = ?, failures = ?, pixels = coalesce(?, pixels), attempts = ?, render_ms = ?,"
         " rays = ?, logs = ? WHERE job = ? AND idx = ?");
     up.bind_text(1, to_string(r.state)).bind_text(2, r.lease).bind_text(3, failures);
-    if (r.pixels) up.bind_blob(4, *r.pixels);
+    if (r.pixels) up.bind_blob_uncopied(4, *r.pixels);  // the tile's bytes outlive this change
     up.bind(5, r.attempts).bind(6, r.render_ms).bind(7, int64_t(r.rays)).bind_text(8, logs);
     up.bind_text(9, r.job).bind(10, r.index);
     up.run();
@@ -329,7 +373,7 @@ void DurableStore::apply(const SchedulerChanges& c) {
         "INSERT INTO tiles(job, idx, state, lease, failures, pixels, attempts, render_ms, rays, logs)"
         " VALUES(?,?,?,?,?,?,?,?,?,?)");
     ins.bind_text(1, r.job).bind(2, r.index).bind_text(3, to_string(r.state)).bind_text(4, r.lease).bind_text(5, failures);
-    if (r.pixels) ins.bind_blob(6, *r.pixels);
+    if (r.pixels) ins.bind_blob_uncopied(6, *r.pixels);
     ins.bind(7, r.attempts).bind(8, r.render_ms).bind(9, int64_t(r.rays)).bind_text(10, logs);
     ins.run();
   }
@@ -347,18 +391,22 @@ void DurableStore::apply(const SchedulerChanges& c) {
         .bind_text(2, r.name)
         .bind(3, int64_t(r.drained))
         .run();
-  const std::pair<const char*, uint64_t> counters[] = {{"next_seq", c.counters.next_seq},
-                                                       {"tiles_rendered", c.counters.tiles_rendered},
-                                                       {"lease_expiries", c.counters.lease_expiries},
-                                                       {"rays", c.counters.rays}};
-  for (const auto& [key, value] : counters)
-    db_.statement("INSERT OR REPLACE INTO meta(key, value) VALUES(?,?)").bind_text(1, key).bind(2, int64_t(value)).run();
+  // Only the counters that changed since the last commit.
+  const std::tuple<const char*, uint64_t, uint64_t> counters[] = {
+      {"next_seq", c.counters.next_seq, written_counters_.next_seq},
+      {"tiles_rendered", c.counters.tiles_rendered, written_counters_.tiles_rendered},
+      {"lease_expiries", c.counters.lease_expiries, written_counters_.lease_expiries},
+      {"rays", c.counters.rays, written_counters_.rays}};
+  for (const auto& [key, value, written] : counters)
+    if (value != written)
+      db_.statement("INSERT OR REPLACE INTO meta(key, value) VALUES(?,?)").bind_text(1, key).bind(2, int64_t(value)).run();
   for (const std::string& job : c.purged_jobs)
     for (const char* sql : {"DELETE FROM leases WHERE job = ?", "DELETE FROM tile_states WHERE job = ?",
                             "DELETE FROM tiles WHERE job = ?", "DELETE FROM job_records WHERE id = ?",
                             "DELETE FROM jobs WHERE id = ?"})
       db_.statement(sql).bind_text(1, job).run();
   tx.commit();
+  written_counters_ = c.counters;
   if (!c.purged_jobs.empty()) give_back_free_pages();
 }
 
@@ -383,6 +431,7 @@ SchedulerSnapshot DurableStore::load() {
       else if (key == "lease_expiries") snap.counters.lease_expiries = v;
       else if (key == "rays") snap.counters.rays = v;
     }
+    written_counters_ = snap.counters;
   }
   {
     Statement& st = db_.statement(
@@ -493,6 +542,10 @@ std::optional<json> DurableStore::load_record(const std::string& job) {
 fs::path DurableStore::result_path(const std::string& job) {
   make_dirs(jobs_dir_ / job);
   return jobs_dir_ / job / "result.exr";
+}
+
+void DurableStore::write_result(const std::string& job, const std::function<void(const fs::path&)>& write) {
+  write_file_replacing(result_path(job), write, durability_);
 }
 
 std::vector<std::pair<int64_t, std::string>> DurableStore::tile_pixels(const std::string& job) {
