@@ -63,41 +63,79 @@ std::string default_name() {
 
 bool retryable_status(int status) { return status >= 500 || status == 408 || status == 429; }
 
-// Heartbeats one lease from its own thread every `period` until stopped; on 410/404 it sets the render's cancel flag,
-// and on a second stop request it cancels for shutdown.
 // A job's built scene and the sampling settings of its spec, cached per job id.
 struct PreparedJob {
   LoadedScene loaded;                   // scene and BVH
   protocol::SamplingSettings sampling;  // the spec's sampling settings
 };
 
-class Heartbeat {
+// The next lease, asked for while the current tile rendered, with the time of its grant or last heartbeat.
+struct PrefetchedLease {
+  Lease lease;
+  std::chrono::steady_clock::time_point beaten;
+};
+
+// The thread beside a tile's render: heartbeats the lease every `period` (the first beat after `first_beat`); on
+// 410/404 it sets the render's cancel flag, and on a second stop request it cancels for shutdown. When asked (near the
+// end of the render) it also asks for the worker's next lease, so that the round trip overlaps the render, and
+// heartbeats that lease too until the worker takes it up.
+class TileCompanion {
  public:
-  Heartbeat(HttpClient& http, std::string prefix, std::string lease, std::chrono::milliseconds period,
-            std::atomic<bool>& cancel, std::atomic<int>& reason, const std::atomic<uint64_t>& rays,
-            const std::atomic<int>& stop_requests)
-      : http_(http), prefix_(std::move(prefix)), lease_(std::move(lease)), period_(period), cancel_(cancel),
-        reason_(reason), rays_(rays), stop_requests_(stop_requests), thread_([this] { run(); }) {}
-  ~Heartbeat() {
+  TileCompanion(HttpClient& http, std::string prefix, std::string lease, std::chrono::milliseconds period,
+                std::chrono::milliseconds first_beat, std::atomic<bool>& cancel, std::atomic<int>& reason,
+                const std::atomic<uint64_t>& rays, const std::atomic<int>& stop_requests,
+                std::function<std::optional<Lease>()> ask_lease)
+      : http_(http), prefix_(std::move(prefix)), lease_(std::move(lease)), period_(period), first_beat_(first_beat),
+        cancel_(cancel), reason_(reason), rays_(rays), stop_requests_(stop_requests), ask_lease_(std::move(ask_lease)),
+        thread_([this] { run(); }) {}
+  ~TileCompanion() { stop(); }
+  TileCompanion(const TileCompanion&) = delete;
+  TileCompanion& operator=(const TileCompanion&) = delete;
+
+  // Asks for the next lease on the companion's thread (once; never blocks).
+  void ask_next_lease() {
     {
       std::lock_guard lock(mutex_);
+      if (asked_) return;
+      asked_ = true;
+    }
+    cv_.notify_all();
+  }
+
+  // Stops the thread (after a request in flight) and hands over the next lease, if one was granted and is still live.
+  std::optional<PrefetchedLease> finish() {
+    stop();
+    std::lock_guard lock(mutex_);
+    return std::move(next_);
+  }
+
+ private:
+  void stop() {
+    {
+      std::lock_guard lock(mutex_);
+      if (done_) return;
       done_ = true;
     }
     cv_.notify_all();
     thread_.join();
   }
-  Heartbeat(const Heartbeat&) = delete;
-  Heartbeat& operator=(const Heartbeat&) = delete;
 
- private:
   void run() noexcept {
     try {
-      auto next = std::chrono::steady_clock::now() + period_;
+      auto next = std::chrono::steady_clock::now() + first_beat_;
       uint64_t sent_rays = 0;
-      bool stop_noted = false;
+      bool stop_noted = false, fetched = false;
       std::unique_lock lock(mutex_);
-      while (!done_) {
-        cv_.wait_for(lock, 100ms, [&] { return done_; });
+      for (;;) {
+        cv_.wait_for(lock, 100ms, [&] { return done_ || (asked_ && !fetched); });
+        if (asked_ && !fetched) {  // even when the render ended meanwhile: the worker needs its next tile now
+          fetched = true;
+          lock.unlock();
+          std::optional<Lease> l = ask_lease_();
+          lock.lock();
+          if (l) next_ = PrefetchedLease{std::move(*l), std::chrono::steady_clock::now()};
+          continue;
+        }
         if (done_) break;
         if (stop_requests_.load() == 1 && !stop_noted) {
           stop_noted = true;
@@ -108,13 +146,24 @@ class Heartbeat {
           cancel_.store(true);
           spdlog::info("{}: asked to stop again, cancelling the render to hand the tile back", prefix_);
         }
-        if (cancel_.load() || std::chrono::steady_clock::now() < next) continue;
+        if (std::chrono::steady_clock::now() < next) continue;
+        const std::optional<std::string> held = next_ ? std::optional<std::string>(next_->lease.id) : std::nullopt;
         lock.unlock();
-        const uint64_t rays = rays_.load();
-        beat(json(protocol::HeartbeatReport{rays - sent_rays}).dump());
-        sent_rays = rays;
+        if (!cancel_.load()) {
+          const uint64_t rays = rays_.load();
+          if (!beat(lease_, json(protocol::HeartbeatReport{rays - sent_rays}).dump())) {
+            reason_.store(int(Stop::kRevoked));
+            cancel_.store(true);
+          }
+          sent_rays = rays;
+        }
+        const bool held_live = !held || beat(*held, "{}");
         next = std::chrono::steady_clock::now() + period_;
         lock.lock();
+        if (held && next_) {
+          if (held_live) next_->beaten = std::chrono::steady_clock::now();
+          else next_.reset();  // revoked or expired meanwhile: the worker asks again
+        }
       }
     } catch (const std::exception& e) {
       spdlog::error("{}: heartbeat thread stopped: {}", prefix_, e.what());
@@ -123,32 +172,38 @@ class Heartbeat {
     }
   }
 
-  void beat(const std::string& body) {
+  // One heartbeat; false when the lease is gone (410/404).
+  bool beat(const std::string& lease, const std::string& body) {
     try {
-      const HttpResponse r = http_.send("POST", routes::lease_heartbeat(lease_), body);
-      if (r.status == 200) return;
+      const HttpResponse r = http_.send("POST", routes::lease_heartbeat(lease), body);
+      if (r.status == 200) return true;
+      const std::string which = lease == lease_ ? "heartbeat" : "heartbeat of the next lease " + lease;
       if (r.status == 410 || r.status == 404) {
-        spdlog::info("{}: heartbeat answered {} ({}), cancelling the render", prefix_, r.status, r.error_text());
-        reason_.store(int(Stop::kRevoked));
-        cancel_.store(true);
-        return;
+        spdlog::info("{}: {} answered {} ({}), {}", prefix_, which, r.status, r.error_text(),
+                     lease == lease_ ? "cancelling the render" : "dropping that lease");
+        return false;
       }
-      spdlog::warn("{}: heartbeat answered {}: {}", prefix_, r.status, r.error_text());
+      spdlog::warn("{}: {} answered {}: {}", prefix_, which, r.status, r.error_text());
     } catch (const TransportError& e) {
-      spdlog::warn("{}: heartbeat failed (keeps rendering): {}", prefix_, e.what());
+      spdlog::warn("{}: {} failed (keeps rendering): {}", prefix_, lease == lease_ ? "heartbeat" : "heartbeat of " + lease,
+                   e.what());
     }
+    return true;
   }
 
   HttpClient& http_;
   const std::string prefix_, lease_;
-  const std::chrono::milliseconds period_;
+  const std::chrono::milliseconds period_, first_beat_;
   std::atomic<bool>& cancel_;
   std::atomic<int>& reason_;
   const std::atomic<uint64_t>& rays_;
   const std::atomic<int>& stop_requests_;
+  const std::function<std::optional<Lease>()> ask_lease_;
   std::mutex mutex_;
   std::condition_variable cv_;
   bool done_ = false;
+  bool asked_ = false;                   // ask_next_lease was called
+  std::optional<PrefetchedLease> next_;  // its answer, when a lease was granted
   std::thread thread_;  // last: starts after every other member is ready
 };
 
@@ -170,7 +225,8 @@ class Worker {
         heartbeat_http_(url_, heartbeat_timeouts(opt.timeouts), kMaxResponse, opt.tls),
         upload_http_(url_, opt.timeouts, kMaxResponse, opt.tls),
         cache_(opt.cache_dir.empty() ? default_cache_dir() : opt.cache_dir), scenes_(opt.scene_cache_jobs),
-        idle_(100ms, opt.max_idle_wait), retry_(200ms, opt.max_retry_wait) {
+        idle_(std::min<std::chrono::milliseconds>(100ms, opt.max_idle_wait), opt.max_idle_wait),
+        retry_(200ms, opt.max_retry_wait) {
     name_ = opt.name.empty() ? default_name() : opt.name;
     threads_ = opt.threads > 0 ? opt.threads : int(std::max(1u, std::thread::hardware_concurrency()));
     http_.set_bearer_token(opt.token);
@@ -181,16 +237,21 @@ class Worker {
   WorkerStats run() {
     spdlog::info("worker {} starting: coordinator {}, {} threads, cache {}", name_, url_.to_string(), threads_,
                  cache_.dir().string());
+    std::optional<PrefetchedLease> next;  // asked for while the previous tile rendered
     while (!stopping()) {
       try {
         if (id_.empty() && !register_worker()) continue;
-        std::optional<Lease> lease = request_lease();
+        std::optional<PrefetchedLease> lease = std::exchange(next, std::nullopt);
+        if (!lease) {
+          std::optional<Lease> asked = request_lease();
+          if (asked) lease = PrefetchedLease{std::move(*asked), std::chrono::steady_clock::now()};
+        }
         if (!lease) continue;
         if (stopping()) {
-          release(*lease, prefix(*lease));
+          release(lease->lease, prefix(lease->lease));
           break;
         }
-        process(*lease);
+        next = process(lease->lease, lease->beaten);
       } catch (const AccessDenied&) {
         throw;
       } catch (const std::exception& e) {
@@ -199,6 +260,7 @@ class Worker {
         sleep_unless(retry_.next(), [&] { return stopping(); });
       }
     }
+    if (next) release(next->lease, prefix(next->lease));  // asked to stop while holding the next tile: hand it back
     uploads_.wait_idle();  // the last tile's upload finishes (a second stop request cuts its retries short)
     std::lock_guard lock(stats_mutex_);
     spdlog::info("worker {} stopping: {} tiles uploaded, {} dropped, {} failed, {} released", id_.empty() ? name_ : id_,
@@ -259,10 +321,37 @@ class Worker {
     return false;
   }
 
+  // One lease request's round trip, kept as a moving average: a render asks for its successor when it has about
+  // this long (times a margin) left.
+  void note_lease_round_trip(std::chrono::steady_clock::time_point t0) {
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    const double old = lease_rtt_ms_.load();
+    lease_rtt_ms_.store(old <= 0 ? ms : 0.8 * old + 0.2 * ms);
+  }
+
+  // The next lease, asked for from the tile companion's thread near the end of a render (on its connection): only a
+  // granted lease is kept; anything else (no work, an error) leaves the asking to the render loop, as before.
+  std::optional<Lease> prefetch_lease(HttpClient& http, const std::string& pfx) {
+    try {
+      const auto t0 = std::chrono::steady_clock::now();
+      const HttpResponse r = http.send("POST", routes::worker_lease(id_));
+      note_lease_round_trip(t0);
+      if (r.status != 200) return std::nullopt;
+      Lease l = protocol::parse_answer<Lease>(r.body, "lease");
+      spdlog::info("{}: next lease {} (tile {} of job {}) granted while rendering", pfx, l.id, l.tile, l.job);
+      return l;
+    } catch (const std::exception& e) {
+      spdlog::debug("{}: asking for the next lease failed: {}", pfx, e.what());
+      return std::nullopt;
+    }
+  }
+
   std::optional<Lease> request_lease() {
     HttpResponse r;
     try {
+      const auto t0 = std::chrono::steady_clock::now();
       r = http_.send("POST", routes::worker_lease(id_));
+      note_lease_round_trip(t0);
     } catch (const TransportError& e) {
       coordinator_down("lease", e);
       return std::nullopt;
@@ -346,7 +435,9 @@ class Worker {
     return loaded;
   }
 
-  void process(const Lease& l) {
+  // Renders a leased tile (heartbeating it from `beaten`, its grant or last heartbeat) and hands its upload to the
+  // upload thread; returns the next lease when one was granted near the end of the render.
+  std::optional<PrefetchedLease> process(const Lease& l, std::chrono::steady_clock::time_point beaten) {
     const std::string pfx = prefix(l);
     spdlog::info("{}: leased window [{},{})x[{},{}) at {} spp{}", pfx, l.window.x0, l.window.x1, l.window.y0, l.window.y1,
                  l.spp, l.state_spp ? " continuing from " + std::to_string(l.state_spp) : std::string());
@@ -356,8 +447,11 @@ class Worker {
     std::optional<RenderResult> result;
     std::string failure;  // error to report through /fail
     int width = 0, height = 0;
+    const auto since_beat = std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - beaten);
+    TileCompanion companion(heartbeat_http_, pfx, l.id, heartbeat_period_,
+                            std::max<std::chrono::milliseconds>(0ms, heartbeat_period_ - since_beat), cancel, reason,
+                            rays, stop_, [this, pfx] { return prefetch_lease(heartbeat_http_, pfx); });
     {
-      Heartbeat heartbeat(heartbeat_http_, pfx, l.id, heartbeat_period_, cancel, reason, rays, stop_);
       try {
         const auto scene = scene_for(l, pfx, [&] { return cancel.load(); });
         width = scene->loaded.scene.width;
@@ -389,7 +483,15 @@ class Worker {
         // which the other threads idle (pixels do not depend on this split).
         ro.tile_size = 8;
         ro.cancel = &cancel;
-        ro.progress = [&rays](const RenderProgress& p) { rays.store(p.rays); };
+        // Near the end of the render (about two lease round trips left, by the pace so far) the next lease is
+        // asked for, so the threads need not wait for it; it is held only for that short tail.
+        const double lead_s = std::max(0.002, 2.5e-3 * lease_rtt_ms_.load());
+        ro.progress = [&rays, &companion, lead_s, this](const RenderProgress& p) {
+          rays.store(p.rays);
+          if (p.tiles_done > 0 && !stopping() &&
+              p.seconds * double(p.tiles_total - p.tiles_done) / double(p.tiles_done) <= lead_s)
+            companion.ask_next_lease();
+        };
         ro.keep_state = l.resumable;
         ro.previous = previous ? &*previous : nullptr;
         result = render(scene->loaded.scene, ro);
@@ -400,29 +502,32 @@ class Worker {
       } catch (const Gone& e) {
         spdlog::warn("{}: dropping the tile: {}", pfx, e.what());
         count(&WorkerStats::tiles_dropped);
-        return;
+        return companion.finish();
       } catch (const std::exception& e) {
         failure = e.what();
       }
-    }  // heartbeats stop here
+    }
 
     if (!failure.empty()) {
+      std::optional<PrefetchedLease> next = companion.finish();
       spdlog::error("{}: cannot render the tile: {}", pfx, failure);
       report_failure(l, pfx, failure);
-      return;
+      return next;
     }
     if (!result) {
+      std::optional<PrefetchedLease> next = companion.finish();
       if (reason.load() == int(Stop::kShutdown)) {
         release(l, pfx);
       } else {
         spdlog::info("{}: lease revoked, tile dropped", pfx);
         count(&WorkerStats::tiles_dropped);
       }
-      return;
+      return next;
     }
-    spdlog::info("{}: rendered in {:.3f}s ({} rays)", pfx, result->seconds, result->counters.rays);
-    // Encoded and sent while the next tile is leased and rendered; the lease stays live meanwhile (its deadline is a
-    // lease length after the last heartbeat), and a worker that dies here loses only leases, which expire.
+    spdlog::info("{}: rendered in {:.3f}s ({} rays, {:.1f} ms of thread time idle)", pfx, result->seconds,
+                 result->counters.rays, 1000.0 * result->idle_thread_seconds);
+    // Encoded and sent while the next tile is leased and rendered; the companion heartbeats this lease (and the next
+    // one) while the previous upload is still going, and a worker that dies here loses only leases, which expire.
     uploads_.post([this, l, pfx, res = std::make_shared<RenderResult>(std::move(*result)), width, height] {
       try {
         upload(l, pfx, *res, width, height);
@@ -431,6 +536,7 @@ class Worker {
         count(&WorkerStats::tiles_dropped);
       }
     });
+    return companion.finish();  // heartbeats stop here
   }
 
   // The lease's tile as the coordinator stored it (GET /v1/leases/{lease}/state): its pixels and exact sums.
@@ -572,6 +678,7 @@ class Worker {
   int threads_ = 1;
   std::chrono::milliseconds heartbeat_period_{5000};
   bool down_ = false;
+  std::atomic<double> lease_rtt_ms_{0};  // moving average of lease round trips (0: none yet)
   std::mutex stats_mutex_;
   WorkerStats stats_;    // guarded by stats_mutex_
   UploadQueue uploads_;  // last: destroyed first, after the upload in flight has finished
