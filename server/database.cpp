@@ -66,6 +66,10 @@ CREATE TABLE IF NOT EXISTS workers(id TEXT PRIMARY KEY, name TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS job_records(id TEXT PRIMARY KEY, record TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS tile_states(job TEXT NOT NULL, idx INTEGER NOT NULL, spp INTEGER NOT NULL, exr BLOB NOT NULL,
   PRIMARY KEY(job, idx));
+-- A job's workers, one row each (a build before this table kept the whole list in jobs.workers, rewritten with
+-- every change of the job; such a list comes first, and a build of that kind reading this file sees only it).
+CREATE TABLE IF NOT EXISTS job_workers(job TEXT NOT NULL, idx INTEGER NOT NULL, worker TEXT NOT NULL,
+  PRIMARY KEY(job, idx));
 )sql";
 
 // Columns added after version 1 was released: older files gain them with these defaults (the schema version stays,
@@ -336,26 +340,30 @@ void DurableStore::apply(const SchedulerChanges& c) {
   for (const JobRow& r : c.jobs) {
     const JobStatus& s = r.status;
     const JobParams& p = s.params;
-    // The list of workers is rewritten only when it changed (it can be as long as the farm).
-    static const std::string kUpsert =
+    // The job's workers are rows of job_workers; the column keeps the list a database of an older build holds.
+    Statement& st = db_.statement(
         "INSERT INTO jobs(id, seq, name, priority, width, height, tile_size, spp, seed, scene_hash, state, created_ms,"
         " started_ms, finished_ms, error, rays, workers, worker_failures, worker_last_error, tile_timeout_s)"
         " VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)"
         " ON CONFLICT(id) DO UPDATE SET priority = excluded.priority, spp = excluded.spp, state = excluded.state,"
         " started_ms = excluded.started_ms,"
         " finished_ms = excluded.finished_ms, error = excluded.error, rays = excluded.rays,"
-        " worker_failures = excluded.worker_failures, worker_last_error = excluded.worker_last_error";
-    static const std::string kUpsertWithWorkers = kUpsert + ", workers = excluded.workers";
-    Statement& st = db_.statement(r.workers_changed ? kUpsertWithWorkers : kUpsert);
+        " worker_failures = excluded.worker_failures, worker_last_error = excluded.worker_last_error");
     st.bind_text(1, s.id).bind(2, int64_t(r.seq)).bind_text(3, p.name).bind(4, int64_t(p.priority));
     st.bind(5, int64_t(p.width)).bind(6, int64_t(p.height)).bind(7, int64_t(p.tile_size)).bind(8, int64_t(p.spp));
     st.bind(9, int64_t(p.seed)).bind_text(10, p.scene_hash).bind_text(11, to_string(s.state)).bind(12, s.created_ms);
     st.bind(13, s.started_ms).bind(14, s.finished_ms);
     if (s.error) st.bind_text(15, *s.error);
-    st.bind(16, int64_t(s.rays)).bind_text(17, json(s.workers).dump()).bind_text(18, json(r.worker_failures).dump());
+    st.bind(16, int64_t(s.rays)).bind_text(17, "[]").bind_text(18, json(r.worker_failures).dump());
     st.bind_text(19, map_json(r.worker_last_error).dump()).bind(20, p.tile_timeout_seconds);
     st.run();
   }
+  for (const JobWorkerRow& r : c.job_workers)
+    db_.statement("INSERT OR REPLACE INTO job_workers(job, idx, worker) VALUES(?,?,?)")
+        .bind_text(1, r.job)
+        .bind(2, r.index)
+        .bind_text(3, r.worker)
+        .run();
   for (const TileRow& r : c.tiles) {
     if (r.pixels) TESSERA_FAIL_POINT("store.tile_commit");
     const std::string failures = map_json(r.failures).dump();
@@ -403,7 +411,7 @@ void DurableStore::apply(const SchedulerChanges& c) {
   for (const std::string& job : c.purged_jobs)
     for (const char* sql : {"DELETE FROM leases WHERE job = ?", "DELETE FROM tile_states WHERE job = ?",
                             "DELETE FROM tiles WHERE job = ?", "DELETE FROM job_records WHERE id = ?",
-                            "DELETE FROM jobs WHERE id = ?"})
+                            "DELETE FROM job_workers WHERE job = ?", "DELETE FROM jobs WHERE id = ?"})
       db_.statement(sql).bind_text(1, job).run();
   tx.commit();
   written_counters_ = c.counters;
@@ -469,6 +477,17 @@ SchedulerSnapshot DurableStore::load() {
       r.worker_last_error = json_map<std::string>(st.text(18), "worker errors");
       s.params.tile_timeout_seconds = st.integer(19);
       snap.jobs.push_back(std::move(r));
+    }
+  }
+  {
+    // Each job's workers after those its row's column lists (an older build wrote the whole list there).
+    std::map<std::string, JobRow*> by_id;
+    for (JobRow& r : snap.jobs) by_id[r.status.id] = &r;
+    Statement& st = db_.statement("SELECT job, worker FROM job_workers ORDER BY job, idx");
+    while (st.step()) {
+      const auto it = by_id.find(st.text(0));
+      if (it == by_id.end()) continue;
+      it->second->status.workers.push_back(st.text(1));
     }
   }
   {

@@ -128,7 +128,7 @@ void Scheduler::flush_locked() {
   done_pixels_.reset();
   if (!store_) {
     dirty_jobs_.clear();
-    dirty_job_workers_.clear();
+    new_job_workers_.clear();
     dirty_tiles_.clear();
     dirty_leases_.clear();
     new_workers_.clear();
@@ -136,8 +136,8 @@ void Scheduler::flush_locked() {
     sync_needed_ = false;
     return;
   }
-  if (dirty_jobs_.empty() && dirty_tiles_.empty() && dirty_leases_.empty() && new_workers_.empty() &&
-      purged_jobs_.empty() && counters == flushed_counters_)
+  if (dirty_jobs_.empty() && new_job_workers_.empty() && dirty_tiles_.empty() && dirty_leases_.empty() &&
+      new_workers_.empty() && purged_jobs_.empty() && counters == flushed_counters_)
     return;
   SchedulerChanges c;
   c.counters = counters;
@@ -145,13 +145,14 @@ void Scheduler::flush_locked() {
     const auto it = jobs_.find(id);
     if (it == jobs_.end()) continue;
     JobRec& j = *it->second;
-    // The list of the job's workers (up to every worker of the farm) is copied only when it changed.
-    const bool workers_changed = dirty_job_workers_.count(id) > 0;
-    std::vector<std::string> kept;
-    if (!workers_changed) kept.swap(j.status.workers);
-    c.jobs.push_back(JobRow{snapshot_locked(j, 0), j.seq, j.worker_failures, j.worker_last_error, workers_changed});
-    if (!workers_changed) kept.swap(j.status.workers);
+    // The job's workers (up to every worker of the farm) go as rows of their own (new_job_workers_), not copied here.
+    std::vector<std::string> workers;
+    workers.swap(j.status.workers);
+    c.jobs.push_back(JobRow{snapshot_locked(j, 0), j.seq, j.worker_failures, j.worker_last_error});
+    workers.swap(j.status.workers);
   }
+  for (const JobWorkerRow& w : new_job_workers_)
+    if (jobs_.count(w.job)) c.job_workers.push_back(w);
   for (const auto& key : dirty_tiles_) {
     const auto it = jobs_.find(key.first);
     if (it == jobs_.end()) continue;
@@ -173,7 +174,7 @@ void Scheduler::flush_locked() {
   store_->apply(c);
   if (std::exchange(sync_needed_, false)) sync_due_ = true;
   dirty_jobs_.clear();
-  dirty_job_workers_.clear();
+  new_job_workers_.clear();
   dirty_tiles_.clear();
   dirty_leases_.clear();
   new_workers_.clear();
@@ -288,7 +289,6 @@ std::string Scheduler::add_job(const JobParams& p, const std::string& id_in) {
       touch_tile(*rec, i);
     }
     touch_job(*rec);
-    dirty_job_workers_.insert(rec->status.id);  // a new row: every column is written
     JobRec* raw = rec.get();
     const std::string id = rec->status.id;
     jobs_.emplace(id, std::move(rec));
@@ -702,8 +702,8 @@ FinishResult Scheduler::finish_result_locked(const std::string& lease, uint64_t 
     if (wr != workers_.end()) ++wr->second.tiles_done;
     const bool new_worker = j.worker_set.insert(w).second;
     if (new_worker) {
+      new_job_workers_.push_back(JobWorkerRow{j.status.id, int64_t(j.status.workers.size()), w});
       j.status.workers.push_back(w);
-      dirty_job_workers_.insert(j.status.id);
     }
     touch_tile(j, tile);
     touch_job(j);
@@ -718,6 +718,7 @@ FinishResult Scheduler::finish_result_locked(const std::string& lease, uint64_t 
       if (new_worker) {
         j.status.workers.pop_back();
         j.worker_set.erase(w);
+        new_job_workers_.pop_back();
       }
       rays_ = rays_before;
       tiles_rendered_ = rendered_before;

@@ -184,9 +184,14 @@ struct JobRow {
   uint64_t seq = 0;                                       ///< Submission order (ties in the queue).
   std::map<std::string, int> worker_failures;             ///< Worker -> failures on this job.
   std::map<std::string, std::string> worker_last_error;   ///< Worker -> its latest error on this job.
-  /// status.workers holds the job's workers; when false it is empty and the stored list is unchanged (a change that
-  /// does not add a worker need not rewrite a list as long as the farm).
-  bool workers_changed = true;
+};
+
+/// A worker that rendered a tile of a job, `index` in the order of their first tiles (status.workers). A job's list
+/// grows a row at a time, so a change never rewrites a list as long as the farm.
+struct JobWorkerRow {
+  std::string job;     ///< Job id.
+  int64_t index = 0;   ///< Position in the job's list.
+  std::string worker;  ///< Worker id.
 };
 
 /// A tile as the store keeps it; `pixels` is set only in the change that makes it done.
@@ -229,14 +234,17 @@ struct CounterRow {
 
 /// What one scheduler operation changed: rows to insert or replace, in one batch.
 struct SchedulerChanges {
-  std::vector<JobRow> jobs;        ///< Changed jobs.
+  std::vector<JobRow> jobs;        ///< Changed jobs (their status.workers is empty: see job_workers).
+  std::vector<JobWorkerRow> job_workers;  ///< Workers added to jobs' lists.
   std::vector<TileRow> tiles;      ///< Changed tiles.
   std::vector<LeaseRow> leases;    ///< Changed leases.
   std::vector<WorkerRow> workers;  ///< New workers, and workers drained or undrained.
   std::vector<std::string> purged_jobs;  ///< Jobs whose every row (job, tiles, leases, record) goes.
   CounterRow counters;             ///< Counters after the operation.
   /// True when nothing but the counters changed.
-  bool empty() const { return jobs.empty() && tiles.empty() && leases.empty() && workers.empty() && purged_jobs.empty(); }
+  bool empty() const {
+    return jobs.empty() && job_workers.empty() && tiles.empty() && leases.empty() && workers.empty() && purged_jobs.empty();
+  }
 };
 
 /// Everything a store holds, for a scheduler starting over it (tile pixels are not loaded).
@@ -467,7 +475,7 @@ class Scheduler {
   std::map<std::string, WorkerRec> workers_;
   SchedulerStore* store_ = nullptr;                   // nullptr: memory only
   std::set<std::string> dirty_jobs_, dirty_leases_, new_workers_;
-  std::set<std::string> dirty_job_workers_;           // dirty jobs whose list of workers changed
+  std::vector<JobWorkerRow> new_job_workers_;         // workers added to jobs' lists since the last flush
   std::set<std::pair<std::string, int64_t>> dirty_tiles_;
   std::set<std::string> purged_jobs_;                 // purged since the last flush
   std::optional<std::pair<std::pair<std::string, int64_t>, std::string_view>> done_pixels_;  // tile -> pixels
