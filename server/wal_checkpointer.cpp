@@ -59,11 +59,21 @@ void WalCheckpointer::loop() {
     cv_.wait(lock, [&] { return stopping_ || due_locked(); });
     if (stopping_) return;
     // The log starts over only after a checkpoint that copied all of it; while commits arrive during every checkpoint
-    // it keeps growing, so once it is long one checkpoint runs with commits held off, finishing it.
-    const bool finish = frames_ >= 8 * threshold_;
+    // it keeps growing, so once it is long, checkpoints catch up with it until little is left, and one copies the
+    // rest with commits held off (as short as that is: a few frames and their flush).
+    const bool finish = frames_ >= kFinishFactor * threshold_;
     lock.unlock();
     int copied = checkpoint();
-    if (finish) held_([&] { copied = checkpoint(); });
+    if (finish) {
+      for (int pass = 0; pass < kCatchUpPasses; ++pass) {
+        lock.lock();
+        const int left = frames_ - copied;
+        lock.unlock();
+        if (left <= threshold_ / 8) break;
+        copied = checkpoint();
+      }
+      held_([&] { copied = checkpoint(); });
+    }
     lock.lock();
     copied_ = frames_ >= copied ? copied : 0;  // a commit since may have seen the log start over
   }

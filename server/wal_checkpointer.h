@@ -24,8 +24,9 @@ class WalCheckpointer {
 
   /// Checkpoints `file` once the log has `threshold` frames (pages) after a commit; with `flush`, each completed
   /// checkpoint flushes the database file (SQLite's synchronous=NORMAL), else nothing is flushed. When the log has
-  /// grown past 8 x `threshold` because commits never paused long enough for a checkpoint to finish it, one
-  /// checkpoint runs inside `held`. Throws StorageError when the file cannot be opened.
+  /// grown past 32 x `threshold` because commits never paused long enough for a checkpoint to finish it, checkpoints
+  /// catch up until an eighth of `threshold` is left, and one checkpoint copies that inside `held`. Throws
+  /// StorageError when the file cannot be opened.
   WalCheckpointer(const std::filesystem::path& file, bool flush, int threshold, WithWritesHeld held);
   /// Waits for a checkpoint in progress, then closes its connection.
   ~WalCheckpointer();
@@ -38,6 +39,8 @@ class WalCheckpointer {
   uint64_t checkpoints() const { return checkpoints_.load(); }
 
  private:
+  static constexpr int kFinishFactor = 32;  // log frames (x threshold) after which it is finished and starts over
+  static constexpr int kCatchUpPasses = 4;   // checkpoints without holding commits before the held one
   void loop();
   int checkpoint();        // one passive checkpoint; the frames of the log it has copied
   bool due_locked() const;  // enough frames beyond those already copied
