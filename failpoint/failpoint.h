@@ -53,7 +53,7 @@ inline constexpr std::array<std::string_view, 10> kNames = {
     "worker.upload.corrupt",  // worker: return(nan|size) uploads a tile with a NaN pixel / one column too few
     "worker.upload.repeat",   // worker: return sends an acknowledged upload once more
     "store.tile_commit",      // coordinator: an upload's transaction is open, its pixels not yet written (no COMMIT)
-    "store.sync",             // coordinator: after a commit, before fdatasync; return makes the flush fail (EIO)
+    "store.sync",             // coordinator: a flush of the log (group commit), before fdatasync; return: it fails (EIO)
     "assembly.paste",         // coordinator: an upload's pixels, before they are pasted into the job's image
     "assembly.write_result",  // coordinator: all tiles done, before the result EXR is written
     "submit.validate",        // coordinator: a job submission, before its scene is loaded and checked
