@@ -206,6 +206,13 @@ inline void hit(std::string_view name, const std::function<bool()>& cancelled = 
   }
 }
 
+/// True when this process was given a setting for `name` (code that could go past the point checks first).
+inline bool is_set(std::string_view name) {
+  Registry& reg = Registry::get();
+  std::lock_guard lock(reg.mu);
+  return reg.points.find(name) != reg.points.end();
+}
+
 }  // namespace tessera::failpoint
 
 #define TESSERA_FAIL_POINT_CHECKED_(name, ...)                                          \
@@ -220,11 +227,18 @@ inline void hit(std::string_view name, const std::function<bool()>& cancelled = 
 /// A fail point whose return(ARG) action calls the handler (the macro's last argument, a callable taking
 /// const std::string&) with ARG; the handler's code exists in test builds only.
 #define TESSERA_FAIL_POINT_RETURN(name, ...) TESSERA_FAIL_POINT_CHECKED_(name, {}, __VA_ARGS__)
+/// True when the test binary was given a setting for the point (false in release builds).
+#define TESSERA_FAIL_POINT_SET(name)                                                       \
+  ([] {                                                                                    \
+    static_assert(::tessera::failpoint::known(name), "unknown fail point: " name);         \
+    return ::tessera::failpoint::is_set(name);                                             \
+  }())
 
 #else
 
 #define TESSERA_FAIL_POINT(name) ((void)0)
 #define TESSERA_FAIL_POINT_CANCELLABLE(name, cancelled) ((void)0)
 #define TESSERA_FAIL_POINT_RETURN(name, ...) ((void)0)
+#define TESSERA_FAIL_POINT_SET(name) false
 
 #endif

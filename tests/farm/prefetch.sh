@@ -7,7 +7,9 @@
 #   stop   SIGTERM (finish the tile in hand, then exit)                     handed back at once; another worker renders it
 # The state is made certain, not timed: the worker's first upload is held (fail point worker.upload), so it renders
 # tile 1 (leased while tile 0 rendered), asks for tile 2 near the end of that render, and then waits for the upload
-# with tiles 1 and 2 in hand. Each job ends bitwise identical to the single-process render, every tile acknowledged.
+# with tiles 1 and 2 in hand. With two threads (drain, stop) the worker also begins rendering a tile as soon as its
+# lease arrives, so tile 2's render has begun: drained, that render is the one uploaded; stopped, it is cancelled and
+# the tile handed back. Each job ends bitwise identical to the single-process render, every tile acknowledged.
 # Usage: prefetch.sh TESSERA EXR_COMPARE SHARED TESSERA_FP CASE
 source "$(dirname "$0")/common.sh"
 CASE=${5:?prefetch.sh needs a CASE}
@@ -19,7 +21,9 @@ write_sphere_scene "$WORK/s.json" 32 32 16  # 4 tiles of 16x16
 if [ "$CASE" = kill ]; then start_serve --lease-seconds 2 --heartbeat-seconds 1; else start_serve --heartbeat-seconds 1; fi
 start_submit "$WORK/submit.log" "$WORK/s.json" --tile 16 -o "$WORK/out.exr" -q
 
-FAIL_POINTS="worker.upload=pause($WORK/go)" start_worker victim --threads 1
+THREADS=2
+[ "$CASE" != kill ] || THREADS=1
+FAIL_POINTS="worker.upload=pause($WORK/go)" start_worker victim --threads "$THREADS"
 VICTIM=$WORKER_PID
 wait_for paused "$WORK/victim.log" worker.upload || fail "the victim's first upload was not held"
 second_prefetch() { [ "$(grep -c 'granted while rendering' "$WORK/victim.log")" -ge 2 ]; }
@@ -29,7 +33,10 @@ LINE=$(grep 'granted while rendering' "$WORK/victim.log" | sed -n 2p)
 LEASE=$(echo "$LINE" | grep -Eo "next lease [^ ]+" | cut -d' ' -f3)
 TILE=$(echo "$LINE" | grep -Eo "\(tile [0-9]+" | cut -d' ' -f2)
 [ "$TILE" = 2 ] || fail "the prefetched tile is $TILE, not 2"
-log_has "$WORK/victim.log" "tile=2 lease=$LEASE: leased" && fail "the victim started the prefetched tile while its upload was held"
+log_has "$WORK/victim.log" "tile=2 lease=$LEASE: leased" && fail "the victim took up the prefetched tile while its upload was held"
+if [ "$THREADS" = 2 ]; then
+  echo "$LINE" | grep -q "its render begun" || fail "the two-thread victim did not begin the prefetched tile's render"
+fi
 
 case $CASE in
   kill)
@@ -47,6 +54,7 @@ case $CASE in
     release go
     wait_for log_has "$WORK/victim.log" "tile=2 lease=$LEASE: upload accepted" ||
       fail "the drained worker did not render and upload the tile it held"
+    log_has "$WORK/victim.log" "tile=2 lease=$LEASE: rendered in .*begun ahead" || fail "tile 2 was not the render begun ahead"
     start_worker survivor --threads 1
     SURVIVOR=$WORKER_PID
     wait "$SUBMIT_PID" || fail "submit exited with $?"
