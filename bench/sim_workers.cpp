@@ -325,7 +325,8 @@ RunResult run_farm(const Options& opt, const TileBank& bank, const fs::path& bas
   std::vector<tessera::farm::ChildProcess> children;
   children.push_back(tessera::farm::spawn_child(
       {opt.tessera.string(), "serve", "--listen", "127.0.0.1:0", "--data", (dir / "data").string(), "--ready-file",
-       (dir / "ready").string(), "--heartbeat-seconds", std::to_string(opt.heartbeat_seconds)},
+       (dir / "ready").string(), "--heartbeat-seconds", std::to_string(opt.heartbeat_seconds), "--max-connections",
+       std::to_string(std::max(1024, n + 64))},  // one connection per simulated worker, the feeder's, and spare
       "coordinator", dir / "serve.log"));
   const std::string hostport = wait_ready(dir / "ready", children[0]);
   if (hostport.empty()) {

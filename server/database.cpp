@@ -399,12 +399,19 @@ void DurableStore::apply(const SchedulerChanges& c) {
         .bind_text(2, r.name)
         .bind(3, int64_t(r.drained))
         .run();
-  // Only the counters that changed since the last commit.
+  // Only the counters that changed since the last commit. The id sequence is stored a block ahead (the next ids to
+  // hand out are always below the stored value, so a restart continues above every id used): a lease grant, which
+  // takes an id, then writes no counter.
+  CounterRow stored = written_counters_;
+  if (c.counters.next_seq > written_counters_.next_seq) stored.next_seq = c.counters.next_seq + kIdBlock;
+  stored.tiles_rendered = c.counters.tiles_rendered;
+  stored.lease_expiries = c.counters.lease_expiries;
+  stored.rays = c.counters.rays;
   const std::tuple<const char*, uint64_t, uint64_t> counters[] = {
-      {"next_seq", c.counters.next_seq, written_counters_.next_seq},
-      {"tiles_rendered", c.counters.tiles_rendered, written_counters_.tiles_rendered},
-      {"lease_expiries", c.counters.lease_expiries, written_counters_.lease_expiries},
-      {"rays", c.counters.rays, written_counters_.rays}};
+      {"next_seq", stored.next_seq, written_counters_.next_seq},
+      {"tiles_rendered", stored.tiles_rendered, written_counters_.tiles_rendered},
+      {"lease_expiries", stored.lease_expiries, written_counters_.lease_expiries},
+      {"rays", stored.rays, written_counters_.rays}};
   for (const auto& [key, value, written] : counters)
     if (value != written)
       db_.statement("INSERT OR REPLACE INTO meta(key, value) VALUES(?,?)").bind_text(1, key).bind(2, int64_t(value)).run();
@@ -414,7 +421,7 @@ void DurableStore::apply(const SchedulerChanges& c) {
                             "DELETE FROM job_workers WHERE job = ?", "DELETE FROM jobs WHERE id = ?"})
       db_.statement(sql).bind_text(1, job).run();
   tx.commit();
-  written_counters_ = c.counters;
+  written_counters_ = stored;
   if (!c.purged_jobs.empty()) give_back_free_pages();
 }
 

@@ -118,6 +118,8 @@ class DurableStore final : public SchedulerStore, public JobStore {
   static constexpr int kSchemaVersion = 1;
   /// Frames (4 KiB pages) in the write-ahead log that start a checkpoint (SQLite's own default).
   static constexpr int kCheckpointFrames = 1000;
+  /// Ids reserved ahead by each write of the id sequence.
+  static constexpr uint64_t kIdBlock = 1024;
 
   /// Opens or creates the store under `dir`, removing what a crash can leave behind: every file in DIR/tmp/ and the
   /// temp files of interrupted result writes under DIR/jobs/. Throws StorageError (unreadable file, newer schema).
@@ -159,7 +161,7 @@ class DurableStore final : public SchedulerStore, public JobStore {
   void flush_log();             // fdatasync of the write-ahead log, on the group commit's thread
   Durability durability_;
   std::mutex mu_;
-  CounterRow written_counters_;  // as the meta table holds them (mu_)
+  CounterRow written_counters_;  // as the meta table holds them, next_seq the reserved bound (mu_)
   struct LogFile {
     int fd = -1;
     ~LogFile();
