@@ -26,6 +26,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -158,18 +159,25 @@ struct Farm {
   tessera::farm::HttpUrl url;
   int workers = 0;  ///< N, for the feeder's supply of pending tiles.
   std::atomic<bool> stop{false};
+  std::mutex stop_mu;                  ///< With stop_cv: naps end at once when the farm stops.
+  std::condition_variable stop_cv;
   Clock::time_point window_start, window_end;  ///< Measurements count only between these.
 };
 
-/// Sleeps d unless the farm stops first; false when stopped.
-bool nap(const Farm& farm, Clock::duration d) {
-  const auto end = Clock::now() + d;
-  while (!farm.stop.load()) {
-    const auto now = Clock::now();
-    if (now >= end) return true;
-    std::this_thread::sleep_for(std::min<Clock::duration>(end - now, 50ms));
+/// Sleeps d unless the farm stops first; false when stopped. One wake-up per nap (a thousand threads that polled a
+/// flag every 50 ms cost the shared machine more than their requests).
+bool nap(Farm& farm, Clock::duration d) {
+  std::unique_lock lock(farm.stop_mu);
+  return !farm.stop_cv.wait_for(lock, d, [&] { return farm.stop.load(); });
+}
+
+/// Stops the farm: every nap ends.
+void stop_farm(Farm& farm) {
+  {
+    std::lock_guard lock(farm.stop_mu);
+    farm.stop = true;
   }
-  return false;
+  farm.stop_cv.notify_all();
 }
 
 /// One simulated worker: the protocol loop of `tessera worker` with sleeps in place of rendering.
@@ -317,7 +325,8 @@ RunResult run_farm(const Options& opt, const TileBank& bank, const fs::path& bas
   std::vector<tessera::farm::ChildProcess> children;
   children.push_back(tessera::farm::spawn_child(
       {opt.tessera.string(), "serve", "--listen", "127.0.0.1:0", "--data", (dir / "data").string(), "--ready-file",
-       (dir / "ready").string(), "--heartbeat-seconds", std::to_string(opt.heartbeat_seconds)},
+       (dir / "ready").string(), "--heartbeat-seconds", std::to_string(opt.heartbeat_seconds), "--max-connections",
+       std::to_string(std::max(1024, n + 64))},  // one connection per simulated worker, the feeder's, and spare
       "coordinator", dir / "serve.log"));
   const std::string hostport = wait_ready(dir / "ready", children[0]);
   if (hostport.empty()) {
@@ -340,7 +349,7 @@ RunResult run_farm(const Options& opt, const TileBank& bank, const fs::path& bas
   const double serve_cpu0 = process_cpu_seconds(children[0].pid), self_cpu0 = self_cpu_seconds();
   std::this_thread::sleep_until(farm.window_end);
   const double serve_cpu1 = process_cpu_seconds(children[0].pid), self_cpu1 = self_cpu_seconds();
-  farm.stop = true;
+  stop_farm(farm);
   for (std::thread& t : threads) t.join();
   tessera::farm::stop_children(children, 10s);
 

@@ -6,6 +6,9 @@
 #include "core/adaptive.h"
 #include "core/image.h"
 #include "server/auth.h"
+#include "core/file_io.h"
+#include "core/scene_loader.h"
+#include "worker/asset_cache.h"
 #include "worker/child_process.h"
 #include "client/http_client.h"
 
@@ -26,6 +29,12 @@ namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
 namespace {
+
+// Longest wait of a private farm's idle worker between lease requests (a shared coordinator's workers wait up to 2 s).
+constexpr int kPrivateIdleWaitMs = 5;
+
+// The scene or its assets could not be read; the reason was logged (exit status 2).
+struct Refused : std::exception {};
 
 // Writes a fresh random token to a file only this user can read and returns the token.
 std::string write_token_file(const fs::path& path) {
@@ -57,7 +66,7 @@ std::string wait_for_ready(const fs::path& ready, farm::ChildProcess& serve) {
     if (farm::child_exited(serve))
       throw std::runtime_error("the coordinator " + farm::describe_exit(serve) + " before it was ready; its log:\n" +
                                farm::tail_of_file(serve.log, 20));
-    std::this_thread::sleep_for(5ms);
+    std::this_thread::sleep_for(1ms);
   }
   throw std::runtime_error("the coordinator did not write " + ready.string() + " within 30 s; its log:\n" +
                            farm::tail_of_file(serve.log, 20));
@@ -87,32 +96,49 @@ int run_render_farm(const RenderArgs& a) {
     // Fresh tokens per render: other users of this machine cannot submit to or pose as workers of this farm.
     const std::string client_token = write_token_file(dir / "client.token");
     write_token_file(dir / "worker.token");
+    // The private coordinator's folder is thrown away with this command, so nothing in it needs to survive more than
+    // a crash of the coordinator, after which the render fails anyway: it never waits for the disk.
     children.push_back(farm::spawn_child({self, "serve", "--listen", "127.0.0.1:0", "--ready-file", ready.string(),
                                           "--data", (dir / "data").string(), "--client-token-file",
                                           (dir / "client.token").string(), "--worker-token-file",
-                                          (dir / "worker.token").string()},
+                                          (dir / "worker.token").string(), "--durability", "process"},
                                          "coordinator", dir / "serve.log"));
-    const std::string address = wait_for_ready(ready, children[0]);
-    const std::string url = "http://" + address;
-    farm::HttpClient http(farm::parse_http_url(url));
-    http.set_bearer_token(client_token);
     farm::SubmitOptions o = shared_job_options(a);
     o.tile_size = a.farm_tile;
     o.sampling = sampling_settings(a, a.spp.value_or(0));  // 0: the scene's spp
     o.resumable = a.resumable;  // the result then carries the state channels, as `render --resumable` writes them
-    // The workers start once the job is in: their first lease request finds work instead of an empty queue (after
-    // which a worker waits 50-100 ms before asking again).
-    const auto start_workers = [&] {
-      const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
-      const int threads = a.threads > 0 ? a.threads : std::max(1, int(cores) / a.workers);
-      for (int i = 0; i < a.workers; ++i)
-        children.push_back(farm::spawn_child({self, "worker", "--coordinator", url, "--threads", std::to_string(threads),
-                                              "--cache", (dir / "cache").string(), "--name", "local-" + std::to_string(i),
-                                              "--token-file", (dir / "worker.token").string()},
-                                             "worker " + std::to_string(i), dir / ("worker-" + std::to_string(i) + ".log")));
-      if (!a.quiet)
-        std::fprintf(stderr, "coordinator on %s, %d worker(s) with %d thread(s) each\n", url.c_str(), a.workers, threads);
-    };
+    // While the coordinator starts: the scene's assets are hashed and put in the workers' cache, where they would
+    // otherwise fetch them one by one from the coordinator.
+    std::optional<farm::SceneFiles> files;
+    try {
+      files = farm::read_scene_files(o);
+      farm::AssetCache cache(dir / "cache");
+      for (const farm::LocalAsset& asset : files->assets)
+        cache.get(asset.sha256, [&](const std::string&) { return read_file_bytes(asset.file); });
+    } catch (const SceneError& e) {
+      spdlog::error("{}", e.what());
+      rc = 2;
+    } catch (const farm::SubmitError& e) {
+      spdlog::error("{}", e.what());
+      rc = 2;
+    }
+    if (rc == 2) throw Refused();
+    const std::string address = wait_for_ready(ready, children[0]);
+    const std::string url = "http://" + address;
+    farm::HttpClient http(farm::parse_http_url(url));
+    http.set_bearer_token(client_token);
+    // The workers start while the job is submitted: until it is in they ask for work every few milliseconds (a
+    // private farm's coordinator has nothing else to do), so the first lease follows the job's acceptance at once.
+    const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+    const int threads = a.threads > 0 ? a.threads : std::max(1, int(cores) / a.workers);
+    for (int i = 0; i < a.workers; ++i)
+      children.push_back(farm::spawn_child({self, "worker", "--coordinator", url, "--threads", std::to_string(threads),
+                                            "--cache", (dir / "cache").string(), "--name", "local-" + std::to_string(i),
+                                            "--token-file", (dir / "worker.token").string(), "--max-idle-wait-ms",
+                                            std::to_string(kPrivateIdleWaitMs)},
+                                           "worker " + std::to_string(i), dir / ("worker-" + std::to_string(i) + ".log")));
+    if (!a.quiet)
+      std::fprintf(stderr, "coordinator on %s, %d worker(s) with %d thread(s) each\n", url.c_str(), a.workers, threads);
     rc = submit_and_wait(
         http, o, a.output, a.quiet,
         [&] {
@@ -122,7 +148,7 @@ int run_render_farm(const RenderArgs& a) {
           for (size_t i = 1; i < children.size(); ++i) all_workers_gone &= farm::child_exited(children[i]);
           return all_workers_gone || farm::child_exited(children[0]);
         },
-        start_workers);
+        std::move(files));
     if (rc == 0 && (a.half || !a.preview.empty())) {
       const ExrImage img = read_exr(a.output);
       if (a.half) {
@@ -140,17 +166,27 @@ int run_render_farm(const RenderArgs& a) {
       rc = 130;
     }
     show_logs = rc == 1;  // 2: the coordinator refused the job and said why; 130: interrupted
+  } catch (const Refused&) {
+    // said why already (rc 2)
   } catch (const std::exception& e) {
     spdlog::error("render --workers: {}", e.what());
     rc = 1;
     show_logs = true;
   }
-  // Workers first (told twice when the render did not finish, so they drop their tile at once), then the coordinator.
   std::vector<farm::ChildProcess> workers(children.begin() + std::min<size_t>(1, children.size()), children.end());
   std::vector<farm::ChildProcess> serve(children.begin(), children.begin() + std::min<size_t>(1, children.size()));
-  auto killed = farm::stop_children(workers, 5s, rc == 0 ? 1 : 2);
-  const auto killed_serve = farm::stop_children(serve, 5s);
-  killed.insert(killed.end(), killed_serve.begin(), killed_serve.end());
+  std::vector<std::string> killed;
+  if (rc == 0) {
+    // The job is done and its result saved: the workers hold nothing, so everyone stops at once.
+    killed = farm::stop_children(children, 5s);
+    workers.assign(children.begin() + std::min<size_t>(1, children.size()), children.end());
+    serve.assign(children.begin(), children.begin() + std::min<size_t>(1, children.size()));
+  } else {
+    // Workers first (told twice, so they drop their tile at once), then the coordinator.
+    killed = farm::stop_children(workers, 5s, 2);
+    const auto killed_serve = farm::stop_children(serve, 5s);
+    killed.insert(killed.end(), killed_serve.begin(), killed_serve.end());
+  }
   for (const auto& name : killed) spdlog::warn("{} did not stop within 5 s and was killed", name);
   children = serve;
   children.insert(children.end(), workers.begin(), workers.end());

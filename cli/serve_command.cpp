@@ -14,6 +14,11 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
   c->add_option("--listen", a.listen, "HOST:PORT to listen on (beyond loopback only with both tokens; port 0 picks a free one)")->capture_default_str();
   c->add_option("--data", a.data, "Data folder: blobs/, jobs/<id>/ (created if missing)")->required();
   c->add_option("--ready-file", a.ready_file, "Write the bound host:port here once listening");
+  c->add_option("--durability", a.durability,
+                "machine: acknowledged state is flushed to the disk first and survives a power cut; process: nothing "
+                "is flushed, state survives a crash of the coordinator only (for a folder that is thrown away, as "
+                "render --workers does)")
+      ->check(CLI::IsMember({"machine", "process"}))->capture_default_str();
   c->add_option("--lease-seconds", a.lease_seconds, "Lease length in seconds")->check(CLI::Range(0.05, 86400.0))->capture_default_str();
   c->add_option("--worker-failure-limit", a.worker_failure_limit,
                  "Failures on one job after which a worker is blocklisted for that job")
@@ -75,6 +80,7 @@ int run_serve(const ServeArgs& a) {
     server::CoordinatorOptions o;
     std::tie(o.host, o.port) = server::parse_listen_address(a.listen);
     o.data_dir = a.data;
+    o.durability = a.durability == "process" ? server::Durability::process : server::Durability::machine;
     o.lease_seconds = a.lease_seconds;
     o.heartbeat_seconds = a.heartbeat_seconds;
     o.worker_failure_limit = a.worker_failure_limit;
@@ -105,12 +111,13 @@ int run_serve(const ServeArgs& a) {
       spdlog::warn("serving plain HTTP on {}: access tokens and job data travel in clear text; use --tls-cert and "
                    "--tls-key unless this network is private to you (see README, Access and TLS)", bound);
     const auto& t = o.limits.tokens;
-    spdlog::info("coordinator listening on {}://{} (data in {}, leases {}s, heartbeats {}s, tokens: {}{})",
-                 o.tls.enabled() ? "https" : "http", bound,
-                 a.data, a.lease_seconds, a.heartbeat_seconds,
+    spdlog::info("coordinator listening on {}://{} (data in {}{}, leases {}s, heartbeats {}s, tokens: {}{})",
+                 o.tls.enabled() ? "https" : "http", bound, a.data,
+                 o.durability == server::Durability::process ? " never flushed to the disk" : "", a.lease_seconds,
+                 a.heartbeat_seconds,
                  t.complete() ? "client and worker" : t.client.empty() ? (t.worker.empty() ? "none" : "worker only") : "client only",
                  o.tls.client_ca_file.empty() ? "" : ", client certificates required");
-    if (!a.ready_file.empty()) write_file_atomic(a.ready_file, bound + "\n");  // after the log lines above
+    if (!a.ready_file.empty()) server::write_file_replacing(a.ready_file, bound + "\n", o.durability);  // after the log lines above
     coordinator.run();
     return 0;
   } catch (const std::exception& e) {

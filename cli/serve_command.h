@@ -13,6 +13,7 @@ namespace tessera::cli {
 struct ServeArgs {
   std::string listen = "127.0.0.1:8470";  ///< HOST:PORT to bind (port 0: ephemeral).
   std::string data;                       ///< Data folder (blobs, jobs).
+  std::string durability = "machine";     ///< "machine" (flushed before acknowledged) or "process" (never flushed).
   std::string ready_file;                 ///< Written with the bound host:port once listening.
   double lease_seconds = 30;              ///< Lease length.
   int worker_failure_limit = 2;           ///< Failures on one job after which a worker is blocklisted for it.

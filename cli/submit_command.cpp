@@ -46,16 +46,16 @@ CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
 }
 
 int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& o, const std::string& output, bool quiet,
-                    const std::function<bool()>& stop, const std::function<void()>& submitted) {
+                    const std::function<bool()>& stop, std::optional<farm::SceneFiles> files) {
   std::string job;
   try {
     const auto t0 = std::chrono::steady_clock::now();
-    const farm::SubmitResult sub = farm::submit_job(http, o);
+    const farm::SubmitResult sub =
+        files ? farm::submit_job(http, o, std::move(*files)) : farm::submit_job(http, o);
     job = sub.job_id;
     if (!quiet)
       std::fprintf(stderr, "submitted %s as %s (%d assets, %d uploaded)\n", o.scene.c_str(), job.c_str(),
                    sub.assets_total, sub.assets_uploaded);
-    if (submitted) submitted();
     ProgressBar bar(!quiet);
     const farm::JobStatus end = farm::wait_for_job(
         http, job,

@@ -59,9 +59,9 @@ int run_submit(const SubmitArgs& args);
 
 /// Submits, shows progress until the job ends and downloads the result to `output` (when not empty); the shared
 /// core of `submit` and `render --workers`. stop() interrupts the wait (the job is then cancelled). Returns the exit
-/// code as run_submit does; reports errors itself. `submitted`, when set, runs once the job is accepted (before the
-/// wait), e.g. to start the workers that will render it.
+/// code as run_submit does; reports errors itself. `files`, when given, is the scene as already read and hashed
+/// (farm::read_scene_files of the same options).
 int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& options, const std::string& output, bool quiet,
-                    const std::function<bool()>& stop, const std::function<void()>& submitted = {});
+                    const std::function<bool()>& stop, std::optional<farm::SceneFiles> files = std::nullopt);
 
 }  // namespace tessera::cli

@@ -19,6 +19,7 @@ struct WorkerArgs {
   farm::ClientTlsFiles tls; ///< CA and client certificate files for https:// coordinators.
   double connect_timeout_seconds = 3;   ///< Connecting and the TLS handshake.
   double request_timeout_seconds = 30;  ///< Sending a request, and receiving its response.
+  int max_idle_wait_ms = 2000;          ///< Longest wait between lease requests when there is no work.
   bool verbose = false;     ///< Debug logging.
 };
 

@@ -33,14 +33,16 @@ class Backoff {
   std::mt19937_64 rng_;
 };
 
-/// Sleeps for d, waking every 50 ms to ask stop(); returns false when stop() said true (the sleep was cut short).
+/// Sleeps for d, waking every 5 ms to ask stop(); returns false when stop() said true (the sleep was cut short). The
+/// stop flags it watches are set by signal handlers, which cannot wake a waiting thread: the short slice is what
+/// lets a stopped worker exit within milliseconds.
 inline bool sleep_unless(std::chrono::milliseconds d, const std::function<bool()>& stop) {
   const auto end = std::chrono::steady_clock::now() + d;
   while (true) {
     if (stop && stop()) return false;
     const auto now = std::chrono::steady_clock::now();
     if (now >= end) return true;
-    std::this_thread::sleep_for(std::min<std::chrono::steady_clock::duration>(end - now, std::chrono::milliseconds(50)));
+    std::this_thread::sleep_for(std::min<std::chrono::steady_clock::duration>(end - now, std::chrono::milliseconds(5)));
   }
 }
 

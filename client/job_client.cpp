@@ -37,31 +37,40 @@ std::string read_file(const fs::path& path) {
 
 }  // namespace
 
-SubmitResult submit_job(HttpClient& http, const SubmitOptions& o) {
-  json scene;
+SceneFiles read_scene_files(const SubmitOptions& o) {
+  SceneFiles out;
   try {
-    scene = json::parse(read_file(o.scene));
+    out.scene = json::parse(read_file(o.scene));
   } catch (const json::parse_error& e) {
     throw SceneError(o.scene.string() + ": not valid JSON: " + e.what());
   }
   const fs::path base = o.scene.has_parent_path() ? o.scene.parent_path() : fs::path(".");
   const fs::path root = o.asset_root ? *o.asset_root : base;
+  for (const std::string& rel : scene_asset_paths(out.scene)) {
+    const fs::path file = resolve_inside(base, root, rel, "asset '" + rel + "'");
+    out.assets.push_back(LocalAsset{rel, file, sha256_file(file)});
+  }
+  return out;
+}
 
+SubmitResult submit_job(HttpClient& http, const SubmitOptions& o) { return submit_job(http, o, read_scene_files(o)); }
+
+SubmitResult submit_job(HttpClient& http, const SubmitOptions& o, SceneFiles files) {
   SubmitResult out;
   protocol::JobSubmission job;
-  for (const std::string& rel : scene_asset_paths(scene)) {
-    const fs::path file = resolve_inside(base, root, rel, "asset '" + rel + "'");
-    const std::string hash = sha256_file(file);
-    job.assets[rel] = hash;
+  for (const LocalAsset& a : files.assets) {
+    const std::string& hash = a.sha256;
+    job.assets[a.path] = hash;
     ++out.assets_total;
     const HttpResponse head = http.send("HEAD", routes::blob(hash));
     if (head.status == 200) continue;
-    if (head.status != 404) refuse("HEAD " + routes::blob(hash) + " (" + rel + ")", head);
-    const HttpResponse put = http.send("PUT", routes::blob(hash), read_file(file), "application/octet-stream");
-    if (put.status != 201 && put.status != 200) refuse("uploading " + rel, put);
+    if (head.status != 404) refuse("HEAD " + routes::blob(hash) + " (" + a.path + ")", head);
+    const HttpResponse put = http.send("PUT", routes::blob(hash), read_file(a.file), "application/octet-stream");
+    if (put.status != 201 && put.status != 200) refuse("uploading " + a.path, put);
     ++out.assets_uploaded;
   }
 
+  json scene = std::move(files.scene);
   job.scene = std::move(scene);
   job.sampling = o.sampling;
   job.tile_size = o.tile_size;

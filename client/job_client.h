@@ -8,6 +8,8 @@
 #include "protocol/tile.h"
 #include "protocol/worker.h"
 
+#include <nlohmann/json.hpp>
+
 #include <atomic>
 #include <cstdint>
 #include <filesystem>
@@ -46,10 +48,29 @@ struct SubmitResult {
   int assets_uploaded = 0; ///< Assets that were missing and uploaded.
 };
 
+/// One asset a scene uses, on this machine: its path in the scene, its file and the SHA-256 of its bytes.
+struct LocalAsset {
+  std::string path;            ///< As the scene names it.
+  std::filesystem::path file;  ///< Where it is.
+  std::string sha256;          ///< Hash of its bytes (lowercase hex).
+};
+
+/// A scene file read for submission: its JSON and its assets, hashed.
+struct SceneFiles {
+  nlohmann::json scene;            ///< The scene file's JSON.
+  std::vector<LocalAsset> assets;  ///< Every asset it uses.
+};
+
+/// Reads the options' scene and hashes its assets; throws SceneError (unreadable scene, asset outside the allowed
+/// folder) or SubmitError (unreadable asset).
+SceneFiles read_scene_files(const SubmitOptions& options);
+
 /// Hashes the scene's assets, uploads the missing ones (HEAD, then PUT), and POSTs the job, again after Retry-After
 /// while the coordinator answers 503 (its admission pool full). Throws SubmitError with the coordinator's message for
 /// other refusals, TransportError when it is unreachable, SceneError for unreadable scenes.
 SubmitResult submit_job(HttpClient& http, const SubmitOptions& options);
+/// As above, for a scene already read (read_scene_files with the same options).
+SubmitResult submit_job(HttpClient& http, const SubmitOptions& options, SceneFiles files);
 
 /// GET /v1/jobs/{id}; throws SubmitError (404 or other errors) or TransportError.
 JobStatus get_job(HttpClient& http, const std::string& id);

@@ -53,7 +53,7 @@ inline constexpr std::array<std::string_view, 10> kNames = {
     "worker.upload.corrupt",  // worker: return(nan|size) uploads a tile with a NaN pixel / one column too few
     "worker.upload.repeat",   // worker: return sends an acknowledged upload once more
     "store.tile_commit",      // coordinator: an upload's transaction is open, its pixels not yet written (no COMMIT)
-    "store.sync",             // coordinator: after a commit, before fdatasync; return makes the flush fail (EIO)
+    "store.sync",             // coordinator: a flush of the log (group commit), before fdatasync; return: it fails (EIO)
     "assembly.paste",         // coordinator: an upload's pixels, before they are pasted into the job's image
     "assembly.write_result",  // coordinator: all tiles done, before the result EXR is written
     "submit.validate",        // coordinator: a job submission, before its scene is loaded and checked
@@ -206,6 +206,13 @@ inline void hit(std::string_view name, const std::function<bool()>& cancelled = 
   }
 }
 
+/// True when this process was given a setting for `name` (code that could go past the point checks first).
+inline bool is_set(std::string_view name) {
+  Registry& reg = Registry::get();
+  std::lock_guard lock(reg.mu);
+  return reg.points.find(name) != reg.points.end();
+}
+
 }  // namespace tessera::failpoint
 
 #define TESSERA_FAIL_POINT_CHECKED_(name, ...)                                          \
@@ -220,11 +227,18 @@ inline void hit(std::string_view name, const std::function<bool()>& cancelled = 
 /// A fail point whose return(ARG) action calls the handler (the macro's last argument, a callable taking
 /// const std::string&) with ARG; the handler's code exists in test builds only.
 #define TESSERA_FAIL_POINT_RETURN(name, ...) TESSERA_FAIL_POINT_CHECKED_(name, {}, __VA_ARGS__)
+/// True when the test binary was given a setting for the point (false in release builds).
+#define TESSERA_FAIL_POINT_SET(name)                                                       \
+  ([] {                                                                                    \
+    static_assert(::tessera::failpoint::known(name), "unknown fail point: " name);         \
+    return ::tessera::failpoint::is_set(name);                                             \
+  }())
 
 #else
 
 #define TESSERA_FAIL_POINT(name) ((void)0)
 #define TESSERA_FAIL_POINT_CANCELLABLE(name, cancelled) ((void)0)
 #define TESSERA_FAIL_POINT_RETURN(name, ...) ((void)0)
+#define TESSERA_FAIL_POINT_SET(name) false
 
 #endif

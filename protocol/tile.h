@@ -28,7 +28,7 @@ struct TileFailure {
 struct TileInfo {
   int64_t index = 0;                         ///< Tile number.
   PixelWindow window;                        ///< Its pixels, half-open, row 0 at the top.
-  std::string state = "pending";             ///< pending, leased, merging (an upload is being stored) or done.
+  std::string state = "pending";             ///< pending, leased, merging (an upload is being stored or flushed) or done.
   std::optional<std::string> worker;         ///< Worker holding its live lease (leased, merging).
   std::optional<std::string> worker_name;    ///< That worker's name.
   int64_t attempts = 0;                      ///< Leases granted for it.

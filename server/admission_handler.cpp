@@ -36,7 +36,7 @@ void AdmissionHandler::handle_async(HttpRequest&& req, Reply done) noexcept {
   const unsigned version = req.version();
   bool counted = false;
   try {
-    if (!is_submission(req)) return done(inner_.reply(std::move(req)));
+    if (!is_submission(req)) return inner_.handle_async(std::move(req), std::move(done));
     const int limit = opt_.validations + opt_.queue;
     const int ahead = in_flight_.fetch_add(1);
     if (ahead >= limit) {

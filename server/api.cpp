@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <future>
+#include <memory>
 
 namespace tessera::server {
 
@@ -52,12 +54,12 @@ Access route_access(RouteId route, http::verb method) {
 }
 
 Api::Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock, ApiOptions options,
-         EventBus& bus, FarmEvents& events)
+         EventBus& bus, FarmEvents& events, Background background)
     : metrics_(metrics),
       opt_(options),
       jobs_(scheduler, blobs, jobs, metrics, clock,
             AdmissionLimits{opt_.max_queued_jobs, opt_.retry_after_seconds, opt_.max_job_pixels, opt_.max_job_samples},
-            events),
+            events, std::move(background)),
       collector_(jobs_, scheduler, blobs, clock, opt_.retention),
       jobs_handler_(jobs_, collector_),
       tiles_handler_(jobs_),
@@ -101,70 +103,105 @@ std::optional<HttpResponse> Api::early_response(const http::request_header<>& h)
   }
 }
 
-HttpResponse Api::handle(HttpRequest&& req) noexcept {
-  const auto t0 = std::chrono::steady_clock::now();
+HttpResponse Api::refusal(std::exception_ptr error, const HttpRequest& req) const {
   const unsigned version = req.version();
-  std::string label = "unmatched";
-  HttpResponse res;
   try {
-    try {
-      const Route route = match_route(req.target());
-      if (route.id == RouteId::none) {
-        res = json_error(http::status::not_found, "no such endpoint: " + std::string(req.target()), version);
-      } else {
-        label = std::string(req.method_string()) + " " + route.name;
-        if (std::find(route.methods.begin(), route.methods.end(), req.method()) == route.methods.end()) {
-          std::string allow;
-          for (http::verb v : route.methods) allow += (allow.empty() ? "" : ", ") + std::string(http::to_string(v));
-          label = "other " + route.name;
-          res = json_error(http::status::method_not_allowed,
-                           std::string(req.method_string()) + " is not allowed on " + route.name + " (allowed: " + allow + ")", version);
-          res.set(http::field::allow, allow);
-        } else if (auto denied = check_access(route, req.base())) {
-          res = std::move(*denied);
-        } else if (route.id == RouteId::events) {
-          res = events_handler_.open(req).response;  // only the header: reply() is the streaming path
-        } else {
-          res = handler_for(route.id).handle(route.id, route.param, req);
-        }
-      }
-    } catch (const ProtocolError& e) {
-      res = json_error(http::status::bad_request, e.what(), version);
-    } catch (const ApiError& e) {
-      res = json_error(http::status(e.status), e.what(), version);
-      if (e.status == 429) res.set(http::field::retry_after, std::to_string(opt_.retry_after_seconds));
-    } catch (const std::exception& e) {
-      spdlog::error("{} {}: internal error: {}", std::string(req.method_string()), std::string(req.target()), e.what());
-      res = json_error(http::status::internal_server_error, std::string("internal error: ") + e.what(), version);
-    } catch (...) {
-      spdlog::error("{} {}: internal error (unknown exception)", std::string(req.method_string()), std::string(req.target()));
-      res = json_error(http::status::internal_server_error, "internal error", version);
-    }
-    if (req.method() == http::verb::head && !res.body().empty()) {
-      const size_t n = res.body().size();
-      res.body().clear();
-      res.content_length(n);
-    }
-    metrics_.observe_request(label, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    std::rethrow_exception(error);
+  } catch (const ProtocolError& e) {
+    return json_error(http::status::bad_request, e.what(), version);
+  } catch (const ApiError& e) {
+    HttpResponse res = json_error(http::status(e.status), e.what(), version);
+    if (e.status == 429) res.set(http::field::retry_after, std::to_string(opt_.retry_after_seconds));
+    return res;
+  } catch (const std::exception& e) {
+    spdlog::error("{} {}: internal error: {}", std::string(req.method_string()), std::string(req.target()), e.what());
+    return json_error(http::status::internal_server_error, std::string("internal error: ") + e.what(), version);
   } catch (...) {
-    res = HttpResponse{http::status::internal_server_error, version};
-    res.content_length(0);
+    spdlog::error("{} {}: internal error (unknown exception)", std::string(req.method_string()), std::string(req.target()));
+    return json_error(http::status::internal_server_error, "internal error", version);
   }
-  return res;
 }
 
-HttpReply Api::reply(HttpRequest&& req) noexcept {
+void Api::answer(HttpRequest&& req, std::function<void(HttpResponse)> send) noexcept {
+  const auto t0 = std::chrono::steady_clock::now();
+  const unsigned version = req.version();
+  // What every answer gets on its way out, now or later: a HEAD answer loses its body, the route's latency is counted.
+  struct Finish {
+    Api* api;
+    std::chrono::steady_clock::time_point t0;
+    std::string label = "unmatched";
+    bool head = false;
+    std::function<void(HttpResponse)> send;
+    void operator()(HttpResponse res) const noexcept {
+      try {
+        if (head && !res.body().empty()) {
+          const size_t n = res.body().size();
+          res.body().clear();
+          res.content_length(n);
+        }
+        api->metrics_.observe_request(label, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+      } catch (...) {
+        const unsigned v = res.version();
+        res = HttpResponse{http::status::internal_server_error, v};
+        res.content_length(0);
+      }
+      send(std::move(res));
+    }
+  };
+  auto finish = std::make_shared<Finish>(Finish{this, t0, "unmatched", req.method() == http::verb::head, std::move(send)});
+  try {
+    const Route route = match_route(req.target());
+    if (route.id == RouteId::none) {
+      return (*finish)(json_error(http::status::not_found, "no such endpoint: " + std::string(req.target()), version));
+    }
+    finish->label = std::string(req.method_string()) + " " + route.name;
+    if (std::find(route.methods.begin(), route.methods.end(), req.method()) == route.methods.end()) {
+      std::string allow;
+      for (http::verb v : route.methods) allow += (allow.empty() ? "" : ", ") + std::string(http::to_string(v));
+      finish->label = "other " + route.name;
+      HttpResponse res = json_error(http::status::method_not_allowed,
+                                    std::string(req.method_string()) + " is not allowed on " + route.name + " (allowed: " + allow + ")", version);
+      res.set(http::field::allow, allow);
+      return (*finish)(std::move(res));
+    }
+    if (auto denied = check_access(route, req.base())) return (*finish)(std::move(*denied));
+    if (route.id == RouteId::events) return (*finish)(events_handler_.open(req).response);  // only the header: reply() streams
+    // The request's method and target, for a refusal's log line, once the handler has let go of the request.
+    auto head = std::make_shared<HttpRequest>(req.method(), std::string(req.target()), version);
+    handler_for(route.id).handle_async(route.id, route.param, req, [this, finish, head](HttpResponse res, std::exception_ptr e) {
+      (*finish)(e ? refusal(e, *head) : std::move(res));
+    });
+  } catch (...) {
+    (*finish)(refusal(std::current_exception(), req));
+  }
+}
+
+HttpResponse Api::handle(HttpRequest&& req) noexcept {
+  std::promise<HttpResponse> promise;
+  std::future<HttpResponse> answered = promise.get_future();
+  answer(std::move(req), [&promise](HttpResponse res) { promise.set_value(std::move(res)); });
+  return answered.get();
+}
+
+void Api::handle_async(HttpRequest&& req, Reply done) noexcept {
   try {
     const Route route = match_route(req.target());
     if (route.id == RouteId::events && req.method() == http::verb::get && !check_access(route, req.base())) {
       metrics_.observe_request("GET " + route.name, 0.0);
-      return events_handler_.open(req);
+      return done(events_handler_.open(req));
     }
   } catch (const std::exception& e) {
     spdlog::error("GET /v1/events: internal error: {}", e.what());
-    return {json_error(http::status::internal_server_error, std::string("internal error: ") + e.what(), req.version()), nullptr};
+    return done({json_error(http::status::internal_server_error, std::string("internal error: ") + e.what(), req.version()), nullptr});
   }
-  return {handle(std::move(req)), nullptr};
+  answer(std::move(req), [done](HttpResponse res) { done({std::move(res), nullptr}); });
+}
+
+HttpReply Api::reply(HttpRequest&& req) noexcept {
+  std::promise<HttpReply> promise;
+  std::future<HttpReply> answered = promise.get_future();
+  handle_async(std::move(req), [&promise](HttpReply r) { promise.set_value(std::move(r)); });
+  return answered.get();
 }
 
 ResourceHandler& Api::handler_for(RouteId route) {

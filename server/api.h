@@ -67,12 +67,15 @@ class Api final : public HttpHandler {
   /// An API over the given state, publishing changes through `events` and streaming `bus` at GET /v1/events; all
   /// references must outlive it.
   Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock, ApiOptions options,
-      EventBus& bus, FarmEvents& events);
+      EventBus& bus, FarmEvents& events, Background background = {});
   std::size_t body_limit(const http::request_header<>& header) override;
   std::optional<HttpResponse> early_response(const http::request_header<>& header) noexcept override;
+  /// Answers a request, waiting for an answer given later (a result upload waits for its flush).
   HttpResponse handle(HttpRequest&& request) noexcept override;
   /// As handle(), but GET /v1/events (once its token is checked) is answered with a stream.
   HttpReply reply(HttpRequest&& request) noexcept override;
+  /// As reply(), without waiting: a result upload's answer comes from the thread that flushed its tile.
+  void handle_async(HttpRequest&& request, Reply done) noexcept override;
   /// After a restart: finishes jobs whose every tile was stored but whose result was not written yet.
   void recover() { jobs_.recover(); }
   /// Purges finished jobs past their retention time and collects unreferenced blobs (see Collector::sweep).
@@ -80,6 +83,10 @@ class Api final : public HttpHandler {
 
  private:
   std::optional<HttpResponse> check_access(const Route& route, const http::request_header<>& header);
+  /// Routes, checks and hands the request to its resource handler; `send` gets the answer once (maybe later).
+  void answer(HttpRequest&& request, std::function<void(HttpResponse)> send) noexcept;
+  /// The answer to a refused request: 400, the ApiError's status, or 500 (logged).
+  HttpResponse refusal(std::exception_ptr error, const HttpRequest& request) const;
   ResourceHandler& handler_for(RouteId route);
 
   Metrics& metrics_;

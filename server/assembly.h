@@ -20,9 +20,10 @@ struct TileCheck {
   Image pixels;                      ///< The tile's RGB pixels (window-sized) when valid.
 };
 
-/// Reads a tile EXR and checks it: float32 R, G, B channels, display window exactly [0,width) x [0,height), data
-/// window exactly `window`, every value finite. Never throws for bad input; the error says what is wrong.
-TileCheck check_tile_exr(const std::filesystem::path& file, const PixelWindow& window, int width, int height);
+/// Decodes an uploaded tile EXR (its bytes, in memory) and checks it: float32 R, G, B channels, display window exactly
+/// [0,width) x [0,height), data window exactly `window`, every value finite. Never throws for bad input; the error
+/// says what is wrong.
+TileCheck check_tile_exr(std::string_view exr, const PixelWindow& window, int width, int height);
 
 /// A validated tile's pixels as stored bytes: its float32 RGB rows in native byte order (little-endian on every
 /// machine the farm runs on), width x height x 12 bytes.
@@ -40,10 +41,11 @@ class JobImage {
   void paste(const Image& tile, const PixelWindow& window);
   /// An sRGB PNG of the image as far as it is filled (black elsewhere).
   std::vector<uint8_t> preview_png();
-  /// Writes the image atomically as a float32 EXR with string metadata (and UINT channels, e.g. a resumable job's state
-  /// channels); throws ImageError naming the file.
-  void write_exr(const std::filesystem::path& path, const std::map<std::string, std::string>& metadata,
-                 std::map<std::string, std::vector<uint32_t>> uint_channels = {});
+  /// Writes the image to `file` as an uncompressed float32 EXR with string metadata (and UINT channels, e.g. a
+  /// resumable job's state channels), straight from the image (a finished 4K frame is 100 MB: no copy of it is made
+  /// in memory); throws ImageError naming the file.
+  void write_exr(const std::filesystem::path& file, const std::map<std::string, std::string>& metadata,
+                 const std::map<std::string, std::vector<uint32_t>>& uint_channels = {});
   /// Frees the pixels (after the result is written).
   void release();
 

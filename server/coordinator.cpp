@@ -68,14 +68,15 @@ void check_access_setup(const std::string& host, const AccessTokens& tokens) {
 struct Coordinator::Impl {
   explicit Impl(CoordinatorOptions o)
       : opt(std::move(o)),
-        blobs(opt.data_dir / "blobs"),
-        store(opt.data_dir),
+        blobs(opt.data_dir / "blobs", opt.durability),
+        store(opt.data_dir, opt.durability),
         sched(SchedulerConfig{int64_t(opt.lease_seconds * 1000.0), opt.tile_failure_workers, opt.worker_failure_limit,
                               random_hex(3)},
               wall_ms, store),
         bus(opt.events, random_hex(4)),
         farm_events(bus),
-        api(sched, blobs, store, metrics, wall_ms, with_heartbeat(opt), bus, farm_events),
+        api(sched, blobs, store, metrics, wall_ms, with_heartbeat(opt), bus, farm_events,
+            [this](std::function<void()> work) { asio::post(pool, std::move(work)); }),  // a finished job's result
         monitor(api, !opt.limits.tokens.client.empty()),
         pool(std::size_t(opt.handler_threads > 0 ? opt.handler_threads : std::max(2u, std::thread::hardware_concurrency()))),
         admission(monitor, opt.admission),

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <tuple>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
@@ -65,6 +66,10 @@ CREATE TABLE IF NOT EXISTS workers(id TEXT PRIMARY KEY, name TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS job_records(id TEXT PRIMARY KEY, record TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS tile_states(job TEXT NOT NULL, idx INTEGER NOT NULL, spp INTEGER NOT NULL, exr BLOB NOT NULL,
   PRIMARY KEY(job, idx));
+-- A job's workers, one row each (a build before this table kept the whole list in jobs.workers, rewritten with
+-- every change of the job; such a list comes first, and a build of that kind reading this file sees only it).
+CREATE TABLE IF NOT EXISTS job_workers(job TEXT NOT NULL, idx INTEGER NOT NULL, worker TEXT NOT NULL,
+  PRIMARY KEY(job, idx));
 )sql";
 
 // Columns added after version 1 was released: older files gain them with these defaults (the schema version stays,
@@ -107,6 +112,13 @@ Statement& Statement::bind_blob(int i, std::string_view v) {
   // A zero-length blob must still be a blob, not NULL: bind a non-null pointer.
   static const char empty = 0;
   if (sqlite3_bind_blob64(stmt_, i, v.empty() ? &empty : v.data(), v.size(), SQLITE_TRANSIENT) != SQLITE_OK)
+    fail(db_, "binding parameter " + std::to_string(i) + " of '" + sql_head(sql_) + "'");
+  return *this;
+}
+
+Statement& Statement::bind_blob_uncopied(int i, std::string_view v) {
+  static const char empty = 0;
+  if (sqlite3_bind_blob64(stmt_, i, v.empty() ? &empty : v.data(), v.size(), SQLITE_STATIC) != SQLITE_OK)
     fail(db_, "binding parameter " + std::to_string(i) + " of '" + sql_head(sql_) + "'");
   return *this;
 }
@@ -202,6 +214,17 @@ Statement& Database::statement(const std::string& sql) {
 
 int64_t Database::changes() const { return sqlite3_changes64(db_); }
 
+void Database::on_commit(std::function<void(int frames)> hook) {
+  commit_hook_ = std::move(hook);
+  sqlite3_wal_hook(
+      db_,
+      [](void* self, sqlite3*, const char*, int frames) {
+        static_cast<Database*>(self)->commit_hook_(frames);
+        return SQLITE_OK;
+      },
+      this);
+}
+
 Transaction::Transaction(Database& db) : db_(db) { db_.exec("BEGIN IMMEDIATE"); }
 
 Transaction::~Transaction() {
@@ -220,15 +243,17 @@ void Transaction::commit() {
 
 // ---- DurableStore
 
-DurableStore::DurableStore(const fs::path& dir)
-    : jobs_dir_(dir / "jobs"), scratch_(dir / "tmp"), db_((make_dirs(dir), dir / "tessera.db")) {
+DurableStore::DurableStore(const fs::path& dir, Durability durability)
+    : durability_(durability), jobs_dir_(dir / "jobs"), scratch_(dir / "tmp"), db_((make_dirs(dir), dir / "tessera.db")),
+      group_([this] { flush_log(); }) {
   make_dirs(jobs_dir_);
   make_dirs(scratch_);
   // Uploads being validated and results being written when the last run was killed.
   leftovers_removed_ = remove_leftovers(scratch_, true) + remove_leftovers(jobs_dir_);
   // Commits survive a process crash without waiting for the disk; sync() makes them survive a power cut when the
-  // scheduler acknowledges something, outside its lock (see SchedulerStore::sync).
-  db_.exec("PRAGMA synchronous=NORMAL");
+  // scheduler acknowledges something, outside its lock (see SchedulerStore::sync). A store that only has to survive
+  // the process lets SQLite skip its own flushes too (at checkpoints and when the file is made).
+  db_.exec(durability_ == Durability::machine ? "PRAGMA synchronous=NORMAL" : "PRAGMA synchronous=OFF");
   // Purged jobs' pages are returned to the file system (see give_back_free_pages). The mode is set before the first
   // table is created; a database made by an older build is rewritten once (VACUUM) to switch to it.
   Statement& mode = db_.statement("PRAGMA auto_vacuum");
@@ -259,23 +284,43 @@ DurableStore::DurableStore(const fs::path& dir)
     db_.statement("INSERT INTO meta(key, value) VALUES('schema_version', ?)").bind(1, int64_t(kSchemaVersion)).run();
   }
   tx.commit();
+  // From here on the log is checkpointed by a thread of its own, never inside a commit.
+  checkpointer_ = std::make_unique<WalCheckpointer>(
+      db_.file(), durability_ == Durability::machine, kCheckpointFrames,
+      [this](const std::function<void()>& checkpoint) {
+        std::lock_guard lock(mu_);
+        checkpoint();
+      });
+  db_.on_commit([this](int frames) { checkpointer_->committed(frames); });
 }
 
-DurableStore::~DurableStore() {
-  if (wal_fd_ >= 0) ::close(wal_fd_);
+DurableStore::~DurableStore() = default;  // group_, then checkpointer_, then db_ (the connection's last checkpoint)
+
+DurableStore::LogFile::~LogFile() {
+  if (fd >= 0) ::close(fd);
 }
 
 void DurableStore::sync() {
+  if (durability_ == Durability::process) return;
+  group_.flush();
+}
+
+void DurableStore::sync_async(std::function<void()> then) {
+  if (durability_ == Durability::process) return then();
+  group_.after_flush(std::move(then));
+}
+
+void DurableStore::flush_log() {
   int fd = -1;
   {
     std::lock_guard lock(wal_mu_);
     struct stat st {};
-    if (wal_fd_ >= 0 && (::fstat(wal_fd_, &st) != 0 || st.st_nlink == 0)) {  // the log was removed and made anew
-      ::close(wal_fd_);
-      wal_fd_ = -1;
+    if (wal_fd_.fd >= 0 && (::fstat(wal_fd_.fd, &st) != 0 || st.st_nlink == 0)) {  // the log was removed and made anew
+      ::close(wal_fd_.fd);
+      wal_fd_.fd = -1;
     }
-    if (wal_fd_ < 0) wal_fd_ = ::open((db_.file().string() + "-wal").c_str(), O_RDONLY | O_CLOEXEC);
-    fd = wal_fd_;
+    if (wal_fd_.fd < 0) wal_fd_.fd = ::open((db_.file().string() + "-wal").c_str(), O_RDONLY | O_CLOEXEC);
+    fd = wal_fd_.fd;
   }
   bool flush_fails = false;  // set by tests to take the failure path below
   TESSERA_FAIL_POINT_RETURN("store.sync", [&](const std::string&) { flush_fails = true; });
@@ -295,23 +340,30 @@ void DurableStore::apply(const SchedulerChanges& c) {
   for (const JobRow& r : c.jobs) {
     const JobStatus& s = r.status;
     const JobParams& p = s.params;
+    // The job's workers are rows of job_workers; the column keeps the list a database of an older build holds.
     Statement& st = db_.statement(
         "INSERT INTO jobs(id, seq, name, priority, width, height, tile_size, spp, seed, scene_hash, state, created_ms,"
         " started_ms, finished_ms, error, rays, workers, worker_failures, worker_last_error, tile_timeout_s)"
         " VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)"
         " ON CONFLICT(id) DO UPDATE SET priority = excluded.priority, spp = excluded.spp, state = excluded.state,"
         " started_ms = excluded.started_ms,"
-        " finished_ms = excluded.finished_ms, error = excluded.error, rays = excluded.rays, workers = excluded.workers,"
+        " finished_ms = excluded.finished_ms, error = excluded.error, rays = excluded.rays,"
         " worker_failures = excluded.worker_failures, worker_last_error = excluded.worker_last_error");
     st.bind_text(1, s.id).bind(2, int64_t(r.seq)).bind_text(3, p.name).bind(4, int64_t(p.priority));
     st.bind(5, int64_t(p.width)).bind(6, int64_t(p.height)).bind(7, int64_t(p.tile_size)).bind(8, int64_t(p.spp));
     st.bind(9, int64_t(p.seed)).bind_text(10, p.scene_hash).bind_text(11, to_string(s.state)).bind(12, s.created_ms);
     st.bind(13, s.started_ms).bind(14, s.finished_ms);
     if (s.error) st.bind_text(15, *s.error);
-    st.bind(16, int64_t(s.rays)).bind_text(17, json(s.workers).dump()).bind_text(18, json(r.worker_failures).dump());
+    st.bind(16, int64_t(s.rays)).bind_text(17, "[]").bind_text(18, json(r.worker_failures).dump());
     st.bind_text(19, map_json(r.worker_last_error).dump()).bind(20, p.tile_timeout_seconds);
     st.run();
   }
+  for (const JobWorkerRow& r : c.job_workers)
+    db_.statement("INSERT OR REPLACE INTO job_workers(job, idx, worker) VALUES(?,?,?)")
+        .bind_text(1, r.job)
+        .bind(2, r.index)
+        .bind_text(3, r.worker)
+        .run();
   for (const TileRow& r : c.tiles) {
     if (r.pixels) TESSERA_FAIL_POINT("store.tile_commit");
     const std::string failures = map_json(r.failures).dump();
@@ -320,7 +372,7 @@ void DurableStore::apply(const SchedulerChanges& c) {
         "UPDATE tiles SET state = ?, lease = ?, failures = ?, pixels = coalesce(?, pixels), attempts = ?, render_ms = ?,"
         " rays = ?, logs = ? WHERE job = ? AND idx = ?");
     up.bind_text(1, to_string(r.state)).bind_text(2, r.lease).bind_text(3, failures);
-    if (r.pixels) up.bind_blob(4, *r.pixels);
+    if (r.pixels) up.bind_blob_uncopied(4, *r.pixels);  // the tile's bytes outlive this change
     up.bind(5, r.attempts).bind(6, r.render_ms).bind(7, int64_t(r.rays)).bind_text(8, logs);
     up.bind_text(9, r.job).bind(10, r.index);
     up.run();
@@ -329,7 +381,7 @@ void DurableStore::apply(const SchedulerChanges& c) {
         "INSERT INTO tiles(job, idx, state, lease, failures, pixels, attempts, render_ms, rays, logs)"
         " VALUES(?,?,?,?,?,?,?,?,?,?)");
     ins.bind_text(1, r.job).bind(2, r.index).bind_text(3, to_string(r.state)).bind_text(4, r.lease).bind_text(5, failures);
-    if (r.pixels) ins.bind_blob(6, *r.pixels);
+    if (r.pixels) ins.bind_blob_uncopied(6, *r.pixels);
     ins.bind(7, r.attempts).bind(8, r.render_ms).bind(9, int64_t(r.rays)).bind_text(10, logs);
     ins.run();
   }
@@ -347,18 +399,29 @@ void DurableStore::apply(const SchedulerChanges& c) {
         .bind_text(2, r.name)
         .bind(3, int64_t(r.drained))
         .run();
-  const std::pair<const char*, uint64_t> counters[] = {{"next_seq", c.counters.next_seq},
-                                                       {"tiles_rendered", c.counters.tiles_rendered},
-                                                       {"lease_expiries", c.counters.lease_expiries},
-                                                       {"rays", c.counters.rays}};
-  for (const auto& [key, value] : counters)
-    db_.statement("INSERT OR REPLACE INTO meta(key, value) VALUES(?,?)").bind_text(1, key).bind(2, int64_t(value)).run();
+  // Only the counters that changed since the last commit. The id sequence is stored a block ahead (the next ids to
+  // hand out are always below the stored value, so a restart continues above every id used): a lease grant, which
+  // takes an id, then writes no counter.
+  CounterRow stored = written_counters_;
+  if (c.counters.next_seq > written_counters_.next_seq) stored.next_seq = c.counters.next_seq + kIdBlock;
+  stored.tiles_rendered = c.counters.tiles_rendered;
+  stored.lease_expiries = c.counters.lease_expiries;
+  stored.rays = c.counters.rays;
+  const std::tuple<const char*, uint64_t, uint64_t> counters[] = {
+      {"next_seq", stored.next_seq, written_counters_.next_seq},
+      {"tiles_rendered", stored.tiles_rendered, written_counters_.tiles_rendered},
+      {"lease_expiries", stored.lease_expiries, written_counters_.lease_expiries},
+      {"rays", stored.rays, written_counters_.rays}};
+  for (const auto& [key, value, written] : counters)
+    if (value != written)
+      db_.statement("INSERT OR REPLACE INTO meta(key, value) VALUES(?,?)").bind_text(1, key).bind(2, int64_t(value)).run();
   for (const std::string& job : c.purged_jobs)
     for (const char* sql : {"DELETE FROM leases WHERE job = ?", "DELETE FROM tile_states WHERE job = ?",
                             "DELETE FROM tiles WHERE job = ?", "DELETE FROM job_records WHERE id = ?",
-                            "DELETE FROM jobs WHERE id = ?"})
+                            "DELETE FROM job_workers WHERE job = ?", "DELETE FROM jobs WHERE id = ?"})
       db_.statement(sql).bind_text(1, job).run();
   tx.commit();
+  written_counters_ = stored;
   if (!c.purged_jobs.empty()) give_back_free_pages();
 }
 
@@ -383,6 +446,7 @@ SchedulerSnapshot DurableStore::load() {
       else if (key == "lease_expiries") snap.counters.lease_expiries = v;
       else if (key == "rays") snap.counters.rays = v;
     }
+    written_counters_ = snap.counters;
   }
   {
     Statement& st = db_.statement(
@@ -420,6 +484,17 @@ SchedulerSnapshot DurableStore::load() {
       r.worker_last_error = json_map<std::string>(st.text(18), "worker errors");
       s.params.tile_timeout_seconds = st.integer(19);
       snap.jobs.push_back(std::move(r));
+    }
+  }
+  {
+    // Each job's workers after those its row's column lists (an older build wrote the whole list there).
+    std::map<std::string, JobRow*> by_id;
+    for (JobRow& r : snap.jobs) by_id[r.status.id] = &r;
+    Statement& st = db_.statement("SELECT job, worker FROM job_workers ORDER BY job, idx");
+    while (st.step()) {
+      const auto it = by_id.find(st.text(0));
+      if (it == by_id.end()) continue;
+      it->second->status.workers.push_back(st.text(1));
     }
   }
   {
@@ -493,6 +568,10 @@ std::optional<json> DurableStore::load_record(const std::string& job) {
 fs::path DurableStore::result_path(const std::string& job) {
   make_dirs(jobs_dir_ / job);
   return jobs_dir_ / job / "result.exr";
+}
+
+void DurableStore::write_result(const std::string& job, const std::function<void(const fs::path&)>& write) {
+  write_file_replacing(result_path(job), write, durability_);
 }
 
 std::vector<std::pair<int64_t, std::string>> DurableStore::tile_pixels(const std::string& job) {

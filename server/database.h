@@ -1,12 +1,15 @@
-// The coordinator's durable state in one SQLite file (WAL, synchronous=FULL): a small RAII wrapper over the C API and
-// the store that keeps jobs, tiles (with the pixels of done tiles), leases, workers and job records in it.
+// The coordinator's durable state in one SQLite file (WAL): a small RAII wrapper over the C API and the store that keeps
+// jobs, tiles (with the pixels of done tiles), leases, workers and job records in it.
 #pragma once
 
+#include "server/group_commit.h"
 #include "server/scheduler.h"
 #include "server/storage.h"
+#include "server/wal_checkpointer.h"
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -35,6 +38,8 @@ class Statement {
   Statement& bind_text(int i, std::string_view v);
   /// Binds a blob (copied) to parameter `i`.
   Statement& bind_blob(int i, std::string_view v);
+  /// Binds a blob to parameter `i` without copying it: the bytes must stay valid until the statement has run.
+  Statement& bind_blob_uncopied(int i, std::string_view v);
   /// Binds NULL to parameter `i`.
   Statement& bind_null(int i);
   /// Binds an integer or NULL.
@@ -75,6 +80,9 @@ class Database {
   Statement& statement(const std::string& sql);
   /// Rows changed by the last INSERT, UPDATE or DELETE.
   int64_t changes() const;
+  /// Calls `hook` after each commit with the frames now in the write-ahead log, instead of SQLite's own checkpoint
+  /// after commits (so a WalCheckpointer can run them elsewhere).
+  void on_commit(std::function<void(int frames)> hook);
   /// The file it was opened from.
   const std::filesystem::path& file() const { return file_; }
 
@@ -82,6 +90,7 @@ class Database {
   std::filesystem::path file_;
   sqlite3* db_ = nullptr;
   std::map<std::string, std::unique_ptr<Statement>> cache_;
+  std::function<void(int)> commit_hook_;
 };
 
 /// BEGIN IMMEDIATE ... COMMIT; rolls back when destroyed uncommitted.
@@ -107,22 +116,31 @@ class DurableStore final : public SchedulerStore, public JobStore {
  public:
   /// The schema version this build reads and writes.
   static constexpr int kSchemaVersion = 1;
+  /// Frames (4 KiB pages) in the write-ahead log that start a checkpoint (SQLite's own default).
+  static constexpr int kCheckpointFrames = 1000;
+  /// Ids reserved ahead by each write of the id sequence.
+  static constexpr uint64_t kIdBlock = 1024;
 
   /// Opens or creates the store under `dir`, removing what a crash can leave behind: every file in DIR/tmp/ and the
   /// temp files of interrupted result writes under DIR/jobs/. Throws StorageError (unreadable file, newer schema).
-  explicit DurableStore(const std::filesystem::path& dir);
+  explicit DurableStore(const std::filesystem::path& dir, Durability durability = Durability::machine);
   ~DurableStore() override;
 
   void apply(const SchedulerChanges& changes) override;
   SchedulerSnapshot load() override;
-  /// fdatasync of the write-ahead log: commits run with synchronous=NORMAL (safe against a process crash), and this
-  /// makes them safe against a power cut. A failed flush aborts the process (the page cache can no longer be trusted;
-  /// a restart recovers from what is on disk).
+  /// Commits run with synchronous=NORMAL (safe against a process crash); with Durability::machine this waits for an
+  /// fdatasync of the write-ahead log, which makes them safe against a power cut. The flush is a group commit (one
+  /// thread, one fdatasync for every caller that arrived while the previous one ran). A failed flush aborts the
+  /// process (the page cache can no longer be trusted; a restart recovers from what is on disk). With
+  /// Durability::process nothing is flushed.
   void sync() override;
+  /// As sync(), but `then` runs (on the flushing thread) once the flush is done, and the caller does not wait.
+  void sync_async(std::function<void()> then) override;
 
   void save_record(const std::string& job, const nlohmann::json& record) override;
   std::optional<nlohmann::json> load_record(const std::string& job) override;
   std::filesystem::path result_path(const std::string& job) override;
+  void write_result(const std::string& job, const std::function<void(const std::filesystem::path&)>& write) override;
   std::filesystem::path scratch_dir() override { return scratch_; }
   std::vector<std::pair<int64_t, std::string>> tile_pixels(const std::string& job) override;
   void save_tile_state(const std::string& job, int64_t tile, uint32_t spp, std::string_view exr) override;
@@ -135,15 +153,26 @@ class DurableStore final : public SchedulerStore, public JobStore {
   std::filesystem::path database_file() const { return db_.file(); }
   /// How many leftovers of an earlier run the constructor removed.
   size_t leftovers_removed() const { return leftovers_removed_; }
+  /// Flushes of the write-ahead log and acknowledgements that waited for them, so far.
+  GroupCommitStats flushes() { return group_.stats(); }
 
  private:
   void give_back_free_pages();  // after a purge: shrink the file and the log (mu_ held)
+  void flush_log();             // fdatasync of the write-ahead log, on the group commit's thread
+  Durability durability_;
   std::mutex mu_;
+  CounterRow written_counters_;  // as the meta table holds them, next_seq the reserved bound (mu_)
+  struct LogFile {
+    int fd = -1;
+    ~LogFile();
+  };
   std::mutex wal_mu_;   // guards wal_fd_
-  int wal_fd_ = -1;     // the write-ahead log, opened for sync()
+  LogFile wal_fd_;      // the write-ahead log, opened for flush_log() (closed after group_ has stopped)
   std::filesystem::path jobs_dir_, scratch_;
   size_t leftovers_removed_ = 0;
   Database db_;
+  std::unique_ptr<WalCheckpointer> checkpointer_;  // checkpoints db_'s log (stopped before db_ closes)
+  GroupCommit group_;   // last: its thread flushes the log of db_
 };
 
 }  // namespace tessera::server

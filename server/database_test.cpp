@@ -73,6 +73,30 @@ struct DatabaseTest : ::testing::Test {
   }
 };
 
+TEST_F(DatabaseTest, AJobsWorkersAreRowsOfTheirOwnAfterAListAnOlderBuildWrote) {
+  const std::string j = job(192, 64, 64);  // 3 tiles
+  const std::string wa = sched->register_worker("alpha"), wb = sched->register_worker("beta");
+  upload(lease(wa), 1.0f);
+  reopen();
+  {
+    // An older build kept the whole list in the job's row; this one adds its workers after it.
+    Database db(dir / "tessera.db");
+    db.exec("DELETE FROM job_workers");
+    db.exec("UPDATE jobs SET workers = '[\"w-old\", \"" + wa + "\"]' WHERE id = '" + j + "'");
+  }
+  reopen();
+  EXPECT_EQ(sched->job(j)->workers, (std::vector<std::string>{"w-old", wa}));
+  upload(lease(wb), 2.0f);
+  upload(lease(wa), 3.0f);  // already listed: no second row
+  reopen();
+  EXPECT_EQ(sched->job(j)->workers, (std::vector<std::string>{"w-old", wa, wb}));
+  Database db(dir / "tessera.db");
+  Statement& rows = db.statement("SELECT count(*) FROM job_workers WHERE job = ?");
+  rows.bind_text(1, j);
+  ASSERT_TRUE(rows.step());
+  EXPECT_EQ(rows.integer(0), 1) << "one row per worker added, none for those the old list had";
+}
+
 TEST_F(DatabaseTest, EveryPieceOfStateSurvivesAReopen) {
   const std::string j = job(192, 64, 64);  // 3 tiles
   const std::string other = job(64, 64, 64, "other");

@@ -29,6 +29,12 @@ void FarmEvents::job_if_state_changed(const protocol::JobStatus& status) {
   bus_.publish(ev::kJob, dump(json(status)));
 }
 
+bool FarmEvents::published(const std::string& job, protocol::JobState state) {
+  std::lock_guard lock(mu_);
+  const auto it = job_states_.find(job);
+  return it != job_states_.end() && it->second == state;
+}
+
 void FarmEvents::tile(const char* name, const protocol::TileEvent& event) { bus_.publish(name, dump(json(event))); }
 
 void FarmEvents::job_removed(const protocol::PurgeAnswer& purged) {

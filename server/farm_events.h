@@ -26,6 +26,9 @@ class FarmEvents {
   /// Published only when the job's state differs from the last one published for it (e.g. queued -> running at
   /// its first lease).
   void job_if_state_changed(const protocol::JobStatus& status);
+  /// True when `state` is the last state published for the job (job_if_state_changed would publish nothing), so a
+  /// caller can skip taking the job's snapshot.
+  bool published(const std::string& job, protocol::JobState state);
   /// A tile event (protocol::events::kTileLeased, kTileDone or kTileFailed).
   void tile(const char* name, const protocol::TileEvent& event);
   /// An ended job's rows were deleted (purged on request or by the retention sweep).

@@ -51,7 +51,7 @@ protocol::JobStatus JobService::raise_spp(const std::string& id, uint32_t spp) {
   jobs_.save_record(id, sp);
   {
     std::lock_guard lock(mu_);
-    specs_[id] = sp;
+    cache_spec_locked(id, sp, true);
   }
   spdlog::info("job {}: spp raised from {} to {} (was {}), {} lease(s) revoked; every tile continues from its stored "
                "state", id, before.params.spp, spp, to_string(r.was), r.revoked_leases);

@@ -13,6 +13,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <future>
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -53,9 +54,11 @@ const char* to_string(UploadOutcome o) {
 }
 
 JobService::JobService(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock,
-                       AdmissionLimits limits, FarmEvents& events)
+                       AdmissionLimits limits, FarmEvents& events, Background background)
     : sched_(scheduler), blobs_(blobs), jobs_(jobs), metrics_(metrics), clock_(std::move(clock)), limits_(limits),
-      events_(events) {}
+      events_(events), background_(std::move(background)) {
+  if (!background_) background_ = [](std::function<void()> work) { work(); };
+}
 
 int64_t JobService::unfinished_jobs() {
   const SchedulerCounters c = sched_.counters();
@@ -147,7 +150,7 @@ protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
   jobs_.save_record(id, spec);
   {
     std::lock_guard lock(mu_);
-    specs_[id] = spec;
+    cache_spec_locked(id, spec, true);
   }
   sched_.add_job(p, id);
   admit.unlock();
@@ -253,8 +256,27 @@ protocol::JobSpec JobService::spec(const std::string& id) {
   if (!rec) throw ApiError(404, "no record for job " + id);
   const auto spec = rec->get<protocol::JobSpec>();  // records of older versions also carry the job's facts: ignored
   std::lock_guard lock(mu_);
-  specs_.emplace(id, spec);
+  cache_spec_locked(id, spec, false);  // a newer spec cached meanwhile (a raise) stays
   return spec;
+}
+
+std::string JobService::spec_json(const std::string& id) {
+  {
+    std::lock_guard lock(mu_);
+    const auto it = spec_json_.find(id);
+    if (it != spec_json_.end()) return it->second;
+  }
+  spec(id);  // loads the record and caches both forms
+  std::lock_guard lock(mu_);
+  const auto it = spec_json_.find(id);
+  if (it == spec_json_.end()) throw ApiError(404, "no job " + id);  // purged meanwhile
+  return it->second;
+}
+
+void JobService::cache_spec_locked(const std::string& id, const protocol::JobSpec& spec, bool replace) {
+  if (!replace && specs_.count(id)) return;
+  specs_[id] = spec;
+  spec_json_[id] = json(spec).dump();
 }
 
 std::string JobService::result_exr(const std::string& id) {
@@ -308,65 +330,79 @@ protocol::JobStatus JobService::announce(const std::string& job) {
   return s;
 }
 
-UploadOutcome JobService::accept_tile(const std::string& lease, const std::string& exr, uint64_t rays) {
-  auto settled = [&](const ResultClaim& c) -> std::optional<UploadOutcome> {
+UploadOutcome JobService::accept_tile(const std::string& lease, std::string_view exr, uint64_t rays) {
+  std::promise<UploadOutcome> answer;
+  std::future<UploadOutcome> answered = answer.get_future();
+  accept_tile(lease, exr, rays, [&answer](UploadOutcome o, std::exception_ptr error) {
+    if (error) answer.set_exception(error);
+    else answer.set_value(o);
+  });
+  return answered.get();
+}
+
+void JobService::accept_tile(const std::string& lease, std::string_view exr, uint64_t rays, UploadDone done) {
+  // A settled upload's answer: a duplicate only once what it duplicates is on the disk (its merge may have been
+  // committed a moment ago, and the uploader stops retrying on this answer).
+  auto settled = [&](const ResultClaim& c) -> bool {
     switch (c.status) {
       case ResultClaim::unknown: throw ApiError(404, "unknown lease " + lease);
       case ResultClaim::discarded:
         spdlog::info("job {} tile {} worker {}: result discarded (job ended)", c.job, c.tile, c.worker);
-        return UploadOutcome::discarded;
+        done(UploadOutcome::discarded, nullptr);
+        return true;
       case ResultClaim::duplicate:
         spdlog::info("job {} tile {} worker {}: duplicate result acknowledged", c.job, c.tile, c.worker);
-        return UploadOutcome::duplicate;
+        sched_.after_sync([done] { done(UploadOutcome::duplicate, nullptr); });
+        return true;
       case ResultClaim::proceed: break;
     }
-    return std::nullopt;
+    return false;
   };
-  const ResultClaim pre = sched_.check_result(lease);
-  if (auto r = settled(pre)) return *r;
-
-  // Validate outside every lock: the EXR goes to a scratch file because the reader takes a path.
-  const fs::path tmp = jobs_.scratch_dir() / ("result-" + lease + "-" + random_hex(6) + ".exr");
-  {
-    std::ofstream out(tmp, std::ios::binary);
-    out.write(exr.data(), std::streamsize(exr.size()));
-    if (!out.flush()) throw StorageError("cannot write " + tmp.string());
-  }
-  TileCheck check = check_tile_exr(tmp, pre.window, pre.width, pre.height);
-  std::error_code rm_ec;
-  fs::remove(tmp, rm_ec);
-  // A resumable job's tile must carry its exact sums at the job's spp (server/tile_state.h).
-  const std::optional<protocol::SamplingSettings> sampling = resumable_sampling(pre.job);
-  if (!check.error && sampling) check.error = check_tile_state(check.pixels, pre.spp, sampling->replicates);
-  if (check.error) {
-    const FailResult f = sched_.fail(lease, "invalid result: " + *check.error);
-    spdlog::warn("job {} tile {} worker {}: invalid result: {}{}", pre.job, pre.tile, pre.worker, *check.error,
-                 f.job_failed ? " (job failed)" : f.blocklisted ? " (worker blocklisted for the job)" : "");
-    after_failure(pre, "invalid result: " + *check.error, f);
-    throw ApiError(422, "invalid result: " + *check.error);
-  }
-
-  const ResultClaim c = sched_.claim_result(lease);
-  if (auto r = settled(c)) return *r;
-  bool last = false;
   try {
-    // Stored as uploaded, to continue from when the job's spp is raised (while the tile is claimed: no raise comes
-    // between, and a lease of another spp was discarded by the claim).
-    if (sampling) jobs_.save_tile_state(c.job, c.tile, c.spp, exr);
-    // Pasted before the tile counts as done: the upload that finishes the job writes the image, and every other
-    // tile's pixels must be in it by then (pasting identical pixels twice is harmless if the store then fails).
-    image_for(c.job, c.width, c.height)->paste(check.pixels, c.window);  // after a restart, rebuilt from the store first
-    // Durable before acknowledged: the pixels and the tile's done state go to the store in one transaction.
-    last = sched_.finish_result(lease, rays, tile_bytes(check.pixels)).last;
+    const ResultClaim pre = sched_.check_result(lease);
+    if (settled(pre)) return;
+
+    // Validated outside every lock, decoded from memory.
+    TileCheck check = check_tile_exr(exr, pre.window, pre.width, pre.height);
+    // A resumable job's tile must carry its exact sums at the job's spp (server/tile_state.h).
+    const std::optional<protocol::SamplingSettings> sampling = resumable_sampling(pre.job);
+    if (!check.error && sampling) check.error = check_tile_state(check.pixels, pre.spp, sampling->replicates);
+    if (check.error) {
+      const FailResult f = sched_.fail(lease, "invalid result: " + *check.error);
+      spdlog::warn("job {} tile {} worker {}: invalid result: {}{}", pre.job, pre.tile, pre.worker, *check.error,
+                   f.job_failed ? " (job failed)" : f.blocklisted ? " (worker blocklisted for the job)" : "");
+      after_failure(pre, "invalid result: " + *check.error, f);
+      throw ApiError(422, "invalid result: " + *check.error);
+    }
+
+    const ResultClaim c = sched_.claim_result(lease);
+    if (settled(c)) return;
+    try {
+      // Stored as uploaded, to continue from when the job's spp is raised (while the tile is claimed: no raise comes
+      // between, and a lease of another spp was discarded by the claim).
+      if (sampling) jobs_.save_tile_state(c.job, c.tile, c.spp, exr);
+      // Pasted before the tile counts as done: the upload that finishes the job writes the image, and every other
+      // tile's pixels must be in it by then (pasting identical pixels twice is harmless if the store then fails).
+      image_for(c.job, c.width, c.height)->paste(check.pixels, c.window);  // after a restart, rebuilt from the store first
+      // Durable before acknowledged: the pixels and the tile's done state go to the store in one transaction, and the
+      // answer waits for the flush that covers it.
+      sched_.finish_result(lease, rays, tile_bytes(check.pixels), [this, c, rays, done](FinishResult r) noexcept {
+        metrics_.add_rays(rays, clock_());
+        spdlog::info("job {} tile {} worker {}: merged", c.job, c.tile, c.worker);
+        events_.tile(protocol::events::kTileDone, {c.job, c.tile, c.worker, std::nullopt, std::nullopt});
+        if (!r.last) return done(UploadOutcome::accepted, nullptr);
+        background_([this, job = c.job, done] {
+          finalize(job);
+          done(UploadOutcome::accepted, nullptr);
+        });
+      });
+    } catch (...) {
+      sched_.abandon_result(lease);
+      throw;
+    }
   } catch (...) {
-    sched_.abandon_result(lease);
-    throw;
+    done(UploadOutcome::accepted, std::current_exception());
   }
-  metrics_.add_rays(rays, clock_());
-  spdlog::info("job {} tile {} worker {}: merged", c.job, c.tile, c.worker);
-  events_.tile(protocol::events::kTileDone, {c.job, c.tile, c.worker, std::nullopt, std::nullopt});
-  if (last) finalize(c.job);
-  return UploadOutcome::accepted;
 }
 
 void JobService::record_failure(const std::string& lease, const protocol::FailReport& report) {
@@ -437,6 +473,7 @@ protocol::JobState JobService::purge(const std::string& id) {
     std::lock_guard lock(mu_);
     images_.erase(id);
     specs_.erase(id);
+    spec_json_.erase(id);
   }
   // The rows are gone (a restart deletes the file if this fails: see recover).
   jobs_.remove_outputs(id);
@@ -491,7 +528,7 @@ void JobService::finalize(const std::string& job) {
     if (resumable)
       state = result_state_channels(jobs_, job, TileGrid(s->params.width, s->params.height, s->params.tile_size),
                                     sampling.spp, sampling.replicates);
-    img->write_exr(jobs_.result_path(job), meta, std::move(state));
+    jobs_.write_result(job, [&](const fs::path& file) { img->write_exr(file, meta, state); });
   } catch (const std::exception& e) {
     spdlog::error("job {}: writing the result failed: {}", job, e.what());
     sched_.fail_job(job, std::string("writing the result failed: ") + e.what());

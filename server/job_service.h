@@ -14,12 +14,15 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <exception>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
 #include <set>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace tessera::server {
@@ -38,13 +41,20 @@ enum class UploadOutcome { accepted, duplicate, discarded };
 /// The name the protocol gives an outcome ("accepted", "duplicate", "discarded").
 const char* to_string(UploadOutcome o);
 
+/// Where an upload's answer goes once it may be given: its outcome, or (error set) the refusal to answer with
+/// (protocol::ApiError, or another exception for a 500).
+using UploadDone = std::function<void(UploadOutcome outcome, std::exception_ptr error)>;
+
+/// Runs work that may take long (writing a finished job's result) somewhere it blocks nobody; by default, at once.
+using Background = std::function<void(std::function<void()>)>;
+
 /// Jobs from submission to result. Thread-safe. Every change of a job, and every tile done or failed, is published
 /// to `events` after it happened.
 class JobService {
  public:
   /// A service over the given state; all references must outlive it.
   JobService(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock,
-             AdmissionLimits limits, FarmEvents& events);
+             AdmissionLimits limits, FarmEvents& events, Background background = {});
 
   /// Checks the submission (asset paths, uploaded assets, the scene as `tessera render` loads it, size limits),
   /// stores its spec and queues it. Throws ApiError: 400 for bad input, 429 when the queue is full.
@@ -72,6 +82,8 @@ class JobService {
   protocol::JobStatus raise_spp(const std::string& id, uint32_t spp);
   /// What workers need to build the job; ApiError 404.
   protocol::JobSpec spec(const std::string& id);
+  /// The spec as its JSON answer, made once per job (not per request); ApiError 404.
+  std::string spec_json(const std::string& id);
   /// A granted lease as answered: for a resumable job, marked so and naming the spp of the tile's stored state.
   protocol::Lease with_state(protocol::Lease lease);
   /// The stored state (EXR bytes) of a lease's tile, to continue from; ApiError 404 when there is none.
@@ -81,9 +93,14 @@ class JobService {
   /// The image as far as it has rendered, as PNG; ApiError 404.
   std::vector<uint8_t> preview_png(const std::string& id);
 
-  /// Validates and merges an uploaded tile (rays add to the job's count); ApiError 404 unknown lease, 422 invalid
-  /// (counted as the worker's failure). The upload that completes the job writes its result.
-  UploadOutcome accept_tile(const std::string& lease, const std::string& exr, uint64_t rays);
+  /// Validates and merges an uploaded tile (rays add to the job's count) and calls `done` once: `accepted` only after
+  /// the tile's pixels are on the disk (a group commit: concurrent uploads share one flush, and no thread waits for
+  /// it), `duplicate` once what it duplicates is, `discarded` at once; refusals ApiError 404 unknown lease, 422
+  /// invalid (counted as the worker's failure). The upload that completes the job writes its result (in the
+  /// background) before it is answered. `exr` is read only before this returns.
+  void accept_tile(const std::string& lease, std::string_view exr, uint64_t rays, UploadDone done);
+  /// As above, waiting for the answer; throws the refusal.
+  UploadOutcome accept_tile(const std::string& lease, std::string_view exr, uint64_t rays);
   /// Records a worker's failure report with the log lines it sent; ApiError 404 for unknown leases.
   void record_failure(const std::string& lease, const protocol::FailReport& report);
   /// Every tile of a job (state, worker, attempts, render time, rays, failures with log lines); ApiError 404.
@@ -127,11 +144,14 @@ class JobService {
   ClockMs clock_;
   AdmissionLimits limits_;
   FarmEvents& events_;
+  Background background_;
   std::mutex mu_;
   std::mutex admit_mu_;                                      // makes the queued-jobs check and add_job one step
   std::mutex raise_mu_;                                      // one raise_spp at a time (checks, scheduler, record)
   std::map<std::string, std::shared_ptr<JobImage>> images_;  // running jobs' images (a cache of the stored tiles)
   std::map<std::string, protocol::JobSpec> specs_;           // a cache of the stored specs
+  std::map<std::string, std::string> spec_json_;             // the same as JSON answers (set and erased with specs_)
+  void cache_spec_locked(const std::string& id, const protocol::JobSpec& spec, bool replace);
 };
 
 }  // namespace tessera::server

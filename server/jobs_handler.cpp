@@ -33,7 +33,7 @@ HttpResponse JobsHandler::handle(Endpoint endpoint, const std::string& id, HttpR
       const std::vector<uint8_t> png = jobs_.preview_png(id);
       return bytes_response(std::string(png.begin(), png.end()), "image/png", v);
     }
-    case Endpoint::job_spec: return json_response(http::status::ok, jobs_.spec(id), v);
+    case Endpoint::job_spec: return bytes_response(jobs_.spec_json(id), "application/json", v);
     case Endpoint::job_retry:
       protocol::parse_empty_request(req.body());
       return json_response(http::status::ok, jobs_.retry(id), v);

@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <charconv>
+#include <future>
 
 namespace tessera::server {
 
@@ -14,7 +15,15 @@ HttpResponse LeasesHandler::handle(Endpoint endpoint, const std::string& id, Htt
   switch (endpoint) {
     case Endpoint::worker_lease: return lease(id, v);
     case Endpoint::lease_heartbeat: return heartbeat(id, req);
-    case Endpoint::lease_result: return result(id, req);
+    case Endpoint::lease_result: {
+      std::promise<HttpResponse> answer;
+      std::future<HttpResponse> answered = answer.get_future();
+      result(id, req, [&answer](HttpResponse res, std::exception_ptr refusal) {
+        if (refusal) answer.set_exception(refusal);
+        else answer.set_value(std::move(res));
+      });
+      return answered.get();
+    }
     case Endpoint::lease_fail:
       jobs_.record_failure(id, protocol::parse_fail_report(req.body()));
       return json_response(http::status::ok, {{"status", "recorded"}}, v);
@@ -35,7 +44,9 @@ HttpResponse LeasesHandler::lease(const std::string& worker, unsigned version) {
   if (r.status == AcquireResult::no_work) return HttpResponse{http::status::no_content, version};
   const Lease l = jobs_.with_state(r.lease);
   spdlog::debug("job {} tile {} worker {}: leased as {}", l.job, l.tile, l.worker, l.id);
-  if (const auto s = sched_.job(l.job)) events_.job_if_state_changed(*s);  // queued -> running at the first lease
+  // queued -> running at the first lease (the snapshot, which lists the job's workers, only then)
+  if (!events_.published(l.job, r.job_state))
+    if (const auto s = sched_.job(l.job)) events_.job_if_state_changed(*s);
   events_.tile(protocol::events::kTileLeased, {l.job, l.tile, l.worker, l.id, std::nullopt});
   return json_response(http::status::ok, l, version);
 }
@@ -50,16 +61,29 @@ HttpResponse LeasesHandler::heartbeat(const std::string& lease, HttpRequest& req
   return json_response(http::status::ok, {{"deadline_ms", h.deadline_ms}}, req.version());
 }
 
-HttpResponse LeasesHandler::result(const std::string& lease, HttpRequest& req) {
+void LeasesHandler::handle_async(Endpoint endpoint, const std::string& id, HttpRequest& req, Answer answer) {
+  if (endpoint != Endpoint::lease_result) return ResourceHandler::handle_async(endpoint, id, req, std::move(answer));
+  try {
+    result(id, req, answer);
+  } catch (...) {
+    answer(HttpResponse{}, std::current_exception());
+  }
+}
+
+void LeasesHandler::result(const std::string& lease, HttpRequest& req, Answer answer) {
   uint64_t rays = 0;
   if (const auto h = req["X-Tessera-Rays"]; !h.empty()) {
     const auto [ptr, ec] = std::from_chars(h.data(), h.data() + h.size(), rays);
     if (ec != std::errc() || ptr != h.data() + h.size())
       throw ApiError(400, "X-Tessera-Rays must be a non-negative integer (got '" + std::string(h) + "')");
   }
-  const UploadOutcome o = jobs_.accept_tile(lease, req.body(), rays);
-  return json_response(o == UploadOutcome::discarded ? http::status::gone : http::status::ok, {{"status", to_string(o)}},
-                       req.version());
+  const unsigned version = req.version();
+  jobs_.accept_tile(lease, req.body(), rays, [answer, version](UploadOutcome o, std::exception_ptr refusal) {
+    if (refusal) return answer(HttpResponse{}, refusal);
+    answer(json_response(o == UploadOutcome::discarded ? http::status::gone : http::status::ok,
+                         {{"status", to_string(o)}}, version),
+           nullptr);
+  });
 }
 
 }  // namespace tessera::server

@@ -17,11 +17,13 @@ class LeasesHandler final : public ResourceHandler {
   LeasesHandler(Scheduler& scheduler, JobService& jobs, Metrics& metrics, ClockMs clock, FarmEvents& events)
       : sched_(scheduler), jobs_(jobs), metrics_(metrics), clock_(std::move(clock)), events_(events) {}
   HttpResponse handle(protocol::Endpoint endpoint, const std::string& id, HttpRequest& req) override;
+  /// Result uploads are answered once their tile is durable (JobService::accept_tile); the rest as handle().
+  void handle_async(protocol::Endpoint endpoint, const std::string& id, HttpRequest& req, Answer answer) override;
 
  private:
   HttpResponse lease(const std::string& worker, unsigned version);
   HttpResponse heartbeat(const std::string& lease, HttpRequest& req);
-  HttpResponse result(const std::string& lease, HttpRequest& req);
+  void result(const std::string& lease, HttpRequest& req, Answer answer);
 
   Scheduler& sched_;
   JobService& jobs_;

@@ -97,6 +97,12 @@ HttpReply MonitorHandler::reply(HttpRequest&& req) noexcept {
   return api_.reply(std::move(req));
 }
 
+void MonitorHandler::handle_async(HttpRequest&& req, Reply done) noexcept {
+  const std::string_view path = path_of(req.target());
+  if (is_monitor_path(path) || path.ends_with("/tiles")) return done({handle(std::move(req)), nullptr});
+  api_.handle_async(std::move(req), std::move(done));
+}
+
 HttpResponse MonitorHandler::serve_static(const HttpRequest& req) const {
   const std::string_view path = path_of(req.target());
   const std::string_view name = path == "/" ? std::string_view("index.html") : path.substr(kPrefix.size());

@@ -19,6 +19,8 @@ class MonitorHandler final : public HttpHandler {
   HttpResponse handle(HttpRequest&& request) noexcept override;
   /// The API's streamed answers (GET /v1/events) pass through; everything else is handle().
   HttpReply reply(HttpRequest&& request) noexcept override;
+  /// As reply(), passing on the API's answers given later (result uploads).
+  void handle_async(HttpRequest&& request, Reply done) noexcept override;
 
  private:
   HttpResponse serve_static(const HttpRequest& req) const;

@@ -2,6 +2,17 @@
 
 namespace tessera::server {
 
+void ResourceHandler::handle_async(protocol::Endpoint endpoint, const std::string& param, HttpRequest& request,
+                                   Answer answer) {
+  HttpResponse res;
+  try {
+    res = handle(endpoint, param, request);
+  } catch (...) {
+    return answer(HttpResponse{}, std::current_exception());
+  }
+  answer(std::move(res), nullptr);
+}
+
 HttpResponse json_response(http::status status, const nlohmann::json& body, unsigned version) {
   HttpResponse res{status, version};
   res.set(http::field::content_type, "application/json");

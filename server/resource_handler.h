@@ -8,9 +8,14 @@
 
 #include <nlohmann/json.hpp>
 
+#include <exception>
+#include <functional>
 #include <string>
 
 namespace tessera::server {
+
+/// Where an answer given later goes: called once, with the response or with the exception that refuses the request.
+using Answer = std::function<void(HttpResponse response, std::exception_ptr refusal)>;
 
 /// Handles the endpoints of one resource.
 class ResourceHandler {
@@ -18,6 +23,9 @@ class ResourceHandler {
   virtual ~ResourceHandler() = default;
   /// Answers a request for `endpoint` (one of this handler's) with the path parameter `param`.
   virtual HttpResponse handle(protocol::Endpoint endpoint, const std::string& param, HttpRequest& request) = 0;
+  /// As handle(), but the answer may come later, from another thread (the request is read only before this returns).
+  /// By default handle() answers at once.
+  virtual void handle_async(protocol::Endpoint endpoint, const std::string& param, HttpRequest& request, Answer answer);
 };
 
 /// A JSON answer.

@@ -91,7 +91,7 @@ Scheduler::~Scheduler() = default;
 // reclaiming) changed goes to the store as one batch before the lock is released (with store_now false, the changes
 // wait for the next operation that stores: for changes a restart may safely forget).
 template <class F>
-auto Scheduler::transact(F&& f, bool store_now) {
+auto Scheduler::transact(F&& f, bool store_now, std::function<void()> durable) {
   std::unique_lock lock(mu_);
   const int64_t now = clock_();
   using R = std::invoke_result_t<F&, int64_t>;
@@ -109,8 +109,17 @@ auto Scheduler::transact(F&& f, bool store_now) {
   if (store_now) flush_locked();
   const bool due = std::exchange(sync_due_, false);
   lock.unlock();
-  if (due) store_->sync();  // outside the lock: other operations go on while the disk catches up
+  // Outside the lock: other operations go on while the disk catches up. With `durable`, the caller does not wait
+  // either: the store runs it once the flush is done.
+  if (due && durable) store_->sync_async(std::move(durable));
+  else if (due) store_->sync();
+  else if (durable) durable();
   return std::move(*r);
+}
+
+void Scheduler::after_sync(std::function<void()> then) {
+  if (store_) store_->sync_async(std::move(then));
+  else then();
 }
 
 void Scheduler::flush_locked() {
@@ -119,6 +128,7 @@ void Scheduler::flush_locked() {
   done_pixels_.reset();
   if (!store_) {
     dirty_jobs_.clear();
+    new_job_workers_.clear();
     dirty_tiles_.clear();
     dirty_leases_.clear();
     new_workers_.clear();
@@ -126,17 +136,23 @@ void Scheduler::flush_locked() {
     sync_needed_ = false;
     return;
   }
-  if (dirty_jobs_.empty() && dirty_tiles_.empty() && dirty_leases_.empty() && new_workers_.empty() &&
-      purged_jobs_.empty() && counters == flushed_counters_)
+  if (dirty_jobs_.empty() && new_job_workers_.empty() && dirty_tiles_.empty() && dirty_leases_.empty() &&
+      new_workers_.empty() && purged_jobs_.empty() && counters == flushed_counters_)
     return;
   SchedulerChanges c;
   c.counters = counters;
   for (const std::string& id : dirty_jobs_) {
     const auto it = jobs_.find(id);
     if (it == jobs_.end()) continue;
-    const JobRec& j = *it->second;
+    JobRec& j = *it->second;
+    // The job's workers (up to every worker of the farm) go as rows of their own (new_job_workers_), not copied here.
+    std::vector<std::string> workers;
+    workers.swap(j.status.workers);
     c.jobs.push_back(JobRow{snapshot_locked(j, 0), j.seq, j.worker_failures, j.worker_last_error});
+    workers.swap(j.status.workers);
   }
+  for (const JobWorkerRow& w : new_job_workers_)
+    if (jobs_.count(w.job)) c.job_workers.push_back(w);
   for (const auto& key : dirty_tiles_) {
     const auto it = jobs_.find(key.first);
     if (it == jobs_.end()) continue;
@@ -158,6 +174,7 @@ void Scheduler::flush_locked() {
   store_->apply(c);
   if (std::exchange(sync_needed_, false)) sync_due_ = true;
   dirty_jobs_.clear();
+  new_job_workers_.clear();
   dirty_tiles_.clear();
   dirty_leases_.clear();
   new_workers_.clear();
@@ -181,6 +198,7 @@ void Scheduler::restore_locked(SchedulerSnapshot snap, int64_t now) {
     const JobParams& p = row.status.params;
     const TileGrid grid(p.width, p.height, p.tile_size);
     rec->status = std::move(row.status);
+    rec->worker_set.insert(rec->status.workers.begin(), rec->status.workers.end());
     rec->status.tiles = TileCounts{grid.count(), 0, 0, 0};
     rec->seq = row.seq;
     rec->worker_failures = std::move(row.worker_failures);
@@ -281,6 +299,7 @@ std::string Scheduler::add_job(const JobParams& p, const std::string& id_in) {
 
 JobStatus Scheduler::snapshot_locked(const JobRec& j, int64_t now) const {
   JobStatus s = j.status;
+  s.tiles.done -= j.unflushed;  // not durable yet: counted with the tiles in progress
   s.tiles.pending = int64_t(j.pending.size());
   s.tiles.leased = s.tiles.total - s.tiles.done - s.tiles.pending;
   if (s.started_ms) s.render_seconds = double(s.finished_ms.value_or(now) - *s.started_ms) / 1000.0;
@@ -312,7 +331,7 @@ std::optional<protocol::TileList> Scheduler::tiles(const std::string& job) {
       protocol::TileInfo v;
       v.index = int64_t(i);
       v.window = grid.window(v.index);
-      v.state = to_string(t.state);
+      v.state = t.unflushed ? to_string(TileState::merging) : to_string(t.state);
       v.attempts = t.attempts;
       if (t.render_ms >= 0) v.render_seconds = double(t.render_ms) / 1000.0;
       v.rays = t.rays;
@@ -391,8 +410,26 @@ void Scheduler::seen_locked(const std::string& worker, int64_t now) {
 
 std::vector<protocol::WorkerInfo> Scheduler::workers() {
   return transact([&](int64_t now) {
+    // Each worker's lease and blocklists, gathered in one pass over the live leases and the jobs (not one per worker).
+    std::map<std::string_view, const Lease*> holding;
+    for (const std::string& lid : live_leases_) {
+      const Lease& l = leases_.at(lid).lease;
+      holding.emplace(l.worker, &l);  // the first in id order, as worker_info_locked picks it
+    }
+    std::map<std::string_view, std::vector<std::string>> blocklists;
+    for (const auto& [jid, j] : jobs_) {
+      if (is_final(j->status.state)) continue;
+      for (const auto& [worker, failures] : j->worker_failures)
+        if (failures >= config_.worker_failure_limit) blocklists[worker].push_back(jid);
+    }
     std::vector<protocol::WorkerInfo> out;
-    for (const auto& [id, w] : workers_) out.push_back(worker_info_locked(id, w, now));
+    out.reserve(workers_.size());
+    for (const auto& [id, w] : workers_) {
+      const auto h = holding.find(id);
+      const auto b = blocklists.find(id);
+      out.push_back(worker_info_locked(id, w, now, h == holding.end() ? nullptr : h->second,
+                                       b == blocklists.end() ? std::vector<std::string>{} : std::move(b->second)));
+    }
     return out;
   });
 }
@@ -410,24 +447,35 @@ std::optional<protocol::WorkerInfo> Scheduler::set_drained(const std::string& wo
 int64_t Scheduler::gone_ms() const { return config_.worker_gone_ms > 0 ? config_.worker_gone_ms : 3 * config_.lease_ms; }
 
 protocol::WorkerInfo Scheduler::worker_info_locked(const std::string& id, const WorkerRec& w, int64_t now) const {
+  const Lease* holding = nullptr;
+  for (const std::string& lid : live_leases_) {
+    const Lease& l = leases_.at(lid).lease;
+    if (l.worker != id) continue;
+    holding = &l;
+    break;
+  }
+  std::vector<std::string> blocklisted_for;
+  for (const auto& [jid, j] : jobs_) {
+    if (is_final(j->status.state)) continue;
+    const auto f = j->worker_failures.find(id);
+    if (f != j->worker_failures.end() && f->second >= config_.worker_failure_limit) blocklisted_for.push_back(jid);
+  }
+  return worker_info_locked(id, w, now, holding, std::move(blocklisted_for));
+}
+
+protocol::WorkerInfo Scheduler::worker_info_locked(const std::string& id, const WorkerRec& w, int64_t now,
+                                                   const Lease* holding, std::vector<std::string> blocklisted_for) const {
   protocol::WorkerInfo info;
   info.id = id;
   info.name = w.name;
   info.threads = w.threads;
   info.tiles_done = w.tiles_done;
   info.last_seen_ms = w.last_seen_ms;
-  for (const std::string& lid : live_leases_) {
-    const Lease& l = leases_.at(lid).lease;
-    if (l.worker != id) continue;
-    info.job = l.job;
-    info.tile = l.tile;
-    break;
+  if (holding) {
+    info.job = holding->job;
+    info.tile = holding->tile;
   }
-  for (const auto& [jid, j] : jobs_) {
-    if (is_final(j->status.state)) continue;
-    const auto f = j->worker_failures.find(id);
-    if (f != j->worker_failures.end() && f->second >= config_.worker_failure_limit) info.blocklisted_for.push_back(jid);
-  }
+  info.blocklisted_for = std::move(blocklisted_for);
   using protocol::WorkerState;
   info.state = now - w.last_seen_ms > gone_ms() ? WorkerState::offline
                : w.drained                      ? WorkerState::draining
@@ -508,6 +556,7 @@ AcquireResult Scheduler::acquire(const std::string& worker) {
       next_expiry_check_ms_ = std::min(next_expiry_check_ms_, expiry_check_ms(rec));
       r.status = AcquireResult::granted;
       r.lease = rec.lease;
+      r.job_state = j->status.state;
       leases_.emplace(rec.lease.id, std::move(rec));
       break;
     }
@@ -589,6 +638,7 @@ ResultClaim Scheduler::claim_result(const std::string& lease) {
       if (other != leases_.end() && other->second.state == LeaseState::live) end_lease_locked(other->second, LeaseState::revoked);
     }
     if (t.state == TileState::pending) j->pending.erase(c.tile);
+    l->live_at_claim = l->state == LeaseState::live;
     if (l->state == LeaseState::live) end_lease_locked(*l, LeaseState::completed);
     t.state = TileState::merging;
     t.lease = lease;
@@ -598,7 +648,36 @@ ResultClaim Scheduler::claim_result(const std::string& lease) {
 }
 
 FinishResult Scheduler::finish_result(const std::string& lease, uint64_t rays, std::string_view pixels) {
-  return transact([&](int64_t now) {
+  std::pair<std::string, int64_t> tile;
+  const FinishResult r = transact([&](int64_t now) { return finish_result_locked(lease, rays, pixels, now, &tile); });
+  flushed(tile.first, tile.second);  // transact returned after the flush
+  return r;
+}
+
+void Scheduler::finish_result(const std::string& lease, uint64_t rays, std::string_view pixels,
+                              std::function<void(FinishResult)> durable) {
+  // Set under the lock, before the store can run the continuation.
+  auto result = std::make_shared<std::pair<FinishResult, std::pair<std::string, int64_t>>>();
+  transact([&](int64_t now) { return result->first = finish_result_locked(lease, rays, pixels, now, &result->second); },
+           /*store_now=*/true, [this, result, durable = std::move(durable)] {
+             flushed(result->second.first, result->second.second);
+             durable(result->first);
+           });
+}
+
+void Scheduler::flushed(const std::string& job, int64_t tile) {
+  std::lock_guard lock(mu_);
+  const auto it = jobs_.find(job);
+  if (it == jobs_.end()) return;  // purged meanwhile
+  Tile& t = it->second->tiles[size_t(tile)];
+  if (!t.unflushed) return;
+  t.unflushed = false;
+  --it->second->unflushed;
+}
+
+FinishResult Scheduler::finish_result_locked(const std::string& lease, uint64_t rays, std::string_view pixels,
+                                             int64_t now, std::pair<std::string, int64_t>* tile_key) {
+  {
     FinishResult r;
     const auto it = leases_.find(lease);
     if (it == leases_.end()) throw std::logic_error("finish_result: unknown lease " + lease);
@@ -608,9 +687,8 @@ FinishResult Scheduler::finish_result(const std::string& lease, uint64_t rays, s
     if (t.state != TileState::merging || t.lease != lease)
       throw std::logic_error("finish_result: tile " + std::to_string(tile) + " of " + j.status.id +
                              " is not claimed by lease " + lease);
-    const JobStatus before = j.status;
     const Tile tile_before = t;
-    const uint64_t rays_before = rays_, rendered_before = tiles_rendered_;
+    const uint64_t rays_before = rays_, rendered_before = tiles_rendered_, job_rays_before = j.status.rays;
     t.state = TileState::done;
     t.lease.clear();
     t.render_ms = std::max<int64_t>(0, now - it->second.granted_ms);
@@ -622,7 +700,11 @@ FinishResult Scheduler::finish_result(const std::string& lease, uint64_t rays, s
     const std::string& w = it->second.lease.worker;
     const auto wr = workers_.find(w);
     if (wr != workers_.end()) ++wr->second.tiles_done;
-    if (std::find(j.status.workers.begin(), j.status.workers.end(), w) == j.status.workers.end()) j.status.workers.push_back(w);
+    const bool new_worker = j.worker_set.insert(w).second;
+    if (new_worker) {
+      new_job_workers_.push_back(JobWorkerRow{j.status.id, int64_t(j.status.workers.size()), w});
+      j.status.workers.push_back(w);
+    }
     touch_tile(j, tile);
     touch_job(j);
     done_pixels_.emplace(std::make_pair(j.status.id, tile), pixels);
@@ -631,25 +713,48 @@ FinishResult Scheduler::finish_result(const std::string& lease, uint64_t rays, s
       flush_locked();  // here rather than after: a tile the store did not take must not look done
     } catch (...) {
       t = tile_before;
-      j.status = before;
+      --j.status.tiles.done;
+      j.status.rays = job_rays_before;
+      if (new_worker) {
+        j.status.workers.pop_back();
+        j.worker_set.erase(w);
+        new_job_workers_.pop_back();
+      }
       rays_ = rays_before;
       tiles_rendered_ = rendered_before;
       if (wr != workers_.end()) --wr->second.tiles_done;
       throw;
     }
+    // Done and committed, but shown as being merged until the flush that makes it durable has returned.
+    t.unflushed = true;
+    ++j.unflushed;
+    *tile_key = {j.status.id, tile};
     r.last = started_and_open(j.status) && j.status.tiles.done == j.status.tiles.total;
     return r;
-  });
+  }
 }
 
 void Scheduler::abandon_result(const std::string& lease) {
-  transact([&](int64_t) {
+  transact([&](int64_t now) {
     const auto it = leases_.find(lease);
     if (it == leases_.end()) return 0;
-    JobRec& j = *jobs_.at(it->second.lease.job);
-    Tile& t = j.tiles[size_t(it->second.lease.tile)];
+    LeaseRec& l = it->second;
+    JobRec& j = *jobs_.at(l.lease.job);
+    Tile& t = j.tiles[size_t(l.lease.tile)];
     if (t.state != TileState::merging || t.lease != lease) return 0;
-    return_to_pending_locked(j, it->second.lease.tile);
+    if (!l.live_at_claim || is_final(j.status.state)) {
+      return_to_pending_locked(j, l.lease.tile);
+      return 0;
+    }
+    // The merge failed on the coordinator's side and the worker retries the upload: the tile stays its, under the
+    // lease it held (live again for a lease length), instead of going to the next worker that asks.
+    t.state = TileState::leased;
+    l.state = LeaseState::live;
+    l.lease.deadline_ms = now + config_.lease_ms;
+    live_leases_.insert(lease);
+    next_expiry_check_ms_ = std::min(next_expiry_check_ms_, expiry_check_ms(l));
+    touch_lease(l);
+    touch_tile(j, l.lease.tile);
     return 0;
   });
 }
@@ -785,6 +890,10 @@ RequeueResult Scheduler::requeue(const std::string& job, int64_t tile) {
     }
     if (t.state == TileState::done) {
       --j.status.tiles.done;
+      if (t.unflushed) {
+        t.unflushed = false;
+        --j.unflushed;
+      }
       t.render_ms = -1;
       t.rays = 0;
       touch_job(j);
@@ -990,6 +1099,10 @@ std::vector<std::string> Scheduler::unfinalized_jobs() {
 
 void Scheduler::return_to_pending_locked(JobRec& j, int64_t tile) {
   Tile& t = j.tiles[size_t(tile)];
+  if (t.unflushed) {  // no longer done: its flush has nothing left to show
+    t.unflushed = false;
+    --j.unflushed;
+  }
   t.state = TileState::pending;
   t.lease.clear();
   j.pending.insert(tile);

@@ -48,6 +48,7 @@ struct SchedulerConfig {
 struct AcquireResult {
   enum Status { granted, no_work, unknown_worker } status = no_work;  ///< What happened.
   Lease lease;  ///< The lease when granted.
+  JobState job_state = JobState::running;  ///< The state of the lease's job after the grant.
 };
 
 /// Outcome of a heartbeat.
@@ -185,6 +186,14 @@ struct JobRow {
   std::map<std::string, std::string> worker_last_error;   ///< Worker -> its latest error on this job.
 };
 
+/// A worker that rendered a tile of a job, `index` in the order of their first tiles (status.workers). A job's list
+/// grows a row at a time, so a change never rewrites a list as long as the farm.
+struct JobWorkerRow {
+  std::string job;     ///< Job id.
+  int64_t index = 0;   ///< Position in the job's list.
+  std::string worker;  ///< Worker id.
+};
+
 /// A tile as the store keeps it; `pixels` is set only in the change that makes it done.
 struct TileRow {
   std::string job;                                ///< Job id.
@@ -225,14 +234,17 @@ struct CounterRow {
 
 /// What one scheduler operation changed: rows to insert or replace, in one batch.
 struct SchedulerChanges {
-  std::vector<JobRow> jobs;        ///< Changed jobs.
+  std::vector<JobRow> jobs;        ///< Changed jobs (their status.workers is empty: see job_workers).
+  std::vector<JobWorkerRow> job_workers;  ///< Workers added to jobs' lists.
   std::vector<TileRow> tiles;      ///< Changed tiles.
   std::vector<LeaseRow> leases;    ///< Changed leases.
   std::vector<WorkerRow> workers;  ///< New workers, and workers drained or undrained.
   std::vector<std::string> purged_jobs;  ///< Jobs whose every row (job, tiles, leases, record) goes.
   CounterRow counters;             ///< Counters after the operation.
   /// True when nothing but the counters changed.
-  bool empty() const { return jobs.empty() && tiles.empty() && leases.empty() && workers.empty() && purged_jobs.empty(); }
+  bool empty() const {
+    return jobs.empty() && job_workers.empty() && tiles.empty() && leases.empty() && workers.empty() && purged_jobs.empty();
+  }
 };
 
 /// Everything a store holds, for a scheduler starting over it (tile pixels are not loaded).
@@ -257,6 +269,12 @@ class SchedulerStore {
   /// operations that acknowledge something (a submission, a done tile, a job's end), so concurrent callers share one
   /// disk flush and lease grants never wait for one.
   virtual void sync() {}
+  /// Runs `then` once every change applied before the call is on the disk, without making the caller wait (from
+  /// any thread; by default at once, after sync()).
+  virtual void sync_async(std::function<void()> then) {
+    sync();
+    then();
+  }
 };
 
 /// The job/tile/lease state machine. Thread-safe: each call takes one lock and is one atomic step. Expired leases are
@@ -314,8 +332,17 @@ class Scheduler {
   ResultClaim claim_result(const std::string& lease);
   /// Marks a claimed tile done with its validated `pixels` (stored with the tile in the same change, so a tile is never
   /// done without them); `rays` adds to the job's count. When the store fails, the tile stays claimed and this throws.
+  /// Returns once the change is on the disk (SchedulerStore::sync).
   FinishResult finish_result(const std::string& lease, uint64_t rays = 0, std::string_view pixels = {});
-  /// Returns a claimed tile to pending (its merge failed for a reason that is not the worker's).
+  /// As finish_result, but returns once the change is committed; `durable` runs (on another thread, or on this one
+  /// when the store does not flush) once it is on the disk: only then may the upload be acknowledged.
+  void finish_result(const std::string& lease, uint64_t rays, std::string_view pixels,
+                     std::function<void(FinishResult)> durable);
+  /// Runs `then` once every change stored so far is on the disk (at once without a store): a duplicate upload is
+  /// acknowledged only once the tile it duplicates is durable.
+  void after_sync(std::function<void()> then);
+  /// Gives up a claimed tile's merge (it failed for a reason that is not the worker's, who retries the upload): the
+  /// tile is leased again by that lease, live for a lease length, when it was live at the claim; else it is pending.
   void abandon_result(const std::string& lease);
 
   /// Records that the lease's worker could not render its tile, with the log lines it sent; see docs/protocol.md for
@@ -371,6 +398,7 @@ class Scheduler {
     int64_t attempts = 0;                            // leases granted
     int64_t render_ms = -1;                          // grant to upload of the accepted result
     uint64_t rays = 0;                               // rays of the accepted result's lease
+    bool unflushed = false;                          // done and committed, its flush not returned yet
   };
   struct JobRec {
     JobStatus status;
@@ -379,12 +407,15 @@ class Scheduler {
     std::set<int64_t> pending;
     std::map<std::string, int> worker_failures;
     std::map<std::string, std::string> worker_last_error;  // worker -> the latest error it reported on this job
+    std::set<std::string> worker_set;                      // status.workers, for lookups
+    int64_t unflushed = 0;                                 // tiles done but not yet flushed (Tile::unflushed)
   };
   struct LeaseRec {
     Lease lease;
     LeaseState state = LeaseState::live;
     int64_t granted_ms = 0;
     uint64_t rays = 0;  // reported by heartbeats (not stored: a restarted lease counts from zero)
+    bool live_at_claim = false;  // it was live when its upload claimed the tile (abandon_result gives it back)
   };
   struct WorkerRec {
     std::string name;
@@ -396,7 +427,7 @@ class Scheduler {
   using QueueKey = std::tuple<int, int64_t, uint64_t>;  // (-priority, created_ms, seq)
 
   template <class F>
-  auto transact(F&& f, bool store_now = true);
+  auto transact(F&& f, bool store_now = true, std::function<void()> durable = {});
   void restore_locked(SchedulerSnapshot snap, int64_t now);
   void flush_locked();
   void touch_job(const JobRec& j) { dirty_jobs_.insert(j.status.id); }
@@ -406,6 +437,9 @@ class Scheduler {
   PauseResult set_paused(const std::string& job, bool paused);  // pause (true) or resume (false)
   int64_t gone_ms() const;  // a worker not seen for this long is offline
   protocol::WorkerInfo worker_info_locked(const std::string& id, const WorkerRec& w, int64_t now) const;
+  // The same from the worker's lease (nullptr: none) and the jobs it is blocklisted for, gathered by the caller.
+  protocol::WorkerInfo worker_info_locked(const std::string& id, const WorkerRec& w, int64_t now, const Lease* holding,
+                                          std::vector<std::string> blocklisted_for) const;
   bool all_present_blocklisted_locked(const JobRec& j, int64_t now, size_t* present) const;
   bool fail_if_all_blocklisted_locked(JobRec& j, int64_t now);
   void expire_locked(int64_t now);
@@ -418,6 +452,10 @@ class Scheduler {
   void end_lease_locked(LeaseRec& l, LeaseState to);
   void finish_job_locked(JobRec& j, JobState to, int64_t now, std::optional<std::string> error);
   ResultClaim claim_view_locked(const std::string& lease, JobRec** job_out, LeaseRec** lease_out);
+  FinishResult finish_result_locked(const std::string& lease, uint64_t rays, std::string_view pixels, int64_t now,
+                                    std::pair<std::string, int64_t>* tile_key);
+  // The tile's done state, committed earlier, is now on the disk: it counts as done in snapshots from now on.
+  void flushed(const std::string& job, int64_t tile);
   JobStatus snapshot_locked(const JobRec& j, int64_t now) const;
   std::string next_id(char kind);
 
@@ -437,6 +475,7 @@ class Scheduler {
   std::map<std::string, WorkerRec> workers_;
   SchedulerStore* store_ = nullptr;                   // nullptr: memory only
   std::set<std::string> dirty_jobs_, dirty_leases_, new_workers_;
+  std::vector<JobWorkerRow> new_job_workers_;         // workers added to jobs' lists since the last flush
   std::set<std::pair<std::string, int64_t>> dirty_tiles_;
   std::set<std::string> purged_jobs_;                 // purged since the last flush
   std::optional<std::pair<std::pair<std::string, int64_t>, std::string_view>> done_pixels_;  // tile -> pixels

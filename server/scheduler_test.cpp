@@ -3,7 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <functional>
 #include <memory>
+#include <optional>
+#include <vector>
 
 namespace tessera::server {
 namespace {
@@ -200,18 +203,36 @@ TEST_F(SchedulerTest, LateUploadWhileTileIsPendingIsAccepted) {
   EXPECT_EQ(s.acquire(a).status, AcquireResult::no_work);
 }
 
-TEST_F(SchedulerTest, AbandonedMergeReturnsTheTile) {
+TEST_F(SchedulerTest, AbandonedMergeKeepsTheTileWithTheLeaseThatUploadedIt) {
   const std::string j = job(0, 64, 64, 64);
   const std::string a = s.register_worker("a");
+  const std::string b = s.register_worker("b");
   const Lease l = lease(a);
   ASSERT_EQ(s.claim_result(l.id).status, ResultClaim::proceed);
   EXPECT_EQ(s.job(j)->tiles.leased, 1);
-  s.abandon_result(l.id);
-  EXPECT_EQ(s.job(j)->tiles.pending, 1);
-  // The worker retries the upload: accepted.
-  EXPECT_EQ(upload(l.id), ResultClaim::proceed);
+  now += 9'000;
+  s.abandon_result(l.id);  // the merge failed on the coordinator's side; the worker retries its upload
+  EXPECT_EQ(s.job(j)->tiles.leased, 1);
+  EXPECT_EQ(s.job(j)->tiles.pending, 0);
+  EXPECT_EQ(s.acquire(b).status, AcquireResult::no_work) << "the tile went to another worker while its upload retried";
+  now += 9'000;  // a lease length from the abandon, not from the grant
+  EXPECT_EQ(s.heartbeat(l.id).status, HeartbeatResult::ok);
+  EXPECT_EQ(upload(l.id), ResultClaim::proceed);  // the retry is accepted
   EXPECT_EQ(s.job(j)->tiles.done, 1);
   EXPECT_THROW(s.finish_result(l.id), std::logic_error);
+}
+
+TEST_F(SchedulerTest, AbandonedMergeOfAnExpiredLeaseReturnsTheTile) {
+  const std::string j = job(0, 64, 64, 64);
+  const std::string a = s.register_worker("a");
+  const Lease l = lease(a);
+  now += 10'001;  // expired: the tile is pending, and a late upload may still claim it
+  ASSERT_EQ(s.claim_result(l.id).status, ResultClaim::proceed);
+  s.abandon_result(l.id);
+  EXPECT_EQ(s.job(j)->tiles.pending, 1);
+  EXPECT_EQ(s.heartbeat(l.id).status, HeartbeatResult::gone);
+  EXPECT_EQ(upload(l.id), ResultClaim::proceed);  // a retry is still accepted
+  EXPECT_EQ(s.job(j)->tiles.done, 1);
 }
 
 TEST_F(SchedulerTest, ReleaseHandsTheTileBackWithoutAFailure) {
@@ -833,6 +854,88 @@ TEST(SchedulerIds, CarryTheTag) {
   Scheduler s{SchedulerConfig{1000, 3, 2, "x7"}, [] { return int64_t(0); }};
   const std::string w = s.register_worker("a");
   EXPECT_EQ(w.rfind("w-x7-", 0), 0u) << w;
+}
+
+
+// A store whose flushes the test completes: sync_async keeps each continuation until flush_all().
+struct DeferredFlushStore final : SchedulerStore {
+  std::vector<std::function<void()>> waiting;
+  void apply(const SchedulerChanges&) override {}
+  SchedulerSnapshot load() override { return {}; }
+  void sync_async(std::function<void()> then) override { waiting.push_back(std::move(then)); }
+  void flush_all() {
+    std::vector<std::function<void()>> now;
+    now.swap(waiting);
+    for (auto& f : now) f();
+  }
+};
+
+TEST(SchedulerFlush, ADoneTileIsAcknowledgedAndCountedOnlyOnceItsFlushReturned) {
+  DeferredFlushStore store;
+  int64_t now = 1'000;
+  Scheduler s(SchedulerConfig{10'000, 3, 2, "f"}, [&] { return now; }, store);
+  const std::string w = s.register_worker("w");
+  JobParams p;
+  p.width = 8;
+  p.height = 4;
+  p.tile_size = 4;
+  p.spp = 1;
+  const std::string j = s.add_job(p);
+  store.flush_all();
+  const std::string pixels(4 * 4 * 3 * sizeof(float), '\0');
+  const Lease l0 = s.acquire(w).lease;
+  ASSERT_EQ(s.claim_result(l0.id).status, ResultClaim::proceed);
+  std::optional<FinishResult> acked;
+  s.finish_result(l0.id, 0, pixels, [&](FinishResult r) { acked = r; });
+  EXPECT_FALSE(acked) << "acknowledged before the flush";
+  JobStatus st = *s.job(j);
+  EXPECT_EQ(st.tiles.done, 0) << "an unflushed tile counted as done";
+  EXPECT_EQ(st.tiles.leased, 1);
+  EXPECT_EQ(s.tiles(j)->tiles[0].state, "merging");
+  // A repeat of the upload is a duplicate, and its answer waits for the same flush.
+  EXPECT_EQ(s.check_result(l0.id).status, ResultClaim::duplicate);
+  bool duplicate_acked = false;
+  s.after_sync([&] { duplicate_acked = true; });
+  EXPECT_FALSE(duplicate_acked);
+  store.flush_all();
+  ASSERT_TRUE(acked);
+  EXPECT_FALSE(acked->last);
+  EXPECT_TRUE(duplicate_acked);
+  st = *s.job(j);
+  EXPECT_EQ(st.tiles.done, 1);
+  EXPECT_EQ(s.tiles(j)->tiles[0].state, "done");
+
+  const Lease l1 = s.acquire(w).lease;
+  ASSERT_EQ(s.claim_result(l1.id).status, ResultClaim::proceed);
+  acked.reset();
+  s.finish_result(l1.id, 0, pixels, [&](FinishResult r) { acked = r; });
+  EXPECT_FALSE(acked);
+  store.flush_all();
+  ASSERT_TRUE(acked);
+  EXPECT_TRUE(acked->last) << "the job's last tile, once durable, finishes it";
+}
+
+TEST(SchedulerFlush, ARequeuedUnflushedTileIsCountedOnce) {
+  DeferredFlushStore store;
+  int64_t now = 1'000;
+  Scheduler s(SchedulerConfig{10'000, 3, 2, "r"}, [&] { return now; }, store);
+  const std::string w = s.register_worker("w");
+  JobParams p;
+  p.width = 8;
+  p.height = 4;
+  p.tile_size = 4;
+  p.spp = 1;
+  const std::string j = s.add_job(p);
+  const Lease l0 = s.acquire(w).lease;
+  ASSERT_EQ(s.claim_result(l0.id).status, ResultClaim::proceed);
+  bool acked = false;
+  s.finish_result(l0.id, 0, std::string(4 * 4 * 3 * sizeof(float), '\0'), [&](FinishResult) { acked = true; });
+  ASSERT_EQ(s.requeue(j, 0).status, RequeueResult::requeued);
+  store.flush_all();
+  EXPECT_TRUE(acked);
+  const JobStatus st = *s.job(j);
+  EXPECT_EQ(st.tiles.done, 0);
+  EXPECT_EQ(st.tiles.pending + st.tiles.leased + st.tiles.done, st.tiles.total);
 }
 
 }  // namespace

@@ -44,7 +44,61 @@ size_t remove_leftovers(const fs::path& dir, bool everything) {
   return doomed.size();
 }
 
-DiskBlobStore::DiskBlobStore(fs::path dir) : dir_(std::move(dir)) {
+void write_file_replacing(const fs::path& path, std::string_view bytes, Durability durability) {
+  if (durability == Durability::machine) return write_file_atomic(path, bytes);
+  const fs::path tmp = path.string() + "." + random_hex(6) + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    out.write(bytes.data(), std::streamsize(bytes.size()));
+    if (!out.flush()) {
+      std::error_code ignored;
+      fs::remove(tmp, ignored);
+      throw StorageError("cannot write " + tmp.string());
+    }
+  }
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    std::error_code ignored;
+    fs::remove(tmp, ignored);
+    throw StorageError("cannot rename " + tmp.string() + " to " + path.string() + ": " + ec.message());
+  }
+}
+
+void write_file_replacing(const fs::path& path, const std::function<void(const fs::path&)>& write, Durability durability) {
+  const fs::path tmp = path.string() + "." + random_hex(6) + ".tmp";
+  const auto discard = [&] {
+    std::error_code ignored;
+    fs::remove(tmp, ignored);
+  };
+  try {
+    write(tmp);
+    if (durability == Durability::machine) {
+      const int fd = ::open(tmp.c_str(), O_RDONLY | O_CLOEXEC);
+      if (fd < 0 || ::fsync(fd) != 0) {
+        const std::string why = std::strerror(errno);
+        if (fd >= 0) ::close(fd);
+        throw StorageError("cannot flush " + tmp.string() + ": " + why);
+      }
+      ::close(fd);
+    }
+    std::error_code ec;
+    fs::rename(tmp, path, ec);
+    if (ec) throw StorageError("cannot rename " + tmp.string() + " to " + path.string() + ": " + ec.message());
+  } catch (...) {
+    discard();
+    throw;
+  }
+  if (durability == Durability::machine) {
+    const int dir = ::open(path.parent_path().c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (dir >= 0) {  // best effort, as for every atomic write: some file systems refuse folder handles
+      ::fsync(dir);
+      ::close(dir);
+    }
+  }
+}
+
+DiskBlobStore::DiskBlobStore(fs::path dir, Durability durability) : dir_(std::move(dir)), durability_(durability) {
   make_dirs(dir_);
   leftovers_removed_ = remove_leftovers(dir_);  // blob writes a crash interrupted
 }
@@ -70,7 +124,7 @@ PutBlobResult DiskBlobStore::put(const std::string& sha, std::string_view bytes)
     return r;
   }
   make_dirs(p.parent_path());
-  write_file_atomic(p, bytes);
+  write_file_replacing(p, bytes, durability_);
   r.status = PutBlobResult::created;
   return r;
 }

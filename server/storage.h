@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -18,6 +19,23 @@ namespace tessera::server {
 
 /// A storage operation that failed for a reason other than the caller's input (disk full, permissions).
 using StorageError = FileError;
+
+/// What a coordinator's stored state survives.
+enum class Durability {
+  machine,  ///< A power cut: what is acknowledged was flushed to the disk first (fsync). `tessera serve`'s default.
+  process,  ///< A crash of the process only: nothing is flushed (the page cache keeps every write). For a private
+            ///< coordinator whose folder dies with the command that started it (`render --workers`).
+};
+
+/// Replaces `path` with `bytes` atomically (temp file, rename), flushed to the disk first for Durability::machine;
+/// throws StorageError naming the file.
+void write_file_replacing(const std::filesystem::path& path, std::string_view bytes, Durability durability);
+
+/// Replaces `path` atomically with a file that `write` makes at the temp path it is given (then flushed for
+/// Durability::machine, and renamed); on failure removes the temp file and rethrows (StorageError for the store's
+/// own steps).
+void write_file_replacing(const std::filesystem::path& path, const std::function<void(const std::filesystem::path&)>& write,
+                          Durability durability);
 
 /// Outcome of storing a blob.
 struct PutBlobResult {
@@ -47,12 +65,12 @@ class BlobStore {
   virtual void remove(const std::string& sha256) = 0;
 };
 
-/// Blobs as files DIR/<2 hex>/<64 hex>, written to a temp file, fsynced and renamed into place.
+/// Blobs as files DIR/<2 hex>/<64 hex>, written to a temp file, fsynced (Durability::machine) and renamed into place.
 class DiskBlobStore final : public BlobStore {
  public:
   /// A store rooted at `dir` (created if missing, temp files of interrupted writes removed); throws StorageError when
   /// it cannot be created or cleaned.
-  explicit DiskBlobStore(std::filesystem::path dir);
+  explicit DiskBlobStore(std::filesystem::path dir, Durability durability = Durability::machine);
   /// How many temp files of interrupted writes the constructor removed.
   size_t leftovers_removed() const { return leftovers_removed_; }
   PutBlobResult put(const std::string& sha256, std::string_view bytes) override;
@@ -66,6 +84,7 @@ class DiskBlobStore final : public BlobStore {
  private:
   std::filesystem::path path_of(const std::string& sha256) const;
   std::filesystem::path dir_;
+  Durability durability_;
   size_t leftovers_removed_ = 0;
 };
 
@@ -77,8 +96,12 @@ class JobStore {
   virtual void save_record(const std::string& job, const nlohmann::json& record) = 0;
   /// The job's record, or nothing when there is none; throws StorageError on unreadable records.
   virtual std::optional<nlohmann::json> load_record(const std::string& job) = 0;
-  /// Where the job's merged image is (to be) written.
+  /// Where the job's merged image is.
   virtual std::filesystem::path result_path(const std::string& job) = 0;
+  /// Writes the job's merged image atomically: `write` fills a temp file beside result_path, which is then flushed to
+  /// the disk (as durably as the store keeps its state) and renamed over it; on failure (what `write` throws, or
+  /// StorageError) nothing is left and the old result stays.
+  virtual void write_result(const std::string& job, const std::function<void(const std::filesystem::path&)>& write) = 0;
   /// A folder for short-lived files (uploads being validated) on the same file system.
   virtual std::filesystem::path scratch_dir() = 0;
   /// The stored pixels of the job's done tiles as (tile number, float32 RGB rows); throws StorageError.

@@ -81,7 +81,7 @@ std::vector<std::string> stop_children(std::vector<ChildProcess>& children, std:
     bool all = true;
     for (auto& c : children) all &= child_exited(c);
     if (all) return {};
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
   std::vector<std::string> killed;
   for (auto& c : children) {

@@ -16,10 +16,13 @@
 
 #include <spdlog/spdlog.h>
 #include <tbb/global_control.h>
+#include <tbb/task_arena.h>
+#include <tbb/task_group.h>
 
 #include <unistd.h>
 
 #include <condition_variable>
+#include <exception>
 #include <limits>
 #include <memory>
 #include <mutex>
@@ -63,41 +66,115 @@ std::string default_name() {
 
 bool retryable_status(int status) { return status >= 500 || status == 408 || status == 429; }
 
-// Heartbeats one lease from its own thread every `period` until stopped; on 410/404 it sets the render's cancel flag,
-// and on a second stop request it cancels for shutdown.
 // A job's built scene and the sampling settings of its spec, cached per job id.
 struct PreparedJob {
   LoadedScene loaded;                   // scene and BVH
   protocol::SamplingSettings sampling;  // the spec's sampling settings
 };
 
-class Heartbeat {
+class TileCompanion;
+
+// What a tile's render and the thread beside it share, made before either: the cancel flag and its reason, the rays
+// so far, and whether the render wants its successor's lease (the companion asks for it as soon as it is attached).
+struct RenderSignals {
+  std::atomic<bool> cancel{false};
+  std::atomic<int> reason{int(Stop::kNone)};
+  std::atomic<uint64_t> rays{0};
+
+  // The render is near its end: ask for the next lease (now, or once a companion is attached).
+  void want_next();
+  // The companion that asks; nullptr detaches it.
+  void attach(TileCompanion* companion);
+
+ private:
+  std::mutex mutex_;
+  TileCompanion* companion_ = nullptr;
+  bool wants_next_ = false;
+};
+
+// The render of a tile begun before the tile that asked for its lease has finished, on the same task arena: the
+// threads that run out of the current tile's thread tiles take this one's, so no core idles at a tile's end or
+// between tiles (pixels do not depend on which thread renders what).
+struct HeadStart {
+  RenderSignals signals;
+  std::shared_ptr<const PreparedJob> scene;
+  tbb::task_group group;            // the render task (waited for before this goes)
+  std::optional<RenderResult> result;
+  std::exception_ptr error;         // what the render threw
+  bool enqueued = false;            // its task is in the arena (to be waited for)
+  std::mutex mutex;                 // with cv: `submitted` turns true once the render task is in `group`
+  std::condition_variable cv;
+  bool submitted = false;
+};
+
+// The next lease, asked for while the current tile rendered, with the time of its grant or last heartbeat, and its
+// render when it was begun already.
+struct PrefetchedLease {
+  Lease lease;
+  std::chrono::steady_clock::time_point beaten;
+  std::shared_ptr<HeadStart> head;
+};
+
+// The thread beside a tile's render: heartbeats the lease every `period` (the first beat after `first_beat`); on
+// 410/404 it sets the render's cancel flag, and on a second stop request it cancels for shutdown. When asked (near the
+// end of the render) it also asks for the worker's next lease, so that the round trip overlaps the render, and
+// heartbeats that lease too until the worker takes it up.
+class TileCompanion {
  public:
-  Heartbeat(HttpClient& http, std::string prefix, std::string lease, std::chrono::milliseconds period,
-            std::atomic<bool>& cancel, std::atomic<int>& reason, const std::atomic<uint64_t>& rays,
-            const std::atomic<int>& stop_requests)
-      : http_(http), prefix_(std::move(prefix)), lease_(std::move(lease)), period_(period), cancel_(cancel),
-        reason_(reason), rays_(rays), stop_requests_(stop_requests), thread_([this] { run(); }) {}
-  ~Heartbeat() {
+  TileCompanion(HttpClient& http, std::string prefix, std::string lease, std::chrono::milliseconds period,
+                std::chrono::milliseconds first_beat, RenderSignals& signals, const std::atomic<int>& stop_requests,
+                std::function<std::optional<PrefetchedLease>()> ask_lease)
+      : http_(http), prefix_(std::move(prefix)), lease_(std::move(lease)), period_(period), first_beat_(first_beat),
+        cancel_(signals.cancel), reason_(signals.reason), rays_(signals.rays), stop_requests_(stop_requests),
+        ask_lease_(std::move(ask_lease)), thread_([this] { run(); }) {}
+  ~TileCompanion() { stop(); }
+  TileCompanion(const TileCompanion&) = delete;
+  TileCompanion& operator=(const TileCompanion&) = delete;
+
+  // Asks for the next lease on the companion's thread (once; never blocks).
+  void ask_next_lease() {
     {
       std::lock_guard lock(mutex_);
+      if (asked_) return;
+      asked_ = true;
+    }
+    cv_.notify_all();
+  }
+
+  // Stops the thread (after a request in flight) and hands over the next lease, if one was granted and is still live.
+  std::optional<PrefetchedLease> finish() {
+    stop();
+    std::lock_guard lock(mutex_);
+    return std::move(next_);
+  }
+
+ private:
+  void stop() {
+    {
+      std::lock_guard lock(mutex_);
+      if (done_) return;
       done_ = true;
     }
     cv_.notify_all();
     thread_.join();
   }
-  Heartbeat(const Heartbeat&) = delete;
-  Heartbeat& operator=(const Heartbeat&) = delete;
 
- private:
   void run() noexcept {
     try {
-      auto next = std::chrono::steady_clock::now() + period_;
+      auto next = std::chrono::steady_clock::now() + first_beat_;
       uint64_t sent_rays = 0;
-      bool stop_noted = false;
+      bool stop_noted = false, fetched = false;
       std::unique_lock lock(mutex_);
-      while (!done_) {
-        cv_.wait_for(lock, 100ms, [&] { return done_; });
+      for (;;) {
+        cv_.wait_for(lock, 100ms, [&] { return done_ || (asked_ && !fetched); });
+        if (asked_ && !fetched) {  // even when the render ended meanwhile: the worker needs its next tile now
+          fetched = true;
+          lock.unlock();
+          std::optional<PrefetchedLease> l = ask_lease_();
+          lock.lock();
+          if (l) next_ = std::move(*l);
+          continue;
+        }
         if (done_) break;
         if (stop_requests_.load() == 1 && !stop_noted) {
           stop_noted = true;
@@ -108,13 +185,30 @@ class Heartbeat {
           cancel_.store(true);
           spdlog::info("{}: asked to stop again, cancelling the render to hand the tile back", prefix_);
         }
-        if (cancel_.load() || std::chrono::steady_clock::now() < next) continue;
+        if (std::chrono::steady_clock::now() < next) continue;
+        const std::optional<std::string> held = next_ ? std::optional<std::string>(next_->lease.id) : std::nullopt;
         lock.unlock();
-        const uint64_t rays = rays_.load();
-        beat(json(protocol::HeartbeatReport{rays - sent_rays}).dump());
-        sent_rays = rays;
+        if (!cancel_.load()) {
+          const uint64_t rays = rays_.load();
+          if (!beat(lease_, json(protocol::HeartbeatReport{rays - sent_rays}).dump())) {
+            reason_.store(int(Stop::kRevoked));
+            cancel_.store(true);
+          }
+          sent_rays = rays;
+        }
+        const bool held_live = !held || beat(*held, "{}");
         next = std::chrono::steady_clock::now() + period_;
         lock.lock();
+        if (held && next_) {
+          if (held_live) {
+            next_->beaten = std::chrono::steady_clock::now();
+          } else if (next_->head) {  // its render, begun already, is stopped; the worker drops the tile
+            next_->head->signals.reason.store(int(Stop::kRevoked));
+            next_->head->signals.cancel.store(true);
+          } else {
+            next_.reset();  // revoked or expired meanwhile: the worker asks again
+          }
+        }
       }
     } catch (const std::exception& e) {
       spdlog::error("{}: heartbeat thread stopped: {}", prefix_, e.what());
@@ -123,34 +217,53 @@ class Heartbeat {
     }
   }
 
-  void beat(const std::string& body) {
+  // One heartbeat; false when the lease is gone (410/404).
+  bool beat(const std::string& lease, const std::string& body) {
     try {
-      const HttpResponse r = http_.send("POST", routes::lease_heartbeat(lease_), body);
-      if (r.status == 200) return;
+      const HttpResponse r = http_.send("POST", routes::lease_heartbeat(lease), body);
+      if (r.status == 200) return true;
+      const std::string which = lease == lease_ ? "heartbeat" : "heartbeat of the next lease " + lease;
       if (r.status == 410 || r.status == 404) {
-        spdlog::info("{}: heartbeat answered {} ({}), cancelling the render", prefix_, r.status, r.error_text());
-        reason_.store(int(Stop::kRevoked));
-        cancel_.store(true);
-        return;
+        spdlog::info("{}: {} answered {} ({}), {}", prefix_, which, r.status, r.error_text(),
+                     lease == lease_ ? "cancelling the render" : "dropping that lease");
+        return false;
       }
-      spdlog::warn("{}: heartbeat answered {}: {}", prefix_, r.status, r.error_text());
+      spdlog::warn("{}: {} answered {}: {}", prefix_, which, r.status, r.error_text());
     } catch (const TransportError& e) {
-      spdlog::warn("{}: heartbeat failed (keeps rendering): {}", prefix_, e.what());
+      spdlog::warn("{}: {} failed (keeps rendering): {}", prefix_, lease == lease_ ? "heartbeat" : "heartbeat of " + lease,
+                   e.what());
     }
+    return true;
   }
 
   HttpClient& http_;
   const std::string prefix_, lease_;
-  const std::chrono::milliseconds period_;
+  const std::chrono::milliseconds period_, first_beat_;
   std::atomic<bool>& cancel_;
   std::atomic<int>& reason_;
   const std::atomic<uint64_t>& rays_;
   const std::atomic<int>& stop_requests_;
+  const std::function<std::optional<PrefetchedLease>()> ask_lease_;
   std::mutex mutex_;
   std::condition_variable cv_;
   bool done_ = false;
+  bool asked_ = false;                   // ask_next_lease was called
+  std::optional<PrefetchedLease> next_;  // its answer, when a lease was granted
   std::thread thread_;  // last: starts after every other member is ready
 };
+
+void RenderSignals::want_next() {
+  std::lock_guard lock(mutex_);
+  if (wants_next_) return;
+  wants_next_ = true;
+  if (companion_) companion_->ask_next_lease();
+}
+
+void RenderSignals::attach(TileCompanion* companion) {
+  std::lock_guard lock(mutex_);
+  companion_ = companion;
+  if (companion_ && wants_next_) companion_->ask_next_lease();
+}
 
 class Worker {
   static constexpr uint64_t kMaxResponse = uint64_t(2) << 30;  // blobs and specs
@@ -170,9 +283,11 @@ class Worker {
         heartbeat_http_(url_, heartbeat_timeouts(opt.timeouts), kMaxResponse, opt.tls),
         upload_http_(url_, opt.timeouts, kMaxResponse, opt.tls),
         cache_(opt.cache_dir.empty() ? default_cache_dir() : opt.cache_dir), scenes_(opt.scene_cache_jobs),
-        idle_(100ms, opt.max_idle_wait), retry_(200ms, opt.max_retry_wait) {
+        idle_(std::min<std::chrono::milliseconds>(100ms, opt.max_idle_wait), opt.max_idle_wait),
+        retry_(200ms, opt.max_retry_wait) {
     name_ = opt.name.empty() ? default_name() : opt.name;
     threads_ = opt.threads > 0 ? opt.threads : int(std::max(1u, std::thread::hardware_concurrency()));
+    arena_.initialize(threads_);
     http_.set_bearer_token(opt.token);
     heartbeat_http_.set_bearer_token(opt.token);
     upload_http_.set_bearer_token(opt.token);
@@ -181,16 +296,22 @@ class Worker {
   WorkerStats run() {
     spdlog::info("worker {} starting: coordinator {}, {} threads, cache {}", name_, url_.to_string(), threads_,
                  cache_.dir().string());
+    std::optional<PrefetchedLease> next;  // asked for while the previous tile rendered
     while (!stopping()) {
       try {
         if (id_.empty() && !register_worker()) continue;
-        std::optional<Lease> lease = request_lease();
+        std::optional<PrefetchedLease> lease = std::exchange(next, std::nullopt);
+        if (!lease) {
+          std::optional<Lease> asked = request_lease();
+          if (asked) lease = PrefetchedLease{std::move(*asked), std::chrono::steady_clock::now(), nullptr};
+        }
         if (!lease) continue;
         if (stopping()) {
-          release(*lease, prefix(*lease));
+          drop_head_start(*lease);
+          release(lease->lease, prefix(lease->lease));
           break;
         }
-        process(*lease);
+        next = process(lease->lease, lease->beaten, std::move(lease->head));
       } catch (const AccessDenied&) {
         throw;
       } catch (const std::exception& e) {
@@ -198,6 +319,10 @@ class Worker {
         spdlog::error("worker {}: {}", id_.empty() ? name_ : id_, e.what());
         sleep_unless(retry_.next(), [&] { return stopping(); });
       }
+    }
+    if (next) {  // asked to stop while holding the next tile: hand it back
+      drop_head_start(*next);
+      release(next->lease, prefix(next->lease));
     }
     uploads_.wait_idle();  // the last tile's upload finishes (a second stop request cuts its retries short)
     std::lock_guard lock(stats_mutex_);
@@ -259,10 +384,121 @@ class Worker {
     return false;
   }
 
+  // One lease request's round trip, kept as a moving average: a render asks for its successor when it has about
+  // this long (times a margin) left.
+  void note_lease_round_trip(std::chrono::steady_clock::time_point t0) {
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    const double old = lease_rtt_ms_.load();
+    lease_rtt_ms_.store(old <= 0 ? ms : 0.8 * old + 0.2 * ms);
+  }
+
+  // The next lease, asked for from the tile companion's thread near the end of a render (on its connection): only a
+  // granted lease is kept; anything else (no work, an error) leaves the asking to the render loop, as before. When
+  // the tile can be rendered at once (its job's scene is built, it continues from no stored state, it fits), its
+  // render is begun on the arena so that threads going idle at the current tile's end take its work.
+  std::optional<PrefetchedLease> prefetch_lease(HttpClient& http, const std::string& pfx) {
+    try {
+      const auto t0 = std::chrono::steady_clock::now();
+      const HttpResponse r = http.send("POST", routes::worker_lease(id_));
+      note_lease_round_trip(t0);
+      if (r.status != 200) return std::nullopt;
+      PrefetchedLease next{protocol::parse_answer<Lease>(r.body, "lease"), std::chrono::steady_clock::now(), nullptr};
+      next.head = head_start(next.lease);
+      spdlog::info("{}: next lease {} (tile {} of job {}) granted while rendering{}", pfx, next.lease.id,
+                   next.lease.tile, next.lease.job, next.head ? ", its render begun" : "");
+      return next;
+    } catch (const std::exception& e) {
+      spdlog::debug("{}: asking for the next lease failed: {}", pfx, e.what());
+      return std::nullopt;
+    }
+  }
+
+  // The options a lease's tile renders with (the same whether it is begun ahead or not).
+  RenderOptions render_options(const Lease& l, const PreparedJob& job, RenderSignals& signals,
+                               const StoredRender* previous) {
+    RenderOptions ro;
+    job.sampling.apply_to(ro);
+    ro.seed = l.seed;
+    ro.spp = l.spp;
+    ro.window = l.window;
+    // Small thread tiles: a farm tile is one worker's whole unit of work (pixels do not depend on this split).
+    ro.tile_size = 8;
+    ro.cancel = &signals.cancel;
+    // Near the end of the render (about two and a half lease round trips left, at the pace so far) the next lease is
+    // asked for, so the threads need not wait for it; it is held only for that short tail.
+    const double lead_s = std::max(0.002, 2.5e-3 * lease_rtt_ms_.load());
+    ro.progress = [&signals, lead_s, this](const RenderProgress& p) {
+      signals.rays.store(p.rays);
+      if (p.tiles_done > 0 && !stopping() &&
+          p.seconds * double(p.tiles_total - p.tiles_done) / double(p.tiles_done) <= lead_s)
+        signals.want_next();
+    };
+    ro.keep_state = l.resumable;
+    ro.previous = previous;
+    return ro;
+  }
+
+  // Begins the render of a tile just leased (see prefetch_lease), or gives nothing when it cannot start now.
+  std::shared_ptr<HeadStart> head_start(const Lease& l) {
+    // Tests that hold or fail renders at their fail points see every render pass them, in order; a worker with
+    // one thread has no second thread to fill a tail with.
+    if (threads_ < 2 || l.state_spp > 0 || stopping() || TESSERA_FAIL_POINT_SET("worker.render") ||
+        TESSERA_FAIL_POINT_SET("worker.render.fail_tiles"))
+      return nullptr;
+    std::shared_ptr<const PreparedJob> job;
+    {
+      std::lock_guard lock(scenes_mutex_);
+      job = scenes_.find(l.job);
+    }
+    if (!job || !PixelWindow{0, 0, job->loaded.scene.width, job->loaded.scene.height}.contains(l.window)) return nullptr;
+    // However it is dropped from here on, its task has ended before it goes.
+    std::shared_ptr<HeadStart> head(new HeadStart, [this](HeadStart* h) {
+      if (h->enqueued) wait_for(*h);
+      delete h;
+    });
+    head->scene = std::move(job);
+    const RenderOptions ro = render_options(l, *head->scene, head->signals, nullptr);
+    // Enqueued into the arena (this thread does not wait): a thread of it takes the task once it has no other work,
+    // i.e. when the current tile's thread tiles run out, and puts the render into the group, which the render loop
+    // then waits for, helping.
+    arena_.enqueue([h = head.get(), ro] {
+      h->group.run([h, ro] {
+        try {
+          h->result = render(h->scene->loaded.scene, ro);
+        } catch (...) {
+          h->error = std::current_exception();
+        }
+      });
+      std::lock_guard lock(h->mutex);
+      h->submitted = true;
+      h->cv.notify_all();
+    });
+    head->enqueued = true;
+    return head;
+  }
+
+  // Waits for a begun render (also when it is to be dropped: its task must end before it goes).
+  void wait_for(HeadStart& head) {
+    {
+      std::unique_lock lock(head.mutex);
+      head.cv.wait(lock, [&] { return head.submitted; });
+    }
+    arena_.execute([&] { head.group.wait(); });
+  }
+
+  // Stops the render begun for a lease that is handed back instead.
+  void drop_head_start(PrefetchedLease& next) {
+    if (!next.head) return;
+    next.head->signals.cancel.store(true);
+    next.head.reset();  // waits for the task
+  }
+
   std::optional<Lease> request_lease() {
     HttpResponse r;
     try {
+      const auto t0 = std::chrono::steady_clock::now();
       r = http_.send("POST", routes::worker_lease(id_));
+      note_lease_round_trip(t0);
     } catch (const TransportError& e) {
       coordinator_down("lease", e);
       return std::nullopt;
@@ -313,7 +549,10 @@ class Worker {
   // The job's scene, built once and kept for its later tiles.
   std::shared_ptr<const PreparedJob> scene_for(const Lease& l, const std::string& pfx,
                                                const std::function<bool()>& interrupted) {
-    if (auto s = scenes_.find(l.job)) return s;
+    {
+      std::lock_guard lock(scenes_mutex_);
+      if (auto s = scenes_.find(l.job)) return s;
+    }
     const auto t0 = std::chrono::steady_clock::now();
     const auto spec = protocol::parse_answer<JobSpec>(fetch(routes::job_spec(l.job), interrupted), "job spec");
     std::map<std::string, std::filesystem::path> files;
@@ -342,87 +581,104 @@ class Worker {
                        std::to_string(spec.height));
     spdlog::info("{}: built the job's scene in {:.2f}s ({} assets)", pfx,
                  std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), spec.assets.size());
+    std::lock_guard lock(scenes_mutex_);
     scenes_.put(l.job, loaded);
     return loaded;
   }
 
-  void process(const Lease& l) {
+  // Renders a leased tile (heartbeating it from `beaten`, its grant or last heartbeat; its render maybe begun ahead,
+  // `head`) and hands its upload to the upload thread; returns the next lease when one was granted near the end of
+  // the render.
+  std::optional<PrefetchedLease> process(const Lease& l, std::chrono::steady_clock::time_point beaten,
+                                         std::shared_ptr<HeadStart> head) {
     const std::string pfx = prefix(l);
     spdlog::info("{}: leased window [{},{})x[{},{}) at {} spp{}", pfx, l.window.x0, l.window.x1, l.window.y0, l.window.y1,
                  l.spp, l.state_spp ? " continuing from " + std::to_string(l.state_spp) : std::string());
-    std::atomic<bool> cancel{false};
-    std::atomic<int> reason{int(Stop::kNone)};
-    std::atomic<uint64_t> rays{0};
+    RenderSignals own;
+    RenderSignals& signals = head ? head->signals : own;
     std::optional<RenderResult> result;
     std::string failure;  // error to report through /fail
     int width = 0, height = 0;
+    const auto since_beat = std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - beaten);
+    TileCompanion companion(heartbeat_http_, pfx, l.id, heartbeat_period_,
+                            std::max<std::chrono::milliseconds>(0ms, heartbeat_period_ - since_beat), signals, stop_,
+                            [this, pfx] { return prefetch_lease(heartbeat_http_, pfx); });
+    signals.attach(&companion);
+    struct Detach {
+      RenderSignals& signals;
+      ~Detach() { signals.attach(nullptr); }
+    } detach{signals};
+    const auto finish = [&] {
+      signals.attach(nullptr);
+      return companion.finish();
+    };
     {
-      Heartbeat heartbeat(heartbeat_http_, pfx, l.id, heartbeat_period_, cancel, reason, rays, stop_);
       try {
-        const auto scene = scene_for(l, pfx, [&] { return cancel.load(); });
-        width = scene->loaded.scene.width;
-        height = scene->loaded.scene.height;
-        if (!PixelWindow{0, 0, width, height}.contains(l.window))
-          throw std::runtime_error("tile window lies outside the " + std::to_string(width) + "x" +
-                                   std::to_string(height) + " image");
-        // Tests fail the render here, or hold it until released (a pause ends when the tile is cancelled, as a
-        // long render would).
-        TESSERA_FAIL_POINT_CANCELLABLE("worker.render", [&] { return cancel.load(); });
-        TESSERA_FAIL_POINT_RETURN("worker.render.fail_tiles", [&](const std::string& tiles) {
-          for (size_t i = 0; i < tiles.size();) {
-            const size_t comma = std::min(tiles.find(',', i), tiles.size());
-            if (tiles.substr(i, comma - i) == std::to_string(l.tile))
-              throw std::runtime_error("fail point worker.render.fail_tiles: tile " + std::to_string(l.tile) +
-                                       " fails on every worker");
-            i = comma + 1;
-          }
-        });
-        // A resumable job's tile rendered before (state_spp samples per pixel): continue from its exact sums.
-        std::optional<StoredRender> previous;
-        if (l.state_spp > 0) previous = stored_tile(l, scene->sampling.replicates, [&] { return cancel.load(); });
-        RenderOptions ro;
-        scene->sampling.apply_to(ro);
-        ro.seed = l.seed;
-        ro.spp = l.spp;
-        ro.window = l.window;
-        // Small thread tiles: a farm tile is one worker's whole unit of work, so its last thread tile is a tail in
-        // which the other threads idle (pixels do not depend on this split).
-        ro.tile_size = 8;
-        ro.cancel = &cancel;
-        ro.progress = [&rays](const RenderProgress& p) { rays.store(p.rays); };
-        ro.keep_state = l.resumable;
-        ro.previous = previous ? &*previous : nullptr;
-        result = render(scene->loaded.scene, ro);
-        if (result->cancelled) result.reset();
-        else if (l.resumable) write_state_channels(result->state, result->image);
+        if (head) {
+          wait_for(*head);
+          if (head->error) std::rethrow_exception(head->error);
+          width = head->scene->loaded.scene.width;
+          height = head->scene->loaded.scene.height;
+          result = std::move(head->result);
+        } else {
+          const auto scene = scene_for(l, pfx, [&] { return signals.cancel.load(); });
+          width = scene->loaded.scene.width;
+          height = scene->loaded.scene.height;
+          if (!PixelWindow{0, 0, width, height}.contains(l.window))
+            throw std::runtime_error("tile window lies outside the " + std::to_string(width) + "x" +
+                                     std::to_string(height) + " image");
+          // Tests fail the render here, or hold it until released (a pause ends when the tile is cancelled, as a
+          // long render would).
+          TESSERA_FAIL_POINT_CANCELLABLE("worker.render", [&] { return signals.cancel.load(); });
+          TESSERA_FAIL_POINT_RETURN("worker.render.fail_tiles", [&](const std::string& tiles) {
+            for (size_t i = 0; i < tiles.size();) {
+              const size_t comma = std::min(tiles.find(',', i), tiles.size());
+              if (tiles.substr(i, comma - i) == std::to_string(l.tile))
+                throw std::runtime_error("fail point worker.render.fail_tiles: tile " + std::to_string(l.tile) +
+                                         " fails on every worker");
+              i = comma + 1;
+            }
+          });
+          // A resumable job's tile rendered before (state_spp samples per pixel): continue from its exact sums.
+          std::optional<StoredRender> previous;
+          if (l.state_spp > 0)
+            previous = stored_tile(l, scene->sampling.replicates, [&] { return signals.cancel.load(); });
+          const RenderOptions ro = render_options(l, *scene, signals, previous ? &*previous : nullptr);
+          arena_.execute([&] { result = render(scene->loaded.scene, ro); });
+        }
+        if (result && result->cancelled) result.reset();
+        else if (result && l.resumable) write_state_channels(result->state, result->image);
       } catch (const Interrupted&) {
         result.reset();
       } catch (const Gone& e) {
         spdlog::warn("{}: dropping the tile: {}", pfx, e.what());
         count(&WorkerStats::tiles_dropped);
-        return;
+        return finish();
       } catch (const std::exception& e) {
         failure = e.what();
       }
-    }  // heartbeats stop here
+    }
 
     if (!failure.empty()) {
+      std::optional<PrefetchedLease> next = finish();
       spdlog::error("{}: cannot render the tile: {}", pfx, failure);
       report_failure(l, pfx, failure);
-      return;
+      return next;
     }
     if (!result) {
-      if (reason.load() == int(Stop::kShutdown)) {
+      std::optional<PrefetchedLease> next = finish();
+      if (signals.reason.load() == int(Stop::kShutdown)) {
         release(l, pfx);
       } else {
         spdlog::info("{}: lease revoked, tile dropped", pfx);
         count(&WorkerStats::tiles_dropped);
       }
-      return;
+      return next;
     }
-    spdlog::info("{}: rendered in {:.3f}s ({} rays)", pfx, result->seconds, result->counters.rays);
-    // Encoded and sent while the next tile is leased and rendered; the lease stays live meanwhile (its deadline is a
-    // lease length after the last heartbeat), and a worker that dies here loses only leases, which expire.
+    spdlog::info("{}: rendered in {:.3f}s ({} rays, {:.1f} ms of thread time not on this tile){}", pfx, result->seconds,
+                 result->counters.rays, 1000.0 * result->idle_thread_seconds, head ? ", begun ahead" : "");
+    // Encoded and sent while the next tile is leased and rendered; the companion heartbeats this lease (and the next
+    // one) while the previous upload is still going, and a worker that dies here loses only leases, which expire.
     uploads_.post([this, l, pfx, res = std::make_shared<RenderResult>(std::move(*result)), width, height] {
       try {
         upload(l, pfx, *res, width, height);
@@ -431,6 +687,7 @@ class Worker {
         count(&WorkerStats::tiles_dropped);
       }
     });
+    return finish();  // heartbeats stop here
   }
 
   // The lease's tile as the coordinator stored it (GET /v1/leases/{lease}/state): its pixels and exact sums.
@@ -566,12 +823,15 @@ class Worker {
   HttpClient heartbeat_http_;  // used only by the heartbeat thread
   HttpClient upload_http_;     // used only by the upload thread
   AssetCache cache_;
+  std::mutex scenes_mutex_;  // scenes_ is looked up by the companion's thread too (head_start)
   LruCache<PreparedJob> scenes_;
   Backoff idle_, retry_;
   std::string name_, id_;
   int threads_ = 1;
+  tbb::task_arena arena_;  // every render runs in it, begun-ahead ones included (threads_ threads)
   std::chrono::milliseconds heartbeat_period_{5000};
   bool down_ = false;
+  std::atomic<double> lease_rtt_ms_{0};  // moving average of lease round trips (0: none yet)
   std::mutex stats_mutex_;
   WorkerStats stats_;    // guarded by stats_mutex_
   UploadQueue uploads_;  // last: destroyed first, after the upload in flight has finished

@@ -49,7 +49,9 @@ if [ "$CRASH" = 1 ]; then
     fail "a failed flush did not stop the coordinator with its reason"
   wait_for log_has "$WORK/w.log" "upload attempt 1 failed" || fail "the worker did not see its upload fail"
   mv "$WORK/serve.log" "$WORK/serve-1.log"
-  LISTEN=$ADDRESS start_serve --lease-seconds 30 --heartbeat-seconds 1
+  # Restored leases get a fresh deadline: short here, so that a lease granted as the coordinator died, whose answer
+  # never reached the worker, gives its tile back within seconds (heartbeats every second keep the others).
+  LISTEN=$ADDRESS start_serve --lease-seconds 5 --heartbeat-seconds 1
   log_has "$WORK/serve.log" "resuming 0 queued and 1 running job" || fail "the restarted coordinator did not resume the job"
   [ "$CASE" != write_abort ] || log_has "$WORK/serve.log" "every tile was done before the restart; writing the result" ||
     fail "the restart did not write the result of a job whose tiles were all done"

@@ -1,0 +1,83 @@
+#include "server/assembly.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <random>
+
+namespace tessera::server {
+namespace {
+
+// A tile of random bits (finite floats) in the window [x0, x1) x [y0, y1) of a width x height image, as workers
+// encode it (uncompressed unless told otherwise).
+std::string tile_exr(const PixelWindow& w, int width, int height, ExrCompression compression = ExrCompression::kNone,
+                     Image* pixels = nullptr) {
+  Image img = Image::make(w.width(), w.height());
+  std::mt19937 rng(7);
+  for (float& v : img.rgb) {
+    do {
+      const uint32_t bits = rng();
+      std::memcpy(&v, &bits, sizeof v);
+    } while (!std::isfinite(v));
+  }
+  ExrWriteOptions o;
+  o.compression = compression;
+  o.data_window = w;
+  o.display_window = PixelWindow{0, 0, width, height};
+  const std::vector<uint8_t> bytes = encode_exr(img, o);
+  if (pixels) *pixels = img;
+  return std::string(bytes.begin(), bytes.end());
+}
+
+TEST(CheckTileExr, TheWorkersLayoutDecodesToTheSameBitsAsOpenExr) {
+  for (const PixelWindow w : {PixelWindow{64, 32, 128, 96}, PixelWindow{0, 0, 1, 1}, PixelWindow{90, 7, 100, 10}}) {
+    Image sent;
+    const std::string exr = tile_exr(w, 100, 96, ExrCompression::kNone, &sent);
+    const TileCheck c = check_tile_exr(exr, w, 100, 96);
+    ASSERT_FALSE(c.error) << *c.error;
+    const ExrImage reference = decode_exr(exr);
+    ASSERT_EQ(c.pixels.rgb.size(), reference.pixels.rgb.size());
+    EXPECT_EQ(std::memcmp(c.pixels.rgb.data(), reference.pixels.rgb.data(), c.pixels.rgb.size() * sizeof(float)), 0);
+    EXPECT_EQ(std::memcmp(c.pixels.rgb.data(), sent.rgb.data(), sent.rgb.size() * sizeof(float)), 0);
+  }
+}
+
+TEST(CheckTileExr, OtherLayoutsGoThroughOpenExr) {
+  const PixelWindow w{16, 16, 32, 32};
+  Image sent;
+  const std::string zip = tile_exr(w, 64, 64, ExrCompression::kZip, &sent);
+  const TileCheck c = check_tile_exr(zip, w, 64, 64);
+  ASSERT_FALSE(c.error) << *c.error;
+  EXPECT_EQ(std::memcmp(c.pixels.rgb.data(), sent.rgb.data(), sent.rgb.size() * sizeof(float)), 0);
+}
+
+TEST(CheckTileExr, RefusalsNameTheProblem) {
+  const PixelWindow w{0, 0, 8, 8};
+  std::string exr = tile_exr(w, 16, 16);
+  EXPECT_NE(check_tile_exr(exr, PixelWindow{8, 0, 16, 8}, 16, 16).error.value_or("").find("data window is [0, 0, 8, 8)"),
+            std::string::npos);
+  EXPECT_NE(check_tile_exr(exr, w, 32, 16).error.value_or("").find("display window"), std::string::npos);
+  EXPECT_NE(check_tile_exr(exr.substr(0, exr.size() - 10), w, 16, 16).error.value_or("").find("not a readable"),
+            std::string::npos);
+  EXPECT_NE(check_tile_exr("not an exr", w, 16, 16).error.value_or("").find("not a readable"), std::string::npos);
+  // A NaN in the last pixel (R of the last line is the last plane written): found wherever it is.
+  Image img = Image::make(8, 8);
+  img.rgb.back() = std::numeric_limits<float>::quiet_NaN();
+  ExrWriteOptions o;
+  o.compression = ExrCompression::kNone;
+  o.data_window = w;
+  o.display_window = PixelWindow{0, 0, 16, 16};
+  const std::vector<uint8_t> nan = encode_exr(img, o);
+  EXPECT_EQ(check_tile_exr(std::string(nan.begin(), nan.end()), w, 16, 16).error.value_or(""),
+            "pixel (7, 7) is not finite");
+  // Half colours are decodable but refused.
+  o.half = true;
+  const std::vector<uint8_t> half = encode_exr(Image::make(8, 8), o);
+  EXPECT_EQ(check_tile_exr(std::string(half.begin(), half.end()), w, 16, 16).error.value_or(""),
+            "channel R is not float32");
+}
+
+}  // namespace
+}  // namespace tessera::server

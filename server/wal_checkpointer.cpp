@@ -1,0 +1,91 @@
+#include "server/wal_checkpointer.h"
+
+#include "server/storage.h"
+
+#include <pthread.h>
+#include <signal.h>
+
+#include <sqlite3.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+
+namespace tessera::server {
+
+WalCheckpointer::WalCheckpointer(const std::filesystem::path& file, bool flush, int threshold, WithWritesHeld held)
+    : threshold_(threshold), held_(std::move(held)) {
+  if (sqlite3_open_v2(file.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX, nullptr) != SQLITE_OK) {
+    const std::string why = db_ ? sqlite3_errmsg(db_) : "out of memory";
+    sqlite3_close(db_);
+    throw StorageError("cannot open " + file.string() + " for checkpoints: " + why);
+  }
+  sqlite3_busy_timeout(db_, 10'000);
+  sqlite3_exec(db_, flush ? "PRAGMA synchronous=NORMAL" : "PRAGMA synchronous=OFF", nullptr, nullptr, nullptr);
+  sqlite3_wal_autocheckpoint(db_, 0);  // this connection never writes; its checkpoints are the explicit ones below
+  thread_ = std::thread([this] { loop(); });
+}
+
+WalCheckpointer::~WalCheckpointer() {
+  {
+    std::lock_guard lock(mu_);
+    stopping_ = true;
+  }
+  cv_.notify_all();
+  thread_.join();
+  sqlite3_close(db_);
+}
+
+bool WalCheckpointer::due_locked() const { return frames_ - copied_ >= threshold_; }
+
+void WalCheckpointer::committed(int frames) {
+  bool due = false;
+  {
+    std::lock_guard lock(mu_);
+    if (frames < copied_) copied_ = 0;  // the log started over after a checkpoint that copied all of it
+    frames_ = frames;
+    due = due_locked();
+  }
+  if (due) cv_.notify_one();
+}
+
+void WalCheckpointer::loop() {
+  // Signals are for the threads that serve (asio's handler): with SIGTERM left open here, one arriving after the
+  // coordinator stopped listening for it would kill the process while it closes its database.
+  sigset_t all;
+  sigfillset(&all);
+  pthread_sigmask(SIG_BLOCK, &all, nullptr);
+  std::unique_lock lock(mu_);
+  for (;;) {
+    cv_.wait(lock, [&] { return stopping_ || due_locked(); });
+    if (stopping_) return;
+    // The log starts over only after a checkpoint that copied all of it; while commits arrive during every checkpoint
+    // it keeps growing, so once it is long, checkpoints catch up with it until little is left, and one copies the
+    // rest with commits held off (as short as that is: a few frames and their flush).
+    const bool finish = frames_ >= kFinishFactor * threshold_;
+    lock.unlock();
+    int copied = checkpoint();
+    if (finish) {
+      for (int pass = 0; pass < kCatchUpPasses; ++pass) {
+        lock.lock();
+        const int left = frames_ - copied;
+        lock.unlock();
+        if (left <= threshold_ / 8) break;
+        copied = checkpoint();
+      }
+      held_([&] { copied = checkpoint(); });
+    }
+    lock.lock();
+    copied_ = frames_ >= copied ? copied : 0;  // a commit since may have seen the log start over
+  }
+}
+
+int WalCheckpointer::checkpoint() {
+  int log = 0, copied = 0;
+  const int rc = sqlite3_wal_checkpoint_v2(db_, nullptr, SQLITE_CHECKPOINT_PASSIVE, &log, &copied);
+  if (rc != SQLITE_OK && rc != SQLITE_BUSY)
+    spdlog::warn("checkpoint of the database failed: {} (tried again after later commits)", sqlite3_errmsg(db_));
+  checkpoints_.fetch_add(1);
+  return std::max(0, copied);
+}
+
+}  // namespace tessera::server
