@@ -35,7 +35,8 @@ double floor_exact(double v) {
 double reduce(float x, int* quadrant) {
   const double xd = double(x);
   const double k = floor_exact(xd * kTwoOverPi + 0.5);
-  *quadrant = int(int64_t(k) & 3);
+  // k mod 4; a double of magnitude 2^63 or more is a multiple of 4 (and would not convert to int64_t).
+  *quadrant = std::abs(k) < 9223372036854775808.0 ? int(int64_t(k) & 3) : 0;
   return (xd - k * kPio2Hi) - k * kPio2Lo;
 }
 
