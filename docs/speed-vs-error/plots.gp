@@ -6,18 +6,18 @@ set key outside right
 set xlabel 'wall time (s), AMD EPYC, 2 threads'
 set ylabel 'relative RMS error sqrt(relMSE)'
 set output 'error_vs_time.svg'
-set title 'Error against time, default strategies (commit e7de95c, AMD EPYC, 2 threads)' noenhanced
+set title 'Error against time, default strategies (commit ddd9434, AMD EPYC, 2 threads)' noenhanced
 plot \
   'cbox_no_light.dat' using 2:(sqrt($3)) with linespoints lw 2 title 'cbox_no_light' noenhanced, \
-  0.0787093*sqrt(0.00323153/x) with lines dt 2 lc 1 notitle, \
+  0.0788361*sqrt(0.00210847/x) with lines dt 2 lc 1 notitle, \
   'cbox_no_light_refraction.dat' using 2:(sqrt($3)) with linespoints lw 2 title 'cbox_no_light_refraction' noenhanced, \
-  0.0906234*sqrt(0.00430925/x) with lines dt 2 lc 2 notitle, \
+  0.0897133*sqrt(0.00257259/x) with lines dt 2 lc 2 notitle, \
   'cbox_area_light.dat' using 2:(sqrt($3)) with linespoints lw 2 title 'cbox_area_light' noenhanced, \
-  0.252218*sqrt(0.00143652/x) with lines dt 2 lc 3 notitle, \
+  0.318756*sqrt(0.000647167/x) with lines dt 2 lc 3 notitle, \
   'cbox_env_light.dat' using 2:(sqrt($3)) with linespoints lw 2 title 'cbox_env_light' noenhanced, \
-  1.41694*sqrt(0.00564436/x) with lines dt 2 lc 4 notitle, \
+  1.4065*sqrt(0.00271356/x) with lines dt 2 lc 4 notitle, \
   'sky_sun.dat' using 2:(sqrt($3)) with linespoints lw 2 title 'sky_sun' noenhanced, \
-  0.663487*sqrt(0.00574234/x) with lines dt 2 lc 5 notitle
+  0.661484*sqrt(0.00390396/x) with lines dt 2 lc 5 notitle
 set xlabel 'CPU seconds (all threads), AMD EPYC, 2 threads'
 set output 'cmp0.svg'
 set title 'Area light on cbox_area_light (small light): auto (default) vs solid angle vs area' noenhanced
