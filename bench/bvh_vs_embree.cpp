@@ -12,6 +12,7 @@
 //   --quick  ~100k rays per set and a 200k-triangle sphere (smoke test, a few seconds)
 //   --csv    also print the results as CSV after the tables
 
+#include "bench/run_environment.h"
 #include "core/bvh.h"
 #include "core/math.h"
 #include "core/mesh.h"
@@ -43,55 +44,11 @@ namespace {
 
 using namespace tessera;
 using Clock = std::chrono::steady_clock;
-
+using tessera::bench::cpu_model;
+using tessera::bench::load_average;
 
 // ------------------------------------------------------------------------------------------------------------
-// Environment: machine, commit, build configuration.
-
-std::string cpu_model() {
-  std::ifstream in("/proc/cpuinfo");
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.rfind("model name", 0) == 0) {
-      const size_t colon = line.find(':');
-      if (colon != std::string::npos) {
-        size_t b = line.find_first_not_of(" \t", colon + 1);
-        return b == std::string::npos ? std::string() : line.substr(b);
-      }
-    }
-  }
-  return "unknown";
-}
-
-// Runs a shell command and returns its first output line (empty on failure).
-std::string first_line_of(const std::string& cmd) {
-  FILE* p = ::popen(cmd.c_str(), "r");
-  if (!p) return {};
-  char buf[512];
-  std::string out;
-  if (std::fgets(buf, sizeof buf, p)) out = buf;
-  ::pclose(p);
-  while (!out.empty() && (out.back() == '\n' || out.back() == '\r')) out.pop_back();
-  return out;
-}
-
-// The source tree's commit, asked from git at run time so it is current; falls back to the configure-time value.
-std::string commit_description() {
-  const std::string dir = TESSERA_SOURCE_DIR;
-  const std::string head = first_line_of("git -C '" + dir + "' rev-parse --short HEAD 2>/dev/null");
-  if (head.empty()) return std::string(TESSERA_CONFIGURE_COMMIT) + " (from configure time; git unavailable)";
-  const std::string dirty =
-      first_line_of("git -C '" + dir + "' status --porcelain --untracked-files=no 2>/dev/null");
-  return head + (dirty.empty() ? " (clean tracked tree)" : " (tracked files modified: -dirty)");
-}
-
-// The first three fields of /proc/loadavg.
-std::string load_average() {
-  std::ifstream in("/proc/loadavg");
-  std::string a, b, c;
-  if (!(in >> a >> b >> c)) return "unknown";
-  return a + " " + b + " " + c;
-}
+// Errors (the run's machine, commit and load come from bench/run_environment.h).
 
 [[noreturn]] void die(const char* what) {
   std::fflush(stdout);
@@ -687,7 +644,7 @@ int main(int argc, char** argv) {
   const char* tasking_name = tasking == 0 ? "internal" : tasking == 1 ? "TBB" : tasking == 2 ? "PPL" : "unknown";
 
   std::printf("bvh_vs_embree: Tessera BVH vs Embree, same scenes, same rays\n");
-  std::printf("commit:  %s\n", commit_description().c_str());
+  std::printf("commit:  %s\n", tessera::bench::commit_description(TESSERA_SOURCE_DIR, TESSERA_CONFIGURE_COMMIT).c_str());
   std::printf("machine: %s, nproc %u, TBB default concurrency %d\n", cpu_model().c_str(),
               std::thread::hardware_concurrency(), tbb::info::default_concurrency());
   std::printf("build:   %s, TESSERA_NATIVE=%s (Tessera compiled for %s, its traversal kernels for SSE2, AVX2 and\n"

@@ -12,6 +12,7 @@
 // measures the four rates in a rotated order, so that noise from other processes spreads over them; each figure is
 // the best of the repetitions. One-thread figures are per second of that thread's CPU time, all-thread ones per
 // second of wall time.
+#include "bench/run_environment.h"
 #include "core/bvh.h"
 #include "core/ray_recorder.h"
 #include "core/render.h"
@@ -40,48 +41,13 @@
 namespace fs = std::filesystem;
 using namespace tessera;
 using Clock = std::chrono::steady_clock;
+using tessera::bench::cpu_model;
+using tessera::bench::load_average;
 
 namespace {
 
 // ---------------------------------------------------------------------------------------------------------------
-// Environment: machine, commit, build flags, load.
-
-std::string first_line_of(const std::string& cmd) {
-  FILE* p = ::popen(cmd.c_str(), "r");
-  if (!p) return {};
-  char buf[512];
-  std::string out;
-  if (std::fgets(buf, sizeof buf, p)) out = buf;
-  ::pclose(p);
-  while (!out.empty() && (out.back() == '\n' || out.back() == '\r')) out.pop_back();
-  return out;
-}
-
-std::string cpu_model() {
-  std::ifstream in("/proc/cpuinfo");
-  std::string line;
-  while (std::getline(in, line))
-    if (line.rfind("model name", 0) == 0) {
-      const size_t b = line.find_first_not_of(" \t", line.find(':') + 1);
-      return b == std::string::npos ? std::string() : line.substr(b);
-    }
-  return "unknown";
-}
-
-std::string commit_description() {
-  const std::string dir = TESSERA_SOURCE_DIR;
-  const std::string head = first_line_of("git -C '" + dir + "' rev-parse --short HEAD 2>/dev/null");
-  if (head.empty()) return std::string(TESSERA_CONFIGURE_COMMIT) + " (from configure time; git unavailable)";
-  const std::string dirty = first_line_of("git -C '" + dir + "' status --porcelain --untracked-files=no 2>/dev/null");
-  return head + (dirty.empty() ? " (clean tracked tree)" : " (tracked files modified: -dirty)");
-}
-
-std::string load_average() {
-  std::ifstream in("/proc/loadavg");
-  std::string a, b, c;
-  in >> a >> b >> c;
-  return a + " " + b + " " + c;
-}
+// Timing (the run's machine, commit and load come from bench/run_environment.h).
 
 double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
@@ -248,7 +214,7 @@ int main(int argc, char** argv) {
   const std::string load_before = load_average();
   const auto t_start = Clock::now();
   std::printf("integrator_vs_traversal: end-to-end render rate against traversal alone on the render's own rays\n");
-  std::printf("commit:   %s\n", commit_description().c_str());
+  std::printf("commit:   %s\n", tessera::bench::commit_description(TESSERA_SOURCE_DIR, TESSERA_CONFIGURE_COMMIT).c_str());
   std::printf("machine:  %s, nproc %u, TBB default concurrency %d\n", cpu_model().c_str(),
               std::thread::hardware_concurrency(), nthreads);
   std::printf("build:    %s, flags \"%s\" -ffp-contract=off, TESSERA_NATIVE=%s\n", TESSERA_BUILD_TYPE,

@@ -8,6 +8,7 @@
 // Runs being compared are interleaved (every strategy at one sample count, then the next count) and each timing is
 // the median of --repeats runs, because the machine is shared.
 #include "bench/error_metrics.h"
+#include "bench/run_environment.h"
 #include "core/render.h"
 #include "core/scene_loader.h"
 
@@ -32,6 +33,7 @@
 
 namespace fs = std::filesystem;
 using namespace tessera;
+using tessera::bench::cpu_model;
 
 namespace {
 
@@ -267,14 +269,6 @@ std::string shell(const std::string& cmd) {
   }
   while (!out.empty() && (out.back() == '\n' || out.back() == ' ')) out.pop_back();
   return out;
-}
-
-std::string cpu_model() {
-  std::ifstream in("/proc/cpuinfo");
-  std::string line;
-  while (std::getline(in, line))
-    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
-  return "unknown";
 }
 
 void log(const std::string& s) {
