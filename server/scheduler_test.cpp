@@ -857,6 +857,16 @@ TEST(SchedulerIds, CarryTheTag) {
 }
 
 
+// An 8x4 job of two 4-pixel tiles at 1 spp.
+JobParams two_tile_job() {
+  JobParams p;
+  p.width = 8;
+  p.height = 4;
+  p.tile_size = 4;
+  p.spp = 1;
+  return p;
+}
+
 // A store whose flushes the test completes: sync_async keeps each continuation until flush_all().
 struct DeferredFlushStore final : SchedulerStore {
   std::vector<std::function<void()>> waiting;
@@ -875,12 +885,7 @@ TEST(SchedulerFlush, ADoneTileIsAcknowledgedAndCountedOnlyOnceItsFlushReturned) 
   int64_t now = 1'000;
   Scheduler s(SchedulerConfig{10'000, 3, 2, "f"}, [&] { return now; }, store);
   const std::string w = s.register_worker("w");
-  JobParams p;
-  p.width = 8;
-  p.height = 4;
-  p.tile_size = 4;
-  p.spp = 1;
-  const std::string j = s.add_job(p);
+  const std::string j = s.add_job(two_tile_job());
   store.flush_all();
   const std::string pixels(4 * 4 * 3 * sizeof(float), '\0');
   const Lease l0 = s.acquire(w).lease;
@@ -920,12 +925,7 @@ TEST(SchedulerFlush, ARequeuedUnflushedTileIsCountedOnce) {
   int64_t now = 1'000;
   Scheduler s(SchedulerConfig{10'000, 3, 2, "r"}, [&] { return now; }, store);
   const std::string w = s.register_worker("w");
-  JobParams p;
-  p.width = 8;
-  p.height = 4;
-  p.tile_size = 4;
-  p.spp = 1;
-  const std::string j = s.add_job(p);
+  const std::string j = s.add_job(two_tile_job());
   const Lease l0 = s.acquire(w).lease;
   ASSERT_EQ(s.claim_result(l0.id).status, ResultClaim::proceed);
   bool acked = false;
