@@ -30,7 +30,8 @@ constexpr uint32_t reverse_bits(uint32_t x) {
 }
 
 /// The Laine-Karras permutation (Burley 2020) of a bit-reversed value: each bit is flipped by a hash of the bits
-/// below it, which in reversed order are the bits above it.
+/// below it, which in reversed order are the bits above it. reverse_bits(laine_karras(reverse_bits(x), seed)) is a
+/// nested uniform (Owen) scrambling of the fixed-point value x.
 constexpr uint32_t laine_karras(uint32_t x, uint32_t seed) {
   x += seed;
   x ^= x * 0x6c50b47cU;
@@ -39,10 +40,6 @@ constexpr uint32_t laine_karras(uint32_t x, uint32_t seed) {
   x ^= x * 0x8d22f6e6U;
   return x;
 }
-
-/// Nested uniform (Owen) scrambling of a 32-bit fixed-point value, as a hash applied in reversed bit order
-/// (Laine-Karras permutation, Burley 2020): each bit is flipped by a hash of the bits above it.
-constexpr uint32_t owen_scramble(uint32_t x, uint32_t seed) { return reverse_bits(laine_karras(reverse_bits(x), seed)); }
 
 /// The second dimension of the (0,2)-sequence (Sobol dimension 1, the Pascal matrix mod 2) at index i, in reversed
 /// bit order: digit r (weight 2^-(r+1)) is bit r, the parity of the set bits c of i whose positions contain r's
@@ -121,7 +118,7 @@ class PixelSampler {
   /// Next 2D sample in [0,1)^2.
   Vec2 next_2d() {
     const uint32_t dim_seed = hash_combine(key_, dim_++);
-    // Shuffle the sample order per dimension: owen_scramble(index, hash_u32(dim_seed)) from the reversed index.
+    // Shuffle the sample order per dimension: the index Owen-scrambled, starting from its reversed bits.
     last_index_ = reverse_bits(laine_karras(reversed_index_, hash_u32(dim_seed)));
     has_last_ = true;
     return point_2d(last_index_, dim_seed);
