@@ -28,10 +28,6 @@ JobState job_state_from_string(std::string_view s) {
   throw std::invalid_argument("unknown job state '" + std::string(s) + "'");
 }
 
-namespace {
-json optional_json(const auto& v) { return v ? json(*v) : json(nullptr); }
-}  // namespace
-
 void to_json(json& j, const JobStatus& s) {
   j = {{"id", s.id},
        {"name", s.params.name},

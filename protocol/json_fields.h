@@ -39,6 +39,12 @@ T answer_field(const nlohmann::json& j, const char* key, const char* message) {
   }
 }
 
+/// An optional value as JSON: its value, or null when empty.
+template <class Optional>
+nlohmann::json optional_json(const Optional& v) {
+  return v ? nlohmann::json(*v) : nlohmann::json(nullptr);
+}
+
 /// An optional answer field: `fallback` when absent or null.
 template <class T>
 T answer_field_or(const nlohmann::json& j, const char* key, const char* message, T fallback) {

@@ -8,12 +8,6 @@ namespace tessera::protocol {
 
 using nlohmann::json;
 
-namespace {
-
-json optional_json(const auto& v) { return v ? json(*v) : json(nullptr); }
-
-}  // namespace
-
 void to_json(json& j, const TileFailure& f) {
   j = {{"worker", f.worker}, {"worker_name", f.worker_name}, {"error", f.error}, {"log", f.log}};
 }
