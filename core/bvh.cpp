@@ -171,8 +171,6 @@ struct Bvh::Builder {
   std::span<const Triangle> triangles;
   std::span<const Sphere> spheres;
   Bvh& bvh;
-  std::atomic<uint32_t> next_node{0};
-  std::atomic<uint32_t> next_packet{0};
 
   Builder(const BvhOptions& o, RefVector& r, std::span<const Triangle> t, std::span<const Sphere> s, Bvh& b)
       : opt(o), refs(r), triangles(t), spheres(s), bvh(b) {}
@@ -506,19 +504,33 @@ struct Bvh::Builder {
     return true;
   }
 
-  // Writes refs[begin, end) as packets (triangles first, then spheres) and returns the leaf's child reference.
-  uint32_t emit_leaf(uint32_t begin, uint32_t end) {
-    const Range r{begin, end, {}, {}, 0};
-    uint32_t nt = 0;
+  // Packets of a leaf over refs[begin, end): triangles and spheres fill packets of their own.
+  uint32_t leaf_packets(uint32_t begin, uint32_t end) const {
+    const uint32_t nt = triangles_in(begin, end);
+    return packets_for(nt) + packets_for(end - begin - nt);
+  }
+
+  // Number of triangles among refs[begin, end).
+  uint32_t triangles_in(uint32_t begin, uint32_t end) const {
     const uint32_t ntri = bvh.num_triangles_;
-    for (uint32_t i = r.begin; i < r.end; ++i) nt += refs[i].id < ntri;
+    if (bvh.num_spheres_ == 0) return end - begin;
+    uint32_t nt = 0;
+    for (uint32_t i = begin; i < end; ++i) nt += refs[i].id < ntri;
+    return nt;
+  }
+
+  // Writes refs[begin, end) as packets (triangles first, then spheres) from packets_[first] on and returns the
+  // leaf's child reference.
+  uint32_t emit_leaf(uint32_t begin, uint32_t end, uint32_t first) {
+    const Range r{begin, end, {}, {}, 0};
+    const uint32_t ntri = bvh.num_triangles_;
+    const uint32_t nt = triangles_in(begin, end);
     const uint32_t ns = r.size() - nt;
     // Triangles before spheres inside the leaf, keeping their order otherwise.
     if (nt > 0 && ns > 0)
       std::stable_partition(refs.begin() + r.begin, refs.begin() + r.end,
                             [ntri](const BuildRef& x) { return x.id < ntri; });
     const uint32_t count = packets_for(nt) + packets_for(ns);
-    const uint32_t first = next_packet.fetch_add(count, std::memory_order_relaxed);
     Packet* out = bvh.packets_.data() + first;
     uint32_t i = r.begin;
     for (uint32_t p = 0; p < count; ++p) {
@@ -573,10 +585,13 @@ struct Bvh::Builder {
   struct BinaryNode {
     float lo[3], hi[3];        // bounds
     uint32_t begin, end;       // references
-    uint32_t left, right;      // children, kNone for a leaf
+    uint32_t left;             // children left and left + 1, kNone for a leaf
+    uint32_t packets;          // leaf packets in the subtree
+    uint32_t wide_nodes;       // wide nodes in the subtree when this node is one (itself included; 0 for a leaf)
     uint8_t pick[kNodeWidth];  // pick[0]: slots of left's forest when this is a wide node (right gets the rest);
                                // pick[k - 1], k >= 2: slots of left's forest in k slots, 0 when this takes one
     bool leaf() const { return left == kNone; }
+    uint32_t right() const { return left + 1; }
     Bounds3 box() const { return Bounds3{Vec3(lo[0], lo[1], lo[2]), Vec3(hi[0], hi[1], hi[2])}; }
   };
   static_assert(std::is_trivially_default_constructible_v<BinaryNode>);
@@ -614,7 +629,8 @@ struct Bvh::Builder {
     return c;
   }
 
-  // Builds the binary tree over r into binary[idx] and below; returns the subtree's costs.
+  // Builds the binary tree over r into binary[idx] and below, with the choices of the wide tree and the sizes of
+  // its parts; returns the subtree's costs.
   Costs build_binary(uint32_t idx, const Range& r) {
     BinaryNode& n = binary[idx];
     for (int a = 0; a < 3; ++a) {
@@ -625,12 +641,13 @@ struct Bvh::Builder {
     n.end = r.end;
     Range a, b;
     if (!split(r, a, b)) {
-      n.left = n.right = kNone;
+      n.left = kNone;
+      n.packets = leaf_packets(r.begin, r.end);
+      n.wide_nodes = 0;
       return Costs{};  // a leaf costs the same wherever it hangs
     }
     const uint32_t li = next_binary.fetch_add(2, std::memory_order_relaxed);
     n.left = li;
-    n.right = li + 1;
     Costs cl, cr;
     if (a.size() > kParallelTaskThreshold && b.size() > kParallelTaskThreshold) {
       tbb::parallel_invoke([&] { cl = build_binary(li, a); }, [&] { cr = build_binary(li + 1, b); });
@@ -638,7 +655,13 @@ struct Bvh::Builder {
       cl = build_binary(li, a);
       cr = build_binary(li + 1, b);
     }
-    return collapse(n, r.box.surface_area(), cl, cr);
+    const Costs c = collapse(n, r.box.surface_area(), cl, cr);
+    n.packets = binary[li].packets + binary[li + 1].packets;
+    std::array<uint32_t, kNodeWidth> kids;
+    const int nk = wide_children(n, kids);
+    n.wide_nodes = 1;
+    for (int k = 0; k < nk; ++k) n.wide_nodes += binary[kids[size_t(k)]].wide_nodes;
+    return c;
   }
 
   // Appends to kids the roots of the forest that stands for subtree m in k slots.
@@ -650,7 +673,15 @@ struct Bvh::Builder {
     }
     const int a = n.pick[k - 1];
     expand(n.left, a, kids, nk);
-    expand(n.right, k - a, kids, nk);
+    expand(n.right(), k - a, kids, nk);
+  }
+
+  // The children of inner binary node n as a wide node, in order; returns their number.
+  int wide_children(const BinaryNode& n, std::array<uint32_t, kNodeWidth>& kids) const {
+    int nk = 0;
+    expand(n.left, n.pick[0], kids, nk);
+    expand(n.right(), kNodeWidth - n.pick[0], kids, nk);
+    return nk;
   }
 
   static void set_slot(Node& node, int k, const Bounds3& b, uint32_t child) {
@@ -668,37 +699,46 @@ struct Bvh::Builder {
   }
 
   // Writes wide node idx for inner binary node m and, recursively (in parallel for large subtrees), everything below.
-  void emit_node(uint32_t idx, uint32_t m) {
+  // Every subtree has ranges of its own, so the layout does not depend on the threads: the node's inner children
+  // are nodes [kid_base, kid_base + number of them), followed by their subtrees' other nodes in order; the leaves'
+  // packets are packets [packet_base, packet_base + n.packets) in order.
+  void emit_node(uint32_t idx, uint32_t m, uint32_t kid_base, uint32_t packet_base) {
     const BinaryNode& n = binary[m];
     std::array<uint32_t, kNodeWidth> kids;
-    int nk = 0;
-    expand(n.left, n.pick[0], kids, nk);
-    expand(n.right, kNodeWidth - n.pick[0], kids, nk);
+    const int nk = wide_children(n, kids);
 
-    int interior = 0;
-    for (int k = 0; k < nk; ++k) interior += !binary[kids[size_t(k)]].leaf();
-    const uint32_t base = interior ? next_node.fetch_add(uint32_t(interior), std::memory_order_relaxed) : 0;
+    struct Job {
+      uint32_t node, binary, kid_base, packet_base;
+    };
+    std::array<Job, kNodeWidth> jobs;
+    int nj = 0;
+    for (int k = 0; k < nk; ++k) nj += !binary[kids[size_t(k)]].leaf();
+    uint32_t next_kid = kid_base, next_desc = kid_base + uint32_t(nj), next_packet = packet_base;
+    nj = 0;
     Node& node = bvh.nodes_[idx];
-    uint32_t next = base;
     for (int k = 0; k < nk; ++k) {
       const BinaryNode& c = binary[kids[size_t(k)]];
-      set_slot(node, k, c.box(), c.leaf() ? emit_leaf(c.begin, c.end) : next++);
+      if (c.leaf()) {
+        set_slot(node, k, c.box(), emit_leaf(c.begin, c.end, next_packet));
+      } else {
+        jobs[size_t(nj++)] = Job{next_kid, kids[size_t(k)], next_desc, next_packet};
+        set_slot(node, k, c.box(), next_kid++);
+        next_desc += c.wide_nodes - 1;
+      }
+      next_packet += c.packets;
     }
     clear_slots(node, nk);
 
     tbb::task_group tg;
     bool spawned = false;
-    next = base;
-    for (int k = 0; k < nk; ++k) {
-      const uint32_t ck = kids[size_t(k)];
-      const BinaryNode& c = binary[ck];
-      if (c.leaf()) continue;
-      const uint32_t ci = next++;
+    for (int j = 0; j < nj; ++j) {
+      const Job job = jobs[size_t(j)];
+      const BinaryNode& c = binary[job.binary];
       if (c.end - c.begin > kParallelTaskThreshold) {
-        tg.run([this, ci, ck] { emit_node(ci, ck); });
+        tg.run([this, job] { emit_node(job.node, job.binary, job.kid_base, job.packet_base); });
         spawned = true;
       } else {
-        emit_node(ci, ck);
+        emit_node(job.node, job.binary, job.kid_base, job.packet_base);
       }
     }
     if (spawned) tg.wait();
@@ -775,29 +815,25 @@ Bvh Bvh::build(std::span<const Triangle> triangles, std::span<const Sphere> sphe
   root_range.cbox = acc.cbox.bounds();
   bvh.bounds_ = root_range.box;
 
-  // Upper bounds: every node but the root has at least two children and every leaf at least one primitive, so
-  // nodes <= leaves <= references; a leaf never has more packets than primitives. The storage is not initialised,
-  // so the unused tail costs address space only.
   const size_t n = refs.size();
-  bvh.nodes_.resize(n + 1);
-  bvh.packets_.resize(n);
-
   Builder b(options, refs, triangles, spheres, bvh);
   // A binary tree over n references has at most 2n - 1 nodes; only the used part is touched.
   b.binary.resize(2 * n);
   b.next_binary.store(1);
   b.build_binary(0, root_range);
-  const uint32_t root_idx = b.next_node.fetch_add(1);
-  if (b.binary[0].leaf()) {
+  // The output is sized exactly and written once, each subtree into ranges of its own (emit_node()).
+  const Builder::BinaryNode& root = b.binary[0];
+  bvh.packets_.resize(root.packets);
+  if (root.leaf()) {
     // The whole scene is one leaf: a root with a single child.
-    Node& node = bvh.nodes_[root_idx];
-    Builder::set_slot(node, 0, root_range.box, b.emit_leaf(root_range.begin, root_range.end));
+    bvh.nodes_.resize(1);
+    Node& node = bvh.nodes_[0];
+    Builder::set_slot(node, 0, root_range.box, b.emit_leaf(root_range.begin, root_range.end, 0));
     Builder::clear_slots(node, 1);
   } else {
-    b.emit_node(root_idx, 0);
+    bvh.nodes_.resize(root.wide_nodes);
+    b.emit_node(0, 0, 1, 0);
   }
-  bvh.nodes_.resize(b.next_node.load());
-  bvh.packets_.resize(b.next_packet.load());
   return bvh;
 }
 
