@@ -148,9 +148,26 @@ struct BinMapper {
     const __m128 f = _mm_mul_ps(_mm_sub_ps(c2, lo), scale);
     return _mm_cvttps_epi32(_mm_min_ps(_mm_max_ps(f, _mm_setzero_ps()), top));
   }
-  template <int Axis>
-  int bin(__m128 c2) const {
-    return _mm_cvtsi128_si32(_mm_shuffle_epi32(bins(c2), _MM_SHUFFLE(Axis, Axis, Axis, Axis)));
+};
+
+// Whether a reference's bin on Axis (by a BinMapper) is below `split`, 1 <= split <= nb - 1, from that axis alone:
+// max((c - lo) * scale, 0) < split, the same IEEE operations as BinMapper::bins() on that lane (a NaN also becomes
+// 0); clamping to nb - 1 and truncating cannot change the comparison.
+template <int Axis>
+struct LeftOf {
+  __m128 lo, scale, split;
+  LeftOf(const BinMapper& m, int s) {
+    alignas(16) float l[4], sc[4];
+    _mm_store_ps(l, m.lo);
+    _mm_store_ps(sc, m.scale);
+    lo = _mm_set_ss(l[Axis]);
+    scale = _mm_set_ss(sc[Axis]);
+    split = _mm_set_ss(float(s));
+  }
+  bool operator()(const BuildRef& x) const {
+    const __m128 c = _mm_add_ss(_mm_load_ss(&x.lo[Axis]), _mm_load_ss(&x.hi[Axis]));
+    const __m128 f = _mm_max_ss(_mm_mul_ss(_mm_sub_ss(c, lo), scale), _mm_setzero_ps());
+    return _mm_comilt_ss(f, split);
   }
 };
 
@@ -252,7 +269,7 @@ struct Bvh::Builder {
   template <int Axis>
   static BuildRef* partition(const BinMapper& m, int split, BuildRef* first, BuildRef* last) {
     constexpr int kBlock = 64;
-    const auto left_of = [&](const BuildRef& x) { return m.bin<Axis>(x.c2()) < split; };
+    const LeftOf<Axis> left_of(m, split);
     uint8_t off_l[kBlock], off_r[kBlock];
     int num_l = 0, num_r = 0, start_l = 0, start_r = 0;
     while (last - first > 2 * kBlock) {
@@ -285,33 +302,49 @@ struct Bvh::Builder {
     if (num_l > 0) {
       BuildRef* block_end = first + kBlock;
       for (int j = num_l - 1; j >= 0; --j) std::swap(first[off_l[start_l + j]], *--block_end);
-      return finish_partition<Axis>(m, split, block_end, last);
+      return finish_partition(left_of, block_end, last);
     }
     if (num_r > 0) {
       BuildRef* block_begin = last - kBlock;
       for (int j = num_r - 1; j >= 0; --j) std::swap(*(last - 1 - off_r[start_r + j]), *block_begin++);
-      return finish_partition<Axis>(m, split, first, block_begin);
+      return finish_partition(left_of, first, block_begin);
     }
-    return finish_partition<Axis>(m, split, first, last);
+    return finish_partition(left_of, first, last);
   }
 
-  // partition() for any size: ranges of kParallelPartition references or more are cut into fixed chunks partitioned
-  // in parallel, then the right-side references left of the final cut are swapped with the left-side ones right of
-  // it, in a fixed pairing. The result depends only on the input, never on the threads.
+  // partition() for any size, with the centroid bounds of both sides (lcb, rcb): ranges of kParallelPartition
+  // references or more are cut into fixed chunks partitioned (and bounded, while in cache) in parallel, then the
+  // right-side references left of the final cut are swapped with the left-side ones right of it, in a fixed pairing.
+  // The result depends only on the input, never on the threads.
   template <int Axis>
-  static BuildRef* partition_any(const BinMapper& m, int split, BuildRef* first, BuildRef* last) {
+  static BuildRef* partition_any(const BinMapper& m, int split, BuildRef* first, BuildRef* last, Box4& lcb,
+                                 Box4& rcb) {
     constexpr size_t kChunk = 32 * 1024;
     const size_t n = size_t(last - first);
-    if (n < kParallelPartition) return partition<Axis>(m, split, first, last);
+    if (n < kParallelPartition) {
+      BuildRef* const cut = partition<Axis>(m, split, first, last);
+      lcb = centroid_bounds(first, cut);
+      rcb = centroid_bounds(cut, last);
+      return cut;
+    }
     const size_t chunks = (n + kChunk - 1) / kChunk;
     std::vector<size_t> cuts(chunks);  // left-side count of each chunk
+    std::vector<Box4> chunk_lcb(chunks), chunk_rcb(chunks);
     tbb::parallel_for(size_t(0), chunks, [&](size_t c) {
       BuildRef* b = first + c * kChunk;
       BuildRef* e = first + std::min(n, (c + 1) * kChunk);
-      cuts[c] = size_t(partition<Axis>(m, split, b, e) - b);
+      BuildRef* const cut = partition<Axis>(m, split, b, e);
+      cuts[c] = size_t(cut - b);
+      chunk_lcb[c] = centroid_bounds(b, cut);
+      chunk_rcb[c] = centroid_bounds(cut, e);
     });
     size_t left = 0;
-    for (size_t c = 0; c < chunks; ++c) left += cuts[c];
+    lcb = rcb = Box4::empty();
+    for (size_t c = 0; c < chunks; ++c) {
+      left += cuts[c];
+      lcb.extend(chunk_lcb[c]);
+      rcb.extend(chunk_rcb[c]);
+    }
     // Misplaced runs, in order: right-side references before `left`, left-side ones from `left` on.
     struct Run {
       size_t begin, end;
@@ -380,10 +413,10 @@ struct Bvh::Builder {
 
   // Hoare partition of [lo, hi) with branches: for the small rest.
   template <int Axis>
-  static BuildRef* finish_partition(const BinMapper& m, int split, BuildRef* lo, BuildRef* hi) {
+  static BuildRef* finish_partition(const LeftOf<Axis>& left_of, BuildRef* lo, BuildRef* hi) {
     for (;;) {
-      while (lo < hi && m.bin<Axis>(lo->c2()) < split) ++lo;
-      while (lo < hi && m.bin<Axis>((hi - 1)->c2()) >= split) --hi;
+      while (lo < hi && left_of(*lo)) ++lo;
+      while (lo < hi && !left_of(*(hi - 1))) --hi;
       if (lo >= hi) return lo;
       std::swap(*lo, *(hi - 1));
       ++lo;
@@ -490,17 +523,24 @@ struct Bvh::Builder {
     // Partition by bin; the boxes come from the bins, the centroid bounds from a pass over each side.
     BuildRef* const first = refs.data() + r.begin;
     BuildRef* const last = refs.data() + r.end;
-    BuildRef* const cut = small             ? first + partition_small(first, n, small_bins, best_axis, best_split)
-                          : best_axis == 0 ? partition_any<0>(m, best_split, first, last)
-                          : best_axis == 1 ? partition_any<1>(m, best_split, first, last)
-                                           : partition_any<2>(m, best_split, first, last);
+    Box4 lcb, rcb;
+    BuildRef* cut;
+    if (small) {
+      cut = first + partition_small(first, n, small_bins, best_axis, best_split);
+      lcb = centroid_bounds(first, cut);
+      rcb = centroid_bounds(cut, last);
+    } else {
+      cut = best_axis == 0   ? partition_any<0>(m, best_split, first, last, lcb, rcb)
+            : best_axis == 1 ? partition_any<1>(m, best_split, first, last, lcb, rcb)
+                             : partition_any<2>(m, best_split, first, last, lcb, rcb);
+    }
     const uint32_t mid = uint32_t(cut - refs.data());
     if (mid == r.begin || mid == r.end) {  // unreachable with exact binning; stay safe
       halves(r, r.begin + n / 2, l, rr);
       return true;
     }
-    l = Range{r.begin, mid, best_lbox.bounds(), centroid_bounds(first, cut).bounds(), r.depth + 1};
-    rr = Range{mid, r.end, best_rbox.bounds(), centroid_bounds(cut, last).bounds(), r.depth + 1};
+    l = Range{r.begin, mid, best_lbox.bounds(), lcb.bounds(), r.depth + 1};
+    rr = Range{mid, r.end, best_rbox.bounds(), rcb.bounds(), r.depth + 1};
     return true;
   }
 
