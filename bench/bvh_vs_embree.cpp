@@ -8,9 +8,10 @@
 //   * a cross-check: hit/miss agreement and the largest relative difference of t where both hit.
 // Embree is used through its public C API only, and only in this benchmark.
 //
-// Usage: bvh_vs_embree [--quick] [--build-only] [--csv] [--reps N]
+// Usage: bvh_vs_embree [--quick] [--build-only] [--threads N] [--csv] [--reps N]
 //   --quick       ~100k rays per set and a 200k-triangle sphere (smoke test, a few seconds)
 //   --build-only  the build table only (no rays traced)
+//   --threads N   builds on at most N TBB threads (both libraries build on TBB)
 //   --csv         also print the results as CSV after the tables
 
 #include "bench/run_environment.h"
@@ -21,6 +22,7 @@
 #include "core/simd_path.h"
 
 #include <embree3/rtcore.h>
+#include <tbb/global_control.h>
 #include <tbb/info.h>
 #include <xmmintrin.h>
 
@@ -36,6 +38,7 @@
 #include <cstring>
 #include <fstream>
 #include <limits>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <thread>
@@ -595,9 +598,10 @@ void measure(const Scene& s, Built& b, const std::string& rays_name, const std::
 // ------------------------------------------------------------------------------------------------------------
 
 void print_usage(std::FILE* f) {
-  std::fputs("usage: bvh_vs_embree [--quick] [--build-only] [--csv] [--reps N]\n"
+  std::fputs("usage: bvh_vs_embree [--quick] [--build-only] [--threads N] [--csv] [--reps N]\n"
              "  --quick       ~100k rays per set and a 200k-triangle sphere (smoke test)\n"
              "  --build-only  builds only: the build table, no traversal or cross-check\n"
+             "  --threads N   builds on at most N TBB threads (default: all; both libraries build on TBB)\n"
              "  --reps N      repetitions: each figure is the best of N (default 5)\n"
              "  --csv         also print the results as CSV after the tables\n",
              f);
@@ -608,6 +612,7 @@ void print_usage(std::FILE* f) {
 int main(int argc, char** argv) {
   bool quick = false, csv = false, build_only = false;
   int reps = 5;
+  int threads = 0;  // 0: TBB's default
   for (int i = 1; i < argc; ++i) {
     const std::string_view a = argv[i];
     if (a == "--quick") {
@@ -622,6 +627,12 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "bvh_vs_embree: --reps wants a count from 1 to 1000\n");
         return 2;
       }
+    } else if (a == "--threads" && i + 1 < argc) {
+      threads = std::atoi(argv[++i]);
+      if (threads < 1 || threads > 1024) {
+        std::fprintf(stderr, "bvh_vs_embree: --threads wants a count from 1 to 1024\n");
+        return 2;
+      }
     } else if (a == "--help" || a == "-h") {
       print_usage(stdout);
       return 0;
@@ -632,6 +643,9 @@ int main(int argc, char** argv) {
     }
   }
   const auto t_start = Clock::now();
+  std::optional<tbb::global_control> thread_limit;
+  if (threads > 0) thread_limit.emplace(tbb::global_control::max_allowed_parallelism, size_t(threads));
+  const int build_threads = int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
 
   const int res = quick ? 320 : 1024;                         // camera: res x res rays
   const size_t n_incoherent = size_t(res) * size_t(res);      // same count as the camera set
@@ -725,7 +739,7 @@ int main(int argc, char** argv) {
               "B/tri: bytes of the acceleration structure per triangle\n"
               "(Tessera: Bvh::memory_bytes(), nodes and leaf packets; Embree: net bytes rtcCommitScene allocated, from the\n"
               "device memory monitor)\n",
-              tbb::info::default_concurrency(), reps);
+              build_threads, reps);
   std::printf("%-7s %9s %-4s | %9s %9s %9s | %8s %8s | %8s %8s %8s | %s\n", "scene", "triangles", "time", "Tessera",
               "Emb-def", "Emb-rob", "ours/def", "ours/rob", "B/tri T", "B/tri def", "B/tri rob",
               "Tessera tree: nodes, depth, SAH cost");
