@@ -818,18 +818,16 @@ Bvh Bvh::build(std::span<const Triangle> triangles, std::span<const Sphere> sphe
             ok = s.radius > 0.f && std::isfinite(s.radius) && is_finite(s.center);
             box = Bounds3{s.center - Vec3(s.radius), s.center + Vec3(s.radius)};
           }
-          for (int k = 0; k < 3; ++k) {
-            r.lo[k] = box.lo[k];
-            r.hi[k] = box.hi[k];
-          }
-          r.pad = 0;
+          // Whole 16-byte stores (the bounds are not read back: a load spanning several narrower stores stalls).
+          const uint32_t id = ok ? uint32_t(i) : kNoPrim;
+          const __m128 lo = _mm_setr_ps(box.lo.x, box.lo.y, box.lo.z, std::bit_cast<float>(id));
+          const __m128 hi = _mm_setr_ps(box.hi.x, box.hi.y, box.hi.z, 0.f);
+          _mm_store_ps(r.lo, lo);
+          _mm_store_ps(r.hi, hi);
           if (!ok) {
-            r.id = kNoPrim;
             ++a.dropped;
             continue;
           }
-          r.id = uint32_t(i);
-          const __m128 lo = r.vlo(), hi = r.vhi();
           a.box.extend(lo, hi);
           a.cbox.extend(_mm_add_ps(lo, hi));
         }
