@@ -8,9 +8,11 @@
 //   * a cross-check: hit/miss agreement and the largest relative difference of t where both hit.
 // Embree is used through its public C API only, and only in this benchmark.
 //
-// Usage: bvh_vs_embree [--quick] [--csv]
-//   --quick  ~100k rays per set and a 200k-triangle sphere (smoke test, a few seconds)
-//   --csv    also print the results as CSV after the tables
+// Usage: bvh_vs_embree [--quick] [--build-only] [--threads N] [--csv] [--reps N]
+//   --quick       ~100k rays per set and a 200k-triangle sphere (smoke test, a few seconds)
+//   --build-only  the build table only (no rays traced)
+//   --threads N   builds on at most N TBB threads (both libraries build on TBB)
+//   --csv         also print the results as CSV after the tables
 
 #include "bench/run_environment.h"
 #include "core/bvh.h"
@@ -20,6 +22,7 @@
 #include "core/simd_path.h"
 
 #include <embree3/rtcore.h>
+#include <tbb/global_control.h>
 #include <tbb/info.h>
 #include <xmmintrin.h>
 
@@ -35,6 +38,7 @@
 #include <cstring>
 #include <fstream>
 #include <limits>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <thread>
@@ -594,28 +598,39 @@ void measure(const Scene& s, Built& b, const std::string& rays_name, const std::
 // ------------------------------------------------------------------------------------------------------------
 
 void print_usage(std::FILE* f) {
-  std::fputs("usage: bvh_vs_embree [--quick] [--csv] [--reps N]\n"
-             "  --quick  ~100k rays per set and a 200k-triangle sphere (smoke test)\n"
-             "  --reps N repetitions: each figure is the best of N (default 5)\n"
-             "  --csv    also print the results as CSV after the tables\n",
+  std::fputs("usage: bvh_vs_embree [--quick] [--build-only] [--threads N] [--csv] [--reps N]\n"
+             "  --quick       ~100k rays per set and a 200k-triangle sphere (smoke test)\n"
+             "  --build-only  builds only: the build table, no traversal or cross-check\n"
+             "  --threads N   builds on at most N TBB threads (default: all; both libraries build on TBB)\n"
+             "  --reps N      repetitions: each figure is the best of N (default 5)\n"
+             "  --csv         also print the results as CSV after the tables\n",
              f);
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool quick = false, csv = false;
+  bool quick = false, csv = false, build_only = false;
   int reps = 5;
+  int threads = 0;  // 0: TBB's default
   for (int i = 1; i < argc; ++i) {
     const std::string_view a = argv[i];
     if (a == "--quick") {
       quick = true;
+    } else if (a == "--build-only") {
+      build_only = true;
     } else if (a == "--csv") {
       csv = true;
     } else if (a == "--reps" && i + 1 < argc) {
       reps = std::atoi(argv[++i]);
       if (reps < 1 || reps > 1000) {
         std::fprintf(stderr, "bvh_vs_embree: --reps wants a count from 1 to 1000\n");
+        return 2;
+      }
+    } else if (a == "--threads" && i + 1 < argc) {
+      threads = std::atoi(argv[++i]);
+      if (threads < 1 || threads > 1024) {
+        std::fprintf(stderr, "bvh_vs_embree: --threads wants a count from 1 to 1024\n");
         return 2;
       }
     } else if (a == "--help" || a == "-h") {
@@ -628,6 +643,9 @@ int main(int argc, char** argv) {
     }
   }
   const auto t_start = Clock::now();
+  std::optional<tbb::global_control> thread_limit;
+  if (threads > 0) thread_limit.emplace(tbb::global_control::max_allowed_parallelism, size_t(threads));
+  const int build_threads = int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
 
   const int res = quick ? 320 : 1024;                         // camera: res x res rays
   const size_t n_incoherent = size_t(res) * size_t(res);      // same count as the camera set
@@ -670,8 +688,8 @@ int main(int argc, char** argv) {
   scenes.push_back(bumpy_sphere_scene(sphere_triangles));
   for (auto& s : scenes) finish_scene(s);
 
-  std::printf("mode:    %s: %d x %d camera rays and %zu incoherent rays per scene; sphere %zu triangles; best of %d\n\n",
-              quick ? "--quick" : "full", res, res, n_incoherent, scenes[1].triangles.size(), reps);
+  std::printf("mode:    %s%s: %d x %d camera rays and %zu incoherent rays per scene; sphere %zu triangles; best of %d\n\n",
+              quick ? "--quick" : "full", build_only ? ", --build-only (no rays traced)" : "", res, res, n_incoherent, scenes[1].triangles.size(), reps);
   std::fflush(stdout);
 
   std::vector<BuildRow> builds;
@@ -682,6 +700,10 @@ int main(int argc, char** argv) {
     BuildRow br;
     Built b = build_all(device, s, reps, br);
     builds.push_back(br);
+    if (build_only) {
+      for (RTCScene e : b.embree) rtcReleaseScene(e);
+      continue;
+    }
     measure(s, b, "coherent", camera_rays(s.camera, res), reps, rows, checks);
     measure(s, b, "incoherent", incoherent_rays(s.bounds, n_incoherent, seed++), reps, rows, checks);
     for (RTCScene e : b.embree) rtcReleaseScene(e);
@@ -690,23 +712,25 @@ int main(int argc, char** argv) {
   // ---- Tables.
   const int nt = tessera_default_impl() + 1;  // Tessera columns
   const int def = embree_impl(0), rob = embree_impl(1);
-  std::printf("Traversal: single thread, Mrays/s from thread CPU time, per 65536-ray chunk best of %d, summed over chunks.\n"
-              "Tessera on each SIMD path (T-...), Embree default and robust. ratio = Tessera path / Embree default\n"
-              "(1.00 = parity, < 1 = Tessera slower); last column: Tessera's default path / Embree robust\n",
-              reps);
-  std::printf("%-7s %-10s %-8s %8s |", "scene", "rays", "query", "n");
-  for (int i = 0; i < num_impls(); ++i) std::printf(" %8s", impls()[size_t(i)].name.c_str());
-  std::printf(" |");
-  for (int i = 0; i < nt; ++i) std::printf(" %8s", (impls()[size_t(i)].name.substr(2) + "/def").c_str());
-  std::printf(" %8s\n", "dflt/rob");
-  const size_t width = size_t(40 + 9 * num_impls() + 2 + 9 * (nt + 1));
-  std::printf("%s\n", std::string(width, '-').c_str());
-  for (const auto& r : rows) {
-    std::printf("%-7s %-10s %-8s %8zu |", r.scene.c_str(), r.rays.c_str(), r.query.c_str(), r.n);
-    for (int i = 0; i < num_impls(); ++i) std::printf(" %8.2f", r.mrays(i));
+  if (!build_only) {
+    std::printf("Traversal: single thread, Mrays/s from thread CPU time, per 65536-ray chunk best of %d, summed over chunks.\n"
+                "Tessera on each SIMD path (T-...), Embree default and robust. ratio = Tessera path / Embree default\n"
+                "(1.00 = parity, < 1 = Tessera slower); last column: Tessera's default path / Embree robust\n",
+                reps);
+    std::printf("%-7s %-10s %-8s %8s |", "scene", "rays", "query", "n");
+    for (int i = 0; i < num_impls(); ++i) std::printf(" %8s", impls()[size_t(i)].name.c_str());
     std::printf(" |");
-    for (int i = 0; i < nt; ++i) std::printf(" %8.2f", r.mrays(i) / r.mrays(def));
-    std::printf(" %8.2f\n", r.mrays(nt - 1) / r.mrays(rob));
+    for (int i = 0; i < nt; ++i) std::printf(" %8s", (impls()[size_t(i)].name.substr(2) + "/def").c_str());
+    std::printf(" %8s\n", "dflt/rob");
+    const size_t width = size_t(40 + 9 * num_impls() + 2 + 9 * (nt + 1));
+    std::printf("%s\n", std::string(width, '-').c_str());
+    for (const auto& r : rows) {
+      std::printf("%-7s %-10s %-8s %8zu |", r.scene.c_str(), r.rays.c_str(), r.query.c_str(), r.n);
+      for (int i = 0; i < num_impls(); ++i) std::printf(" %8.2f", r.mrays(i));
+      std::printf(" |");
+      for (int i = 0; i < nt; ++i) std::printf(" %8.2f", r.mrays(i) / r.mrays(def));
+      std::printf(" %8.2f\n", r.mrays(nt - 1) / r.mrays(rob));
+    }
   }
 
   std::printf("\nBuild: all %d TBB threads, ms, best of %d (Tessera: Bvh::build, one tree for every path; Embree: rtcCommitScene only).\n"
@@ -715,7 +739,7 @@ int main(int argc, char** argv) {
               "B/tri: bytes of the acceleration structure per triangle\n"
               "(Tessera: Bvh::memory_bytes(), nodes and leaf packets; Embree: net bytes rtcCommitScene allocated, from the\n"
               "device memory monitor)\n",
-              tbb::info::default_concurrency(), reps);
+              build_threads, reps);
   std::printf("%-7s %9s %-4s | %9s %9s %9s | %8s %8s | %8s %8s %8s | %s\n", "scene", "triangles", "time", "Tessera",
               "Emb-def", "Emb-rob", "ours/def", "ours/rob", "B/tri T", "B/tri def", "B/tri rob",
               "Tessera tree: nodes, depth, SAH cost");
@@ -730,31 +754,33 @@ int main(int argc, char** argv) {
                 b.best_cpu[1] * 1e3, b.best_cpu[2] * 1e3, b.best_cpu[0] / b.best_cpu[1], b.best_cpu[0] / b.best_cpu[2]);
   }
 
-  std::printf("\nCross-check, Tessera (default path) vs Embree default / robust (same rays; reported, not asserted)\n");
-  std::printf("%-7s %-10s %6s | %-17s %-17s %-17s %-11s %-15s | %-17s | %-8s | %s\n", "scene", "rays", "hit%",
-              "closest agree%", "max rel |dt|", "max abs |dt|", "far", "same prim%", "any-hit agree%", "self%",
-              "paths same%");
-  std::printf("%s\n", std::string(156, '-').c_str());
-  for (const auto& c : checks) {
-    std::printf("%-7s %-10s %6.2f | %8.4f/%-8.4f %8.2e/%-8.2e %8.2e/%-8.2e %5zu/%-5zu %7.3f/%-7.3f | %8.4f/%-8.4f | %8.4f | %.4f\n",
-                c.scene.c_str(), c.rays.c_str(), 100 * c.ours_hit_frac, 100 * c.closest_agree[0],
-                100 * c.closest_agree[1], c.max_rel_dt[0], c.max_rel_dt[1], c.max_abs_dt[0], c.max_abs_dt[1],
-                c.far[0], c.far[1], 100 * c.prim_match[0], 100 * c.prim_match[1], 100 * c.anyhit_agree[0],
-                100 * c.anyhit_agree[1], 100 * c.ours_self, 100 * c.paths_agree);
-  }
-  std::printf("(x/y = vs Embree default / robust. hit%%: Tessera closest-hit hit rate. same prim%%: of rays both hit.\n"
-              " far: rays both hit whose t differ by more than %g, i.e. different surfaces were hit (on a closed mesh:\n"
-              " one ray slipped through a crack between triangles and hit the far side).\n"
-              " self%%: Tessera occluded() agrees with intersect() hit/miss. A large relative |dt| with a tiny absolute |dt|\n"
-              " means a hit very near the ray origin, where ~1e-7 of rounding in t is a large fraction of t.\n"
-              " paths same%%: rays on which every Tessera SIMD path gave bitwise the same t, primitive and occlusion.)\n",
-              kFarDt);
+  if (!build_only) {
+    std::printf("\nCross-check, Tessera (default path) vs Embree default / robust (same rays; reported, not asserted)\n");
+    std::printf("%-7s %-10s %6s | %-17s %-17s %-17s %-11s %-15s | %-17s | %-8s | %s\n", "scene", "rays", "hit%",
+                "closest agree%", "max rel |dt|", "max abs |dt|", "far", "same prim%", "any-hit agree%", "self%",
+                "paths same%");
+    std::printf("%s\n", std::string(156, '-').c_str());
+    for (const auto& c : checks) {
+      std::printf("%-7s %-10s %6.2f | %8.4f/%-8.4f %8.2e/%-8.2e %8.2e/%-8.2e %5zu/%-5zu %7.3f/%-7.3f | %8.4f/%-8.4f | %8.4f | %.4f\n",
+                  c.scene.c_str(), c.rays.c_str(), 100 * c.ours_hit_frac, 100 * c.closest_agree[0],
+                  100 * c.closest_agree[1], c.max_rel_dt[0], c.max_rel_dt[1], c.max_abs_dt[0], c.max_abs_dt[1],
+                  c.far[0], c.far[1], 100 * c.prim_match[0], 100 * c.prim_match[1], 100 * c.anyhit_agree[0],
+                  100 * c.anyhit_agree[1], 100 * c.ours_self, 100 * c.paths_agree);
+    }
+    std::printf("(x/y = vs Embree default / robust. hit%%: Tessera closest-hit hit rate. same prim%%: of rays both hit.\n"
+                " far: rays both hit whose t differ by more than %g, i.e. different surfaces were hit (on a closed mesh:\n"
+                " one ray slipped through a crack between triangles and hit the far side).\n"
+                " self%%: Tessera occluded() agrees with intersect() hit/miss. A large relative |dt| with a tiny absolute |dt|\n"
+                " means a hit very near the ray origin, where ~1e-7 of rounding in t is a large fraction of t.\n"
+                " paths same%%: rays on which every Tessera SIMD path gave bitwise the same t, primitive and occlusion.)\n",
+                kFarDt);
 
-  std::printf("\nChecksums (closest: sum of hit t; any-hit: occluded count), in column order\n");
-  for (const auto& r : rows) {
-    std::printf("%-7s %-10s %-8s", r.scene.c_str(), r.rays.c_str(), r.query.c_str());
-    for (int i = 0; i < num_impls(); ++i) std::printf("%s%.6e", i ? " / " : " ", r.checksum[i]);
-    std::printf("\n");
+    std::printf("\nChecksums (closest: sum of hit t; any-hit: occluded count), in column order\n");
+    for (const auto& r : rows) {
+      std::printf("%-7s %-10s %-8s", r.scene.c_str(), r.rays.c_str(), r.query.c_str());
+      for (int i = 0; i < num_impls(); ++i) std::printf("%s%.6e", i ? " / " : " ", r.checksum[i]);
+      std::printf("\n");
+    }
   }
 
   if (csv) {

@@ -148,9 +148,26 @@ struct BinMapper {
     const __m128 f = _mm_mul_ps(_mm_sub_ps(c2, lo), scale);
     return _mm_cvttps_epi32(_mm_min_ps(_mm_max_ps(f, _mm_setzero_ps()), top));
   }
-  template <int Axis>
-  int bin(__m128 c2) const {
-    return _mm_cvtsi128_si32(_mm_shuffle_epi32(bins(c2), _MM_SHUFFLE(Axis, Axis, Axis, Axis)));
+};
+
+// Whether a reference's bin on Axis (by a BinMapper) is below `split`, 1 <= split <= nb - 1, from that axis alone:
+// max((c - lo) * scale, 0) < split, the same IEEE operations as BinMapper::bins() on that lane (a NaN also becomes
+// 0); clamping to nb - 1 and truncating cannot change the comparison.
+template <int Axis>
+struct LeftOf {
+  __m128 lo, scale, split;
+  LeftOf(const BinMapper& m, int s) {
+    alignas(16) float l[4], sc[4];
+    _mm_store_ps(l, m.lo);
+    _mm_store_ps(sc, m.scale);
+    lo = _mm_set_ss(l[Axis]);
+    scale = _mm_set_ss(sc[Axis]);
+    split = _mm_set_ss(float(s));
+  }
+  bool operator()(const BuildRef& x) const {
+    const __m128 c = _mm_add_ss(_mm_load_ss(&x.lo[Axis]), _mm_load_ss(&x.hi[Axis]));
+    const __m128 f = _mm_max_ss(_mm_mul_ss(_mm_sub_ss(c, lo), scale), _mm_setzero_ps());
+    return _mm_comilt_ss(f, split);
   }
 };
 
@@ -171,44 +188,40 @@ struct Bvh::Builder {
   std::span<const Triangle> triangles;
   std::span<const Sphere> spheres;
   Bvh& bvh;
-  std::atomic<uint32_t> next_node{0};
-  std::atomic<uint32_t> next_packet{0};
 
   Builder(const BvhOptions& o, RefVector& r, std::span<const Triangle> t, std::span<const Sphere> s, Bvh& b)
       : opt(o), refs(r), triangles(t), spheres(s), bvh(b) {}
 
   uint32_t leaf_limit() const { return uint32_t(std::clamp(opt.max_leaf_prims, 1, 255)); }
 
-  static void bin_ref(Bins& acc, const BinMapper& m, const BuildRef& ref) {
-    const __m128 lo = ref.vlo(), hi = ref.vhi();
-    const __m128i k = m.bins(_mm_add_ps(lo, hi));
-    const int kx = _mm_cvtsi128_si32(k);
-    const int ky = _mm_cvtsi128_si32(_mm_shuffle_epi32(k, _MM_SHUFFLE(1, 1, 1, 1)));
-    const int kz = _mm_cvtsi128_si32(_mm_shuffle_epi32(k, _MM_SHUFFLE(2, 2, 2, 2)));
-    acc.box[0][kx].extend(lo, hi);
-    ++acc.count[0][kx];
-    acc.box[1][ky].extend(lo, hi);
-    ++acc.count[1][ky];
-    acc.box[2][kz].extend(lo, hi);
-    ++acc.count[2][kz];
+  // Bin indices of refs [first, first + n) on the three axes, into bin[i][0..2].
+  static void bin_indices(const BinMapper& m, const BuildRef* first, size_t n, int32_t (*bin)[4]) {
+    for (size_t i = 0; i < n; ++i) _mm_store_si128(reinterpret_cast<__m128i*>(bin[i]), m.bins(first[i].c2()));
   }
 
-  // Bins refs[begin, end) into acc. Long runs alternate between two sets of bins, so that neighbours (which tend to
-  // fall in the same bins) do not wait on each other's read-modify-write.
+  // Adds refs [first, first + n), whose bin indices are bin[0..n), to acc.
+  static void bin_refs(Bins& acc, const BuildRef* first, size_t n, const int32_t (*bin)[4]) {
+    for (size_t i = 0; i < n; ++i) {
+      const __m128 lo = first[i].vlo(), hi = first[i].vhi();
+      for (int a = 0; a < 3; ++a) {
+        const int k = bin[i][a];
+        acc.box[a][k].extend(lo, hi);
+        ++acc.count[a][k];
+      }
+    }
+  }
+
+  // Bins refs[begin, end) into acc, kBinBlock references at a time: their bin indices first, then the updates. With
+  // the indices known ahead, the processor knows which updates touch the same bin (neighbours often do) before it
+  // runs them; computing each index just before its update made binning about 1.3-1.8x slower.
+  static constexpr size_t kBinBlock = 32;
   void bin_into(Bins& acc, const BinMapper& m, size_t begin, size_t end) const {
-    const BuildRef* p = refs.data();
-    if (end - begin < 256) {
-      for (size_t i = begin; i != end; ++i) bin_ref(acc, m, p[i]);
-      return;
+    alignas(16) int32_t bin[kBinBlock][4];
+    for (size_t i = begin; i < end; i += kBinBlock) {
+      const size_t n = std::min(kBinBlock, end - i);
+      bin_indices(m, refs.data() + i, n, bin);
+      bin_refs(acc, refs.data() + i, n, bin);
     }
-    Bins other(acc.nb);
-    size_t i = begin;
-    for (; i + 1 < end; i += 2) {
-      bin_ref(acc, m, p[i]);
-      bin_ref(other, m, p[i + 1]);
-    }
-    if (i != end) bin_ref(acc, m, p[i]);
-    acc.merge(other);
   }
 
   Bins bin_range(const BinMapper& m, int nb, size_t begin, size_t end) const {
@@ -256,7 +269,7 @@ struct Bvh::Builder {
   template <int Axis>
   static BuildRef* partition(const BinMapper& m, int split, BuildRef* first, BuildRef* last) {
     constexpr int kBlock = 64;
-    const auto left_of = [&](const BuildRef& x) { return m.bin<Axis>(x.c2()) < split; };
+    const LeftOf<Axis> left_of(m, split);
     uint8_t off_l[kBlock], off_r[kBlock];
     int num_l = 0, num_r = 0, start_l = 0, start_r = 0;
     while (last - first > 2 * kBlock) {
@@ -289,33 +302,49 @@ struct Bvh::Builder {
     if (num_l > 0) {
       BuildRef* block_end = first + kBlock;
       for (int j = num_l - 1; j >= 0; --j) std::swap(first[off_l[start_l + j]], *--block_end);
-      return finish_partition<Axis>(m, split, block_end, last);
+      return finish_partition(left_of, block_end, last);
     }
     if (num_r > 0) {
       BuildRef* block_begin = last - kBlock;
       for (int j = num_r - 1; j >= 0; --j) std::swap(*(last - 1 - off_r[start_r + j]), *block_begin++);
-      return finish_partition<Axis>(m, split, first, block_begin);
+      return finish_partition(left_of, first, block_begin);
     }
-    return finish_partition<Axis>(m, split, first, last);
+    return finish_partition(left_of, first, last);
   }
 
-  // partition() for any size: ranges of kParallelPartition references or more are cut into fixed chunks partitioned
-  // in parallel, then the right-side references left of the final cut are swapped with the left-side ones right of
-  // it, in a fixed pairing. The result depends only on the input, never on the threads.
+  // partition() for any size, with the centroid bounds of both sides (lcb, rcb): ranges of kParallelPartition
+  // references or more are cut into fixed chunks partitioned (and bounded, while in cache) in parallel, then the
+  // right-side references left of the final cut are swapped with the left-side ones right of it, in a fixed pairing.
+  // The result depends only on the input, never on the threads.
   template <int Axis>
-  static BuildRef* partition_any(const BinMapper& m, int split, BuildRef* first, BuildRef* last) {
+  static BuildRef* partition_any(const BinMapper& m, int split, BuildRef* first, BuildRef* last, Box4& lcb,
+                                 Box4& rcb) {
     constexpr size_t kChunk = 32 * 1024;
     const size_t n = size_t(last - first);
-    if (n < kParallelPartition) return partition<Axis>(m, split, first, last);
+    if (n < kParallelPartition) {
+      BuildRef* const cut = partition<Axis>(m, split, first, last);
+      lcb = centroid_bounds(first, cut);
+      rcb = centroid_bounds(cut, last);
+      return cut;
+    }
     const size_t chunks = (n + kChunk - 1) / kChunk;
     std::vector<size_t> cuts(chunks);  // left-side count of each chunk
+    std::vector<Box4> chunk_lcb(chunks), chunk_rcb(chunks);
     tbb::parallel_for(size_t(0), chunks, [&](size_t c) {
       BuildRef* b = first + c * kChunk;
       BuildRef* e = first + std::min(n, (c + 1) * kChunk);
-      cuts[c] = size_t(partition<Axis>(m, split, b, e) - b);
+      BuildRef* const cut = partition<Axis>(m, split, b, e);
+      cuts[c] = size_t(cut - b);
+      chunk_lcb[c] = centroid_bounds(b, cut);
+      chunk_rcb[c] = centroid_bounds(cut, e);
     });
     size_t left = 0;
-    for (size_t c = 0; c < chunks; ++c) left += cuts[c];
+    lcb = rcb = Box4::empty();
+    for (size_t c = 0; c < chunks; ++c) {
+      left += cuts[c];
+      lcb.extend(chunk_lcb[c]);
+      rcb.extend(chunk_rcb[c]);
+    }
     // Misplaced runs, in order: right-side references before `left`, left-side ones from `left` on.
     struct Run {
       size_t begin, end;
@@ -357,12 +386,37 @@ struct Bvh::Builder {
     return first + left;
   }
 
+  // Ranges of at most kSmallSplit references are partitioned by partition_small() from the bin indices binning
+  // computed (partition() would run finish_partition() alone on them).
+  static constexpr uint32_t kSmallSplit = 128;
+
+  // The permutation finish_partition() makes of refs [first, first + n) (references whose bin on `axis` is below
+  // `split` first), without branching on the references: the i-th reference from the front that belongs on the
+  // right is swapped with the i-th from the back that belongs on the left. Returns the left side's size.
+  static uint32_t partition_small(BuildRef* first, uint32_t n, const int32_t (*bin)[4], int axis, int split) {
+    uint32_t left = 0;
+    for (uint32_t i = 0; i < n; ++i) left += bin[i][axis] < split;
+    uint8_t wrong_r[kSmallSplit], wrong_l[kSmallSplit];  // right-side references before `left`, left-side ones after
+    uint32_t nr = 0, nl = 0;
+    for (uint32_t i = 0; i < left; ++i) {
+      wrong_r[nr] = uint8_t(i);
+      nr += bin[i][axis] >= split;
+    }
+    for (uint32_t i = n; i-- > left;) {
+      wrong_l[nl] = uint8_t(i);
+      nl += bin[i][axis] < split;
+    }
+    assert(nr == nl);
+    for (uint32_t k = 0; k < nr; ++k) std::swap(first[wrong_r[k]], first[wrong_l[k]]);
+    return left;
+  }
+
   // Hoare partition of [lo, hi) with branches: for the small rest.
   template <int Axis>
-  static BuildRef* finish_partition(const BinMapper& m, int split, BuildRef* lo, BuildRef* hi) {
+  static BuildRef* finish_partition(const LeftOf<Axis>& left_of, BuildRef* lo, BuildRef* hi) {
     for (;;) {
-      while (lo < hi && m.bin<Axis>(lo->c2()) < split) ++lo;
-      while (lo < hi && m.bin<Axis>((hi - 1)->c2()) >= split) --hi;
+      while (lo < hi && left_of(*lo)) ++lo;
+      while (lo < hi && !left_of(*(hi - 1))) --hi;
       if (lo >= hi) return lo;
       std::swap(*lo, *(hi - 1));
       ++lo;
@@ -413,7 +467,16 @@ struct Bvh::Builder {
     // cost is mostly per bin.
     const int nb = std::clamp(std::min(opt.bins, 4 + int(n / 16)), 2, kMaxBins);
     const BinMapper m(r.cbox, nb);
-    const Bins bins = bin_range(m, nb, r.begin, r.end);
+    // Small ranges keep every reference's bin indices for the partition.
+    const bool small = n <= kSmallSplit;
+    alignas(16) int32_t small_bins[kSmallSplit][4];
+    Bins bins(nb);
+    if (small) {
+      bin_indices(m, refs.data() + r.begin, n, small_bins);
+      bin_refs(bins, refs.data() + r.begin, n, small_bins);
+    } else {
+      bins = bin_range(m, nb, r.begin, r.end);
+    }
 
     // Cost of a side: area times packets, so that a leaf's partly filled packet counts as a whole test.
     float best_cost = kInfinity;
@@ -460,32 +523,54 @@ struct Bvh::Builder {
     // Partition by bin; the boxes come from the bins, the centroid bounds from a pass over each side.
     BuildRef* const first = refs.data() + r.begin;
     BuildRef* const last = refs.data() + r.end;
-    BuildRef* const cut = best_axis == 0   ? partition_any<0>(m, best_split, first, last)
-                          : best_axis == 1 ? partition_any<1>(m, best_split, first, last)
-                                           : partition_any<2>(m, best_split, first, last);
+    Box4 lcb, rcb;
+    BuildRef* cut;
+    if (small) {
+      cut = first + partition_small(first, n, small_bins, best_axis, best_split);
+      lcb = centroid_bounds(first, cut);
+      rcb = centroid_bounds(cut, last);
+    } else {
+      cut = best_axis == 0   ? partition_any<0>(m, best_split, first, last, lcb, rcb)
+            : best_axis == 1 ? partition_any<1>(m, best_split, first, last, lcb, rcb)
+                             : partition_any<2>(m, best_split, first, last, lcb, rcb);
+    }
     const uint32_t mid = uint32_t(cut - refs.data());
     if (mid == r.begin || mid == r.end) {  // unreachable with exact binning; stay safe
       halves(r, r.begin + n / 2, l, rr);
       return true;
     }
-    l = Range{r.begin, mid, best_lbox.bounds(), centroid_bounds(first, cut).bounds(), r.depth + 1};
-    rr = Range{mid, r.end, best_rbox.bounds(), centroid_bounds(cut, last).bounds(), r.depth + 1};
+    l = Range{r.begin, mid, best_lbox.bounds(), lcb.bounds(), r.depth + 1};
+    rr = Range{mid, r.end, best_rbox.bounds(), rcb.bounds(), r.depth + 1};
     return true;
   }
 
-  // Writes refs[begin, end) as packets (triangles first, then spheres) and returns the leaf's child reference.
-  uint32_t emit_leaf(uint32_t begin, uint32_t end) {
-    const Range r{begin, end, {}, {}, 0};
-    uint32_t nt = 0;
+  // Packets of a leaf over refs[begin, end): triangles and spheres fill packets of their own.
+  uint32_t leaf_packets(uint32_t begin, uint32_t end) const {
+    const uint32_t nt = triangles_in(begin, end);
+    return packets_for(nt) + packets_for(end - begin - nt);
+  }
+
+  // Number of triangles among refs[begin, end).
+  uint32_t triangles_in(uint32_t begin, uint32_t end) const {
     const uint32_t ntri = bvh.num_triangles_;
-    for (uint32_t i = r.begin; i < r.end; ++i) nt += refs[i].id < ntri;
+    if (bvh.num_spheres_ == 0) return end - begin;
+    uint32_t nt = 0;
+    for (uint32_t i = begin; i < end; ++i) nt += refs[i].id < ntri;
+    return nt;
+  }
+
+  // Writes refs[begin, end) as packets (triangles first, then spheres) from packets_[first] on and returns the
+  // leaf's child reference.
+  uint32_t emit_leaf(uint32_t begin, uint32_t end, uint32_t first) {
+    const Range r{begin, end, {}, {}, 0};
+    const uint32_t ntri = bvh.num_triangles_;
+    const uint32_t nt = triangles_in(begin, end);
     const uint32_t ns = r.size() - nt;
     // Triangles before spheres inside the leaf, keeping their order otherwise.
     if (nt > 0 && ns > 0)
       std::stable_partition(refs.begin() + r.begin, refs.begin() + r.end,
                             [ntri](const BuildRef& x) { return x.id < ntri; });
     const uint32_t count = packets_for(nt) + packets_for(ns);
-    const uint32_t first = next_packet.fetch_add(count, std::memory_order_relaxed);
     Packet* out = bvh.packets_.data() + first;
     uint32_t i = r.begin;
     for (uint32_t p = 0; p < count; ++p) {
@@ -540,10 +625,13 @@ struct Bvh::Builder {
   struct BinaryNode {
     float lo[3], hi[3];        // bounds
     uint32_t begin, end;       // references
-    uint32_t left, right;      // children, kNone for a leaf
+    uint32_t left;             // children left and left + 1, kNone for a leaf
+    uint32_t packets;          // leaf packets in the subtree
+    uint32_t wide_nodes;       // wide nodes in the subtree when this node is one (itself included; 0 for a leaf)
     uint8_t pick[kNodeWidth];  // pick[0]: slots of left's forest when this is a wide node (right gets the rest);
                                // pick[k - 1], k >= 2: slots of left's forest in k slots, 0 when this takes one
     bool leaf() const { return left == kNone; }
+    uint32_t right() const { return left + 1; }
     Bounds3 box() const { return Bounds3{Vec3(lo[0], lo[1], lo[2]), Vec3(hi[0], hi[1], hi[2])}; }
   };
   static_assert(std::is_trivially_default_constructible_v<BinaryNode>);
@@ -581,7 +669,8 @@ struct Bvh::Builder {
     return c;
   }
 
-  // Builds the binary tree over r into binary[idx] and below; returns the subtree's costs.
+  // Builds the binary tree over r into binary[idx] and below, with the choices of the wide tree and the sizes of
+  // its parts; returns the subtree's costs.
   Costs build_binary(uint32_t idx, const Range& r) {
     BinaryNode& n = binary[idx];
     for (int a = 0; a < 3; ++a) {
@@ -592,12 +681,13 @@ struct Bvh::Builder {
     n.end = r.end;
     Range a, b;
     if (!split(r, a, b)) {
-      n.left = n.right = kNone;
+      n.left = kNone;
+      n.packets = leaf_packets(r.begin, r.end);
+      n.wide_nodes = 0;
       return Costs{};  // a leaf costs the same wherever it hangs
     }
     const uint32_t li = next_binary.fetch_add(2, std::memory_order_relaxed);
     n.left = li;
-    n.right = li + 1;
     Costs cl, cr;
     if (a.size() > kParallelTaskThreshold && b.size() > kParallelTaskThreshold) {
       tbb::parallel_invoke([&] { cl = build_binary(li, a); }, [&] { cr = build_binary(li + 1, b); });
@@ -605,7 +695,13 @@ struct Bvh::Builder {
       cl = build_binary(li, a);
       cr = build_binary(li + 1, b);
     }
-    return collapse(n, r.box.surface_area(), cl, cr);
+    const Costs c = collapse(n, r.box.surface_area(), cl, cr);
+    n.packets = binary[li].packets + binary[li + 1].packets;
+    std::array<uint32_t, kNodeWidth> kids;
+    const int nk = wide_children(n, kids);
+    n.wide_nodes = 1;
+    for (int k = 0; k < nk; ++k) n.wide_nodes += binary[kids[size_t(k)]].wide_nodes;
+    return c;
   }
 
   // Appends to kids the roots of the forest that stands for subtree m in k slots.
@@ -617,7 +713,15 @@ struct Bvh::Builder {
     }
     const int a = n.pick[k - 1];
     expand(n.left, a, kids, nk);
-    expand(n.right, k - a, kids, nk);
+    expand(n.right(), k - a, kids, nk);
+  }
+
+  // The children of inner binary node n as a wide node, in order; returns their number.
+  int wide_children(const BinaryNode& n, std::array<uint32_t, kNodeWidth>& kids) const {
+    int nk = 0;
+    expand(n.left, n.pick[0], kids, nk);
+    expand(n.right(), kNodeWidth - n.pick[0], kids, nk);
+    return nk;
   }
 
   static void set_slot(Node& node, int k, const Bounds3& b, uint32_t child) {
@@ -635,37 +739,46 @@ struct Bvh::Builder {
   }
 
   // Writes wide node idx for inner binary node m and, recursively (in parallel for large subtrees), everything below.
-  void emit_node(uint32_t idx, uint32_t m) {
+  // Every subtree has ranges of its own, so the layout does not depend on the threads: the node's inner children
+  // are nodes [kid_base, kid_base + number of them), followed by their subtrees' other nodes in order; the leaves'
+  // packets are packets [packet_base, packet_base + n.packets) in order.
+  void emit_node(uint32_t idx, uint32_t m, uint32_t kid_base, uint32_t packet_base) {
     const BinaryNode& n = binary[m];
     std::array<uint32_t, kNodeWidth> kids;
-    int nk = 0;
-    expand(n.left, n.pick[0], kids, nk);
-    expand(n.right, kNodeWidth - n.pick[0], kids, nk);
+    const int nk = wide_children(n, kids);
 
-    int interior = 0;
-    for (int k = 0; k < nk; ++k) interior += !binary[kids[size_t(k)]].leaf();
-    const uint32_t base = interior ? next_node.fetch_add(uint32_t(interior), std::memory_order_relaxed) : 0;
+    struct Job {
+      uint32_t node, binary, kid_base, packet_base;
+    };
+    std::array<Job, kNodeWidth> jobs;
+    int nj = 0;
+    for (int k = 0; k < nk; ++k) nj += !binary[kids[size_t(k)]].leaf();
+    uint32_t next_kid = kid_base, next_desc = kid_base + uint32_t(nj), next_packet = packet_base;
+    nj = 0;
     Node& node = bvh.nodes_[idx];
-    uint32_t next = base;
     for (int k = 0; k < nk; ++k) {
       const BinaryNode& c = binary[kids[size_t(k)]];
-      set_slot(node, k, c.box(), c.leaf() ? emit_leaf(c.begin, c.end) : next++);
+      if (c.leaf()) {
+        set_slot(node, k, c.box(), emit_leaf(c.begin, c.end, next_packet));
+      } else {
+        jobs[size_t(nj++)] = Job{next_kid, kids[size_t(k)], next_desc, next_packet};
+        set_slot(node, k, c.box(), next_kid++);
+        next_desc += c.wide_nodes - 1;
+      }
+      next_packet += c.packets;
     }
     clear_slots(node, nk);
 
     tbb::task_group tg;
     bool spawned = false;
-    next = base;
-    for (int k = 0; k < nk; ++k) {
-      const uint32_t ck = kids[size_t(k)];
-      const BinaryNode& c = binary[ck];
-      if (c.leaf()) continue;
-      const uint32_t ci = next++;
+    for (int j = 0; j < nj; ++j) {
+      const Job job = jobs[size_t(j)];
+      const BinaryNode& c = binary[job.binary];
       if (c.end - c.begin > kParallelTaskThreshold) {
-        tg.run([this, ci, ck] { emit_node(ci, ck); });
+        tg.run([this, job] { emit_node(job.node, job.binary, job.kid_base, job.packet_base); });
         spawned = true;
       } else {
-        emit_node(ci, ck);
+        emit_node(job.node, job.binary, job.kid_base, job.packet_base);
       }
     }
     if (spawned) tg.wait();
@@ -705,18 +818,16 @@ Bvh Bvh::build(std::span<const Triangle> triangles, std::span<const Sphere> sphe
             ok = s.radius > 0.f && std::isfinite(s.radius) && is_finite(s.center);
             box = Bounds3{s.center - Vec3(s.radius), s.center + Vec3(s.radius)};
           }
-          for (int k = 0; k < 3; ++k) {
-            r.lo[k] = box.lo[k];
-            r.hi[k] = box.hi[k];
-          }
-          r.pad = 0;
+          // Whole 16-byte stores (the bounds are not read back: a load spanning several narrower stores stalls).
+          const uint32_t id = ok ? uint32_t(i) : kNoPrim;
+          const __m128 lo = _mm_setr_ps(box.lo.x, box.lo.y, box.lo.z, std::bit_cast<float>(id));
+          const __m128 hi = _mm_setr_ps(box.hi.x, box.hi.y, box.hi.z, 0.f);
+          _mm_store_ps(r.lo, lo);
+          _mm_store_ps(r.hi, hi);
           if (!ok) {
-            r.id = kNoPrim;
             ++a.dropped;
             continue;
           }
-          r.id = uint32_t(i);
-          const __m128 lo = r.vlo(), hi = r.vhi();
           a.box.extend(lo, hi);
           a.cbox.extend(_mm_add_ps(lo, hi));
         }
@@ -742,29 +853,25 @@ Bvh Bvh::build(std::span<const Triangle> triangles, std::span<const Sphere> sphe
   root_range.cbox = acc.cbox.bounds();
   bvh.bounds_ = root_range.box;
 
-  // Upper bounds: every node but the root has at least two children and every leaf at least one primitive, so
-  // nodes <= leaves <= references; a leaf never has more packets than primitives. The storage is not initialised,
-  // so the unused tail costs address space only.
   const size_t n = refs.size();
-  bvh.nodes_.resize(n + 1);
-  bvh.packets_.resize(n);
-
   Builder b(options, refs, triangles, spheres, bvh);
   // A binary tree over n references has at most 2n - 1 nodes; only the used part is touched.
   b.binary.resize(2 * n);
   b.next_binary.store(1);
   b.build_binary(0, root_range);
-  const uint32_t root_idx = b.next_node.fetch_add(1);
-  if (b.binary[0].leaf()) {
+  // The output is sized exactly and written once, each subtree into ranges of its own (emit_node()).
+  const Builder::BinaryNode& root = b.binary[0];
+  bvh.packets_.resize(root.packets);
+  if (root.leaf()) {
     // The whole scene is one leaf: a root with a single child.
-    Node& node = bvh.nodes_[root_idx];
-    Builder::set_slot(node, 0, root_range.box, b.emit_leaf(root_range.begin, root_range.end));
+    bvh.nodes_.resize(1);
+    Node& node = bvh.nodes_[0];
+    Builder::set_slot(node, 0, root_range.box, b.emit_leaf(root_range.begin, root_range.end, 0));
     Builder::clear_slots(node, 1);
   } else {
-    b.emit_node(root_idx, 0);
+    bvh.nodes_.resize(root.wide_nodes);
+    b.emit_node(0, 0, 1, 0);
   }
-  bvh.nodes_.resize(b.next_node.load());
-  bvh.packets_.resize(b.next_packet.load());
   return bvh;
 }
 

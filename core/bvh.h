@@ -123,7 +123,7 @@ class Bvh {
 
   struct Builder;
 
-  // Sized by an upper bound during the parallel build and trimmed after; pages past the used part stay untouched.
+  // Sized exactly once the binary tree is built; filled in parallel, each subtree in ranges of its own.
   std::vector<Node, detail::UninitAllocator<Node>> nodes_;
   std::vector<Packet, detail::UninitAllocator<Packet>> packets_;
   Bounds3 bounds_;
