@@ -21,8 +21,10 @@ struct ExrStream::Impl {
   int rows = 0;                              // rows of the data window written
   bool stopped = false;                      // a band failed, or finish() has spent the stream
 
-  // finish()'s bytes, errors without context; `name` appears in OpenEXR's messages.
-  std::vector<uint8_t> finish(const char* name, const Image& img, const ExrWriteOptions& opt);
+  // When the draft holds every row in the layout of (img, opt), writes the file to `file` from its blocks and
+  // returns true; otherwise returns false. Spends the stream either way. Throws std::runtime_error when (img, opt)
+  // is refused as encode_exr refuses it, and whatever OpenEXR or `file` throws.
+  bool reuse(Imf::OStream& file, const Image& img, const ExrWriteOptions& opt);
 };
 
 ExrStream::ExrStream(const ExrWriteOptions& layout) : impl_(std::make_unique<Impl>()) {
@@ -68,40 +70,41 @@ void ExrStream::write_rows(const Image& band) {
   }
 }
 
-std::vector<uint8_t> ExrStream::Impl::finish(const char* name, const Image& img, const ExrWriteOptions& opt) {
+bool ExrStream::Impl::reuse(Imf::OStream& file, const Image& img, const ExrWriteOptions& opt) {
   const bool whole = !stopped && out && rows == layout.data_window.height();
   stopped = true;
-  if (whole) {
-    const PixelWindow data = exr_layout::data_window(img, opt);
-    const Imf::Header final_header = exr_layout::header(img, opt, data);
-    exr_layout::check_extra_sizes(img, opt);  // refused as encode_exr would, though the values are not read
-    if (data == layout.data_window && final_header.compression() == header->compression() &&
-        final_header.channels() == header->channels()) {
-      try {
-        out.reset();  // completes the draft (its line offset table)
-        const std::vector<uint8_t>& bytes = draft.bytes();
-        exr_layout::MemoryIStream in_stream(
-            std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), name);
-        Imf::InputFile in(in_stream, 0);
-        exr_layout::MemoryOStream file(name);
-        file.reserve(bytes.size() + 65536);  // the draft's blocks and a header with metadata, most likely
-        {
-          Imf::OutputFile final_file(file, final_header, 0);
-          final_file.copyPixels(in);  // the compressed blocks as they are
-        }
-        return file.take();
-      } catch (const std::exception&) {
-        // Whatever went wrong with the draft, the image itself is still there: encode it below.
-      }
-    }
+  if (!whole) {
+    out.reset();
+    return false;
   }
-  out.reset();
-  return exr_layout::encode(name, img, opt);
-}
+  const PixelWindow data = exr_layout::data_window(img, opt);
+  const Imf::Header final_header = exr_layout::header(img, opt, data);
+  exr_layout::check_extra_sizes(img, opt);  // refused as encode_exr would, though the values are not read
+  if (data != layout.data_window || final_header.compression() != header->compression() ||
+      !(final_header.channels() == header->channels())) {
+    out.reset();
+    return false;
+  }
+  out.reset();  // completes the draft (its line offset table)
+  const std::vector<uint8_t>& bytes = draft.bytes();
+  exr_layout::MemoryIStream in_stream(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()),
+                                      "(draft)");
+  Imf::InputFile in(in_stream, 0);
+  Imf::OutputFile final_file(file, final_header, 0);
+  final_file.copyPixels(in);  // the compressed blocks as they are
+  return true;
+}  // final_file's destructor completes the file (its line offset table)
 
 std::vector<uint8_t> ExrStream::finish(const Image& img, const ExrWriteOptions& opt) {
   try {
-    return impl_->finish("memory", img, opt);
+    try {
+      exr_layout::MemoryOStream file("memory");
+      file.reserve(impl_->draft.bytes().size() + 65536);  // the draft's blocks and a header with metadata, most likely
+      if (impl_->reuse(file, img, opt)) return file.take();
+    } catch (const std::exception&) {
+      // A refused image is refused again below; any trouble with the draft leaves the image itself to encode.
+    }
+    return exr_layout::encode("memory", img, opt);
   } catch (const std::exception& e) {
     throw ImageError(std::string("cannot encode EXR: ") + e.what());
   }
@@ -109,7 +112,21 @@ std::vector<uint8_t> ExrStream::finish(const Image& img, const ExrWriteOptions& 
 
 void ExrStream::write(const std::filesystem::path& path, const Image& img, const ExrWriteOptions& opt) {
   try {
-    exr_layout::write_file_atomically(path, impl_->finish(path.c_str(), img, opt));
+    {
+      // Written straight to the temporary file: the blocks are not copied once more in memory.
+      exr_layout::AtomicFile file(path);
+      bool reused = false;
+      try {
+        reused = impl_->reuse(file, img, opt);
+      } catch (const std::exception&) {
+        if (file.failed()) throw;  // the file, not the draft: encoding afresh would fail the same way
+      }
+      if (reused) {
+        file.commit();
+        return;
+      }
+    }  // the temporary file goes
+    exr_layout::write_file_atomically(path, exr_layout::encode(path.c_str(), img, opt));
   } catch (const std::exception& e) {
     throw ImageError("cannot write EXR " + exr_layout::quoted(path) + ": " + e.what());
   }

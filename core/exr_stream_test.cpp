@@ -138,14 +138,33 @@ TEST_F(ExrStreamFile, WriteGivesWriteExrsFile) {
   opt.data_window = {4, 3, 27, 53};
   opt.display_window = {0, 0, 30, 60};
   opt.metadata = {{"tessera:spp", "8"}};
-  ExrStream stream(opt);
-  for (int y = 0; y < img.height; y += 9) stream.write_rows(image_rows(img, y, std::min(img.height, y + 9)));
-  ASSERT_TRUE(stream.complete());
-  EXPECT_EQ(stream.rows_written(), 50);
-  stream.write(file("streamed.exr"), img, opt);
   write_exr(file("one_shot.exr"), img, opt);
-  EXPECT_EQ(file_bytes(file("streamed.exr")), file_bytes(file("one_shot.exr")));
-  EXPECT_FALSE(fs::exists(file("streamed.exr.tmp")));
+  const std::vector<uint8_t> one_shot = file_bytes(file("one_shot.exr"));
+  // Every row streamed: the file is written from the blocks (given a blank image, it still holds img).
+  ExrStream whole(opt);
+  for (int y = 0; y < img.height; y += 9) whole.write_rows(image_rows(img, y, std::min(img.height, y + 9)));
+  ASSERT_TRUE(whole.complete());
+  EXPECT_EQ(whole.rows_written(), 50);
+  Image blank = img;
+  std::fill(blank.rgb.begin(), blank.rgb.end(), 0.f);
+  whole.write(file("streamed.exr"), blank, opt);
+  EXPECT_EQ(file_bytes(file("streamed.exr")), one_shot);
+  // Rows missing: the image is encoded afresh.
+  ExrStream part(opt);
+  part.write_rows(image_rows(img, 0, 20));
+  part.write(file("part.exr"), img, opt);
+  EXPECT_EQ(file_bytes(file("part.exr")), one_shot);
+  // A folder that does not exist: an error naming the file, nothing written.
+  ExrStream lost(opt);
+  lost.write_rows(img);
+  const fs::path nowhere = file("no/such/dir/frame.exr");
+  try {
+    lost.write(nowhere, img, opt);
+    ADD_FAILURE() << "no error";
+  } catch (const ImageError& e) {
+    EXPECT_NE(std::string(e.what()).find(nowhere.string()), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(std::distance(fs::directory_iterator(file("")), fs::directory_iterator()), 3);  // no .tmp left
 }
 
 TEST(ExrStream, WhatDoesNotFitTheStreamIsEncodedAfresh) {

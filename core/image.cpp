@@ -107,46 +107,84 @@ bool MemoryIStream::read(char c[], int n) {
   return pos_ < bytes_.size();
 }
 
-void write_file_atomically(const std::filesystem::path& path, std::span<const uint8_t> bytes) {
-  std::filesystem::path tmp = path;
-  tmp += ".tmp";
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
-  if (fd < 0) throw std::runtime_error("cannot create " + quoted(tmp) + ": " + errno_text(errno));
-  std::string failed;  // what went wrong, empty on success
-  int err = 0;
-  for (size_t done = 0; done < bytes.size();) {
-    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      err = n < 0 ? errno : EIO;
-      failed = "cannot write " + quoted(tmp);
-      break;
-    }
-    done += size_t(n);
+namespace {
+constexpr size_t kFileBuffer = size_t(1) << 20;  // AtomicFile writes in pieces of about this size
+}  // namespace
+
+AtomicFile::AtomicFile(const std::filesystem::path& path) : Imf::OStream(path.c_str()), path_(path), tmp_(path) {
+  tmp_ += ".tmp";
+  fd_ = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+  if (fd_ < 0) throw std::runtime_error("cannot create " + quoted(tmp_) + ": " + errno_text(errno));
+  buffer_.reserve(kFileBuffer);
+}
+
+AtomicFile::~AtomicFile() {
+  if (fd_ >= 0) ::close(fd_);
+  if (!committed_) ::unlink(tmp_.c_str());
+}
+
+void AtomicFile::fail(const std::string& what, int err) {
+  if (failure_.empty()) failure_ = what + ": " + errno_text(err);
+  throw std::runtime_error(failure_);
+}
+
+void AtomicFile::write_at(const char* data, size_t n, uint64_t at) {
+  for (size_t done = 0; done < n;) {
+    const ssize_t w = ::pwrite(fd_, data + done, n - done, off_t(at + done));
+    if (w < 0 && errno == EINTR) continue;
+    if (w <= 0) fail("cannot write " + quoted(tmp_), w < 0 ? errno : EIO);
+    done += size_t(w);
   }
-  if (failed.empty() && ::fsync(fd) != 0) {
-    err = errno;
-    failed = "cannot sync " + quoted(tmp);
+}
+
+void AtomicFile::flush() {
+  if (buffer_.empty()) return;
+  write_at(buffer_.data(), buffer_.size(), buffer_pos_);
+  buffer_.clear();
+}
+
+void AtomicFile::write(const char c[], int n) {
+  if (!failure_.empty()) throw std::runtime_error(failure_);
+  if (n <= 0) return;
+  if (!buffer_.empty() && (pos_ != buffer_pos_ + buffer_.size() || buffer_.size() + size_t(n) > kFileBuffer)) flush();
+  if (size_t(n) >= kFileBuffer) {
+    write_at(c, size_t(n), pos_);
+  } else {
+    if (buffer_.empty()) buffer_pos_ = pos_;
+    buffer_.insert(buffer_.end(), c, c + n);
   }
-  if (::close(fd) != 0 && failed.empty()) {
-    err = errno;
-    failed = "cannot close " + quoted(tmp);
-  }
-  if (failed.empty() && ::rename(tmp.c_str(), path.c_str()) != 0) {
-    err = errno;
-    failed = "cannot rename " + quoted(tmp) + " to " + quoted(path);
-  }
-  if (!failed.empty()) {
-    ::unlink(tmp.c_str());
-    throw std::runtime_error(failed + ": " + errno_text(err));
-  }
+  pos_ += uint64_t(n);
+}
+
+void AtomicFile::write_bytes(std::span<const uint8_t> bytes) {
+  if (!failure_.empty()) throw std::runtime_error(failure_);
+  flush();
+  write_at(reinterpret_cast<const char*>(bytes.data()), bytes.size(), pos_);
+  pos_ += bytes.size();
+}
+
+void AtomicFile::commit() {
+  if (!failure_.empty()) throw std::runtime_error(failure_);
+  flush();
+  if (::fsync(fd_) != 0) fail("cannot sync " + quoted(tmp_), errno);
+  const int fd = fd_;
+  fd_ = -1;
+  if (::close(fd) != 0) fail("cannot close " + quoted(tmp_), errno);
+  if (::rename(tmp_.c_str(), path_.c_str()) != 0) fail("cannot rename " + quoted(tmp_) + " to " + quoted(path_), errno);
+  committed_ = true;
   // Make the rename itself durable. The file is already in place, so a failure here is not reported.
-  const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
+  const std::filesystem::path dir = path_.has_parent_path() ? path_.parent_path() : std::filesystem::path(".");
   const int dir_fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (dir_fd >= 0) {
     ::fsync(dir_fd);
     ::close(dir_fd);
   }
+}
+
+void write_file_atomically(const std::filesystem::path& path, std::span<const uint8_t> bytes) {
+  AtomicFile file(path);
+  file.write_bytes(bytes);
+  file.commit();
 }
 
 // Each line block is compressed on its own, so the file's bytes do not depend on the count; OpenEXR's pool is
