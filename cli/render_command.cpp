@@ -6,6 +6,7 @@
 #include "cli/render_resume.h"
 
 #include "core/enum_names.h"
+#include "core/exr_stream.h"
 #include "core/output_file.h"
 #include "core/render.h"
 #include "core/scene_loader.h"
@@ -199,6 +200,24 @@ int run_render(const RenderArgs& given) {
     ro.progress = [&](const RenderProgress& p) { bar.update(p); };
     InterruptGuard interrupts;
     ro.cancel = &InterruptGuard::flag();
+    // The EXR is compressed while the render goes on, band by band as rows of tiles are final, so that only the last
+    // rows are left when it ends. A partial file (float colours and the state channels) is laid out differently
+    // and written at the end in one go, as is everything after a failed band.
+    ExrWriteOptions layout;
+    layout.half = a.half;
+    layout.data_window = ro.window.empty() ? PixelWindow{0, 0, scene.width, scene.height} : ro.window;
+    layout.display_window = PixelWindow{0, 0, scene.width, scene.height};
+    ExrStream exr(layout);
+    ro.rows_final = [&](const Image& film, const RenderState& state, int y0, int y1) {
+      if (exr.rows_written() != y0) return;  // stopped at a failed band
+      try {
+        Image band = image_rows(film, y0, y1);
+        if (ro.keep_state) write_state_channels(state, band, size_t(y0) * size_t(film.width));
+        exr.write_rows(band);
+      } catch (const std::exception& e) {
+        spdlog::debug("the EXR is written after the render instead: {}", e.what());
+      }
+    };
     RenderResult res = render(scene, ro);
     previous.reset();
 
@@ -221,7 +240,7 @@ int run_render(const RenderArgs& given) {
     }
     if (res.cancelled || ro.keep_state) write_state_channels(res.state, res.image);
     const auto t_write = std::chrono::steady_clock::now();
-    write_exr(a.output, res.image, wo);
+    exr.write(a.output, res.image, wo);
     if (!a.preview.empty()) write_png_srgb(a.preview, res.image);
     if (a.timing) {
       const double write_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_write).count();

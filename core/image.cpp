@@ -1,5 +1,7 @@
 #include "core/image.h"
 
+#include "core/exr_layout.h"
+
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfDoubleAttribute.h>
 #include <OpenEXR/ImfFrameBuffer.h>
@@ -56,8 +58,6 @@ bool is_one_of(std::string_view name, std::span<const std::string_view> names) {
   return std::find(names.begin(), names.end(), name) != names.end();
 }
 
-std::string quoted(const std::filesystem::path& p) { return '"' + p.string() + '"'; }
-
 std::string errno_text(int err) { return std::error_code(err, std::generic_category()).message(); }
 
 // Runs f, turning any exception into an ImageError whose message starts with context. The *_impl functions below
@@ -86,43 +86,94 @@ void check_rgb_shape(const Image& img) {
                              std::to_string(img.rgb.size()) + " colour values, expected " + std::to_string(expected));
 }
 
-// Writes bytes to path + ".tmp", syncs it and renames it over path; on failure the temporary is removed and path
-// is left as it was.
-void write_file_atomically(const std::filesystem::path& path, std::span<const uint8_t> bytes) {
-  std::filesystem::path tmp = path;
-  tmp += ".tmp";
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
-  if (fd < 0) throw std::runtime_error("cannot create " + quoted(tmp) + ": " + errno_text(errno));
-  std::string failed;  // what went wrong, empty on success
-  int err = 0;
-  for (size_t done = 0; done < bytes.size();) {
-    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      err = n < 0 ? errno : EIO;
-      failed = "cannot write " + quoted(tmp);
-      break;
-    }
-    done += size_t(n);
+}  // namespace
+
+namespace exr_layout {
+
+std::string quoted(const std::filesystem::path& p) { return '"' + p.string() + '"'; }
+
+void MemoryOStream::write(const char c[], int n) {
+  const size_t end = pos_ + size_t(n);
+  if (end > bytes_.size()) bytes_.resize(end);
+  std::memcpy(bytes_.data() + pos_, c, size_t(n));
+  pos_ = end;
+}
+
+bool MemoryIStream::read(char c[], int n) {
+  if (n < 0 || size_t(n) > bytes_.size() - std::min(pos_, bytes_.size()))
+    throw std::runtime_error("data ends early (truncated or damaged)");
+  std::memcpy(c, bytes_.data() + pos_, size_t(n));
+  pos_ += size_t(n);
+  return pos_ < bytes_.size();
+}
+
+namespace {
+constexpr size_t kFileBuffer = size_t(1) << 20;  // AtomicFile writes in pieces of about this size
+}  // namespace
+
+AtomicFile::AtomicFile(const std::filesystem::path& path) : Imf::OStream(path.c_str()), path_(path), tmp_(path) {
+  tmp_ += ".tmp";
+  fd_ = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+  if (fd_ < 0) throw std::runtime_error("cannot create " + quoted(tmp_) + ": " + errno_text(errno));
+  buffer_.reserve(kFileBuffer);
+}
+
+AtomicFile::~AtomicFile() {
+  if (fd_ >= 0) ::close(fd_);
+  if (!committed_) ::unlink(tmp_.c_str());
+}
+
+void AtomicFile::fail(const std::string& what, int err) {
+  if (failure_.empty()) failure_ = what + ": " + errno_text(err);
+  throw std::runtime_error(failure_);
+}
+
+void AtomicFile::write_at(const char* data, size_t n, uint64_t at) {
+  for (size_t done = 0; done < n;) {
+    const ssize_t w = ::pwrite(fd_, data + done, n - done, off_t(at + done));
+    if (w < 0 && errno == EINTR) continue;
+    if (w <= 0) fail("cannot write " + quoted(tmp_), w < 0 ? errno : EIO);
+    done += size_t(w);
   }
-  if (failed.empty() && ::fsync(fd) != 0) {
-    err = errno;
-    failed = "cannot sync " + quoted(tmp);
+}
+
+void AtomicFile::flush() {
+  if (buffer_.empty()) return;
+  write_at(buffer_.data(), buffer_.size(), buffer_pos_);
+  buffer_.clear();
+}
+
+void AtomicFile::write(const char c[], int n) {
+  if (!failure_.empty()) throw std::runtime_error(failure_);
+  if (n <= 0) return;
+  if (!buffer_.empty() && (pos_ != buffer_pos_ + buffer_.size() || buffer_.size() + size_t(n) > kFileBuffer)) flush();
+  if (size_t(n) >= kFileBuffer) {
+    write_at(c, size_t(n), pos_);
+  } else {
+    if (buffer_.empty()) buffer_pos_ = pos_;
+    buffer_.insert(buffer_.end(), c, c + n);
   }
-  if (::close(fd) != 0 && failed.empty()) {
-    err = errno;
-    failed = "cannot close " + quoted(tmp);
-  }
-  if (failed.empty() && ::rename(tmp.c_str(), path.c_str()) != 0) {
-    err = errno;
-    failed = "cannot rename " + quoted(tmp) + " to " + quoted(path);
-  }
-  if (!failed.empty()) {
-    ::unlink(tmp.c_str());
-    throw std::runtime_error(failed + ": " + errno_text(err));
-  }
+  pos_ += uint64_t(n);
+}
+
+void AtomicFile::write_bytes(std::span<const uint8_t> bytes) {
+  if (!failure_.empty()) throw std::runtime_error(failure_);
+  flush();
+  write_at(reinterpret_cast<const char*>(bytes.data()), bytes.size(), pos_);
+  pos_ += bytes.size();
+}
+
+void AtomicFile::commit() {
+  if (!failure_.empty()) throw std::runtime_error(failure_);
+  flush();
+  if (::fsync(fd_) != 0) fail("cannot sync " + quoted(tmp_), errno);
+  const int fd = fd_;
+  fd_ = -1;
+  if (::close(fd) != 0) fail("cannot close " + quoted(tmp_), errno);
+  if (::rename(tmp_.c_str(), path_.c_str()) != 0) fail("cannot rename " + quoted(tmp_) + " to " + quoted(path_), errno);
+  committed_ = true;
   // Make the rename itself durable. The file is already in place, so a failure here is not reported.
-  const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
+  const std::filesystem::path dir = path_.has_parent_path() ? path_.parent_path() : std::filesystem::path(".");
   const int dir_fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (dir_fd >= 0) {
     ::fsync(dir_fd);
@@ -130,24 +181,108 @@ void write_file_atomically(const std::filesystem::path& path, std::span<const ui
   }
 }
 
-// An OpenEXR output stream into memory, so write_exr can hand complete bytes to write_file_atomically.
-class MemoryOStream final : public Imf::OStream {
- public:
-  explicit MemoryOStream(const char* name) : Imf::OStream(name) {}
-  void write(const char c[], int n) override {
-    const size_t end = pos_ + size_t(n);
-    if (end > bytes_.size()) bytes_.resize(end);
-    std::memcpy(bytes_.data() + pos_, c, size_t(n));
-    pos_ = end;
-  }
-  uint64_t tellp() override { return pos_; }
-  void seekp(uint64_t pos) override { pos_ = size_t(pos); }
-  const std::vector<uint8_t>& bytes() const { return bytes_; }
+void write_file_atomically(const std::filesystem::path& path, std::span<const uint8_t> bytes) {
+  AtomicFile file(path);
+  file.write_bytes(bytes);
+  file.commit();
+}
 
- private:
-  std::vector<uint8_t> bytes_;
-  size_t pos_ = 0;
-};
+// Each line block is compressed on its own, so the file's bytes do not depend on the count; OpenEXR's pool is
+// resized only when the count changes.
+int compression_threads() {
+  static std::mutex mu;
+  static int pool = 0;
+  const int want = int(std::max<size_t>(1, tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)));
+  std::lock_guard lock(mu);
+  if (want != pool) {
+    Imf::setGlobalThreadCount(want);
+    pool = want;
+  }
+  return want;
+}
+
+PixelWindow data_window(const Image& img, const ExrWriteOptions& opt, bool band) {
+  check_rgb_shape(img);
+  if (img.width == 0 || img.height == 0) throw std::runtime_error("an EXR cannot hold an empty image");
+  const PixelWindow data = opt.data_window.empty() ? PixelWindow{0, 0, img.width, img.height} : opt.data_window;
+  if (data.width() != img.width || (!band && data.height() != img.height))
+    throw std::runtime_error("data window size " + std::to_string(data.width()) + "x" + std::to_string(data.height()) +
+                             " differs from the image size " + std::to_string(img.width) + "x" +
+                             std::to_string(img.height));
+  return data;
+}
+
+Imf::Header header(const Image& img, const ExrWriteOptions& opt, const PixelWindow& data) {
+  const PixelWindow display = opt.display_window.empty() ? data : opt.display_window;
+  Imf::Header h(to_box(display), to_box(data));
+  switch (opt.compression) {
+    case ExrCompression::kZip: h.compression() = Imf::ZIP_COMPRESSION; break;
+    case ExrCompression::kPiz: h.compression() = Imf::PIZ_COMPRESSION; break;
+    case ExrCompression::kNone: h.compression() = Imf::NO_COMPRESSION; break;
+  }
+  for (const auto& [key, value] : opt.metadata) {
+    if (is_one_of(key, kLayoutAttributes) || is_one_of(key, kTypedStandardAttributes))
+      throw std::runtime_error("metadata key \"" + key + "\" is a standard EXR attribute and cannot be a string");
+    h.insert(key, Imf::StringAttribute(value));
+  }
+  const Imf::PixelType rgb_type = opt.half ? Imf::HALF : Imf::FLOAT;
+  for (const char* name : {"R", "G", "B"}) h.channels().insert(name, Imf::Channel(rgb_type));
+  if (opt.write_extra) {
+    const auto add_channel = [&](const std::string& name, Imf::PixelType type) {
+      if (name == "R" || name == "G" || name == "B" || h.channels().findChannel(name))
+        throw std::runtime_error("extra channel \"" + name + "\" collides with another channel");
+      h.channels().insert(name, Imf::Channel(type));
+    };
+    for (const auto& entry : img.extra) add_channel(entry.first, Imf::FLOAT);
+    for (const auto& entry : img.uint_extra) add_channel(entry.first, Imf::UINT);
+  }
+  return h;
+}
+
+Frame frame(const Image& img, const ExrWriteOptions& opt, const PixelWindow& rows) {
+  Frame f;
+  const Imath::Box2i box = to_box(rows);
+  // OutputFile does not convert between pixel types, so half output needs a half copy of the colours.
+  if (opt.half) {
+    f.rgb_half.resize(img.rgb.size());
+    std::transform(img.rgb.begin(), img.rgb.end(), f.rgb_half.begin(), [](float v) { return half(v); });
+  }
+  const Imf::PixelType rgb_type = opt.half ? Imf::HALF : Imf::FLOAT;
+  const char* const rgb_base = opt.half ? reinterpret_cast<const char*>(f.rgb_half.data())
+                                        : reinterpret_cast<const char*>(img.rgb.data());
+  const size_t value_size = opt.half ? sizeof(half) : sizeof(float);
+  const char* const rgb_names[] = {"R", "G", "B"};
+  for (size_t i = 0; i < 3; ++i)
+    f.buffer.insert(rgb_names[i], Imf::Slice::Make(rgb_type, rgb_base + i * value_size, box, 3 * value_size,
+                                                   3 * value_size * size_t(img.width)));
+  if (opt.write_extra) {
+    check_extra_sizes(img, opt);
+    for (const auto& [name, values] : img.extra) f.buffer.insert(name, Imf::Slice::Make(Imf::FLOAT, values.data(), box));
+    for (const auto& [name, values] : img.uint_extra)
+      f.buffer.insert(name, Imf::Slice::Make(Imf::UINT, values.data(), box));
+  }
+  return f;
+}
+
+void check_extra_sizes(const Image& img, const ExrWriteOptions& opt) {
+  if (!opt.write_extra) return;
+  const size_t expected = size_t(img.width) * size_t(img.height);
+  const auto check = [&](const std::string& name, size_t size) {
+    if (size != expected)
+      throw std::runtime_error("extra channel \"" + name + "\" has " + std::to_string(size) + " values, expected " +
+                               std::to_string(expected));
+  };
+  for (const auto& [name, values] : img.extra) check(name, values.size());
+  for (const auto& [name, values] : img.uint_extra) check(name, values.size());
+}
+
+}  // namespace exr_layout
+
+namespace {
+
+using exr_layout::MemoryIStream;
+using exr_layout::MemoryOStream;
+using exr_layout::quoted;
 
 // Reads the first header from is (positioned just after the magic number and version field) and rejects what
 // read_exr cannot or should not load, before OpenEXR sizes any table or buffer from the header.
@@ -213,26 +348,6 @@ void read_luminance_chroma(Imf::IStream& is, const Imath::Box2i& dw, Image& img)
     img.rgb[3 * i + 2] = buf[i].b;
   }
 }
-
-// An OpenEXR input stream over bytes in memory (decode_exr).
-class MemoryIStream final : public Imf::IStream {
- public:
-  MemoryIStream(std::string_view bytes, const char* name) : Imf::IStream(name), bytes_(bytes) {}
-  bool read(char c[], int n) override {
-    if (n < 0 || size_t(n) > bytes_.size() - std::min(pos_, bytes_.size()))
-      throw std::runtime_error("data ends early (truncated or damaged)");
-    std::memcpy(c, bytes_.data() + pos_, size_t(n));
-    pos_ += size_t(n);
-    return pos_ < bytes_.size();
-  }
-  uint64_t tellg() override { return pos_; }
-  void seekg(uint64_t pos) override { pos_ = size_t(pos); }
-  void clear() override {}
-
- private:
-  std::string_view bytes_;
-  size_t pos_ = 0;
-};
 
 // The version field after the magic number (the first `got` of 8 bytes read), so that short and foreign data get a
 // plain message.
@@ -339,82 +454,17 @@ ExrImage read_exr_stream(Imf::IStream& stream, int version) {
   return out;
 }
 
-// Threads for compressing an EXR: as many as the render may use (--threads). Each line block is compressed on its
-// own, so the file's bytes do not depend on the count; OpenEXR's pool is resized only when the count changes.
-int exr_threads() {
-  static std::mutex mu;
-  static int pool = 0;
-  const int want = int(std::max<size_t>(1, tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)));
-  std::lock_guard lock(mu);
-  if (want != pool) {
-    Imf::setGlobalThreadCount(want);
-    pool = want;
-  }
-  return want;
-}
-
 std::vector<uint8_t> encode_exr_impl(const char* name, const Image& img, const ExrWriteOptions& opt) {
-  check_rgb_shape(img);
-  if (img.width == 0 || img.height == 0) throw std::runtime_error("an EXR cannot hold an empty image");
-  const PixelWindow data = opt.data_window.empty() ? PixelWindow{0, 0, img.width, img.height} : opt.data_window;
-  if (data.width() != img.width || data.height() != img.height)
-    throw std::runtime_error("data window size " + std::to_string(data.width()) + "x" + std::to_string(data.height()) +
-                             " differs from the image size " + std::to_string(img.width) + "x" +
-                             std::to_string(img.height));
-  const PixelWindow display = opt.display_window.empty() ? data : opt.display_window;
-  const Imath::Box2i dw = to_box(data);
-
-  Imf::Header header(to_box(display), dw);
-  switch (opt.compression) {
-    case ExrCompression::kZip: header.compression() = Imf::ZIP_COMPRESSION; break;
-    case ExrCompression::kPiz: header.compression() = Imf::PIZ_COMPRESSION; break;
-    case ExrCompression::kNone: header.compression() = Imf::NO_COMPRESSION; break;
-  }
-  for (const auto& [key, value] : opt.metadata) {
-    if (is_one_of(key, kLayoutAttributes) || is_one_of(key, kTypedStandardAttributes))
-      throw std::runtime_error("metadata key \"" + key + "\" is a standard EXR attribute and cannot be a string");
-    header.insert(key, Imf::StringAttribute(value));
-  }
-
-  // OutputFile does not convert between pixel types, so half output needs a half copy of the colours.
-  std::vector<half> rgb_half;
-  if (opt.half) {
-    rgb_half.resize(img.rgb.size());
-    std::transform(img.rgb.begin(), img.rgb.end(), rgb_half.begin(), [](float v) { return half(v); });
-  }
-  const Imf::PixelType rgb_type = opt.half ? Imf::HALF : Imf::FLOAT;
-  const char* const rgb_base = opt.half ? reinterpret_cast<const char*>(rgb_half.data())
-                                        : reinterpret_cast<const char*>(img.rgb.data());
-  const size_t value_size = opt.half ? sizeof(half) : sizeof(float);
-  Imf::FrameBuffer fb;
-  const char* const rgb_names[] = {"R", "G", "B"};
-  for (size_t i = 0; i < 3; ++i) {
-    header.channels().insert(rgb_names[i], Imf::Channel(rgb_type));
-    fb.insert(rgb_names[i], Imf::Slice::Make(rgb_type, rgb_base + i * value_size, dw, 3 * value_size,
-                                             3 * value_size * size_t(img.width)));
-  }
-  if (opt.write_extra) {
-    const size_t expected = size_t(img.width) * size_t(img.height);
-    const auto add_channel = [&](const std::string& name, size_t size, Imf::PixelType type, const void* values) {
-      if (name == "R" || name == "G" || name == "B" || header.channels().findChannel(name))
-        throw std::runtime_error("extra channel \"" + name + "\" collides with another channel");
-      if (size != expected)
-        throw std::runtime_error("extra channel \"" + name + "\" has " + std::to_string(size) + " values, expected " +
-                                 std::to_string(expected));
-      header.channels().insert(name, Imf::Channel(type));
-      fb.insert(name, Imf::Slice::Make(type, values, dw));
-    };
-    for (const auto& [name, values] : img.extra) add_channel(name, values.size(), Imf::FLOAT, values.data());
-    for (const auto& [name, values] : img.uint_extra) add_channel(name, values.size(), Imf::UINT, values.data());
-  }
-
+  const PixelWindow data = exr_layout::data_window(img, opt);
+  const Imf::Header header = exr_layout::header(img, opt, data);
+  const exr_layout::Frame frame = exr_layout::frame(img, opt, data);
   MemoryOStream stream(name);
   {
-    Imf::OutputFile out(stream, header, opt.compression == ExrCompression::kNone ? 0 : exr_threads());
-    out.setFrameBuffer(fb);
+    Imf::OutputFile out(stream, header, opt.compression == ExrCompression::kNone ? 0 : exr_layout::compression_threads());
+    out.setFrameBuffer(frame.buffer);
     out.writePixels(img.height);
   }  // the destructor completes the file (its line offset table)
-  return stream.bytes();
+  return stream.take();
 }
 
 // sRGB OETF of a linear value, clamped to [0,1] (NaN -> 0), rounded to 8 bits.
@@ -457,6 +507,35 @@ Image Image::make(int width, int height) {
   return img;
 }
 
+std::vector<uint8_t> exr_layout::encode(const char* name, const Image& img, const ExrWriteOptions& opt) {
+  return encode_exr_impl(name, img, opt);
+}
+
+Image image_rows(const Image& img, int y0, int y1) {
+  if (y0 < 0 || y1 < y0 || y1 > img.height)
+    throw ImageError("image_rows: rows [" + std::to_string(y0) + ", " + std::to_string(y1) + ") are not rows of a " +
+                     std::to_string(img.height) + "-row image");
+  const size_t n = size_t(img.width) * size_t(img.height);
+  const auto check = [&](const std::string& name, size_t size) {
+    if (size != n)
+      throw ImageError("image_rows: channel " + name + " has " + std::to_string(size) + " values, expected " +
+                       std::to_string(n));
+  };
+  if (img.rgb.size() != 3 * n)
+    throw ImageError("image_rows: " + std::to_string(img.rgb.size()) + " colour values, expected " +
+                     std::to_string(3 * n));
+  for (const auto& [name, values] : img.extra) check(name, values.size());
+  for (const auto& [name, values] : img.uint_extra) check(name, values.size());
+  const size_t first = size_t(y0) * size_t(img.width), end = size_t(y1) * size_t(img.width);
+  Image rows = Image::make(img.width, y1 - y0);
+  std::copy(img.rgb.begin() + std::ptrdiff_t(3 * first), img.rgb.begin() + std::ptrdiff_t(3 * end), rows.rgb.begin());
+  for (const auto& [name, values] : img.extra)
+    rows.extra[name].assign(values.begin() + std::ptrdiff_t(first), values.begin() + std::ptrdiff_t(end));
+  for (const auto& [name, values] : img.uint_extra)
+    rows.uint_extra[name].assign(values.begin() + std::ptrdiff_t(first), values.begin() + std::ptrdiff_t(end));
+  return rows;
+}
+
 ExrImage read_exr(const std::filesystem::path& path) {
   return with_context("cannot read EXR " + quoted(path), [&] { return read_exr_impl(path); });
 }
@@ -467,7 +546,7 @@ ExrImage decode_exr(std::string_view bytes) {
 
 void write_exr(const std::filesystem::path& path, const Image& img, const ExrWriteOptions& opt) {
   with_context("cannot write EXR " + quoted(path),
-               [&] { write_file_atomically(path, encode_exr_impl(path.c_str(), img, opt)); });
+               [&] { exr_layout::write_file_atomically(path, encode_exr_impl(path.c_str(), img, opt)); });
 }
 
 std::vector<uint8_t> encode_exr(const Image& img, const ExrWriteOptions& opt) {
@@ -480,7 +559,7 @@ std::vector<uint8_t> encode_png_srgb(const Image& img, float exposure) {
 
 void write_png_srgb(const std::filesystem::path& path, const Image& img, float exposure) {
   with_context("cannot write PNG " + quoted(path),
-               [&] { write_file_atomically(path, encode_png_impl(img, exposure)); });
+               [&] { exr_layout::write_file_atomically(path, encode_png_impl(img, exposure)); });
 }
 
 }  // namespace tessera

@@ -74,6 +74,10 @@ struct Image {
   }
 };
 
+/// Rows [y0, y1) of img as an image of their own, extra channels included; throws ImageError unless
+/// 0 <= y0 <= y1 <= img.height.
+Image image_rows(const Image& img, int y0, int y1);
+
 /// An EXR as read: its pixels over its data window, the display window and string/int/double metadata.
 struct ExrImage {
   Image pixels;                ///< Exactly the data window's pixels.

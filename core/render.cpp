@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <chrono>
 #include <limits>
+#include <memory>
 #include <mutex>
 #include <stdexcept>
 #include <string>
@@ -175,23 +176,52 @@ RenderResult render(const Scene& scene, const RenderOptions& opt) {
   std::atomic<uint64_t> rays_done{0};
   std::atomic<bool> cancelled{false};
 
+  // Threads the render can use: one task each, taking the next free tile in row-major order until none is left,
+  // so that rows of tiles finish roughly from the top down (the order RenderOptions::rows_final tells them in).
+  res.threads = int(std::min<size_t>(size_t(tbb::this_task_arena::max_concurrency()),
+                                      tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)));
+  std::atomic<int> next_tile{0};
+  // Per row of tiles: its tiles not yet final (a tile stopped by cancel or the budget never is).
+  std::unique_ptr<std::atomic<int>[]> row_tiles_left;
+  if (opt.rows_final) {
+    row_tiles_left = std::make_unique<std::atomic<int>[]>(size_t(ty));
+    for (int r = 0; r < ty; ++r) row_tiles_left[size_t(r)].store(tx, std::memory_order_relaxed);
+  }
+  // Rows of tiles finished and not yet looked at by the thread telling rows_final; that thread is the one that
+  // raised it from 0, and it looks again until it brings it back to 0, so no finished row waits for a later one.
+  std::atomic<int> row_requests{0};
+  int rows_told = 0;  // rows of tiles told to rows_final (only the telling thread touches it)
+  const auto tell_rows = [&] {
+    if (row_requests.fetch_add(1, std::memory_order_acq_rel) != 0) return;
+    do {
+      const int first = rows_told;
+      while (rows_told < ty && row_tiles_left[size_t(rows_told)].load(std::memory_order_acquire) == 0) ++rows_told;
+      if (rows_told > first) opt.rows_final(res.image, res.state, first * ts, std::min(rows_told * ts, w.height()));
+    } while (row_requests.fetch_sub(1, std::memory_order_acq_rel) != 1);
+  };
+
   tbb::enumerable_thread_specific<double> busy_seconds(0.0);  // per thread: time spent on tiles
   const auto t_parallel = std::chrono::steady_clock::now();
-  tbb::parallel_for(tbb::blocked_range<int>(0, ntiles, 1), [&](const tbb::blocked_range<int>& range) {
+  const auto render_tiles = [&] {
     RayCounters& c = counters.local();
     c.recorder = opt.recorder;
-    const auto t_range = std::chrono::steady_clock::now();
-    for (int t = range.begin(); t != range.end(); ++t) {
+    const auto t_start = std::chrono::steady_clock::now();
+    for (int t = next_tile.fetch_add(1, std::memory_order_relaxed); t < ntiles;
+         t = next_tile.fetch_add(1, std::memory_order_relaxed)) {
       const bool over_budget = opt.tile_budget > 0 && started.fetch_add(1) >= opt.tile_budget;
       const uint64_t before = c.rays;
       const int x0 = w.x0 + (t % tx) * ts, y0 = w.y0 + (t / tx) * ts;
       const int x1 = std::min(x0 + ts, w.x1), y1 = std::min(y0 + ts, w.y1);
+      bool tile_stopped = false;
       for (int y = y0; y < y1; ++y)
         for (int x = x0; x < x1; ++x) {
           const int lx = x - w.x0, ly = y - w.y0;
           const size_t i = size_t(ly) * size_t(w.width()) + size_t(lx);
           const bool stop = over_budget || (opt.cancel && opt.cancel->load(std::memory_order_relaxed));
-          if (stop) cancelled.store(true, std::memory_order_relaxed);
+          if (stop) {
+            cancelled.store(true, std::memory_order_relaxed);
+            tile_stopped = true;
+          }
           const uint32_t had = prev ? prev->state.samples[i] : 0U;
           if (had > 0 && prev->state.exact()) {
             PixelAccumulator acc = prev->state.pixel(i);
@@ -206,6 +236,9 @@ RenderResult render(const Scene& scene, const RenderOptions& opt) {
             store(i, lx, ly, acc);
           }
         }
+      if (opt.rows_final && !tile_stopped &&
+          row_tiles_left[size_t(t / tx)].fetch_sub(1, std::memory_order_acq_rel) == 1)
+        tell_rows();
       const int d = ++done;
       const uint64_t rays = rays_done += c.rays - before;
       if (opt.progress) {
@@ -214,11 +247,15 @@ RenderResult render(const Scene& scene, const RenderOptions& opt) {
                                     std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()});
       }
     }
-    busy_seconds.local() += std::chrono::duration<double>(std::chrono::steady_clock::now() - t_range).count();
-  });
+    busy_seconds.local() += std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  };
+  tbb::parallel_for(
+      tbb::blocked_range<int>(0, std::max(1, std::min(res.threads, ntiles)), 1),
+      [&](const tbb::blocked_range<int>& slots) {
+        for (int s = slots.begin(); s != slots.end(); ++s) render_tiles();
+      },
+      tbb::simple_partitioner());
   res.parallel_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_parallel).count();
-  res.threads = int(std::min<size_t>(size_t(tbb::this_task_arena::max_concurrency()),
-                                      tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)));
   double busy = 0.0;
   for (const double b : busy_seconds) busy += b;
   res.idle_thread_seconds = std::max(0.0, double(res.threads) * res.parallel_seconds - busy);

@@ -55,6 +55,13 @@ struct RenderOptions {
   const StoredRender* previous = nullptr;
   /// When set, receives every ray the render traces, from its threads (see core/ray_recorder.h); pixels are the same.
   RayRecorder* recorder = nullptr;
+  /// When set, told as soon as rows of the window are final, e.g. to compress them into a file while the render
+  /// goes on: rows [y0, y1) (0 = the window's first row) of `film` (the result's image as the render fills it) and
+  /// `state` (its RenderState: samples, and the accumulators with keep_state) hold their final values. Calls come in
+  /// order of rows from row 0, never two at once, from the thread that finished the rows' last tile, while the
+  /// other threads go on rendering. Rows of a tile stopped by `cancel` or `tile_budget` are never told, nor any
+  /// after them. An exception it throws ends the render (render() rethrows it).
+  std::function<void(const Image& film, const RenderState& state, int y0, int y1)> rows_final;
 };
 
 /// A rendered window.
@@ -74,6 +81,7 @@ struct RenderResult {
 };
 
 /// Renders options.window of the scene. Bitwise identical pixels for any window split, tile size or thread count.
+/// Threads take tiles in row-major order (the next free tile), so rows finish roughly from the top down.
 RenderResult render(const Scene& scene, const RenderOptions& options);
 
 /// The sampler of sample s of pixel (px, row): with K replicates, sample s / K of replicate s mod K.

@@ -8,6 +8,8 @@
 #include "core/test_files.h"
 
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
+#include <tbb/task_arena.h>
 
 #include <atomic>
 #include <cstring>
@@ -217,6 +219,29 @@ TEST_F(RenderResume, StateChannelsRoundTripAndIncompleteOnesAreRefused) {
   Image none = back.image;
   none.uint_extra.clear();
   EXPECT_THROW(read_state_channels(none, 2), ImageError);
+}
+
+TEST_F(RenderResume, RowsOfStoppedTilesAreNeverToldFinal) {
+  const Scene s = scene();  // 29 x 23: rows of 8 tiles of 4 x 4
+  for (const int threads : {1, 3}) {
+    RenderOptions ro = options(2);
+    ro.tile_budget = 12;  // a row of tiles and a half
+    int told = 0;
+    ro.rows_final = [&](const Image&, const RenderState& state, int y0, int y1) {
+      EXPECT_EQ(y0, told);
+      told = y1;
+      for (size_t i = size_t(y0) * 29; i < size_t(y1) * 29; ++i) EXPECT_EQ(state.samples[i], 2u) << i;
+    };
+    tbb::global_control allow(tbb::global_control::max_allowed_parallelism, size_t(threads));
+    tbb::task_arena arena(threads);
+    RenderResult part;
+    arena.execute([&] { part = render(s, ro); });
+    ASSERT_TRUE(part.cancelled);
+    // One thread takes the tiles in order, so the budget ends inside the second row of tiles; more threads may
+    // spend it on tiles of the first two rows in another order, and then tell at most the first.
+    if (threads == 1) EXPECT_EQ(told, 4);
+    else EXPECT_LE(told, 4);
+  }
 }
 
 }  // namespace

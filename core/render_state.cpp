@@ -15,9 +15,13 @@ void RenderState::set(size_t i, const PixelAccumulator& acc) {
   acc.save(sums.data() + i * PixelAccumulator::state_size(replicates));
 }
 
-void write_state_channels(const RenderState& state, Image& img) {
+void write_state_channels(const RenderState& state, Image& img, size_t first) {
   const size_t n = size_t(img.width) * size_t(img.height);
-  img.uint_extra[kSamplesChannel] = state.samples;
+  if (first + n > state.samples.size())
+    throw ImageError("write_state_channels: pixels " + std::to_string(first) + ".." + std::to_string(first + n) +
+                     " are not all in a state of " + std::to_string(state.samples.size()));
+  const auto samples = state.samples.begin() + std::ptrdiff_t(first);
+  img.uint_extra[kSamplesChannel].assign(samples, samples + std::ptrdiff_t(n));
   if (!state.exact()) return;
   const std::vector<std::string> names = PixelAccumulator::state_names(state.replicates);
   for (size_t v = 0; v < names.size(); ++v) {
@@ -26,7 +30,7 @@ void write_state_channels(const RenderState& state, Image& img) {
     hi.resize(n);
     lo.resize(n);
     for (size_t i = 0; i < n; ++i) {
-      const uint64_t bits = std::bit_cast<uint64_t>(state.sums[i * names.size() + v]);
+      const uint64_t bits = std::bit_cast<uint64_t>(state.sums[(first + i) * names.size() + v]);
       hi[i] = uint32_t(bits >> 32);
       lo[i] = uint32_t(bits);
     }

@@ -38,8 +38,9 @@ struct StoredRender {
   RenderState state;  ///< Their state (samples.size() == image.width * image.height).
 };
 
-/// Adds state's channels to img (kSamplesChannel, and the accumulator channels when state.exact()).
-void write_state_channels(const RenderState& state, Image& img);
+/// Adds state's channels to img (kSamplesChannel, and the accumulator channels when state.exact()). img holds the
+/// state's pixels from index `first` on (a band of rows y0.. of the window: first = y0 * width).
+void write_state_channels(const RenderState& state, Image& img, size_t first = 0);
 
 /// The state stored in img's channels by write_state_channels for accumulators of `replicates` replicates; the
 /// accumulators are read when present. Throws ImageError when the sample channel is missing or the accumulator

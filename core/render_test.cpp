@@ -12,7 +12,9 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include <tbb/global_control.h>
+#include <tbb/task_arena.h>
 
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -388,6 +390,52 @@ TEST_F(RenderTest, CropsAndTileSizesGiveBitwiseIdenticalPixels) {
   RenderOptions other = whole_opt;
   other.seed = 54321;
   EXPECT_NE(render(scene, other).image.rgb, whole.image.rgb);
+}
+
+TEST_F(RenderTest, RowsFinalTellsEveryRowOnceInOrderWithItsFinalValues) {
+  LoadOptions opt;
+  opt.spp = 2;
+  Scene scene = load_scene_file(fs::path(TESSERA_SHARED_DIR) / "compat/rdr171/cbox_refract_textured.json", opt).scene;
+  scene.width = 23;
+  scene.height = 31;
+  RenderOptions ro;
+  ro.variance = true;
+  ro.keep_state = true;
+  ro.tile_size = 4;
+  ro.window = PixelWindow{2, 1, 23, 30};
+  const RenderResult plain = render(scene, ro);
+  for (const int threads : {1, 2, 5}) {
+    std::atomic<int> in_call{0};
+    int next = 0;
+    bool overlapped = false;
+    std::vector<std::pair<int, Image>> bands;  // (first row, the rows as told)
+    std::vector<uint32_t> told_samples;
+    RenderOptions o = ro;
+    o.rows_final = [&](const Image& film, const RenderState& state, int y0, int y1) {
+      if (in_call.fetch_add(1) != 0) overlapped = true;
+      EXPECT_EQ(y0, next) << threads;
+      EXPECT_GT(y1, y0) << threads;
+      next = y1;
+      bands.emplace_back(y0, image_rows(film, y0, y1));
+      told_samples.insert(told_samples.end(), state.samples.begin() + y0 * film.width,
+                          state.samples.begin() + y1 * film.width);
+      in_call.fetch_sub(1);
+    };
+    tbb::global_control allow(tbb::global_control::max_allowed_parallelism, size_t(threads));
+    tbb::task_arena arena(threads);
+    RenderResult res;
+    arena.execute([&] { res = render(scene, o); });
+    EXPECT_FALSE(overlapped) << threads;
+    EXPECT_EQ(next, 29) << threads;  // every row of the window, once
+    // The rows were final when told, and telling them changed no pixel.
+    EXPECT_EQ(res.image.rgb, plain.image.rgb) << threads;
+    for (const auto& [y0, band] : bands) {
+      const Image now = image_rows(res.image, y0, y0 + band.height);
+      EXPECT_EQ(band.rgb, now.rgb) << threads << ", rows from " << y0;
+      EXPECT_EQ(band.extra, now.extra) << threads << ", rows from " << y0;
+    }
+    EXPECT_EQ(told_samples, res.state.samples) << threads;
+  }
 }
 
 }  // namespace
