@@ -179,13 +179,36 @@ Distribution1D::Distribution1D(std::span<const float> weights) {
   }
   for (size_t i = 1; i <= n; ++i) cdf_[i] = float(double(cdf_[i]) / acc);
   cdf_[n] = 1.f;
+  // A guide for large tables (an environment map's rows and columns): binary search over a few entries instead of
+  // all of them. Small ones (an emitter's parts) are searched whole.
+  if (n >= 16) {
+    guide_.resize(n + 1);
+    for (size_t b = 0; b <= n; ++b)
+      guide_[b] = int(std::upper_bound(cdf_.begin(), cdf_.end(), float(b) / float(n)) - cdf_.begin());
+  }
+}
+
+int Distribution1D::upper_bound_index(float u) const {
+  const int end = int(cdf_.size());
+  int a = 0, c = end;
+  if (!guide_.empty() && u >= 0.f && u < 1.f) {
+    const int g = int(guide_.size()) - 1;
+    const int b = std::min(int(u * float(g)), g - 1);
+    a = guide_[size_t(b)];
+    c = guide_[size_t(b) + 1];
+    // The bucket's bounds hold if cdf_[a - 1] <= u < cdf_[c]; where rounding of u * g broke one, search past it.
+    if (a > 0 && cdf_[size_t(a) - 1] > u) a = 0;
+    if (c < end && !(cdf_[size_t(c)] > u)) c = end;
+  }
+  // Every entry before a is <= u and cdf_[c] > u (or c is the end), so the first entry > u in [a, c) (or c) is
+  // the first in all of cdf_.
+  return int(std::upper_bound(cdf_.begin() + a, cdf_.begin() + c, u) - cdf_.begin());
 }
 
 float Distribution1D::sample(float u, float* pdf, int* bin) const {
   const int n = int(func_.size());
   // Last index i with cdf[i] <= u.
-  const auto it = std::upper_bound(cdf_.begin(), cdf_.end(), u);
-  int i = std::clamp(int(it - cdf_.begin()) - 1, 0, n - 1);
+  int i = std::clamp(upper_bound_index(u) - 1, 0, n - 1);
   while (i < n - 1 && func_[i] == 0.f) ++i;  // never land in an empty bin through rounding
   const float width = cdf_[i + 1] - cdf_[i];
   float du = width > 0.f ? (u - cdf_[i]) / width : 0.5f;
@@ -211,6 +234,12 @@ Distribution2D::Distribution2D(std::span<const float> weights, int w, int h) {
     row_integrals[size_t(y)] = conditional_.back().integral();
   }
   marginal_ = Distribution1D(row_integrals);
+  w_ = std::max(1, w);
+  h_ = h;
+  pdf_.resize(size_t(w_) * size_t(std::max(0, h)));
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w_; ++x)
+      pdf_[size_t(y) * size_t(w_) + size_t(x)] = marginal_.bin_pdf(y) * conditional_[size_t(y)].bin_pdf(x);
 }
 
 Vec2 Distribution2D::sample(Vec2 u, float* pdf) const {
@@ -223,9 +252,11 @@ Vec2 Distribution2D::sample(Vec2 u, float* pdf) const {
 }
 
 float Distribution2D::pdf(Vec2 uv) const {
-  const int h = int(conditional_.size());
-  const int row = std::clamp(int(uv.y * float(h)), 0, h - 1);
-  return marginal_.pdf(uv.y) * conditional_[size_t(row)].pdf(uv.x);
+  // marginal_.pdf(uv.y) * conditional_[row].pdf(uv.x), looked up.
+  if (pdf_.empty()) return 0.f;
+  const int row = std::clamp(int(uv.y * float(h_)), 0, h_ - 1);
+  const int col = std::clamp(int(uv.x * float(w_)), 0, w_ - 1);
+  return pdf_[size_t(row) * size_t(w_) + size_t(col)];
 }
 
 }  // namespace tessera

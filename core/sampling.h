@@ -99,9 +99,17 @@ class Distribution1D {
   int size() const { return int(func_.size()); }
   /// Sum of weights divided by the bin count.
   float integral() const { return integral_; }
+  /// Density in bin i (0 <= i < size()): pdf(x) for every x in that bin.
+  float bin_pdf(int i) const { return func_[size_t(i)] / (integral_ > 0.f ? integral_ : 1.f); }
 
  private:
+  // The first index p of cdf_ with cdf_[p] > u, as std::upper_bound over all of cdf_ finds it.
+  int upper_bound_index(float u) const;
+
   std::vector<float> func_, cdf_;
+  // guide_[b] = upper_bound_index(b / G) for the G = guide_.size() - 1 equal buckets of [0,1] (empty for few bins):
+  // the search for a u in bucket b starts at guide_[b] and ends at guide_[b + 1], checked against cdf_ itself.
+  std::vector<int> guide_;
   float integral_ = 0.f;
 };
 
@@ -119,6 +127,8 @@ class Distribution2D {
  private:
   std::vector<Distribution1D> conditional_;
   Distribution1D marginal_;
+  std::vector<float> pdf_;  // pdf() of each cell, row-major, from the same float operations as the two factors
+  int w_ = 0, h_ = 0;
 };
 
 /// Power heuristic with exponent 2 for one sample from each of two strategies.

@@ -8,7 +8,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <bit>
+#include <cstdint>
 #include <random>
+#include <vector>
 
 namespace tessera {
 namespace {
@@ -111,6 +115,59 @@ TEST(SphericalRectangleSampling, CornersComeFirstAndCosinesFollowThem) {
   for (int i = 0; i < 4; ++i) {
     EXPECT_NEAR(glm::length(sr.sample(us[i]).p - corners[i]), 0.f, 1e-4f) << i;
     EXPECT_NEAR(cosines[size_t(i)], glm::dot(n, glm::normalize(corners[i] - o)), 1e-6f) << i;
+  }
+}
+
+// The guided search of Distribution1D finds exactly the bin a binary search over its whole cdf finds, for every u
+// (bucket edges, cdf entries and their neighbours, random values) and for tables with empty runs and spikes.
+TEST(Distribution1D, GuidedSearchIsTheWholeSearch) {
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  for (int trial = 0; trial < 40; ++trial) {
+    const int n = 16 + int(rng() % 700);
+    std::vector<float> w(size_t(n), 0.f);
+    for (int i = 0; i < n; ++i) {
+      const uint32_t r = rng() % 10;
+      w[size_t(i)] = r < 4 ? 0.f : (r == 9 ? 1e4f * U(rng) : U(rng));  // empty runs, spikes
+    }
+    const Distribution1D d(w);
+    // The reference: the cdf as the constructor builds it, searched whole.
+    std::vector<float> cdf(size_t(n) + 1, 0.f);
+    double acc = 0.0;
+    for (int i = 0; i < n; ++i) cdf[size_t(i) + 1] = float(acc += double(w[size_t(i)]) / double(n));
+    for (int i = 1; i <= n; ++i) cdf[size_t(i)] = float(double(cdf[size_t(i)]) / acc);
+    cdf[size_t(n)] = 1.f;
+    std::vector<float> us;
+    for (int b = 0; b <= n; ++b) {
+      const float t = float(b) / float(n);
+      us.insert(us.end(), {t, std::nextafter(t, 0.f), std::nextafter(t, 1.f)});
+    }
+    for (const float c : cdf) us.insert(us.end(), {c, std::nextafter(c, 0.f), std::nextafter(c, 1.f)});
+    for (int i = 0; i < 2000; ++i) us.push_back(U(rng));
+    for (const float u : us) {
+      if (!(u >= 0.f && u < 1.f)) continue;
+      int i = std::clamp(int(std::upper_bound(cdf.begin(), cdf.end(), u) - cdf.begin()) - 1, 0, n - 1);
+      while (i < n - 1 && w[size_t(i)] == 0.f) ++i;
+      int bin = -1;
+      float pdf = 0.f;
+      d.sample(u, &pdf, &bin);
+      ASSERT_EQ(i, bin) << "n " << n << " u " << u;
+    }
+  }
+}
+
+// Distribution2D::pdf is bitwise the product of its marginal's and its row's densities, as sample() reports them.
+TEST(Distribution2D, PdfIsTheSampledDensity) {
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  const int w = 64, h = 32;
+  std::vector<float> wt(size_t(w * h));
+  for (float& v : wt) v = U(rng) < 0.3f ? 0.f : U(rng);
+  const Distribution2D d(wt, w, h);
+  for (int i = 0; i < 20000; ++i) {
+    float pdf = 0.f;
+    const Vec2 uv = d.sample(Vec2(U(rng), U(rng)), &pdf);
+    ASSERT_EQ(std::bit_cast<uint32_t>(pdf), std::bit_cast<uint32_t>(d.pdf(uv)));
   }
 }
 
