@@ -1,4 +1,5 @@
 #include "core/camera.h"
+#include "core/trig.h"
 
 #include <stdexcept>
 
@@ -15,7 +16,7 @@ Camera Camera::look_at(const Vec3& position, const Vec3& target, const Vec3& ref
   c.right = glm::normalize(r);
   c.up = glm::cross(c.right, c.forward);
   if (!(fov_degrees > 0.f && fov_degrees < 180.f)) throw std::invalid_argument("camera.fov must lie in (0, 180) degrees");
-  c.tan_half_fov = std::tan(fov_degrees * kPi / 360.f);
+  c.tan_half_fov = portable_tan(fov_degrees * kPi / 360.f);
   return c;
 }
 

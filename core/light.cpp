@@ -213,8 +213,8 @@ namespace {
 
 Vec2 direction_to_uv(const Vec3& d) {
   // theta = acos(d.y) for a unit d, computed as atan2(sin, cos): acos loses half the digits near the poles.
-  const float theta = std::atan2(std::sqrt(d.x * d.x + d.z * d.z), d.y);
-  float phi = std::atan2(d.x, -d.z);
+  const float theta = portable_atan2(std::sqrt(d.x * d.x + d.z * d.z), d.y);
+  float phi = portable_atan2(d.x, -d.z);
   if (phi < 0.f) phi += 2.f * kPi;
   return {phi / (2.f * kPi), theta / kPi};
 }

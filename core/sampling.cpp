@@ -116,10 +116,10 @@ bool SphericalRectangle::init(const Vec3& o, const Vec3& corner, const Vec3& ex,
   const Vec3 n2 = glm::normalize(glm::cross(v11, v01));
   const Vec3 n3 = glm::normalize(glm::cross(v01, v00));
   // Internal angles of the spherical rectangle.
-  const float g0 = std::acos(std::clamp(-glm::dot(n0, n1), -1.f, 1.f));
-  const float g1 = std::acos(std::clamp(-glm::dot(n1, n2), -1.f, 1.f));
-  const float g2 = std::acos(std::clamp(-glm::dot(n2, n3), -1.f, 1.f));
-  const float g3 = std::acos(std::clamp(-glm::dot(n3, n0), -1.f, 1.f));
+  const float g0 = portable_acos(std::clamp(-glm::dot(n0, n1), -1.f, 1.f));
+  const float g1 = portable_acos(std::clamp(-glm::dot(n1, n2), -1.f, 1.f));
+  const float g2 = portable_acos(std::clamp(-glm::dot(n2, n3), -1.f, 1.f));
+  const float g3 = portable_acos(std::clamp(-glm::dot(n3, n0), -1.f, 1.f));
   b0 = n0.z;
   b1 = n2.z;
   k = 2.f * kPi - g2 - g3;

@@ -1,4 +1,5 @@
 #include "core/scene.h"
+#include "core/trig.h"
 
 #include <tbb/parallel_for.h>
 
@@ -47,9 +48,9 @@ SurfaceHit Scene::surface(const Ray& r, const Hit& h) const {
     s.ns = s.sp.n;
     // Spherical uv: u around +y, v from the top pole, as for the environment map.
     const Vec3 d = s.sp.n;
-    float phi = std::atan2(d.x, -d.z);
+    float phi = portable_atan2(d.x, -d.z);
     if (phi < 0.f) phi += 2.f * kPi;
-    s.uv = Vec2(phi / (2.f * kPi), std::acos(std::clamp(d.y, -1.f, 1.f)) / kPi);
+    s.uv = Vec2(phi / (2.f * kPi), portable_acos(std::clamp(d.y, -1.f, 1.f)) / kPi);
     s.material = &materials[sphere_attr[i].material];
     s.light = sphere_attr[i].light;
   }

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <limits>
 
 namespace tessera {
 namespace {
@@ -40,7 +41,66 @@ double reduce(float x, int* quadrant) {
   return (xd - k * kPio2Hi) - k * kPio2Lo;
 }
 
+// atan(k / 16) for k = 0..16.
+constexpr double kAtanTable[17] = {
+    0.0,
+    0.06241880999595735,
+    0.12435499454676144,
+    0.18534794999569476,
+    0.24497866312686414,
+    0.3028848683749714,
+    0.35877067027057225,
+    0.4124104415973873,
+    0.4636476090008061,
+    0.5123894603107377,
+    0.5585993153435624,
+    0.6022873461349642,
+    0.6435011087932844,
+    0.6823165548747481,
+    0.7188299996216245,
+    0.7531512809621944,
+    0.7853981633974483,
+};
+constexpr double kPi = 3.141592653589793;
+constexpr double kPio2 = 1.5707963267948966;
+
+// atan(a) for a in [0, 1]: atan(c) + atan((a - c) / (1 + a c)) with c = k/16 the nearest table point, so the
+// reduced argument is at most 1/32 and its series (to t^9) is exact to 1e-17 relative.
+double atan_unit(double a) {
+  const int k = int(a * 16.0 + 0.5);
+  const double c = double(k) * 0.0625;
+  const double t = (a - c) / (1.0 + a * c);
+  const double t2 = t * t;
+  return kAtanTable[k] + (t + t * t2 * (-1.0 / 3 + t2 * (1.0 / 5 + t2 * (-1.0 / 7 + t2 * (1.0 / 9)))));
+}
+
+// atan2(y, x) of finite doubles with y >= 0 (y = x = 0 included: 0 or pi by x's sign, as std::atan2).
+double atan2_nonneg_y(double y, double x) {
+  const double ax = std::abs(x);
+  double r;
+  if (y == 0.0) r = 0.0;
+  else if (y <= ax) r = atan_unit(y / ax);
+  else r = kPio2 - atan_unit(ax / y);
+  return std::signbit(x) ? kPi - r : r;
+}
+
 }  // namespace
+
+float portable_atan2(float y, float x) {
+  if (std::isnan(x) || std::isnan(y)) return x + y;
+  double r;
+  if (std::isinf(y)) r = std::isinf(x) ? (x > 0 ? kPi / 4 : 3 * kPi / 4) : kPio2;  // C's values at infinity
+  else if (std::isinf(x)) r = x > 0 ? 0.0 : kPi;
+  else r = atan2_nonneg_y(std::abs(double(y)), double(x));
+  return float(std::signbit(y) ? -r : r);
+}
+
+float portable_acos(float x) {
+  if (!(x >= -1.f && x <= 1.f)) return std::numeric_limits<float>::quiet_NaN();
+  const double xd = double(x);
+  // sin = sqrt((1 - x)(1 + x)): both factors exact for a float x.
+  return float(atan2_nonneg_y(std::sqrt((1.0 - xd) * (1.0 + xd)), xd));
+}
 
 float portable_sin(float x) {
   int q;
@@ -62,6 +122,13 @@ float portable_cos(float x) {
     case 2: return float(-cos_poly(r));
     default: return float(sin_poly(r));
   }
+}
+
+float portable_tan(float x) {
+  int q;
+  const double r = reduce(x, &q);
+  // tan(r + k pi/2) = tan(r) for even k, -cot(r) for odd k: one rounding of the double quotient.
+  return float(q % 2 == 0 ? sin_poly(r) / cos_poly(r) : -cos_poly(r) / sin_poly(r));
 }
 
 SinCos portable_sincos(float x) {
