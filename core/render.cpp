@@ -43,9 +43,9 @@ inline Vec3 sample_pixel(const Scene& scene, int px, int row, PixelSampler sampl
 void add_samples(const Scene& scene, int px, int row, uint64_t seed, uint32_t end, uint32_t replicates,
                  PixelAccumulator& acc, RayCounters& counters) {
   if (replicates <= 1) {
-    PixelSeeds seeds(PixelSampler::pixel_key(seed, px, row));
+    const uint32_t key = PixelSampler::pixel_key(seed, px, row);
     for (uint32_t s = acc.count(); s < end; ++s) {
-      PixelSampler sampler(seeds, s);
+      PixelSampler sampler(key, s);
       const Ray r = scene.camera.generate_pixel(px, row, sampler.next_2d(), scene.width, scene.height);
       acc.add(trace_sample(scene, r, sampler, counters));
     }

@@ -97,42 +97,6 @@ constexpr uint32_t pair_index(uint32_t i) {
 /// 32-bit fixed point to a float in [0, 1).
 inline float u32_to_unit(uint32_t x) { return std::min(float(x) * 0x1p-32f, 0x1.fffffep-1f); }
 
-/// The scrambling seeds of one pixel's dimensions, hashed from its key once for all of the pixel's samples (filled
-/// as the draws first reach each dimension). A PixelSampler built on it draws exactly what one built on the key does.
-class PixelSeeds {
- public:
-  /// Dimensions kept; later ones are hashed at each draw.
-  static constexpr uint32_t kDims = 16;
-
-  /// Seeds of the pixel whose key is `key` (PixelSampler::pixel_key).
-  explicit PixelSeeds(uint32_t key) : key_(key) {}
-
-  /// The pixel's key.
-  uint32_t key() const { return key_; }
-
- private:
-  friend class PixelSampler;
-  // A dimension's seeds: the shuffle's and the scrambles' of its x, y and 1D values (see PixelSampler).
-  struct Dim {
-    uint32_t shuffle, x, y, one;
-  };
-  static Dim make(uint32_t key, uint32_t dim) {
-    const uint32_t d = hash_combine(key, dim);
-    return {hash_u32(d), hash_combine(d, 0x51ed27U), hash_combine(d, 0x2f1c9dU), hash_combine(d, 0x7a3b1U)};
-  }
-  const Dim& get(uint32_t dim) {
-    while (filled_ <= dim) {
-      dims_[filled_] = make(key_, filled_);
-      ++filled_;
-    }
-    return dims_[dim];
-  }
-
-  uint32_t key_;
-  uint32_t filled_ = 0;
-  Dim dims_[kDims];
-};
-
 /// One pixel sample's stream of random dimensions. Each 2D draw is a shuffled, Owen-scrambled point of the
 /// (0,2)-sequence made of the first two Sobol dimensions, so any power-of-two prefix of a pixel's samples (indeed
 /// any aligned power-of-two block of them) is stratified in every 2D projection; different draws are decorrelated
@@ -146,9 +110,6 @@ class PixelSampler {
   /// The same stream from the pixel's key, pixel_key(seed, px, py), hashed once for all the pixel's samples.
   PixelSampler(uint32_t key, uint32_t index) : key_(key), reversed_index_(reverse_bits(index)) {}
 
-  /// The same stream from the pixel's seeds, shared by all its samples (which must not run at the same time).
-  PixelSampler(PixelSeeds& seeds, uint32_t index) : PixelSampler(seeds.key(), index) { seeds_ = &seeds; }
-
   /// The hash of (seed, px, py) that every sample stream of the pixel starts from.
   static constexpr uint32_t pixel_key(uint64_t seed, int px, int py) {
     return hash_combine(hash_combine(hash_combine(uint32_t(seed), uint32_t(seed >> 32)), uint32_t(px)), uint32_t(py));
@@ -156,11 +117,11 @@ class PixelSampler {
 
   /// Next 2D sample in [0,1)^2.
   Vec2 next_2d() {
-    const PixelSeeds::Dim d = next_dim();
+    const uint32_t dim_seed = hash_combine(key_, dim_++);
     // Shuffle the sample order per dimension: the index Owen-scrambled, starting from its reversed bits.
-    last_index_ = reverse_bits(laine_karras(reversed_index_, d.shuffle));
+    last_index_ = reverse_bits(laine_karras(reversed_index_, hash_u32(dim_seed)));
     has_last_ = true;
-    return point_2d(last_index_, d);
+    return point_2d(last_index_, dim_seed);
   }
 
   /// Next 2D sample in [0,1)^2, stratified jointly with this sample's previous next_2d() draw: the point of index
@@ -171,7 +132,8 @@ class PixelSampler {
   /// Without a previous next_2d() draw it is one.
   Vec2 next_2d_paired() {
     if (!has_last_) return next_2d();
-    return point_2d(pair_index(last_index_), next_dim());
+    const uint32_t dim_seed = hash_combine(key_, dim_++);
+    return point_2d(pair_index(last_index_), dim_seed);
   }
 
   /// Skips the next 2D draw (whose value the caller does not need): later draws are those next_2d() would leave.
@@ -182,27 +144,20 @@ class PixelSampler {
 
   /// Next 1D sample in [0,1).
   float next_1d() {
-    const PixelSeeds::Dim d = next_dim();
-    const uint32_t i = reverse_bits(laine_karras(reversed_index_, d.shuffle));
-    return u32_to_unit(reverse_bits(laine_karras(i, d.one)));
+    const uint32_t dim_seed = hash_combine(key_, dim_++);
+    const uint32_t i = reverse_bits(laine_karras(reversed_index_, hash_u32(dim_seed)));
+    return u32_to_unit(reverse_bits(laine_karras(i, hash_combine(dim_seed, 0x7a3b1U))));
   }
 
  private:
-  // The seeds of the next dimension: hashed from the key and the dimension's number, or kept by the pixel's seeds.
-  PixelSeeds::Dim next_dim() {
-    const uint32_t dim = dim_++;
-    return seeds_ && dim < PixelSeeds::kDims ? seeds_->get(dim) : PixelSeeds::make(key_, dim);
-  }
-
-  // Point i of the (0,2)-sequence, Owen-scrambled with a dimension's seeds: Sobol dimension 0 (van der Corput, the
+  // Point i of the (0,2)-sequence, Owen-scrambled with seeds from dim_seed: Sobol dimension 0 (van der Corput, the
   // reversed index) and dimension 1, both built in reversed bit order, where the scramble works, and reversed once.
-  static Vec2 point_2d(uint32_t i, const PixelSeeds::Dim& d) {
-    const uint32_t x = reverse_bits(laine_karras(i, d.x));
-    const uint32_t y = reverse_bits(laine_karras(sobol1_reversed(i), d.y));
+  static Vec2 point_2d(uint32_t i, uint32_t dim_seed) {
+    const uint32_t x = reverse_bits(laine_karras(i, hash_combine(dim_seed, 0x51ed27U)));
+    const uint32_t y = reverse_bits(laine_karras(sobol1_reversed(i), hash_combine(dim_seed, 0x2f1c9dU)));
     return {u32_to_unit(x), u32_to_unit(y)};
   }
 
-  PixelSeeds* seeds_ = nullptr;  // the pixel's seeds, if it has them
   uint32_t key_;
   uint32_t reversed_index_;  // the sample index, bit-reversed once for every draw's scrambling
   uint32_t dim_ = 0;

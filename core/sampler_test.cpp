@@ -46,24 +46,6 @@ TEST(PixelSampler, PureFunctionOfSeedPixelIndexAndDimension) {
   }
 }
 
-// A sampler built on a pixel's shared seeds draws bitwise what one built on the pixel's key draws, in any order of
-// 1D, 2D and paired draws, past the dimensions the seeds keep, and whichever sample fills the seeds first.
-TEST(PixelSampler, SharedPixelSeedsDrawTheSameStream) {
-  const uint32_t key = PixelSampler::pixel_key(99, 12, 34);
-  PixelSeeds seeds(key);
-  for (uint32_t s : {5U, 0U, 1U, 77U, 4096U}) {
-    PixelSampler a(key, s), b(seeds, s);
-    for (uint32_t d = 0; d < 2 * PixelSeeds::kDims + 3; ++d) {
-      switch ((d * 7 + s) % 4) {
-        case 0: ASSERT_EQ(a.next_1d(), b.next_1d()); break;
-        case 1: ASSERT_EQ(a.next_2d_paired(), b.next_2d_paired()); break;
-        case 2: a.skip_2d(); b.skip_2d(); break;
-        default: ASSERT_EQ(a.next_2d(), b.next_2d()); break;
-      }
-    }
-  }
-}
-
 // True when the points form a (0, m, 2)-net: every elementary box of area 1/n holds exactly one point.
 bool is_net(const std::vector<Vec2>& pts) {
   const size_t n = pts.size();
