@@ -213,17 +213,14 @@ float Distribution1D::sample(float u, float* pdf, int* bin) const {
   const float width = cdf_[i + 1] - cdf_[i];
   float du = width > 0.f ? (u - cdf_[i]) / width : 0.5f;
   du = std::clamp(du, 0.f, 0x1.fffffep-1f);
-  const float norm = integral_ > 0.f ? integral_ : 1.f;
-  if (pdf) *pdf = func_[i] / norm;
+  if (pdf) *pdf = bin_pdf(i);
   if (bin) *bin = i;
   return std::min((float(i) + du) / float(n), 0x1.fffffep-1f);
 }
 
 float Distribution1D::pdf(float x) const {
   const int n = int(func_.size());
-  const int i = std::clamp(int(x * float(n)), 0, n - 1);
-  const float norm = integral_ > 0.f ? integral_ : 1.f;
-  return func_[i] / norm;
+  return bin_pdf(std::clamp(int(x * float(n)), 0, n - 1));
 }
 
 Distribution2D::Distribution2D(std::span<const float> weights, int w, int h) {
@@ -235,7 +232,6 @@ Distribution2D::Distribution2D(std::span<const float> weights, int w, int h) {
   }
   marginal_ = Distribution1D(row_integrals);
   w_ = std::max(1, w);
-  h_ = h;
   pdf_.resize(size_t(w_) * size_t(std::max(0, h)));
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w_; ++x)
@@ -254,7 +250,8 @@ Vec2 Distribution2D::sample(Vec2 u, float* pdf) const {
 float Distribution2D::pdf(Vec2 uv) const {
   // marginal_.pdf(uv.y) * conditional_[row].pdf(uv.x), looked up.
   if (pdf_.empty()) return 0.f;
-  const int row = std::clamp(int(uv.y * float(h_)), 0, h_ - 1);
+  const int h = int(conditional_.size());
+  const int row = std::clamp(int(uv.y * float(h)), 0, h - 1);
   const int col = std::clamp(int(uv.x * float(w_)), 0, w_ - 1);
   return pdf_[size_t(row) * size_t(w_) + size_t(col)];
 }

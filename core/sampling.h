@@ -128,7 +128,7 @@ class Distribution2D {
   std::vector<Distribution1D> conditional_;
   Distribution1D marginal_;
   std::vector<float> pdf_;  // pdf() of each cell, row-major, from the same float operations as the two factors
-  int w_ = 0, h_ = 0;
+  int w_ = 0;  // columns (the rows are conditional_.size())
 };
 
 /// Power heuristic with exponent 2 for one sample from each of two strategies.
