@@ -1,18 +1,18 @@
 #include "client/http_client.h"
 
+#include "net/byte_stream.h"
+
 #include <boost/asio/connect.hpp>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/beast/core/error.hpp>
 #include <boost/beast/core/flat_buffer.hpp>
-#include <boost/beast/core/tcp_stream.hpp>
 #include <boost/beast/http/empty_body.hpp>
 #include <boost/beast/http/parser.hpp>
 #include <boost/beast/http/buffer_body.hpp>
 #include <boost/beast/http/read.hpp>
 #include <boost/beast/http/string_body.hpp>
 #include <boost/beast/http/write.hpp>
-#include <boost/beast/ssl/ssl_stream.hpp>
 #include <nlohmann/json.hpp>
 #include <openssl/ssl.h>
 #include <openssl/x509_vfy.h>
@@ -95,14 +95,23 @@ std::string HttpResponse::error_text() const {
 struct HttpClient::Impl {
   asio::io_context ioc;
   std::shared_ptr<ssl::context> tls_context;  // set for https:// URLs
-  std::optional<beast::tcp_stream> plain;     // the open connection: one of these two
-  std::optional<beast::ssl_stream<beast::tcp_stream>> tls;
+  std::unique_ptr<net::ByteStream> stream;    // the open connection
   beast::flat_buffer buffer;
   bool connected = false;
   HttpTimeouts timeouts;
   uint64_t max_response_bytes = 0;
 
-  beast::tcp_stream& lowest() { return tls ? beast::get_lowest_layer(*tls) : *plain; }
+  beast::tcp_stream& lowest() { return stream->lowest(); }
+  bool is_tls() const { return tls_context != nullptr; }
+
+  // The completion handler of every operation: keeps the error (one type, so each operation is compiled once).
+  struct KeepError {
+    error_code* result;
+    template <class... Rest>
+    void operator()(error_code ec, Rest&&...) const {
+      *result = ec;
+    }
+  };
 
   // Starts one asynchronous operation with `start(handler)` and runs the context until it completes; the stream's
   // expiry (set by the caller) turns a stalled operation into beast::error::timeout.
@@ -110,29 +119,26 @@ struct HttpClient::Impl {
   error_code run(Start&& start) {
     error_code result = asio::error::would_block;
     ioc.restart();
-    start([&result](error_code ec, auto&&...) { result = ec; });
+    start(KeepError{&result});
     ioc.run();
     return result;
   }
 
-  // run() for an operation on the open stream: op(stream, handler) with the TLS or the plain stream.
+  // run() for an operation on the open stream: op(stream, handler).
   template <class Op>
   error_code run_on_stream(Op&& op) {
-    return run([&](auto handler) {
-      if (tls) op(*tls, std::move(handler));
-      else op(*plain, std::move(handler));
-    });
+    return run([&](KeepError handler) { op(*stream, handler); });
   }
 
   // A fresh stream for a new connection, set up to check that the certificate names `host`.
   void open_stream(const std::string& host) {
     buffer.clear();
     if (!tls_context) {
-      plain.emplace(ioc);
+      stream = net::ByteStream::plain(ioc.get_executor());
       return;
     }
-    tls.emplace(ioc, *tls_context);
-    SSL* native = tls->native_handle();
+    stream = net::ByteStream::tls(ioc.get_executor(), *tls_context);
+    SSL* native = stream->tls_handle();
     error_code ec;
     asio::ip::make_address(host, ec);
     if (!ec) {
@@ -146,7 +152,7 @@ struct HttpClient::Impl {
   // Why a handshake failed, in words a user can act on.
   std::string handshake_failure(const error_code& ec) {
     if (ec == beast::error::timeout) return "timed out after " + std::to_string(timeouts.connect.count()) + " ms";
-    const long verify = tls ? SSL_get_verify_result(tls->native_handle()) : X509_V_OK;
+    const long verify = stream && stream->tls_handle() ? SSL_get_verify_result(stream->tls_handle()) : X509_V_OK;
     if (verify != X509_V_OK)
       return std::string("the server's certificate is not accepted: ") + X509_verify_cert_error_string(verify) +
              " (trust its CA with --ca-file; the certificate must name the host or IP address of the URL)";
@@ -157,7 +163,7 @@ struct HttpClient::Impl {
   // certificate shows only when the first response is read, so reads and writes use this too.
   std::string with_hint(const error_code& ec) const {
     const std::string reason = ec.message();
-    if (!tls || ec.category() != asio::error::get_ssl_category()) return reason;
+    if (!is_tls() || ec.category() != asio::error::get_ssl_category()) return reason;
     if (reason.find("wrong version number") != std::string::npos || reason.find("packet length too long") != std::string::npos)
       return reason + " (does the server speak plain HTTP? then use an http:// URL)";
     if (reason.find("certificate required") != std::string::npos || reason.find("unknown ca") != std::string::npos ||
@@ -177,12 +183,11 @@ struct HttpClient::Impl {
 
   void close() {
     error_code ignored;
-    if (plain || tls) {
+    if (stream) {
       lowest().socket().shutdown(tcp::socket::shutdown_both, ignored);
       lowest().close();
     }
-    plain.reset();
-    tls.reset();
+    stream.reset();
     buffer.clear();
     connected = false;
   }
@@ -276,9 +281,9 @@ void HttpClient::connect(const std::string& what) {
   // Requests are small writes answered at once: without TCP_NODELAY, Nagle's algorithm holds a request's last
   // segment until the server's delayed ACK (tens of milliseconds per request on loopback).
   im.lowest().socket().set_option(tcp::no_delay(true), ec);
-  if (im.tls) {
+  if (im.is_tls()) {
     im.lowest().expires_after(im.timeouts.connect);
-    ec = im.run([&](auto handler) { im.tls->async_handshake(ssl::stream_base::client, std::move(handler)); });
+    ec = im.run([&](auto handler) { im.stream->async_handshake(ssl::stream_base::client, handler); });
     if (ec) {
       const std::string why = im.handshake_failure(ec);
       im.close();
@@ -316,7 +321,7 @@ HttpResponse HttpClient::send(const HttpRequest& request) {
     connect(what);
 
     im.lowest().expires_after(im.timeouts.write);
-    error_code ec = im.run_on_stream([&](auto& stream, auto handler) { http::async_write(stream, req, std::move(handler)); });
+    error_code ec = im.run_on_stream([&](auto& stream, auto handler) { http::async_write(stream, req, handler); });
     if (ec) {
       const std::string why = ec == beast::error::timeout ? describe(ec, im.timeouts.write) : im.with_hint(ec);
       im.close();
@@ -358,8 +363,9 @@ HttpResponse HttpClient::stream(const HttpRequest& request, std::chrono::millise
   const std::string what = request.method + " " + url_.to_string() + request.target;
   const http::verb verb = http::string_to_verb(request.method);
   if (verb == http::verb::unknown) throw TransportError(what + ": unknown method");
-  http::request<http::string_body> req = beast_request(url_, token_, request, verb);
-  req.keep_alive(false);
+  http::request<http::string_body> writable = beast_request(url_, token_, request, verb);
+  writable.keep_alive(false);
+  const http::request<http::string_body>& req = writable;  // const, as send() writes it: one write operation for both
   im.close();  // a connection of its own
   struct Closer {
     Impl& im;
@@ -367,7 +373,7 @@ HttpResponse HttpClient::stream(const HttpRequest& request, std::chrono::millise
   } closer{im};
   connect(what);
   im.lowest().expires_after(im.timeouts.write);
-  error_code ec = im.run_on_stream([&](auto& stream, auto handler) { http::async_write(stream, req, std::move(handler)); });
+  error_code ec = im.run_on_stream([&](auto& stream, auto handler) { http::async_write(stream, req, handler); });
   if (ec) throw TransportError(what + ": cannot send the request: " + (ec == beast::error::timeout ? describe(ec, im.timeouts.write) : im.with_hint(ec)));
 
   http::response_parser<http::buffer_body> parser;
@@ -391,8 +397,7 @@ HttpResponse HttpClient::stream(const HttpRequest& request, std::chrono::millise
       ec = e;
       done = true;
     };
-    if (im.tls) http::async_read_some(*im.tls, im.buffer, parser, on_read);
-    else http::async_read_some(*im.plain, im.buffer, parser, on_read);
+    http::async_read_some(*im.stream, im.buffer, parser, on_read);
     while (!done) {
       im.ioc.run_for(std::chrono::milliseconds(100));
       if (!done && stop && stop()) {

@@ -1,5 +1,7 @@
 #include "server/http_server.h"
 
+#include "net/byte_stream.h"
+
 #include <boost/asio/dispatch.hpp>
 #include <boost/asio/executor_work_guard.hpp>
 #include <boost/asio/post.hpp>
@@ -7,7 +9,6 @@
 #include <boost/asio/strand.hpp>
 #include <boost/asio/write.hpp>
 #include <boost/beast/core.hpp>
-#include <boost/beast/ssl.hpp>
 #include <nlohmann/json.hpp>
 #include <openssl/err.h>
 #include <openssl/ssl.h>
@@ -37,15 +38,7 @@ HttpResponse json_error(http::status status, const std::string& text, unsigned v
   return res;
 }
 
-class SessionBase {
- public:
-  virtual ~SessionBase() = default;
-  // Starts the connection's work (handshake or first read) on its strand.
-  virtual void run() = 0;
-  // Called at shutdown: a connection waiting for its next request is closed now; a busy one closes after answering; a
-  // streamed body ends (its last chunk is written) and its connection closes.
-  virtual void stop_if_idle() = 0;
-};
+class Session;
 
 struct HttpServer::State {
   State(asio::io_context& i, asio::thread_pool& p, HttpHandler& h, HttpServerOptions o)
@@ -61,38 +54,38 @@ struct HttpServer::State {
   tcp::acceptor acceptor;
   std::atomic<bool> stopping{false};
   std::mutex mu;
-  std::map<uint64_t, std::weak_ptr<SessionBase>> sessions;
+  std::map<uint64_t, std::weak_ptr<Session>> sessions;
   uint64_t next_session = 1;
   std::shared_ptr<ssl::context> tls_context;  // guarded by mu; replaced by reload_tls(), null for plain HTTP
 };
 
 // One connection: (with TLS, a server handshake first, within the read timeout,) then reads a request header, picks
 // the body limit, reads the body, hands the request to the handler pool and writes the answer, all on the
-// connection's strand; keep-alive loops back to the next header.
-template <bool kTls>
-class Session : public SessionBase, public std::enable_shared_from_this<Session<kTls>> {
-  using Stream = std::conditional_t<kTls, beast::ssl_stream<beast::tcp_stream>, beast::tcp_stream>;
-
+// connection's strand; keep-alive loops back to the next header. One class for both: the stream hides whether the
+// bytes go over TLS.
+class Session : public std::enable_shared_from_this<Session> {
  public:
   Session(tcp::socket&& socket, std::shared_ptr<ssl::context> tls, std::shared_ptr<HttpServer::State> st, uint64_t id)
       : tls_(std::move(tls)), stream_(make_stream(std::move(socket), tls_.get())), st_(std::move(st)), id_(id),
-        idle_timer_(stream_.get_executor()) {}
+        idle_timer_(stream_->get_executor()) {}
 
-  ~Session() override {
+  ~Session() {
     std::lock_guard lock(st_->mu);
     st_->sessions.erase(id_);
   }
 
-  void run() override {
-    if constexpr (kTls) {
-      asio::dispatch(stream_.get_executor(), [self = this->shared_from_this()] { self->handshake(); });
-    } else {
-      asio::dispatch(stream_.get_executor(), beast::bind_front_handler(&Session::read_header, this->shared_from_this()));
-    }
+  // Starts the connection's work (handshake or first read) on its strand.
+  void run() {
+    asio::dispatch(stream_->get_executor(), [self = shared_from_this()] {
+      if (self->tls_) self->handshake();
+      else self->read_header();
+    });
   }
 
-  void stop_if_idle() override {
-    asio::dispatch(stream_.get_executor(), [self = this->shared_from_this()] {
+  // Called at shutdown: a connection waiting for its next request is closed now; a busy one closes after answering; a
+  // streamed body ends (its last chunk is written) and its connection closes.
+  void stop_if_idle() {
+    asio::dispatch(stream_->get_executor(), [self = shared_from_this()] {
       if (self->body_) {
         self->end_requested_ = true;
         return self->pump();
@@ -102,17 +95,17 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
   }
 
  private:
-  static Stream make_stream(tcp::socket&& socket, ssl::context* tls) {
-    if constexpr (kTls) return Stream(std::move(socket), *tls);
-    else return Stream(std::move(socket));
+  static std::unique_ptr<net::ByteStream> make_stream(tcp::socket&& socket, ssl::context* tls) {
+    if (tls) return net::ByteStream::tls(std::move(socket), *tls);
+    return net::ByteStream::plain(std::move(socket));
   }
 
-  beast::tcp_stream& lowest() { return beast::get_lowest_layer(stream_); }
+  beast::tcp_stream& lowest() { return stream_->lowest(); }
 
   void handshake() {
     waiting_ = true;
     lowest().expires_after(st_->opt.read_timeout);  // a stalled handshake is a stalled request
-    stream_.async_handshake(ssl::stream_base::server, [self = this->shared_from_this()](beast::error_code ec) {
+    stream_->async_handshake(ssl::stream_base::server, [self = shared_from_this()](beast::error_code ec) {
       self->waiting_ = false;
       if (ec) {
         spdlog::debug("connection {}: TLS handshake failed: {}", self->id_, ec.message());
@@ -133,7 +126,7 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
         json_error(http::status::bad_request, "this coordinator speaks HTTPS only: use an https:// URL"));
     res->keep_alive(false);
     lowest().expires_after(std::chrono::seconds(1));
-    http::async_write(lowest(), *res, [self = this->shared_from_this(), res](beast::error_code, std::size_t) {
+    http::async_write(lowest(), *res, [self = shared_from_this(), res](beast::error_code, std::size_t) {
       self->half_close_and_drain();
     });
   }
@@ -145,7 +138,7 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
     parser_->body_limit(std::numeric_limits<std::uint64_t>::max());
     waiting_ = true;
     lowest().expires_after(st_->opt.read_timeout);  // covers the whole request, body included
-    http::async_read_header(stream_, buffer_, *parser_, beast::bind_front_handler(&Session::on_header, this->shared_from_this()));
+    http::async_read_header(*stream_, buffer_, *parser_, beast::bind_front_handler(&Session::on_header, shared_from_this()));
   }
 
   void on_header(beast::error_code ec, std::size_t) {
@@ -159,7 +152,7 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
       return too_large(limit);
     if (beast::iequals(req[http::field::expect], "100-continue")) {
       auto cont = std::make_shared<http::response<http::empty_body>>(http::status::continue_, req.version());
-      http::async_write(stream_, *cont, [self = this->shared_from_this(), cont](beast::error_code wec, std::size_t) {
+      http::async_write(*stream_, *cont, [self = shared_from_this(), cont](beast::error_code wec, std::size_t) {
         if (wec) return self->close();
         self->read_body();
       });
@@ -169,7 +162,7 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
   }
 
   void read_body() {
-    http::async_read(stream_, buffer_, *parser_, beast::bind_front_handler(&Session::on_body, this->shared_from_this()));
+    http::async_read(*stream_, buffer_, *parser_, beast::bind_front_handler(&Session::on_body, shared_from_this()));
   }
 
   void on_read_error(beast::error_code ec) {
@@ -197,11 +190,11 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
     lowest().expires_never();  // the handler may take a while; the write sets its own deadline
     HttpRequest req = parser_->release();
     const bool keep_alive = req.keep_alive();
-    auto work = asio::make_work_guard(stream_.get_executor());  // keeps run() going while the pool works
-    asio::post(st_->pool, [self = this->shared_from_this(), req = std::move(req), keep_alive, work = std::move(work)]() mutable {
+    auto work = asio::make_work_guard(stream_->get_executor());  // keeps run() going while the pool works
+    asio::post(st_->pool, [self = shared_from_this(), req = std::move(req), keep_alive, work = std::move(work)]() mutable {
       // The handler may answer later from another thread; the work guard travels with the reply.
       auto done = [self, keep_alive, work = std::make_shared<decltype(work)>(std::move(work))](HttpReply reply) {
-        asio::post(self->stream_.get_executor(), [self, reply = std::move(reply), keep_alive, work]() mutable {
+        asio::post(self->stream_->get_executor(), [self, reply = std::move(reply), keep_alive, work]() mutable {
           if (reply.stream) return self->start_stream(std::move(reply.response), std::move(reply.stream));
           self->write(std::move(reply.response), keep_alive && !self->st_->stopping);
         });
@@ -217,7 +210,7 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
     if (!res.has_content_length() && !res.chunked()) res.prepare_payload();
     auto sp = std::make_shared<HttpResponse>(std::move(res));
     lowest().expires_after(st_->opt.read_timeout);
-    http::async_write(stream_, *sp, [self = this->shared_from_this(), sp](beast::error_code ec, std::size_t) {
+    http::async_write(*stream_, *sp, [self = shared_from_this(), sp](beast::error_code ec, std::size_t) {
       if (ec) {
         spdlog::debug("connection {}: write failed: {}", self->id_, ec.message());
         return self->close();
@@ -241,7 +234,7 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
     auto sr = std::make_shared<http::response_serializer<http::string_body>>(*header);
     writing_ = true;
     lowest().expires_after(st_->opt.read_timeout);
-    http::async_write_header(stream_, *sr, [self = this->shared_from_this(), header, sr](beast::error_code ec, std::size_t) {
+    http::async_write_header(*stream_, *sr, [self = shared_from_this(), header, sr](beast::error_code ec, std::size_t) {
       self->writing_ = false;
       self->lowest().expires_never();
       if (ec) return self->end_stream();
@@ -249,7 +242,7 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
       self->arm_idle();
       std::weak_ptr<Session> weak = self;
       self->body_->start([weak] {
-        if (auto s = weak.lock()) asio::post(s->stream_.get_executor(), [s] { s->pump(); });
+        if (auto s = weak.lock()) asio::post(s->stream_->get_executor(), [s] { s->pump(); });
       });
       if (self->st_->stopping) self->end_requested_ = true;
       self->pump();
@@ -280,7 +273,7 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
     if (out_.empty()) return end_stream();
     writing_ = true;
     lowest().expires_after(st_->opt.read_timeout);  // a client that stops reading is closed
-    asio::async_write(stream_, asio::buffer(out_), [self = this->shared_from_this(), last](beast::error_code ec, std::size_t) {
+    asio::async_write(*stream_, asio::buffer(out_), [self = shared_from_this(), last](beast::error_code ec, std::size_t) {
       self->writing_ = false;
       self->lowest().expires_never();
       if (ec) {
@@ -294,7 +287,7 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
 
   void arm_idle() {
     idle_timer_.expires_after(st_->opt.stream_idle);
-    idle_timer_.async_wait([self = this->shared_from_this()](beast::error_code ec) {
+    idle_timer_.async_wait([self = shared_from_this()](beast::error_code ec) {
       if (ec || self->stream_done_) return;
       if (!self->wrote_since_idle_ && !self->writing_) {
         if (std::string idle = self->body_->idle_text(); !idle.empty()) self->write_chunk(std::move(idle), false);
@@ -306,7 +299,7 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
 
   void watch_client() {
     watching_ = true;
-    lowest().socket().async_read_some(asio::buffer(drain_), [self = this->shared_from_this()](beast::error_code ec, std::size_t) {
+    lowest().socket().async_read_some(asio::buffer(drain_), [self = shared_from_this()](beast::error_code ec, std::size_t) {
       self->watching_ = false;
       if (!ec && !self->stream_done_) return self->watch_client();
       if (!self->stream_done_) spdlog::debug("connection {}: the stream's client went away", self->id_);
@@ -336,9 +329,9 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
     if (closing_) return;
     closing_ = true;
     waiting_ = false;
-    if constexpr (kTls) {
+    if (tls_) {
       lowest().expires_after(std::chrono::seconds(1));
-      stream_.async_shutdown([self = this->shared_from_this()](beast::error_code) { self->half_close_and_drain(); });
+      stream_->async_shutdown([self = shared_from_this()](beast::error_code) { self->half_close_and_drain(); });
     } else {
       half_close_and_drain();
     }
@@ -356,7 +349,7 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
   }
 
   void drain() {
-    lowest().async_read_some(asio::buffer(drain_), [self = this->shared_from_this()](beast::error_code ec, std::size_t) {
+    lowest().async_read_some(asio::buffer(drain_), [self = shared_from_this()](beast::error_code ec, std::size_t) {
       if (!ec) return self->drain();
       beast::error_code ignored;
       self->lowest().socket().close(ignored);
@@ -364,7 +357,7 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
   }
 
   std::shared_ptr<ssl::context> tls_;  // the context this connection's handshake used (kept across a reload)
-  Stream stream_;
+  std::unique_ptr<net::ByteStream> stream_;
   beast::flat_buffer buffer_;
   std::optional<http::request_parser<http::string_body>> parser_;
   std::shared_ptr<HttpServer::State> st_;
@@ -390,7 +383,7 @@ namespace {
 // at most a second so the answer is not lost to a reset.
 class Refusal : public std::enable_shared_from_this<Refusal> {
  public:
-  Refusal(tcp::socket&& socket, std::size_t limit) : stream_(std::move(socket)) {
+  Refusal(tcp::socket&& socket, std::size_t limit) : stream_(net::ByteStream::plain(std::move(socket))) {
     res_ = json_error(http::status::service_unavailable,
                       "too many connections (the limit is " + std::to_string(limit) + "); retry later");
     res_.set(http::field::retry_after, "1");
@@ -398,25 +391,25 @@ class Refusal : public std::enable_shared_from_this<Refusal> {
   }
 
   void run() {
-    stream_.expires_after(std::chrono::seconds(1));
-    http::async_write(stream_, res_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
+    stream_->lowest().expires_after(std::chrono::seconds(1));
+    http::async_write(*stream_, res_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
       beast::error_code ignored;
-      if (ec) return void(self->stream_.socket().close(ignored));
-      self->stream_.socket().shutdown(tcp::socket::shutdown_send, ignored);
+      if (ec) return void(self->stream_->lowest().socket().close(ignored));
+      self->stream_->lowest().socket().shutdown(tcp::socket::shutdown_send, ignored);
       self->drain();
     });
   }
 
  private:
   void drain() {
-    stream_.async_read_some(asio::buffer(buf_), [self = shared_from_this()](beast::error_code ec, std::size_t) {
+    stream_->async_read_some(asio::buffer(buf_), [self = shared_from_this()](beast::error_code ec, std::size_t) {
       if (!ec) return self->drain();
       beast::error_code ignored;
-      self->stream_.socket().close(ignored);
+      self->stream_->lowest().socket().close(ignored);
     });
   }
 
-  beast::tcp_stream stream_;
+  std::unique_ptr<net::ByteStream> stream_;
   HttpResponse res_;
   std::array<char, 4096> buf_;
 };
@@ -430,7 +423,7 @@ void accept_next(const std::shared_ptr<HttpServer::State>& st) {
       // Responses are small writes a client waits for: no Nagle delay (see worker/http_client.cpp).
       beast::error_code nodelay_ec;
       socket.set_option(tcp::no_delay(true), nodelay_ec);
-      std::shared_ptr<SessionBase> s;
+      std::shared_ptr<Session> s;
       std::shared_ptr<ssl::context> tls;
       bool over_limit = false;
       {
@@ -439,8 +432,7 @@ void accept_next(const std::shared_ptr<HttpServer::State>& st) {
         tls = st->tls_context;
         if (!over_limit) {
           const uint64_t id = st->next_session++;
-          if (tls) s = std::make_shared<Session<true>>(std::move(socket), tls, st, id);
-          else s = std::make_shared<Session<false>>(std::move(socket), nullptr, st, id);
+          s = std::make_shared<Session>(std::move(socket), tls, st, id);
           st->sessions.emplace(id, s);
         }
       }
@@ -496,7 +488,7 @@ void HttpServer::shutdown() {
     beast::error_code ec;
     st->acceptor.close(ec);
   });
-  std::vector<std::shared_ptr<SessionBase>> live;
+  std::vector<std::shared_ptr<Session>> live;
   {
     std::lock_guard lock(state_->mu);
     for (auto& [id, w] : state_->sessions)
