@@ -5,6 +5,7 @@
 #include <boost/asio/dispatch.hpp>
 #include <boost/asio/executor_work_guard.hpp>
 #include <boost/asio/post.hpp>
+#include <boost/asio/ssl/error.hpp>
 #include <boost/asio/steady_timer.hpp>
 #include <boost/asio/strand.hpp>
 #include <boost/asio/write.hpp>
@@ -20,7 +21,6 @@
 #include <map>
 #include <mutex>
 #include <optional>
-#include <type_traits>
 
 namespace tessera::server {
 
@@ -420,7 +420,7 @@ void accept_next(const std::shared_ptr<HttpServer::State>& st) {
     if (ec) {
       spdlog::warn("accept failed: {}", ec.message());
     } else {
-      // Responses are small writes a client waits for: no Nagle delay (see worker/http_client.cpp).
+      // Responses are small writes a client waits for: no Nagle delay (see client/http_client.cpp).
       beast::error_code nodelay_ec;
       socket.set_option(tcp::no_delay(true), nodelay_ec);
       std::shared_ptr<Session> s;
