@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs what is missing, builds Tessera, and runs the whole test suite: the release build's tests, then the
-# unit tests (core, coordinator, worker) again under AddressSanitizer + UndefinedBehaviorSanitizer (clang), the
-# coordinator's and the worker's unit tests under ThreadSanitizer (clang), then each libFuzzer target for a minute.
+# unit tests (core, protocol, byte stream, coordinator, client, worker) again under AddressSanitizer +
+# UndefinedBehaviorSanitizer (clang), the coordinator's, the worker's, the client's and the byte stream's unit tests
+# under ThreadSanitizer (clang), then each libFuzzer target for a minute.
 # Exits non-zero on any failure.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -26,12 +27,12 @@ echo "== sanitizer tests"
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --test-dir build-san --output-on-failure -j "$JOBS"
 
-echo "== thread sanitizer build (clang, TSan: the coordinator's, the worker's and the client's unit tests)"
+echo "== thread sanitizer build (clang, TSan: the coordinator's, the worker's, the client's and the byte stream's unit tests)"
 CC=clang CXX=clang++ cmake -S . -B build-tsan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTESSERA_WERROR=ON \
   -DTESSERA_TSAN=ON -DTESSERA_ONLY_UNIT_TESTS=ON -DTESSERA_TEST_SCALE_DIVISOR=20 >/dev/null
-cmake --build build-tsan -j "$JOBS" --target server_tests worker_tests client_tests
+cmake --build build-tsan -j "$JOBS" --target server_tests worker_tests client_tests net_tests
 echo "== thread sanitizer tests"
-TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1 ctest --test-dir build-tsan --output-on-failure -j "$JOBS" -L 'server|worker|client'
+TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1 ctest --test-dir build-tsan --output-on-failure -j "$JOBS" -L 'server|worker|client|net'
 
 echo "== fuzzing (scene loader, OBJ reader, HTTP handler: 60 s each, all three at once)"
 FUZZ_PARALLEL=3 bash tests/fuzz/run.sh build-san 60
