@@ -15,7 +15,7 @@ cmake --build build -j "$JOBS"
 echo "== release tests"
 ctest --test-dir build --output-on-failure -j "$JOBS"
 
-echo "== sanitizer build (clang, ASan + UBSan: core, coordinator and worker unit tests, the randomised ones at 1/20 of their cases, and the fuzz targets)"
+echo "== sanitizer build (clang, ASan + UBSan: the libraries' unit tests, the randomised ones at 1/20 of their cases, and the fuzz targets)"
 # clang for libFuzzer; a build-san configured by an earlier GCC-based script is started afresh.
 if [ -f build-san/CMakeCache.txt ] && ! grep -q '^CMAKE_CXX_COMPILER:[A-Z]*=.*clang' build-san/CMakeCache.txt; then
   rm -rf build-san
