@@ -59,6 +59,43 @@ struct HttpServer::State {
   std::shared_ptr<ssl::context> tls_context;  // guarded by mu; replaced by reload_tls(), null for plain HTTP
 };
 
+namespace {
+
+// A connection refused in plain HTTP (over the connection limit, or a plain request on the TLS port): answered at once
+// without reading its request, half-closed, and drained for at most a second so the answer is not lost to a reset.
+class Refusal : public std::enable_shared_from_this<Refusal> {
+ public:
+  Refusal(tcp::socket&& socket, HttpResponse res)
+      : stream_(net::ByteStream::plain(std::move(socket))), res_(std::move(res)) {
+    res_.keep_alive(false);
+  }
+
+  void run() {
+    stream_->lowest().expires_after(std::chrono::seconds(1));
+    http::async_write(*stream_, res_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
+      beast::error_code ignored;
+      if (ec) return void(self->stream_->lowest().socket().close(ignored));
+      self->stream_->lowest().socket().shutdown(tcp::socket::shutdown_send, ignored);
+      self->drain();
+    });
+  }
+
+ private:
+  void drain() {
+    stream_->async_read_some(asio::buffer(buf_), [self = shared_from_this()](beast::error_code ec, std::size_t) {
+      if (!ec) return self->drain();
+      beast::error_code ignored;
+      self->stream_->lowest().socket().close(ignored);
+    });
+  }
+
+  std::unique_ptr<net::ByteStream> stream_;
+  HttpResponse res_;
+  std::array<char, 4096> buf_;
+};
+
+}  // namespace
+
 // One connection: (with TLS, a server handshake first, within the read timeout,) then reads a request header, picks
 // the body limit, reads the body, hands the request to the handler pool and writes the answer, all on the
 // connection's strand; keep-alive loops back to the next header. One class for both: the stream hides whether the
@@ -119,16 +156,13 @@ class Session : public std::enable_shared_from_this<Session> {
     });
   }
 
-  // A plain HTTP request reached the TLS listener: answered 400 in plain HTTP, so the client learns why.
+  // A plain HTTP request reached the TLS listener: answered 400 in plain HTTP on the bare socket, so the client learns
+  // why; this session ends here.
   void refuse_plain_http() {
     closing_ = true;
-    auto res = std::make_shared<HttpResponse>(
-        json_error(http::status::bad_request, "this coordinator speaks HTTPS only: use an https:// URL"));
-    res->keep_alive(false);
-    lowest().expires_after(std::chrono::seconds(1));
-    http::async_write(lowest(), *res, [self = shared_from_this(), res](beast::error_code, std::size_t) {
-      self->half_close_and_drain();
-    });
+    std::make_shared<Refusal>(std::move(lowest().socket()),
+                              json_error(http::status::bad_request, "this coordinator speaks HTTPS only: use an https:// URL"))
+        ->run();
   }
 
   void read_header() {
@@ -379,41 +413,6 @@ class Session : public std::enable_shared_from_this<Session> {
 
 namespace {
 
-// A plain-HTTP connection over the limit: answered 503 at once (without reading its request), half-closed, and drained for
-// at most a second so the answer is not lost to a reset.
-class Refusal : public std::enable_shared_from_this<Refusal> {
- public:
-  Refusal(tcp::socket&& socket, std::size_t limit) : stream_(net::ByteStream::plain(std::move(socket))) {
-    res_ = json_error(http::status::service_unavailable,
-                      "too many connections (the limit is " + std::to_string(limit) + "); retry later");
-    res_.set(http::field::retry_after, "1");
-    res_.keep_alive(false);
-  }
-
-  void run() {
-    stream_->lowest().expires_after(std::chrono::seconds(1));
-    http::async_write(*stream_, res_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
-      beast::error_code ignored;
-      if (ec) return void(self->stream_->lowest().socket().close(ignored));
-      self->stream_->lowest().socket().shutdown(tcp::socket::shutdown_send, ignored);
-      self->drain();
-    });
-  }
-
- private:
-  void drain() {
-    stream_->async_read_some(asio::buffer(buf_), [self = shared_from_this()](beast::error_code ec, std::size_t) {
-      if (!ec) return self->drain();
-      beast::error_code ignored;
-      self->stream_->lowest().socket().close(ignored);
-    });
-  }
-
-  std::unique_ptr<net::ByteStream> stream_;
-  HttpResponse res_;
-  std::array<char, 4096> buf_;
-};
-
 void accept_next(const std::shared_ptr<HttpServer::State>& st) {
   st->acceptor.async_accept(asio::make_strand(st->ioc), [st](beast::error_code ec, tcp::socket socket) {
     if (ec == asio::error::operation_aborted || !st->acceptor.is_open() || st->stopping) return;
@@ -443,7 +442,11 @@ void accept_next(const std::shared_ptr<HttpServer::State>& st) {
           beast::error_code ignored;
           socket.close(ignored);
         } else {
-          std::make_shared<Refusal>(std::move(socket), st->opt.max_connections)->run();
+          HttpResponse res = json_error(http::status::service_unavailable, "too many connections (the limit is " +
+                                                                          std::to_string(st->opt.max_connections) +
+                                                                          "); retry later");
+          res.set(http::field::retry_after, "1");
+          std::make_shared<Refusal>(std::move(socket), std::move(res))->run();
         }
       } else {
         s->run();
