@@ -9,24 +9,22 @@ BUILD=${1:?usage: coordinator_cpu.sh BUILD_DIR [SHARED_DIR]}
 SHARED=${2:-$(cd "$(dirname "$0")/../.." && pwd)/shared}
 # shellcheck source-path=SCRIPTDIR source=bench_common.sh
 source "$(dirname "$0")/bench_common.sh" coordcpu
-scene a 640 480 ${SPP:-32}
+scene a 640 480 "${SPP:-32}"
 echo "tessera coordinator CPU per job and per tile, $(date -u +%FT%TZ), $(nproc) cores, commit $(git -C "$(dirname "$0")" rev-parse --short HEAD 2>/dev/null || echo unknown)"
 TCK=$(getconf CLK_TCK)
-"$T" serve --listen 127.0.0.1:0 --ready-file "$WORK/ready" --data "$WORK/data" --durability process >"$WORK/serve.log" 2>&1 &
-SP=$!; PIDS+=($SP)
-while ! test -s "$WORK/ready"; do sleep 0.05; done
-URL="http://$(head -n1 "$WORK/ready")"
+start_serve --durability process
 "$T" worker --coordinator "$URL" --cache "$WORK/cache" --name w --threads 2 >"$WORK/w.log" 2>&1 &
 PIDS+=($!)
 FIT=""
-cpu() { awk -v t="$TCK" '{printf "%.4f", ($14 + $15) / t}' /proc/$SP/stat; }
+cpu() { awk -v t="$TCK" '{printf "%.4f", ($14 + $15) / t}' /proc/$SERVE_PID/stat; }
+# shellcheck disable=SC2086  # TILES is a list of sizes
 for tile in ${TILES:-64 32 16 64 32 16}; do
   c0=$(cpu); t0=$(date +%s.%N)
-  "$T" submit "$WORK/a/scene.json" --coordinator "$URL" --tile $tile -o "$WORK/o.exr" -q
+  "$T" submit "$WORK/a/scene.json" --coordinator "$URL" --tile "$tile" -o "$WORK/o.exr" -q
   c1=$(cpu); t1=$(date +%s.%N)
   tiles=$(( ((640 + tile - 1) / tile) * ((480 + tile - 1) / tile) ))
-  FIT+="$tiles $(awk -v a=$c0 -v b=$c1 'BEGIN {print b - a}')"$'\n'
-  awk -v a=$c0 -v b=$c1 -v n=$tiles -v tile=$tile -v w0=$t0 -v w1=$t1 'BEGIN {printf "tile %3d: %4d tiles, coordinator CPU %.3f s (%.2f ms/tile), wall %.3f s\n", tile, n, b - a, 1000 * (b - a) / n, w1 - w0}'
+  FIT+="$tiles $(awk -v a="$c0" -v b="$c1" 'BEGIN {print b - a}')"$'\n'
+  awk -v a="$c0" -v b="$c1" -v n="$tiles" -v tile="$tile" -v w0="$t0" -v w1="$t1" 'BEGIN {printf "tile %3d: %4d tiles, coordinator CPU %.3f s (%.2f ms/tile), wall %.3f s\n", tile, n, b - a, 1000 * (b - a) / n, w1 - w0}'
 done
 # Least squares over every job: CPU = per_job + tiles * per_tile.
 printf "%s" "$FIT" | awk '{ n++; sx += $1; sy += $2; sxx += $1 * $1; sxy += $1 * $2 }

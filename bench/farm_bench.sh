@@ -73,10 +73,7 @@ done
 echo
 echo "== 3. 3840x2160, 1 spp, tile 256, 2 workers: last upload -> EXR on disk"
 scene big 3840 2160 1
-"$T" serve --listen 127.0.0.1:0 --ready-file "$WORK/ready" --data "$WORK/data" >"$WORK/serve.log" 2>&1 &
-PIDS+=($!)
-for _ in $(seq 200); do [ -s "$WORK/ready" ] && break; sleep 0.05; done
-URL="http://$(cat "$WORK/ready")"
+start_serve
 for i in 1 2; do
   "$T" worker --coordinator "$URL" --threads 1 --cache "$WORK/cache" --name "bench-$i" >"$WORK/worker$i.log" 2>&1 &
   PIDS+=($!)

@@ -17,12 +17,7 @@ head -c 24 /dev/urandom | od -An -tx1 | tr -d ' \n' >"$WORK/worker.token"
 chmod 600 "$WORK"/*.token
 scene scene 320 240 16
 
-"$T" serve --listen 127.0.0.1:0 --ready-file "$WORK/ready" --data "$WORK/data" --client-token-file "$WORK/client.token" \
-  --worker-token-file "$WORK/worker.token" >"$WORK/serve.log" 2>&1 &
-PIDS+=($!)
-SERVE_PID=$!
-for _ in $(seq 200); do [ -s "$WORK/ready" ] && break; sleep 0.05; done
-URL="http://$(head -n1 "$WORK/ready")"
+start_serve --client-token-file "$WORK/client.token" --worker-token-file "$WORK/worker.token"
 for i in 1 2; do
   "$T" worker --coordinator "$URL" --threads 1 --cache "$WORK/cache" --token-file "$WORK/worker.token" \
     >"$WORK/worker$i.log" 2>&1 &

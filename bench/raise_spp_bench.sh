@@ -17,10 +17,7 @@ echo "tessera raise-spp benchmark, $(date -u +%FT%TZ), $(nproc) cores, commit $(
 echo "textured Cornell box ${W}x${H}, farm tile 64, 2 workers x 1 thread; N = $N, 4N = $M"
 scene a "$W" "$H" "$N"
 S="$WORK/a/scene.json"
-"$T" serve --listen 127.0.0.1:0 --ready-file "$WORK/ready" --data "$WORK/data" >"$WORK/serve.log" 2>&1 &
-PIDS+=($!)
-while ! [ -s "$WORK/ready" ]; do sleep 0.05; done
-URL="http://$(head -n1 "$WORK/ready")"
+start_serve
 for i in 1 2; do
   "$T" worker --coordinator "$URL" --threads 1 --cache "$WORK/cache" --name "b$i" >"$WORK/w$i.log" 2>&1 &
   PIDS+=($!)
