@@ -427,9 +427,11 @@ void DurableStore::apply(const SchedulerChanges& c) {
 
 void DurableStore::give_back_free_pages() {
   // The freed pages leave the file (auto_vacuum=INCREMENTAL), and the write-ahead log that carried the deletion is
-  // copied into it and cut to zero bytes (no other connection reads this file, so the checkpoint always completes).
+  // copied into it and cut to zero bytes. The checkpointer's connection does that, after any checkpoint of its own
+  // in progress: a checkpoint from this connection would find its checkpoint lock taken and give up at once
+  // (SQLITE_BUSY, reported only in the pragma's result row), leaving the log at its size.
   db_.exec("PRAGMA incremental_vacuum");
-  db_.exec("PRAGMA wal_checkpoint(TRUNCATE)");
+  checkpointer_->truncate();
 }
 
 SchedulerSnapshot DurableStore::load() {

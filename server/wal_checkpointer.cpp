@@ -79,7 +79,19 @@ void WalCheckpointer::loop() {
   }
 }
 
+bool WalCheckpointer::truncate() {
+  std::lock_guard lock(checkpoint_mu_);
+  int log = 0, copied = 0;
+  const int rc = sqlite3_wal_checkpoint_v2(db_, nullptr, SQLITE_CHECKPOINT_TRUNCATE, &log, &copied);
+  checkpoints_.fetch_add(1);
+  if (rc == SQLITE_OK) return true;
+  spdlog::warn("checkpoint of the database to cut its log failed: {} (the log keeps its size until a later one)",
+               sqlite3_errmsg(db_));
+  return false;
+}
+
 int WalCheckpointer::checkpoint() {
+  std::lock_guard lock(checkpoint_mu_);
   int log = 0, copied = 0;
   const int rc = sqlite3_wal_checkpoint_v2(db_, nullptr, SQLITE_CHECKPOINT_PASSIVE, &log, &copied);
   if (rc != SQLITE_OK && rc != SQLITE_BUSY)

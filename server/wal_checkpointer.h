@@ -35,6 +35,10 @@ class WalCheckpointer {
 
   /// After a commit (from the committing thread, quickly): the log now holds `frames` frames.
   void committed(int frames);
+  /// Copies the whole log into the database file and cuts the log to zero bytes, after any checkpoint in progress;
+  /// the caller holds off commits (SQLite waits for a writer for up to 10 s). False, with a warning logged, when
+  /// SQLite could not finish it.
+  bool truncate();
   /// Checkpoints run so far.
   uint64_t checkpoints() const { return checkpoints_.load(); }
 
@@ -46,6 +50,7 @@ class WalCheckpointer {
   bool due_locked() const;  // enough frames beyond those already copied
 
   sqlite3* db_ = nullptr;
+  std::mutex checkpoint_mu_;  // one checkpoint on db_ at a time (the thread's, or truncate()'s)
   const int threshold_;
   WithWritesHeld held_;
   std::mutex mu_;
