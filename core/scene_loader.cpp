@@ -237,15 +237,22 @@ uint32_t Loader::texture(const std::string& tname, const std::string& from) {
     ctx_.check_keys(t, tp, keys_of(kTextureKeys, type));
     const std::string rel = ctx_.string(t, "path", tp);
     const fs::path file = resolve_(rel, tp + ".path");
-    try {
-      ExrImage img = read_exr(file);
-      for (float v : img.pixels.rgb)
-        if (!std::isfinite(v)) ctx_.fail(tp + ".path", rel + ": contains non-finite pixel values");
-      tex.image = std::make_shared<const Image>(std::move(img.pixels));
-    } catch (const ImageError& e) {
-      ctx_.fail(tp + ".path", e.what());
+    // A check (no build) of an image an earlier check found clean needs only its digest.
+    CheckedFiles* const known = options_.build ? nullptr : options_.checked_files;
+    std::optional<CheckedFile> facts = known ? known->find(file) : std::nullopt;
+    if (!facts || !facts->image_ok) {
+      try {
+        ExrImage img = read_exr(file);
+        for (float v : img.pixels.rgb)
+          if (!std::isfinite(v)) ctx_.fail(tp + ".path", rel + ": contains non-finite pixel values");
+        tex.image = std::make_shared<const Image>(std::move(img.pixels));
+      } catch (const ImageError& e) {
+        ctx_.fail(tp + ".path", e.what());
+      }
+      facts = CheckedFile{sha256_file(file), true};
+      if (known) known->remember(file, *facts);
     }
-    hash_.update(sha256_file(file));
+    hash_.update(facts->sha256);
     out_.assets.push_back(rel);
   } else if (type == "checkerboard") {
     ctx_.check_keys(t, tp, keys_of(kTextureKeys, type));

@@ -1,6 +1,7 @@
 // Loading scenes in the course format (../shared/compat/rdr171/FORMAT.md) into render-ready Scenes.
 #pragma once
 
+#include "core/checked_files.h"
 #include "core/scene.h"
 
 #include <nlohmann/json_fwd.hpp>
@@ -30,6 +31,9 @@ struct LoadOptions {
   std::optional<EnvSampling> env_sampling;       ///< Overrides integrator.env_sampling.
   std::optional<SplitMethod> bvh;                ///< Overrides integrator.bvh (sah or median).
   bool build = true;  ///< Build the BVH and the lights' tables; false stops after validation (a scene to check, not render).
+  /// With build false: image textures recorded here as clean are not decoded again (their recorded SHA-256 enters the
+  /// scene's hash), and images that decode clean are recorded. Only for asset files never rewritten in place.
+  CheckedFiles* checked_files = nullptr;
 };
 
 /// Maps an asset path as written in the scene (and the JSON path naming it) to a readable file.

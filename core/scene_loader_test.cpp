@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cmath>
+#include <fstream>
 #include <limits>
 #include <string>
 
@@ -136,6 +137,45 @@ TEST_F(SceneLoader, ReadableExrTextureLoads) {
   EXPECT_EQ(l.scene.textures[0].scale, Vec2(2.f));
   EXPECT_EQ(l.scene.textures[0].delta, Vec2(0.5f, 0.f));
   EXPECT_EQ(l.assets, (std::vector<std::string>{"tex/ok.exr"}));
+}
+
+// A check (no build) with a CheckedFiles record decodes an image once: the next check takes its digest from the
+// record (the file is overwritten in place below with as many bytes that do not decode, to show it was not read),
+// while a load that builds, a check without the record, or a check after the file was replaced reads it and fails.
+TEST_F(SceneLoader, ChecksWithARecordDecodeEachUnchangedImageOnce) {
+  Image img = Image::make(4, 2);
+  img.set(1, 0, Vec3(0.5f));
+  const fs::path tex = write_image("tex/ok.exr", img);
+  json s = testing::minimal_scene();
+  s["textures"]["img"] = {{"type", "image"}, {"path", "tex/ok.exr"}};
+  s["materials"]["white_diffuse"]["texture_name"] = "img";
+  const fs::path scene = write_scene("scene.json", s);
+  CheckedFiles record;
+  LoadOptions check;
+  check.build = false;
+  check.checked_files = &record;
+  const LoadedScene first = load_scene_file(scene, check);
+  ASSERT_NE(first.scene.textures[0].image, nullptr);
+  EXPECT_EQ(record.size(), 1u);
+  EXPECT_EQ(first.scene.hash, load_scene_file(scene).scene.hash);
+
+  const auto size = fs::file_size(tex);
+  { std::ofstream(tex, std::ios::binary | std::ios::in | std::ios::out) << std::string(size, 'x'); }
+  ASSERT_EQ(fs::file_size(tex), size);
+  const LoadedScene second = load_scene_file(scene, check);
+  EXPECT_EQ(second.scene.textures[0].image, nullptr);  // not decoded
+  EXPECT_EQ(second.scene.hash, first.scene.hash);
+  EXPECT_NE(error_of(s).find("textures.img.path"), std::string::npos);  // a build reads it
+  LoadOptions unrecorded;
+  unrecorded.build = false;
+  EXPECT_NE(error_of(s, unrecorded).find("textures.img.path"), std::string::npos);
+  LoadOptions build_with_record;
+  build_with_record.checked_files = &record;
+  EXPECT_NE(error_of(s, build_with_record).find("textures.img.path"), std::string::npos);
+
+  write("tex/new.exr", std::string(size, 'y'));  // replaced (temp file, rename): read again
+  fs::rename(file("tex/new.exr"), tex);
+  EXPECT_NE(error_of(s, check).find("textures.img.path"), std::string::npos);
 }
 
 TEST_F(SceneLoader, UnreferencedTexturesAreNeverRead) {

@@ -108,6 +108,7 @@ protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
   // mesh the BVH was a quarter to a third of a whole load.
   LoadOptions check = sub.sampling.load_options();
   check.build = false;
+  check.checked_files = &checked_blobs_;  // a blob's file only ever holds the bytes its name hashes to
   LoadedScene loaded;
   try {
     loaded = load_scene_json(sub.scene, "scene", [&](const std::string& rel, const std::string& jp) -> fs::path {

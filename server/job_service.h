@@ -3,6 +3,7 @@
 // are protocol::ApiError (with the status to answer) or protocol::ProtocolError (400).
 #pragma once
 
+#include "core/checked_files.h"
 #include "protocol/messages.h"
 #include "protocol/query.h"
 #include "protocol/tile.h"
@@ -151,6 +152,7 @@ class JobService {
   std::map<std::string, std::shared_ptr<JobImage>> images_;  // running jobs' images (a cache of the stored tiles)
   std::map<std::string, protocol::JobSpec> specs_;           // a cache of the stored specs
   std::map<std::string, std::string> spec_json_;             // the same as JSON answers (set and erased with specs_)
+  CheckedFiles checked_blobs_;  // image blobs earlier submissions decoded clean: the next check skips the decode
   void cache_spec_locked(const std::string& id, const protocol::JobSpec& spec, bool replace);
 };
 
