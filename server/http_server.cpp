@@ -61,6 +61,18 @@ struct HttpServer::State {
 
 namespace {
 
+// Reads and discards what the client still sends until an error (its close, or the expiry the caller set on `stream`),
+// then closes the socket: the last step of every close here, so that an unread request does not turn the close into
+// a reset that destroys the answer in flight. `owner` (holding `stream` and `buf`) is kept alive until then.
+void drain_and_close(beast::tcp_stream& stream, std::array<char, 4096>& buf, std::shared_ptr<void> owner) {
+  stream.async_read_some(asio::buffer(buf), [&stream, &buf, owner = std::move(owner)](beast::error_code ec,
+                                                                                       std::size_t) mutable {
+    if (!ec) return drain_and_close(stream, buf, std::move(owner));
+    beast::error_code ignored;
+    stream.socket().close(ignored);
+  });
+}
+
 // A connection refused in plain HTTP (over the connection limit, or a plain request on the TLS port): answered at once
 // without reading its request, half-closed, and drained for at most a second so the answer is not lost to a reset.
 class Refusal : public std::enable_shared_from_this<Refusal> {
@@ -76,19 +88,11 @@ class Refusal : public std::enable_shared_from_this<Refusal> {
       beast::error_code ignored;
       if (ec) return void(self->stream_->lowest().socket().close(ignored));
       self->stream_->lowest().socket().shutdown(tcp::socket::shutdown_send, ignored);
-      self->drain();
+      drain_and_close(self->stream_->lowest(), self->buf_, self);
     });
   }
 
  private:
-  void drain() {
-    stream_->async_read_some(asio::buffer(buf_), [self = shared_from_this()](beast::error_code ec, std::size_t) {
-      if (!ec) return self->drain();
-      beast::error_code ignored;
-      self->stream_->lowest().socket().close(ignored);
-    });
-  }
-
   std::unique_ptr<net::ByteStream> stream_;
   HttpResponse res_;
   std::array<char, 4096> buf_;
@@ -379,15 +383,7 @@ class Session : public std::enable_shared_from_this<Session> {
       return;
     }
     lowest().expires_after(std::chrono::seconds(1));
-    drain();
-  }
-
-  void drain() {
-    lowest().async_read_some(asio::buffer(drain_), [self = shared_from_this()](beast::error_code ec, std::size_t) {
-      if (!ec) return self->drain();
-      beast::error_code ignored;
-      self->lowest().socket().close(ignored);
-    });
+    drain_and_close(lowest(), drain_, shared_from_this());
   }
 
   std::shared_ptr<ssl::context> tls_;  // the context this connection's handshake used (kept across a reload)
