@@ -21,29 +21,29 @@ std::optional<std::string> identity_of(const fs::path& file) {
 
 CheckedFiles::CheckedFiles(size_t capacity) : capacity_(std::max<size_t>(1, capacity)) {}
 
-std::optional<CheckedFile> CheckedFiles::find(const fs::path& file) const {
+std::optional<std::string> CheckedFiles::find(const fs::path& file) const {
   const std::optional<std::string> id = identity_of(file);
   if (!id) return std::nullopt;
   std::lock_guard lock(mu_);
   const auto it = entries_.find(file.string());
   if (it == entries_.end() || it->second.identity != *id) return std::nullopt;
-  return it->second.facts;
+  return it->second.sha256;
 }
 
-void CheckedFiles::remember(const fs::path& file, CheckedFile facts) {
+void CheckedFiles::remember(const fs::path& file, std::string sha256) {
   std::optional<std::string> id = identity_of(file);
   if (!id) return;
   std::lock_guard lock(mu_);
   const std::string key = file.string();
   if (const auto it = entries_.find(key); it != entries_.end()) {
-    it->second = {std::move(*id), std::move(facts)};
+    it->second = {std::move(*id), std::move(sha256)};
     return;
   }
   if (entries_.size() >= capacity_) {
     entries_.erase(order_.front());
     order_.pop_front();
   }
-  entries_.emplace(key, Entry{std::move(*id), std::move(facts)});
+  entries_.emplace(key, Entry{std::move(*id), std::move(sha256)});
   order_.push_back(key);
 }
 

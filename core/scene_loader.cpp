@@ -4,6 +4,7 @@
 #include "core/scene_loader.h"
 
 #include "core/camera_frame.h"
+#include "core/checked_files.h"
 #include "core/enum_names.h"
 #include "core/file_io.h"
 #include "core/image.h"
@@ -239,8 +240,8 @@ uint32_t Loader::texture(const std::string& tname, const std::string& from) {
     const fs::path file = resolve_(rel, tp + ".path");
     // A check (no build) of an image an earlier check found clean needs only its digest.
     CheckedFiles* const known = options_.build ? nullptr : options_.checked_files;
-    std::optional<CheckedFile> facts = known ? known->find(file) : std::nullopt;
-    if (!facts || !facts->image_ok) {
+    std::optional<std::string> digest = known ? known->find(file) : std::nullopt;
+    if (!digest) {
       try {
         ExrImage img = read_exr(file);
         for (float v : img.pixels.rgb)
@@ -249,10 +250,10 @@ uint32_t Loader::texture(const std::string& tname, const std::string& from) {
       } catch (const ImageError& e) {
         ctx_.fail(tp + ".path", e.what());
       }
-      facts = CheckedFile{sha256_file(file), true};
-      if (known) known->remember(file, *facts);
+      digest = sha256_file(file);
+      if (known) known->remember(file, *digest);
     }
-    hash_.update(facts->sha256);
+    hash_.update(*digest);
     out_.assets.push_back(rel);
   } else if (type == "checkerboard") {
     ctx_.check_keys(t, tp, keys_of(kTextureKeys, type));

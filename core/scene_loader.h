@@ -1,7 +1,6 @@
 // Loading scenes in the course format (../shared/compat/rdr171/FORMAT.md) into render-ready Scenes.
 #pragma once
 
-#include "core/checked_files.h"
 #include "core/scene.h"
 
 #include <nlohmann/json_fwd.hpp>
@@ -15,6 +14,8 @@
 #include <vector>
 
 namespace tessera {
+
+class CheckedFiles;
 
 /// A scene that cannot be loaded; the message names the file and the JSON path of the offending value.
 struct SceneError : std::runtime_error {

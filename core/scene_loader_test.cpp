@@ -3,6 +3,7 @@
 // integrators and materials are refused with the list of supported ones; unreferenced textures are never read.
 #include "core/scene_loader.h"
 
+#include "core/checked_files.h"
 #include "core/enum_names.h"
 #include "core/test_files.h"
 
