@@ -62,8 +62,7 @@ struct HttpServer::State {
 namespace {
 
 // Reads and discards what the client still sends until an error (its close, or the expiry the caller set on `stream`),
-// then closes the socket: the last step of every close here, so that an unread request does not turn the close into
-// a reset that destroys the answer in flight. `owner` (holding `stream` and `buf`) is kept alive until then.
+// then closes the socket. `owner` (holding `stream` and `buf`) is kept alive until then.
 void drain_and_close(beast::tcp_stream& stream, std::array<char, 4096>& buf, std::shared_ptr<void> owner) {
   stream.async_read_some(asio::buffer(buf), [&stream, &buf, owner = std::move(owner)](beast::error_code ec,
                                                                                        std::size_t) mutable {
@@ -71,6 +70,16 @@ void drain_and_close(beast::tcp_stream& stream, std::array<char, 4096>& buf, std
     beast::error_code ignored;
     stream.socket().close(ignored);
   });
+}
+
+// The last step of every close here: half-closes the connection (the client reads the end of the answer), then
+// drains it as above, so that an unread request does not turn the close into a reset that destroys the answer in
+// flight; a connection that cannot be half-closed is closed at once.
+void half_close_and_drain(beast::tcp_stream& stream, std::array<char, 4096>& buf, std::shared_ptr<void> owner) {
+  beast::error_code ec;
+  stream.socket().shutdown(tcp::socket::shutdown_send, ec);
+  if (ec) return void(stream.socket().close(ec));
+  drain_and_close(stream, buf, std::move(owner));
 }
 
 // A connection refused in plain HTTP (over the connection limit, or a plain request on the TLS port): answered at once
@@ -87,8 +96,7 @@ class Refusal : public std::enable_shared_from_this<Refusal> {
     http::async_write(*stream_, res_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
       beast::error_code ignored;
       if (ec) return void(self->stream_->lowest().socket().close(ignored));
-      self->stream_->lowest().socket().shutdown(tcp::socket::shutdown_send, ignored);
-      drain_and_close(self->stream_->lowest(), self->buf_, self);
+      half_close_and_drain(self->stream_->lowest(), self->buf_, self);
     });
   }
 
@@ -369,21 +377,15 @@ class Session : public std::enable_shared_from_this<Session> {
     waiting_ = false;
     if (tls_) {
       lowest().expires_after(std::chrono::seconds(1));
-      stream_->async_shutdown([self = shared_from_this()](beast::error_code) { self->half_close_and_drain(); });
+      stream_->async_shutdown([self = shared_from_this()](beast::error_code) { self->finish_close(); });
     } else {
-      half_close_and_drain();
+      finish_close();
     }
   }
 
-  void half_close_and_drain() {
-    beast::error_code ec;
-    lowest().socket().shutdown(tcp::socket::shutdown_send, ec);
-    if (ec) {
-      lowest().socket().close(ec);
-      return;
-    }
+  void finish_close() {
     lowest().expires_after(std::chrono::seconds(1));
-    drain_and_close(lowest(), drain_, shared_from_this());
+    half_close_and_drain(lowest(), drain_, shared_from_this());
   }
 
   std::shared_ptr<ssl::context> tls_;  // the context this connection's handshake used (kept across a reload)
