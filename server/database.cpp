@@ -165,7 +165,7 @@ void Statement::reset() {
 
 // ---- Database
 
-Database::Database(const fs::path& file) : file_(file) {
+Database::Database(const fs::path& file, const char* synchronous) : file_(file) {
   const int rc = sqlite3_open_v2(file.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr);
   if (rc != SQLITE_OK) {
     const std::string why = db_ ? sqlite3_errmsg(db_) : sqlite3_errstr(rc);
@@ -175,8 +175,8 @@ Database::Database(const fs::path& file) : file_(file) {
   }
   try {
     sqlite3_busy_timeout(db_, 10'000);
+    exec(std::string("PRAGMA synchronous=") + synchronous);
     exec("PRAGMA journal_mode=WAL");
-    exec("PRAGMA synchronous=FULL");
     exec("PRAGMA foreign_keys=ON");
   } catch (...) {
     sqlite3_close(db_);
@@ -244,16 +244,16 @@ void Transaction::commit() {
 // ---- DurableStore
 
 DurableStore::DurableStore(const fs::path& dir, Durability durability)
-    : durability_(durability), jobs_dir_(dir / "jobs"), scratch_(dir / "tmp"), db_((make_dirs(dir), dir / "tessera.db")),
+    : durability_(durability), jobs_dir_(dir / "jobs"), scratch_(dir / "tmp"),
+      // Commits survive a process crash without waiting for the disk; sync() makes them survive a power cut when the
+      // scheduler acknowledges something, outside its lock (see SchedulerStore::sync). A store that only has to
+      // survive the process lets SQLite skip its own flushes too (at checkpoints and when the file is made).
+      db_((make_dirs(dir), dir / "tessera.db"), durability == Durability::machine ? "NORMAL" : "OFF"),
       group_([this] { flush_log(); }) {
   make_dirs(jobs_dir_);
   make_dirs(scratch_);
   // Uploads being validated and results being written when the last run was killed.
   leftovers_removed_ = remove_leftovers(scratch_, true) + remove_leftovers(jobs_dir_);
-  // Commits survive a process crash without waiting for the disk; sync() makes them survive a power cut when the
-  // scheduler acknowledges something, outside its lock (see SchedulerStore::sync). A store that only has to survive
-  // the process lets SQLite skip its own flushes too (at checkpoints and when the file is made).
-  db_.exec(durability_ == Durability::machine ? "PRAGMA synchronous=NORMAL" : "PRAGMA synchronous=OFF");
   // Purged jobs' pages are returned to the file system (see give_back_free_pages). The mode is set before the first
   // table is created; a database made by an older build is rewritten once (VACUUM) to switch to it.
   Statement& mode = db_.statement("PRAGMA auto_vacuum");

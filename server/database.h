@@ -68,8 +68,10 @@ class Statement {
 /// An open SQLite database file. Not thread-safe: callers serialize access.
 class Database {
  public:
-  /// Opens (creating if missing) `file` in WAL mode with synchronous=FULL and a busy timeout; throws StorageError.
-  explicit Database(const std::filesystem::path& file);
+  /// Opens (creating if missing) `file` in WAL mode with a busy timeout and `synchronous` (SQLite's PRAGMA value:
+  /// "FULL", "NORMAL" or "OFF"), set before the file is switched to WAL so that making it waits for the disk only
+  /// as that mode says; throws StorageError.
+  explicit Database(const std::filesystem::path& file, const char* synchronous = "FULL");
   ~Database();
   Database(const Database&) = delete;
   Database& operator=(const Database&) = delete;

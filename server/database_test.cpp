@@ -436,6 +436,24 @@ TEST_F(DatabaseTest, DatabaseErrorsNameTheStatement) {
   EXPECT_EQ(st.text(0), "wal");
 }
 
+// A database opens in WAL mode with the synchronous mode it is asked for, FULL unless told otherwise (strace of
+// `serve --durability process` on a new folder shows no fsync or fdatasync: the mode is set before the WAL switch).
+TEST_F(DatabaseTest, OpensInWalModeWithTheSynchronousModeAskedFor) {
+  for (const auto& [mode, value] : {std::pair{"OFF", 0}, std::pair{"NORMAL", 1}, std::pair{"FULL", 2}}) {
+    Database db(dir / (std::string("sync-") + mode + ".db"), mode);
+    Statement& st = db.statement("PRAGMA synchronous");
+    ASSERT_TRUE(st.step());
+    EXPECT_EQ(st.integer(0), value) << mode;
+    Statement& journal = db.statement("PRAGMA journal_mode");
+    ASSERT_TRUE(journal.step());
+    EXPECT_EQ(journal.text(0), "wal") << mode;
+  }
+  Database plain(dir / "default.db");
+  Statement& st = plain.statement("PRAGMA synchronous");
+  ASSERT_TRUE(st.step());
+  EXPECT_EQ(st.integer(0), 2) << "FULL unless asked otherwise";
+}
+
 TEST(TileBytes, RoundTripAndSizeCheck) {
   Image img = Image::make(3, 2);
   for (size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = float(i) - 2.5f;
