@@ -26,11 +26,8 @@ CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
   auto* c = app.add_subcommand("render", "Render a scene to an OpenEXR file on this machine");
   c->add_option("scene", a.scene, "Scene file (course JSON format)")->required()->check(CLI::ExistingFile);
   c->add_option("-o,--output", a.output, "Output EXR file")->required();
-  c->add_option("--spp", a.spp, "Samples per pixel (default: the scene's)")->check(CLI::Range(1u, 1u << 20));
+  add_sampling_flags(c, a);
   c->add_option("--threads", a.threads, "Worker threads (default: all cores)")->check(CLI::Range(0, 4096));
-  c->add_option("--seed", a.seed, "Sample seed");
-  c->add_option("--integrator", a.integrator, "Render with this integrator whatever the scene says")
-      ->check(CLI::IsMember({"direct", "intersection_test"}));
   c->add_option("--crop", a.crop, "Render only pixels [X0,X1) x [Y0,Y1) (row 0 = top)")->expected(4);
   c->add_flag("--half", a.half, "Write half floats instead of float32");
   c->add_flag("--variance", a.variance, "Also write per-pixel variance-of-the-mean and sample-count channels");
@@ -46,30 +43,6 @@ CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
                 "Render through a private coordinator and N worker processes on this machine (0: in this process)")
       ->check(CLI::Range(0, 256));
   c->add_option("--farm-tile", a.farm_tile, "Farm tile edge in pixels (with --workers)")->check(CLI::Range(1, 4096));
-  c->add_option("--target-error", a.target_error,
-                "Sample each pixel in doubling rounds until the relative standard error of its luminance is at most "
-                "this (e.g. 0.02); --spp is then ignored")
-      ->check(CLI::Range(0.f, 1e6f));
-  c->add_option("--min-spp", a.min_spp, "With --target-error: samples of the first round")
-      ->capture_default_str()
-      ->check(CLI::Range(1u, 1u << 20));
-  c->add_option("--max-spp", a.max_spp, "With --target-error: most samples per pixel")
-      ->capture_default_str()
-      ->check(CLI::Range(1u, 1u << 20));
-  c->add_option("--error-floor", a.error_floor,
-                "With --target-error: luminance below which absolute error is measured (default 0.01)")
-      ->check(CLI::Range(0.f, 1e6f));
-  c->add_option("--replicates", a.replicates,
-                "Split each pixel's samples into K independently scrambled sequences so the variance channels and "
-                "--target-error use an unbiased error estimate (default 1: one stratified sequence, conservative "
-                "estimate)")
-      ->check(CLI::Range(1u, kMaxReplicates));
-  c->add_option("--area-sampling", a.area_sampling, "Area-light strategy (overrides the scene)")
-      ->check(CLI::IsMember(enum_names(kAreaSamplingNames)));
-  c->add_option("--env-sampling", a.env_sampling, "Environment strategy (overrides the scene)")
-      ->check(CLI::IsMember(enum_names(kEnvSamplingNames)));
-  auto* bvh = c->add_option("--bvh", a.bvh, "BVH build: binned SAH or object median (overrides the scene)")
-                  ->check(CLI::IsMember(enum_names(kSplitMethodNames)));
   c->add_flag("--resumable", a.resumable,
               "Also write each pixel's exact sample sums, so that --resume --spp can refine the render later");
   c->add_option("--tile-budget", a.tile_budget,
@@ -81,9 +54,8 @@ CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
                      ->check(CLI::ExistingFile);
   // The sampling settings come from the file: giving them again could only contradict it.
   for (const char* name : {"--seed", "--crop", "--variance", "--target-error", "--min-spp", "--max-spp",
-                           "--error-floor", "--replicates", "--area-sampling", "--env-sampling", "--workers"})
+                           "--error-floor", "--replicates", "--area-sampling", "--env-sampling", "--bvh", "--workers"})
     resume->excludes(c->get_option(name));
-  resume->excludes(bvh);
   return c;
 }
 

@@ -1,7 +1,7 @@
 // `tessera render`: load a scene, render it (or a crop of it) on this machine, write an OpenEXR file.
 #pragma once
 
-#include "core/adaptive.h"
+#include "cli/sampling_flags.h"
 
 #include <CLI/CLI.hpp>
 
@@ -13,14 +13,11 @@
 
 namespace tessera::cli {
 
-/// Options of `tessera render`.
-struct RenderArgs {
+/// Options of `tessera render` (the sampling ones are those `submit` has too).
+struct RenderArgs : SamplingArgs {
   std::string scene;                    ///< Scene file.
   std::string output;                   ///< EXR to write.
-  std::optional<uint32_t> spp;          ///< Samples per pixel override.
   int threads = 0;                      ///< Threads (0: all cores).
-  uint64_t seed = 0;                    ///< Sample seed.
-  std::string integrator;               ///< "direct" renders scenes of other integrator types.
   std::vector<int> crop;                ///< X0 Y0 X1 Y1 (half-open, row 0 = top).
   bool half = false;                    ///< Write half floats.
   bool variance = false;                ///< Write variance and sample-count channels.
@@ -32,14 +29,6 @@ struct RenderArgs {
   bool timing = false;                  ///< Print where the wall time went (load, film, threads, write).
   int workers = 0;                      ///< >0: render through a local coordinator and this many worker processes.
   int farm_tile = 64;                   ///< Farm tile edge (with --workers; the farm's default tile size).
-  float target_error = 0.f;             ///< Adaptive sampling target (relative standard error); 0: off.
-  uint32_t min_spp = kAdaptiveMinSpp;   ///< Adaptive sampling: first round and minimum.
-  uint32_t max_spp = kAdaptiveMaxSpp;   ///< Adaptive sampling: cap.
-  float error_floor = 0.01f;            ///< Adaptive sampling: luminance floor of the relative error.
-  uint32_t replicates = 1;              ///< Independent replicates per pixel (unbiased error estimates when >= 2).
-  std::string area_sampling;            ///< Overrides integrator.area_sampling (auto, solid_angle or area).
-  std::string env_sampling;             ///< Overrides integrator.env_sampling (mis, importance, cosine, uniform).
-  std::string bvh;                      ///< Overrides integrator.bvh (sah or median).
   bool resumable = false;               ///< Also write each pixel's exact accumulator (for a later refinement).
   int tile_budget = 0;                  ///< Render at most this many tiles, then write a partial EXR (0: all).
   std::string resume;                   ///< Finish or refine this earlier render's EXR.

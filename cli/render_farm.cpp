@@ -1,7 +1,6 @@
 #include "cli/render_farm.h"
 
 #include "cli/interrupt_guard.h"
-#include "cli/render_resume.h"
 #include "cli/submit_command.h"
 #include "core/adaptive.h"
 #include "core/image.h"
@@ -105,7 +104,6 @@ int run_render_farm(const RenderArgs& a) {
                                          "coordinator", dir / "serve.log"));
     farm::SubmitOptions o = shared_job_options(a);
     o.tile_size = a.farm_tile;
-    o.sampling = sampling_settings(a, a.spp.value_or(0));  // 0: the scene's spp
     o.resumable = a.resumable;  // the result then carries the state channels, as `render --resumable` writes them
     // While the coordinator starts: the scene's assets are hashed and put in the workers' cache, where they would
     // otherwise fetch them one by one from the coordinator.

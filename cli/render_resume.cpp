@@ -27,22 +27,6 @@ T number(const ExrImage& file, const std::string& path, const std::string& key) 
 
 }  // namespace
 
-protocol::SamplingSettings sampling_settings(const RenderArgs& a, uint32_t spp) {
-  protocol::SamplingSettings s;
-  s.spp = spp;
-  s.seed = a.seed;
-  if (!a.integrator.empty()) s.integrator = "direct";
-  s.target_error = a.target_error;
-  s.min_spp = a.min_spp;
-  s.max_spp = a.max_spp;
-  s.error_floor = a.error_floor;
-  s.replicates = a.replicates;
-  s.area_sampling = a.area_sampling;
-  s.env_sampling = a.env_sampling;
-  s.bvh = a.bvh;
-  return s;
-}
-
 uint32_t recorded_spp(const ExrImage& file) {
   const auto it = file.metadata.find("tessera:spp");
   if (it == file.metadata.end() || it->second == "adaptive") return 0;

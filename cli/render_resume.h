@@ -11,11 +11,6 @@
 
 namespace tessera::cli {
 
-/// The render's sampling settings at `spp` samples per pixel (seed, adaptive settings, replicates, integrator and the
-/// strategy overrides given on the command line): what the render options, the EXR metadata that lets --resume repeat
-/// the render exactly, and a `--workers` job are made from.
-protocol::SamplingSettings sampling_settings(const RenderArgs& args, uint32_t spp);
-
 /// `given` with the sampling settings of the render stored in `file` (seed, spp unless given, crop window,
 /// variance, replicates, adaptive settings, strategies). Throws std::runtime_error naming `given.resume` when the
 /// file lacks them, is not a render of this kind, or --spp asks for something that cannot be continued exactly.

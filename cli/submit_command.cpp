@@ -16,27 +16,15 @@ CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
   c->add_option("scene", a.scene, "Scene file (course JSON format)")->required()->check(CLI::ExistingFile);
   add_coordinator_access_flags(c, a.access);
   c->add_option("-o,--output", a.output, "Download the finished image to this EXR file");
-  c->add_option("--spp", a.spp, "Samples per pixel (default: the scene's)")->check(CLI::Range(1u, 1u << 20));
+  add_sampling_flags(c, a);
   c->add_option("--tile", a.tile_size, "Tile edge in pixels")->check(CLI::Range(1, 4096));
   c->add_option("--priority", a.priority, "Job priority (higher first)");
   c->add_option("--tile-timeout", a.tile_timeout_seconds,
                 "Seconds a tile's lease may last from its grant; older leases are revoked and count as a failure of "
                 "their worker")
       ->check(CLI::Range(int64_t(1), protocol::kMaxTileTimeoutSeconds))->capture_default_str();
-  c->add_option("--seed", a.seed, "Sample seed");
   c->add_option("--name", a.name, "Job label (default: the scene's file name)");
-  c->add_option("--integrator", a.integrator, "Render with this integrator whatever the scene says")
-      ->check(CLI::IsMember({"direct", "intersection_test"}));
   c->add_option("--asset-root", a.asset_root, "Allow asset paths anywhere below this folder");
-  c->add_option("--target-error", a.target_error,
-                "Adaptive sampling: sample each pixel until its relative standard error is at most this")
-      ->check(CLI::Range(0.0, 1e6));
-  c->add_option("--min-spp", a.min_spp, "With --target-error: samples of the first round")
-      ->capture_default_str()
-      ->check(CLI::Range(1u, 1u << 20));
-  c->add_option("--max-spp", a.max_spp, "With --target-error: most samples per pixel")
-      ->capture_default_str()
-      ->check(CLI::Range(1u, 1u << 20));
   c->add_flag("--resumable", a.resumable,
               "Keep each tile's exact per-pixel sums, so that `tessera jobs spp ID M` can raise the job's spp later "
               "(bitwise as if submitted at M; docs/resume.md)");

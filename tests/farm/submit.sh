@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # tessera submit end to end: a scene with OBJ and EXR assets is uploaded once (a second submission uploads nothing),
-# rendered by two workers and downloaded identical to the single-process render; the coordinator's 400 message is
-# printed with exit status 2; an unreachable coordinator is a clear error.
+# rendered by two workers and downloaded identical to the single-process render, also with every sampling option
+# `render` has; the coordinator's 400 message is printed with exit status 2; an unreachable coordinator is a clear
+# error.
 source "$(dirname "$0")/common.sh"
 
 write_cbox_scene "$WORK/cbox" 32 24 2
@@ -17,6 +18,16 @@ log_has "$WORK/submit1.log" "\(10 assets, 10 uploaded\)|\([0-9]+ assets, [1-9][0
   >"$WORK/submit2.log" 2>&1 || fail "second submit failed"
 log_has "$WORK/submit2.log" "assets, 0 uploaded\)" || fail "the second submission uploaded assets again"
 "$EXR_COMPARE" "$WORK/ref.exr" "$WORK/out2.exr" || fail "second result differs"
+
+# Every sampling option `render` has goes with a submitted job too: the result is bitwise the single-process render
+# with the same options, which differs from the plain one.
+SAMPLING=(--seed 5 --target-error 0.2 --min-spp 2 --max-spp "$(spp 8 2)" --error-floor 0.05 --replicates 2
+  --area-sampling area --bvh median)
+"$TESSERA" render "$WORK/cbox/scene.json" -o "$WORK/ref-sampling.exr" -q "${SAMPLING[@]}"
+"$TESSERA" submit "$WORK/cbox/scene.json" --coordinator "$URL" --tile 10 -o "$WORK/out-sampling.exr" "${SAMPLING[@]}" \
+  >"$WORK/submit-sampling.log" 2>&1 || fail "submit with every sampling option failed"
+"$EXR_COMPARE" "$WORK/ref-sampling.exr" "$WORK/out-sampling.exr" || fail "the job with sampling options differs"
+expect_exit 1 "$WORK/compare-sampling.log" -- "$EXR_COMPARE" "$WORK/ref.exr" "$WORK/ref-sampling.exr"
 
 write_sphere_scene "$WORK/bad.json" 8 8 1
 sed -i 's/"radius": 0.7/"radius": -1/' "$WORK/bad.json"

@@ -1,0 +1,40 @@
+// The sampling options `tessera render` and `tessera submit` share: registered on both commands by one function and
+// turned into a job's protocol::SamplingSettings by another, so a farm job is sampled as the same render on one
+// machine would be.
+#pragma once
+
+#include "core/adaptive.h"
+#include "protocol/messages.h"
+
+#include <CLI/CLI.hpp>
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+namespace tessera::cli {
+
+/// How to sample a scene, as given on the command line.
+struct SamplingArgs {
+  std::optional<uint32_t> spp;                   ///< Samples per pixel override.
+  uint64_t seed = 0;                             ///< Sample seed.
+  std::string integrator;                        ///< "direct" renders scenes of other integrator types.
+  float target_error = 0.f;                      ///< Adaptive sampling target (relative standard error); 0: off.
+  uint32_t min_spp = kAdaptiveMinSpp;            ///< Adaptive sampling: first round and minimum.
+  uint32_t max_spp = kAdaptiveMaxSpp;            ///< Adaptive sampling: cap.
+  float error_floor = AdaptiveOptions{}.error_floor;  ///< Adaptive sampling: luminance floor of the relative error.
+  uint32_t replicates = 1;                       ///< Independent replicates per pixel (unbiased error estimates when >= 2).
+  std::string area_sampling;                     ///< Overrides integrator.area_sampling (auto, solid_angle or area).
+  std::string env_sampling;                      ///< Overrides integrator.env_sampling (mis, importance, cosine, uniform).
+  std::string bvh;                               ///< Overrides integrator.bvh (sah or median).
+};
+
+/// Registers --spp, --seed, --integrator, --target-error, --min-spp, --max-spp, --error-floor, --replicates,
+/// --area-sampling, --env-sampling and --bvh on `command`, writing into `args`.
+void add_sampling_flags(CLI::App* command, SamplingArgs& args);
+
+/// The settings `args` give, at `spp` samples per pixel (0: the scene's): what a render's options, the EXR metadata
+/// that lets --resume repeat it exactly, and a farm job are made from.
+protocol::SamplingSettings sampling_settings(const SamplingArgs& args, uint32_t spp);
+
+}  // namespace tessera::cli
