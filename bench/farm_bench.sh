@@ -88,5 +88,5 @@ result=$(ls "$WORK"/data/jobs/*/result.exr)
 printf "  total submit -> output:                 %8ss\n" "$(secs "$t0" "$t1")"
 printf "  last upload start -> coordinator's EXR: %8ss  (%s bytes)\n" "$(secs "$last_s" "$(stat -c %.9Y "$result")")" \
   "$(stat -c %s "$result")"
-printf "  last upload start -> client's -o file:  %8ss  (includes the client's 200 ms status poll)\n" \
+printf "  last upload start -> client's -o file:  %8ss  (the client follows the job's events: the result's download and write)\n" \
   "$(secs "$last_s" "$(stat -c %.9Y "$WORK/big.exr")")"
