@@ -46,7 +46,7 @@ void print_tiles(const protocol::TileList& list) {
 
 CLI::App* add_jobs_command(CLI::App& app, JobsArgs& a) {
   auto* c = app.add_subcommand("jobs", "List and control a coordinator's jobs");
-  c->add_option("action", a.action, "ls: list; show ID: the job as JSON; pause ID: no new leases (running tiles "
+  c->add_option("action", a.action, "ls: list; show ID: the job as JSON, with its sampling settings; pause ID: no new leases (running tiles "
                                     "finish); resume ID; tiles ID: one line per tile, then failures with their log "
                                     "lines; requeue ID N: render tile N again; priority ID N: lease its tiles in a new order; spp ID M: raise a --resumable job to M samples per pixel, continuing its stored tiles; retry ID: render a failed or cancelled job's missing tiles; "
                                     "cancel ID; rm ID: cancel it, or with --purge delete an ended job, its tiles and result")
@@ -102,7 +102,10 @@ int run_jobs(const JobsArgs& a) {
       const protocol::PurgeAnswer p = farm::purge_job(http, a.job);
       std::printf("%s: purged (was %s)\n", p.id.c_str(), protocol::to_string(p.was));
     } else if (a.action == "show") {
-      std::printf("%s\n", nlohmann::json(farm::get_job(http, a.job)).dump(2).c_str());
+      // The job's status, and how it samples (all of its settings, from its spec).
+      nlohmann::json job = farm::get_job(http, a.job);
+      job["sampling"] = farm::get_job_spec(http, a.job).sampling;
+      std::printf("%s\n", job.dump(2).c_str());
       if (a.tiles) print_tiles(farm::get_job_tiles(http, a.job));
     } else if (a.action == "tiles") {
       print_tiles(farm::get_job_tiles(http, a.job));

@@ -13,7 +13,7 @@ void add_sampling_flags(CLI::App* c, SamplingArgs& a) {
   c->add_option("--target-error", a.target_error,
                 "Sample each pixel in doubling rounds until the relative standard error of its luminance is at most "
                 "this (e.g. 0.02); --spp is then ignored")
-      ->check(CLI::Range(0.f, 1e6f));
+      ->check(CLI::Range(0.0, 1e6));
   c->add_option("--min-spp", a.min_spp, "With --target-error: samples of the first round")
       ->capture_default_str()
       ->check(CLI::Range(1u, 1u << 20));
@@ -22,7 +22,7 @@ void add_sampling_flags(CLI::App* c, SamplingArgs& a) {
       ->check(CLI::Range(1u, 1u << 20));
   c->add_option("--error-floor", a.error_floor,
                 "With --target-error: luminance below which absolute error is measured (default 0.01)")
-      ->check(CLI::Range(0.f, 1e6f));
+      ->check(CLI::Range(0.0, 1e6));
   c->add_option("--replicates", a.replicates,
                 "Split each pixel's samples into K independently scrambled sequences so the variance channels and "
                 "--target-error use an unbiased error estimate (default 1: one stratified sequence, conservative "

@@ -15,14 +15,16 @@
 namespace tessera::cli {
 
 /// How to sample a scene, as given on the command line.
+/// The adaptive settings are kept as the job's settings hold them (double); a render on this machine and a farm job
+/// both make their float thresholds from those (protocol::SamplingSettings::apply_to), so the two cannot differ.
 struct SamplingArgs {
   std::optional<uint32_t> spp;                   ///< Samples per pixel override.
   uint64_t seed = 0;                             ///< Sample seed.
   std::string integrator;                        ///< "direct" renders scenes of other integrator types.
-  float target_error = 0.f;                      ///< Adaptive sampling target (relative standard error); 0: off.
+  double target_error = 0.0;                     ///< Adaptive sampling target (relative standard error); 0: off.
   uint32_t min_spp = kAdaptiveMinSpp;            ///< Adaptive sampling: first round and minimum.
   uint32_t max_spp = kAdaptiveMaxSpp;            ///< Adaptive sampling: cap.
-  float error_floor = AdaptiveOptions{}.error_floor;  ///< Adaptive sampling: luminance floor of the relative error.
+  double error_floor = AdaptiveOptions{}.error_floor;  ///< Adaptive sampling: luminance floor of the relative error.
   uint32_t replicates = 1;                       ///< Independent replicates per pixel (unbiased error estimates when >= 2).
   std::string area_sampling;                     ///< Overrides integrator.area_sampling (auto, solid_angle or area).
   std::string env_sampling;                      ///< Overrides integrator.env_sampling (mis, importance, cosine, uniform).

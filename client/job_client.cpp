@@ -35,6 +35,14 @@ std::string read_file(const fs::path& path) {
   throw SubmitError(what + ": the coordinator answered " + std::to_string(r.status) + ": " + r.error_text());
 }
 
+// GET target, its 200 answer read as a T (`what` names it in errors).
+template <class T>
+T get_answer(HttpClient& http, const std::string& target, const std::string& what) {
+  const HttpResponse r = http.send("GET", target);
+  if (r.status != 200) refuse("GET " + target, r);
+  return protocol::parse_answer<T>(r.body, what);
+}
+
 }  // namespace
 
 SceneFiles read_scene_files(const SubmitOptions& o) {
@@ -99,28 +107,23 @@ SubmitResult submit_job(HttpClient& http, const SubmitOptions& o, SceneFiles fil
 }
 
 JobStatus get_job(HttpClient& http, const std::string& id) {
-  const HttpResponse r = http.send("GET", routes::job(id));
-  if (r.status != 200) refuse("GET " + routes::job(id), r);
-  return protocol::parse_answer<JobStatus>(r.body, "job " + id);
+  return get_answer<JobStatus>(http, routes::job(id), "job " + id);
+}
+
+protocol::JobSpec get_job_spec(HttpClient& http, const std::string& id) {
+  return get_answer<protocol::JobSpec>(http, routes::job_spec(id), "spec of job " + id);
 }
 
 std::vector<JobStatus> list_jobs(HttpClient& http) {
-  const HttpResponse r = http.send("GET", routes::jobs());
-  if (r.status != 200) refuse("GET " + routes::jobs(), r);
-  return protocol::parse_answer<protocol::JobList>(r.body, "job list").jobs;
+  return get_answer<protocol::JobList>(http, routes::jobs(), "job list").jobs;
 }
 
 protocol::JobList list_jobs(HttpClient& http, const protocol::JobListQuery& query) {
-  const std::string target = routes::jobs() + query.to_query();
-  const HttpResponse r = http.send("GET", target);
-  if (r.status != 200) refuse("GET " + target, r);
-  return protocol::parse_answer<protocol::JobList>(r.body, "job list");
+  return get_answer<protocol::JobList>(http, routes::jobs() + query.to_query(), "job list");
 }
 
 protocol::TileList get_job_tiles(HttpClient& http, const std::string& id) {
-  const HttpResponse r = http.send("GET", routes::job_tiles(id));
-  if (r.status != 200) refuse("GET " + routes::job_tiles(id), r);
-  return protocol::parse_answer<protocol::TileList>(r.body, "tiles of job " + id);
+  return get_answer<protocol::TileList>(http, routes::job_tiles(id), "tiles of job " + id);
 }
 
 namespace {

@@ -74,6 +74,8 @@ SubmitResult submit_job(HttpClient& http, const SubmitOptions& options, SceneFil
 
 /// GET /v1/jobs/{id}; throws SubmitError (404 or other errors) or TransportError.
 JobStatus get_job(HttpClient& http, const std::string& id);
+/// GET /v1/jobs/{id}/spec: what the job renders (scene, assets, sampling settings, size); throws as get_job.
+protocol::JobSpec get_job_spec(HttpClient& http, const std::string& id);
 
 /// Follows the job until it is done, failed or cancelled, calling progress on each change: on the coordinator's
 /// event stream (GET /v1/events, on a second connection) while it is available, else (refused, e.g. 503, or broken)

@@ -116,6 +116,11 @@ std::map<std::string, std::string> request_assets(const json& j) {
 
 }  // namespace
 
+void to_json(json& j, const SamplingSettings& s) {
+  j = json::object();
+  put_sampling(j, s);
+}
+
 LoadOptions SamplingSettings::load_options() const {
   LoadOptions lo;
   lo.force_direct = !integrator.empty();

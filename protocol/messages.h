@@ -43,6 +43,9 @@ struct SamplingSettings {
   std::map<std::string, std::string> metadata() const;
 };
 
+/// The settings as the keys a submission and a spec carry them with (those at their defaults left out).
+void to_json(nlohmann::json& j, const SamplingSettings& s);
+
 /// Body of POST /v1/jobs.
 struct JobSubmission {
   nlohmann::json scene = nlohmann::json::object();  ///< The scene file's JSON.

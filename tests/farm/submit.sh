@@ -28,6 +28,16 @@ SAMPLING=(--seed 5 --target-error 0.2 --min-spp 2 --max-spp "$(spp 8 2)" --error
   >"$WORK/submit-sampling.log" 2>&1 || fail "submit with every sampling option failed"
 "$EXR_COMPARE" "$WORK/ref-sampling.exr" "$WORK/out-sampling.exr" || fail "the job with sampling options differs"
 expect_exit 1 "$WORK/compare-sampling.log" -- "$EXR_COMPARE" "$WORK/ref.exr" "$WORK/ref-sampling.exr"
+# ... and `jobs show` tells them (from the job's spec).
+JOB=$(sed -nE 's/^submitted .* as (j-[^ ]+) .*/\1/p' "$WORK/submit-sampling.log")
+[ -n "$JOB" ] || fail "no job id in the submission's output"
+"$TESSERA" jobs show "$JOB" --coordinator "$URL" >"$WORK/show-sampling.json" || fail "jobs show failed"
+python3 - "$WORK/show-sampling.json" <<'PY' || fail "jobs show does not tell the job's sampling settings"
+import json, sys
+s = json.load(open(sys.argv[1]))["sampling"]
+assert (s["seed"], s["replicates"], s["area_sampling"], s["bvh"]) == (5, 2, "area", "median"), s
+assert (s["target_error"], s["min_spp"], s["error_floor"]) == (0.2, 2, 0.05), s
+PY
 
 write_sphere_scene "$WORK/bad.json" 8 8 1
 sed -i 's/"radius": 0.7/"radius": -1/' "$WORK/bad.json"
