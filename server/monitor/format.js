@@ -66,3 +66,17 @@ export function progressBar(job) {
 }
 
 export function mrays(v) { return v === null || v === undefined ? '–' : v >= 100 ? v.toFixed(0) : v.toFixed(1); }
+
+/** How a job samples, from its spec's settings (GET /v1/jobs/{id}/spec): adaptive or fixed, and what it overrides. */
+export function samplingText(spec) {
+  if (!spec) return '–';
+  const parts = [spec.target_error
+    ? `adaptive to ${spec.target_error} relative error, ${spec.min_spp}–${spec.max_spp} spp`
+    : 'fixed spp'];
+  if (spec.error_floor !== undefined) parts.push(`error floor ${spec.error_floor}`);
+  if (spec.replicates > 1) parts.push(`${spec.replicates} replicates`);
+  if (spec.integrator) parts.push(`${spec.integrator} integrator`);
+  for (const [key, name] of [['area_sampling', 'area lights'], ['env_sampling', 'environment'], ['bvh', 'BVH']])
+    if (spec[key]) parts.push(`${name}: ${spec[key]}`);
+  return parts.join(' · ');
+}

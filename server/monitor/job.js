@@ -1,6 +1,6 @@
 // One job: its figures, the live tile map, the partial image, tile details, and the job's controls.
 import * as api from './api.js';
-import { el, badge, duration, clock, jobFigures, progressBar, mrays, isPaused, shownState } from './format.js';
+import { el, badge, duration, clock, jobFigures, progressBar, mrays, isPaused, shownState, samplingText } from './format.js';
 import { TileMap, tileWindow, shownTileState, workerColor } from './tilemap.js';
 
 const FINAL = ['done', 'failed', 'cancelled'];
@@ -31,6 +31,7 @@ export function mount(host, ctx) {
   const path = '/v1/jobs/' + encodeURIComponent(id);
   let job = null, tiles = [], previewKey = '', previewBusy = false, previewUrl = null, selected = -1;
   let mounted = true, deleted = false;  // a refresh finishing after the page left or the job was deleted draws nothing
+  let spec = null, specAsked = false;  // the job's spec, read once for its sampling settings (they do not change)
 
   const title = el('h1', { id: 'job-title', text: id });
   const stateBadge = el('span', { id: 'job-state' });
@@ -121,6 +122,7 @@ export function mount(host, ctx) {
         item('ETA', f.eta === null ? '–' : duration(f.eta)),
         item('Mrays/s', mrays(f.mrays)),
         item('Image', `${job.width}×${job.height} · ${job.spp} spp · seed ${job.seed}`),
+        item('Sampling', samplingText(spec), 'fig-sampling'),
         item('Tiles', `${job.tile_size} px`),
         item('Priority', String(job.priority ?? 0), 'fig-priority'),
         item('Submitted', clock(job.created_ms)),
@@ -222,6 +224,10 @@ export function mount(host, ctx) {
         throw e;
       }
       job = j;
+      if (!specAsked) {
+        specAsked = true;
+        spec = await api.call('GET', path + '/spec').catch(() => null);
+      }
       drawHead();
       const body = await api.call('GET', path + '/tiles');
       tiles = Array.isArray(body) ? body : body.tiles || [];

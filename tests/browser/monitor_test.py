@@ -180,7 +180,7 @@ def main():
             fail("index has Content-Type " + r.headers["Content-Type"])
 
     status, body = client.call("POST", "/v1/jobs", {"scene": sphere_scene(), "assets": {}, "tile_size": TILE, "seed": 3,
-                                                     "name": "browser-test spheres"})
+                                                     "replicates": 2, "bvh": "median", "name": "browser-test spheres"})
     if status != 201:
         fail(f"submit answered {status}: {body}")
     job = body["id"]
@@ -248,6 +248,10 @@ def main():
         wait_for("the tile map", lambda: len(d.find_elements(By.CSS_SELECTOR, "#tilemap .tile")) == TOTAL_TILES)
         wait_for("the held tiles leased by holder", lambda: len(
             [t for t in d.find_elements(By.CSS_SELECTOR, '#tilemap .tile[data-state="leased"]') if "holder" in t.get_attribute("title")]) == HELD)
+        # The job's sampling settings, from its spec.
+        sampling = d.find_element(By.ID, "fig-sampling").text
+        if not all(w in sampling for w in ("fixed spp", "2 replicates", "BVH: median")):
+            fail(f"the job's sampling settings are not shown: {sampling!r}")
 
         if ep["events"]:
             wait_for("the event stream open", lambda: d.find_element(By.TAG_NAME, "body").get_attribute("data-events-live") == "true")
