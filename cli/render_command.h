@@ -5,9 +5,7 @@
 
 #include <CLI/CLI.hpp>
 
-#include <array>
 #include <cstdint>
-#include <optional>
 #include <string>
 #include <vector>
 

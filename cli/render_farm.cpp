@@ -2,7 +2,6 @@
 
 #include "cli/interrupt_guard.h"
 #include "cli/submit_command.h"
-#include "core/adaptive.h"
 #include "core/image.h"
 #include "server/auth.h"
 #include "core/file_io.h"
