@@ -387,7 +387,7 @@ ExrImage read_exr_stream(Imf::IStream& stream, int version) {
   check_exr_header(stream, version);
   stream.seekg(0);
 
-  Imf::InputFile in(stream);
+  Imf::InputFile in(stream, exr_layout::compression_threads());
   if (!in.isComplete()) throw std::runtime_error("file is incomplete (truncated or damaged)");
   const Imf::Header& header = in.header();
   const Imath::Box2i dw = header.dataWindow();

@@ -5,6 +5,8 @@
 #include <array>
 #include <cmath>
 
+#include <tbb/parallel_for.h>
+
 namespace tessera {
 
 void AreaLight::finish() {
@@ -234,11 +236,13 @@ void Environment::finish() {
   if (constant()) return;
   const Image& img = *texture.image;
   const int W = img.width, H = img.height;
+  // Row by row in parallel: every value depends on the map alone, not on the thread that computes it.
   std::vector<float> lum(size_t(W) * size_t(H));
-  for (int y = 0; y < H; ++y)
+  tbb::parallel_for(0, H, [&](int y) {
     for (int x = 0; x < W; ++x) lum[size_t(y) * size_t(W) + size_t(x)] = luminance(img.at(x, y));
+  });
   std::vector<float> w(lum.size());
-  for (int y = 0; y < H; ++y) {
+  tbb::parallel_for(0, H, [&](int y) {
     // Largest sin(theta) over the row's band [y, y+1) / H.
     const float t0 = kPi * float(y) / float(H), t1 = kPi * float(y + 1) / float(H);
     const float st = (t0 <= kPi / 2 && t1 >= kPi / 2) ? 1.f : std::max(portable_sin(t0), portable_sin(t1));
@@ -254,7 +258,7 @@ void Environment::finish() {
       }
       w[size_t(y) * size_t(W) + size_t(x)] = m * (raw_pixel_distribution ? portable_sin(kPi * (float(y) + 0.5f) / float(H)) : st);
     }
-  }
+  });
   dist = Distribution2D(w, W, H);
 }
 

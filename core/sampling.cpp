@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <tbb/parallel_for.h>
+
 namespace tessera {
 
 Frame Frame::from_z(const Vec3& n) {
@@ -181,10 +183,15 @@ Distribution1D::Distribution1D(std::span<const float> weights) {
   cdf_[n] = 1.f;
   // A guide for large tables (an environment map's rows and columns): binary search over a few entries instead of
   // all of them. Small ones (an emitter's parts) are searched whole.
+  // The thresholds b / n grow with b, so one pass over the cdf finds every bucket's upper bound.
   if (n >= 16) {
     guide_.resize(n + 1);
-    for (size_t b = 0; b <= n; ++b)
-      guide_[b] = int(std::upper_bound(cdf_.begin(), cdf_.end(), float(b) / float(n)) - cdf_.begin());
+    size_t p = 0;
+    for (size_t b = 0; b <= n; ++b) {
+      const float threshold = float(b) / float(n);
+      while (p < cdf_.size() && !(threshold < cdf_[p])) ++p;
+      guide_[b] = int(p);
+    }
   }
 }
 
@@ -224,18 +231,20 @@ float Distribution1D::pdf(float x) const {
 }
 
 Distribution2D::Distribution2D(std::span<const float> weights, int w, int h) {
-  conditional_.reserve(size_t(h));
-  std::vector<float> row_integrals(static_cast<size_t>(h));
-  for (int y = 0; y < h; ++y) {
-    conditional_.emplace_back(weights.subspan(size_t(y) * size_t(w), size_t(w)));
-    row_integrals[size_t(y)] = conditional_.back().integral();
-  }
+  // Rows are independent, so they are built in parallel; each row's arithmetic is the same on any thread count.
+  conditional_.resize(size_t(std::max(0, h)));
+  std::vector<float> row_integrals(static_cast<size_t>(std::max(0, h)));
+  tbb::parallel_for(0, std::max(0, h), [&](int y) {
+    conditional_[size_t(y)] = Distribution1D(weights.subspan(size_t(y) * size_t(w), size_t(w)));
+    row_integrals[size_t(y)] = conditional_[size_t(y)].integral();
+  });
   marginal_ = Distribution1D(row_integrals);
   w_ = std::max(1, w);
   pdf_.resize(size_t(w_) * size_t(std::max(0, h)));
-  for (int y = 0; y < h; ++y)
+  tbb::parallel_for(0, std::max(0, h), [&](int y) {
     for (int x = 0; x < w_; ++x)
       pdf_[size_t(y) * size_t(w_) + size_t(x)] = marginal_.bin_pdf(y) * conditional_[size_t(y)].bin_pdf(x);
+  });
 }
 
 Vec2 Distribution2D::sample(Vec2 u, float* pdf) const {
