@@ -39,6 +39,10 @@ CLI::App* add_worker_command(CLI::App& app, WorkerArgs& a) {
                 "Longest wait between lease requests while there is no work (the waits double from 100 ms up to it, "
                 "with jitter)")
       ->check(CLI::Range(1, 3'600'000))->capture_default_str();
+  c->add_option("--image-cache-mb", a.image_cache_mb,
+                "Decoded texture pixels kept in memory for later jobs that use the same image files (0: decode them "
+                "for every job)")
+      ->check(CLI::Range(0, 1'048'576))->capture_default_str();
   c->add_flag("-v,--verbose", a.verbose, "Debug logging");
   c->footer("SIGTERM or SIGINT: finish and upload the current tile, then exit 0. A second one: stop rendering, hand "
             "the tile back, exit 0.");
@@ -64,6 +68,7 @@ int run_worker_command(const WorkerArgs& a) {
     o.token = load_token(a.token_file, "TESSERA_WORKER_TOKEN");
     o.tls = a.tls;
     o.max_idle_wait = std::chrono::milliseconds(a.max_idle_wait_ms);
+    o.image_cache_bytes = size_t(a.image_cache_mb) << 20;
     const auto ms = [](double s) { return std::chrono::milliseconds(int64_t(s * 1000)); };
     o.timeouts = farm::HttpTimeouts{ms(a.connect_timeout_seconds), ms(a.request_timeout_seconds), ms(a.request_timeout_seconds)};
     farm::run_worker(o, g_stop_requests);

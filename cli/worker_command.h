@@ -20,6 +20,7 @@ struct WorkerArgs {
   double connect_timeout_seconds = 3;   ///< Connecting and the TLS handshake.
   double request_timeout_seconds = 30;  ///< Sending a request, and receiving its response.
   int max_idle_wait_ms = 2000;          ///< Longest wait between lease requests when there is no work.
+  int image_cache_mb = 1024;            ///< Decoded texture pixels kept across jobs, in MiB.
   bool verbose = false;     ///< Debug logging.
 };
 

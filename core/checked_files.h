@@ -1,10 +1,13 @@
-// The image files earlier scene checks decoded clean, for files that do not change, so that checking another scene
-// that uses them need not decode them again.
+// The image files earlier scene loads decoded clean, for files that do not change: checking another scene that uses
+// them need not decode them again, and a load that builds may take the decoded pixels themselves where they were kept.
 #pragma once
 
+#include "core/image.h"
+
 #include <cstddef>
-#include <deque>
 #include <filesystem>
+#include <list>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -12,34 +15,50 @@
 
 namespace tessera {
 
-/// Image files that decoded as textures with only finite pixels, each with its SHA-256 (as sha256_file() gives it),
-/// for files that are never rewritten in place (a content-addressed store's): an entry is found while the path names
-/// the same file (device and inode) with the same size as when it was recorded. The modification time is not
-/// compared: such a store touches its files to mark them used. Thread-safe; holds at most `capacity` files,
-/// forgetting the earliest recorded first.
+/// Image files that decoded as textures with only finite pixels, each with its SHA-256 (as sha256_file() gives it) and,
+/// within a byte budget, its decoded pixels; for files that are never rewritten in place (a content-addressed
+/// store's): an entry is found while the path names the same file (device and inode) with the same size as when it
+/// was recorded. The modification time is not compared: such a store touches its files to mark them used.
+/// Thread-safe; holds at most `capacity` files, forgetting the least recently used first, and keeps pixels of the most
+/// recently used files up to `image_bytes` bytes in all.
 class CheckedFiles {
  public:
-  /// An empty record that keeps at most `capacity` files (at least one).
-  explicit CheckedFiles(size_t capacity = 4096);
+  /// What was recorded for a file: its SHA-256 and its pixels (null when they were not kept).
+  struct Record {
+    std::string sha256;
+    std::shared_ptr<const Image> image;
+  };
 
-  /// The SHA-256 recorded for `file`, if it was recorded and is unchanged since.
-  std::optional<std::string> find(const std::filesystem::path& file) const;
+  /// An empty record that keeps at most `capacity` files (at least one) and pixels of up to `image_bytes` bytes.
+  explicit CheckedFiles(size_t capacity = 4096, size_t image_bytes = 0);
 
-  /// Records `file` as it is now, with its SHA-256 (nothing is recorded when it cannot be examined).
-  void remember(const std::filesystem::path& file, std::string sha256);
+  /// What was recorded for `file`, if it was recorded and is unchanged since (now its most recently used).
+  std::optional<Record> find(const std::filesystem::path& file);
+
+  /// Records `file` as it is now, with its SHA-256 and, if given and within the budget, its pixels (nothing is
+  /// recorded when the file cannot be examined).
+  void remember(const std::filesystem::path& file, std::string sha256, std::shared_ptr<const Image> image = nullptr);
 
   /// Number of files recorded.
   size_t size() const;
 
+  /// Bytes of pixels kept.
+  size_t image_bytes() const;
+
  private:
   struct Entry {
+    std::string path;
     std::string identity;  // device, inode and size when recorded
-    std::string sha256;
+    Record record;
+    size_t bytes = 0;      // of record.image's pixels
   };
-  size_t capacity_;
+  void trim_locked();
+
+  size_t capacity_, image_budget_;
   mutable std::mutex mu_;
-  std::unordered_map<std::string, Entry> entries_;  // by path
-  std::deque<std::string> order_;                    // paths, earliest recorded first
+  std::list<Entry> order_;  // most recently used first
+  std::unordered_map<std::string, std::list<Entry>::iterator> entries_;  // by path
+  size_t image_bytes_ = 0;
 };
 
 }  // namespace tessera

@@ -1,5 +1,5 @@
 // CheckedFiles: an entry is found while its path names the same file with the same size (touching it does not
-// matter), and the earliest recorded files are forgotten beyond the capacity.
+// matter), the least recently used files are forgotten beyond the capacity, and pixels are kept within the budget.
 #include "core/checked_files.h"
 
 #include "core/test_files.h"
@@ -20,9 +20,10 @@ TEST_F(CheckedFilesTest, FoundWhileTheFileIsUnchanged) {
   CheckedFiles c;
   EXPECT_FALSE(c.find(file("a.bin")));
   c.remember(file("a.bin"), "digest-a");
-  const std::optional<std::string> f = c.find(file("a.bin"));
+  const std::optional<CheckedFiles::Record> f = c.find(file("a.bin"));
   ASSERT_TRUE(f);
-  EXPECT_EQ(*f, "digest-a");
+  EXPECT_EQ(f->sha256, "digest-a");
+  EXPECT_EQ(f->image, nullptr);
   EXPECT_FALSE(c.find(file("b.bin")));  // never recorded, and missing
 }
 
@@ -42,7 +43,7 @@ TEST_F(CheckedFilesTest, ANewSizeOrAReplacedFileIsAnotherFile) {
   EXPECT_FALSE(c.find(file("a.bin")));
 }
 
-TEST_F(CheckedFilesTest, TheEarliestRecordedAreForgottenBeyondTheCapacity) {
+TEST_F(CheckedFilesTest, TheLeastRecentlyUsedAreForgottenBeyondTheCapacity) {
   CheckedFiles c(2);
   for (const char* n : {"a", "b", "c"}) {
     write(n, n);
@@ -50,12 +51,37 @@ TEST_F(CheckedFilesTest, TheEarliestRecordedAreForgottenBeyondTheCapacity) {
   }
   EXPECT_EQ(c.size(), 2u);
   EXPECT_FALSE(c.find(file("a")));
-  EXPECT_TRUE(c.find(file("b")));
-  EXPECT_TRUE(c.find(file("c")));
-  c.remember(file("b"), "b2");  // recorded again: replaced in place, nothing forgotten
+  EXPECT_TRUE(c.find(file("b")));  // b is now used more recently than c
+  c.remember(file("b"), "b2");  // recorded again: replaced, nothing forgotten
   EXPECT_EQ(c.size(), 2u);
-  EXPECT_EQ(*c.find(file("b")), "b2");
+  EXPECT_EQ(c.find(file("b"))->sha256, "b2");
   EXPECT_TRUE(c.find(file("c")));
+  c.remember(file("a"), "a");  // b is the least recently used now
+  EXPECT_FALSE(c.find(file("b")));
+  EXPECT_TRUE(c.find(file("c")));
+}
+
+TEST_F(CheckedFilesTest, PixelsAreKeptWithinTheBudgetForTheMostRecentlyUsed) {
+  const auto image = [](int w) { return std::make_shared<const Image>(Image::make(w, 1)); };  // 12 bytes per pixel
+  CheckedFiles c(16, 12 * 9);
+  for (const char* n : {"a", "b", "c"}) write(n, n);
+  c.remember(file("a"), "a", image(4));
+  c.remember(file("b"), "b", image(4));
+  EXPECT_EQ(c.image_bytes(), 96u);
+  ASSERT_NE(c.find(file("a"))->image, nullptr);  // a is now used more recently than b
+  c.remember(file("c"), "c", image(2));          // 120 bytes, over the budget of 108: b's pixels go
+  EXPECT_EQ(c.image_bytes(), 72u);
+  EXPECT_EQ(c.find(file("b"))->image, nullptr);
+  EXPECT_EQ(c.find(file("b"))->sha256, "b");     // its digest stays
+  EXPECT_NE(c.find(file("a"))->image, nullptr);
+  EXPECT_NE(c.find(file("c"))->image, nullptr);
+  c.remember(file("b"), "b", image(11));         // larger than the whole budget: never kept, nothing pushed out
+  EXPECT_EQ(c.find(file("b"))->image, nullptr);
+  EXPECT_EQ(c.image_bytes(), 72u);
+  CheckedFiles none;                              // no budget: digests only
+  none.remember(file("a"), "a", image(1));
+  EXPECT_EQ(none.find(file("a"))->image, nullptr);
+  EXPECT_EQ(none.image_bytes(), 0u);
 }
 
 TEST_F(CheckedFilesTest, FoldersAreNotRecorded) {

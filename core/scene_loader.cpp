@@ -238,10 +238,17 @@ uint32_t Loader::texture(const std::string& tname, const std::string& from) {
     ctx_.check_keys(t, tp, keys_of(kTextureKeys, type));
     const std::string rel = ctx_.string(t, "path", tp);
     const fs::path file = resolve_(rel, tp + ".path");
-    // A check (no build) of an image an earlier check found clean needs only its digest.
-    CheckedFiles* const known = options_.build ? nullptr : options_.checked_files;
-    std::optional<std::string> digest = known ? known->find(file) : std::nullopt;
-    if (!digest) {
+    // An image an earlier load found clean is not decoded again: a check (no build) needs only its digest, a build
+    // its pixels too, where the record kept them.
+    CheckedFiles* const known = options_.checked_files;
+    std::optional<CheckedFiles::Record> record = known ? known->find(file) : std::nullopt;
+    if (record && options_.build && !record->image) record.reset();
+    std::string digest;
+    if (record) {
+      digest = std::move(record->sha256);
+      if (options_.build) tex.image = std::move(record->image);
+      ++out_.images_reused;
+    } else {
       try {
         ExrImage img = read_exr(file);
         for (float v : img.pixels.rgb)
@@ -251,9 +258,9 @@ uint32_t Loader::texture(const std::string& tname, const std::string& from) {
         ctx_.fail(tp + ".path", e.what());
       }
       digest = sha256_file(file);
-      if (known) known->remember(file, *digest);
+      if (known) known->remember(file, digest, options_.build ? tex.image : nullptr);
     }
-    hash_.update(*digest);
+    hash_.update(digest);
     out_.assets.push_back(rel);
   } else if (type == "checkerboard") {
     ctx_.check_keys(t, tp, keys_of(kTextureKeys, type));

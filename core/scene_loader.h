@@ -32,8 +32,9 @@ struct LoadOptions {
   std::optional<EnvSampling> env_sampling;       ///< Overrides integrator.env_sampling.
   std::optional<SplitMethod> bvh;                ///< Overrides integrator.bvh (sah or median).
   bool build = true;  ///< Build the BVH and the lights' tables; false stops after validation (a scene to check, not render).
-  /// With build false: image textures recorded here as clean are not decoded again (their recorded SHA-256 enters the
-  /// scene's hash), and images that decode clean are recorded. Only for asset files never rewritten in place.
+  /// Image textures recorded here as clean are not decoded again (their recorded SHA-256 enters the scene's hash; a
+  /// build takes their recorded pixels and decodes those it has no pixels for), and images that decode clean are
+  /// recorded, with their pixels when building. Only for asset files never rewritten in place.
   CheckedFiles* checked_files = nullptr;
 };
 
@@ -46,6 +47,7 @@ struct LoadedScene {
   std::vector<std::string> warnings;  ///< Unknown keys and degenerate input that was skipped.
   std::vector<std::string> notes;     ///< Settings of other integrators that were ignored.
   std::vector<std::string> assets;    ///< Asset paths the scene uses, as written in it.
+  int images_reused = 0;              ///< Image textures taken from LoadOptions::checked_files, not decoded.
 };
 
 /// Loads a scene file; assets resolve against its folder and must stay inside it (or inside asset_root).

@@ -170,13 +170,49 @@ TEST_F(SceneLoader, ChecksWithARecordDecodeEachUnchangedImageOnce) {
   LoadOptions unrecorded;
   unrecorded.build = false;
   EXPECT_NE(error_of(s, unrecorded).find("textures.img.path"), std::string::npos);
-  LoadOptions build_with_record;
+  LoadOptions build_with_record;  // the record has no pixels to give
   build_with_record.checked_files = &record;
   EXPECT_NE(error_of(s, build_with_record).find("textures.img.path"), std::string::npos);
 
   write("tex/new.exr", std::string(size, 'y'));  // replaced (temp file, rename): read again
   fs::rename(file("tex/new.exr"), tex);
   EXPECT_NE(error_of(s, check).find("textures.img.path"), std::string::npos);
+}
+
+// A build with a record that keeps pixels (a farm worker's, across jobs) decodes each unchanged image once: the next
+// build takes the same pixels from the record (the file is overwritten in place with bytes that do not decode, to
+// show it was not read); a build without pixel budget, or after the file was replaced, reads it and fails.
+TEST_F(SceneLoader, BuildsWithARecordKeepingPixelsDecodeEachUnchangedImageOnce) {
+  Image img = Image::make(4, 2);
+  img.set(1, 0, Vec3(0.5f));
+  const fs::path tex = write_image("tex/ok.exr", img);
+  json s = testing::minimal_scene();
+  s["textures"]["img"] = {{"type", "image"}, {"path", "tex/ok.exr"}};
+  s["materials"]["white_diffuse"]["texture_name"] = "img";
+  const fs::path scene = write_scene("scene.json", s);
+  CheckedFiles record(16, size_t(1) << 20);
+  LoadOptions build;
+  build.checked_files = &record;
+  const LoadedScene first = load_scene_file(scene, build);
+  ASSERT_NE(first.scene.textures[0].image, nullptr);
+  EXPECT_EQ(record.image_bytes(), 4u * 2u * 3u * sizeof(float));
+
+  const auto size = fs::file_size(tex);
+  { std::ofstream(tex, std::ios::binary | std::ios::in | std::ios::out) << std::string(size, 'x'); }
+  const LoadedScene second = load_scene_file(scene, build);
+  EXPECT_EQ(first.images_reused, 0);
+  EXPECT_EQ(second.images_reused, 1);
+  EXPECT_EQ(second.scene.textures[0].image, first.scene.textures[0].image);  // the same pixels, not decoded again
+  EXPECT_EQ(second.scene.hash, first.scene.hash);
+  CheckedFiles digests_only;
+  digests_only.remember(tex, "any");
+  LoadOptions without_pixels;
+  without_pixels.checked_files = &digests_only;
+  EXPECT_NE(error_of(s, without_pixels).find("textures.img.path"), std::string::npos);
+
+  write("tex/new.exr", std::string(size, 'y'));  // replaced (temp file, rename): read again
+  fs::rename(file("tex/new.exr"), tex);
+  EXPECT_NE(error_of(s, build).find("textures.img.path"), std::string::npos);
 }
 
 TEST_F(SceneLoader, UnreferencedTexturesAreNeverRead) {

@@ -5,6 +5,7 @@
 #include "core/render_state.h"
 #include "core/scene_loader.h"
 #include "failpoint/failpoint.h"
+#include "core/checked_files.h"
 #include "worker/asset_cache.h"
 #include "client/backoff.h"
 #include "worker/recent_log.h"
@@ -283,6 +284,7 @@ class Worker {
         heartbeat_http_(url_, heartbeat_timeouts(opt.timeouts), kMaxResponse, opt.tls),
         upload_http_(url_, opt.timeouts, kMaxResponse, opt.tls),
         cache_(opt.cache_dir.empty() ? default_cache_dir() : opt.cache_dir), scenes_(opt.scene_cache_jobs),
+        images_(4096, opt.image_cache_bytes),
         idle_(std::min<std::chrono::milliseconds>(100ms, opt.max_idle_wait), opt.max_idle_wait),
         retry_(200ms, opt.max_retry_wait) {
     name_ = opt.name.empty() ? default_name() : opt.name;
@@ -571,6 +573,7 @@ class Worker {
     // The spec's spp is already the job's (the scene's unless overridden): the loader is not told again.
     LoadOptions lo = spec.sampling.load_options();
     lo.spp.reset();
+    lo.checked_files = &images_;  // the cache's files are named by their content and never rewritten
     auto loaded = std::make_shared<PreparedJob>();
     loaded->loaded = load_scene_json(spec.scene, "job " + l.job, resolve, lo);
     loaded->sampling = spec.sampling;
@@ -579,8 +582,9 @@ class Worker {
       throw SceneError("job " + l.job + ": the scene is " + std::to_string(built.width) + "x" +
                        std::to_string(built.height) + " but the job spec says " + std::to_string(spec.width) + "x" +
                        std::to_string(spec.height));
-    spdlog::info("{}: built the job's scene in {:.2f}s ({} assets)", pfx,
-                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), spec.assets.size());
+    spdlog::info("{}: built the job's scene in {:.2f}s ({} assets, {} decoded image(s) kept from earlier jobs)", pfx,
+                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), spec.assets.size(),
+                 loaded->loaded.images_reused);
     std::lock_guard lock(scenes_mutex_);
     scenes_.put(l.job, loaded);
     return loaded;
@@ -825,6 +829,7 @@ class Worker {
   AssetCache cache_;
   std::mutex scenes_mutex_;  // scenes_ is looked up by the companion's thread too (head_start)
   LruCache<PreparedJob> scenes_;
+  CheckedFiles images_;  // decoded textures of earlier jobs (within WorkerOptions::image_cache_bytes), by cache file
   Backoff idle_, retry_;
   std::string name_, id_;
   int threads_ = 1;
