@@ -1,11 +1,11 @@
 #include "worker/worker.h"
 
+#include "core/checked_files.h"
 #include "core/image.h"
 #include "core/render.h"
 #include "core/render_state.h"
 #include "core/scene_loader.h"
 #include "failpoint/failpoint.h"
-#include "core/checked_files.h"
 #include "worker/asset_cache.h"
 #include "client/backoff.h"
 #include "worker/recent_log.h"
@@ -582,7 +582,7 @@ class Worker {
       throw SceneError("job " + l.job + ": the scene is " + std::to_string(built.width) + "x" +
                        std::to_string(built.height) + " but the job spec says " + std::to_string(spec.width) + "x" +
                        std::to_string(spec.height));
-    spdlog::info("{}: built the job's scene in {:.2f}s ({} assets, {} decoded image(s) kept from earlier jobs)", pfx,
+    spdlog::info("{}: built the job's scene in {:.2f}s ({} assets, {} image(s) taken already decoded)", pfx,
                  std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), spec.assets.size(),
                  loaded->loaded.images_reused);
     std::lock_guard lock(scenes_mutex_);

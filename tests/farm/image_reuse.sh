@@ -20,11 +20,11 @@ for seed in 1 2; do "$TESSERA" render "$WORK/cbox/scene.json" -q --seed "$seed" 
 start_worker keeps --threads 1
 run_jobs keeps
 kill -TERM "$WORKER_PID" && wait "$WORKER_PID" || fail "the worker did not stop cleanly"
-built=$(grep -o "built the job's scene.*" "$WORK/keeps.log" | grep -o '[0-9]* decoded image(s) kept' | cut -d' ' -f1 | xargs)
-[ "$built" = "0 1" ] || fail "scenes built with '$built' images kept from earlier jobs, expected '0 1'"
+built=$(grep -o "built the job's scene.*" "$WORK/keeps.log" | grep -o '[0-9]* image(s) taken already decoded' | cut -d' ' -f1 | xargs)
+[ "$built" = "0 1" ] || fail "scenes built with '$built' images taken already decoded, expected '0 1'"
 
 start_worker decodes --threads 1 --image-cache-mb 0
 run_jobs decodes
-built=$(grep -o "built the job's scene.*" "$WORK/decodes.log" | grep -o '[0-9]* decoded image(s) kept' | cut -d' ' -f1 | xargs)
-[ "$built" = "0 0" ] || fail "with --image-cache-mb 0, scenes built with '$built' images kept, expected '0 0'"
+built=$(grep -o "built the job's scene.*" "$WORK/decodes.log" | grep -o '[0-9]* image(s) taken already decoded' | cut -d' ' -f1 | xargs)
+[ "$built" = "0 0" ] || fail "with --image-cache-mb 0, scenes built with '$built' images taken already decoded, expected '0 0'"
 echo "PASS"
