@@ -97,6 +97,19 @@ std::vector<std::string> stop_children(std::vector<ChildProcess>& children, std:
   return killed;
 }
 
+void kill_children(std::vector<ChildProcess>& children) {
+  for (auto& c : children)
+    if (!child_exited(c)) ::kill(c.pid, SIGKILL);
+  for (auto& c : children) {
+    if (c.reaped) continue;
+    int status = 0;
+    while (::waitpid(c.pid, &status, 0) < 0 && errno == EINTR) {
+    }
+    c.reaped = true;
+    c.exit_status = status;
+  }
+}
+
 std::string describe_exit(const ChildProcess& c) {
   if (!c.reaped) return "still running";
   if (c.exit_status < 0) return "exit status unknown";

@@ -32,6 +32,9 @@ bool child_exited(ChildProcess& child);
 std::vector<std::string> stop_children(std::vector<ChildProcess>& children, std::chrono::milliseconds grace,
                                        int terms = 1);
 
+/// SIGKILLs every running child and reaps it: for children that hold nothing worth a clean shutdown.
+void kill_children(std::vector<ChildProcess>& children);
+
 /// "exited with status N" or "killed by signal N" for a reaped child.
 std::string describe_exit(const ChildProcess& child);
 

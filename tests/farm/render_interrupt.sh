@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # render --workers stops its coordinator and workers whatever happens: after Ctrl-C (SIGINT) in the middle of a
 # render it exits 130, its workers stop cleanly (none has to be killed) and none of its children is left; a scene the
-# coordinator refuses is reported with the coordinator's message (exit 2) and leaves no child behind either.
+# coordinator refuses is reported with the coordinator's message (exit 2) and leaves no child behind either; a
+# finished render (whose children are killed once the result is saved) leaves neither a child nor its folder.
 # "In the middle" by construction: the render runs as tessera-failpoints with every tile held at worker.render (the
 # workers inherit the setting), and the interrupt comes once both workers hold one; the hold ends with the cancel.
 source "$(dirname "$0")/common.sh"
@@ -38,4 +39,12 @@ sed -i 's/"radius": 0.7/"radius": -1/' "$WORK/bad.json"
 expect_exit 2 "$WORK/render-bad.log" -- "$TESSERA" render "$WORK/bad.json" -o "$WORK/bad.exr" --workers 1
 log_has "$WORK/render-bad.log" "radius" || fail "the coordinator's message was not shown"
 [ -z "$(leftovers)" ] || fail "processes of the failed render are still running: $(leftovers)"
+
+write_sphere_scene "$WORK/done.json" 16 16 2
+"$TESSERA" render "$WORK/done.json" -o "$WORK/done.exr" --workers 2 --farm-tile 8 >"$WORK/render-done.log" 2>&1 ||
+  fail "render --workers failed"
+"$TESSERA" render "$WORK/done.json" -o "$WORK/done-ref.exr" -q
+"$EXR_COMPARE" "$WORK/done-ref.exr" "$WORK/done.exr" || fail "the finished farm render differs"
+[ -z "$(leftovers)" ] || fail "processes of the finished render are still running: $(leftovers)"
+compgen -G "$WORK/tessera-render-*" >/dev/null && fail "the finished render left its folder: $(ls -d "$WORK"/tessera-render-*)"
 echo "PASS"
