@@ -284,9 +284,17 @@ using exr_layout::MemoryIStream;
 using exr_layout::MemoryOStream;
 using exr_layout::quoted;
 
+// What decoding a file whose header passed check_exr_header costs, as far as the header tells.
+struct ExrDecodeCost {
+  Imf::Compression compression = Imf::NO_COMPRESSION;
+  bool tiled = false;
+  int64_t pixels = 0;  // in the data window
+};
+
 // Reads the first header from is (positioned just after the magic number and version field) and rejects what
-// read_exr cannot or should not load, before OpenEXR sizes any table or buffer from the header.
-void check_exr_header(Imf::IStream& is, int version) {
+// read_exr cannot or should not load, before OpenEXR sizes any table or buffer from the header; tells what decoding
+// will cost.
+ExrDecodeCost check_exr_header(Imf::IStream& is, int version) {
   if (Imf::getVersion(version) != Imf::EXR_VERSION || !Imf::supportsFlags(Imf::getFlags(version)))
     throw std::runtime_error("unsupported OpenEXR version field " + std::to_string(version));
   if (Imf::isNonImage(version)) throw std::runtime_error("deep OpenEXR files are not supported");
@@ -310,6 +318,17 @@ void check_exr_header(Imf::IStream& is, int version) {
       throw std::runtime_error("tile size " + std::to_string(t.xSize) + "x" + std::to_string(t.ySize) +
                                " is outside the supported size");
   }
+  return {header.compression(), header.hasTileDescription(), w * h};
+}
+
+// OpenEXR decodes a scanline file's line blocks as tasks on its pool. Blocks of one line (no compression, RLE, ZIPS)
+// of a small image cost less to decode than to hand over: on the 2-core VM an uncompressed 64x64 tile took 454 us
+// with the pool and 216 us without, 256x256 3.3 ms against 2.5 ms, 512x512 7.9 ms against 9.7 ms; ZIP-compressed
+// (16-line blocks) 64x64 203 us against 289 us, 512x512 7.4 ms against 13.5 ms.
+int decode_threads(const ExrDecodeCost& cost) {
+  const bool one_line_blocks = cost.compression == Imf::NO_COMPRESSION || cost.compression == Imf::RLE_COMPRESSION ||
+                               cost.compression == Imf::ZIPS_COMPRESSION;
+  return !cost.tiled && one_line_blocks && cost.pixels < 512 * 512 ? 0 : exr_layout::compression_threads();
 }
 
 // The header's string, int and double attributes as text, leaving out the layout attributes.
@@ -384,10 +403,10 @@ ExrImage decode_exr_impl(std::string_view bytes) {
 
 // Reads the EXR from stream, positioned just after the version field.
 ExrImage read_exr_stream(Imf::IStream& stream, int version) {
-  check_exr_header(stream, version);
+  const ExrDecodeCost cost = check_exr_header(stream, version);
   stream.seekg(0);
 
-  Imf::InputFile in(stream, exr_layout::compression_threads());
+  Imf::InputFile in(stream, decode_threads(cost));
   if (!in.isComplete()) throw std::runtime_error("file is incomplete (truncated or damaged)");
   const Imf::Header& header = in.header();
   const Imath::Box2i dw = header.dataWindow();
