@@ -72,9 +72,9 @@ struct Rendered {
   size_t threads_seen = 0;
 };
 
-// Renders the case on exactly `threads` threads (an arena of that size, oversubscribing the machine if need be).
-Rendered render_case(const Case& c, int threads) {
-  const Scene& scene = scene_of(c.scene);
+// Renders the case (from `scene`, the case's scene as loaded) on exactly `threads` threads (an arena of that size,
+// oversubscribing the machine if need be).
+Rendered render_case(const Case& c, int threads, const Scene& scene) {
   RenderOptions o;
   o.spp = c.spp;
   o.seed = 7;
@@ -91,6 +91,8 @@ Rendered render_case(const Case& c, int threads) {
   arena.execute([&] { r = render(scene, o); });
   return {pixel_hash(r.image), seen.size()};
 }
+
+Rendered render_case(const Case& c, int threads) { return render_case(c, threads, scene_of(c.scene)); }
 
 std::map<std::string, std::string> read_goldens() {
   std::map<std::string, std::string> g;
@@ -130,13 +132,7 @@ TEST(Determinism, LoadingOnAnyThreadCountGivesTheSamePixels) {
         tbb::task_arena arena(threads);
         arena.execute([&] { loaded = load_scene_file(kScenes / c.scene); });
       }
-      RenderOptions o;
-      o.spp = 4;
-      o.seed = 7;
-      o.tile_size = 16;
-      const int x0 = loaded.scene.width / 2 - 48, y0 = loaded.scene.height / 2 - 32;
-      o.window = PixelWindow{x0, y0, x0 + 96, y0 + 64};
-      const std::string hash = pixel_hash(render(loaded.scene, o).image);
+      const std::string hash = render_case(c, 2, loaded.scene).hash;
       if (first.empty()) first = hash;
       EXPECT_EQ(first, hash) << c.name << " loaded on " << threads << " threads";
     }

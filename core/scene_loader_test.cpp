@@ -45,6 +45,27 @@ class SceneLoader : public testing::TempDirTest {
     s["objects"].push_back({{"type", "mesh"}, {"path", path}, {"material_name", "white_diffuse"}});
     return s;
   }
+  // The minimal scene with its material textured by tex/ok.exr (a 4x2 image, written too).
+  json image_textured_scene() {
+    Image img = Image::make(4, 2);
+    img.set(1, 0, Vec3(0.5f));
+    write_image("tex/ok.exr", img);
+    json s = testing::minimal_scene();
+    s["textures"]["img"] = {{"type", "image"}, {"path", "tex/ok.exr"}};
+    s["materials"]["white_diffuse"]["texture_name"] = "img";
+    return s;
+  }
+  // Overwrites `f` in place with as many bytes that do not decode (same file, same size).
+  void spoil_in_place(const fs::path& f) {
+    const auto size = fs::file_size(f);
+    { std::ofstream(f, std::ios::binary | std::ios::in | std::ios::out) << std::string(size, 'x'); }
+    ASSERT_EQ(fs::file_size(f), size);
+  }
+  // Replaces `f` as a store would (temp file, rename) with as many bytes that do not decode: another file.
+  void replace_with_garbage(const fs::path& f) {
+    write("tex/new.bin", std::string(fs::file_size(f), 'y'));
+    fs::rename(file("tex/new.bin"), f);
+  }
 };
 
 TEST_F(SceneLoader, MinimalSceneLoads) {
@@ -144,12 +165,8 @@ TEST_F(SceneLoader, ReadableExrTextureLoads) {
 // record (the file is overwritten in place below with as many bytes that do not decode, to show it was not read),
 // while a load that builds, a check without the record, or a check after the file was replaced reads it and fails.
 TEST_F(SceneLoader, ChecksWithARecordDecodeEachUnchangedImageOnce) {
-  Image img = Image::make(4, 2);
-  img.set(1, 0, Vec3(0.5f));
-  const fs::path tex = write_image("tex/ok.exr", img);
-  json s = testing::minimal_scene();
-  s["textures"]["img"] = {{"type", "image"}, {"path", "tex/ok.exr"}};
-  s["materials"]["white_diffuse"]["texture_name"] = "img";
+  const json s = image_textured_scene();
+  const fs::path tex = file("tex/ok.exr");
   const fs::path scene = write_scene("scene.json", s);
   CheckedFiles record;
   LoadOptions check;
@@ -160,9 +177,7 @@ TEST_F(SceneLoader, ChecksWithARecordDecodeEachUnchangedImageOnce) {
   EXPECT_EQ(record.size(), 1u);
   EXPECT_EQ(first.scene.hash, load_scene_file(scene).scene.hash);
 
-  const auto size = fs::file_size(tex);
-  { std::ofstream(tex, std::ios::binary | std::ios::in | std::ios::out) << std::string(size, 'x'); }
-  ASSERT_EQ(fs::file_size(tex), size);
+  spoil_in_place(tex);
   const LoadedScene second = load_scene_file(scene, check);
   EXPECT_EQ(second.scene.textures[0].image, nullptr);  // not decoded
   EXPECT_EQ(second.scene.hash, first.scene.hash);
@@ -174,8 +189,7 @@ TEST_F(SceneLoader, ChecksWithARecordDecodeEachUnchangedImageOnce) {
   build_with_record.checked_files = &record;
   EXPECT_NE(error_of(s, build_with_record).find("textures.img.path"), std::string::npos);
 
-  write("tex/new.exr", std::string(size, 'y'));  // replaced (temp file, rename): read again
-  fs::rename(file("tex/new.exr"), tex);
+  replace_with_garbage(tex);  // another file now: read again
   EXPECT_NE(error_of(s, check).find("textures.img.path"), std::string::npos);
 }
 
@@ -183,12 +197,8 @@ TEST_F(SceneLoader, ChecksWithARecordDecodeEachUnchangedImageOnce) {
 // build takes the same pixels from the record (the file is overwritten in place with bytes that do not decode, to
 // show it was not read); a build without pixel budget, or after the file was replaced, reads it and fails.
 TEST_F(SceneLoader, BuildsWithARecordKeepingPixelsDecodeEachUnchangedImageOnce) {
-  Image img = Image::make(4, 2);
-  img.set(1, 0, Vec3(0.5f));
-  const fs::path tex = write_image("tex/ok.exr", img);
-  json s = testing::minimal_scene();
-  s["textures"]["img"] = {{"type", "image"}, {"path", "tex/ok.exr"}};
-  s["materials"]["white_diffuse"]["texture_name"] = "img";
+  const json s = image_textured_scene();
+  const fs::path tex = file("tex/ok.exr");
   const fs::path scene = write_scene("scene.json", s);
   CheckedFiles record(16, size_t(1) << 20);
   LoadOptions build;
@@ -197,8 +207,7 @@ TEST_F(SceneLoader, BuildsWithARecordKeepingPixelsDecodeEachUnchangedImageOnce) 
   ASSERT_NE(first.scene.textures[0].image, nullptr);
   EXPECT_EQ(record.image_bytes(), 4u * 2u * 3u * sizeof(float));
 
-  const auto size = fs::file_size(tex);
-  { std::ofstream(tex, std::ios::binary | std::ios::in | std::ios::out) << std::string(size, 'x'); }
+  spoil_in_place(tex);
   const LoadedScene second = load_scene_file(scene, build);
   EXPECT_EQ(first.images_reused, 0);
   EXPECT_EQ(second.images_reused, 1);
@@ -210,8 +219,7 @@ TEST_F(SceneLoader, BuildsWithARecordKeepingPixelsDecodeEachUnchangedImageOnce) 
   without_pixels.checked_files = &digests_only;
   EXPECT_NE(error_of(s, without_pixels).find("textures.img.path"), std::string::npos);
 
-  write("tex/new.exr", std::string(size, 'y'));  // replaced (temp file, rename): read again
-  fs::rename(file("tex/new.exr"), tex);
+  replace_with_garbage(tex);  // another file now: read again
   EXPECT_NE(error_of(s, build).find("textures.img.path"), std::string::npos);
 }
 

@@ -69,6 +69,21 @@ bool child_exited(ChildProcess& c) {
   return false;
 }
 
+namespace {
+
+// Waits for a child that was sent SIGKILL and records its status (-1 when it cannot be had).
+void reap_killed(ChildProcess& c) {
+  if (c.reaped || c.pid <= 0) return;
+  int status = 0;
+  pid_t r;
+  while ((r = ::waitpid(c.pid, &status, 0)) < 0 && errno == EINTR) {
+  }
+  c.reaped = true;
+  c.exit_status = r == c.pid ? status : -1;
+}
+
+}  // namespace
+
 std::vector<std::string> stop_children(std::vector<ChildProcess>& children, std::chrono::milliseconds grace,
                                        int terms) {
   for (int i = 0; i < terms; ++i) {
@@ -87,11 +102,7 @@ std::vector<std::string> stop_children(std::vector<ChildProcess>& children, std:
   for (auto& c : children) {
     if (child_exited(c)) continue;
     ::kill(c.pid, SIGKILL);
-    int status = 0;
-    while (::waitpid(c.pid, &status, 0) < 0 && errno == EINTR) {
-    }
-    c.reaped = true;
-    c.exit_status = status;
+    reap_killed(c);
     killed.push_back(c.name);
   }
   return killed;
@@ -100,14 +111,7 @@ std::vector<std::string> stop_children(std::vector<ChildProcess>& children, std:
 void kill_children(std::vector<ChildProcess>& children) {
   for (auto& c : children)
     if (!child_exited(c)) ::kill(c.pid, SIGKILL);
-  for (auto& c : children) {
-    if (c.reaped) continue;
-    int status = 0;
-    while (::waitpid(c.pid, &status, 0) < 0 && errno == EINTR) {
-    }
-    c.reaped = true;
-    c.exit_status = status;
-  }
+  for (auto& c : children) reap_killed(c);
 }
 
 std::string describe_exit(const ChildProcess& c) {
