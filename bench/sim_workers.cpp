@@ -1,14 +1,15 @@
 // Capacity of one coordinator (issue 7): N simulated workers drive the real farm protocol against a real
 // `tessera serve` on loopback and we measure what the coordinator spends. Each simulated worker is one thread with
 // its own keep-alive connection doing what `tessera worker` does, minus the rendering: register, ask for a lease
-// (backing off 100 ms .. 2 s with jitter on 204), fetch the job's spec once per job, "render" by sleeping the tile
+// (backing off 100 ms .. 2 s with jitter on 204) naming the job whose spec it holds, so that the first lease of
+// another job brings that job's spec (or, with --spec-by-get, fetch the spec with a GET once per job), "render" by sleeping the tile
 // time while heartbeating every heartbeat period, then upload a valid precomputed tile EXR of the leased window
 // (uncompressed float32, as workers send it). A feeder keeps at least two jobs and 2N pending tiles queued. For
 // every N it prints request latency p50/p99 per route, the coordinator's CPU use (from /proc/<pid>/stat) and the
 // tile rate.
 //
 //   ./build/bench/sim_workers --tessera build/cli/tessera [--workers 10,50,200,500] [--seconds 15] [--warmup 4]
-//       [--tile-seconds 2] [--heartbeat-seconds 1] [--image 2048] [--tile 64] [--data-dir DIR]
+//       [--tile-seconds 2] [--heartbeat-seconds 1] [--image 2048] [--tile 64] [--data-dir DIR] [--spec-by-get]
 //
 // The simulated workers share the machine with the coordinator; their own CPU use is printed too, so a row where
 // the clients starve the coordinator can be told apart from one where the coordinator is the limit.
@@ -61,6 +62,8 @@ struct Options {
   int image = 2048;              ///< Square image edge of each job, in pixels.
   int tile = 64;                 ///< Tile edge, in pixels.
   fs::path data_dir;             ///< Where coordinator data folders go (default: a temporary folder).
+  bool spec_by_get = false;      ///< Bare lease requests and a GET of the spec per job (workers before the spec came
+                                 ///< with the lease).
 };
 
 /// The request kinds we time separately.
@@ -213,7 +216,10 @@ void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
         id = registration.id;
         heartbeat_seconds = int(registration.heartbeat_seconds);
       }
-      const HttpResponse r = timed(kLease, [&] { return http.send("POST", routes::worker_lease(id)); });
+      protocol::LeaseRequest asked;
+      if (!farm.opt.spec_by_get) asked.known_jobs = spec_job.empty() ? std::vector<std::string>{} : std::vector{spec_job};
+      const std::string asked_body = farm.opt.spec_by_get ? std::string() : json(asked).dump();
+      const HttpResponse r = timed(kLease, [&] { return http.send("POST", routes::worker_lease(id), asked_body); });
       if (r.status == 204) {
         std::uniform_int_distribution<long long> pick(idle.count() / 2, idle.count());
         nap(farm, std::chrono::milliseconds(pick(rng)));
@@ -223,7 +229,9 @@ void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
       if (r.status == 404) { id.clear(); continue; }
       if (r.status != 200) { error("lease answered " + r.error_text()); nap(farm, 1s); continue; }
       idle = 100ms;
-      const auto lease = protocol::parse_answer<protocol::Lease>(r.body, "lease");
+      const auto answer = protocol::parse_answer<protocol::LeaseAnswer>(r.body, "lease");
+      const protocol::Lease& lease = answer.lease;
+      if (answer.spec) spec_job = lease.job;
       const std::string& lease_id = lease.id;
       const std::string& job = lease.job;
       const std::array<int, 4> window = {lease.window.x0, lease.window.y0, lease.window.x1, lease.window.y1};
@@ -394,6 +402,8 @@ int main(int argc, char** argv) {
   app.add_option("--image", opt.image, "Job image edge in pixels")->check(CLI::Range(16, 16384));
   app.add_option("--tile", opt.tile, "Tile edge in pixels")->check(CLI::Range(8, 4096));
   app.add_option("--data-dir", opt.data_dir, "Folder for the coordinators' data (default: a temporary folder)");
+  app.add_flag("--spec-by-get", opt.spec_by_get,
+               "Ask for bare leases and GET each job's spec (as workers did before specs came with leases)");
   CLI11_PARSE(app, argc, argv);
 
   try {
@@ -404,9 +414,10 @@ int main(int argc, char** argv) {
     const std::string tile_bytes = std::to_string(bank.at({0, 0, std::min(opt.tile, opt.image), std::min(opt.tile, opt.image)}).size());
 
     std::printf("sim_workers: %d-pixel jobs in %d-pixel tiles (upload %s bytes each, uncompressed float32), "
-                "tile time %.2f s +-20%%, heartbeat every %d s, window %.0f s after %.0f s warm-up, %u cores\n",
+                "tile time %.2f s +-20%%, heartbeat every %d s, window %.0f s after %.0f s warm-up, %u cores, %s\n",
                 opt.image, opt.tile, tile_bytes.c_str(), opt.tile_seconds, opt.heartbeat_seconds, opt.seconds,
-                opt.warmup, std::thread::hardware_concurrency());
+                opt.warmup, std::thread::hardware_concurrency(),
+                opt.spec_by_get ? "specs by GET" : "specs with the leases");
     {
       std::ifstream load("/proc/loadavg");
       std::string l1, l5, l15;

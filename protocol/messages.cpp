@@ -302,6 +302,51 @@ void from_json(const json& j, Lease& l) {
   if (l.state_spp > l.spp) throw ProtocolError("lease: \"state_spp\" is above \"spp\"");
 }
 
+void to_json(json& j, const LeaseRequest& r) {
+  j = json::object();
+  if (r.known_jobs) j["known_jobs"] = *r.known_jobs;
+}
+
+LeaseRequest parse_lease_request(const std::string& body) {
+  const json j = parse_request_object(body, {"known_jobs"}, true);
+  LeaseRequest r;
+  if (!j.contains("known_jobs")) return r;
+  const json& known = j["known_jobs"];
+  if (!known.is_array()) throw ProtocolError("\"known_jobs\" must be an array of job ids");
+  if (known.size() > kMaxKnownJobs)
+    throw ProtocolError("\"known_jobs\" lists " + std::to_string(known.size()) + " jobs; at most " +
+                        std::to_string(kMaxKnownJobs) + " are allowed");
+  r.known_jobs.emplace();
+  for (const json& id : known) {
+    if (!id.is_string()) throw ProtocolError("\"known_jobs\" must be an array of job ids (strings)");
+    r.known_jobs->push_back(id.get<std::string>());
+  }
+  return r;
+}
+
+void from_json(const json& j, LeaseAnswer& a) {
+  a.lease = j.get<Lease>();
+  a.spec.reset();
+  if (j.contains("spec") && !j["spec"].is_null()) {
+    try {
+      a.spec = j["spec"].get<JobSpec>();
+    } catch (const ProtocolError& e) {
+      throw ProtocolError(std::string("lease: \"spec\": ") + e.what());
+    }
+  }
+}
+
+std::string lease_answer_text(const Lease& l, const std::string* spec_json) {
+  std::string text = json(l).dump();
+  if (spec_json) {
+    text.pop_back();  // the closing brace of the lease's object, which has keys: the spec goes in as one more
+    text += ",\"spec\":";
+    text += *spec_json;
+    text += '}';
+  }
+  return text;
+}
+
 void to_json(json& j, const HeartbeatReport& h) { j = {{"rays", h.rays}}; }
 
 HeartbeatReport parse_heartbeat_report(const std::string& body) {

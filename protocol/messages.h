@@ -132,6 +132,27 @@ struct Lease {
 void to_json(nlohmann::json& j, const Lease& l);
 void from_json(const nlohmann::json& j, Lease& l);
 
+/// Body of POST /v1/workers/{wid}/lease (optional: an empty body, or {}, asks for a bare lease).
+struct LeaseRequest {
+  /// Present: the worker takes the job's spec inside the answer (LeaseAnswer::spec) unless the job is listed here,
+  /// the jobs whose specs it holds (at most kMaxKnownJobs). Absent: the answer never carries a spec.
+  std::optional<std::vector<std::string>> known_jobs;
+};
+inline constexpr size_t kMaxKnownJobs = 64;  ///< The most jobs a lease request may list as known.
+void to_json(nlohmann::json& j, const LeaseRequest& r);
+/// Parses a lease request; throws ProtocolError (400).
+LeaseRequest parse_lease_request(const std::string& body);
+
+/// Answer 200 to POST /v1/workers/{wid}/lease: the lease, with its job's spec when the request asked for it.
+struct LeaseAnswer {
+  Lease lease;                  ///< The lease (its keys at the top level of the answer).
+  std::optional<JobSpec> spec;  ///< Key "spec": the job's spec, as GET /v1/jobs/{id}/spec answers it.
+};
+void from_json(const nlohmann::json& j, LeaseAnswer& a);
+/// The answer's text from the lease and, when to be sent, the spec's JSON text as GET /v1/jobs/{id}/spec answers it
+/// (a coordinator keeps that text per job, so no spec is serialised per lease).
+std::string lease_answer_text(const Lease& l, const std::string* spec_json);
+
 /// Body of POST /v1/leases/{lease}/heartbeat.
 struct HeartbeatReport {
   uint64_t rays = 0;  ///< Rays traced since the previous heartbeat.

@@ -57,6 +57,63 @@ TEST(Messages, ParsesALease) {
   EXPECT_THROW((void)json(r).get<Lease>(), ProtocolError);  // a state above the lease's spp
 }
 
+TEST(Messages, ALeaseRequestNamesKnownJobsAndItsAnswerMayCarryTheSpec) {
+  // No body, {} and an explicit absence all ask for a bare lease; a list (even empty) asks for the spec of others.
+  EXPECT_FALSE(parse_lease_request("").known_jobs);
+  EXPECT_FALSE(parse_lease_request("{}").known_jobs);
+  const LeaseRequest r = parse_lease_request(json(LeaseRequest{std::vector<std::string>{"j-1", "j-2"}}).dump());
+  ASSERT_TRUE(r.known_jobs);
+  EXPECT_EQ(*r.known_jobs, (std::vector<std::string>{"j-1", "j-2"}));
+  EXPECT_EQ(parse_lease_request(R"({"known_jobs": []})").known_jobs, std::vector<std::string>{});
+  EXPECT_EQ(json(LeaseRequest{}).dump(), "{}");
+  // Strict, as every request: unknown keys, wrong types and too long a list are refused with the reason.
+  EXPECT_THROW(parse_lease_request(R"({"known": []})"), ProtocolError);
+  EXPECT_THROW(parse_lease_request(R"({"known_jobs": "j-1"})"), ProtocolError);
+  EXPECT_THROW(parse_lease_request(R"({"known_jobs": [1]})"), ProtocolError);
+  EXPECT_THROW(parse_lease_request("[]"), ProtocolError);
+  const std::vector<std::string> many(kMaxKnownJobs + 1, "j-1");
+  try {
+    parse_lease_request(json{{"known_jobs", many}}.dump());
+    ADD_FAILURE() << "a list of " << many.size() << " jobs was taken";
+  } catch (const ProtocolError& e) {
+    EXPECT_NE(std::string(e.what()).find("at most 64"), std::string::npos) << e.what();
+  }
+  EXPECT_NO_THROW(parse_lease_request(json{{"known_jobs", std::vector<std::string>(kMaxKnownJobs, "j-1")}}.dump()));
+
+  // The answer: the lease's keys, and "spec" with the spec's own text when one is sent.
+  Lease l;
+  l.id = "l-1";
+  l.job = "j-3";
+  l.window = {0, 0, 16, 16};
+  l.spp = 4;
+  JobSpec spec;
+  spec.scene = {{"camera", {{"fov", 40}}}};
+  spec.assets = {{"tex.exr", std::string(64, 'a')}};
+  spec.sampling.spp = 4;
+  spec.width = 32;
+  spec.height = 16;
+  const std::string spec_text = json(spec).dump();
+  const LeaseAnswer bare = parse_answer<LeaseAnswer>(lease_answer_text(l, nullptr), "lease");
+  EXPECT_EQ(bare.lease.id, "l-1");
+  EXPECT_FALSE(bare.spec);
+  EXPECT_EQ(lease_answer_text(l, nullptr), json(l).dump());  // a bare answer is the lease as it always was
+  const LeaseAnswer with = parse_answer<LeaseAnswer>(lease_answer_text(l, &spec_text), "lease");
+  EXPECT_EQ(with.lease.job, "j-3");
+  EXPECT_EQ(with.lease.window, (PixelWindow{0, 0, 16, 16}));
+  ASSERT_TRUE(with.spec);
+  EXPECT_EQ(json(*with.spec), json(spec));
+  EXPECT_EQ(json::parse(lease_answer_text(l, &spec_text))["spec"], json::parse(spec_text));
+  // A lease reader that knows nothing of specs still reads the answer (answers are read tolerantly).
+  EXPECT_EQ(parse_answer<Lease>(lease_answer_text(l, &spec_text), "lease").id, "l-1");
+  // A broken spec is named.
+  try {
+    (void)parse_answer<LeaseAnswer>(R"({"lease":"l-1","job":"j","tile":0,"window":[0,0,1,1],"spp":1,"spec":{}})", "lease");
+    ADD_FAILURE() << "a spec without a scene was taken";
+  } catch (const ProtocolError& e) {
+    EXPECT_NE(std::string(e.what()).find("\"spec\""), std::string::npos) << e.what();
+  }
+}
+
 TEST(Messages, ASpecSaysWhetherTheJobIsResumable) {
   JobSpec spec;
   spec.sampling.spp = 4;

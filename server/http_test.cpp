@@ -368,6 +368,40 @@ TEST_F(HttpTest, RegisterLeaseAndEmptyQueue) {
   EXPECT_EQ(call(http::verb::post, "/v1/workers/" + w + "/lease").status, 204u);
 }
 
+TEST_F(HttpTest, ALeaseCarriesItsJobsSpecUnlessTheWorkerHoldsIt) {
+  const Reply reg = call(http::verb::post, "/v1/workers", R"({"name":"w","threads":2,"version":"0.1.0"})");
+  ASSERT_EQ(reg.status, 201u) << reg.body;
+  const std::string w = reg.js()["id"];
+  const std::string lease_url = "/v1/workers/" + w + "/lease";
+  const std::string id = submit(small_cbox(job_for("cbox_no_light.json")));
+  const Reply spec = call(http::verb::get, "/v1/jobs/" + id + "/spec");
+  ASSERT_EQ(spec.status, 200u) << spec.body;
+  // Jobs known to the worker, not this one: the spec comes with the lease, as GET .../spec answers it.
+  Reply r = call(http::verb::post, lease_url, R"({"known_jobs": ["j-other"]})");
+  ASSERT_EQ(r.status, 200u) << r.body;
+  EXPECT_EQ(r.js()["job"], id);
+  EXPECT_EQ(r.js()["tile"], 0);
+  EXPECT_EQ(r.js()["spec"], spec.js());
+  // The worker holds it: a bare lease (the next tile).
+  r = call(http::verb::post, lease_url, json{{"known_jobs", {"j-other", id}}}.dump());
+  ASSERT_EQ(r.status, 200u) << r.body;
+  EXPECT_EQ(r.js()["tile"], 1);
+  EXPECT_FALSE(r.js().contains("spec"));
+  // No list (a worker that fetches specs itself): bare as well.
+  r = call(http::verb::post, lease_url);
+  ASSERT_EQ(r.status, 200u) << r.body;
+  EXPECT_EQ(r.js()["tile"], 2);
+  EXPECT_FALSE(r.js().contains("spec"));
+  // A bad request is refused before a tile is taken: the next good one gets tile 3.
+  r = call(http::verb::post, lease_url, R"({"known_jobs": "all"})");
+  EXPECT_EQ(r.status, 400u);
+  EXPECT_NE(r.js()["error"].get<std::string>().find("known_jobs"), std::string::npos) << r.body;
+  r = call(http::verb::post, lease_url, R"({"known_jobs": []})");
+  ASSERT_EQ(r.status, 200u) << r.body;
+  EXPECT_EQ(r.js()["tile"], 3);
+  EXPECT_EQ(r.js()["spec"], spec.js());
+}
+
 TEST_F(HttpTest, FullTileRoundTripIsBitwiseIdenticalToOneRender) {
   const json body = small_cbox(job_for("cbox_no_light.json"));
   const std::string id = submit(body);

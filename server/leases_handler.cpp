@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <charconv>
 #include <future>
 
@@ -13,7 +14,7 @@ using protocol::Endpoint;
 HttpResponse LeasesHandler::handle(Endpoint endpoint, const std::string& id, HttpRequest& req) {
   const unsigned v = req.version();
   switch (endpoint) {
-    case Endpoint::worker_lease: return lease(id, v);
+    case Endpoint::worker_lease: return lease(id, req);
     case Endpoint::lease_heartbeat: return heartbeat(id, req);
     case Endpoint::lease_result: {
       std::promise<HttpResponse> answer;
@@ -38,7 +39,9 @@ HttpResponse LeasesHandler::handle(Endpoint endpoint, const std::string& id, Htt
   throw ApiError(404, "no such endpoint");
 }
 
-HttpResponse LeasesHandler::lease(const std::string& worker, unsigned version) {
+HttpResponse LeasesHandler::lease(const std::string& worker, HttpRequest& req) {
+  const unsigned version = req.version();
+  const protocol::LeaseRequest asked = protocol::parse_lease_request(req.body());  // before a tile is taken
   const AcquireResult r = sched_.acquire(worker);
   if (r.status == AcquireResult::unknown_worker) throw ApiError(404, "unknown worker " + worker + ": register again");
   if (r.status == AcquireResult::no_work) return HttpResponse{http::status::no_content, version};
@@ -48,7 +51,16 @@ HttpResponse LeasesHandler::lease(const std::string& worker, unsigned version) {
   if (!events_.published(l.job, r.job_state))
     if (const auto s = sched_.job(l.job)) events_.job_if_state_changed(*s);
   events_.tile(protocol::events::kTileLeased, {l.job, l.tile, l.worker, l.id, std::nullopt});
-  return json_response(http::status::ok, l, version);
+  // The spec of a job the worker does not hold comes with the lease, saving it a GET of the spec per job.
+  std::optional<std::string> spec;
+  if (asked.known_jobs && std::find(asked.known_jobs->begin(), asked.known_jobs->end(), l.job) == asked.known_jobs->end()) {
+    try {
+      spec = jobs_.spec_json(l.job);
+    } catch (const ApiError& e) {  // purged since the grant: the lease goes out bare, and the worker's GET says why
+      spdlog::debug("lease {}: sent without its job's spec: {}", l.id, e.what());
+    }
+  }
+  return bytes_response(protocol::lease_answer_text(l, spec ? &*spec : nullptr), "application/json", version);
 }
 
 HttpResponse LeasesHandler::heartbeat(const std::string& lease, HttpRequest& req) {

@@ -21,7 +21,7 @@ class LeasesHandler final : public ResourceHandler {
   void handle_async(protocol::Endpoint endpoint, const std::string& id, HttpRequest& req, Answer answer) override;
 
  private:
-  HttpResponse lease(const std::string& worker, unsigned version);
+  HttpResponse lease(const std::string& worker, HttpRequest& req);
   HttpResponse heartbeat(const std::string& lease, HttpRequest& req);
   void result(const std::string& lease, HttpRequest& req, Answer answer);
 

@@ -6,6 +6,7 @@
 #include <memory>
 #include <string>
 #include <utility>
+#include <vector>
 
 namespace tessera::farm {
 
@@ -36,6 +37,12 @@ class LruCache {
   }
   /// Number of entries.
   size_t size() const { return entries_.size(); }
+  /// The keys held, most recently used first.
+  std::vector<std::string> keys() const {
+    std::vector<std::string> k;
+    for (const auto& e : entries_) k.push_back(e.first);
+    return k;
+  }
 
  private:
   size_t capacity_;

@@ -114,6 +114,7 @@ struct PrefetchedLease {
   Lease lease;
   std::chrono::steady_clock::time_point beaten;
   std::shared_ptr<HeadStart> head;
+  std::optional<JobSpec> spec;  // the job's spec when it came with the lease
 };
 
 // The thread beside a tile's render: heartbeats the lease every `period` (the first beat after `first_beat`); on
@@ -304,8 +305,9 @@ class Worker {
         if (id_.empty() && !register_worker()) continue;
         std::optional<PrefetchedLease> lease = std::exchange(next, std::nullopt);
         if (!lease) {
-          std::optional<Lease> asked = request_lease();
-          if (asked) lease = PrefetchedLease{std::move(*asked), std::chrono::steady_clock::now(), nullptr};
+          std::optional<protocol::LeaseAnswer> asked = request_lease();
+          if (asked)
+            lease = PrefetchedLease{std::move(asked->lease), std::chrono::steady_clock::now(), nullptr, std::move(asked->spec)};
         }
         if (!lease) continue;
         if (stopping()) {
@@ -313,7 +315,7 @@ class Worker {
           release(lease->lease, prefix(lease->lease));
           break;
         }
-        next = process(lease->lease, lease->beaten, std::move(lease->head));
+        next = process(lease->lease, lease->beaten, std::move(lease->head), std::move(lease->spec));
       } catch (const AccessDenied&) {
         throw;
       } catch (const std::exception& e) {
@@ -401,10 +403,11 @@ class Worker {
   std::optional<PrefetchedLease> prefetch_lease(HttpClient& http, const std::string& pfx) {
     try {
       const auto t0 = std::chrono::steady_clock::now();
-      const HttpResponse r = http.send("POST", routes::worker_lease(id_));
+      const HttpResponse r = http.send("POST", routes::worker_lease(id_), lease_request_body());
       note_lease_round_trip(t0);
       if (r.status != 200) return std::nullopt;
-      PrefetchedLease next{protocol::parse_answer<Lease>(r.body, "lease"), std::chrono::steady_clock::now(), nullptr};
+      auto answer = protocol::parse_answer<protocol::LeaseAnswer>(r.body, "lease");
+      PrefetchedLease next{std::move(answer.lease), std::chrono::steady_clock::now(), nullptr, std::move(answer.spec)};
       next.head = head_start(next.lease);
       spdlog::info("{}: next lease {} (tile {} of job {}) granted while rendering{}", pfx, next.lease.id,
                    next.lease.tile, next.lease.job, next.head ? ", its render begun" : "");
@@ -495,11 +498,19 @@ class Worker {
     next.head.reset();  // waits for the task
   }
 
-  std::optional<Lease> request_lease() {
+  // A lease request's body: the jobs whose scenes are built here, so that a lease of any other job brings its spec.
+  std::string lease_request_body() {
+    protocol::LeaseRequest req;
+    std::lock_guard lock(scenes_mutex_);
+    req.known_jobs = scenes_.keys();
+    return json(req).dump();
+  }
+
+  std::optional<protocol::LeaseAnswer> request_lease() {
     HttpResponse r;
     try {
       const auto t0 = std::chrono::steady_clock::now();
-      r = http_.send("POST", routes::worker_lease(id_));
+      r = http_.send("POST", routes::worker_lease(id_), lease_request_body());
       note_lease_round_trip(t0);
     } catch (const TransportError& e) {
       coordinator_down("lease", e);
@@ -508,7 +519,7 @@ class Worker {
     coordinator_up();
     if (r.status == 200) {
       idle_.reset();
-      return protocol::parse_answer<Lease>(r.body, "lease");
+      return protocol::parse_answer<protocol::LeaseAnswer>(r.body, "lease");
     }
     if (r.status == 204) {
       sleep_unless(idle_.next(), [&] { return stopping(); });
@@ -548,15 +559,17 @@ class Worker {
     }
   }
 
-  // The job's scene, built once and kept for its later tiles.
-  std::shared_ptr<const PreparedJob> scene_for(const Lease& l, const std::string& pfx,
+  // The job's scene, built once and kept for its later tiles; from the spec that came with the lease, if one did.
+  std::shared_ptr<const PreparedJob> scene_for(const Lease& l, std::optional<JobSpec> sent, const std::string& pfx,
                                                const std::function<bool()>& interrupted) {
     {
       std::lock_guard lock(scenes_mutex_);
       if (auto s = scenes_.find(l.job)) return s;
     }
     const auto t0 = std::chrono::steady_clock::now();
-    const auto spec = protocol::parse_answer<JobSpec>(fetch(routes::job_spec(l.job), interrupted), "job spec");
+    const bool with_lease = sent.has_value();
+    const JobSpec spec =
+        with_lease ? std::move(*sent) : protocol::parse_answer<JobSpec>(fetch(routes::job_spec(l.job), interrupted), "job spec");
     std::map<std::string, std::filesystem::path> files;
     for (const auto& [path, hash] : spec.assets) {
       try {
@@ -582,19 +595,19 @@ class Worker {
       throw SceneError("job " + l.job + ": the scene is " + std::to_string(built.width) + "x" +
                        std::to_string(built.height) + " but the job spec says " + std::to_string(spec.width) + "x" +
                        std::to_string(spec.height));
-    spdlog::info("{}: built the job's scene in {:.2f}s ({} assets, {} image(s) taken already decoded)", pfx,
+    spdlog::info("{}: built the job's scene in {:.2f}s ({} assets, {} image(s) taken already decoded, spec {})", pfx,
                  std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), spec.assets.size(),
-                 loaded->loaded.images_reused);
+                 loaded->loaded.images_reused, with_lease ? "sent with the lease" : "fetched");
     std::lock_guard lock(scenes_mutex_);
     scenes_.put(l.job, loaded);
     return loaded;
   }
 
   // Renders a leased tile (heartbeating it from `beaten`, its grant or last heartbeat; its render maybe begun ahead,
-  // `head`) and hands its upload to the upload thread; returns the next lease when one was granted near the end of
-  // the render.
+  // `head`; its job's spec when it came with the lease) and hands its upload to the upload thread; returns the next
+  // lease when one was granted near the end of the render.
   std::optional<PrefetchedLease> process(const Lease& l, std::chrono::steady_clock::time_point beaten,
-                                         std::shared_ptr<HeadStart> head) {
+                                         std::shared_ptr<HeadStart> head, std::optional<JobSpec> spec) {
     const std::string pfx = prefix(l);
     spdlog::info("{}: leased window [{},{})x[{},{}) at {} spp{}", pfx, l.window.x0, l.window.x1, l.window.y0, l.window.y1,
                  l.spp, l.state_spp ? " continuing from " + std::to_string(l.state_spp) : std::string());
@@ -625,7 +638,7 @@ class Worker {
           height = head->scene->loaded.scene.height;
           result = std::move(head->result);
         } else {
-          const auto scene = scene_for(l, pfx, [&] { return signals.cancel.load(); });
+          const auto scene = scene_for(l, std::move(spec), pfx, [&] { return signals.cancel.load(); });
           width = scene->loaded.scene.width;
           height = scene->loaded.scene.height;
           if (!PixelWindow{0, 0, width, height}.contains(l.window))

@@ -289,7 +289,9 @@ def exercise(c, tessera, workdir, address):
     c.call("PUT", f"/v1/leases/{l1['lease']}/result", b"not an exr", "image/x-exr", expect=422)  # w1's 1st failure
     c.call("POST", f"/v1/leases/{l1['lease']}/heartbeat", expect=410)
     c.call("PUT", "/v1/leases/l-none/result", b"x", "image/x-exr", expect=404)
-    _, l2 = c.call("POST", f"/v1/workers/{w1['id']}/lease", expect=200)
+    c.call("POST", f"/v1/workers/{w1['id']}/lease", {"known_jobs": "all"}, expect=400)  # refused before a tile is taken (HttpTest checks)
+    _, l2 = c.call("POST", f"/v1/workers/{w1['id']}/lease", {"known_jobs": []}, expect=200)
+    assert "spec" in l2 and "spec" not in l1, "a lease asked for with known_jobs carries its job's spec, a bare one not"
     c.call("POST", f"/v1/leases/{l2['lease']}/fail", {"error": "x", "more": 1}, expect=400)
     c.call("POST", f"/v1/leases/{l2['lease']}/fail", {"error": "x", "log": "one line"}, expect=400)
     c.call("POST", f"/v1/leases/{l2['lease']}/fail", {"error": "openapi test", "log": ["a line", "another"]},
