@@ -12,7 +12,10 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <optional>
+#include <set>
 #include <thread>
+#include <vector>
 
 namespace tessera::farm {
 
@@ -63,18 +66,52 @@ SceneFiles read_scene_files(const SubmitOptions& o) {
 
 SubmitResult submit_job(HttpClient& http, const SubmitOptions& o) { return submit_job(http, o, read_scene_files(o)); }
 
+namespace {
+
+// The blobs among `hashes` that the coordinator does not hold, asked in one request per kMaxBlobQuery (each one held
+// starts its grace period again); nothing when the coordinator predates POST /v1/blobs (404 or 405).
+std::optional<std::set<std::string>> missing_blobs(HttpClient& http, const std::vector<std::string>& hashes) {
+  std::set<std::string> missing;
+  for (size_t i = 0; i < hashes.size(); i += protocol::kMaxBlobQuery) {
+    protocol::BlobQuery q;
+    q.sha256.assign(hashes.begin() + i, hashes.begin() + std::min(hashes.size(), i + protocol::kMaxBlobQuery));
+    const HttpResponse r = http.send("POST", routes::blobs(), json(q).dump());
+    if (r.status == 404 || r.status == 405) return std::nullopt;
+    if (r.status != 200) refuse("POST " + routes::blobs() + " (which assets to upload)", r);
+    for (std::string& h : protocol::parse_answer<protocol::BlobQueryAnswer>(r.body, "blob query").missing)
+      missing.insert(std::move(h));
+  }
+  return missing;
+}
+
+}  // namespace
+
 SubmitResult submit_job(HttpClient& http, const SubmitOptions& o, SceneFiles files) {
   SubmitResult out;
   protocol::JobSubmission job;
+  std::vector<std::string> hashes;
+  for (const LocalAsset& a : files.assets) {
+    job.assets[a.path] = a.sha256;
+    hashes.push_back(a.sha256);
+  }
+  out.assets_total = int(files.assets.size());
+  // One question for every asset, then only the missing ones are sent (a coordinator without the question: one HEAD
+  // per asset, as before).
+  const std::optional<std::set<std::string>> missing = missing_blobs(http, hashes);
+  std::set<std::string> sent;
   for (const LocalAsset& a : files.assets) {
     const std::string& hash = a.sha256;
-    job.assets[a.path] = hash;
-    ++out.assets_total;
-    const HttpResponse head = http.send("HEAD", routes::blob(hash));
-    if (head.status == 200) continue;
-    if (head.status != 404) refuse("HEAD " + routes::blob(hash) + " (" + a.path + ")", head);
+    if (sent.count(hash)) continue;  // the same file named twice
+    if (missing) {
+      if (!missing->count(hash)) continue;
+    } else {
+      const HttpResponse head = http.send("HEAD", routes::blob(hash));
+      if (head.status == 200) continue;
+      if (head.status != 404) refuse("HEAD " + routes::blob(hash) + " (" + a.path + ")", head);
+    }
     const HttpResponse put = http.send("PUT", routes::blob(hash), read_file(a.file), "application/octet-stream");
     if (put.status != 201 && put.status != 200) refuse("uploading " + a.path, put);
+    sent.insert(hash);
     ++out.assets_uploaded;
   }
 

@@ -2,6 +2,8 @@
 
 #include "protocol/tile.h"
 
+#include "core/sha256.h"
+
 #include <charconv>
 
 #include "core/bvh.h"
@@ -250,6 +252,31 @@ void from_json(const json& j, JobSpec& s) {
   s.height = answer_field<int>(j, "height", kMsg);
   s.tile_size = answer_field_or<int>(j, "tile_size", kMsg, kDefaultTileSize);
   s.resumable = answer_field_or<bool>(j, "resumable", kMsg, false);
+}
+
+void to_json(json& j, const BlobQuery& q) { j = {{"sha256", q.sha256}}; }
+
+BlobQuery parse_blob_query(const std::string& body) {
+  const json j = parse_request_object(body, {"sha256"}, false);
+  if (!j.contains("sha256") || !j["sha256"].is_array())
+    throw ProtocolError("\"sha256\" must be an array of blob hashes (64 lowercase hex digits each)");
+  const json& list = j["sha256"];
+  if (list.size() > kMaxBlobQuery)
+    throw ProtocolError("\"sha256\" names " + std::to_string(list.size()) + " blobs; at most " +
+                        std::to_string(kMaxBlobQuery) + " per query");
+  BlobQuery q;
+  for (size_t i = 0; i < list.size(); ++i) {
+    if (!list[i].is_string() || !is_sha256_hex(list[i].get<std::string>()))
+      throw ProtocolError("\"sha256\"[" + std::to_string(i) + "] is not 64 lowercase hex digits (a SHA-256)");
+    q.sha256.push_back(list[i].get<std::string>());
+  }
+  return q;
+}
+
+void to_json(json& j, const BlobQueryAnswer& a) { j = {{"missing", a.missing}}; }
+
+void from_json(const json& j, BlobQueryAnswer& a) {
+  a.missing = answer_field<std::vector<std::string>>(j, "missing", "blob query answer");
 }
 
 void to_json(json& j, const WorkerHello& h) { j = {{"name", h.name}, {"threads", h.threads}, {"version", h.version}}; }

@@ -95,6 +95,23 @@ void to_json(nlohmann::json& j, const JobSpec& s);
 /// Reads a spec (extra keys are ignored); throws ProtocolError naming the field.
 void from_json(const nlohmann::json& j, JobSpec& s);
 
+/// Body of POST /v1/blobs: which of these blobs does the coordinator lack? Each one it holds starts its grace period
+/// again, as a HEAD of it would, so it stays for the submission that names it.
+struct BlobQuery {
+  std::vector<std::string> sha256;  ///< Blobs (64 lowercase hex digits each), at most kMaxBlobQuery.
+};
+inline constexpr size_t kMaxBlobQuery = 4096;  ///< The most blobs one query may name.
+void to_json(nlohmann::json& j, const BlobQuery& q);
+/// Parses a blob query; throws ProtocolError (400) naming the first bad entry.
+BlobQuery parse_blob_query(const std::string& body);
+
+/// Answer 200 to POST /v1/blobs.
+struct BlobQueryAnswer {
+  std::vector<std::string> missing;  ///< The queried blobs that are not stored, in the query's order.
+};
+void to_json(nlohmann::json& j, const BlobQueryAnswer& a);
+void from_json(const nlohmann::json& j, BlobQueryAnswer& a);
+
 /// Body of POST /v1/workers.
 struct WorkerHello {
   std::string name;     ///< Self-reported name.

@@ -57,6 +57,30 @@ TEST(Messages, ParsesALease) {
   EXPECT_THROW((void)json(r).get<Lease>(), ProtocolError);  // a state above the lease's spp
 }
 
+TEST(Messages, ABlobQueryNamesValidHashesWithinItsLimit) {
+  const std::string a(64, 'a'), b(64, '0');
+  EXPECT_EQ(parse_blob_query(json(BlobQuery{{a, b}}).dump()).sha256, (std::vector<std::string>{a, b}));
+  EXPECT_TRUE(parse_blob_query(R"({"sha256": []})").sha256.empty());
+  const auto refused = [](const std::string& body, const std::string& said) {
+    try {
+      parse_blob_query(body);
+      ADD_FAILURE() << body << " was taken";
+    } catch (const ProtocolError& e) {
+      EXPECT_NE(std::string(e.what()).find(said), std::string::npos) << e.what();
+    }
+  };
+  refused("", "");                                 // a query needs its list
+  refused(R"({"sha256": "aa"})", "must be an array");
+  refused(json{{"sha256", {a, std::string(64, 'A')}}}.dump(), "\"sha256\"[1] is not 64 lowercase hex digits");
+  refused(json{{"sha256", {a.substr(1)}}}.dump(), "\"sha256\"[0]");
+  refused(json{{"sha256", {a}}, {"more", 1}}.dump(), "more");
+  refused(json{{"sha256", std::vector<std::string>(kMaxBlobQuery + 1, a)}}.dump(), "at most 4096");
+  EXPECT_EQ(parse_blob_query(json{{"sha256", std::vector<std::string>(kMaxBlobQuery, a)}}.dump()).sha256.size(),
+            kMaxBlobQuery);
+  const BlobQueryAnswer back = parse_answer<BlobQueryAnswer>(json(BlobQueryAnswer{{b}}).dump(), "blob query");
+  EXPECT_EQ(back.missing, std::vector<std::string>{b});
+}
+
 TEST(Messages, ALeaseRequestNamesKnownJobsAndItsAnswerMayCarryTheSpec) {
   // No body, {} and an explicit absence all ask for a bare lease; a list (even empty) asks for the spec of others.
   EXPECT_FALSE(parse_lease_request("").known_jobs);

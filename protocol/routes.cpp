@@ -28,6 +28,7 @@ const std::vector<RouteSpec>& route_table() {
   static const std::vector<RouteSpec> table = {
       {Endpoint::healthz, "/healthz", {"GET"}},
       {Endpoint::metrics, "/metrics", {"GET"}},
+      {Endpoint::blobs, "/v1/blobs", {"POST"}},
       {Endpoint::blob, "/v1/blobs/{sha256}", {"PUT", "HEAD", "GET"}},
       {Endpoint::jobs, "/v1/jobs", {"GET", "POST"}},
       {Endpoint::job, "/v1/jobs/{id}", {"GET", "PATCH", "DELETE"}},

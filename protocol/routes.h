@@ -12,7 +12,7 @@ namespace tessera::protocol {
 
 /// The endpoints a request target can name.
 enum class Endpoint {
-  none, healthz, metrics, blob, jobs, job, job_result, job_preview, job_spec, job_retry, job_pause, job_resume, job_tiles,
+  none, healthz, metrics, blobs, blob, jobs, job, job_result, job_preview, job_spec, job_retry, job_pause, job_resume, job_tiles,
   job_tile_requeue, workers, worker_drain, worker_undrain, worker_lease, lease_heartbeat, lease_result, lease_fail,
   lease_release, lease_state, events
 };
@@ -44,6 +44,7 @@ std::string path(Endpoint endpoint, std::string_view param = {}, std::string_vie
 namespace routes {
 inline std::string healthz() { return path(Endpoint::healthz); }
 inline std::string metrics() { return path(Endpoint::metrics); }
+inline std::string blobs() { return path(Endpoint::blobs); }
 inline std::string blob(std::string_view sha256) { return path(Endpoint::blob, sha256); }
 inline std::string jobs() { return path(Endpoint::jobs); }
 inline std::string job(std::string_view id) { return path(Endpoint::job, id); }

@@ -27,6 +27,7 @@ Access route_access(RouteId route, http::verb method) {
   switch (route) {
     case RouteId::healthz: return Access::open;
     case RouteId::metrics: return Access::either;
+    case RouteId::blobs: return Access::client;  // which blobs a submission still has to upload
     case RouteId::blob: return method == http::verb::get ? Access::either : Access::client;  // HEAD/PUT: submitting
     case RouteId::job_spec: return Access::either;
     case RouteId::jobs:
@@ -208,6 +209,7 @@ ResourceHandler& Api::handler_for(RouteId route) {
   switch (route) {
     case RouteId::healthz:
     case RouteId::metrics: return health_handler_;
+    case RouteId::blobs:
     case RouteId::blob: return blobs_handler_;
     case RouteId::jobs:
     case RouteId::job:

@@ -89,6 +89,7 @@ TEST(Authorize, OnlyTheConfiguredSideIsProtected) {
 TEST(RouteAccess, EveryEndpointNeedsTheRightToken) {
   EXPECT_EQ(route_access(RouteId::healthz, V::get), Access::open);
   EXPECT_EQ(route_access(RouteId::metrics, V::get), Access::either);
+  EXPECT_EQ(route_access(RouteId::blobs, V::post), Access::client);
   EXPECT_EQ(route_access(RouteId::blob, V::put), Access::client);
   EXPECT_EQ(route_access(RouteId::blob, V::head), Access::client);
   EXPECT_EQ(route_access(RouteId::blob, V::get), Access::either);

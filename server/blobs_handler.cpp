@@ -12,7 +12,15 @@ namespace tessera::server {
 
 using protocol::ApiError;
 
-HttpResponse BlobsHandler::handle(protocol::Endpoint, const std::string& sha, HttpRequest& req) {
+HttpResponse BlobsHandler::handle(protocol::Endpoint endpoint, const std::string& sha, HttpRequest& req) {
+  if (endpoint == protocol::Endpoint::blobs) {
+    // A client checks every blob of a submission at once: each one held starts its grace period again (as HEAD).
+    const protocol::BlobQuery q = protocol::parse_blob_query(req.body());
+    protocol::BlobQueryAnswer answer;
+    for (const std::string& h : q.sha256)
+      if (!blobs_.touch(h)) answer.missing.push_back(h);
+    return json_response(http::status::ok, answer, req.version());
+  }
   if (req.method() == http::verb::put) {
     if (!is_sha256_hex(sha))
       throw ApiError(400, "blob path must be 64 lowercase hex digits (a SHA-256), got '" + sha + "'");

@@ -1,4 +1,4 @@
-// Content-addressed assets: upload, check, download.
+// Content-addressed assets: upload, check (one or many), download.
 #pragma once
 
 #include "server/resource_handler.h"
@@ -6,7 +6,7 @@
 
 namespace tessera::server {
 
-/// PUT, HEAD and GET /v1/blobs/{sha256}.
+/// POST /v1/blobs (which of these are missing?) and PUT, HEAD and GET /v1/blobs/{sha256}.
 class BlobsHandler final : public ResourceHandler {
  public:
   /// Endpoints over `blobs` (which must outlive it).

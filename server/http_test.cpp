@@ -165,6 +165,30 @@ TEST_F(HttpTest, BlobUploadGoodBadAndRepeat) {
   EXPECT_EQ(r.status, 413u);
 }
 
+TEST_F(HttpTest, OneQueryTellsWhichBlobsAreMissing) {
+  const std::string stored = "a stored asset", absent = "an asset never uploaded";
+  ASSERT_EQ(call(http::verb::put, "/v1/blobs/" + sha256_hex(stored), stored).status, 201u);
+  // Stored an hour ago, as far as the collector's grace period goes: the query starts it again, as HEAD does.
+  fs::path file;
+  for (const auto& e : fs::recursive_directory_iterator(server_->data_dir()))
+    if (e.path().filename() == sha256_hex(stored)) file = e.path();
+  ASSERT_FALSE(file.empty());
+  fs::last_write_time(file, fs::file_time_type::clock::now() - std::chrono::hours(1));
+  Reply r = call(http::verb::post, "/v1/blobs",
+                 json{{"sha256", {sha256_hex(absent), sha256_hex(stored), sha256_hex(absent)}}}.dump());
+  ASSERT_EQ(r.status, 200u) << r.body;
+  EXPECT_EQ(r.js()["missing"], json::array({sha256_hex(absent), sha256_hex(absent)}));  // in the query's order
+  EXPECT_GT(fs::last_write_time(file), fs::file_time_type::clock::now() - std::chrono::minutes(1));
+  r = call(http::verb::post, "/v1/blobs", R"({"sha256": []})");
+  ASSERT_EQ(r.status, 200u) << r.body;
+  EXPECT_EQ(r.js()["missing"], json::array());
+  r = call(http::verb::post, "/v1/blobs", R"({"sha256": ["not a hash"]})");
+  EXPECT_EQ(r.status, 400u);
+  EXPECT_NE(r.js()["error"].get<std::string>().find("\"sha256\"[0]"), std::string::npos) << r.body;
+  EXPECT_EQ(call(http::verb::post, "/v1/blobs", "").status, 400u);
+  EXPECT_EQ(call(http::verb::get, "/v1/blobs").status, 405u);
+}
+
 TEST_F(HttpTest, SubmitValidJobAndListIt) {
   const json body = small_cbox(job_for("cbox_no_light.json"));
   const Reply r = call(http::verb::post, "/v1/jobs", body.dump());

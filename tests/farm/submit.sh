@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# tessera submit end to end: a scene with OBJ and EXR assets is uploaded once (a second submission uploads nothing),
+# tessera submit end to end: a scene with OBJ and EXR assets is uploaded once (a second submission uploads nothing;
+# each submission asks which assets are missing in one request, not one per asset),
 # rendered by two workers and downloaded identical to the single-process render, also with every sampling option
 # `render` has; the coordinator's 400 message is printed with exit status 2; an unreachable coordinator is a clear
 # error.
@@ -18,6 +19,10 @@ log_has "$WORK/submit1.log" "\(10 assets, 10 uploaded\)|\([0-9]+ assets, [1-9][0
   >"$WORK/submit2.log" 2>&1 || fail "second submit failed"
 log_has "$WORK/submit2.log" "assets, 0 uploaded\)" || fail "the second submission uploaded assets again"
 "$EXR_COMPARE" "$WORK/ref.exr" "$WORK/out2.exr" || fail "second result differs"
+curl -sf "$URL/metrics" >"$WORK/metrics.txt" || fail "no metrics"
+grep -q 'tessera_http_request_duration_seconds_count{route="POST /v1/blobs"} 2$' "$WORK/metrics.txt" ||
+  fail "not one blob query per submission: $(grep 'route="POST /v1/blobs"' "$WORK/metrics.txt" | grep _count)"
+if grep -q 'route="HEAD /v1/blobs/{sha256}"' "$WORK/metrics.txt"; then fail "assets were checked one by one"; fi
 
 # Every sampling option `render` has goes with a submitted job too: the result is bitwise the single-process render
 # with the same options, which differs from the plain one.

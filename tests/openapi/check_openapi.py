@@ -247,6 +247,9 @@ def exercise(c, tessera, workdir, address):
     c.call("PUT", f"/v1/blobs/{'0' * 64}", blob, "application/octet-stream", expect=400)
     c.call("HEAD", f"/v1/blobs/{sha}", expect=200)
     c.call("HEAD", f"/v1/blobs/{'1' * 64}", expect=404)
+    _, q = c.call("POST", "/v1/blobs", {"sha256": [sha, "1" * 64]}, expect=200)
+    assert q["missing"] == ["1" * 64], q
+    c.call("POST", "/v1/blobs", {"sha256": ["not a hash"]}, expect=400)
     c.call("GET", f"/v1/blobs/{sha}", expect=200)
     c.call("GET", f"/v1/blobs/{'1' * 64}", expect=404)
 

@@ -5,8 +5,10 @@ Listens on a loopback port and forwards each connection to a target. Per connect
 random generator: pass through, delay (every chunk held back a random time), reset (after a random number of bytes
 the connection is closed with RST: SO_LINGER 0), or half-open (after a random number of bytes nothing more is
 forwarded either way while both sockets stay open, until the client gives up or HOLD seconds pass). While
---faults-off FILE exists every connection passes through. Writes its port to --ready-file and, on SIGTERM or
-SIGINT, the count of each fate as JSON to --stats-file.
+--faults-off FILE exists every connection passes through. --latency S holds every chunk S seconds in each direction
+(chunks of one direction stay in order and are not held back by each other), as a link of round trip 2 S would; with
+the fault shares at 0 it is a plain slow link, for measuring what round trips cost. Writes its port to --ready-file
+and, on SIGTERM or SIGINT, the count of each fate as JSON to --stats-file.
 """
 import argparse
 import asyncio
@@ -33,6 +35,7 @@ def parse_args():
     p.add_argument("--half-open", type=float, default=0.05, help="share of connections left half-open")
     p.add_argument("--max-delay", type=float, default=0.5, help="longest delay per chunk, seconds")
     p.add_argument("--hold", type=float, default=45.0, help="longest a half-open connection is held, seconds")
+    p.add_argument("--latency", type=float, default=0.0, help="one-way delay of every chunk, seconds")
     return p.parse_args()
 
 
@@ -96,12 +99,16 @@ class Proxy:
                 w.close()
 
     async def pump(self, reader, writer, fate, budget, struck):
+        if self.args.latency > 0:
+            writer = Delayed(writer, self.args.latency)
         try:
             while not struck.is_set():
                 data = await reader.read(65536)
                 if not data:
                     if writer.can_write_eof():
                         writer.write_eof()
+                    if isinstance(writer, Delayed):
+                        await writer.sender  # what is still held goes out before the connection is closed
                     return
                 if fate in ("reset", "half_open"):
                     if len(data) > budget[0]:
@@ -116,6 +123,43 @@ class Proxy:
                 await writer.drain()
         except (OSError, asyncio.CancelledError):
             return
+
+
+class Delayed:
+    """A stream writer whose writes reach the socket `latency` seconds after they were made, in order."""
+
+    def __init__(self, writer, latency):
+        self.writer = writer
+        self.latency = latency
+        self.queue = asyncio.Queue()
+        self.sender = asyncio.ensure_future(self.send())
+
+    async def send(self):
+        loop = asyncio.get_running_loop()
+        while True:
+            due, data = await self.queue.get()
+            await asyncio.sleep(max(0.0, due - loop.time()))
+            if data is None:
+                if self.writer.can_write_eof():
+                    self.writer.write_eof()
+                return
+            self.writer.write(data)
+            await self.writer.drain()
+
+    def write(self, data):
+        self.queue.put_nowait((asyncio.get_running_loop().time() + self.latency, data))
+
+    async def drain(self):
+        pass
+
+    def can_write_eof(self):
+        return True
+
+    def write_eof(self):
+        self.queue.put_nowait((asyncio.get_running_loop().time() + self.latency, None))
+
+    def get_extra_info(self, name):
+        return self.writer.get_extra_info(name)
 
 
 def abort(writer):
