@@ -51,10 +51,28 @@ void CheckedFiles::remember(const fs::path& file, std::string sha256, std::share
     order_.erase(it->second);
     entries_.erase(it);
   }
-  order_.push_front(Entry{key, std::move(*id), Record{std::move(sha256), std::move(image)}, 0});
+  order_.push_front(Entry{key, std::move(*id), Record{std::move(sha256), std::move(image), nullptr}, 0});
   order_.front().bytes = order_.front().record.image ? bytes : 0;
   image_bytes_ += order_.front().bytes;
   entries_.emplace(key, order_.begin());
+  trim_locked();
+}
+
+void CheckedFiles::remember_environment(const fs::path& file, const Image* pixels,
+                                        std::shared_ptr<const Distribution2D> table) {
+  if (!pixels || !table) return;
+  const std::optional<std::string> id = identity_of(file);
+  if (!id) return;
+  const size_t bytes = table->bytes();
+  std::lock_guard lock(mu_);
+  const auto it = entries_.find(file.string());
+  if (it == entries_.end() || it->second->identity != *id || it->second->record.image.get() != pixels) return;
+  Entry& e = *it->second;
+  if (e.record.environment || e.bytes + bytes > image_budget_) return;
+  e.record.environment = std::move(table);
+  e.bytes += bytes;
+  image_bytes_ += bytes;
+  order_.splice(order_.begin(), order_, it->second);
   trim_locked();
 }
 
@@ -64,12 +82,13 @@ void CheckedFiles::trim_locked() {
     entries_.erase(order_.back().path);
     order_.pop_back();
   }
-  // Pixels of the least recently used files go first; their digests stay.
+  // Pixels (and their tables) of the least recently used files go first; their digests stay.
   for (auto it = order_.rbegin(); image_bytes_ > image_budget_ && it != order_.rend(); ++it) {
     if (!it->record.image) continue;
     image_bytes_ -= it->bytes;
     it->bytes = 0;
     it->record.image.reset();
+    it->record.environment.reset();
   }
 }
 

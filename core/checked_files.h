@@ -1,8 +1,10 @@
 // The image files earlier scene loads decoded clean, for files that do not change: checking another scene that uses
-// them need not decode them again, and a load that builds may take the decoded pixels themselves where they were kept.
+// them need not decode them again, and a load that builds may take the decoded pixels themselves where they were kept,
+// with the environment sampling table built from them.
 #pragma once
 
 #include "core/image.h"
+#include "core/sampling.h"
 
 #include <cstddef>
 #include <filesystem>
@@ -19,14 +21,16 @@ namespace tessera {
 /// within a byte budget, its decoded pixels; for files that are never rewritten in place (a content-addressed
 /// store's): an entry is found while the path names the same file (device and inode) with the same size as when it
 /// was recorded. The modification time is not compared: such a store touches its files to mark them used.
-/// Thread-safe; holds at most `capacity` files, forgetting the least recently used first, and keeps pixels of the most
-/// recently used files up to `image_bytes` bytes in all.
+/// Thread-safe; holds at most `capacity` files, forgetting the least recently used first, and keeps pixels (with what
+/// was derived from them) of the most recently used files up to `image_bytes` bytes in all.
 class CheckedFiles {
  public:
-  /// What was recorded for a file: its SHA-256 and its pixels (null when they were not kept).
+  /// What was recorded for a file: its SHA-256, its pixels (null when they were not kept) and the environment sampling
+  /// table built from those pixels (null when none was recorded).
   struct Record {
     std::string sha256;
     std::shared_ptr<const Image> image;
+    std::shared_ptr<const Distribution2D> environment;
   };
 
   /// An empty record that keeps at most `capacity` files (at least one) and pixels of up to `image_bytes` bytes.
@@ -39,10 +43,16 @@ class CheckedFiles {
   /// recorded when the file cannot be examined).
   void remember(const std::filesystem::path& file, std::string sha256, std::shared_ptr<const Image> image = nullptr);
 
+  /// Adds the environment sampling table built from `pixels` to the record of `file`, when the record still holds those
+  /// very pixels (the same object) for the unchanged file and both fit in the budget; they are then kept and dropped
+  /// together.
+  void remember_environment(const std::filesystem::path& file, const Image* pixels,
+                            std::shared_ptr<const Distribution2D> table);
+
   /// Number of files recorded.
   size_t size() const;
 
-  /// Bytes of pixels kept.
+  /// Bytes of pixels and of the tables built from them kept.
   size_t image_bytes() const;
 
  private:
@@ -50,7 +60,7 @@ class CheckedFiles {
     std::string path;
     std::string identity;  // device, inode and size when recorded
     Record record;
-    size_t bytes = 0;      // of record.image's pixels
+    size_t bytes = 0;      // of record.image's pixels and record.environment's table
   };
   void trim_locked();
 

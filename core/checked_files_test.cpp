@@ -84,6 +84,39 @@ TEST_F(CheckedFilesTest, PixelsAreKeptWithinTheBudgetForTheMostRecentlyUsed) {
   EXPECT_EQ(none.image_bytes(), 0u);
 }
 
+TEST_F(CheckedFilesTest, AnEnvironmentTableGoesWithThePixelsItWasBuiltFrom) {
+  const auto image = [](int w) { return std::make_shared<const Image>(Image::make(w, 1)); };
+  const std::vector<float> weights(8, 1.f);
+  const auto table = std::make_shared<const Distribution2D>(weights, 4, 2);
+  for (const char* n : {"a", "b"}) write(n, n);
+  CheckedFiles c(16, 1 << 20);
+  const auto pixels = image(4);
+  c.remember(file("a"), "a", pixels);
+  c.remember_environment(file("a"), image(4).get(), table);  // other pixels than the record's: not taken
+  EXPECT_EQ(c.find(file("a"))->environment, nullptr);
+  c.remember_environment(file("b"), pixels.get(), table);  // a file never recorded: nothing
+  EXPECT_FALSE(c.find(file("b")));
+  c.remember_environment(file("a"), pixels.get(), table);
+  EXPECT_EQ(c.find(file("a"))->environment, table);
+  EXPECT_EQ(c.image_bytes(), 48u + table->bytes());
+  c.remember(file("a"), "a", pixels);  // recorded again: the record starts without a table
+  EXPECT_EQ(c.find(file("a"))->environment, nullptr);
+  EXPECT_EQ(c.image_bytes(), 48u);
+  // Within the budget only, and dropped with its pixels.
+  CheckedFiles small(16, 48 + table->bytes() - 1);
+  small.remember(file("a"), "a", pixels);
+  small.remember_environment(file("a"), pixels.get(), table);
+  EXPECT_EQ(small.find(file("a"))->environment, nullptr);
+  CheckedFiles fits(16, 48 + table->bytes());
+  fits.remember(file("a"), "a", pixels);
+  fits.remember_environment(file("a"), pixels.get(), table);
+  ASSERT_EQ(fits.find(file("a"))->environment, table);
+  fits.remember(file("b"), "b", image(1));  // over the budget: a's pixels and table go together
+  EXPECT_EQ(fits.find(file("a"))->image, nullptr);
+  EXPECT_EQ(fits.find(file("a"))->environment, nullptr);
+  EXPECT_EQ(fits.image_bytes(), 12u);
+}
+
 TEST_F(CheckedFilesTest, FoldersAreNotRecorded) {
   fs::create_directories(file("d"));
   CheckedFiles c;

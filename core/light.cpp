@@ -233,7 +233,7 @@ Vec3 uv_to_direction(Vec2 uv, float* sin_theta) {
 }  // namespace
 
 void Environment::finish() {
-  if (constant()) return;
+  if (constant() || dist) return;
   const Image& img = *texture.image;
   const int W = img.width, H = img.height;
   // Row by row in parallel: every value depends on the map alone, not on the thread that computes it.
@@ -259,7 +259,7 @@ void Environment::finish() {
       w[size_t(y) * size_t(W) + size_t(x)] = m * (raw_pixel_distribution ? portable_sin(kPi * (float(y) + 0.5f) / float(H)) : st);
     }
   });
-  dist = Distribution2D(w, W, H);
+  dist = std::make_shared<const Distribution2D>(w, W, H);
 }
 
 Vec3 Environment::radiance(const Vec3& d) const {
@@ -273,7 +273,7 @@ LightSample Environment::sample(Vec2 u) const {
     return {d, Vec3(0.f), scale * texture.color, 1.f / (4.f * kPi)};
   }
   float pdf_uv;
-  const Vec2 uv = dist.sample(u, &pdf_uv);
+  const Vec2 uv = dist->sample(u, &pdf_uv);
   float st;
   const Vec3 local = uv_to_direction(uv, &st);
   if (!(st > 0.f) || !(pdf_uv > 0.f)) return {local, Vec3(0.f), Vec3(0.f), 0.f};
@@ -289,7 +289,7 @@ Vec3 Environment::radiance_and_pdf(const Vec3& d, float* pdf) const {
   const Vec3 local = to_local * d;
   const Vec2 uv = direction_to_uv(local);
   const float st = std::sqrt(local.x * local.x + local.z * local.z);
-  *pdf = st > 0.f ? dist.pdf(uv) / (2.f * kPi * kPi * st) : 0.f;
+  *pdf = st > 0.f ? dist->pdf(uv) / (2.f * kPi * kPi * st) : 0.f;
   return scale * texture.lookup_latlong(uv);
 }
 
@@ -299,7 +299,7 @@ float Environment::pdf(const Vec3& d) const {
   const Vec2 uv = direction_to_uv(local);
   const float st = std::sqrt(local.x * local.x + local.z * local.z);  // sin(theta) without 1 - cos^2 cancellation
   if (!(st > 0.f)) return 0.f;
-  return dist.pdf(uv) / (2.f * kPi * kPi * st);
+  return dist->pdf(uv) / (2.f * kPi * kPi * st);
 }
 
 }  // namespace tessera

@@ -8,6 +8,7 @@
 #include "core/texture.h"
 
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string_view>
 #include <vector>
@@ -132,14 +133,17 @@ struct Environment {
   float scale = 1.f;          ///< Radiance multiplier.
   glm::mat3 to_local{1.f};    ///< World-to-map rotation (inverse of the scene's transform).
   glm::mat3 to_world{1.f};    ///< Map-to-world rotation.
-  Distribution2D dist;        ///< Bounds of luminance x sin(theta) over the map's cells (image maps only).
+  /// Bounds of luminance x sin(theta) over the map's cells (image maps only): a function of the map's pixels alone,
+  /// so scenes built from the same pixels may share it (a worker keeps it for later jobs with the same map).
+  std::shared_ptr<const Distribution2D> dist;
   /// Build `dist` from each raw pixel's luminance (the seed behaviour, whose support misses the bilinear lookup's:
   /// kept only so benchmarks can show the difference). Default: the bilinear neighbourhood's maximum.
   bool raw_pixel_distribution = false;
 
-  /// Builds the importance distribution (no-op for constant maps): the weight of the cell of pixel (x, y) is the
-  /// largest luminance in its 3x3 neighbourhood (everything a bilinear lookup inside the cell can blend) times the
-  /// largest sin(theta) of its row, so the pdf is positive wherever radiance() is and radiance/pdf stays bounded.
+  /// Builds the importance distribution unless `dist` is set already (no-op for constant maps): the weight of the cell
+  /// of pixel (x, y) is the largest luminance in its 3x3 neighbourhood (everything a bilinear lookup inside the cell
+  /// can blend) times the largest sin(theta) of its row, so the pdf is positive wherever radiance() is and
+  /// radiance/pdf stays bounded.
   void finish();
   /// True when the map is a constant colour (no importance sampling needed).
   bool constant() const { return texture.image == nullptr; }

@@ -247,6 +247,12 @@ Distribution2D::Distribution2D(std::span<const float> weights, int w, int h) {
   });
 }
 
+size_t Distribution2D::bytes() const {
+  size_t n = marginal_.bytes() + pdf_.capacity() * sizeof(float) + conditional_.capacity() * sizeof(Distribution1D);
+  for (const Distribution1D& d : conditional_) n += d.bytes();
+  return n;
+}
+
 Vec2 Distribution2D::sample(Vec2 u, float* pdf) const {
   float pdf_v, pdf_u;
   int row;

@@ -101,6 +101,8 @@ class Distribution1D {
   float integral() const { return integral_; }
   /// Density in bin i (0 <= i < size()): pdf(x) for every x in that bin.
   float bin_pdf(int i) const { return func_[size_t(i)] / (integral_ > 0.f ? integral_ : 1.f); }
+  /// Bytes of its tables.
+  size_t bytes() const { return (func_.capacity() + cdf_.capacity()) * sizeof(float) + guide_.capacity() * sizeof(int); }
 
  private:
   // The first index p of cdf_ with cdf_[p] > u, as std::upper_bound over all of cdf_ finds it.
@@ -123,6 +125,8 @@ class Distribution2D {
   Vec2 sample(Vec2 u, float* pdf) const;
   /// Density at (u, v).
   float pdf(Vec2 uv) const;
+  /// Bytes of its tables.
+  size_t bytes() const;
 
  private:
   std::vector<Distribution1D> conditional_;

@@ -94,7 +94,13 @@ class Loader {
     unused_keys();
     environment();
     validate_scene(s_, triangle_object_, ctx_);
-    if (options_.build) build_scene(s_, bvh_options_);
+    if (options_.build) {
+      build_scene(s_, bvh_options_);
+      // A table built from recorded pixels goes into the record, for the next scene with the same map.
+      if (s_.environment && options_.checked_files && !env_file_.empty() && !out_.environment_reused)
+        options_.checked_files->remember_environment(env_file_, s_.environment->texture.image.get(),
+                                                     s_.environment->dist);
+    }
     s_.hash = hash_.hex();
   }
 
@@ -125,6 +131,8 @@ class Loader {
   const json* textures_ = &empty_;
   const json* materials_ = &empty_;
   std::map<std::string, uint32_t> texture_index_, material_index_;
+  std::map<uint32_t, fs::path> texture_file_;  // the file of each image texture, by index
+  fs::path env_file_;                          // the environment map's file (empty: constant or none)
   std::vector<uint32_t> triangle_object_;  // object index of each triangle, for coincident-face warnings
 };
 
@@ -230,6 +238,7 @@ uint32_t Loader::texture(const std::string& tname, const std::string& from) {
   const json& t = definition(*textures_, "texture", tname, tp, from);
   const std::string type = ctx_.string(t, "type", tp);
   Texture tex;
+  fs::path image_file;  // an image texture's file
   if (type == "constant") {
     ctx_.check_keys(t, tp, keys_of(kTextureKeys, type));
     if (!t.contains("color")) ctx_.fail(tp + ".color", "missing");
@@ -238,6 +247,7 @@ uint32_t Loader::texture(const std::string& tname, const std::string& from) {
     ctx_.check_keys(t, tp, keys_of(kTextureKeys, type));
     const std::string rel = ctx_.string(t, "path", tp);
     const fs::path file = resolve_(rel, tp + ".path");
+    image_file = file;
     // An image an earlier load found clean is not decoded again: a check (no build) needs only its digest, a build
     // its pixels too, where the record kept them.
     CheckedFiles* const known = options_.checked_files;
@@ -282,6 +292,7 @@ uint32_t Loader::texture(const std::string& tname, const std::string& from) {
   s_.textures.push_back(std::move(tex));
   const uint32_t idx = uint32_t(s_.textures.size() - 1);
   texture_index_[tname] = idx;
+  if (!image_file.empty()) texture_file_[idx] = image_file;
   return idx;
 }
 
@@ -449,7 +460,17 @@ void Loader::environment() {
   const json& e = ctx_.object(j_["environment_map"], "environment_map");
   ctx_.check_keys(e, "environment_map", {"texture_name", "scale", "transform"});
   Environment env;
-  env.texture = s_.textures[texture(ctx_.string(e, "texture_name", "environment_map"), "environment_map.texture_name")];
+  const uint32_t tex = texture(ctx_.string(e, "texture_name", "environment_map"), "environment_map.texture_name");
+  env.texture = s_.textures[tex];
+  // The sampling table depends on the map's pixels alone: one built from these very pixels (a record's) is taken.
+  if (const auto f = texture_file_.find(tex); f != texture_file_.end() && options_.build && options_.checked_files) {
+    env_file_ = f->second;
+    const std::optional<CheckedFiles::Record> r = options_.checked_files->find(env_file_);
+    if (r && r->environment && r->image && r->image == env.texture.image) {
+      env.dist = r->environment;
+      out_.environment_reused = true;
+    }
+  }
   if (env.texture.checkerboard) ctx_.fail("environment_map.texture_name", "a checkerboard cannot be an environment map (use constant or image)");
   env.scale = float(ctx_.number(e, "scale", "environment_map", 1.0));
   if (!(env.scale >= 0.f)) ctx_.fail("environment_map.scale", "must not be negative");

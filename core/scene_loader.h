@@ -48,6 +48,7 @@ struct LoadedScene {
   std::vector<std::string> notes;     ///< Settings of other integrators that were ignored.
   std::vector<std::string> assets;    ///< Asset paths the scene uses, as written in it.
   int images_reused = 0;              ///< Image textures taken from LoadOptions::checked_files, not decoded.
+  bool environment_reused = false;    ///< The environment map's sampling table taken from there too, not built.
 };
 
 /// Loads a scene file; assets resolve against its folder and must stay inside it (or inside asset_root).

@@ -223,6 +223,48 @@ TEST_F(SceneLoader, BuildsWithARecordKeepingPixelsDecodeEachUnchangedImageOnce) 
   EXPECT_NE(error_of(s, build).find("textures.img.path"), std::string::npos);
 }
 
+// The environment map's sampling table depends on its pixels alone: a build that takes recorded pixels takes the table
+// built from them too (the same object), and the scene is the same; without a record, or with a record too small for
+// the table, it is built again.
+TEST_F(SceneLoader, BuildsWithARecordKeepTheEnvironmentsSamplingTable) {
+  Image sky = Image::make(16, 8);
+  for (int y = 0; y < 8; ++y)
+    for (int x = 0; x < 16; ++x) sky.set(x, y, Vec3(0.1f * float(x + 1), 0.05f * float(y + 1), 0.3f));
+  write_image("tex/sky.exr", sky);
+  json s = testing::minimal_scene();
+  s["textures"]["sky"] = {{"type", "image"}, {"path", "tex/sky.exr"}};
+  s["environment_map"] = {{"texture_name", "sky"}, {"scale", 2}};
+  const fs::path scene = write_scene("scene.json", s);
+  CheckedFiles record(16, size_t(1) << 20);
+  LoadOptions build;
+  build.checked_files = &record;
+  const LoadedScene first = load_scene_file(scene, build);
+  ASSERT_TRUE(first.scene.environment);
+  EXPECT_FALSE(first.environment_reused);
+  ASSERT_NE(first.scene.environment->dist, nullptr);
+  EXPECT_EQ(record.find(file("tex/sky.exr"))->environment, first.scene.environment->dist);
+  const LoadedScene second = load_scene_file(scene, build);
+  EXPECT_TRUE(second.environment_reused);
+  EXPECT_EQ(second.scene.environment->dist, first.scene.environment->dist);
+  EXPECT_EQ(second.scene.hash, first.scene.hash);
+  // The same samples and densities as a table built afresh.
+  const LoadedScene fresh = load_scene_file(scene);
+  EXPECT_NE(fresh.scene.environment->dist, first.scene.environment->dist);
+  for (float u : {0.1f, 0.37f, 0.5f, 0.93f}) {
+    const LightSample a = second.scene.environment->sample(Vec2(u, 1.f - u));
+    const LightSample b = fresh.scene.environment->sample(Vec2(u, 1.f - u));
+    EXPECT_EQ(a.p, b.p);
+    EXPECT_EQ(a.pdf, b.pdf);
+    EXPECT_EQ(second.scene.environment->pdf(a.p), fresh.scene.environment->pdf(a.p));
+  }
+  CheckedFiles pixels_only(16, 16 * 8 * 12);  // room for the pixels, not the table
+  build.checked_files = &pixels_only;
+  load_scene_file(scene, build);
+  const LoadedScene without_table = load_scene_file(scene, build);
+  EXPECT_EQ(without_table.images_reused, 1);
+  EXPECT_FALSE(without_table.environment_reused);
+}
+
 TEST_F(SceneLoader, UnreferencedTexturesAreNeverRead) {
   json s = testing::minimal_scene();
   s["textures"]["unused"] = {{"type", "image"}, {"path", "does/not/exist.exr"}};

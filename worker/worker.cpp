@@ -595,9 +595,11 @@ class Worker {
       throw SceneError("job " + l.job + ": the scene is " + std::to_string(built.width) + "x" +
                        std::to_string(built.height) + " but the job spec says " + std::to_string(spec.width) + "x" +
                        std::to_string(spec.height));
-    spdlog::info("{}: built the job's scene in {:.2f}s ({} assets, {} image(s) taken already decoded, spec {})", pfx,
+    spdlog::info("{}: built the job's scene in {:.2f}s ({} assets, {} image(s) taken already decoded{}, spec {})", pfx,
                  std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), spec.assets.size(),
-                 loaded->loaded.images_reused, with_lease ? "sent with the lease" : "fetched");
+                 loaded->loaded.images_reused,
+                 loaded->loaded.environment_reused ? ", the environment's sampling table kept" : "",
+                 with_lease ? "sent with the lease" : "fetched");
     std::lock_guard lock(scenes_mutex_);
     scenes_.put(l.job, loaded);
     return loaded;
