@@ -502,7 +502,8 @@ class Worker {
   std::string lease_request_body() {
     protocol::LeaseRequest req;
     std::lock_guard lock(scenes_mutex_);
-    req.known_jobs = scenes_.keys();
+    req.known_jobs = scenes_.keys();  // most recently used first: beyond the protocol's limit, the older ones go
+    if (req.known_jobs->size() > protocol::kMaxKnownJobs) req.known_jobs->resize(protocol::kMaxKnownJobs);
     return json(req).dump();
   }
 
