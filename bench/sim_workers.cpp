@@ -2,8 +2,9 @@
 // `tessera serve` on loopback and we measure what the coordinator spends. Each simulated worker is one thread with
 // its own keep-alive connection doing what `tessera worker` does, minus the rendering: register, ask for a lease
 // (backing off 100 ms .. 2 s with jitter on 204) naming the job whose spec it holds, so that the first lease of
-// another job brings that job's spec (or, with --spec-by-get, fetch the spec with a GET once per job), "render" by sleeping the tile
-// time while heartbeating every heartbeat period, then upload a valid precomputed tile EXR of the leased window
+// another job brings that job's spec (with --spec-by-get: bare leases and a GET of the spec once per job), "render"
+// by sleeping the tile time while heartbeating every heartbeat period, then upload a valid precomputed tile EXR of
+// the leased window
 // (uncompressed float32, as workers send it). A feeder keeps at least two jobs and 2N pending tiles queued. For
 // every N it prints request latency p50/p99 per route, the coordinator's CPU use (from /proc/<pid>/stat) and the
 // tile rate.
