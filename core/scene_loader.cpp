@@ -131,8 +131,14 @@ class Loader {
   const json* textures_ = &empty_;
   const json* materials_ = &empty_;
   std::map<std::string, uint32_t> texture_index_, material_index_;
-  std::map<uint32_t, fs::path> texture_file_;  // the file of each image texture, by index
-  fs::path env_file_;                          // the environment map's file (empty: constant or none)
+  // Where an image texture came from: its file and, when its pixels came from LoadOptions::checked_files, the
+  // environment sampling table recorded with them.
+  struct ImageSource {
+    fs::path file;
+    std::shared_ptr<const Distribution2D> environment;
+  };
+  std::map<uint32_t, ImageSource> image_source_;  // by texture index
+  fs::path env_file_;                             // the environment map's file (empty: constant or none)
   std::vector<uint32_t> triangle_object_;  // object index of each triangle, for coincident-face warnings
 };
 
@@ -238,7 +244,7 @@ uint32_t Loader::texture(const std::string& tname, const std::string& from) {
   const json& t = definition(*textures_, "texture", tname, tp, from);
   const std::string type = ctx_.string(t, "type", tp);
   Texture tex;
-  fs::path image_file;  // an image texture's file
+  ImageSource source;  // an image texture's file, and the sampling table recorded with its pixels
   if (type == "constant") {
     ctx_.check_keys(t, tp, keys_of(kTextureKeys, type));
     if (!t.contains("color")) ctx_.fail(tp + ".color", "missing");
@@ -247,7 +253,7 @@ uint32_t Loader::texture(const std::string& tname, const std::string& from) {
     ctx_.check_keys(t, tp, keys_of(kTextureKeys, type));
     const std::string rel = ctx_.string(t, "path", tp);
     const fs::path file = resolve_(rel, tp + ".path");
-    image_file = file;
+    source.file = file;
     // An image an earlier load found clean is not decoded again: a check (no build) needs only its digest, a build
     // its pixels too, where the record kept them.
     CheckedFiles* const known = options_.checked_files;
@@ -256,7 +262,10 @@ uint32_t Loader::texture(const std::string& tname, const std::string& from) {
     std::string digest;
     if (record) {
       digest = std::move(record->sha256);
-      if (options_.build) tex.image = std::move(record->image);
+      if (options_.build) {
+        tex.image = std::move(record->image);
+        source.environment = std::move(record->environment);  // built from these very pixels
+      }
       ++out_.images_reused;
     } else {
       try {
@@ -292,7 +301,7 @@ uint32_t Loader::texture(const std::string& tname, const std::string& from) {
   s_.textures.push_back(std::move(tex));
   const uint32_t idx = uint32_t(s_.textures.size() - 1);
   texture_index_[tname] = idx;
-  if (!image_file.empty()) texture_file_[idx] = image_file;
+  if (!source.file.empty()) image_source_[idx] = std::move(source);
   return idx;
 }
 
@@ -462,12 +471,11 @@ void Loader::environment() {
   Environment env;
   const uint32_t tex = texture(ctx_.string(e, "texture_name", "environment_map"), "environment_map.texture_name");
   env.texture = s_.textures[tex];
-  // The sampling table depends on the map's pixels alone: one built from these very pixels (a record's) is taken.
-  if (const auto f = texture_file_.find(tex); f != texture_file_.end() && options_.build && options_.checked_files) {
-    env_file_ = f->second;
-    const std::optional<CheckedFiles::Record> r = options_.checked_files->find(env_file_);
-    if (r && r->environment && r->image && r->image == env.texture.image) {
-      env.dist = r->environment;
+  // The sampling table depends on the map's pixels alone: one recorded with these very pixels is taken.
+  if (const auto f = image_source_.find(tex); f != image_source_.end() && options_.build && options_.checked_files) {
+    env_file_ = f->second.file;
+    if (f->second.environment) {
+      env.dist = f->second.environment;
       out_.environment_reused = true;
     }
   }

@@ -67,4 +67,20 @@ std::string request_string(const json& j, const char* key, const std::string& fa
   return j[key].get<std::string>();
 }
 
+std::optional<std::vector<std::string>> request_strings(const json& j, const char* key, size_t max_count) {
+  if (!j.contains(key)) return std::nullopt;
+  const json& list = j[key];
+  if (!list.is_array()) throw ProtocolError(std::string("\"") + key + "\" must be an array of strings");
+  if (list.size() > max_count)
+    throw ProtocolError(std::string("\"") + key + "\" lists " + std::to_string(list.size()) + " entries; at most " +
+                        std::to_string(max_count) + " are allowed");
+  std::vector<std::string> out;
+  for (size_t i = 0; i < list.size(); ++i) {
+    if (!list[i].is_string())
+      throw ProtocolError(std::string("\"") + key + "\"[" + std::to_string(i) + "] must be a string");
+    out.push_back(list[i].get<std::string>());
+  }
+  return out;
+}
+
 }  // namespace tessera::protocol

@@ -8,7 +8,9 @@
 
 #include <cstdint>
 #include <initializer_list>
+#include <optional>
 #include <string>
+#include <vector>
 
 namespace tessera::protocol {
 
@@ -25,6 +27,8 @@ int64_t request_int(const nlohmann::json& j, const char* key, int64_t fallback, 
 uint64_t request_uint(const nlohmann::json& j, const char* key, uint64_t fallback);
 /// A string request field.
 std::string request_string(const nlohmann::json& j, const char* key, const std::string& fallback);
+/// An array-of-strings request field of at most `max_count` entries; nothing when absent.
+std::optional<std::vector<std::string>> request_strings(const nlohmann::json& j, const char* key, size_t max_count);
 
 /// Answer fields: the field `key` of object j converted to T; throws ProtocolError naming the message and the field.
 template <class T>

@@ -2,8 +2,6 @@
 
 #include "protocol/tile.h"
 
-#include "core/sha256.h"
-
 #include <charconv>
 
 #include "core/bvh.h"
@@ -258,19 +256,12 @@ void to_json(json& j, const BlobQuery& q) { j = {{"sha256", q.sha256}}; }
 
 BlobQuery parse_blob_query(const std::string& body) {
   const json j = parse_request_object(body, {"sha256"}, false);
-  if (!j.contains("sha256") || !j["sha256"].is_array())
-    throw ProtocolError("\"sha256\" must be an array of blob hashes (64 lowercase hex digits each)");
-  const json& list = j["sha256"];
-  if (list.size() > kMaxBlobQuery)
-    throw ProtocolError("\"sha256\" names " + std::to_string(list.size()) + " blobs; at most " +
-                        std::to_string(kMaxBlobQuery) + " per query");
-  BlobQuery q;
-  for (size_t i = 0; i < list.size(); ++i) {
-    if (!list[i].is_string() || !is_sha256_hex(list[i].get<std::string>()))
+  std::optional<std::vector<std::string>> hashes = request_strings(j, "sha256", kMaxBlobQuery);
+  if (!hashes) throw ProtocolError("\"sha256\" must be an array of blob hashes (64 lowercase hex digits each)");
+  for (size_t i = 0; i < hashes->size(); ++i)
+    if (!is_sha256_hex((*hashes)[i]))
       throw ProtocolError("\"sha256\"[" + std::to_string(i) + "] is not 64 lowercase hex digits (a SHA-256)");
-    q.sha256.push_back(list[i].get<std::string>());
-  }
-  return q;
+  return BlobQuery{std::move(*hashes)};
 }
 
 void to_json(json& j, const BlobQueryAnswer& a) { j = {{"missing", a.missing}}; }
@@ -336,19 +327,7 @@ void to_json(json& j, const LeaseRequest& r) {
 
 LeaseRequest parse_lease_request(const std::string& body) {
   const json j = parse_request_object(body, {"known_jobs"}, true);
-  LeaseRequest r;
-  if (!j.contains("known_jobs")) return r;
-  const json& known = j["known_jobs"];
-  if (!known.is_array()) throw ProtocolError("\"known_jobs\" must be an array of job ids");
-  if (known.size() > kMaxKnownJobs)
-    throw ProtocolError("\"known_jobs\" lists " + std::to_string(known.size()) + " jobs; at most " +
-                        std::to_string(kMaxKnownJobs) + " are allowed");
-  r.known_jobs.emplace();
-  for (const json& id : known) {
-    if (!id.is_string()) throw ProtocolError("\"known_jobs\" must be an array of job ids (strings)");
-    r.known_jobs->push_back(id.get<std::string>());
-  }
-  return r;
+  return LeaseRequest{request_strings(j, "known_jobs", kMaxKnownJobs)};
 }
 
 void from_json(const json& j, LeaseAnswer& a) {
