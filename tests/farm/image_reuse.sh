@@ -27,9 +27,11 @@ built=$(grep -o "built the job's scene.*" "$WORK/keeps.log" | grep -o '[0-9]* im
 
 start_worker decodes --threads 1 --image-cache-mb 0
 run_jobs decodes
+kill -TERM "$WORKER_PID" && wait "$WORKER_PID" || fail "the worker without a cache did not stop cleanly"
 built=$(grep -o "built the job's scene.*" "$WORK/decodes.log" | grep -o '[0-9]* image(s) taken already decoded' | cut -d' ' -f1 | xargs)
 [ "$built" = "0 0" ] || fail "with --image-cache-mb 0, scenes built with '$built' images taken already decoded, expected '0 0'"
 
+# The only worker from here on, so both sky jobs' scenes are built by it.
 write_cbox_scene "$WORK/sky" 24 18 2 glass_sphere.json
 for seed in 1 2; do "$TESSERA" render "$WORK/sky/scene.json" -q --seed "$seed" -o "$WORK/sky-ref-$seed.exr"; done
 start_worker sky --threads 2
