@@ -1,5 +1,10 @@
 #include "core/image.h"
 
+#include "core/exr_layout.h"
+#include "core/exr_uncompressed.h"
+
+#include <OpenEXR/ImfOutputFile.h>
+#include <OpenEXR/ImfThreading.h>
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
@@ -29,6 +34,61 @@ TEST(EncodeExr, GivesTheBytesWriteExrWrites) {
   EXPECT_EQ(back.display_window, o.display_window);
   EXPECT_EQ(back.pixels.rgb, img.rgb);
   EXPECT_THROW(encode_exr(Image::make(0, 0)), ImageError);
+}
+
+// The direct writer of uncompressed files gives OpenEXR's own bytes: colours in float and half, extra float and uint
+// channels, metadata, windows away from the origin, names that need the long-names flag, with and without threads in
+// OpenEXR's pool; it declines compressed headers.
+TEST(EncodeExr, UncompressedFilesAreOpenExrsBytesWrittenDirectly) {
+  struct Case {
+    int width, height;
+    bool half, extra;
+    std::string long_name;
+  };
+  const std::vector<Case> cases = {{64, 64, false, false, ""}, {1, 1, false, false, ""}, {37, 5, true, true, ""},
+                                   {13, 17, false, true, std::string(40, 'n')}, {200, 3, true, false, ""}};
+  const int pool = Imf::globalThreadCount();  // restored at the end
+  for (const int threads : {0, 2}) {
+    Imf::setGlobalThreadCount(threads);
+    for (const Case& c : cases) {
+      Image img = Image::make(c.width, c.height);
+      uint32_t x = 7;
+      for (float& v : img.rgb) v = float((x = x * 1664525u + 1013904223u) >> 8) * 0x1p-20f;
+      if (c.extra) {
+        img.extra["variance.R"].assign(size_t(c.width) * size_t(c.height), 0.5f);
+        img.uint_extra["samples"].assign(size_t(c.width) * size_t(c.height), 16u);
+        if (!c.long_name.empty()) img.extra[c.long_name].assign(size_t(c.width) * size_t(c.height), -1.f);
+      }
+      ExrWriteOptions o;
+      o.compression = ExrCompression::kNone;
+      o.half = c.half;
+      o.write_extra = c.extra;
+      o.data_window = {3, 9, 3 + c.width, 9 + c.height};
+      o.display_window = {0, 0, 300, 300};
+      o.metadata = {{"tessera:spp", "16"}};
+      if (!c.long_name.empty()) o.metadata[c.long_name + ":key"] = "v";
+      const PixelWindow data = exr_layout::data_window(img, o);
+      const Imf::Header header = exr_layout::header(img, o, data);
+      const exr_layout::Frame frame = exr_layout::frame(img, o, data);
+      exr_layout::MemoryOStream theirs("theirs"), ours("ours");
+      {
+        Imf::OutputFile out(theirs, header, 0);
+        out.setFrameBuffer(frame.buffer);
+        out.writePixels(c.height);
+      }
+      ASSERT_TRUE(write_uncompressed_exr(ours, header, frame.buffer));
+      EXPECT_EQ(ours.bytes(), theirs.bytes()) << c.width << "x" << c.height << " half " << c.half << " extra " << c.extra
+                                              << " long name " << !c.long_name.empty() << ", " << threads << " threads";
+      EXPECT_EQ(encode_exr(img, o), theirs.bytes());
+    }
+  }
+  Imf::setGlobalThreadCount(pool);
+  const Image img = Image::make(4, 4);
+  const ExrWriteOptions zip;  // ZIP by default
+  const PixelWindow data = exr_layout::data_window(img, zip);
+  exr_layout::MemoryOStream out("zip");
+  EXPECT_FALSE(write_uncompressed_exr(out, exr_layout::header(img, zip, data), exr_layout::frame(img, zip, data).buffer));
+  EXPECT_TRUE(out.bytes().empty());
 }
 
 // decode_exr reads from memory what read_exr reads from a file, and refuses short, foreign and cut-off bytes in words.

@@ -1,6 +1,7 @@
 #include "core/image.h"
 
 #include "core/exr_layout.h"
+#include "core/exr_uncompressed.h"
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfDoubleAttribute.h>
@@ -25,11 +26,13 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <mutex>
 #include <span>
 #include <string_view>
@@ -478,6 +481,9 @@ std::vector<uint8_t> encode_exr_impl(const char* name, const Image& img, const E
   const Imf::Header header = exr_layout::header(img, opt, data);
   const exr_layout::Frame frame = exr_layout::frame(img, opt, data);
   MemoryOStream stream(name);
+  if (opt.compression == ExrCompression::kNone) {
+    if (write_uncompressed_exr(stream, header, frame.buffer)) return stream.take();
+  }
   {
     Imf::OutputFile out(stream, header, opt.compression == ExrCompression::kNone ? 0 : exr_layout::compression_threads());
     out.setFrameBuffer(frame.buffer);

@@ -1,11 +1,14 @@
 #include "server/assembly.h"
 
+#include "core/exr_uncompressed.h"
+
 #include "failpoint/failpoint.h"
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfOutputFile.h>
+#include <OpenEXR/ImfStdIO.h>
 #include <OpenEXR/ImfStringAttribute.h>
 #include <spdlog/fmt/fmt.h>
 
@@ -13,6 +16,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <fstream>
 #include <optional>
 #include <stdexcept>
 #include <vector>
@@ -258,6 +262,17 @@ void JobImage::write_exr(const std::filesystem::path& file, const std::map<std::
         throw std::runtime_error("channel " + name + " does not fit the image");
       header.channels().insert(name, Imf::Channel(Imf::UINT));
       fb.insert(name, Imf::Slice::Make(Imf::UINT, values.data(), window));
+    }
+    // Written directly (OpenEXR's OutputFile would hand each of the image's lines to its thread pool and wait).
+    {
+      std::ofstream bytes(file, std::ios::binary | std::ios::trunc);
+      if (!bytes) throw std::runtime_error("cannot create the file");
+      Imf::StdOFStream os(bytes, file.c_str());
+      if (write_uncompressed_exr(os, header, fb)) {
+        bytes.flush();  // a failure to write the last bytes is seen here, not lost in the stream's destructor
+        if (!bytes) throw std::runtime_error("writing failed");
+        return;
+      }
     }
     Imf::OutputFile out(file.c_str(), header, 0);
     out.setFrameBuffer(fb);
