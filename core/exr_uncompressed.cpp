@@ -13,8 +13,9 @@ namespace tessera {
 
 bool write_uncompressed_exr(Imf::OStream& os, const Imf::Header& header, const Imf::FrameBuffer& frame) {
   if (header.compression() != Imf::NO_COMPRESSION || header.lineOrder() != Imf::INCREASING_Y ||
-      header.hasTileDescription() || header.hasType())
+      header.hasTileDescription() || header.hasType() || header.hasPreviewImage())
     return false;
+  header.sanityCheck();  // what OutputFile checks first: it throws for a header it would not write
   struct Plane {
     const char* base;
     size_t x_stride, y_stride, bytes;  // bytes per value in the file (as in memory: same type)
