@@ -3,6 +3,7 @@
 #include "core/exr_layout.h"
 #include "core/exr_uncompressed.h"
 
+#include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfThreading.h>
 #include <gtest/gtest.h>
@@ -88,6 +89,13 @@ TEST(EncodeExr, UncompressedFilesAreOpenExrsBytesWrittenDirectly) {
   const PixelWindow data = exr_layout::data_window(img, zip);
   exr_layout::MemoryOStream out("zip");
   EXPECT_FALSE(write_uncompressed_exr(out, exr_layout::header(img, zip, data), exr_layout::frame(img, zip, data).buffer));
+  EXPECT_TRUE(out.bytes().empty());
+  // A channel without a slice (OutputFile would write zeros for it) is left to OutputFile too.
+  ExrWriteOptions plain;
+  plain.compression = ExrCompression::kNone;
+  Imf::Header more = exr_layout::header(img, plain, data);
+  more.channels().insert("Z", Imf::Channel(Imf::FLOAT));
+  EXPECT_FALSE(write_uncompressed_exr(out, more, exr_layout::frame(img, plain, data).buffer));
   EXPECT_TRUE(out.bytes().empty());
 }
 
