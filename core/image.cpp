@@ -26,13 +26,11 @@
 
 #include <algorithm>
 #include <array>
-#include <bit>
 #include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstring>
 #include <fstream>
-#include <limits>
 #include <mutex>
 #include <span>
 #include <string_view>
