@@ -1,5 +1,7 @@
 #include "core/image.h"
 
+#include "core/exr_attribute_sizes.h"
+#include "core/exr_core_decode.h"
 #include "core/exr_layout.h"
 #include "core/exr_uncompressed.h"
 
@@ -292,13 +294,20 @@ struct ExrDecodeCost {
   int64_t pixels = 0;  // in the data window
 };
 
-// Reads the first header from is (positioned just after the magic number and version field) and rejects what
-// read_exr cannot or should not load, before OpenEXR sizes any table or buffer from the header; tells what decoding
-// will cost.
-ExrDecodeCost check_exr_header(Imf::IStream& is, int version) {
+// Reads the first header from is (positioned just after the magic number and version field) of a file of `size`
+// bytes and rejects what read_exr cannot or should not load, before OpenEXR sizes any table or buffer from the header;
+// tells what decoding will cost.
+struct ExrHeaderCheck {
+  ExrDecodeCost cost;
+  Imf::Header header;  // as read (sanity-checked)
+};
+ExrHeaderCheck check_exr_header(Imf::IStream& is, int version, uint64_t size) {
   if (Imf::getVersion(version) != Imf::EXR_VERSION || !Imf::supportsFlags(Imf::getFlags(version)))
     throw std::runtime_error("unsupported OpenEXR version field " + std::to_string(version));
   if (Imf::isNonImage(version)) throw std::runtime_error("deep OpenEXR files are not supported");
+  const uint64_t start = is.tellg();
+  check_attribute_sizes(is, size, Imf::isMultiPart(version));
+  is.seekg(start);
   Imf::Header header;
   int flags = version;
   header.readFrom(is, flags);  // may set the long-names flag
@@ -319,7 +328,7 @@ ExrDecodeCost check_exr_header(Imf::IStream& is, int version) {
       throw std::runtime_error("tile size " + std::to_string(t.xSize) + "x" + std::to_string(t.ySize) +
                                " is outside the supported size");
   }
-  return {header.compression(), header.hasTileDescription(), w * h};
+  return {{header.compression(), header.hasTileDescription(), w * h}, header};
 }
 
 // OpenEXR decodes a scanline file's line blocks as tasks on its pool. Blocks of one line (no compression, RLE, ZIPS)
@@ -378,40 +387,20 @@ int exr_version(const char (&start)[8], std::streamsize got) {
              uint32_t(uint8_t(start[7])) << 24);
 }
 
-ExrImage read_exr_stream(Imf::IStream& stream, int version);
+// How a file's channels map onto an ExrImage: its colour model and where each channel read goes.
+enum class Colour { kRgb, kGrey, kLuminanceChroma };
+struct DecodePlan {
+  ExrImage out;  // windows, metadata, pixels sized (and extra channels created) for the data window
+  Colour colour = Colour::kRgb;
+  std::vector<exr_core::ChannelTarget> targets;  // R,G,B (or Y) into out.pixels.rgb, then every extra channel
+  // Every channel read is full resolution, and HALF, FLOAT or UINT.
+  bool plain = true;
+};
 
-ExrImage read_exr_impl(const std::filesystem::path& path) {
-  errno = 0;
-  std::ifstream file(path, std::ios::binary);
-  if (!file) throw std::runtime_error(errno != 0 ? errno_text(errno) : "cannot open file");
-  char start[8] = {};
-  file.read(start, 8);
-  if (file.bad()) throw std::runtime_error(errno != 0 ? errno_text(errno) : "read error");
-  const int version = exr_version(start, file.gcount());
-  Imf::StdIFStream stream(file, path.c_str());
-  return read_exr_stream(stream, version);
-}
-
-ExrImage decode_exr_impl(std::string_view bytes) {
-  char start[8] = {};
-  const size_t got = std::min<size_t>(8, bytes.size());
-  std::memcpy(start, bytes.data(), got);
-  const int version = exr_version(start, std::streamsize(got));
-  MemoryIStream stream(bytes, "(memory)");
-  stream.seekg(8);
-  return read_exr_stream(stream, version);
-}
-
-// Reads the EXR from stream, positioned just after the version field.
-ExrImage read_exr_stream(Imf::IStream& stream, int version) {
-  const ExrDecodeCost cost = check_exr_header(stream, version);
-  stream.seekg(0);
-
-  Imf::InputFile in(stream, decode_threads(cost));
-  if (!in.isComplete()) throw std::runtime_error("file is incomplete (truncated or damaged)");
-  const Imf::Header& header = in.header();
+// Lays out `plan` for a file with this header (plan.out's buffers stay where they are while plan lives).
+void plan_decode(const Imf::Header& header, DecodePlan& plan) {
   const Imath::Box2i dw = header.dataWindow();
-  ExrImage out;
+  ExrImage& out = plan.out;
   out.data_window = to_window(dw);
   out.display_window = to_window(header.displayWindow());
   out.metadata = read_metadata(header);
@@ -423,18 +412,18 @@ ExrImage read_exr_stream(Imf::IStream& stream, int version) {
     const Imf::Channel* c = channels.findChannel(name);
     return c && c->xSampling == 1 && c->ySampling == 1;
   };
-  enum class Colour { kRgb, kGrey, kLuminanceChroma } colour;
   std::vector<std::string_view> colour_channels;
   if (channels.findChannel("R") && channels.findChannel("G") && channels.findChannel("B")) {
     if (!full_resolution("R") || !full_resolution("G") || !full_resolution("B"))
       throw std::runtime_error("subsampled R,G,B channels are not supported");
-    colour = Colour::kRgb;
+    plan.colour = Colour::kRgb;
     colour_channels = {"R", "G", "B"};
   } else if (channels.findChannel("Y") && channels.findChannel("RY") && channels.findChannel("BY")) {
-    colour = Colour::kLuminanceChroma;
+    plan.colour = Colour::kLuminanceChroma;
+    plan.plain = false;
     colour_channels = {"Y", "RY", "BY"};
   } else if (full_resolution("Y")) {
-    colour = Colour::kGrey;
+    plan.colour = Colour::kGrey;
     colour_channels = {"Y"};
   } else {
     std::string names;
@@ -442,36 +431,122 @@ ExrImage read_exr_stream(Imf::IStream& stream, int version) {
     throw std::runtime_error("no R,G,B or full-resolution Y channels (channels: " + (names.empty() ? "none" : names) +
                              ")");
   }
-
-  Imf::FrameBuffer fb;
+  const size_t row_pixels = size_t(img.width);
   constexpr size_t kPixelStride = 3 * sizeof(float);
-  if (colour == Colour::kRgb || colour == Colour::kGrey) {
-    for (size_t i = 0; i < colour_channels.size(); ++i)
-      fb.insert(std::string(colour_channels[i]),
-                Imf::Slice::Make(Imf::FLOAT, img.rgb.data() + i, dw, kPixelStride, kPixelStride * size_t(img.width)));
+  const auto is_plain_type = [](Imf::PixelType t) { return t == Imf::HALF || t == Imf::FLOAT || t == Imf::UINT; };
+  if (plan.colour != Colour::kLuminanceChroma) {
+    for (size_t i = 0; i < colour_channels.size(); ++i) {
+      const Imf::Channel* c = channels.findChannel(std::string(colour_channels[i]));
+      plan.plain = plan.plain && c->type != Imf::UINT && is_plain_type(c->type);
+      plan.targets.push_back({std::string(colour_channels[i]), reinterpret_cast<std::byte*>(img.rgb.data() + i), false,
+                              kPixelStride, kPixelStride * row_pixels});
+    }
   }
   for (auto c = channels.begin(); c != channels.end(); ++c) {
     if (is_one_of(c.name(), colour_channels) || c.channel().xSampling != 1 || c.channel().ySampling != 1) continue;
-    if (c.channel().type == Imf::UINT) {
+    plan.plain = plan.plain && is_plain_type(c.channel().type);
+    std::byte* first = nullptr;
+    const bool uint = c.channel().type == Imf::UINT;
+    if (uint) {
       std::vector<uint32_t>& values = img.uint_extra[c.name()];
-      values.assign(size_t(img.width) * size_t(img.height), 0U);
-      fb.insert(c.name(), Imf::Slice::Make(Imf::UINT, values.data(), dw));
-      continue;
+      values.assign(row_pixels * size_t(img.height), 0U);
+      first = reinterpret_cast<std::byte*>(values.data());
+    } else {
+      std::vector<float>& values = img.extra[c.name()];
+      values.assign(row_pixels * size_t(img.height), 0.f);
+      first = reinterpret_cast<std::byte*>(values.data());
     }
-    std::vector<float>& values = img.extra[c.name()];
-    values.assign(size_t(img.width) * size_t(img.height), 0.f);
-    fb.insert(c.name(), Imf::Slice::Make(Imf::FLOAT, values.data(), dw));
+    plan.targets.push_back({c.name(), first, uint, 4, 4 * row_pixels});
+  }
+}
+
+// Fills in the colour a plan's targets do not read directly: G and B of a grey file, all three of a luminance/chroma
+// one (read from `stream` again).
+void finish_colour(DecodePlan& plan, Imf::IStream& stream) {
+  Image& img = plan.out.pixels;
+  if (plan.colour == Colour::kGrey) {
+    for (size_t i = 0; i < img.rgb.size(); i += 3) img.rgb[i + 1] = img.rgb[i + 2] = img.rgb[i];
+  } else if (plan.colour == Colour::kLuminanceChroma) {
+    read_luminance_chroma(stream, to_box(plan.out.data_window), img);
+  }
+}
+
+// Reads the EXR of `size` bytes from stream, positioned just after the version field, with OpenEXR's C++ library.
+ExrImage read_exr_stream(Imf::IStream& stream, int version, uint64_t size) {
+  const ExrHeaderCheck check = check_exr_header(stream, version, size);
+  stream.seekg(0);
+
+  Imf::InputFile in(stream, decode_threads(check.cost));
+  if (!in.isComplete()) throw std::runtime_error("file is incomplete (truncated or damaged)");
+  DecodePlan plan;
+  plan_decode(in.header(), plan);
+  const Imath::Box2i dw = in.header().dataWindow();
+  Imf::FrameBuffer fb;
+  for (const exr_core::ChannelTarget& t : plan.targets) {
+    // Slice::Make takes the data window's first pixel and addresses the rest by absolute pixel coordinates.
+    fb.insert(t.name, Imf::Slice::Make(t.uint ? Imf::UINT : Imf::FLOAT, t.first, dw, t.pixel_stride, t.line_stride));
   }
   if (fb.begin() != fb.end()) {
     in.setFrameBuffer(fb);
     in.readPixels(dw.min.y, dw.max.y);
   }
-  if (colour == Colour::kGrey) {
-    for (size_t i = 0; i < img.rgb.size(); i += 3) img.rgb[i + 1] = img.rgb[i + 2] = img.rgb[i];
-  } else if (colour == Colour::kLuminanceChroma) {
-    read_luminance_chroma(stream, dw, img);
+  finish_colour(plan, stream);
+  return std::move(plan.out);
+}
+
+// Reads an EXR held in memory: OpenEXRCore decodes the common files (single-part scanline, none/ZIPS/ZIP, R,G,B or
+// Y and extra channels at full resolution, exr_core_decode.h), OpenEXR's C++ library the rest and whatever OpenEXRCore
+// declines, so its verdict and messages stand for damaged files. Both give the same values (ImageExr tests).
+ExrImage decode_exr_impl(std::string_view bytes) {
+  char start[8] = {};
+  const size_t got = std::min<size_t>(8, bytes.size());
+  std::memcpy(start, bytes.data(), got);
+  const int version = exr_version(start, std::streamsize(got));
+  MemoryIStream stream(bytes, "(memory)");
+  stream.seekg(8);
+  const ExrHeaderCheck check = check_exr_header(stream, version, bytes.size());
+  // The pixels are allocated only once OpenEXRCore has found every block in the file.
+  const std::unique_ptr<exr_core::ScanlineDecoder> core =
+      check.cost.tiled || Imf::isMultiPart(version)
+          ? nullptr
+          : exr_core::ScanlineDecoder::open(bytes, to_window(check.header.dataWindow()));
+  if (core) {
+    DecodePlan plan;
+    plan_decode(check.header, plan);
+    if (plan.plain && core->decode(plan.targets)) {
+      finish_colour(plan, stream);
+      return std::move(plan.out);
+    }
   }
-  return out;
+  stream.seekg(8);
+  return read_exr_stream(stream, version, bytes.size());
+}
+
+// Files up to this size are read into memory and decoded as decode_exr_impl does; larger ones are streamed through
+// OpenEXR's C++ library, so that a huge file is not held twice.
+constexpr std::uintmax_t kInMemoryFileBytes = std::uintmax_t(256) << 20;
+
+ExrImage read_exr_impl(const std::filesystem::path& path) {
+  errno = 0;
+  std::ifstream file(path, std::ios::binary | std::ios::ate);
+  if (!file) throw std::runtime_error(errno != 0 ? errno_text(errno) : "cannot open file");
+  const std::streamoff size = file.tellg();
+  if (size < 0) throw std::runtime_error(errno != 0 ? errno_text(errno) : "cannot tell the file's size");
+  if (std::uintmax_t(size) <= kInMemoryFileBytes) {
+    std::string bytes(size_t(size), '\0');
+    file.seekg(0);
+    file.read(bytes.data(), size);
+    if (file.bad()) throw std::runtime_error(errno != 0 ? errno_text(errno) : "read error");
+    bytes.resize(size_t(file.gcount()));
+    return decode_exr_impl(bytes);
+  }
+  file.seekg(0);
+  char start[8] = {};
+  file.read(start, 8);
+  if (file.bad()) throw std::runtime_error(errno != 0 ? errno_text(errno) : "read error");
+  const int version = exr_version(start, file.gcount());
+  Imf::StdIFStream stream(file, path.c_str());
+  return read_exr_stream(stream, version, uint64_t(size));
 }
 
 std::vector<uint8_t> encode_exr_impl(const char* name, const Image& img, const ExrWriteOptions& opt) {

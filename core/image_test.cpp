@@ -9,6 +9,7 @@
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfIntAttribute.h>
 #include <OpenEXR/ImfOutputFile.h>
+#include <OpenEXR/ImfPreviewImage.h>
 #include <OpenEXR/ImfRgbaFile.h>
 #include <OpenEXR/ImfTiledOutputFile.h>
 #include <gtest/gtest.h>
@@ -398,6 +399,83 @@ TEST_F(ImageExr, AbsurdSizesAreRejected) {
       EXPECT_NE(msg.find("supported size"), std::string::npos) << msg;
     }
   }
+}
+
+// OpenEXR's C++ library allocates what a string attribute or a preview image claims before it reads the value: such
+// claims beyond the file's end are refused first (a 268-byte file claiming a 1.9 GB comment made read_exr allocate
+// 1.9 GB before it found the data missing).
+TEST_F(ImageExr, AttributesClaimingMoreThanTheFileHoldsAreRefusedBeforeOpenExrAllocates) {
+  const fs::path p = file("claims.exr");
+  ExrWriteOptions o;
+  o.metadata = {{"comment", "seed"}};
+  write_exr(p, test_image(4, 4), o);
+  std::vector<uint8_t> bytes = read_bytes(p);
+  const std::string key("comment\0string\0", 15);
+  const auto it = std::search(bytes.begin(), bytes.end(), key.begin(), key.end());
+  ASSERT_NE(it, bytes.end());
+  const int32_t huge = 1979711492;  // little-endian on the test machines
+  std::memcpy(&*it + key.size(), &huge, sizeof huge);
+  write_bytes(p, bytes);
+  std::string msg = image_error_message([&] { read_exr(p); });
+  EXPECT_NE(msg.find("'comment' (string) claims 1979711492 bytes"), std::string::npos) << msg;
+  msg = image_error_message([&] { decode_exr(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size())); });
+  EXPECT_NE(msg.find("'comment' (string) claims"), std::string::npos) << msg;
+
+  // A preview image of 2x2 whose header then claims 60000 x 60000 pixels (14 GB) in its 24 bytes.
+  {
+    Imf::Header h(4, 4);
+    Imf::PreviewRgba pixels[4];
+    h.setPreviewImage(Imf::PreviewImage(2, 2, pixels));
+    Image img = test_image(4, 4);
+    Imf::FrameBuffer fb;
+    for (int c = 0; c < 3; ++c) {
+      h.channels().insert(std::string(1, "RGB"[c]), Imf::Channel(Imf::FLOAT));
+      fb.insert(std::string(1, "RGB"[c]), Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(img.rgb.data() + c), 12, 48));
+    }
+    Imf::OutputFile out(p.c_str(), h);
+    out.setFrameBuffer(fb);
+    out.writePixels(4);
+  }
+  ExrImage fine = read_exr(p);  // as written, the file reads
+  EXPECT_EQ(fine.pixels.width, 4);
+  bytes = read_bytes(p);
+  const std::string preview("preview\0preview\0", 16);
+  const auto at = std::search(bytes.begin(), bytes.end(), preview.begin(), preview.end());
+  ASSERT_NE(at, bytes.end());
+  const uint32_t side = 60000;
+  std::memcpy(&*at + preview.size() + 4, &side, 4);
+  std::memcpy(&*at + preview.size() + 8, &side, 4);
+  write_bytes(p, bytes);
+  msg = image_error_message([&] { read_exr(p); });
+  EXPECT_NE(msg.find("'preview' (preview) claims a 60000x60000 image"), std::string::npos) << msg;
+}
+
+// OpenEXR reads a typed value by its type whatever size the attribute declares, so a value that does not fill its
+// attribute would make its reading drift off the attributes' bounds (where the fuzzer found a 1.9 GB claim read from
+// inside a channel list): such attributes are refused.
+TEST_F(ImageExr, AttributesWhoseValueDoesNotFillThemAreRefused) {
+  const fs::path p = file("drift.exr");
+  write_exr(p, test_image(4, 4));
+  const std::vector<uint8_t> good = read_bytes(p);
+  // Grows the named attribute's declared size by `extra` and inserts that many bytes at the value's end.
+  const auto grown = [&](const std::string& name_and_type, int32_t extra) {
+    std::vector<uint8_t> bytes = good;
+    const auto it = std::search(bytes.begin(), bytes.end(), name_and_type.begin(), name_and_type.end());
+    EXPECT_NE(it, bytes.end());
+    const size_t size_at = size_t(it - bytes.begin()) + name_and_type.size();
+    int32_t size = 0;
+    std::memcpy(&size, bytes.data() + size_at, 4);
+    const int32_t bigger = size + extra;
+    std::memcpy(bytes.data() + size_at, &bigger, 4);
+    bytes.insert(bytes.begin() + std::ptrdiff_t(size_at + 4 + size_t(size)), size_t(extra), uint8_t('x'));
+    return bytes;
+  };
+  write_bytes(p, grown(std::string("channels\0chlist\0", 16), 20));
+  std::string msg = image_error_message([&] { read_exr(p); });
+  EXPECT_NE(msg.find("'channels' (chlist) ends its channel list before the attribute's end"), std::string::npos) << msg;
+  write_bytes(p, grown(std::string("dataWindow\0box2i\0", 17), 1));
+  msg = image_error_message([&] { read_exr(p); });
+  EXPECT_NE(msg.find("'dataWindow' (box2i) holds 17 bytes, its type 16"), std::string::npos) << msg;
 }
 
 TEST_F(ImageExr, ReadsSharedBricksTexture) {

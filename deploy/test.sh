@@ -34,5 +34,5 @@ cmake --build build-tsan -j "$JOBS" --target server_tests worker_tests client_te
 echo "== thread sanitizer tests"
 TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1 ctest --test-dir build-tsan --output-on-failure -j "$JOBS" -L 'server|worker|client|net'
 
-echo "== fuzzing (scene loader, OBJ reader, HTTP handler: 60 s each, all three at once)"
-FUZZ_PARALLEL=3 bash tests/fuzz/run.sh build-san 60
+echo "== fuzzing (scene loader, OBJ reader, EXR reader, HTTP handler: 60 s each, all four at once)"
+FUZZ_PARALLEL=4 bash tests/fuzz/run.sh build-san 60

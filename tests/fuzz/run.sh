@@ -8,7 +8,7 @@ BUILD=$(cd "$1" && pwd)
 SECONDS_EACH=${2:-60}
 shift $(( $# >= 2 ? 2 : $# ))
 TARGETS=("$@")
-[ ${#TARGETS[@]} -gt 0 ] || TARGETS=(scene_loader obj_reader http_handler)
+[ ${#TARGETS[@]} -gt 0 ] || TARGETS=(scene_loader obj_reader exr_reader http_handler)
 SRC=$(cd "$(dirname "$0")" && pwd)
 WORK=$(mktemp -d "${TMPDIR:-/tmp}/tessera-fuzz.XXXXXX")
 trap 'rm -rf "$WORK"' EXIT

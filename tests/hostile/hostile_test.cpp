@@ -609,6 +609,17 @@ TEST_F(HostileFarm, EveryCaseGetsItsAnswerAndTheGoodJobStillRendersRight) {
   img.set(3, 3, Vec3(std::numeric_limits<float>::quiet_NaN(), 0.f, 0.f));
   write_exr(work_ / "nan.exr", img);
   vars["NAN_EXR_SHA"] = put_blob(slurp(work_ / "nan.exr"));
+  // A texture whose comment claims 1.9 GB in a file of a few hundred bytes (OpenEXR would allocate the claim).
+  ExrWriteOptions commented;
+  commented.metadata = {{"comment", "seed"}};
+  write_exr(work_ / "claims.exr", img, commented);
+  std::string claims = slurp(work_ / "claims.exr");
+  const std::string comment_key("comment\0string\0", 15);
+  const size_t comment_at = claims.find(comment_key);
+  EXPECT_NE(comment_at, std::string::npos);
+  const int32_t huge_size = 1979711492;  // little-endian on the test machines
+  if (comment_at != std::string::npos) std::memcpy(claims.data() + comment_at + comment_key.size(), &huge_size, 4);
+  vars["HUGE_ATTRIBUTE_EXR_SHA"] = put_blob(claims);
   std::string garbage(4096, '\0');
   std::mt19937 rng(5);
   for (char& ch : garbage) ch = char(rng() & 0xff);
