@@ -225,19 +225,21 @@ void Database::on_commit(std::function<void(int frames)> hook) {
       this);
 }
 
-Transaction::Transaction(Database& db) : db_(db) { db_.exec("BEGIN IMMEDIATE"); }
+// BEGIN, COMMIT and ROLLBACK are prepared once and kept (every lease and every tile is a transaction; sqlite3_exec
+// would parse them each time).
+Transaction::Transaction(Database& db) : db_(db) { db_.statement("BEGIN IMMEDIATE").run(); }
 
 Transaction::~Transaction() {
   if (done_) return;
   try {
-    db_.exec("ROLLBACK");
+    db_.statement("ROLLBACK").run();
   } catch (...) {
     // Nothing more to do: SQLite rolls back an open transaction when the connection closes.
   }
 }
 
 void Transaction::commit() {
-  db_.exec("COMMIT");
+  db_.statement("COMMIT").run();
   done_ = true;
 }
 
