@@ -8,7 +8,6 @@
 #include <atomic>
 #include <cstring>
 #include <limits>
-#include <vector>
 
 namespace tessera::exr_core {
 namespace {
