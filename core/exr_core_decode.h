@@ -1,6 +1,6 @@
 // Scanline OpenEXR files decoded with OpenEXRCore, the OpenEXR project's C library, for read_exr's common case.
 // OpenEXR's C++ InputFile decodes a ZIP file's blocks through byte-by-byte predictor and interleave loops and hands
-// each block to its thread pool; OpenEXRCore decodes the same bytes about three times as fast on one thread (the
+// each block to its thread pool; OpenEXRCore decodes the same bytes two to three times as fast on one thread (the
 // course's 512x512 half texture: 19 ms against 6 ms, its 1024x512 float sky: 38 ms against 18 ms, on the 2-core VM).
 #pragma once
 
