@@ -1,0 +1,65 @@
+// read_file_bytes: whole files of every size byte for byte, files whose reported size is not their content (procfs),
+// and clear errors for missing files and folders.
+#include "core/file_io.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+
+namespace tessera {
+namespace file_io_test {  // named: the test files share translation units in a unity build
+
+namespace fs = std::filesystem;
+
+class ReadFileBytes : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("tessera_file_io_" + std::to_string(::getpid()));
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path write(const std::string& name, const std::string& bytes) {
+    const fs::path p = dir_ / name;
+    std::ofstream(p, std::ios::binary).write(bytes.data(), std::streamsize(bytes.size()));
+    return p;
+  }
+  fs::path dir_;
+};
+
+TEST_F(ReadFileBytes, ReadsWholeFilesByteForByte) {
+  std::mt19937 rng(3);
+  for (const size_t size : {size_t(0), size_t(1), size_t(4095), size_t(4096), size_t(4097), size_t(3) << 20}) {
+    std::string bytes(size, '\0');
+    for (char& c : bytes) c = char(rng() & 0xff);
+    EXPECT_EQ(read_file_bytes(write("f" + std::to_string(size), bytes)), bytes) << size << " bytes";
+  }
+}
+
+TEST_F(ReadFileBytes, ReadsToTheEndWhateverSizeTheFileReports) {
+  // procfs reports a size of 0 for files that hold text.
+  const std::string status = read_file_bytes("/proc/self/status");
+  EXPECT_NE(status.find("Name:"), std::string::npos);
+}
+
+TEST_F(ReadFileBytes, MissingFilesAndFoldersAreErrorsNamingThePath) {
+  const fs::path missing = dir_ / "missing.bin";
+  try {
+    read_file_bytes(missing);
+    ADD_FAILURE() << "a missing file was read";
+  } catch (const FileError& e) {
+    EXPECT_NE(std::string(e.what()).find(missing.string()), std::string::npos) << e.what();
+  }
+  try {
+    read_file_bytes(dir_);
+    ADD_FAILURE() << "a folder was read";
+  } catch (const FileError& e) {
+    EXPECT_NE(std::string(e.what()).find("cannot read " + dir_.string()), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace file_io_test
+}  // namespace tessera
