@@ -8,12 +8,13 @@
 #include <atomic>
 #include <cstring>
 #include <limits>
+#include <vector>
 
 namespace tessera::exr_core {
 namespace {
 
 // Blocks per task when a large image is decoded on several threads, and the fewest pixels worth splitting.
-constexpr int kBlocksPerTask = 8;
+constexpr size_t kBlocksPerTask = 8;
 constexpr int64_t kParallelPixels = 512 * 512;
 
 int64_t read_bytes(exr_const_context_t, void* user, void* buffer, uint64_t size, uint64_t offset,
@@ -30,20 +31,13 @@ int64_t byte_count(exr_const_context_t, void* user) { return int64_t(static_cast
 // OpenEXRCore would print its errors to stderr; a false return says enough (the C++ library then names the fault).
 void quiet(exr_const_context_t, exr_result_t, const char*) {}
 
-// Decodes the blocks [first, end) (block i starts at row window.y0 + i * lines) into the targets with a pipeline of
-// its own; false on any error.
-bool decode_blocks(exr_const_context_t ctx, const PixelWindow& window, int lines, int first, int end,
+// Decodes `chunks` (read and checked by ScanlineDecoder::open) into the targets with a pipeline of its own; false on
+// any error.
+bool decode_blocks(exr_const_context_t ctx, const PixelWindow& window, std::span<const exr_chunk_info_t> chunks,
                    std::span<const ChannelTarget> targets) {
   exr_decode_pipeline_t dec{};  // EXR_DECODE_PIPELINE_INITIALIZER, which clang warns leaves fields to zero
   bool ok = true, initialised = false;
-  for (int block = first; ok && block < end; ++block) {
-    exr_chunk_info_t chunk;
-    const int y = window.y0 + block * lines;
-    if (exr_read_scanline_chunk_info(ctx, 0, y, &chunk) != EXR_ERR_SUCCESS || chunk.start_y != y ||
-        chunk.height <= 0 || int64_t(chunk.start_y) + chunk.height > window.y1) {
-      ok = false;
-      break;
-    }
+  for (const exr_chunk_info_t& chunk : chunks) {
     const exr_result_t set_up = initialised ? exr_decoding_update(ctx, 0, &chunk, &dec)
                                             : exr_decoding_initialize(ctx, 0, &chunk, &dec);
     if (set_up != EXR_ERR_SUCCESS) {
@@ -92,7 +86,7 @@ struct ScanlineDecoder::Impl {
   std::string_view bytes;  // read_bytes reads from here (the context holds its address)
   PixelWindow window;
   exr_context_t ctx = nullptr;
-  int lines = 0, blocks = 0;
+  std::vector<exr_chunk_info_t> chunks;  // every block of the data window, top to bottom
   ~Impl() {
     if (ctx) exr_finish(&ctx);
   }
@@ -132,14 +126,16 @@ std::unique_ptr<ScanlineDecoder> ScanlineDecoder::open(std::string_view bytes, c
       exr_get_chunk_count(ctx, 0, &blocks) != EXR_ERR_SUCCESS ||
       int64_t(blocks) != (int64_t(window.height()) + lines - 1) / lines)
     return nullptr;
-  // Every block listed and inside the file (OpenEXRCore checks each offset and size against the file's size).
+  // Every block listed and inside the file (OpenEXRCore checks each offset and size against the file's size), its
+  // rows the data window's.
+  impl->chunks.resize(size_t(blocks));
   for (int block = 0; block < blocks; ++block) {
-    exr_chunk_info_t chunk;
+    exr_chunk_info_t& chunk = impl->chunks[size_t(block)];
     const int y = window.y0 + block * lines;
-    if (exr_read_scanline_chunk_info(ctx, 0, y, &chunk) != EXR_ERR_SUCCESS || chunk.start_y != y) return nullptr;
+    if (exr_read_scanline_chunk_info(ctx, 0, y, &chunk) != EXR_ERR_SUCCESS || chunk.start_y != y ||
+        chunk.height <= 0 || int64_t(chunk.start_y) + chunk.height > window.y1)
+      return nullptr;
   }
-  impl->lines = lines;
-  impl->blocks = blocks;
   return std::unique_ptr<ScanlineDecoder>(new ScanlineDecoder(std::move(impl)));
 }
 
@@ -150,12 +146,14 @@ bool ScanlineDecoder::decode(std::span<const ChannelTarget> targets) {
         t.line_stride > size_t(std::numeric_limits<int32_t>::max()))
       return false;
   const Impl& f = *impl_;
+  const std::span<const exr_chunk_info_t> chunks(f.chunks);
   const int64_t pixels = int64_t(f.window.width()) * f.window.height();
-  if (pixels < kParallelPixels || f.blocks < 2 * kBlocksPerTask)
-    return decode_blocks(f.ctx, f.window, f.lines, 0, f.blocks, targets);
+  if (pixels < kParallelPixels || chunks.size() < 2 * kBlocksPerTask)
+    return decode_blocks(f.ctx, f.window, chunks, targets);
   std::atomic<bool> ok{true};
-  tbb::parallel_for(tbb::blocked_range<int>(0, f.blocks, kBlocksPerTask), [&](const tbb::blocked_range<int>& r) {
-    if (ok.load(std::memory_order_relaxed) && !decode_blocks(f.ctx, f.window, f.lines, r.begin(), r.end(), targets))
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, chunks.size(), kBlocksPerTask), [&](const tbb::blocked_range<size_t>& r) {
+    if (ok.load(std::memory_order_relaxed) &&
+        !decode_blocks(f.ctx, f.window, chunks.subspan(r.begin(), r.size()), targets))
       ok.store(false, std::memory_order_relaxed);
   });
   return ok.load();

@@ -433,18 +433,18 @@ void plan_decode(const Imf::Header& header, DecodePlan& plan) {
   }
   const size_t row_pixels = size_t(img.width);
   constexpr size_t kPixelStride = 3 * sizeof(float);
-  const auto is_plain_type = [](Imf::PixelType t) { return t == Imf::HALF || t == Imf::FLOAT || t == Imf::UINT; };
+  const auto is_float = [](Imf::PixelType t) { return t == Imf::HALF || t == Imf::FLOAT; };
   if (plan.colour != Colour::kLuminanceChroma) {
     for (size_t i = 0; i < colour_channels.size(); ++i) {
       const Imf::Channel* c = channels.findChannel(std::string(colour_channels[i]));
-      plan.plain = plan.plain && c->type != Imf::UINT && is_plain_type(c->type);
+      plan.plain = plan.plain && is_float(c->type);
       plan.targets.push_back({std::string(colour_channels[i]), reinterpret_cast<std::byte*>(img.rgb.data() + i), false,
                               kPixelStride, kPixelStride * row_pixels});
     }
   }
   for (auto c = channels.begin(); c != channels.end(); ++c) {
     if (is_one_of(c.name(), colour_channels) || c.channel().xSampling != 1 || c.channel().ySampling != 1) continue;
-    plan.plain = plan.plain && is_plain_type(c.channel().type);
+    plan.plain = plan.plain && (is_float(c.channel().type) || c.channel().type == Imf::UINT);
     std::byte* first = nullptr;
     const bool uint = c.channel().type == Imf::UINT;
     if (uint) {
@@ -471,9 +471,8 @@ void finish_colour(DecodePlan& plan, Imf::IStream& stream) {
   }
 }
 
-// Reads the EXR of `size` bytes from stream, positioned just after the version field, with OpenEXR's C++ library.
-ExrImage read_exr_stream(Imf::IStream& stream, int version, uint64_t size) {
-  const ExrHeaderCheck check = check_exr_header(stream, version, size);
+// Reads the EXR from stream, whose header passed `check`, with OpenEXR's C++ library.
+ExrImage read_exr_stream(Imf::IStream& stream, const ExrHeaderCheck& check) {
   stream.seekg(0);
 
   Imf::InputFile in(stream, decode_threads(check.cost));
@@ -496,7 +495,7 @@ ExrImage read_exr_stream(Imf::IStream& stream, int version, uint64_t size) {
 
 // Reads an EXR held in memory: OpenEXRCore decodes the common files (single-part scanline, none/ZIPS/ZIP, R,G,B or
 // Y and extra channels at full resolution, exr_core_decode.h), OpenEXR's C++ library the rest and whatever OpenEXRCore
-// declines, so its verdict and messages stand for damaged files. Both give the same values (ImageExr tests).
+// declines, so its verdict and messages stand for damaged files. Both give the same values (ExrCoreDecode tests).
 ExrImage decode_exr_impl(std::string_view bytes) {
   char start[8] = {};
   const size_t got = std::min<size_t>(8, bytes.size());
@@ -518,8 +517,7 @@ ExrImage decode_exr_impl(std::string_view bytes) {
       return std::move(plan.out);
     }
   }
-  stream.seekg(8);
-  return read_exr_stream(stream, version, bytes.size());
+  return read_exr_stream(stream, check);
 }
 
 // Files up to this size are read into memory and decoded as decode_exr_impl does; larger ones are streamed through
@@ -546,7 +544,7 @@ ExrImage read_exr_impl(const std::filesystem::path& path) {
   if (file.bad()) throw std::runtime_error(errno != 0 ? errno_text(errno) : "read error");
   const int version = exr_version(start, file.gcount());
   Imf::StdIFStream stream(file, path.c_str());
-  return read_exr_stream(stream, version, uint64_t(size));
+  return read_exr_stream(stream, check_exr_header(stream, version, uint64_t(size)));
 }
 
 std::vector<uint8_t> encode_exr_impl(const char* name, const Image& img, const ExrWriteOptions& opt) {
