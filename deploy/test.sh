@@ -2,35 +2,67 @@
 # Installs what is missing, builds Tessera, and runs the whole test suite: the release build's tests, then the
 # unit tests (core, protocol, byte stream, coordinator, client, worker) again under AddressSanitizer +
 # UndefinedBehaviorSanitizer (clang), the coordinator's, the worker's, the client's and the byte stream's unit tests
-# under ThreadSanitizer (clang), then each libFuzzer target for a minute.
+# under ThreadSanitizer (clang), then each libFuzzer target for a minute. The sanitizer builds compile beside the
+# tests of the build before them (below).
 # Exits non-zero on any failure.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash deploy/install-deps.sh
 
 JOBS=$(nproc)
+# The release tests keep two cores about 60% busy (they wait on the processes, sockets and browser they drive), so
+# the next build compiles beside them at low priority, its output in a log printed afterwards; likewise the TSan
+# build beside the sanitizer tests. A failure stops both.
+background_build=
+trap '[ -n "$background_build" ] && kill -- "-$background_build" 2>/dev/null; true' EXIT
+build_in_background() {  # build dir, log file, cmake --build arguments...
+  local log=$2
+  setsid nice -n 10 cmake --build "$1" -j "$JOBS" "${@:3}" >"$log" 2>&1 &
+  background_build=$!  # its own process group (setsid), so that the trap stops the compilers too
+}
+finish_background_build() {  # log file
+  if ! wait "$background_build"; then
+    background_build=
+    tail -n 200 "$1"
+    echo "build failed (whole log: $1)" >&2
+    exit 1
+  fi
+  background_build=
+  tail -n 1 "$1"
+}
+
 echo "== release build"
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DTESSERA_WERROR=ON >/dev/null
 cmake --build build -j "$JOBS"
-echo "== release tests"
-ctest --test-dir build --output-on-failure -j "$JOBS"
 
-echo "== sanitizer build (clang, ASan + UBSan: the libraries' unit tests, the randomised ones at 1/20 of their cases, and the fuzz targets)"
 # clang for libFuzzer; a build-san configured by an earlier GCC-based script is started afresh.
 if [ -f build-san/CMakeCache.txt ] && ! grep -q '^CMAKE_CXX_COMPILER:[A-Z]*=.*clang' build-san/CMakeCache.txt; then
   rm -rf build-san
 fi
 CC=clang CXX=clang++ cmake -S . -B build-san -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTESSERA_WERROR=ON \
   -DTESSERA_SANITIZE=ON -DTESSERA_FUZZ=ON -DTESSERA_ONLY_UNIT_TESTS=ON -DTESSERA_TEST_SCALE_DIVISOR=20 >/dev/null
-cmake --build build-san -j "$JOBS"
+echo "== sanitizer build started beside the release tests (clang, ASan + UBSan: the libraries' unit tests, the"
+echo "   randomised ones at 1/20 of their cases, and the fuzz targets)"
+build_in_background build-san build-san/build.log
+
+echo "== release tests"
+ctest --test-dir build --output-on-failure -j "$JOBS"
+
+echo "== sanitizer build"
+finish_background_build build-san/build.log
+
+CC=clang CXX=clang++ cmake -S . -B build-tsan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTESSERA_WERROR=ON \
+  -DTESSERA_TSAN=ON -DTESSERA_ONLY_UNIT_TESTS=ON -DTESSERA_TEST_SCALE_DIVISOR=20 >/dev/null
+echo "== thread sanitizer build started beside the sanitizer tests (clang, TSan: the coordinator's, the worker's,"
+echo "   the client's and the byte stream's unit tests)"
+build_in_background build-tsan build-tsan/build.log --target server_tests worker_tests client_tests net_tests
+
 echo "== sanitizer tests"
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --test-dir build-san --output-on-failure -j "$JOBS"
 
-echo "== thread sanitizer build (clang, TSan: the coordinator's, the worker's, the client's and the byte stream's unit tests)"
-CC=clang CXX=clang++ cmake -S . -B build-tsan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTESSERA_WERROR=ON \
-  -DTESSERA_TSAN=ON -DTESSERA_ONLY_UNIT_TESTS=ON -DTESSERA_TEST_SCALE_DIVISOR=20 >/dev/null
-cmake --build build-tsan -j "$JOBS" --target server_tests worker_tests client_tests net_tests
+echo "== thread sanitizer build"
+finish_background_build build-tsan/build.log
 echo "== thread sanitizer tests"
 TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1 ctest --test-dir build-tsan --output-on-failure -j "$JOBS" -L 'server|worker|client|net'
 
