@@ -15,12 +15,16 @@ trap 'rm -rf "$WORK"' EXIT
 mkdir -p "$BUILD/fuzz-artifacts"
 
 run_one() {
-  local t=$1
+  local t=$1 extra=()
+  # The HTTP handler's corpus covers about 45,000 coverage features; libFuzzer's entropic schedule then spent 70% of
+  # the target's time updating their frequencies (perf), and 20-s runs alone made 58-68 inputs a second with it
+  # against 99-480 without, for the same coverage (README, "Fuzzing").
+  [ "$t" = http_handler ] && extra=(-entropic=0)
   mkdir -p "$WORK/$t"
   cp -r "$SRC/corpus/$t/." "$WORK/$t/"
   # -timeout: one input taking longer than 10 s is a finding; -rss_limit_mb: so is using more than 2 GiB.
   if ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-     "$BUILD/tests/fuzz/fuzz_$t" -max_total_time="$SECONDS_EACH" -timeout=10 -rss_limit_mb=2048 -print_final_stats=1 \
+     "$BUILD/tests/fuzz/fuzz_$t" "${extra[@]}" -max_total_time="$SECONDS_EACH" -timeout=10 -rss_limit_mb=2048 -print_final_stats=1 \
        -artifact_prefix="$BUILD/fuzz-artifacts/$t-" "$WORK/$t" >"$WORK/$t.log" 2>&1; then
     echo "fuzz_$t: ok ($(grep -Eo 'stat::number_of_executed_units: *[0-9]+' "$WORK/$t.log" | grep -Eo '[0-9]+$') runs in ${SECONDS_EACH} s, corpus $(ls "$WORK/$t" | wc -l) inputs)"
   else
