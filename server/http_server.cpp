@@ -61,6 +61,9 @@ struct HttpServer::State {
 
 namespace {
 
+// The most Beast reads from a socket at once (its own cap); a request body gets this much buffer to read into.
+constexpr std::size_t kBodyReadSize = 64 * 1024;
+
 // Reads and discards what the client still sends until an error (its close, or the expiry the caller set on `stream`),
 // then closes the socket. `owner` (holding `stream` and `buf`) is kept alive until then.
 void drain_and_close(beast::tcp_stream& stream, std::array<char, 4096>& buf, std::shared_ptr<void> owner) {
@@ -208,6 +211,10 @@ class Session : public std::enable_shared_from_this<Session> {
   }
 
   void read_body() {
+    // Beast reads into the free capacity of buffer_ (at least 512 bytes, at most 64 KiB a read), and the header left it
+    // small: a tile upload or an asset would otherwise arrive 512 bytes a system call. Given back in on_body().
+    if (const auto len = parser_->content_length(); len && *len > buffer_.capacity() - buffer_.size())
+      buffer_.reserve(buffer_.size() + std::size_t(std::min<std::uint64_t>(*len, kBodyReadSize)));
     http::async_read(*stream_, buffer_, *parser_, beast::bind_front_handler(&Session::on_body, shared_from_this()));
   }
 
@@ -233,6 +240,7 @@ class Session : public std::enable_shared_from_this<Session> {
 
   void on_body(beast::error_code ec, std::size_t) {
     if (ec) return on_read_error(ec);
+    buffer_.shrink_to_fit();  // an idle connection keeps no body-sized buffer
     lowest().expires_never();  // the handler may take a while; the write sets its own deadline
     HttpRequest req = parser_->release();
     const bool keep_alive = req.keep_alive();
