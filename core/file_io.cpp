@@ -18,7 +18,8 @@ namespace {
 std::string errno_text() { return std::strerror(errno); }
 
 void fsync_dir(const fs::path& dir) {
-  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);
+  // A bare file name's folder is the working directory (its parent_path() is empty).
+  const int fd = ::open(dir.empty() ? "." : dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (fd < 0) return;  // best effort: some file systems refuse directory fds
   ::fsync(fd);
   ::close(fd);

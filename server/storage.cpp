@@ -90,7 +90,8 @@ void write_file_replacing(const fs::path& path, const std::function<void(const f
     throw;
   }
   if (durability == Durability::machine) {
-    const int dir = ::open(path.parent_path().c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    const fs::path folder = path.has_parent_path() ? path.parent_path() : fs::path(".");
+    const int dir = ::open(folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
     if (dir >= 0) {  // best effort, as for every atomic write: some file systems refuse folder handles
       ::fsync(dir);
       ::close(dir);
