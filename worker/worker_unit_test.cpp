@@ -1,4 +1,5 @@
 #include "core/sha256.h"
+#include "core/test_files.h"
 #include "worker/asset_cache.h"
 #include "client/backoff.h"
 #include "worker/recent_log.h"
@@ -14,12 +15,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path temp_dir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("tessera-worker-test-" + name + "-" + std::to_string(::getpid()));
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
-}
+// The cache in a folder of the test's own, removed after it.
+class AssetCacheTest : public tessera::testing::TempDirTest {};
 
 TEST(Backoff, GrowsToTheCapWithJitterAndResets) {
   Backoff b(std::chrono::milliseconds(100), std::chrono::milliseconds(1000));
@@ -58,8 +55,8 @@ TEST(LruCache, EvictsTheLeastRecentlyUsed) {
   EXPECT_EQ(*c.find("c"), 3);
 }
 
-TEST(AssetCache, FetchesOnceAndVerifies) {
-  AssetCache cache(temp_dir("once"));
+TEST_F(AssetCacheTest, FetchesOnceAndVerifies) {
+  AssetCache cache(file("cache"));
   const std::string bytes = "v 0 0 0\n";
   const std::string hash = sha256_hex(bytes);
   int fetches = 0;
@@ -80,8 +77,8 @@ TEST(AssetCache, FetchesOnceAndVerifies) {
   EXPECT_EQ(fetches, 1);
 }
 
-TEST(AssetCache, RefusesBytesThatHashToSomethingElse) {
-  AssetCache cache(temp_dir("mismatch"));
+TEST_F(AssetCacheTest, RefusesBytesThatHashToSomethingElse) {
+  AssetCache cache(file("cache"));
   const std::string hash = sha256_hex("the real bytes");
   try {
     cache.get(hash, [](const std::string&) { return std::string("tampered"); });
@@ -93,8 +90,8 @@ TEST(AssetCache, RefusesBytesThatHashToSomethingElse) {
   EXPECT_THROW(cache.get("not-a-hash", [](const std::string&) { return std::string(); }), AssetError);
 }
 
-TEST(AssetCache, ReplacesACorruptFile) {
-  AssetCache cache(temp_dir("corrupt"));
+TEST_F(AssetCacheTest, ReplacesACorruptFile) {
+  AssetCache cache(file("cache"));
   const std::string bytes = "good";
   const std::string hash = sha256_hex(bytes);
   fs::create_directories(cache.path_of(hash).parent_path());
