@@ -64,8 +64,10 @@ bool write_uncompressed_exr(Imf::OStream& os, const Imf::Header& header, const I
       if (p.x_stride == p.bytes) {
         std::memcpy(out, row, width * p.bytes);
         out += width * p.bytes;
+      } else if (p.bytes == 4) {  // constant sizes, so each copy is one move rather than a call to memcpy
+        for (size_t x = 0; x < width; ++x, out += 4) std::memcpy(out, row + x * p.x_stride, 4);
       } else {
-        for (size_t x = 0; x < width; ++x, out += p.bytes) std::memcpy(out, row + x * p.x_stride, p.bytes);
+        for (size_t x = 0; x < width; ++x, out += 2) std::memcpy(out, row + x * p.x_stride, 2);
       }
     }
     put32(int32_t(y));
