@@ -17,14 +17,6 @@ namespace {
 
 std::string errno_text() { return std::strerror(errno); }
 
-void fsync_dir(const fs::path& dir) {
-  // A bare file name's folder is the working directory (its parent_path() is empty).
-  const int fd = ::open(dir.empty() ? "." : dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) return;  // best effort: some file systems refuse directory fds
-  ::fsync(fd);
-  ::close(fd);
-}
-
 }  // namespace
 
 std::string random_hex(int bytes) {
@@ -65,7 +57,15 @@ void write_file_atomic(const fs::path& path, std::string_view bytes) {
     ::unlink(tmp.c_str());
     throw FileError("cannot rename " + tmp.string() + " to " + path.string() + ": " + why);
   }
-  fsync_dir(path.parent_path());
+  sync_folder_of(path);
+}
+
+void sync_folder_of(const fs::path& file) {
+  const fs::path folder = file.has_parent_path() ? file.parent_path() : fs::path(".");
+  const int fd = ::open(folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) return;  // best effort: some file systems refuse folder handles
+  ::fsync(fd);
+  ::close(fd);
 }
 
 std::string read_file_bytes(const fs::path& path) {

@@ -18,6 +18,10 @@ struct FileError : std::runtime_error {
 /// readers see the old file or the whole new one, also after a crash. Throws FileError naming the file and the cause.
 void write_file_atomic(const std::filesystem::path& path, std::string_view bytes);
 
+/// Makes a rename or creation of `file` durable by syncing the folder that holds it (the working directory for a bare
+/// name). Best effort: some file systems refuse folder handles, and the file is in place either way.
+void sync_folder_of(const std::filesystem::path& file);
+
 /// Reads a whole file; throws FileError naming it.
 std::string read_file_bytes(const std::filesystem::path& path);
 

@@ -4,6 +4,7 @@
 #include "core/exr_core_decode.h"
 #include "core/exr_layout.h"
 #include "core/exr_uncompressed.h"
+#include "core/file_io.h"
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfDoubleAttribute.h>
@@ -175,13 +176,7 @@ void AtomicFile::commit() {
   if (::close(fd) != 0) fail("cannot close " + quoted(tmp_), errno);
   if (::rename(tmp_.c_str(), path_.c_str()) != 0) fail("cannot rename " + quoted(tmp_) + " to " + quoted(path_), errno);
   committed_ = true;
-  // Make the rename itself durable. The file is already in place, so a failure here is not reported.
-  const std::filesystem::path dir = path_.has_parent_path() ? path_.parent_path() : std::filesystem::path(".");
-  const int dir_fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (dir_fd >= 0) {
-    ::fsync(dir_fd);
-    ::close(dir_fd);
-  }
+  sync_folder_of(path_);  // the rename made durable; the file is in place, so a failure here is not reported
 }
 
 void write_file_atomically(const std::filesystem::path& path, std::span<const uint8_t> bytes) {

@@ -89,14 +89,7 @@ void write_file_replacing(const fs::path& path, const std::function<void(const f
     discard();
     throw;
   }
-  if (durability == Durability::machine) {
-    const fs::path folder = path.has_parent_path() ? path.parent_path() : fs::path(".");
-    const int dir = ::open(folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-    if (dir >= 0) {  // best effort, as for every atomic write: some file systems refuse folder handles
-      ::fsync(dir);
-      ::close(dir);
-    }
-  }
+  if (durability == Durability::machine) sync_folder_of(path);
 }
 
 DiskBlobStore::DiskBlobStore(fs::path dir, Durability durability) : dir_(std::move(dir)), durability_(durability) {
