@@ -93,9 +93,8 @@ std::string HttpResponse::error_text() const {
 }
 
 struct HttpClient::Impl {
-  // Beast reads into the buffer's free capacity (at least 512 bytes, at most 64 KiB at once): without room reserved, a
-  // result download would arrive 512 bytes a system call.
-  Impl() { buffer.reserve(64 * 1024); }
+  // Room for full reads (net::kHttpReadBytes): a result download would otherwise arrive 512 bytes a system call.
+  Impl() { buffer.reserve(net::kHttpReadBytes); }
 
   asio::io_context ioc;
   std::shared_ptr<ssl::context> tls_context;  // set for https:// URLs

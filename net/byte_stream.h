@@ -18,6 +18,10 @@
 
 namespace tessera::net {
 
+/// The most Beast's HTTP reads ask of a stream at once (its own cap); they ask only for a buffer's free capacity, at
+/// least 512 bytes, so a body read 512 bytes a system call unless this much room is kept free for it.
+inline constexpr std::size_t kHttpReadBytes = 64 * 1024;
+
 /// A Beast AsyncReadStream and AsyncWriteStream over plain TCP or TLS, with the TCP stream's timeouts underneath.
 class ByteStream {
  public:

@@ -61,9 +61,6 @@ struct HttpServer::State {
 
 namespace {
 
-// The most Beast reads from a socket at once (its own cap); a request body gets this much buffer to read into.
-constexpr std::size_t kBodyReadSize = 64 * 1024;
-
 // Reads and discards what the client still sends until an error (its close, or the expiry the caller set on `stream`),
 // then closes the socket. `owner` (holding `stream` and `buf`) is kept alive until then.
 void drain_and_close(beast::tcp_stream& stream, std::array<char, 4096>& buf, std::shared_ptr<void> owner) {
@@ -211,10 +208,10 @@ class Session : public std::enable_shared_from_this<Session> {
   }
 
   void read_body() {
-    // Beast reads into the free capacity of buffer_ (at least 512 bytes, at most 64 KiB a read), and the header left it
-    // small: a tile upload or an asset would otherwise arrive 512 bytes a system call. Given back in on_body().
+    // The header left buffer_ little free room (net::kHttpReadBytes): a tile upload or an asset gets up to a full read's
+    // worth, given back in on_body().
     if (const auto len = parser_->content_length(); len && *len > buffer_.capacity() - buffer_.size())
-      buffer_.reserve(buffer_.size() + std::size_t(std::min<std::uint64_t>(*len, kBodyReadSize)));
+      buffer_.reserve(buffer_.size() + std::size_t(std::min<std::uint64_t>(*len, net::kHttpReadBytes)));
     http::async_read(*stream_, buffer_, *parser_, beast::bind_front_handler(&Session::on_body, shared_from_this()));
   }
 
