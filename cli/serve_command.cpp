@@ -117,7 +117,7 @@ int run_serve(const ServeArgs& a) {
                  a.heartbeat_seconds,
                  t.complete() ? "client and worker" : t.client.empty() ? (t.worker.empty() ? "none" : "worker only") : "client only",
                  o.tls.client_ca_file.empty() ? "" : ", client certificates required");
-    if (!a.ready_file.empty()) server::write_file_replacing(a.ready_file, bound + "\n", o.durability);  // after the log lines above
+    if (!a.ready_file.empty()) write_file_atomic(a.ready_file, bound + "\n", server::flush_for(o.durability));  // after the log lines above
     coordinator.run();
     return 0;
   } catch (const std::exception& e) {

@@ -83,13 +83,13 @@ std::vector<uint8_t> encode(const char* name, const Image& img, const ExrWriteOp
 /// Threads for compressing an EXR: as many as the render may use (--threads), OpenEXR's pool resized to that.
 int compression_threads();
 
-/// A file written as an OpenEXR output stream (buffered) to path + ".tmp", which commit() syncs and renames over
+/// A file written as an OpenEXR output stream (buffered) to a temp file beside path, which commit() syncs and renames over
 /// path, so path is never seen half-written. Dropped without a commit, it removes the temporary and path stays as it
 /// was. Errors throw std::runtime_error naming the file; one that OpenEXR swallows (it writes the line offset table
 /// from a destructor) is thrown again by commit().
 class AtomicFile final : public Imf::OStream {
  public:
-  /// Creates path + ".tmp".
+  /// Creates the temp file (temp_path_beside).
   explicit AtomicFile(const std::filesystem::path& path);
   ~AtomicFile() override;
   AtomicFile(const AtomicFile&) = delete;
@@ -97,8 +97,6 @@ class AtomicFile final : public Imf::OStream {
   void write(const char c[], int n) override;
   uint64_t tellp() override { return pos_; }
   void seekp(uint64_t pos) override { pos_ = pos; }
-  /// Writes bytes at the current position, of any size.
-  void write_bytes(std::span<const uint8_t> bytes);
   /// Writes out what is buffered, syncs the file, renames it over path and syncs the folder.
   void commit();
   /// True once a write has failed (commit() then throws).
@@ -117,9 +115,6 @@ class AtomicFile final : public Imf::OStream {
   std::string failure_;       // the first error, thrown again by commit()
   bool committed_ = false;
 };
-
-/// Writes bytes to path through an AtomicFile: on failure the temporary is removed and path is left as it was.
-void write_file_atomically(const std::filesystem::path& path, std::span<const uint8_t> bytes);
 
 /// `p` in double quotes, for messages.
 std::string quoted(const std::filesystem::path& p);

@@ -1,6 +1,7 @@
 #include "core/exr_stream.h"
 
 #include "core/exr_layout.h"
+#include "core/file_io.h"
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfInputFile.h>
@@ -126,7 +127,7 @@ void ExrStream::write(const std::filesystem::path& path, const Image& img, const
         return;
       }
     }  // the temporary file goes
-    exr_layout::write_file_atomically(path, exr_layout::encode(path.c_str(), img, opt));
+    write_file_atomic(path, exr_layout::encode(path.c_str(), img, opt));
   } catch (const std::exception& e) {
     throw ImageError("cannot write EXR " + exr_layout::quoted(path) + ": " + e.what());
   }

@@ -31,33 +31,39 @@ std::string random_hex(int bytes) {
   return out;
 }
 
-void write_file_atomic(const fs::path& path, std::string_view bytes) {
-  const fs::path tmp = path.string() + "." + random_hex(6) + ".tmp";
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+fs::path temp_path_beside(const fs::path& path) { return path.string() + "." + random_hex(6) + ".tmp"; }
+
+void write_file_atomic(const fs::path& path, std::string_view bytes, Flush flush) {
+  const fs::path tmp = temp_path_beside(path);
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
   if (fd < 0) throw FileError("cannot create " + tmp.string() + ": " + errno_text());
+  const auto fail = [&](const std::string& what, int err) {
+    ::unlink(tmp.c_str());
+    throw FileError(what + tmp.string() + ": " + std::strerror(err));
+  };
   size_t off = 0;
   while (off < bytes.size()) {
     const ssize_t n = ::write(fd, bytes.data() + off, bytes.size() - off);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      const std::string why = errno_text();
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const int err = n < 0 ? errno : EIO;
       ::close(fd);
-      ::unlink(tmp.c_str());
-      throw FileError("cannot write " + tmp.string() + ": " + why);
+      fail("cannot write ", err);
     }
     off += size_t(n);
   }
-  if (::fsync(fd) != 0 || ::close(fd) != 0) {
-    const std::string why = errno_text();
-    ::unlink(tmp.c_str());
-    throw FileError("cannot sync " + tmp.string() + ": " + why);
+  if (flush == Flush::to_disk && ::fsync(fd) != 0) {
+    const int err = errno;
+    ::close(fd);
+    fail("cannot sync ", err);
   }
+  if (::close(fd) != 0) fail("cannot close ", errno);
   if (::rename(tmp.c_str(), path.c_str()) != 0) {
-    const std::string why = errno_text();
+    const int err = errno;
     ::unlink(tmp.c_str());
-    throw FileError("cannot rename " + tmp.string() + " to " + path.string() + ": " + why);
+    throw FileError("cannot rename " + tmp.string() + " to " + path.string() + ": " + std::strerror(err));
   }
-  sync_folder_of(path);
+  if (flush == Flush::to_disk) sync_folder_of(path);
 }
 
 void sync_folder_of(const fs::path& file) {

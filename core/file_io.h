@@ -1,8 +1,10 @@
-// Whole files: read one, or replace one atomically and durably (the coordinator's results and blobs, a client's
-// downloaded result).
+// Whole files: read one, or replace one atomically, flushed to the disk or not (the coordinator's results and blobs,
+// a client's downloaded result, the renderer's images, a worker's cached assets).
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -14,9 +16,23 @@ struct FileError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// Writes bytes to `path` atomically: a uniquely named temp file beside it, fsync, rename, fsync of the folder, so
-/// readers see the old file or the whole new one, also after a crash. Throws FileError naming the file and the cause.
-void write_file_atomic(const std::filesystem::path& path, std::string_view bytes);
+/// How much of a crash a replaced file survives: the machine's (the file and its folder flushed to the disk before the
+/// write returns) or only the process's (the page cache keeps every write; for files that die with their process).
+enum class Flush { to_disk, none };
+
+/// Replaces `path` with `bytes` atomically: a temp file beside it (temp_path_beside), written, flushed as `flush`
+/// says, renamed over `path`; readers see the old file or the whole new one. On failure the temp file is removed and
+/// `path` is left as it was. Throws FileError naming the file and the cause.
+void write_file_atomic(const std::filesystem::path& path, std::string_view bytes, Flush flush = Flush::to_disk);
+/// The same for bytes held as unsigned (an encoded image).
+inline void write_file_atomic(const std::filesystem::path& path, std::span<const uint8_t> bytes,
+                              Flush flush = Flush::to_disk) {
+  write_file_atomic(path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), flush);
+}
+
+/// A fresh name for the temp file of an atomic replacement of `path`, in its folder: "PATH.<12 hex digits>.tmp", so
+/// that writers of one path never share a temp file and a crash's leftovers are found by their ".tmp".
+std::filesystem::path temp_path_beside(const std::filesystem::path& path);
 
 /// Makes a rename or creation of `file` durable by syncing the folder that holds it (the working directory for a bare
 /// name). Best effort: some file systems refuse folder handles, and the file is in place either way.

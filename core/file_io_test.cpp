@@ -1,5 +1,6 @@
 // read_file_bytes: whole files of every size byte for byte, files whose reported size is not their content (procfs),
-// and clear errors for missing files and folders.
+// and clear errors for missing files and folders. write_file_atomic: a replacement in either flush mode leaves the new
+// bytes and no temp file; a failed one leaves the old file and no temp file.
 #include "core/file_io.h"
 
 #include <gtest/gtest.h>
@@ -9,6 +10,7 @@
 #include <fstream>
 #include <random>
 #include <string>
+#include <vector>
 
 namespace tessera {
 namespace file_io_test {  // named: the test files share translation units in a unity build
@@ -59,6 +61,41 @@ TEST_F(ReadFileBytes, MissingFilesAndFoldersAreErrorsNamingThePath) {
   } catch (const FileError& e) {
     EXPECT_NE(std::string(e.what()).find("cannot read " + dir_.string()), std::string::npos) << e.what();
   }
+}
+
+TEST_F(ReadFileBytes, AtomicWritesReplaceWholeFilesAndLeaveNoTempFile) {
+  const fs::path p = dir_ / "out.bin";
+  write_file_atomic(p, "first");
+  EXPECT_EQ(read_file_bytes(p), "first");
+  write_file_atomic(p, std::string(100000, 'x'), Flush::none);
+  EXPECT_EQ(read_file_bytes(p), std::string(100000, 'x'));
+  const std::vector<uint8_t> bytes = {0, 1, 2, 255};
+  write_file_atomic(p, bytes);
+  EXPECT_EQ(read_file_bytes(p), std::string("\0\1\2\xff", 4));
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()), 1);  // no temp file left
+}
+
+TEST_F(ReadFileBytes, FailedAtomicWriteKeepsTheOldFile) {
+  const fs::path p = dir_ / "out.bin";
+  write_file_atomic(p, "old");
+  fs::create_directories(dir_ / "folder");
+  try {
+    write_file_atomic(dir_ / "folder", "new");  // the rename over a folder fails
+    FAIL() << "replaced a folder";
+  } catch (const FileError& e) {
+    EXPECT_NE(std::string(e.what()).find("cannot rename"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(fs::is_directory(dir_ / "folder"));
+  EXPECT_EQ(read_file_bytes(p), "old");
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()), 2);  // no temp file left
+}
+
+TEST(TempPathBeside, IsFreshBesideThePathAndEndsInTmp) {
+  const fs::path a = temp_path_beside("/data/jobs/j1/result.exr"), b = temp_path_beside("/data/jobs/j1/result.exr");
+  EXPECT_NE(a, b);
+  EXPECT_EQ(a.parent_path(), fs::path("/data/jobs/j1"));
+  EXPECT_EQ(a.extension(), ".tmp");
+  EXPECT_EQ(a.filename().string().rfind("result.exr.", 0), 0u) << a;
 }
 
 }  // namespace file_io_test

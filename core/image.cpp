@@ -115,9 +115,9 @@ namespace {
 constexpr size_t kFileBuffer = size_t(1) << 20;  // AtomicFile writes in pieces of about this size
 }  // namespace
 
-AtomicFile::AtomicFile(const std::filesystem::path& path) : Imf::OStream(path.c_str()), path_(path), tmp_(path) {
-  tmp_ += ".tmp";
-  fd_ = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+AtomicFile::AtomicFile(const std::filesystem::path& path)
+    : Imf::OStream(path.c_str()), path_(path), tmp_(temp_path_beside(path)) {
+  fd_ = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
   if (fd_ < 0) throw std::runtime_error("cannot create " + quoted(tmp_) + ": " + errno_text(errno));
   buffer_.reserve(kFileBuffer);
 }
@@ -160,13 +160,6 @@ void AtomicFile::write(const char c[], int n) {
   pos_ += uint64_t(n);
 }
 
-void AtomicFile::write_bytes(std::span<const uint8_t> bytes) {
-  if (!failure_.empty()) throw std::runtime_error(failure_);
-  flush();
-  write_at(reinterpret_cast<const char*>(bytes.data()), bytes.size(), pos_);
-  pos_ += bytes.size();
-}
-
 void AtomicFile::commit() {
   if (!failure_.empty()) throw std::runtime_error(failure_);
   flush();
@@ -177,12 +170,6 @@ void AtomicFile::commit() {
   if (::rename(tmp_.c_str(), path_.c_str()) != 0) fail("cannot rename " + quoted(tmp_) + " to " + quoted(path_), errno);
   committed_ = true;
   sync_folder_of(path_);  // the rename made durable; the file is in place, so a failure here is not reported
-}
-
-void write_file_atomically(const std::filesystem::path& path, std::span<const uint8_t> bytes) {
-  AtomicFile file(path);
-  file.write_bytes(bytes);
-  file.commit();
 }
 
 // Each line block is compressed on its own, so the file's bytes do not depend on the count; OpenEXR's pool is
@@ -520,20 +507,13 @@ ExrImage decode_exr_impl(std::string_view bytes) {
 constexpr std::uintmax_t kInMemoryFileBytes = std::uintmax_t(256) << 20;
 
 ExrImage read_exr_impl(const std::filesystem::path& path) {
+  std::error_code size_error;
+  const std::uintmax_t size = std::filesystem::file_size(path, size_error);
+  // A file whose size cannot be told (missing, unreadable, not a regular file) is read to find out why.
+  if (size_error || size <= kInMemoryFileBytes) return decode_exr_impl(read_file_bytes(path));
   errno = 0;
-  std::ifstream file(path, std::ios::binary | std::ios::ate);
+  std::ifstream file(path, std::ios::binary);
   if (!file) throw std::runtime_error(errno != 0 ? errno_text(errno) : "cannot open file");
-  const std::streamoff size = file.tellg();
-  if (size < 0) throw std::runtime_error(errno != 0 ? errno_text(errno) : "cannot tell the file's size");
-  if (std::uintmax_t(size) <= kInMemoryFileBytes) {
-    std::string bytes(size_t(size), '\0');
-    file.seekg(0);
-    file.read(bytes.data(), size);
-    if (file.bad()) throw std::runtime_error(errno != 0 ? errno_text(errno) : "read error");
-    bytes.resize(size_t(file.gcount()));
-    return decode_exr_impl(bytes);
-  }
-  file.seekg(0);
   char start[8] = {};
   file.read(start, 8);
   if (file.bad()) throw std::runtime_error(errno != 0 ? errno_text(errno) : "read error");
@@ -637,7 +617,7 @@ ExrImage decode_exr(std::string_view bytes) {
 
 void write_exr(const std::filesystem::path& path, const Image& img, const ExrWriteOptions& opt) {
   with_context("cannot write EXR " + quoted(path),
-               [&] { exr_layout::write_file_atomically(path, encode_exr_impl(path.c_str(), img, opt)); });
+               [&] { write_file_atomic(path, encode_exr_impl(path.c_str(), img, opt)); });
 }
 
 std::vector<uint8_t> encode_exr(const Image& img, const ExrWriteOptions& opt) {
@@ -650,7 +630,7 @@ std::vector<uint8_t> encode_png_srgb(const Image& img, float exposure) {
 
 void write_png_srgb(const std::filesystem::path& path, const Image& img, float exposure) {
   with_context("cannot write PNG " + quoted(path),
-               [&] { exr_layout::write_file_atomically(path, encode_png_impl(img, exposure)); });
+               [&] { write_file_atomic(path, encode_png_impl(img, exposure)); });
 }
 
 }  // namespace tessera

@@ -503,7 +503,7 @@ TEST_F(ImageExr, WriteRejectsMalformedImages) {
   colliding.extra["G"] = std::vector<float>(12, 1.f);
   EXPECT_THROW(write_exr(p, colliding), ImageError);
   EXPECT_FALSE(fs::exists(p));
-  EXPECT_FALSE(fs::exists(file("bad.exr.tmp")));
+  EXPECT_TRUE(fs::is_empty(p.parent_path()));  // no temp file either
 }
 
 // Decodes an 8-bit RGB PNG with libpng's simplified API.
@@ -579,9 +579,7 @@ TEST_F(ImageAtomic, WritesLeaveNoTemporaryBehind) {
     EXPECT_TRUE(same_bits(read_exr(exr).pixels.rgb, img.rgb));
     EXPECT_EQ(read_bytes(png), encode_png_srgb(img));
   }
-  EXPECT_FALSE(fs::exists(file("frame.exr.tmp")));
-  EXPECT_FALSE(fs::exists(file("frame.png.tmp")));
-  EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()), 2);
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()), 2);  // no temp file left
 }
 
 TEST_F(ImageAtomic, FailedWriteKeepsTheOldFile) {

@@ -9,9 +9,6 @@
 #include <cerrno>
 #include <chrono>
 #include <cstring>
-#include <fstream>
-#include <random>
-#include <sstream>
 
 namespace fs = std::filesystem;
 
@@ -44,29 +41,8 @@ size_t remove_leftovers(const fs::path& dir, bool everything) {
   return doomed.size();
 }
 
-void write_file_replacing(const fs::path& path, std::string_view bytes, Durability durability) {
-  if (durability == Durability::machine) return write_file_atomic(path, bytes);
-  const fs::path tmp = path.string() + "." + random_hex(6) + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out.write(bytes.data(), std::streamsize(bytes.size()));
-    if (!out.flush()) {
-      std::error_code ignored;
-      fs::remove(tmp, ignored);
-      throw StorageError("cannot write " + tmp.string());
-    }
-  }
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec) {
-    std::error_code ignored;
-    fs::remove(tmp, ignored);
-    throw StorageError("cannot rename " + tmp.string() + " to " + path.string() + ": " + ec.message());
-  }
-}
-
 void write_file_replacing(const fs::path& path, const std::function<void(const fs::path&)>& write, Durability durability) {
-  const fs::path tmp = path.string() + "." + random_hex(6) + ".tmp";
+  const fs::path tmp = temp_path_beside(path);
   const auto discard = [&] {
     std::error_code ignored;
     fs::remove(tmp, ignored);
@@ -118,7 +94,7 @@ PutBlobResult DiskBlobStore::put(const std::string& sha, std::string_view bytes)
     return r;
   }
   make_dirs(p.parent_path());
-  write_file_replacing(p, bytes, durability_);
+  write_file_atomic(p, bytes, flush_for(durability_));
   r.status = PutBlobResult::created;
   return r;
 }

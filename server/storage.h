@@ -27,9 +27,10 @@ enum class Durability {
             ///< coordinator whose folder dies with the command that started it (`render --workers`).
 };
 
-/// Replaces `path` with `bytes` atomically (temp file, rename), flushed to the disk first for Durability::machine;
-/// throws StorageError naming the file.
-void write_file_replacing(const std::filesystem::path& path, std::string_view bytes, Durability durability);
+/// How a file written under `durability` is flushed (write_file_atomic).
+constexpr Flush flush_for(Durability durability) {
+  return durability == Durability::machine ? Flush::to_disk : Flush::none;
+}
 
 /// Replaces `path` atomically with a file that `write` makes at the temp path it is given (then flushed for
 /// Durability::machine, and renamed); on failure removes the temp file and rethrows (StorageError for the store's

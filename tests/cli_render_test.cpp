@@ -307,8 +307,9 @@ TEST_F(CliRender, FileIsTheOneShotWriteOfItsContents) {
     const CliRun r = tessera(args);
     ASSERT_EQ(r.exit_code, args[2] == f("e.exr") ? 3 : 0) << r.err;
     EXPECT_EQ(file_bytes(args[2]), one_shot_bytes(args[2])) << args[2];
-    EXPECT_FALSE(fs::exists(args[2] + ".tmp")) << args[2];
   }
+  for (const auto& entry : fs::directory_iterator(file("")))
+    EXPECT_NE(entry.path().extension(), ".tmp") << entry.path();  // no temp file left
   EXPECT_TRUE(read_exr(file("e.exr")).metadata.count("tessera:partial"));
   EXPECT_TRUE(read_exr(file("g.exr")).pixels.uint_extra.count("tessera.state.sum.R.hi"));
 }
