@@ -209,9 +209,11 @@ class Session : public std::enable_shared_from_this<Session> {
 
   void read_body() {
     // The header left buffer_ little free room (net::kHttpReadBytes): a tile upload or an asset gets up to a full read's
-    // worth, given back in on_body().
-    if (const auto len = parser_->content_length(); len && *len > buffer_.capacity() - buffer_.size())
-      buffer_.reserve(buffer_.size() + std::size_t(std::min<std::uint64_t>(*len, net::kHttpReadBytes)));
+    // worth (a chunked body, of unknown length, a full read), given back in on_body().
+    const auto len = parser_->content_length();
+    const std::size_t room = len ? std::size_t(std::min<std::uint64_t>(*len, net::kHttpReadBytes))
+                                 : parser_->chunked() ? net::kHttpReadBytes : 0;
+    if (room > buffer_.capacity() - buffer_.size()) buffer_.reserve(buffer_.size() + room);
     http::async_read(*stream_, buffer_, *parser_, beast::bind_front_handler(&Session::on_body, shared_from_this()));
   }
 
