@@ -117,6 +117,21 @@ auto Scheduler::transact(F&& f, bool store_now, std::function<void()> durable) {
   return std::move(*r);
 }
 
+// Runs f(job record, result, now) in one transaction (transact) when `job` is known; for an unknown job the result is
+// R as default-constructed (whose status says so).
+template <class R, class F>
+R Scheduler::with_job(const std::string& job, F&& f) {
+  return transact([&](int64_t now) {
+    R r;
+    if (const auto it = jobs_.find(job); it != jobs_.end()) f(*it->second, r, now);
+    return r;
+  });
+}
+
+bool Scheduler::has_merging_tile(const JobRec& j) {
+  return std::any_of(j.tiles.begin(), j.tiles.end(), [](const Tile& t) { return t.state == TileState::merging; });
+}
+
 void Scheduler::after_sync(std::function<void()> then) {
   if (store_) store_->sync_async(std::move(then));
   else then();
@@ -823,19 +838,15 @@ bool Scheduler::release(const std::string& lease) {
 }
 
 RetryResult Scheduler::retry(const std::string& job) {
-  return transact([&](int64_t) {
-    RetryResult r;
-    const auto it = jobs_.find(job);
-    if (it == jobs_.end()) return r;
-    JobRec& j = *it->second;
+  return with_job<RetryResult>(job, [&](JobRec& j, RetryResult& r, int64_t) {
     r.was = j.status.state;
     if (!is_final(j.status.state)) {
       r.status = RetryResult::not_ended;
-      return r;
+      return;
     }
     if (j.status.state == JobState::done) {
       r.status = RetryResult::done;
-      return r;
+      return;
     }
     // Leases were revoked when it ended, so its unfinished tiles are pending; only the bookkeeping of its failures
     // goes. It keeps its place in the queue (created_ms and seq).
@@ -857,31 +868,26 @@ RetryResult Scheduler::retry(const std::string& job) {
     touch_job(j);
     r.status = RetryResult::retried;
     r.pending = int64_t(j.pending.size());
-    return r;
   });
 }
 
 RequeueResult Scheduler::requeue(const std::string& job, int64_t tile) {
-  return transact([&](int64_t) {
-    RequeueResult r;
-    const auto it = jobs_.find(job);
-    if (it == jobs_.end()) return r;
-    JobRec& j = *it->second;
+  return with_job<RequeueResult>(job, [&](JobRec& j, RequeueResult& r, int64_t) {
     r.job_state = j.status.state;
     r.tiles = j.status.tiles.total;
     if (tile < 0 || tile >= j.status.tiles.total) {
       r.status = RequeueResult::no_tile;
-      return r;
+      return;
     }
     if (j.status.state == JobState::queued || j.status.state == JobState::done || j.status.state == JobState::cancelled) {
       r.status = RequeueResult::wrong_job_state;
-      return r;
+      return;
     }
     Tile& t = j.tiles[size_t(tile)];
     r.was = t.state;
     if (t.state == TileState::merging || (t.state == TileState::pending && t.failures.empty())) {
       r.status = RequeueResult::wrong_tile_state;
-      return r;
+      return;
     }
     if (t.state == TileState::leased) {
       const auto l = leases_.find(t.lease);
@@ -904,7 +910,6 @@ RequeueResult Scheduler::requeue(const std::string& job, int64_t tile) {
     touch_tile(j, tile);
     sync_needed_ = true;
     r.status = RequeueResult::requeued;
-    return r;
   });
 }
 
@@ -913,37 +918,29 @@ PauseResult Scheduler::pause(const std::string& job) { return set_paused(job, tr
 PauseResult Scheduler::resume(const std::string& job) { return set_paused(job, false); }
 
 PauseResult Scheduler::set_paused(const std::string& job, bool paused) {
-  return transact([&](int64_t) {
-    PauseResult r;
-    const auto it = jobs_.find(job);
-    if (it == jobs_.end()) return r;
-    JobStatus& st = it->second->status;
+  return with_job<PauseResult>(job, [&](JobRec& j, PauseResult& r, int64_t) {
+    JobStatus& st = j.status;
     r.was = st.state;
     const bool allowed =
         paused ? st.state == JobState::queued || st.state == JobState::running : st.state == JobState::paused;
     if (!allowed) {
       r.status = PauseResult::wrong_state;
-      return r;
+      return;
     }
     // A paused job stays in queue_: acquire skips it while its live leases and uploads go on.
     st.state = paused ? JobState::paused : st.started_ms ? JobState::running : JobState::queued;
     sync_needed_ = true;
-    touch_job(*it->second);
+    touch_job(j);
     r.status = PauseResult::changed;
-    return r;
   });
 }
 
 PriorityResult Scheduler::set_priority(const std::string& job, int priority) {
-  return transact([&](int64_t) {
-    PriorityResult r;
-    const auto it = jobs_.find(job);
-    if (it == jobs_.end()) return r;
-    JobRec& j = *it->second;
+  return with_job<PriorityResult>(job, [&](JobRec& j, PriorityResult& r, int64_t) {
     r.was = j.status.state;
     if (is_final(j.status.state)) {
       r.status = PriorityResult::ended;
-      return r;
+      return;
     }
     // The queue is ordered by (-priority, created_ms, seq): re-key the job.
     queue_.erase(QueueKey{-j.status.params.priority, j.status.created_ms, j.seq});
@@ -951,47 +948,37 @@ PriorityResult Scheduler::set_priority(const std::string& job, int priority) {
     queue_.emplace(QueueKey{-priority, j.status.created_ms, j.seq}, &j);
     touch_job(j);
     r.status = PriorityResult::changed;
-    return r;
   });
 }
 
 CancelResult Scheduler::cancel(const std::string& job) {
-  return transact([&](int64_t now) {
-    CancelResult r;
-    const auto it = jobs_.find(job);
-    if (it == jobs_.end()) return r;
-    if (is_final(it->second->status.state)) {
+  return with_job<CancelResult>(job, [&](JobRec& j, CancelResult& r, int64_t now) {
+    if (is_final(j.status.state)) {
       r.status = CancelResult::already_ended;
-      return r;
+      return;
     }
     const size_t before = live_leases_.size();
-    finish_job_locked(*it->second, JobState::cancelled, now, std::nullopt);
+    finish_job_locked(j, JobState::cancelled, now, std::nullopt);
     r.revoked_leases = int(before - live_leases_.size());
     r.status = CancelResult::cancelled;
-    return r;
   });
 }
 
 RaiseResult Scheduler::raise_spp(const std::string& job, uint32_t spp) {
-  return transact([&](int64_t now) {
-    RaiseResult r;
-    const auto it = jobs_.find(job);
-    if (it == jobs_.end()) return r;
-    JobRec& j = *it->second;
+  return with_job<RaiseResult>(job, [&](JobRec& j, RaiseResult& r, int64_t now) {
     r.was = j.status.state;
     if (j.status.state == JobState::failed || j.status.state == JobState::cancelled) {
       r.status = RaiseResult::wrong_state;
-      return r;
+      return;
     }
     if (spp <= j.status.params.spp) {
       r.status = RaiseResult::not_higher;
-      return r;
+      return;
     }
-    for (const Tile& t : j.tiles)
-      if (t.state == TileState::merging) {
-        r.status = RaiseResult::merging;
-        return r;
-      }
+    if (has_merging_tile(j)) {
+      r.status = RaiseResult::merging;
+      return;
+    }
     for (auto l = live_leases_.begin(); l != live_leases_.end();) {
       LeaseRec& rec = leases_.at(*l);
       ++l;  // end_lease_locked erases rec's entry
@@ -1012,27 +999,21 @@ RaiseResult Scheduler::raise_spp(const std::string& job, uint32_t spp) {
     touch_job(j);
     r.status = RaiseResult::raised;
     r.job = snapshot_locked(j, now);
-    return r;
   });
 }
 
 PurgeResult Scheduler::purge(const std::string& job) {
-  return transact([&](int64_t) {
-    PurgeResult r;
-    const auto it = jobs_.find(job);
-    if (it == jobs_.end()) return r;
-    JobRec& j = *it->second;
+  return with_job<PurgeResult>(job, [&](JobRec& j, PurgeResult& r, int64_t) {
     r.was = j.status.state;
     if (!is_final(j.status.state)) {
       r.status = PurgeResult::not_ended;
-      return r;
+      return;
     }
     // An upload claimed before the job ended is still being stored (finish_result or abandon_result follow).
-    for (const Tile& t : j.tiles)
-      if (t.state == TileState::merging) {
-        r.status = PurgeResult::busy;
-        return r;
-      }
+    if (has_merging_tile(j)) {
+      r.status = PurgeResult::busy;
+      return;
+    }
     // An ended job has no live lease (they were revoked when it ended) and is not in queue_.
     for (auto l = leases_.begin(); l != leases_.end();) {
       if (l->second.lease.job == job) {
@@ -1045,11 +1026,10 @@ PurgeResult Scheduler::purge(const std::string& job) {
     dirty_jobs_.erase(job);
     for (auto t = dirty_tiles_.lower_bound({job, INT64_MIN}); t != dirty_tiles_.end() && t->first == job;)
       t = dirty_tiles_.erase(t);
-    jobs_.erase(it);
+    jobs_.erase(job);  // j is gone with it
     purged_jobs_.insert(job);
     sync_needed_ = true;  // the client is told the job is gone
     r.status = PurgeResult::purged;
-    return r;
   });
 }
 

@@ -428,6 +428,9 @@ class Scheduler {
 
   template <class F>
   auto transact(F&& f, bool store_now = true, std::function<void()> durable = {});
+  template <class R, class F>
+  R with_job(const std::string& job, F&& f);
+  static bool has_merging_tile(const JobRec& j);  // an upload of one of its tiles is being stored
   void restore_locked(SchedulerSnapshot snap, int64_t now);
   void flush_locked();
   void touch_job(const JobRec& j) { dirty_jobs_.insert(j.status.id); }
