@@ -71,7 +71,7 @@ TEST(EncodeExr, UncompressedFilesAreOpenExrsBytesWrittenDirectly) {
       const PixelWindow data = exr_layout::data_window(img, o);
       const Imf::Header header = exr_layout::header(img, o, data);
       const exr_layout::Frame frame = exr_layout::frame(img, o, data);
-      exr_layout::MemoryOStream theirs("theirs"), ours("ours");
+      exr_io::MemoryOStream theirs("theirs"), ours("ours");
       {
         Imf::OutputFile out(theirs, header, 0);
         out.setFrameBuffer(frame.buffer);
@@ -87,7 +87,7 @@ TEST(EncodeExr, UncompressedFilesAreOpenExrsBytesWrittenDirectly) {
   const Image img = Image::make(4, 4);
   const ExrWriteOptions zip;  // ZIP by default
   const PixelWindow data = exr_layout::data_window(img, zip);
-  exr_layout::MemoryOStream out("zip");
+  exr_io::MemoryOStream out("zip");
   EXPECT_FALSE(write_uncompressed_exr(out, exr_layout::header(img, zip, data), exr_layout::frame(img, zip, data).buffer));
   EXPECT_TRUE(out.bytes().empty());
   // A channel without a slice (OutputFile would write zeros for it) is left to OutputFile too.

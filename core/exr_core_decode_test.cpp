@@ -91,7 +91,7 @@ std::string write_file(const Layout& l, const Planes& planes, bool tiled = false
       fb.insert(name, Imf::Slice::Make(t, words.data(), dw, 4, 4 * w));
     }
   }
-  exr_layout::MemoryOStream os("(test)");
+  exr_io::MemoryOStream os("(test)");
   if (tiled) {
     h.setTileDescription(Imf::TileDescription(16, 16, Imf::ONE_LEVEL));
     Imf::TiledOutputFile out(os, h, 0);
@@ -108,7 +108,7 @@ std::string write_file(const Layout& l, const Planes& planes, bool tiled = false
 
 // What OpenEXR's C++ InputFile reads from the file: each channel as 32-bit words (HALF and FLOAT as float, UINT as is).
 Planes read_with_cxx(const std::string& bytes) {
-  exr_layout::MemoryIStream is(bytes, "(test)");
+  exr_io::MemoryIStream is(bytes, "(test)");
   Imf::InputFile in(is, 0);
   const Imath::Box2i dw = in.header().dataWindow();
   const size_t w = size_t(dw.max.x - dw.min.x + 1), h = size_t(dw.max.y - dw.min.y + 1);

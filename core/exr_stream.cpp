@@ -16,7 +16,7 @@ namespace tessera {
 
 struct ExrStream::Impl {
   ExrWriteOptions layout;                    // the file's layout (no metadata)
-  exr_layout::MemoryOStream draft{"(draft)"};  // the file under a header without metadata
+  exr_io::MemoryOStream draft{"(draft)"};  // the file under a header without metadata
   std::optional<Imf::Header> header;         // the draft's header, from the first band
   std::unique_ptr<Imf::OutputFile> out;      // writing the draft, until finish() or a failure
   int rows = 0;                              // rows of the data window written
@@ -88,7 +88,7 @@ bool ExrStream::Impl::reuse(Imf::OStream& file, const Image& img, const ExrWrite
   }
   out.reset();  // completes the draft (its line offset table)
   const std::vector<uint8_t>& bytes = draft.bytes();
-  exr_layout::MemoryIStream in_stream(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()),
+  exr_io::MemoryIStream in_stream(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()),
                                       "(draft)");
   Imf::InputFile in(in_stream, 0);
   Imf::OutputFile final_file(file, final_header, 0);
@@ -99,7 +99,7 @@ bool ExrStream::Impl::reuse(Imf::OStream& file, const Image& img, const ExrWrite
 std::vector<uint8_t> ExrStream::finish(const Image& img, const ExrWriteOptions& opt) {
   try {
     try {
-      exr_layout::MemoryOStream file("memory");
+      exr_io::MemoryOStream file("memory");
       file.reserve(impl_->draft.bytes().size() + 65536);  // the draft's blocks and a header with metadata, most likely
       if (impl_->reuse(file, img, opt)) return file.take();
     } catch (const std::exception&) {
@@ -115,7 +115,7 @@ void ExrStream::write(const std::filesystem::path& path, const Image& img, const
   try {
     {
       // Written straight to the temporary file: the blocks are not copied once more in memory.
-      exr_layout::AtomicFile file(path);
+      exr_io::AtomicFile file(path);
       bool reused = false;
       try {
         reused = impl_->reuse(file, img, opt);
@@ -129,7 +129,7 @@ void ExrStream::write(const std::filesystem::path& path, const Image& img, const
     }  // the temporary file goes
     write_file_atomic(path, exr_layout::encode(path.c_str(), img, opt));
   } catch (const std::exception& e) {
-    throw ImageError("cannot write EXR " + exr_layout::quoted(path) + ": " + e.what());
+    throw ImageError("cannot write EXR " + exr_io::quoted(path) + ": " + e.what());
   }
 }
 
