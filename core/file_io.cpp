@@ -17,6 +17,17 @@ namespace {
 
 std::string errno_text() { return std::strerror(errno); }
 
+// The last step of an atomic replacement: the finished temp file renamed over path (removed if that fails), and the
+// rename made durable for Flush::to_disk.
+void move_into_place(const fs::path& tmp, const fs::path& path, Flush flush) {
+  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    throw FileError("cannot rename " + tmp.string() + " to " + path.string() + ": " + std::strerror(err));
+  }
+  if (flush == Flush::to_disk) sync_folder_of(path);
+}
+
 }  // namespace
 
 std::string random_hex(int bytes) {
@@ -58,12 +69,27 @@ void write_file_atomic(const fs::path& path, std::string_view bytes, Flush flush
     fail("cannot sync ", err);
   }
   if (::close(fd) != 0) fail("cannot close ", errno);
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
-    const int err = errno;
+  move_into_place(tmp, path, flush);
+}
+
+void write_file_atomic(const fs::path& path, const std::function<void(const fs::path&)>& write, Flush flush) {
+  const fs::path tmp = temp_path_beside(path);
+  try {
+    write(tmp);
+    if (flush == Flush::to_disk) {
+      const int fd = ::open(tmp.c_str(), O_RDONLY | O_CLOEXEC);
+      if (fd < 0 || ::fsync(fd) != 0) {
+        const std::string why = errno_text();
+        if (fd >= 0) ::close(fd);
+        throw FileError("cannot sync " + tmp.string() + ": " + why);
+      }
+      ::close(fd);
+    }
+  } catch (...) {
     ::unlink(tmp.c_str());
-    throw FileError("cannot rename " + tmp.string() + " to " + path.string() + ": " + std::strerror(err));
+    throw;
   }
-  if (flush == Flush::to_disk) sync_folder_of(path);
+  move_into_place(tmp, path, flush);
 }
 
 void sync_folder_of(const fs::path& file) {

@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -29,6 +30,10 @@ inline void write_file_atomic(const std::filesystem::path& path, std::span<const
                               Flush flush = Flush::to_disk) {
   write_file_atomic(path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), flush);
 }
+/// The same for a file that `write` makes at the temp path it is given (and closes): then flushed, renamed over `path`.
+/// On failure, `write`'s included, the temp file is removed and the exception goes on.
+void write_file_atomic(const std::filesystem::path& path, const std::function<void(const std::filesystem::path&)>& write,
+                       Flush flush = Flush::to_disk);
 
 /// A fresh name for the temp file of an atomic replacement of `path`, in its folder: "PATH.<12 hex digits>.tmp", so
 /// that writers of one path never share a temp file and a crash's leftovers are found by their ".tmp".

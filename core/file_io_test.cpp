@@ -1,6 +1,6 @@
 // read_file_bytes: whole files of every size byte for byte, files whose reported size is not their content (procfs),
-// and clear errors for missing files and folders. write_file_atomic: a replacement in either flush mode leaves the new
-// bytes and no temp file; a failed one leaves the old file and no temp file.
+// and clear errors for missing files and folders. write_file_atomic (of bytes, or through a writer): a replacement in
+// either flush mode leaves the new bytes and no temp file; a failed one leaves the old file and no temp file.
 #include "core/file_io.h"
 
 #include <gtest/gtest.h>
@@ -88,6 +88,20 @@ TEST_F(ReadFileBytes, FailedAtomicWriteKeepsTheOldFile) {
   EXPECT_TRUE(fs::is_directory(dir_ / "folder"));
   EXPECT_EQ(read_file_bytes(p), "old");
   EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()), 2);  // no temp file left
+}
+
+TEST_F(ReadFileBytes, AtomicWriteThroughAWriterReplacesOrKeepsTheOldFile) {
+  const fs::path p = dir_ / "out.bin";
+  for (const Flush flush : {Flush::to_disk, Flush::none}) {
+    write_file_atomic(p, [](const fs::path& tmp) { std::ofstream(tmp, std::ios::binary) << "made"; }, flush);
+    EXPECT_EQ(read_file_bytes(p), "made");
+  }
+  EXPECT_THROW(write_file_atomic(p, [](const fs::path& tmp) {
+    std::ofstream(tmp, std::ios::binary) << "half";
+    throw std::runtime_error("the writer failed");
+  }), std::runtime_error);
+  EXPECT_EQ(read_file_bytes(p), "made");
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()), 1);  // no temp file left
 }
 
 TEST(TempPathBeside, IsFreshBesideThePathAndEndsInTmp) {

@@ -575,7 +575,7 @@ fs::path DurableStore::result_path(const std::string& job) {
 }
 
 void DurableStore::write_result(const std::string& job, const std::function<void(const fs::path&)>& write) {
-  write_file_replacing(result_path(job), write, durability_);
+  write_file_atomic(result_path(job), write, flush_for(durability_));
 }
 
 std::vector<std::pair<int64_t, std::string>> DurableStore::tile_pixels(const std::string& job) {

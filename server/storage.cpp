@@ -3,12 +3,7 @@
 #include "core/sha256.h"
 #include "core/file_io.h"
 
-#include <fcntl.h>
-#include <unistd.h>
-
-#include <cerrno>
 #include <chrono>
-#include <cstring>
 
 namespace fs = std::filesystem;
 
@@ -39,33 +34,6 @@ size_t remove_leftovers(const fs::path& dir, bool everything) {
     if (ec) throw StorageError("cannot remove " + p.string() + ": " + ec.message());
   }
   return doomed.size();
-}
-
-void write_file_replacing(const fs::path& path, const std::function<void(const fs::path&)>& write, Durability durability) {
-  const fs::path tmp = temp_path_beside(path);
-  const auto discard = [&] {
-    std::error_code ignored;
-    fs::remove(tmp, ignored);
-  };
-  try {
-    write(tmp);
-    if (durability == Durability::machine) {
-      const int fd = ::open(tmp.c_str(), O_RDONLY | O_CLOEXEC);
-      if (fd < 0 || ::fsync(fd) != 0) {
-        const std::string why = std::strerror(errno);
-        if (fd >= 0) ::close(fd);
-        throw StorageError("cannot flush " + tmp.string() + ": " + why);
-      }
-      ::close(fd);
-    }
-    std::error_code ec;
-    fs::rename(tmp, path, ec);
-    if (ec) throw StorageError("cannot rename " + tmp.string() + " to " + path.string() + ": " + ec.message());
-  } catch (...) {
-    discard();
-    throw;
-  }
-  if (durability == Durability::machine) sync_folder_of(path);
 }
 
 DiskBlobStore::DiskBlobStore(fs::path dir, Durability durability) : dir_(std::move(dir)), durability_(durability) {

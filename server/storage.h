@@ -32,12 +32,6 @@ constexpr Flush flush_for(Durability durability) {
   return durability == Durability::machine ? Flush::to_disk : Flush::none;
 }
 
-/// Replaces `path` atomically with a file that `write` makes at the temp path it is given (then flushed for
-/// Durability::machine, and renamed); on failure removes the temp file and rethrows (StorageError for the store's
-/// own steps).
-void write_file_replacing(const std::filesystem::path& path, const std::function<void(const std::filesystem::path&)>& write,
-                          Durability durability);
-
 /// Outcome of storing a blob.
 struct PutBlobResult {
   enum Status { created, existed, mismatch } status = created;  ///< mismatch: the bytes hash to `actual`.
