@@ -63,6 +63,8 @@ struct HttpResponse {
   std::string header(std::string_view name) const;
   /// The "error" text of a JSON error body, else the body itself (shortened), else "HTTP <status>".
   std::string error_text() const;
+  /// A server error, 408 or 429: the same request may succeed later.
+  bool retryable() const { return status >= 500 || status == 408 || status == 429; }
 };
 
 /// A connection to one server, reused across requests (keep-alive) and reopened when the server closed it.

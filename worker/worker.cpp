@@ -12,19 +12,20 @@
 #include "protocol/messages.h"
 #include "protocol/routes.h"
 #include "protocol/tile.h"
+#include "worker/prefetched_lease.h"
+#include "worker/render_signals.h"
 #include "worker/scene_cache.h"
+#include "worker/tile_companion.h"
+#include "worker/tile_upload.h"
 #include "worker/upload_queue.h"
 
 #include <spdlog/spdlog.h>
 #include <tbb/global_control.h>
 #include <tbb/task_arena.h>
-#include <tbb/task_group.h>
 
 #include <unistd.h>
 
-#include <condition_variable>
 #include <exception>
-#include <limits>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -40,9 +41,6 @@ using protocol::Registration;
 namespace routes = protocol::routes;
 
 namespace {
-
-// Why a tile's render was stopped early.
-enum class Stop : int { kNone = 0, kRevoked = 1, kShutdown = 2 };
 
 // The coordinator no longer knows the job or lease: nothing to report, the tile is dropped.
 struct Gone : std::runtime_error {
@@ -63,208 +61,6 @@ std::string default_name() {
   char host[256] = {};
   if (::gethostname(host, sizeof host - 1) != 0) std::snprintf(host, sizeof host, "worker");
   return std::string(host) + "-" + std::to_string(::getpid());
-}
-
-bool retryable_status(int status) { return status >= 500 || status == 408 || status == 429; }
-
-// A job's built scene and the sampling settings of its spec, cached per job id.
-struct PreparedJob {
-  LoadedScene loaded;                   // scene and BVH
-  protocol::SamplingSettings sampling;  // the spec's sampling settings
-};
-
-class TileCompanion;
-
-// What a tile's render and the thread beside it share, made before either: the cancel flag and its reason, the rays
-// so far, and whether the render wants its successor's lease (the companion asks for it as soon as it is attached).
-struct RenderSignals {
-  std::atomic<bool> cancel{false};
-  std::atomic<int> reason{int(Stop::kNone)};
-  std::atomic<uint64_t> rays{0};
-
-  // The render is near its end: ask for the next lease (now, or once a companion is attached).
-  void want_next();
-  // The companion that asks; nullptr detaches it.
-  void attach(TileCompanion* companion);
-
- private:
-  std::mutex mutex_;
-  TileCompanion* companion_ = nullptr;
-  bool wants_next_ = false;
-};
-
-// The render of a tile begun before the tile that asked for its lease has finished, on the same task arena: the
-// threads that run out of the current tile's thread tiles take this one's, so no core idles at a tile's end or
-// between tiles (pixels do not depend on which thread renders what).
-struct HeadStart {
-  RenderSignals signals;
-  std::shared_ptr<const PreparedJob> scene;
-  tbb::task_group group;            // the render task (waited for before this goes)
-  std::optional<RenderResult> result;
-  std::exception_ptr error;         // what the render threw
-  bool enqueued = false;            // its task is in the arena (to be waited for)
-  std::mutex mutex;                 // with cv: `submitted` turns true once the render task is in `group`
-  std::condition_variable cv;
-  bool submitted = false;
-};
-
-// The next lease, asked for while the current tile rendered, with the time of its grant or last heartbeat, and its
-// render when it was begun already.
-struct PrefetchedLease {
-  Lease lease;
-  std::chrono::steady_clock::time_point beaten;
-  std::shared_ptr<HeadStart> head;
-  std::optional<JobSpec> spec;  // the job's spec when it came with the lease
-};
-
-// The thread beside a tile's render: heartbeats the lease every `period` (the first beat after `first_beat`); on
-// 410/404 it sets the render's cancel flag, and on a second stop request it cancels for shutdown. When asked (near the
-// end of the render) it also asks for the worker's next lease, so that the round trip overlaps the render, and
-// heartbeats that lease too until the worker takes it up.
-class TileCompanion {
- public:
-  TileCompanion(HttpClient& http, std::string prefix, std::string lease, std::chrono::milliseconds period,
-                std::chrono::milliseconds first_beat, RenderSignals& signals, const std::atomic<int>& stop_requests,
-                std::function<std::optional<PrefetchedLease>()> ask_lease)
-      : http_(http), prefix_(std::move(prefix)), lease_(std::move(lease)), period_(period), first_beat_(first_beat),
-        cancel_(signals.cancel), reason_(signals.reason), rays_(signals.rays), stop_requests_(stop_requests),
-        ask_lease_(std::move(ask_lease)), thread_([this] { run(); }) {}
-  ~TileCompanion() { stop(); }
-  TileCompanion(const TileCompanion&) = delete;
-  TileCompanion& operator=(const TileCompanion&) = delete;
-
-  // Asks for the next lease on the companion's thread (once; never blocks).
-  void ask_next_lease() {
-    {
-      std::lock_guard lock(mutex_);
-      if (asked_) return;
-      asked_ = true;
-    }
-    cv_.notify_all();
-  }
-
-  // Stops the thread (after a request in flight) and hands over the next lease, if one was granted and is still live.
-  std::optional<PrefetchedLease> finish() {
-    stop();
-    std::lock_guard lock(mutex_);
-    return std::move(next_);
-  }
-
- private:
-  void stop() {
-    {
-      std::lock_guard lock(mutex_);
-      if (done_) return;
-      done_ = true;
-    }
-    cv_.notify_all();
-    thread_.join();
-  }
-
-  void run() noexcept {
-    try {
-      auto next = std::chrono::steady_clock::now() + first_beat_;
-      uint64_t sent_rays = 0;
-      bool stop_noted = false, fetched = false;
-      std::unique_lock lock(mutex_);
-      for (;;) {
-        cv_.wait_for(lock, 100ms, [&] { return done_ || (asked_ && !fetched); });
-        if (asked_ && !fetched) {  // even when the render ended meanwhile: the worker needs its next tile now
-          fetched = true;
-          lock.unlock();
-          std::optional<PrefetchedLease> l = ask_lease_();
-          lock.lock();
-          if (l) next_ = std::move(*l);
-          continue;
-        }
-        if (done_) break;
-        if (stop_requests_.load() == 1 && !stop_noted) {
-          stop_noted = true;
-          spdlog::info("{}: asked to stop, finishing this tile first", prefix_);
-        }
-        if (stop_requests_.load() >= 2 && !cancel_.load()) {
-          reason_.store(int(Stop::kShutdown));
-          cancel_.store(true);
-          spdlog::info("{}: asked to stop again, cancelling the render to hand the tile back", prefix_);
-        }
-        if (std::chrono::steady_clock::now() < next) continue;
-        const std::optional<std::string> held = next_ ? std::optional<std::string>(next_->lease.id) : std::nullopt;
-        lock.unlock();
-        if (!cancel_.load()) {
-          const uint64_t rays = rays_.load();
-          if (!beat(lease_, json(protocol::HeartbeatReport{rays - sent_rays}).dump())) {
-            reason_.store(int(Stop::kRevoked));
-            cancel_.store(true);
-          }
-          sent_rays = rays;
-        }
-        const bool held_live = !held || beat(*held, "{}");
-        next = std::chrono::steady_clock::now() + period_;
-        lock.lock();
-        if (held && next_) {
-          if (held_live) {
-            next_->beaten = std::chrono::steady_clock::now();
-          } else if (next_->head) {  // its render, begun already, is stopped; the worker drops the tile
-            next_->head->signals.reason.store(int(Stop::kRevoked));
-            next_->head->signals.cancel.store(true);
-          } else {
-            next_.reset();  // revoked or expired meanwhile: the worker asks again
-          }
-        }
-      }
-    } catch (const std::exception& e) {
-      spdlog::error("{}: heartbeat thread stopped: {}", prefix_, e.what());
-    } catch (...) {
-      spdlog::error("{}: heartbeat thread stopped by an unknown exception", prefix_);
-    }
-  }
-
-  // One heartbeat; false when the lease is gone (410/404).
-  bool beat(const std::string& lease, const std::string& body) {
-    try {
-      const HttpResponse r = http_.send("POST", routes::lease_heartbeat(lease), body);
-      if (r.status == 200) return true;
-      const std::string which = lease == lease_ ? "heartbeat" : "heartbeat of the next lease " + lease;
-      if (r.status == 410 || r.status == 404) {
-        spdlog::info("{}: {} answered {} ({}), {}", prefix_, which, r.status, r.error_text(),
-                     lease == lease_ ? "cancelling the render" : "dropping that lease");
-        return false;
-      }
-      spdlog::warn("{}: {} answered {}: {}", prefix_, which, r.status, r.error_text());
-    } catch (const TransportError& e) {
-      spdlog::warn("{}: {} failed (keeps rendering): {}", prefix_, lease == lease_ ? "heartbeat" : "heartbeat of " + lease,
-                   e.what());
-    }
-    return true;
-  }
-
-  HttpClient& http_;
-  const std::string prefix_, lease_;
-  const std::chrono::milliseconds period_, first_beat_;
-  std::atomic<bool>& cancel_;
-  std::atomic<int>& reason_;
-  const std::atomic<uint64_t>& rays_;
-  const std::atomic<int>& stop_requests_;
-  const std::function<std::optional<PrefetchedLease>()> ask_lease_;
-  std::mutex mutex_;
-  std::condition_variable cv_;
-  bool done_ = false;
-  bool asked_ = false;                   // ask_next_lease was called
-  std::optional<PrefetchedLease> next_;  // its answer, when a lease was granted
-  std::thread thread_;  // last: starts after every other member is ready
-};
-
-void RenderSignals::want_next() {
-  std::lock_guard lock(mutex_);
-  if (wants_next_) return;
-  wants_next_ = true;
-  if (companion_) companion_->ask_next_lease();
-}
-
-void RenderSignals::attach(TileCompanion* companion) {
-  std::lock_guard lock(mutex_);
-  companion_ = companion;
-  if (companion_ && wants_next_) companion_->ask_next_lease();
 }
 
 class Worker {
@@ -550,7 +346,7 @@ class Worker {
         const HttpResponse r = http_.send("GET", target);
         if (r.status == 200) return r.body;
         if (r.status == 404) throw Gone("GET " + target + ": not found (" + r.error_text() + ")");
-        if (!retryable_status(r.status))
+        if (!r.retryable())
           throw std::runtime_error("GET " + target + " answered " + std::to_string(r.status) + ": " + r.error_text());
         spdlog::warn("GET {} answered {}: {}; retrying", target, r.status, r.error_text());
       } catch (const TransportError& e) {
@@ -623,13 +419,13 @@ class Worker {
     TileCompanion companion(heartbeat_http_, pfx, l.id, heartbeat_period_,
                             std::max<std::chrono::milliseconds>(0ms, heartbeat_period_ - since_beat), signals, stop_,
                             [this, pfx] { return prefetch_lease(heartbeat_http_, pfx); });
-    signals.attach(&companion);
+    signals.attach([&companion] { companion.ask_next_lease(); });
     struct Detach {
       RenderSignals& signals;
-      ~Detach() { signals.attach(nullptr); }
+      ~Detach() { signals.attach({}); }
     } detach{signals};
     const auto finish = [&] {
-      signals.attach(nullptr);
+      signals.attach({});
       return companion.finish();
     };
     {
@@ -701,7 +497,11 @@ class Worker {
     // one) while the previous upload is still going, and a worker that dies here loses only leases, which expire.
     uploads_.post([this, l, pfx, res = std::make_shared<RenderResult>(std::move(*result)), width, height] {
       try {
-        upload(l, pfx, *res, width, height);
+        const UploadOutcome outcome = upload_tile(upload_http_, l, pfx, *res, width, height, opt_.max_retry_wait,
+                                                  [this] { return stop_.load() >= 2; });
+        count(outcome == UploadOutcome::kUploaded ? &WorkerStats::tiles_uploaded
+              : outcome == UploadOutcome::kFailed ? &WorkerStats::tiles_failed
+                                                  : &WorkerStats::tiles_dropped);
       } catch (const std::exception& e) {
         spdlog::error("{}: upload stopped: {}; tile dropped", pfx, e.what());
         count(&WorkerStats::tiles_dropped);
@@ -720,89 +520,6 @@ class Worker {
     return stored;
   }
 
-  void upload(const Lease& l, const std::string& pfx, const RenderResult& res, int width, int height) {
-    ExrWriteOptions wo;
-    wo.compression = ExrCompression::kNone;  // noisy floats barely compress; the CPU is better spent rendering
-    wo.data_window = l.window;
-    wo.display_window = PixelWindow{0, 0, width, height};
-    wo.write_extra = l.resumable;  // a resumable job's tile carries its state channels
-    std::vector<uint8_t> bytes = encode_exr(res.image, wo);
-    TESSERA_FAIL_POINT_RETURN("worker.upload.corrupt",
-                              [&](const std::string& how) { bytes = corrupt_tile(res.image, wo, how); });
-    HttpRequest req;
-    req.method = "PUT";
-    req.target = routes::lease_result(l.id);
-    req.body.assign(bytes.begin(), bytes.end());
-    req.content_type = "image/x-exr";
-    req.headers["X-Tessera-Rays"] = std::to_string(res.counters.rays);
-    TESSERA_FAIL_POINT("worker.upload");
-    Backoff backoff(200ms, opt_.max_retry_wait);
-    for (int attempt = 1;; ++attempt) {
-      try {
-        const HttpResponse r = upload_http_.send(req);
-        if (r.status == 200) {
-          const json j = json::parse(r.body, nullptr, false);
-          const std::string status = j.is_object() ? j.value("status", "") : "";
-          spdlog::info("{}: upload {}", pfx, status.empty() ? "acknowledged" : status);
-          count(&WorkerStats::tiles_uploaded);
-          bool again = false;  // tests send the result again, as a worker that missed the answer would
-          TESSERA_FAIL_POINT_RETURN("worker.upload.repeat", [&](const std::string&) { again = true; });
-          if (again) continue;
-          return;
-        }
-        if (r.status == 410) {
-          spdlog::info("{}: upload discarded (job cancelled or failed)", pfx);
-          count(&WorkerStats::tiles_dropped);
-          return;
-        }
-        if (r.status == 422) {
-          spdlog::error("{}: the coordinator refused the result as invalid: {}", pfx, r.error_text());
-          count(&WorkerStats::tiles_failed);
-          return;
-        }
-        if (r.status == 404) {
-          spdlog::warn("{}: the coordinator does not know the lease any more; tile dropped", pfx);
-          count(&WorkerStats::tiles_dropped);
-          return;
-        }
-        if (!retryable_status(r.status)) {
-          spdlog::error("{}: upload answered {}: {}; tile dropped", pfx, r.status, r.error_text());
-          count(&WorkerStats::tiles_dropped);
-          return;
-        }
-        spdlog::warn("{}: upload attempt {} answered {}: {}; retrying", pfx, attempt, r.status, r.error_text());
-      } catch (const TransportError& e) {
-        spdlog::warn("{}: upload attempt {} failed: {}; retrying", pfx, attempt, e.what());
-      }
-      if (!sleep_unless(backoff.next(), [&] { return stop_.load() >= 2; })) {
-        spdlog::warn("{}: asked to stop again while the coordinator is unreachable; abandoning the upload", pfx);
-        count(&WorkerStats::tiles_dropped);
-        return;
-      }
-    }
-  }
-
-#if defined(TESSERA_FAILPOINTS)
-  // The corrupted tile of fail point worker.upload.corrupt: "nan" puts a NaN in the first pixel, "size" drops the last
-  // column (or row).
-  static std::vector<uint8_t> corrupt_tile(const Image& image, ExrWriteOptions wo, const std::string& how) {
-    if (how == "nan") {
-      Image bad = image;
-      bad.extra.clear();
-      bad.rgb[0] = std::numeric_limits<float>::quiet_NaN();
-      return encode_exr(bad, wo);
-    }
-    if (how != "size")
-      throw std::runtime_error("fail point worker.upload.corrupt: return(nan) or return(size), not return(" + how + ")");
-    const bool narrower = image.width > 1;
-    Image bad = Image::make(image.width - (narrower ? 1 : 0), image.height - (narrower ? 0 : 1));
-    for (int y = 0; y < bad.height; ++y)
-      for (int x = 0; x < bad.width; ++x) bad.set(x, y, image.at(x, y));
-    (narrower ? wo.data_window.x1 : wo.data_window.y1) -= 1;
-    return encode_exr(bad, wo);
-  }
-#endif
-
   // Posts a small JSON message about a lease, retrying briefly; the lease expires anyway if this never arrives.
   bool post_lease_message(const std::string& pfx, const std::string& action, const std::string& target,
                           const json& body, int attempts) {
@@ -811,7 +528,7 @@ class Worker {
       try {
         const HttpResponse r = http_.send("POST", target, body.dump());
         if (r.status == 200) return true;
-        if (!retryable_status(r.status)) {
+        if (!r.retryable()) {
           spdlog::warn("{}: {} answered {}: {}", pfx, action, r.status, r.error_text());
           return false;
         }

@@ -1,0 +1,63 @@
+// The thread beside a tile's render: it keeps the tile's lease alive and asks for the worker's next lease before the
+// render ends.
+#pragma once
+
+#include "client/http_client.h"
+#include "worker/prefetched_lease.h"
+#include "worker/render_signals.h"
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <functional>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+
+namespace tessera::farm {
+
+/// Heartbeats a tile's lease every `period` (the first beat after `first_beat`) on a thread of its own; on 410/404 it
+/// sets the render's cancel flag, and on a second stop request it cancels for shutdown. When asked (near the end of
+/// the render) it also asks for the worker's next lease through `ask_lease`, so that the round trip overlaps the
+/// render, and heartbeats that lease too until the worker takes it up. Lives as long as the tile's render.
+class TileCompanion {
+ public:
+  /// Starts the thread; `prefix` begins its log lines, `lease` is the tile's lease id.
+  TileCompanion(HttpClient& http, std::string prefix, std::string lease, std::chrono::milliseconds period,
+                std::chrono::milliseconds first_beat, RenderSignals& signals, const std::atomic<int>& stop_requests,
+                std::function<std::optional<PrefetchedLease>()> ask_lease);
+  /// Stops the thread (after a request in flight).
+  ~TileCompanion();
+  TileCompanion(const TileCompanion&) = delete;
+  TileCompanion& operator=(const TileCompanion&) = delete;
+
+  /// Asks for the next lease on the companion's thread (once; never blocks).
+  void ask_next_lease();
+
+  /// Stops the thread (after a request in flight) and hands over the next lease, if one was granted and is still live.
+  std::optional<PrefetchedLease> finish();
+
+ private:
+  void stop();
+  void run() noexcept;
+  // One heartbeat; false when the lease is gone (410/404).
+  bool beat(const std::string& lease, const std::string& body);
+
+  HttpClient& http_;
+  const std::string prefix_, lease_;
+  const std::chrono::milliseconds period_, first_beat_;
+  std::atomic<bool>& cancel_;
+  std::atomic<int>& reason_;
+  const std::atomic<uint64_t>& rays_;
+  const std::atomic<int>& stop_requests_;
+  const std::function<std::optional<PrefetchedLease>()> ask_lease_;
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  bool done_ = false;
+  bool asked_ = false;                   // ask_next_lease was called
+  std::optional<PrefetchedLease> next_;  // its answer, when a lease was granted
+  std::thread thread_;  // last: starts after every other member is ready
+};
+
+}  // namespace tessera::farm

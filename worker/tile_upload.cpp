@@ -1,0 +1,99 @@
+#include "worker/tile_upload.h"
+
+#include "client/backoff.h"
+#include "core/image.h"
+#include "failpoint/failpoint.h"
+#include "protocol/routes.h"
+
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include <limits>
+
+namespace tessera::farm {
+
+using namespace std::chrono_literals;
+
+namespace {
+
+#if defined(TESSERA_FAILPOINTS)
+// The corrupted tile of fail point worker.upload.corrupt: "nan" puts a NaN in the first pixel, "size" drops the last
+// column (or row).
+std::vector<uint8_t> corrupt_tile(const Image& image, ExrWriteOptions wo, const std::string& how) {
+  if (how == "nan") {
+    Image bad = image;
+    bad.extra.clear();
+    bad.rgb[0] = std::numeric_limits<float>::quiet_NaN();
+    return encode_exr(bad, wo);
+  }
+  if (how != "size")
+    throw std::runtime_error("fail point worker.upload.corrupt: return(nan) or return(size), not return(" + how + ")");
+  const bool narrower = image.width > 1;
+  Image bad = Image::make(image.width - (narrower ? 1 : 0), image.height - (narrower ? 0 : 1));
+  for (int y = 0; y < bad.height; ++y)
+    for (int x = 0; x < bad.width; ++x) bad.set(x, y, image.at(x, y));
+  (narrower ? wo.data_window.x1 : wo.data_window.y1) -= 1;
+  return encode_exr(bad, wo);
+}
+#endif
+
+}  // namespace
+
+UploadOutcome upload_tile(HttpClient& http, const protocol::Lease& l, const std::string& prefix, const RenderResult& res,
+                          int width, int height, std::chrono::milliseconds max_retry_wait,
+                          const std::function<bool()>& abandon) {
+  ExrWriteOptions wo;
+  wo.compression = ExrCompression::kNone;  // noisy floats barely compress; the CPU is better spent rendering
+  wo.data_window = l.window;
+  wo.display_window = PixelWindow{0, 0, width, height};
+  wo.write_extra = l.resumable;  // a resumable job's tile carries its state channels
+  std::vector<uint8_t> bytes = encode_exr(res.image, wo);
+  TESSERA_FAIL_POINT_RETURN("worker.upload.corrupt", [&](const std::string& how) { bytes = corrupt_tile(res.image, wo, how); });
+  HttpRequest req;
+  req.method = "PUT";
+  req.target = protocol::routes::lease_result(l.id);
+  req.body.assign(bytes.begin(), bytes.end());
+  req.content_type = "image/x-exr";
+  req.headers["X-Tessera-Rays"] = std::to_string(res.counters.rays);
+  TESSERA_FAIL_POINT("worker.upload");
+  Backoff backoff(200ms, max_retry_wait);
+  for (int attempt = 1;; ++attempt) {
+    try {
+      const HttpResponse r = http.send(req);
+      if (r.status == 200) {
+        const nlohmann::json j = nlohmann::json::parse(r.body, nullptr, false);
+        const std::string status = j.is_object() ? j.value("status", "") : "";
+        spdlog::info("{}: upload {}", prefix, status.empty() ? "acknowledged" : status);
+        bool again = false;  // tests send the result again, as a worker that missed the answer would
+        TESSERA_FAIL_POINT_RETURN("worker.upload.repeat", [&](const std::string&) { again = true; });
+        if (again) continue;
+        return UploadOutcome::kUploaded;
+      }
+      if (r.status == 410) {
+        spdlog::info("{}: upload discarded (job cancelled or failed)", prefix);
+        return UploadOutcome::kDropped;
+      }
+      if (r.status == 422) {
+        spdlog::error("{}: the coordinator refused the result as invalid: {}", prefix, r.error_text());
+        return UploadOutcome::kFailed;
+      }
+      if (r.status == 404) {
+        spdlog::warn("{}: the coordinator does not know the lease any more; tile dropped", prefix);
+        return UploadOutcome::kDropped;
+      }
+      if (!r.retryable()) {
+        spdlog::error("{}: upload answered {}: {}; tile dropped", prefix, r.status, r.error_text());
+        return UploadOutcome::kDropped;
+      }
+      spdlog::warn("{}: upload attempt {} answered {}: {}; retrying", prefix, attempt, r.status, r.error_text());
+    } catch (const TransportError& e) {
+      spdlog::warn("{}: upload attempt {} failed: {}; retrying", prefix, attempt, e.what());
+    }
+    if (!sleep_unless(backoff.next(), abandon)) {
+      spdlog::warn("{}: asked to stop again while the coordinator is unreachable; abandoning the upload", prefix);
+      return UploadOutcome::kDropped;
+    }
+  }
+}
+
+}  // namespace tessera::farm

@@ -1,0 +1,29 @@
+// A finished tile's upload: its pixels encoded as an uncompressed EXR and PUT to its lease's result, retried until
+// the coordinator settles it.
+#pragma once
+
+#include "client/http_client.h"
+#include "core/render.h"
+#include "protocol/messages.h"
+
+#include <chrono>
+#include <functional>
+#include <string>
+
+namespace tessera::farm {
+
+/// How a tile's upload ended.
+enum class UploadOutcome {
+  kUploaded,  ///< The coordinator accepted the result (or acknowledged it as a duplicate).
+  kDropped,   ///< The lease or job is gone, the answer cannot be retried, or the upload was abandoned.
+  kFailed,    ///< The coordinator refused the result as invalid (422).
+};
+
+/// Uploads the render of lease `l`'s tile of a width x height image through `http`, logging under `prefix`. Transport
+/// errors and retryable answers are retried with backoff up to `max_retry_wait` apart, until `abandon` says to give
+/// up. Throws only what encoding throws.
+UploadOutcome upload_tile(HttpClient& http, const protocol::Lease& l, const std::string& prefix, const RenderResult& res,
+                          int width, int height, std::chrono::milliseconds max_retry_wait,
+                          const std::function<bool()>& abandon);
+
+}  // namespace tessera::farm
