@@ -1,20 +1,18 @@
 #include "worker/worker.h"
 
-#include "core/checked_files.h"
+#include "client/backoff.h"
 #include "core/image.h"
 #include "core/render.h"
 #include "core/render_state.h"
-#include "core/scene_loader.h"
 #include "failpoint/failpoint.h"
-#include "worker/asset_cache.h"
-#include "client/backoff.h"
-#include "worker/recent_log.h"
 #include "protocol/messages.h"
 #include "protocol/routes.h"
 #include "protocol/tile.h"
+#include "worker/asset_cache.h"
+#include "worker/job_scenes.h"
 #include "worker/prefetched_lease.h"
+#include "worker/recent_log.h"
 #include "worker/render_signals.h"
-#include "worker/scene_cache.h"
 #include "worker/tile_companion.h"
 #include "worker/tile_upload.h"
 #include "worker/upload_queue.h"
@@ -41,11 +39,6 @@ using protocol::Registration;
 namespace routes = protocol::routes;
 
 namespace {
-
-// The coordinator no longer knows the job or lease: nothing to report, the tile is dropped.
-struct Gone : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
 
 // The coordinator refused the worker token (401/403): retrying cannot help, the worker stops with this message.
 struct AccessDenied : std::runtime_error {
@@ -80,8 +73,7 @@ class Worker {
       : opt_(opt), stop_(stop), url_(parse_http_url(opt.coordinator)), http_(url_, opt.timeouts, kMaxResponse, opt.tls),
         heartbeat_http_(url_, heartbeat_timeouts(opt.timeouts), kMaxResponse, opt.tls),
         upload_http_(url_, opt.timeouts, kMaxResponse, opt.tls),
-        cache_(opt.cache_dir.empty() ? default_cache_dir() : opt.cache_dir), scenes_(opt.scene_cache_jobs),
-        images_(4096, opt.image_cache_bytes),
+        scenes_(opt.cache_dir.empty() ? default_cache_dir() : opt.cache_dir, opt.scene_cache_jobs, opt.image_cache_bytes),
         idle_(std::min<std::chrono::milliseconds>(100ms, opt.max_idle_wait), opt.max_idle_wait),
         retry_(200ms, opt.max_retry_wait) {
     name_ = opt.name.empty() ? default_name() : opt.name;
@@ -94,7 +86,7 @@ class Worker {
 
   WorkerStats run() {
     spdlog::info("worker {} starting: coordinator {}, {} threads, cache {}", name_, url_.to_string(), threads_,
-                 cache_.dir().string());
+                 scenes_.cache_dir().string());
     std::optional<PrefetchedLease> next;  // asked for while the previous tile rendered
     while (!stopping()) {
       try {
@@ -246,11 +238,7 @@ class Worker {
     if (threads_ < 2 || l.state_spp > 0 || stopping() || TESSERA_FAIL_POINT_SET("worker.render") ||
         TESSERA_FAIL_POINT_SET("worker.render.fail_tiles"))
       return nullptr;
-    std::shared_ptr<const PreparedJob> job;
-    {
-      std::lock_guard lock(scenes_mutex_);
-      job = scenes_.find(l.job);
-    }
+    std::shared_ptr<const PreparedJob> job = scenes_.find(l.job);
     if (!job || !PixelWindow{0, 0, job->loaded.scene.width, job->loaded.scene.height}.contains(l.window)) return nullptr;
     // However it is dropped from here on, its task has ended before it goes.
     std::shared_ptr<HeadStart> head(new HeadStart, [this](HeadStart* h) {
@@ -297,8 +285,7 @@ class Worker {
   // A lease request's body: the jobs whose scenes are built here, so that a lease of any other job brings its spec.
   std::string lease_request_body() {
     protocol::LeaseRequest req;
-    std::lock_guard lock(scenes_mutex_);
-    req.known_jobs = scenes_.keys();  // most recently used first: beyond the protocol's limit, the older ones go
+    req.known_jobs = scenes_.jobs();  // most recently used first: beyond the protocol's limit, the older ones go
     if (req.known_jobs->size() > protocol::kMaxKnownJobs) req.known_jobs->resize(protocol::kMaxKnownJobs);
     return json(req).dump();
   }
@@ -359,47 +346,18 @@ class Worker {
   // The job's scene, built once and kept for its later tiles; from the spec that came with the lease, if one did.
   std::shared_ptr<const PreparedJob> scene_for(const Lease& l, std::optional<JobSpec> sent, const std::string& pfx,
                                                const std::function<bool()>& interrupted) {
-    {
-      std::lock_guard lock(scenes_mutex_);
-      if (auto s = scenes_.find(l.job)) return s;
-    }
+    if (auto s = scenes_.find(l.job)) return s;
     const auto t0 = std::chrono::steady_clock::now();
     const bool with_lease = sent.has_value();
     const JobSpec spec =
         with_lease ? std::move(*sent) : protocol::parse_answer<JobSpec>(fetch(routes::job_spec(l.job), interrupted), "job spec");
-    std::map<std::string, std::filesystem::path> files;
-    for (const auto& [path, hash] : spec.assets) {
-      try {
-        files[path] = cache_.get(hash, [&](const std::string& h) { return fetch(routes::blob(h), interrupted); });
-      } catch (const Gone& e) {
-        throw AssetError("asset " + path + " (" + hash + ") is not on the coordinator: " + e.what());
-      }
-    }
-    const AssetResolver resolve = [&files](const std::string& path, const std::string& json_path) {
-      const auto it = files.find(path);
-      if (it == files.end()) throw SceneError(json_path + ": asset '" + path + "' is not listed in the job's assets");
-      return it->second;
-    };
-    // The spec's spp is already the job's (the scene's unless overridden): the loader is not told again.
-    LoadOptions lo = spec.sampling.load_options();
-    lo.spp.reset();
-    lo.checked_files = &images_;  // the cache's files are named by their content and never rewritten
-    auto loaded = std::make_shared<PreparedJob>();
-    loaded->loaded = load_scene_json(spec.scene, "job " + l.job, resolve, lo);
-    loaded->sampling = spec.sampling;
-    const Scene& built = loaded->loaded.scene;
-    if (built.width != spec.width || built.height != spec.height)
-      throw SceneError("job " + l.job + ": the scene is " + std::to_string(built.width) + "x" +
-                       std::to_string(built.height) + " but the job spec says " + std::to_string(spec.width) + "x" +
-                       std::to_string(spec.height));
+    auto prepared = scenes_.build(l.job, spec, [&](const std::string& h) { return fetch(routes::blob(h), interrupted); });
     spdlog::info("{}: built the job's scene in {:.2f}s ({} assets, {} image(s) taken already decoded{}, spec {})", pfx,
                  std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), spec.assets.size(),
-                 loaded->loaded.images_reused,
-                 loaded->loaded.environment_reused ? ", the environment's sampling table kept" : "",
+                 prepared->loaded.images_reused,
+                 prepared->loaded.environment_reused ? ", the environment's sampling table kept" : "",
                  with_lease ? "sent with the lease" : "fetched");
-    std::lock_guard lock(scenes_mutex_);
-    scenes_.put(l.job, loaded);
-    return loaded;
+    return prepared;
   }
 
   // Renders a leased tile (heartbeating it from `beaten`, its grant or last heartbeat; its render maybe begun ahead,
@@ -559,10 +517,7 @@ class Worker {
   HttpClient http_;
   HttpClient heartbeat_http_;  // used only by the heartbeat thread
   HttpClient upload_http_;     // used only by the upload thread
-  AssetCache cache_;
-  std::mutex scenes_mutex_;  // scenes_ is looked up by the companion's thread too (head_start)
-  LruCache<PreparedJob> scenes_;
-  CheckedFiles images_;  // decoded textures of earlier jobs (within WorkerOptions::image_cache_bytes), by cache file
+  JobScenes scenes_;  // looked up by the companion's thread too (head_start, lease_request_body)
   Backoff idle_, retry_;
   std::string name_, id_;
   int threads_ = 1;

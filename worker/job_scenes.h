@@ -1,0 +1,55 @@
+// The scenes of the jobs a worker renders: each built once, from its spec and its assets in the worker's cache, and
+// kept for the job's later tiles.
+#pragma once
+
+#include "core/checked_files.h"
+#include "protocol/messages.h"
+#include "worker/asset_cache.h"
+#include "worker/prefetched_lease.h"
+#include "worker/scene_cache.h"
+
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace tessera::farm {
+
+/// What fetching from the coordinator throws when it no longer has the job, lease or blob asked for (404).
+struct Gone : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// Built scenes by job id (the most recently used few), the asset cache they are built from, and decoded textures
+/// kept across jobs. find() and jobs() are thread-safe; build() is called by one thread at a time.
+class JobScenes {
+ public:
+  /// Assets cached in `cache_dir`; the scenes of the `jobs` most recently used jobs kept, decoded images up to
+  /// `image_bytes`. Throws AssetError when the cache folder cannot be created.
+  JobScenes(std::filesystem::path cache_dir, size_t jobs, size_t image_bytes);
+
+  /// The asset cache's folder.
+  const std::filesystem::path& cache_dir() const { return assets_.dir(); }
+
+  /// The job's built scene (now the most recently used), or null when none is held.
+  std::shared_ptr<const PreparedJob> find(const std::string& job);
+
+  /// The jobs whose scenes are held, most recently used first.
+  std::vector<std::string> jobs();
+
+  /// Builds and keeps the scene of `job` from its spec; assets missing from the cache are fetched by hash through
+  /// `fetch_blob`, whose Gone becomes an AssetError naming the asset. Throws SceneError for a scene that does not load
+  /// or whose size is not the spec's.
+  std::shared_ptr<const PreparedJob> build(const std::string& job, const protocol::JobSpec& spec,
+                                           const AssetCache::Fetch& fetch_blob);
+
+ private:
+  AssetCache assets_;
+  std::mutex mutex_;  // guards scenes_ (looked up by the companion's thread too)
+  LruCache<PreparedJob> scenes_;
+  CheckedFiles images_;  // decoded textures of earlier jobs, by cache file (used by build() alone)
+};
+
+}  // namespace tessera::farm
