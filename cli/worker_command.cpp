@@ -36,8 +36,9 @@ CLI::App* add_worker_command(CLI::App& app, WorkerArgs& a) {
                 "Sending a request, and receiving its whole response, must each take at most this long")
       ->check(CLI::Range(0.1, 86400.0))->capture_default_str();
   c->add_option("--max-idle-wait-ms", a.max_idle_wait_ms,
-                "Longest wait between lease requests while there is no work (the waits double from 100 ms up to it, "
-                "with jitter)")
+                "Longest wait for work per lease request while there is none: the coordinator holds the request "
+                "that long (at most 10 s) and answers as soon as a tile is leasable (the waits double from 100 ms up "
+                "to it, with jitter)")
       ->check(CLI::Range(1, 3'600'000))->capture_default_str();
   c->add_option("--image-cache-mb", a.image_cache_mb,
                 "Decoded texture pixels kept in memory for later jobs that use the same image files (0: decode them "

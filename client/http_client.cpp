@@ -101,6 +101,8 @@ struct HttpClient::Impl {
   std::unique_ptr<net::ByteStream> stream;    // the open connection
   beast::flat_buffer buffer;
   bool connected = false;
+  const std::function<bool()>* interrupted = nullptr;  // asked by run() every 100 ms while set (send's caller's)
+  bool was_interrupted = false;                         // run() gave up on an operation because of it
   HttpTimeouts timeouts;
   uint64_t max_response_bytes = 0;
 
@@ -123,7 +125,18 @@ struct HttpClient::Impl {
     error_code result = asio::error::would_block;
     ioc.restart();
     start(KeepError{&result});
-    ioc.run();
+    if (!interrupted || !*interrupted) {
+      ioc.run();
+      return result;
+    }
+    while (!ioc.stopped()) {
+      ioc.run_for(std::chrono::milliseconds(100));
+      if (!ioc.stopped() && (*interrupted)()) {
+        was_interrupted = true;
+        lowest().cancel();
+        ioc.run();
+      }
+    }
     return result;
   }
 
@@ -305,6 +318,23 @@ HttpResponse HttpClient::send(std::string method, std::string target, std::strin
   r.body = std::move(body);
   if (!r.body.empty()) r.content_type = std::move(content_type);
   return send(r);
+}
+
+HttpResponse HttpClient::send(const HttpRequest& request, const std::function<bool()>& interrupted) {
+  Impl& im = *impl_;
+  struct Asking {
+    Impl& im;
+    ~Asking() { im.interrupted = nullptr; }
+  } asking{im};
+  im.interrupted = &interrupted;
+  im.was_interrupted = false;
+  try {
+    return send(request);
+  } catch (const TransportError&) {
+    if (!im.was_interrupted) throw;
+    im.close();
+    throw RequestInterrupted(request.method + " " + url_.to_string() + request.target + ": given up while under way");
+  }
 }
 
 HttpResponse HttpClient::send(const HttpRequest& request) {

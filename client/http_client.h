@@ -22,6 +22,12 @@ struct TransportError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// The caller's `interrupted` said to give up while the request waited (see HttpClient::send): the connection was
+/// closed, and the request may or may not have been carried out.
+struct RequestInterrupted : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
 /// The parts of an http:// or https:// URL the client needs.
 struct HttpUrl {
   std::string host;       ///< Host name or address, e.g. "127.0.0.1".
@@ -86,6 +92,9 @@ class HttpClient {
   /// that could not be written on a reused connection goes once more on a fresh one, and so does a GET, HEAD, PUT,
   /// DELETE or OPTIONS whose answer did not start (a POST or PATCH then throws: it may have been carried out).
   HttpResponse send(const HttpRequest& request);
+  /// As send(request), asking `interrupted` every 100 ms while the request is under way (e.g. a lease request the
+  /// server holds for work); true closes the connection and throws RequestInterrupted.
+  HttpResponse send(const HttpRequest& request, const std::function<bool()>& interrupted);
   /// Sends the request on a connection of its own and reads the answer's header. For a 200 answer, calls on_data
   /// once with an empty view when the header has arrived (the stream is open), then with each piece of the body as
   /// it arrives, until on_data returns false or the body ends; a quiet spell longer than `idle` is an TransportError.

@@ -323,11 +323,12 @@ void from_json(const json& j, Lease& l) {
 void to_json(json& j, const LeaseRequest& r) {
   j = json::object();
   if (r.known_jobs) j["known_jobs"] = *r.known_jobs;
+  if (r.wait_ms > 0) j["wait_ms"] = r.wait_ms;
 }
 
 LeaseRequest parse_lease_request(const std::string& body) {
-  const json j = parse_request_object(body, {"known_jobs"}, true);
-  return LeaseRequest{request_strings(j, "known_jobs", kMaxKnownJobs)};
+  const json j = parse_request_object(body, {"known_jobs", "wait_ms"}, true);
+  return LeaseRequest{request_strings(j, "known_jobs", kMaxKnownJobs), request_int(j, "wait_ms", 0, 0, kMaxLeaseWaitMs)};
 }
 
 void from_json(const json& j, LeaseAnswer& a) {

@@ -154,8 +154,12 @@ struct LeaseRequest {
   /// Present: the worker takes the job's spec inside the answer (LeaseAnswer::spec) unless the job is listed here,
   /// the jobs whose specs it holds (at most kMaxKnownJobs). Absent: the answer never carries a spec.
   std::optional<std::vector<std::string>> known_jobs;
+  /// Milliseconds the coordinator may hold the request while it has no tile for this worker, answering as soon as
+  /// one becomes leasable (0: answer at once).
+  int64_t wait_ms = 0;
 };
-inline constexpr size_t kMaxKnownJobs = 64;  ///< The most jobs a lease request may list as known.
+inline constexpr size_t kMaxKnownJobs = 64;       ///< The most jobs a lease request may list as known.
+inline constexpr int64_t kMaxLeaseWaitMs = 10000;  ///< The longest wait_ms a lease request may ask for.
 void to_json(nlohmann::json& j, const LeaseRequest& r);
 /// Parses a lease request; throws ProtocolError (400).
 LeaseRequest parse_lease_request(const std::string& body);

@@ -103,6 +103,15 @@ TEST(Messages, ALeaseRequestNamesKnownJobsAndItsAnswerMayCarryTheSpec) {
     EXPECT_NE(std::string(e.what()).find("at most 64"), std::string::npos) << e.what();
   }
   EXPECT_NO_THROW(parse_lease_request(json{{"known_jobs", std::vector<std::string>(kMaxKnownJobs, "j-1")}}.dump()));
+  // How long the coordinator may hold it for work: 0 (answer at once) unless asked, up to kMaxLeaseWaitMs.
+  EXPECT_EQ(parse_lease_request("{}").wait_ms, 0);
+  EXPECT_EQ(parse_lease_request(R"({"wait_ms": 2000})").wait_ms, 2000);
+  EXPECT_EQ(parse_lease_request(json(LeaseRequest{std::nullopt, 1500}).dump()).wait_ms, 1500);
+  EXPECT_EQ(parse_lease_request(json{{"wait_ms", kMaxLeaseWaitMs}}.dump()).wait_ms, kMaxLeaseWaitMs);
+  EXPECT_THROW(parse_lease_request(json{{"wait_ms", kMaxLeaseWaitMs + 1}}.dump()), ProtocolError);
+  EXPECT_THROW(parse_lease_request(R"({"wait_ms": -1})"), ProtocolError);
+  EXPECT_THROW(parse_lease_request(R"({"wait_ms": 1.5})"), ProtocolError);
+  EXPECT_THROW(parse_lease_request(R"({"wait_ms": "2000"})"), ProtocolError);
 
   // The answer: the lease's keys, and "spec" with the spec's own text when one is sent.
   Lease l;

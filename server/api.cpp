@@ -58,17 +58,26 @@ Api::Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metric
          EventBus& bus, FarmEvents& events, Background background)
     : metrics_(metrics),
       opt_(options),
+      sched_(scheduler),
+      lease_waiters_(std::make_unique<LeaseWaiters>()),
       jobs_(scheduler, blobs, jobs, metrics, clock,
             AdmissionLimits{opt_.max_queued_jobs, opt_.retry_after_seconds, opt_.max_job_pixels, opt_.max_job_samples},
             events, std::move(background)),
       collector_(jobs_, scheduler, blobs, clock, opt_.retention),
       jobs_handler_(jobs_, collector_),
       tiles_handler_(jobs_),
-      leases_handler_(scheduler, jobs_, metrics, clock, events),
+      leases_handler_(scheduler, jobs_, metrics, clock, events, *lease_waiters_),
       workers_handler_(scheduler, opt_.heartbeat_seconds, events),
       blobs_handler_(blobs),
-      health_handler_(scheduler, metrics, clock),
-      events_handler_(bus) {}
+      health_handler_(scheduler, metrics, clock, *lease_waiters_),
+      events_handler_(bus) {
+  sched_.on_work([w = lease_waiters_.get()] { w->note_work(); });
+}
+
+Api::~Api() {
+  sched_.on_work({});
+  lease_waiters_.reset();  // expires what it holds, answering through the handlers and the transport, which still live
+}
 
 std::size_t Api::body_limit(const http::request_header<>& h) {
   const Route r = match_route(h.target());

@@ -13,6 +13,7 @@
 #include "server/http_server.h"
 #include "server/job_service.h"
 #include "server/jobs_handler.h"
+#include "server/lease_waiters.h"
 #include "server/leases_handler.h"
 #include "server/metrics.h"
 #include "server/health_handler.h"
@@ -23,6 +24,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -68,6 +70,9 @@ class Api final : public HttpHandler {
   /// references must outlive it.
   Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock, ApiOptions options,
       EventBus& bus, FarmEvents& events, Background background = {});
+  ~Api() override;
+  Api(const Api&) = delete;
+  Api& operator=(const Api&) = delete;
   std::size_t body_limit(const http::request_header<>& header) override;
   std::optional<HttpResponse> early_response(const http::request_header<>& header) noexcept override;
   /// Answers a request, waiting for an answer given later (a result upload waits for its flush).
@@ -80,6 +85,9 @@ class Api final : public HttpHandler {
   void recover() { jobs_.recover(); }
   /// Purges finished jobs past their retention time and collects unreferenced blobs (see Collector::sweep).
   SweepReport sweep() { return collector_.sweep(); }
+  /// Answers every lease request held for work with "no work", and later ones at once (at shutdown, so that the
+  /// transport's in-flight requests end).
+  void stop_holding_leases() { lease_waiters_->close(); }
 
  private:
   std::optional<HttpResponse> check_access(const Route& route, const http::request_header<>& header);
@@ -91,6 +99,8 @@ class Api final : public HttpHandler {
 
   Metrics& metrics_;
   ApiOptions opt_;
+  Scheduler& sched_;                              // notes new work to lease_waiters_ while this lives
+  std::unique_ptr<LeaseWaiters> lease_waiters_;  // ended first in ~Api, while what its requests answer through lives
   JobService jobs_;
   Collector collector_;
   JobsHandler jobs_handler_;

@@ -225,6 +225,7 @@ void Coordinator::stop() {
   Impl& m = *impl_;
   asio::post(m.ioc, [&m] {
     if (m.stopped.exchange(true)) return;
+    m.api.stop_holding_leases();  // held lease requests are answered, so none keeps the shutdown waiting
     m.server.shutdown();
     m.bus.close();  // every event stream ends
     m.tick.cancel();

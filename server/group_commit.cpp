@@ -1,7 +1,7 @@
 #include "server/group_commit.h"
 
-#include <pthread.h>
-#include <signal.h>
+#include "server/helper_thread.h"
+
 
 #include <future>
 #include <utility>
@@ -40,11 +40,7 @@ GroupCommitStats GroupCommit::stats() {
 }
 
 void GroupCommit::loop() {
-  // Signals are for the threads that serve (asio's handler): with SIGTERM left open here, one arriving after the
-  // coordinator stopped listening for it would kill the process while it closes its database.
-  sigset_t all;
-  sigfillset(&all);
-  pthread_sigmask(SIG_BLOCK, &all, nullptr);
+  block_signals_in_helper_thread();
   std::unique_lock lock(mu_);
   for (;;) {
     cv_.wait(lock, [&] { return stopping_ || !waiting_.empty(); });

@@ -1,6 +1,7 @@
 // What operators and their tools watch: liveness and Prometheus metrics.
 #pragma once
 
+#include "server/lease_waiters.h"
 #include "server/metrics.h"
 #include "server/resource_handler.h"
 #include "server/scheduler.h"
@@ -11,14 +12,15 @@ namespace tessera::server {
 class HealthHandler final : public ResourceHandler {
  public:
   /// Endpoints over the given state (which must outlive it).
-  HealthHandler(Scheduler& scheduler, Metrics& metrics, ClockMs clock)
-      : sched_(scheduler), metrics_(metrics), clock_(std::move(clock)) {}
+  HealthHandler(Scheduler& scheduler, Metrics& metrics, ClockMs clock, LeaseWaiters& waiters)
+      : sched_(scheduler), metrics_(metrics), clock_(std::move(clock)), waiters_(waiters) {}
   HttpResponse handle(protocol::Endpoint endpoint, const std::string& param, HttpRequest& req) override;
 
  private:
   Scheduler& sched_;
   Metrics& metrics_;
   ClockMs clock_;
+  LeaseWaiters& waiters_;
 };
 
 }  // namespace tessera::server

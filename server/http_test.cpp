@@ -22,6 +22,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <sstream>
 #include <thread>
 
@@ -345,6 +346,65 @@ TEST_F(HttpTest, KeepAliveServesSeveralRequestsOnOneConnection) {
   }
   EXPECT_EQ(c.send(http::verb::get, "/nope").status, 404u);
   EXPECT_EQ(c.send(http::verb::get, "/healthz").status, 200u);
+}
+
+TEST_F(HttpTest, AHeldLeaseRequestIsWokenByAJobSubmittedWhileItWaits) {
+  const std::string w = register_worker();
+  const json job = small_cbox(job_for("cbox_no_light.json"));  // its blobs uploaded before the request waits
+  const auto held_request = [&](const std::string& worker) {
+    return std::async(std::launch::async, [this, worker] {
+      const auto t0 = std::chrono::steady_clock::now();
+      Reply r = call(http::verb::post, "/v1/workers/" + worker + "/lease", R"({"wait_ms": 10000})");
+      return std::make_pair(std::move(r), std::chrono::steady_clock::now() - t0);
+    });
+  };
+  const auto wait_until_held = [&](int n) {
+    const std::string line = "tessera_lease_requests_held " + std::to_string(n) + "\n";
+    while (call(http::verb::get, "/metrics").body.find(line) == std::string::npos) std::this_thread::yield();
+  };
+  // With nothing to lease and a wait asked for, the request is held rather than answered at once...
+  auto held = held_request(w);
+  wait_until_held(1);
+  // ...and a job submitted meanwhile wakes it: a 204 long before its 10 s are up (on any machine this suite runs on),
+  // granting nothing, so that the lease goes to the worker's next request, which proves it is still there.
+  const std::string id = submit(job);
+  auto [woken, took] = held.get();
+  EXPECT_EQ(woken.status, 204u) << woken.body;
+  EXPECT_LT(took, std::chrono::milliseconds(10000));
+  wait_until_held(0);
+  Reply r = call(http::verb::post, "/v1/workers/" + w + "/lease", R"({"wait_ms": 10000})");
+  ASSERT_EQ(r.status, 200u) << r.body;
+  EXPECT_EQ(r.js()["job"], id);
+  EXPECT_EQ(r.js()["tile"], 0);  // the held request took no tile
+  // A wait with nothing to lease ends in 204 when it is over, never before.
+  const std::string other = register_worker("other");
+  ASSERT_EQ(call(http::verb::post, "/v1/jobs/" + id + "/pause").status, 200u);
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_EQ(call(http::verb::post, "/v1/workers/" + other + "/lease", R"({"wait_ms": 50})").status, 204u);
+  EXPECT_GE(std::chrono::steady_clock::now() - t0, std::chrono::milliseconds(50));
+  // Resuming the job is work too.
+  held = held_request(other);
+  wait_until_held(1);
+  ASSERT_EQ(call(http::verb::post, "/v1/jobs/" + id + "/resume").status, 200u);
+  auto [resumed, after] = held.get();
+  EXPECT_EQ(resumed.status, 204u);
+  EXPECT_LT(after, std::chrono::milliseconds(10000));
+  r = call(http::verb::post, "/v1/workers/" + other + "/lease");
+  ASSERT_EQ(r.status, 200u) << r.body;
+  EXPECT_EQ(r.js()["tile"], 1);
+}
+
+TEST_F(HttpTest, AStoppingCoordinatorAnswersItsHeldLeaseRequestsAtOnce) {
+  const std::string w = register_worker();
+  const auto t0 = std::chrono::steady_clock::now();
+  std::future<Reply> held = std::async(std::launch::async, [&] {
+    return call(http::verb::post, "/v1/workers/" + w + "/lease", R"({"wait_ms": 10000})");
+  });
+  while (call(http::verb::get, "/metrics").body.find("tessera_lease_requests_held 1\n") == std::string::npos)
+    std::this_thread::yield();
+  server_.reset();  // stops the coordinator: the held request is answered rather than waited out
+  EXPECT_EQ(held.get().status, 204u);
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::milliseconds(10000));  // the wait was not served out
 }
 
 TEST_F(HttpTest, RegisterLeaseAndEmptyQueue) {

@@ -14,17 +14,19 @@ using protocol::Endpoint;
 HttpResponse LeasesHandler::handle(Endpoint endpoint, const std::string& id, HttpRequest& req) {
   const unsigned v = req.version();
   switch (endpoint) {
-    case Endpoint::worker_lease: return lease(id, req);
-    case Endpoint::lease_heartbeat: return heartbeat(id, req);
+    case Endpoint::worker_lease:
     case Endpoint::lease_result: {
       std::promise<HttpResponse> answer;
       std::future<HttpResponse> answered = answer.get_future();
-      result(id, req, [&answer](HttpResponse res, std::exception_ptr refusal) {
+      const Answer done = [&answer](HttpResponse res, std::exception_ptr refusal) {
         if (refusal) answer.set_exception(refusal);
         else answer.set_value(std::move(res));
-      });
+      };
+      if (endpoint == Endpoint::worker_lease) lease(id, req, done);
+      else result(id, req, done);
       return answered.get();
     }
+    case Endpoint::lease_heartbeat: return heartbeat(id, req);
     case Endpoint::lease_fail:
       jobs_.record_failure(id, protocol::parse_fail_report(req.body()));
       return json_response(http::status::ok, {{"status", "recorded"}}, v);
@@ -39,12 +41,29 @@ HttpResponse LeasesHandler::handle(Endpoint endpoint, const std::string& id, Htt
   throw ApiError(404, "no such endpoint");
 }
 
-HttpResponse LeasesHandler::lease(const std::string& worker, HttpRequest& req) {
+void LeasesHandler::lease(const std::string& worker, HttpRequest& req, Answer answer) {
   const unsigned version = req.version();
   const protocol::LeaseRequest asked = protocol::parse_lease_request(req.body());  // before a tile is taken
+  if (std::optional<HttpResponse> leased = try_lease(worker, asked, version)) return answer(std::move(*leased), nullptr);
+  const auto no_work = [version, answer] { answer(HttpResponse{http::status::no_content, version}, nullptr); };
+  if (asked.wait_ms <= 0) return no_work();
+  // Held until a tile becomes leasable for this worker (one woken per such tile), the wait is over, or the coordinator
+  // stops; every end is a 204. A woken worker asks again at once and takes its lease on a fresh request: a tile is
+  // never granted to a held request whose worker may have gone meanwhile (stopped or killed while it waited).
+  waiters_.hold(std::chrono::steady_clock::now() + std::chrono::milliseconds(asked.wait_ms),
+                [this, worker, no_work](int woken) {
+                  if (sched_.leasable_tiles(worker) <= woken) return false;
+                  no_work();
+                  return true;
+                },
+                no_work);
+}
+
+std::optional<HttpResponse> LeasesHandler::try_lease(const std::string& worker, const protocol::LeaseRequest& asked,
+                                                     unsigned version) {
   const AcquireResult r = sched_.acquire(worker);
   if (r.status == AcquireResult::unknown_worker) throw ApiError(404, "unknown worker " + worker + ": register again");
-  if (r.status == AcquireResult::no_work) return HttpResponse{http::status::no_content, version};
+  if (r.status == AcquireResult::no_work) return std::nullopt;
   const Lease l = jobs_.with_state(r.lease);
   spdlog::debug("job {} tile {} worker {}: leased as {}", l.job, l.tile, l.worker, l.id);
   // queued -> running at the first lease (the snapshot, which lists the job's workers, only then)
@@ -74,9 +93,11 @@ HttpResponse LeasesHandler::heartbeat(const std::string& lease, HttpRequest& req
 }
 
 void LeasesHandler::handle_async(Endpoint endpoint, const std::string& id, HttpRequest& req, Answer answer) {
-  if (endpoint != Endpoint::lease_result) return ResourceHandler::handle_async(endpoint, id, req, std::move(answer));
+  if (endpoint != Endpoint::lease_result && endpoint != Endpoint::worker_lease)
+    return ResourceHandler::handle_async(endpoint, id, req, std::move(answer));
   try {
-    result(id, req, answer);
+    if (endpoint == Endpoint::worker_lease) lease(id, req, answer);
+    else result(id, req, answer);
   } catch (...) {
     answer(HttpResponse{}, std::current_exception());
   }

@@ -3,6 +3,7 @@
 
 #include "server/farm_events.h"
 #include "server/job_service.h"
+#include "server/lease_waiters.h"
 #include "server/metrics.h"
 #include "server/resource_handler.h"
 #include "server/scheduler.h"
@@ -13,15 +14,20 @@ namespace tessera::server {
 class LeasesHandler final : public ResourceHandler {
  public:
   /// Endpoints over the given state (which must outlive it).
-  /// Publishes each lease granted (and its job's start) to `events`.
-  LeasesHandler(Scheduler& scheduler, JobService& jobs, Metrics& metrics, ClockMs clock, FarmEvents& events)
-      : sched_(scheduler), jobs_(jobs), metrics_(metrics), clock_(std::move(clock)), events_(events) {}
+  /// Publishes each lease granted (and its job's start) to `events`; lease requests that may wait are held in `waiters`.
+  LeasesHandler(Scheduler& scheduler, JobService& jobs, Metrics& metrics, ClockMs clock, FarmEvents& events,
+                LeaseWaiters& waiters)
+      : sched_(scheduler), jobs_(jobs), metrics_(metrics), clock_(std::move(clock)), events_(events), waiters_(waiters) {}
   HttpResponse handle(protocol::Endpoint endpoint, const std::string& id, HttpRequest& req) override;
-  /// Result uploads are answered once their tile is durable (JobService::accept_tile); the rest as handle().
+  /// Result uploads are answered once their tile is durable (JobService::accept_tile), lease requests with a wait
+  /// once there is a tile or the wait is over; the rest as handle().
   void handle_async(protocol::Endpoint endpoint, const std::string& id, HttpRequest& req, Answer answer) override;
 
  private:
-  HttpResponse lease(const std::string& worker, HttpRequest& req);
+  void lease(const std::string& worker, HttpRequest& req, Answer answer);
+  // A lease for the worker as an answer, or nothing when there is no work for it; throws ApiError (404) for an
+  // unknown worker.
+  std::optional<HttpResponse> try_lease(const std::string& worker, const protocol::LeaseRequest& asked, unsigned version);
   HttpResponse heartbeat(const std::string& lease, HttpRequest& req);
   void result(const std::string& lease, HttpRequest& req, Answer answer);
 
@@ -30,6 +36,7 @@ class LeasesHandler final : public ResourceHandler {
   Metrics& metrics_;
   ClockMs clock_;
   FarmEvents& events_;
+  LeaseWaiters& waiters_;
 };
 
 }  // namespace tessera::server

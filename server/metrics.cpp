@@ -48,7 +48,7 @@ std::string escape_label(const std::string& s) {
 
 }  // namespace
 
-std::string Metrics::prometheus(const SchedulerCounters& c, int64_t now_ms) {
+std::string Metrics::prometheus(const SchedulerCounters& c, int64_t now_ms, std::size_t held_lease_requests) {
   std::string out;
   out += "# HELP tessera_jobs Jobs by state.\n# TYPE tessera_jobs gauge\n";
   for (const auto& [state, n] : c.jobs) out += fmt::format("tessera_jobs{{state=\"{}\"}} {}\n", to_string(state), n);
@@ -63,6 +63,9 @@ std::string Metrics::prometheus(const SchedulerCounters& c, int64_t now_ms) {
   out += fmt::format("tessera_workers {}\n", c.workers);
   out += "# HELP tessera_leases Live leases.\n# TYPE tessera_leases gauge\n";
   out += fmt::format("tessera_leases {}\n", c.active_leases);
+  out += "# HELP tessera_lease_requests_held Lease requests held until a tile is leasable (idle workers).\n"
+         "# TYPE tessera_lease_requests_held gauge\n";
+  out += fmt::format("tessera_lease_requests_held {}\n", held_lease_requests);
   std::lock_guard lock(mu_);
   out += "# HELP tessera_rays_per_second Rays per second over the last 30 seconds.\n# TYPE tessera_rays_per_second gauge\n";
   out += fmt::format("tessera_rays_per_second {}\n", rate_locked(now_ms));

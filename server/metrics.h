@@ -27,8 +27,8 @@ class Metrics {
   void add_rays(uint64_t rays, int64_t now_ms);
   /// Rays per second over the last kRateWindowMs.
   double rays_per_second(int64_t now_ms);
-  /// The whole exposition: scheduler counters plus what this object recorded.
-  std::string prometheus(const SchedulerCounters& counters, int64_t now_ms);
+  /// The whole exposition: scheduler counters, lease requests held for work, and what this object recorded.
+  std::string prometheus(const SchedulerCounters& counters, int64_t now_ms, std::size_t held_lease_requests = 0);
 
  private:
   struct Histogram {

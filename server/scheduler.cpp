@@ -308,6 +308,7 @@ std::string Scheduler::add_job(const JobParams& p, const std::string& id_in) {
     const std::string id = rec->status.id;
     jobs_.emplace(id, std::move(rec));
     queue_.emplace(QueueKey{-p.priority, now, raw->seq}, raw);
+    work_appeared_locked();
     return id;
   });
 }
@@ -455,6 +456,7 @@ std::optional<protocol::WorkerInfo> Scheduler::set_drained(const std::string& wo
     if (it == workers_.end()) return std::nullopt;
     if (it->second.drained != drained) new_workers_.insert(worker);  // stored: a restart keeps the worker drained
     it->second.drained = drained;
+    if (!drained) work_appeared_locked();
     return worker_info_locked(it->first, it->second, now);
   });
 }
@@ -538,8 +540,7 @@ AcquireResult Scheduler::acquire(const std::string& worker) {
     std::vector<JobRec*> stuck;  // jobs this worker may not take: fail them if no present worker may
     for (auto& [key, j] : queue_) {
       if (j->pending.empty() || j->status.state == JobState::paused) continue;
-      const auto wf = j->worker_failures.find(worker);
-      if (wf != j->worker_failures.end() && wf->second >= config_.worker_failure_limit) {
+      if (blocklisted_locked(*j, worker)) {
         stuck.push_back(j);
         continue;
       }
@@ -579,6 +580,21 @@ AcquireResult Scheduler::acquire(const std::string& worker) {
     if (r.status != AcquireResult::granted) r.status = AcquireResult::no_work;
     return r;
   });
+}
+
+int64_t Scheduler::leasable_tiles(const std::string& worker) {
+  std::lock_guard lock(mu_);
+  const auto w = workers_.find(worker);
+  if (w == workers_.end() || w->second.drained) return 0;
+  int64_t n = 0;
+  for (const auto& [key, j] : queue_)
+    if (j->status.state != JobState::paused && !blocklisted_locked(*j, worker)) n += int64_t(j->pending.size());
+  return n;
+}
+
+bool Scheduler::blocklisted_locked(const JobRec& j, const std::string& worker) const {
+  const auto wf = j.worker_failures.find(worker);
+  return wf != j.worker_failures.end() && wf->second >= config_.worker_failure_limit;
 }
 
 HeartbeatResult Scheduler::heartbeat(const std::string& lease, uint64_t rays) {
@@ -864,6 +880,7 @@ RetryResult Scheduler::retry(const std::string& job) {
     j.status.finished_ms.reset();
     j.status.error.reset();
     queue_.emplace(QueueKey{-j.status.params.priority, j.status.created_ms, j.seq}, &j);
+    work_appeared_locked();
     sync_needed_ = true;
     touch_job(j);
     r.status = RetryResult::retried;
@@ -929,6 +946,7 @@ PauseResult Scheduler::set_paused(const std::string& job, bool paused) {
     }
     // A paused job stays in queue_: acquire skips it while its live leases and uploads go on.
     st.state = paused ? JobState::paused : st.started_ms ? JobState::running : JobState::queued;
+    if (!paused) work_appeared_locked();
     sync_needed_ = true;
     touch_job(j);
     r.status = PauseResult::changed;
@@ -1087,6 +1105,7 @@ void Scheduler::return_to_pending_locked(JobRec& j, int64_t tile) {
   t.lease.clear();
   j.pending.insert(tile);
   touch_tile(j, tile);
+  work_appeared_locked();
 }
 
 int64_t Scheduler::expiry_check_ms(const LeaseRec& l) const {

@@ -295,6 +295,11 @@ class Scheduler {
   /// The configuration it runs with.
   const SchedulerConfig& config() const { return config_; }
 
+  /// Calls `noted` whenever tiles may have become leasable: a job added, resumed or retried, a tile pending again, a
+  /// worker undrained. It runs under the scheduler's lock, so it must only take note (never call the scheduler). Set
+  /// before the scheduler is shared.
+  void on_work(std::function<void()> noted) { work_noted_ = std::move(noted); }
+
   /// A fresh job id for add_job (so the caller can store the job's record before the job becomes leasable).
   std::string new_job_id();
   /// Adds a queued job under `id` (empty: a fresh one) and returns the id; throws std::invalid_argument for bad
@@ -322,6 +327,8 @@ class Scheduler {
   /// Leases the lowest pending tile of the highest-priority (then oldest) job that is not paused and the worker is not
   /// blocklisted for; a drained worker gets no work.
   AcquireResult acquire(const std::string& worker);
+  /// How many tiles acquire() could lease to the worker now (0 for an unknown or drained worker); changes nothing.
+  int64_t leasable_tiles(const std::string& worker);
   /// Extends a live lease to now + lease_ms and adds `rays` to the job's count.
   HeartbeatResult heartbeat(const std::string& lease, uint64_t rays = 0);
 
@@ -437,6 +444,10 @@ class Scheduler {
   void touch_tile(const JobRec& j, int64_t tile) { dirty_tiles_.emplace(j.status.id, tile); }
   void touch_lease(const LeaseRec& l) { dirty_leases_.insert(l.lease.id); }
   void seen_locked(const std::string& worker, int64_t now);
+  bool blocklisted_locked(const JobRec& j, const std::string& worker) const;  // too many failures on j
+  void work_appeared_locked() const {
+    if (work_noted_) work_noted_();
+  }
   PauseResult set_paused(const std::string& job, bool paused);  // pause (true) or resume (false)
   int64_t gone_ms() const;  // a worker not seen for this long is offline
   protocol::WorkerInfo worker_info_locked(const std::string& id, const WorkerRec& w, int64_t now) const;
@@ -464,6 +475,7 @@ class Scheduler {
 
   SchedulerConfig config_;
   ClockMs clock_;
+  std::function<void()> work_noted_;  // on_work
   std::mutex mu_;
   uint64_t next_seq_ = 1;
   std::map<std::string, std::unique_ptr<JobRec>> jobs_;

@@ -50,6 +50,41 @@ TEST_F(SchedulerTest, EmptyQueueIsNoWorkNotAnError) {
   EXPECT_TRUE(s.has_worker(w));
 }
 
+TEST_F(SchedulerTest, LeasableTilesCountWhatAcquireCouldGrantAndNoteNewWork) {
+  int noted = 0;
+  s.on_work([&] { ++noted; });
+  const std::string a = s.register_worker("a"), b = s.register_worker("b");
+  EXPECT_EQ(s.leasable_tiles(a), 0);
+  EXPECT_EQ(s.leasable_tiles("w-nobody"), 0);
+  const std::string j1 = job(5), j2 = job(0);  // 4 tiles each
+  EXPECT_EQ(noted, 2);
+  EXPECT_EQ(s.leasable_tiles(a), 8);
+  // Counting takes nothing; a lease does.
+  EXPECT_EQ(s.leasable_tiles(a), 8);
+  Lease l = lease(a);
+  EXPECT_EQ(l.job, j1);
+  EXPECT_EQ(s.leasable_tiles(b), 7);
+  // A worker blocklisted for j1 (two failures) counts only j2's tiles; the failed tiles went back: new work.
+  const int before = noted;
+  s.fail(l.id, "x");
+  l = lease(a);
+  s.fail(l.id, "x");
+  EXPECT_EQ(noted, before + 2);
+  EXPECT_EQ(s.leasable_tiles(a), 4);
+  EXPECT_EQ(s.leasable_tiles(b), 8);
+  // Paused jobs and drained workers have none; resuming and undraining are new work.
+  ASSERT_EQ(s.pause(j2).status, PauseResult::changed);
+  EXPECT_EQ(s.leasable_tiles(a), 0);
+  EXPECT_EQ(s.leasable_tiles(b), 4);
+  ASSERT_EQ(s.resume(j2).status, PauseResult::changed);
+  EXPECT_EQ(noted, before + 3);
+  s.set_drained(b, true);
+  EXPECT_EQ(s.leasable_tiles(b), 0);
+  s.set_drained(b, false);
+  EXPECT_EQ(noted, before + 4);
+  EXPECT_EQ(s.leasable_tiles(b), 8);
+}
+
 TEST_F(SchedulerTest, TilesLeasedInRowMajorOrderWithWindows) {
   const std::string j = job(0, 100, 70, 64);  // 2 columns x 2 rows; last column 36 wide, last row 6 high
   const std::string w = s.register_worker("a");

@@ -1,9 +1,7 @@
 #include "server/wal_checkpointer.h"
 
+#include "server/helper_thread.h"
 #include "server/storage.h"
-
-#include <pthread.h>
-#include <signal.h>
 
 #include <sqlite3.h>
 #include <spdlog/spdlog.h>
@@ -49,11 +47,7 @@ void WalCheckpointer::committed(int frames) {
 }
 
 void WalCheckpointer::loop() {
-  // Signals are for the threads that serve (asio's handler): with SIGTERM left open here, one arriving after the
-  // coordinator stopped listening for it would kill the process while it closes its database.
-  sigset_t all;
-  sigfillset(&all);
-  pthread_sigmask(SIG_BLOCK, &all, nullptr);
+  block_signals_in_helper_thread();
   std::unique_lock lock(mu_);
   for (;;) {
     cv_.wait(lock, [&] { return stopping_ || due_locked(); });

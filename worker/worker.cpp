@@ -282,20 +282,33 @@ class Worker {
     next.head.reset();  // waits for the task
   }
 
-  // A lease request's body: the jobs whose scenes are built here, so that a lease of any other job brings its spec.
-  std::string lease_request_body() {
+  // A lease request's body: the jobs whose scenes are built here, so that a lease of any other job brings its spec,
+  // and how long the coordinator may hold the request for work.
+  std::string lease_request_body(std::chrono::milliseconds wait = 0ms) {
     protocol::LeaseRequest req;
     req.known_jobs = scenes_.jobs();  // most recently used first: beyond the protocol's limit, the older ones go
     if (req.known_jobs->size() > protocol::kMaxKnownJobs) req.known_jobs->resize(protocol::kMaxKnownJobs);
+    req.wait_ms = std::min<int64_t>(wait.count(), protocol::kMaxLeaseWaitMs);
     return json(req).dump();
   }
 
+  // Asks for a lease, which the coordinator may hold for the idle backoff's next wait: a 204 before the wait is over
+  // says that work came (or that the coordinator is stopping), and the worker asks again at once, so a job submitted
+  // meanwhile starts without waiting for the next poll. (A round trip with a wait does not enter lease_rtt_ms_.)
   std::optional<protocol::LeaseAnswer> request_lease() {
     HttpResponse r;
+    // Within half the read timeout, so that a held request never looks like a dead coordinator.
+    const std::chrono::milliseconds wait = std::min(idle_.next(), opt_.timeouts.read / 2);
+    const auto t0 = std::chrono::steady_clock::now();
     try {
-      const auto t0 = std::chrono::steady_clock::now();
-      r = http_.send("POST", routes::worker_lease(id_), lease_request_body());
-      note_lease_round_trip(t0);
+      HttpRequest req;
+      req.method = "POST";
+      req.target = routes::worker_lease(id_);
+      req.body = lease_request_body(wait);
+      req.content_type = "application/json";
+      r = http_.send(req, [this] { return stopping(); });  // a stop does not wait for the held request's end
+    } catch (const RequestInterrupted&) {
+      return std::nullopt;  // stopping: the coordinator forgets the request when the connection closes
     } catch (const TransportError& e) {
       coordinator_down("lease", e);
       return std::nullopt;
@@ -305,8 +318,8 @@ class Worker {
       idle_.reset();
       return protocol::parse_answer<protocol::LeaseAnswer>(r.body, "lease");
     }
-    if (r.status == 204) {
-      sleep_unless(idle_.next(), [&] { return stopping(); });
+    if (r.status == 204) {  // the wait is over with no work, or work came before it was (then ask again at once)
+      if (std::chrono::steady_clock::now() - t0 < wait) idle_.reset();
       return std::nullopt;
     }
     refuse_if_denied(r, "lease request");

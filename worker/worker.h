@@ -20,7 +20,7 @@ struct WorkerOptions {
   std::string token;                   ///< Worker token sent as "Authorization: Bearer" (empty: none).
   size_t scene_cache_jobs = 3;         ///< Built scenes kept, one per job.
   size_t image_cache_bytes = size_t(1) << 30;  ///< Decoded texture pixels kept across jobs (0: decode for every job).
-  std::chrono::milliseconds max_idle_wait{2000};   ///< Longest wait between lease requests when there is no work.
+  std::chrono::milliseconds max_idle_wait{2000};   ///< Longest wait for work per lease request (held by the coordinator up to 10 s).
   std::chrono::milliseconds max_retry_wait{5000};  ///< Longest wait between retries when the coordinator is down.
   HttpTimeouts timeouts{};             ///< Timeouts of lease, spec, blob and upload requests.
   ClientTlsFiles tls;                  ///< Trust and client certificate files for an https:// coordinator.
