@@ -233,6 +233,43 @@ TEST(HttpClient, ReadTimeoutTurnsASilentServerIntoAnError) {
   release = true;
 }
 
+TEST(HttpClient, AnInterruptedRequestClosesItsConnectionAndSaysSo) {
+  // A server that holds the request (as a coordinator holds a lease request for work) until the test lets it go.
+  std::atomic<bool> release{false};
+  std::atomic<int> requests{0};
+  TestServer server([&](tcp::socket& s) {
+    boost::beast::flat_buffer buf;
+    http::request<http::string_body> req;
+    http::read(s, buf, req);
+    ++requests;
+    while (!release) std::this_thread::sleep_for(std::chrono::milliseconds(10));  // never answers
+  });
+  HttpClient c(parse_http_url(server.url()));  // default timeouts: 30 s to read, far beyond this test
+  std::atomic<bool> stop{false};
+  std::atomic<int> asked{0};
+  std::thread stopper([&] {
+    while (requests.load() == 0) std::this_thread::yield();  // the request is under way
+    stop = true;
+  });
+  HttpRequest r;
+  r.method = "POST";
+  r.target = "/held";
+  r.body = "{}";
+  try {
+    c.send(r, [&] {
+      ++asked;
+      return stop.load();
+    });
+    FAIL() << "the request was not interrupted";
+  } catch (const RequestInterrupted& e) {
+    EXPECT_NE(std::string(e.what()).find("POST http://127.0.0.1:"), std::string::npos) << e.what();
+  }
+  stopper.join();
+  EXPECT_GE(asked.load(), 1);
+  EXPECT_EQ(requests.load(), 1);  // a POST is never sent again behind the caller's back
+  release = true;
+}
+
 TEST(HttpClient, ConnectionRefusedIsATransportError) {
   // Find a free port by binding and closing.
   asio::io_context ioc;
