@@ -63,7 +63,7 @@ void LeaseWaiters::run() {
       cv_.wait(lock, [&] { return stopping_ || !held_.empty(); });
       continue;
     }
-    // Closed: everything held is answered "no work" now.
+    // Closed: everything held is expired now.
     if (closed_) {
       std::deque<Held> all = std::exchange(held_, {});
       lock.unlock();
@@ -87,8 +87,9 @@ void LeaseWaiters::run() {
       lock.lock();
       continue;
     }
-    // Work noted: the oldest requests are tried until one finds none (the rest would find none either, but for a
-    // worker kept from a job by its failures, which then waits for its deadline or the next note).
+    // Work noted: the oldest requests are tried, each told how many this pass has answered, until one has nothing
+    // to take (the rest would have nothing either, but for a worker kept from a job by its failures: the ones behind
+    // it then wait for their deadline or the next note).
     if (work_) {
       work_ = false;
       for (int woken = 0; !held_.empty() && !closed_; ++woken) {
