@@ -160,6 +160,8 @@ struct LeaseRequest {
 };
 inline constexpr size_t kMaxKnownJobs = 64;       ///< The most jobs a lease request may list as known.
 inline constexpr int64_t kMaxLeaseWaitMs = 10000;  ///< The longest wait_ms a lease request may ask for.
+/// Header of the answer to a lease request that was held for work: how long it was held, in milliseconds.
+inline constexpr const char* kHeldMsHeader = "X-Tessera-Held-Ms";
 void to_json(nlohmann::json& j, const LeaseRequest& r);
 /// Parses a lease request; throws ProtocolError (400).
 LeaseRequest parse_lease_request(const std::string& body);

@@ -371,6 +371,8 @@ TEST_F(HttpTest, AHeldLeaseRequestIsWokenByAJobSubmittedWhileItWaits) {
   auto [woken, took] = held.get();
   EXPECT_EQ(woken.status, 204u) << woken.body;
   EXPECT_LT(took, std::chrono::milliseconds(10000));
+  EXPECT_FALSE(woken.msg["X-Tessera-Held-Ms"].empty());  // and its time is counted apart from the route's
+  EXPECT_NE(call(http::verb::get, "/metrics").body.find(R"x(route="POST /v1/workers/{wid}/lease (held)")x"), std::string::npos);
   wait_until_held(0);
   Reply r = call(http::verb::post, "/v1/workers/" + w + "/lease", R"({"wait_ms": 10000})");
   ASSERT_EQ(r.status, 200u) << r.body;

@@ -45,12 +45,19 @@ void LeasesHandler::lease(const std::string& worker, HttpRequest& req, Answer an
   const unsigned version = req.version();
   const protocol::LeaseRequest asked = protocol::parse_lease_request(req.body());  // before a tile is taken
   if (std::optional<HttpResponse> leased = try_lease(worker, asked, version)) return answer(std::move(*leased), nullptr);
-  const auto no_work = [version, answer] { answer(HttpResponse{http::status::no_content, version}, nullptr); };
-  if (asked.wait_ms <= 0) return no_work();
+  if (asked.wait_ms <= 0) return answer(HttpResponse{http::status::no_content, version}, nullptr);
+  // A held request's answer says how long it was held (the API counts its time apart from the route's service time).
+  const auto held_since = std::chrono::steady_clock::now();
+  const auto no_work = [version, answer, held_since] {
+    HttpResponse res{http::status::no_content, version};
+    const auto held = std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - held_since);
+    res.set(protocol::kHeldMsHeader, std::to_string(held.count()));
+    answer(std::move(res), nullptr);
+  };
   // Held until a tile becomes leasable for this worker (one woken per such tile), the wait is over, or the coordinator
   // stops; every end is a 204. A woken worker asks again at once and takes its lease on a fresh request: a tile is
   // never granted to a held request whose worker may have gone meanwhile (stopped or killed while it waited).
-  waiters_.hold(std::chrono::steady_clock::now() + std::chrono::milliseconds(asked.wait_ms),
+  waiters_.hold(held_since + std::chrono::milliseconds(asked.wait_ms),
                 [this, worker, no_work](int woken) {
                   if (sched_.leasable_tiles(worker) <= woken) return false;
                   no_work();
