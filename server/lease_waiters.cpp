@@ -105,7 +105,6 @@ void LeaseWaiters::run() {
       }
       continue;
     }
-    if (held_.empty()) continue;
     const auto next = std::min_element(held_.begin(), held_.end(), [](const Held& a, const Held& b) {
                         return a.deadline < b.deadline;
                       })->deadline;

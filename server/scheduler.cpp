@@ -472,11 +472,8 @@ protocol::WorkerInfo Scheduler::worker_info_locked(const std::string& id, const 
     break;
   }
   std::vector<std::string> blocklisted_for;
-  for (const auto& [jid, j] : jobs_) {
-    if (is_final(j->status.state)) continue;
-    const auto f = j->worker_failures.find(id);
-    if (f != j->worker_failures.end() && f->second >= config_.worker_failure_limit) blocklisted_for.push_back(jid);
-  }
+  for (const auto& [jid, j] : jobs_)
+    if (!is_final(j->status.state) && blocklisted_locked(*j, id)) blocklisted_for.push_back(jid);
   return worker_info_locked(id, w, now, holding, std::move(blocklisted_for));
 }
 
@@ -507,8 +504,7 @@ bool Scheduler::all_present_blocklisted_locked(const JobRec& j, int64_t now, siz
   for (const auto& [id, w] : workers_) {
     if (now - w.last_seen_ms > gone) continue;  // died or left: it will not take this job's tiles
     ++*present;
-    const auto f = j.worker_failures.find(id);
-    if (f == j.worker_failures.end() || f->second < config_.worker_failure_limit) return false;
+    if (!blocklisted_locked(j, id)) return false;
   }
   return *present > 0;
 }
