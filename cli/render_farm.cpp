@@ -6,6 +6,7 @@
 #include "server/auth.h"
 #include "core/file_io.h"
 #include "core/scene_loader.h"
+#include "worker/arena_pinning.h"
 #include "worker/asset_cache.h"
 #include "worker/child_process.h"
 #include "client/http_client.h"
@@ -128,12 +129,21 @@ int run_render_farm(const RenderArgs& a) {
     // private farm's coordinator has nothing else to do), so the first lease follows the job's acceptance at once.
     const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
     const int threads = a.threads > 0 ? a.threads : std::max(1, int(cores) / a.workers);
-    for (int i = 0; i < a.workers; ++i)
-      children.push_back(farm::spawn_child({self, "worker", "--coordinator", url, "--threads", std::to_string(threads),
-                                            "--cache", (dir / "cache").string(), "--name", "local-" + std::to_string(i),
-                                            "--token-file", (dir / "worker.token").string(), "--max-idle-wait-ms",
-                                            std::to_string(kPrivateIdleWaitMs)},
-                                           "worker " + std::to_string(i), dir / ("worker-" + std::to_string(i) + ".log")));
+    // When the workers' threads fit the CPUs this command may use, each thread gets its own.
+    const std::vector<int> cpus = farm::allowed_cpus();
+    const bool pin = size_t(a.workers) * size_t(threads) <= cpus.size();
+    for (int i = 0; i < a.workers; ++i) {
+      std::vector<std::string> argv{self, "worker", "--coordinator", url, "--threads", std::to_string(threads),
+                                    "--cache", (dir / "cache").string(), "--name", "local-" + std::to_string(i),
+                                    "--token-file", (dir / "worker.token").string(), "--max-idle-wait-ms",
+                                    std::to_string(kPrivateIdleWaitMs)};
+      if (pin) {
+        std::string list;
+        for (int t = 0; t < threads; ++t) list += (t ? "," : "") + std::to_string(cpus[size_t(i * threads + t)]);
+        argv.insert(argv.end(), {"--cpus", list});
+      }
+      children.push_back(farm::spawn_child(argv, "worker " + std::to_string(i), dir / ("worker-" + std::to_string(i) + ".log")));
+    }
     if (!a.quiet)
       std::fprintf(stderr, "coordinator on %s, %d worker(s) with %d thread(s) each\n", url.c_str(), a.workers, threads);
     rc = submit_and_wait(

@@ -3,10 +3,12 @@
 #include "cli/tls_flags.h"
 #include "cli/token.h"
 
+#include "worker/arena_pinning.h"
 #include "worker/worker.h"
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <atomic>
 #include <csignal>
 
@@ -24,7 +26,10 @@ extern "C" void on_stop_signal(int) { g_stop_requests.fetch_add(1); }
 CLI::App* add_worker_command(CLI::App& app, WorkerArgs& a) {
   auto* c = app.add_subcommand("worker", "Run a worker that leases and renders tiles");
   c->add_option("--coordinator", a.coordinator, "Coordinator URL, e.g. http://127.0.0.1:8470 or https://coordinator.example:8470")->required();
-  c->add_option("--threads", a.threads, "Render threads (default: all cores)")->check(CLI::Range(0, 4096));
+  c->add_option("--threads", a.threads, "Render threads (default: all cores, or one per CPU of --cpus)")->check(CLI::Range(0, 4096));
+  c->add_option("--cpus", a.cpus,
+                "Pin render thread i to the i-th CPU of this list (e.g. 0-3 or 0,2): for a worker given whole cores, "
+                "so that its threads, which sleep between tiles, never share one core while another is idle");
   c->add_option("--cache", a.cache, "Asset cache folder (default: $XDG_CACHE_HOME/tessera or ~/.cache/tessera)");
   c->add_option("--name", a.name, "Name reported to the coordinator (default: host name and process id)");
   c->add_option("--token-file", a.token_file, "File holding the worker token (default: $TESSERA_WORKER_TOKEN)");
@@ -64,6 +69,17 @@ int run_worker_command(const WorkerArgs& a) {
     farm::WorkerOptions o;
     o.coordinator = a.coordinator;
     o.threads = a.threads;
+    if (!a.cpus.empty()) {
+      o.cpus = farm::parse_cpu_list(a.cpus);
+      const std::vector<int> allowed = farm::allowed_cpus();
+      for (int c : o.cpus)
+        if (!std::binary_search(allowed.begin(), allowed.end(), c))
+          throw std::invalid_argument("--cpus " + a.cpus + ": CPU " + std::to_string(c) + " is not one this process may run on");
+      if (o.threads == 0) o.threads = int(o.cpus.size());
+      if (size_t(o.threads) > o.cpus.size())
+        throw std::invalid_argument("--threads " + std::to_string(o.threads) + " is more than the " +
+                                    std::to_string(o.cpus.size()) + " CPU(s) of --cpus " + a.cpus);
+    }
     o.cache_dir = a.cache;
     o.name = a.name;
     o.token = load_token(a.token_file, "TESSERA_WORKER_TOKEN");

@@ -12,7 +12,8 @@ namespace tessera::cli {
 /// Options of `tessera worker`.
 struct WorkerArgs {
   std::string coordinator;  ///< Coordinator URL.
-  int threads = 0;          ///< Render threads (0: all cores).
+  int threads = 0;          ///< Render threads (0: all cores, or one per --cpus entry).
+  std::string cpus;         ///< CPU list the render threads are pinned to (empty: not pinned).
   std::string cache;        ///< Asset cache folder (empty: the default).
   std::string name;         ///< Worker name (empty: host-pid).
   std::string token_file;   ///< File holding the worker token (else $TESSERA_WORKER_TOKEN).

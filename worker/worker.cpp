@@ -8,6 +8,7 @@
 #include "protocol/messages.h"
 #include "protocol/routes.h"
 #include "protocol/tile.h"
+#include "worker/arena_pinning.h"
 #include "worker/asset_cache.h"
 #include "worker/job_scenes.h"
 #include "worker/prefetched_lease.h"
@@ -79,6 +80,7 @@ class Worker {
     name_ = opt.name.empty() ? default_name() : opt.name;
     threads_ = opt.threads > 0 ? opt.threads : int(std::max(1u, std::thread::hardware_concurrency()));
     arena_.initialize(threads_);
+    if (!opt.cpus.empty()) pinning_.emplace(arena_, opt.cpus);
     http_.set_bearer_token(opt.token);
     heartbeat_http_.set_bearer_token(opt.token);
     upload_http_.set_bearer_token(opt.token);
@@ -535,6 +537,7 @@ class Worker {
   std::string name_, id_;
   int threads_ = 1;
   tbb::task_arena arena_;  // every render runs in it, begun-ahead ones included (threads_ threads)
+  std::optional<ArenaPinning> pinning_;  // with opt.cpus: each of arena_'s threads on its own CPU
   std::chrono::milliseconds heartbeat_period_{5000};
   bool down_ = false;
   std::atomic<double> lease_rtt_ms_{0};  // moving average of lease round trips (0: none yet)

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 namespace tessera::farm {
 
@@ -15,6 +16,7 @@ namespace tessera::farm {
 struct WorkerOptions {
   std::string coordinator;             ///< Coordinator URL, e.g. http://127.0.0.1:8470.
   int threads = 0;                     ///< Render threads (0: all cores).
+  std::vector<int> cpus;               ///< CPUs the render threads are pinned to, one per thread (empty: not pinned).
   std::filesystem::path cache_dir;     ///< Asset cache folder (empty: default_cache_dir()).
   std::string name;                    ///< Name sent at registration (empty: host name and pid).
   std::string token;                   ///< Worker token sent as "Authorization: Bearer" (empty: none).

@@ -1,5 +1,6 @@
 #include "core/sha256.h"
 #include "core/test_files.h"
+#include "worker/arena_pinning.h"
 #include "worker/asset_cache.h"
 #include "client/backoff.h"
 #include "worker/recent_log.h"
@@ -9,6 +10,9 @@
 #include <spdlog/spdlog.h>
 
 #include <fstream>
+#include <sched.h>
+#include <atomic>
+#include <tbb/parallel_for.h>
 
 namespace tessera::farm {
 namespace {
@@ -107,3 +111,35 @@ TEST_F(AssetCacheTest, ReplacesACorruptFile) {
 
 }  // namespace
 }  // namespace tessera::farm
+
+TEST(CpuList, ParsesRangesAndListsAndRefusesNonsense) {
+  using tessera::farm::parse_cpu_list;
+  EXPECT_EQ(parse_cpu_list("0"), (std::vector<int>{0}));
+  EXPECT_EQ(parse_cpu_list("3,0-2,2"), (std::vector<int>{0, 1, 2, 3}));
+  EXPECT_EQ(parse_cpu_list("6,4"), (std::vector<int>{4, 6}));
+  for (const char* bad : {"", "a", "1-", "-1", "3-1", "1,,2", "1;2", "0 ", "99999"}) {
+    EXPECT_THROW(parse_cpu_list(bad), std::invalid_argument) << bad;
+  }
+}
+
+// Each thread of the arena runs on its slot's CPU while it works there, and the thread that entered it has its CPUs
+// back afterwards.
+TEST(ArenaPinning, PinsEachSlotToItsCpuAndGivesTheCpusBack) {
+  const std::vector<int> cpus = tessera::farm::allowed_cpus();
+  ASSERT_FALSE(cpus.empty());
+  const int threads = int(std::min<size_t>(cpus.size(), 2));
+  tbb::task_arena arena(threads);
+  tessera::farm::ArenaPinning pinning(arena, cpus);
+  std::atomic<int> wrong{0}, seen{0};
+  arena.execute([&] {
+    tbb::parallel_for(0, 2000, [&](int) {
+      const int slot = tbb::this_task_arena::current_thread_index();
+      const int cpu = sched_getcpu();
+      if (cpu != cpus[size_t(slot) % cpus.size()]) wrong.fetch_add(1);
+      seen.fetch_add(1);
+    });
+  });
+  EXPECT_EQ(seen.load(), 2000);
+  EXPECT_EQ(wrong.load(), 0);
+  EXPECT_EQ(tessera::farm::allowed_cpus(), cpus);  // this thread (slot 0 while inside) has every CPU again
+}
