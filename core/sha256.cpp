@@ -8,13 +8,24 @@
 
 namespace tessera {
 
+namespace {
+
+// OpenSSL 3 looks an algorithm named by EVP_sha256() up again at every init, under a lock; fetched once, it is not.
+const EVP_MD* sha256_md() {
+  static EVP_MD* const md = EVP_MD_fetch(nullptr, "SHA256", nullptr);
+  if (!md) throw std::runtime_error("sha256: OpenSSL has no SHA-256");
+  return md;
+}
+
+}  // namespace
+
 struct Sha256::Impl {
   EVP_MD_CTX* ctx = nullptr;
 };
 
 Sha256::Sha256() : impl_(std::make_unique<Impl>()) {
   impl_->ctx = EVP_MD_CTX_new();
-  if (!impl_->ctx || EVP_DigestInit_ex(impl_->ctx, EVP_sha256(), nullptr) != 1) throw std::runtime_error("sha256: init failed");
+  if (!impl_->ctx || EVP_DigestInit_ex(impl_->ctx, sha256_md(), nullptr) != 1) throw std::runtime_error("sha256: init failed");
 }
 
 Sha256::~Sha256() { EVP_MD_CTX_free(impl_->ctx); }
@@ -36,10 +47,23 @@ std::string Sha256::hex() {
   return out;
 }
 
+Sha256Digest sha256_digest(std::string_view bytes) {
+  Sha256Digest d{};
+  unsigned int len = 0;
+  if (EVP_Digest(bytes.data(), bytes.size(), d.data(), &len, sha256_md(), nullptr) != 1 || len != d.size())
+    throw std::runtime_error("sha256: digest failed");
+  return d;
+}
+
 std::string sha256_hex(std::string_view bytes) {
-  Sha256 h;
-  h.update(bytes);
-  return h.hex();
+  static const char* digits = "0123456789abcdef";
+  const Sha256Digest d = sha256_digest(bytes);
+  std::string out(2 * d.size(), '0');
+  for (size_t i = 0; i < d.size(); ++i) {
+    out[2 * i] = digits[d[i] >> 4];
+    out[2 * i + 1] = digits[d[i] & 15];
+  }
+  return out;
 }
 
 std::string sha256_file(const std::filesystem::path& path) {

@@ -1,6 +1,7 @@
 // SHA-256 digests (OpenSSL's EVP interface) for content addressing and scene hashes.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <memory>
@@ -28,6 +29,12 @@ class Sha256 {
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+/// A SHA-256 digest's 32 bytes.
+using Sha256Digest = std::array<uint8_t, 32>;
+
+/// SHA-256 of a byte string.
+Sha256Digest sha256_digest(std::string_view bytes);
 
 /// SHA-256 of a byte string, as lowercase hex.
 std::string sha256_hex(std::string_view bytes);

@@ -58,6 +58,7 @@ Api::Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metric
          EventBus& bus, FarmEvents& events, Background background)
     : metrics_(metrics),
       opt_(options),
+      token_check_(opt_.tokens),
       sched_(scheduler),
       lease_waiters_(std::make_unique<LeaseWaiters>()),
       jobs_(scheduler, blobs, jobs, metrics, clock,
@@ -87,7 +88,7 @@ std::size_t Api::body_limit(const http::request_header<>& h) {
 }
 
 std::optional<HttpResponse> Api::check_access(const Route& route, const http::request_header<>& h) {
-  const AuthDecision d = authorize(route_access(route.id, h.method()), h[http::field::authorization], opt_.tokens);
+  const AuthDecision d = token_check_.authorize(route_access(route.id, h.method()), h[http::field::authorization]);
   if (d.status == AuthDecision::allowed) return std::nullopt;
   const bool forbidden = d.status == AuthDecision::wrong_role;
   HttpResponse res = json_error(forbidden ? http::status::forbidden : http::status::unauthorized, d.reason, h.version());

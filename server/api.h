@@ -99,6 +99,7 @@ class Api final : public HttpHandler {
 
   Metrics& metrics_;
   ApiOptions opt_;
+  TokenCheck token_check_;  // opt_.tokens' digests
   Scheduler& sched_;                              // notes new work to lease_waiters_ while this lives
   std::unique_ptr<LeaseWaiters> lease_waiters_;  // ended first in ~Api, while what its requests answer through lives
   JobService jobs_;

@@ -9,10 +9,16 @@
 
 namespace tessera::server {
 
+namespace {
+
+// Digests compared in time independent of where they differ.
+bool same_digest(const Sha256Digest& a, const Sha256Digest& b) { return CRYPTO_memcmp(a.data(), b.data(), a.size()) == 0; }
+
+}  // namespace
+
 bool constant_time_equal(std::string_view a, std::string_view b) {
   // Hashing first makes the comparison independent of the lengths; CRYPTO_memcmp does not stop at the first difference.
-  const std::string ha = sha256_hex(a), hb = sha256_hex(b);
-  return CRYPTO_memcmp(ha.data(), hb.data(), ha.size()) == 0;
+  return same_digest(sha256_digest(a), sha256_digest(b));
 }
 
 std::string generate_token() {
@@ -49,14 +55,19 @@ const char* role_name(Access a) {
 
 }  // namespace
 
-AuthDecision authorize(Access need, std::string_view authorization, const AccessTokens& tokens) {
+TokenCheck::TokenCheck(const AccessTokens& tokens) {
+  if (!tokens.client.empty()) client_ = sha256_digest(tokens.client);
+  if (!tokens.worker.empty()) worker_ = sha256_digest(tokens.worker);
+}
+
+AuthDecision TokenCheck::authorize(Access need, std::string_view authorization) const {
   if (need == Access::open) return {};
   const bool need_client = need == Access::client || need == Access::either;
   const bool need_worker = need == Access::worker || need == Access::either;
   // An endpoint whose token is not configured is open (the coordinator then listens on loopback only).
-  const bool open = need == Access::client   ? tokens.client.empty()
-                    : need == Access::worker ? tokens.worker.empty()
-                                             : tokens.client.empty() && tokens.worker.empty();
+  const bool open = need == Access::client   ? !client_
+                    : need == Access::worker ? !worker_
+                                             : !client_ && !worker_;
   if (open) return {};
   constexpr std::string_view kScheme = "Bearer ";
   if (authorization.empty()) return {AuthDecision::missing, std::string("this endpoint needs ") + role_name(need) + " (Authorization: Bearer <token>)"};
@@ -64,13 +75,18 @@ AuthDecision authorize(Access need, std::string_view authorization, const Access
     return {AuthDecision::invalid, "the Authorization header must be 'Bearer <token>'"};
   const std::string_view presented = authorization.substr(kScheme.size());
   // Both comparisons always run, so the time taken does not say which token (if any) matched.
-  const bool is_client = !tokens.client.empty() && constant_time_equal(presented, tokens.client);
-  const bool is_worker = !tokens.worker.empty() && constant_time_equal(presented, tokens.worker);
+  const Sha256Digest d = sha256_digest(presented);
+  const bool is_client = client_ && same_digest(d, *client_);
+  const bool is_worker = worker_ && same_digest(d, *worker_);
   if ((need_client && is_client) || (need_worker && is_worker)) return {};
   if (is_client || is_worker)
     return {AuthDecision::wrong_role, std::string("this endpoint needs ") + role_name(need) + "; the " +
                                           (is_client ? "client" : "worker") + " token was given"};
   return {AuthDecision::invalid, "the bearer token is not valid for this coordinator"};
+}
+
+AuthDecision authorize(Access need, std::string_view authorization, const AccessTokens& tokens) {
+  return TokenCheck(tokens).authorize(need, authorization);
 }
 
 }  // namespace tessera::server

@@ -1,6 +1,9 @@
 // Bearer-token access control: which token each endpoint needs and a constant-time check of the Authorization header.
 #pragma once
 
+#include "core/sha256.h"
+
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -29,8 +32,20 @@ struct AuthDecision {
   std::string reason;  ///< Text for the error body; never contains a token.
 };
 
-/// Checks an Authorization header value ("Bearer <token>", possibly empty) against the tokens `need` accepts; every
-/// comparison takes the same time whatever the tokens' contents and lengths.
+/// The configured tokens kept as their digests, so that checking a request hashes only the token it presents.
+class TokenCheck {
+ public:
+  /// Digests of `tokens` (an empty token stays unset: its endpoints are open).
+  explicit TokenCheck(const AccessTokens& tokens);
+  /// Checks an Authorization header value ("Bearer <token>", possibly empty) against the tokens `need` accepts; every
+  /// comparison takes the same time whatever the tokens' contents and lengths.
+  AuthDecision authorize(Access need, std::string_view authorization) const;
+
+ private:
+  std::optional<Sha256Digest> client_, worker_;
+};
+
+/// TokenCheck(tokens).authorize(need, authorization).
 AuthDecision authorize(Access need, std::string_view authorization, const AccessTokens& tokens);
 
 /// Equality of two secrets in time independent of where they differ and of their lengths (compares SHA-256 digests).
