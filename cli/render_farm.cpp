@@ -95,12 +95,12 @@ int run_render_farm(const RenderArgs& a) {
     // Fresh tokens per render: other users of this machine cannot submit to or pose as workers of this farm.
     const std::string client_token = write_token_file(dir / "client.token");
     write_token_file(dir / "worker.token");
-    // The private coordinator's folder is thrown away with this command, so nothing in it needs to survive more than
-    // a crash of the coordinator, after which the render fails anyway: it never waits for the disk.
+    // The private coordinator's folder is thrown away with this command, and a crash of the coordinator fails the
+    // render anyway: it keeps its jobs in memory and never waits for the disk.
     children.push_back(farm::spawn_child({self, "serve", "--listen", "127.0.0.1:0", "--ready-file", ready.string(),
                                           "--data", (dir / "data").string(), "--client-token-file",
                                           (dir / "client.token").string(), "--worker-token-file",
-                                          (dir / "worker.token").string(), "--durability", "process"},
+                                          (dir / "worker.token").string(), "--durability", "none"},
                                          "coordinator", dir / "serve.log"));
     farm::SubmitOptions o = shared_job_options(a);
     o.tile_size = a.farm_tile;

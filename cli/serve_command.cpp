@@ -16,9 +16,10 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
   c->add_option("--ready-file", a.ready_file, "Write the bound host:port here once listening");
   c->add_option("--durability", a.durability,
                 "machine: acknowledged state is flushed to the disk first and survives a power cut; process: nothing "
-                "is flushed, state survives a crash of the coordinator only (for a folder that is thrown away, as "
-                "render --workers does)")
-      ->check(CLI::IsMember({"machine", "process"}))->capture_default_str();
+                "is flushed, state survives a crash of the coordinator only; none: jobs, tiles and leases are kept "
+                "in memory and a restart forgets them (for a coordinator that dies with the command that started "
+                "it, as render --workers does; refused in a folder a durable coordinator has used)")
+      ->check(CLI::IsMember({"machine", "process", "none"}))->capture_default_str();
   c->add_option("--lease-seconds", a.lease_seconds, "Lease length in seconds")->check(CLI::Range(0.05, 86400.0))->capture_default_str();
   c->add_option("--worker-failure-limit", a.worker_failure_limit,
                  "Failures on one job after which a worker is blocklisted for that job")
@@ -80,7 +81,9 @@ int run_serve(const ServeArgs& a) {
     server::CoordinatorOptions o;
     std::tie(o.host, o.port) = server::parse_listen_address(a.listen);
     o.data_dir = a.data;
-    o.durability = a.durability == "process" ? server::Durability::process : server::Durability::machine;
+    o.durability = a.durability == "process" ? server::Durability::process
+                   : a.durability == "none"  ? server::Durability::none
+                                             : server::Durability::machine;
     o.lease_seconds = a.lease_seconds;
     o.heartbeat_seconds = a.heartbeat_seconds;
     o.worker_failure_limit = a.worker_failure_limit;
@@ -113,7 +116,10 @@ int run_serve(const ServeArgs& a) {
     const auto& t = o.limits.tokens;
     spdlog::info("coordinator listening on {}://{} (data in {}{}, leases {}s, heartbeats {}s, tokens: {}{})",
                  o.tls.enabled() ? "https" : "http", bound, a.data,
-                 o.durability == server::Durability::process ? " never flushed to the disk" : "", a.lease_seconds,
+                 o.durability == server::Durability::process ? " never flushed to the disk"
+                 : o.durability == server::Durability::none  ? ", jobs kept in memory only"
+                                                             : "",
+                 a.lease_seconds,
                  a.heartbeat_seconds,
                  t.complete() ? "client and worker" : t.client.empty() ? (t.worker.empty() ? "none" : "worker only") : "client only",
                  o.tls.client_ca_file.empty() ? "" : ", client certificates required");

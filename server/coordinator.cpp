@@ -69,13 +69,13 @@ struct Coordinator::Impl {
   explicit Impl(CoordinatorOptions o)
       : opt(std::move(o)),
         blobs(opt.data_dir / "blobs", opt.durability),
-        store(opt.data_dir, opt.durability),
+        store(open_coordinator_store(opt.data_dir, opt.durability)),
         sched(SchedulerConfig{int64_t(opt.lease_seconds * 1000.0), opt.tile_failure_workers, opt.worker_failure_limit,
                               random_hex(3)},
-              wall_ms, store),
+              wall_ms, *store),
         bus(opt.events, random_hex(4)),
         farm_events(bus),
-        api(sched, blobs, store, metrics, wall_ms, with_heartbeat(opt), bus, farm_events,
+        api(sched, blobs, *store, metrics, wall_ms, with_heartbeat(opt), bus, farm_events,
             [this](std::function<void()> work) { asio::post(pool, std::move(work)); }),  // a finished job's result
         monitor(api, !opt.limits.tokens.client.empty()),
         pool(std::size_t(opt.handler_threads > 0 ? opt.handler_threads : std::max(2u, std::thread::hardware_concurrency()))),
@@ -115,7 +115,7 @@ struct Coordinator::Impl {
   static constexpr uint64_t kSweepTicks = 60;  // retention and blob collection run once a minute
   CoordinatorOptions opt;
   DiskBlobStore blobs;
-  DurableStore store;  // jobs, tiles, leases, workers and job records in DIR/tessera.db
+  std::unique_ptr<CoordinatorStore> store;  // jobs, tiles, leases, workers and job records (DIR/tessera.db or memory)
   Scheduler sched;
   EventBus bus;             // GET /v1/events
   FarmEvents farm_events;   // what handlers and the tick publish to the bus
@@ -142,12 +142,12 @@ Coordinator::Coordinator(CoordinatorOptions options) {
   } catch (const StorageError& e) {
     throw std::runtime_error(std::string("cannot open the coordinator's state: ") + e.what());
   }
-  if (const size_t n = impl_->blobs.leftovers_removed() + impl_->store.leftovers_removed(); n > 0)
+  if (const size_t n = impl_->blobs.leftovers_removed() + impl_->store->leftovers_removed(); n > 0)
     spdlog::info("removed {} temporary file(s) left by an interrupted run", n);
   SchedulerCounters c = impl_->sched.counters();
   if (c.jobs[JobState::queued] + c.jobs[JobState::running] > 0)
     spdlog::info("resuming {} queued and {} running job(s) with {} live lease(s) from {}", c.jobs[JobState::queued],
-                 c.jobs[JobState::running], c.active_leases, impl_->store.database_file().string());
+                 c.jobs[JobState::running], c.active_leases, impl_->store->where());
   impl_->api.recover();
   if (impl_->opt.handle_signals) {
     // Caught from here on, before the caller announces readiness: a signal that arrives before run() is held by the

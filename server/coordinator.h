@@ -21,7 +21,7 @@ struct CoordinatorOptions {
   std::string host = "127.0.0.1";              ///< Address to bind (beyond loopback only with both tokens set).
   unsigned short port = 8470;                  ///< Port (0: an ephemeral one).
   std::filesystem::path data_dir;              ///< Holds tessera.db, blobs/, jobs/ and tmp/.
-  Durability durability = Durability::machine;  ///< What acknowledged state survives (process: no disk flushes).
+  Durability durability = Durability::machine;  ///< What acknowledged state survives (process: no disk flushes; none: kept in memory).
   double lease_seconds = 30;                   ///< Lease length.
   int worker_failure_limit = SchedulerConfig{}.worker_failure_limit;  ///< Failures blocklisting a worker for a job.
   int tile_failure_workers = SchedulerConfig{}.tile_failure_workers;  ///< Workers failing one tile that fail its job.

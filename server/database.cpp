@@ -250,7 +250,7 @@ DurableStore::DurableStore(const fs::path& dir, Durability durability)
       // Commits survive a process crash without waiting for the disk; sync() makes them survive a power cut when the
       // scheduler acknowledges something, outside its lock (see SchedulerStore::sync). A store that only has to
       // survive the process lets SQLite skip its own flushes too (at checkpoints and when the file is made).
-      db_((make_dirs(dir), dir / "tessera.db"), durability == Durability::machine ? "NORMAL" : "OFF"),
+      db_((make_dirs(dir), dir / kFileName), durability == Durability::machine ? "NORMAL" : "OFF"),
       group_([this] { flush_log(); }) {
   make_dirs(jobs_dir_);
   make_dirs(scratch_);

@@ -2,6 +2,7 @@
 // jobs, tiles (with the pixels of done tiles), leases, workers and job records in it.
 #pragma once
 
+#include "server/coordinator_store.h"
 #include "server/group_commit.h"
 #include "server/scheduler.h"
 #include "server/storage.h"
@@ -114,8 +115,10 @@ class Transaction {
 /// The coordinator's state under DIR: DIR/tessera.db holds jobs, tiles, leases, workers and job records, DIR/jobs/<id>/
 /// the merged results, DIR/tmp/ scratch files. Thread-safe (one connection behind a mutex). The database runs with
 /// auto_vacuum=INCREMENTAL: a change that purges jobs hands their pages back and truncates the write-ahead log.
-class DurableStore final : public SchedulerStore, public JobStore {
+class DurableStore final : public CoordinatorStore {
  public:
+  /// The database's file name in the store's folder.
+  static constexpr const char* kFileName = "tessera.db";
   /// The schema version this build reads and writes.
   static constexpr int kSchemaVersion = 1;
   /// Frames (4 KiB pages) in the write-ahead log that start a checkpoint (SQLite's own default).
@@ -153,8 +156,8 @@ class DurableStore final : public SchedulerStore, public JobStore {
 
   /// The database file.
   std::filesystem::path database_file() const { return db_.file(); }
-  /// How many leftovers of an earlier run the constructor removed.
-  size_t leftovers_removed() const { return leftovers_removed_; }
+  size_t leftovers_removed() const override { return leftovers_removed_; }
+  std::string where() const override { return database_file().string(); }
   /// Flushes of the write-ahead log and acknowledgements that waited for them, so far.
   GroupCommitStats flushes() { return group_.stats(); }
 

@@ -4,6 +4,7 @@
 
 #include "server/assembly.h"
 #include "server/coordinator.h"
+#include "server/memory_store.h"
 
 #include <gtest/gtest.h>
 #include <sqlite3.h>
@@ -506,6 +507,87 @@ TEST(SchedulerSync, OnlyAcknowledgementsWaitForTheDisk) {
   EXPECT_FALSE(store.flushed());
   s.cancel(j);
   EXPECT_TRUE(store.flushed()) << "a job's end";
+}
+
+
+// A scheduler over a MemoryStore: done tiles' pixels, records and tile states are there until the job is purged;
+// nothing comes back after a restart, and opening it empties the jobs and scratch folders.
+TEST(MemoryStoreTest, KeepsPixelsRecordsAndTileStatesUntilPurgedAndNothingAcrossARestart) {
+  const fs::path dir = fs::temp_directory_path() / ("tessera-memory-test-" + random_hex(6));
+  fs::create_directories(dir / "jobs" / "j-old");
+  fs::create_directories(dir / "tmp");
+  std::ofstream(dir / "jobs" / "j-old" / "result.exr") << "old";
+  std::ofstream(dir / "tmp" / "upload") << "half";
+  int64_t now = 1'000'000;
+  {
+    MemoryStore store(dir);
+    EXPECT_GE(store.leftovers_removed(), 2u);
+    EXPECT_FALSE(fs::exists(dir / "jobs" / "j-old"));
+    EXPECT_FALSE(fs::exists(dir / "tmp" / "upload"));
+    EXPECT_EQ(store.where(), "memory");
+    Scheduler sched(SchedulerConfig{10'000, 3, 2, "m"}, [&] { return now; }, store);
+    JobParams p;
+    p.name = "n";
+    p.width = 128;
+    p.height = 64;
+    p.tile_size = 64;
+    p.spp = 1;
+    p.scene_hash = "hash";
+    const std::string j = sched.add_job(p);
+    const std::string w = sched.register_worker("w");
+    std::vector<std::string> sent;
+    for (int t = 0; t < 2; ++t) {
+      const AcquireResult r = sched.acquire(w);
+      ASSERT_EQ(r.status, AcquireResult::granted);
+      ASSERT_EQ(sched.claim_result(r.lease.id).status, ResultClaim::proceed);
+      Image img = Image::make(r.lease.window.width(), r.lease.window.height());
+      for (size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = float(t) + float(i);
+      sent.emplace_back(tile_bytes(img));
+      sched.finish_result(r.lease.id, 1, sent.back());
+    }
+    const auto pixels = store.tile_pixels(j);
+    ASSERT_EQ(pixels.size(), 2u);
+    EXPECT_EQ(pixels[0], std::make_pair(int64_t(0), sent[0]));
+    EXPECT_EQ(pixels[1], std::make_pair(int64_t(1), sent[1]));
+    store.save_record(j, nlohmann::json{{"k", 1}});
+    EXPECT_EQ(store.load_record(j), nlohmann::json({{"k", 1}}));
+    store.save_tile_state(j, 1, 8, "exr-bytes");
+    EXPECT_EQ(store.tile_state_spp(j, 1), 8u);
+    EXPECT_EQ(store.tile_state(j, 1), std::make_pair(uint32_t(8), std::string("exr-bytes")));
+    EXPECT_FALSE(store.tile_state(j, 0));
+    store.write_result(j, [](const fs::path& f) { std::ofstream(f) << "merged"; });
+    EXPECT_EQ(store.jobs_with_outputs(), std::vector<std::string>{j});
+    sched.complete_job(j);  // after the merged result was written
+    ASSERT_EQ(sched.purge(j).status, PurgeResult::purged);
+    EXPECT_TRUE(store.tile_pixels(j).empty());
+    EXPECT_FALSE(store.load_record(j));
+    EXPECT_FALSE(store.tile_state(j, 1));
+    store.remove_outputs(j);
+    EXPECT_TRUE(store.jobs_with_outputs().empty());
+    sched.add_job(p);
+  }
+  MemoryStore again(dir);
+  Scheduler restarted(SchedulerConfig{10'000, 3, 2, "m"}, [&] { return now; }, again);
+  EXPECT_TRUE(restarted.jobs().empty());
+  fs::remove_all(dir);
+}
+
+// A folder a durable coordinator used is refused, and its results stay.
+TEST(MemoryStoreTest, RefusesAFolderHoldingADurableDatabase) {
+  const fs::path dir = fs::temp_directory_path() / ("tessera-memory-test-" + random_hex(6));
+  { DurableStore durable(dir); }
+  fs::create_directories(dir / "jobs" / "j-1");
+  std::ofstream(dir / "jobs" / "j-1" / "result.exr") << "kept";
+  try {
+    MemoryStore store(dir);
+    ADD_FAILURE() << "opened";
+  } catch (const StorageError& e) {
+    EXPECT_NE(std::string(e.what()).find("durable coordinator's database"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(fs::exists(dir / "jobs" / "j-1" / "result.exr"));
+  EXPECT_THROW(open_coordinator_store(dir, Durability::none), StorageError);
+  EXPECT_NO_THROW(open_coordinator_store(dir, Durability::process));
+  fs::remove_all(dir);
 }
 
 }  // namespace

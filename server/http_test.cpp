@@ -1,5 +1,6 @@
 // The coordinator over real HTTP on a loopback ephemeral port, driven by a small synchronous Beast client.
 #include "server/coordinator.h"
+#include "server/database.h"
 #include "server/test_coordinator.h"
 #include "server/test_http_client.h"
 #include "server/test_sse_client.h"
@@ -91,6 +92,10 @@ class HttpTest : public ::testing::Test {
     EXPECT_EQ(r.status, 201u) << r.body;
     return r.js().value("id", "");
   }
+
+  /// Two workers render a small job tile by tile (an invalid and a duplicate upload among them); the merged result is
+  /// bitwise one render's.
+  void check_full_round_trip();
 
   /// Lets a derived fixture change the options (limits) before the coordinator starts.
   virtual void configure(CoordinatorOptions&) {}
@@ -488,7 +493,7 @@ TEST_F(HttpTest, ALeaseCarriesItsJobsSpecUnlessTheWorkerHoldsIt) {
   EXPECT_EQ(r.js()["spec"], spec.js());
 }
 
-TEST_F(HttpTest, FullTileRoundTripIsBitwiseIdenticalToOneRender) {
+void HttpTest::check_full_round_trip() {
   const json body = small_cbox(job_for("cbox_no_light.json"));
   const std::string id = submit(body);
   const LoadedScene local = load_local(body["scene"], 2);
@@ -581,6 +586,19 @@ TEST_F(HttpTest, FullTileRoundTripIsBitwiseIdenticalToOneRender) {
   const std::string metrics = call(http::verb::get, "/metrics").body;
   EXPECT_NE(metrics.find("tessera_tiles_rendered_total 6"), std::string::npos) << metrics;
   EXPECT_NE(metrics.find("tessera_jobs{state=\"done\"} 1"), std::string::npos) << metrics;
+}
+
+TEST_F(HttpTest, FullTileRoundTripIsBitwiseIdenticalToOneRender) { check_full_round_trip(); }
+
+// A coordinator keeping its state in memory (serve --durability none, as render --workers runs it) merges the same
+// bits, and keeps no database.
+class HttpMemoryTest : public HttpTest {
+  void configure(CoordinatorOptions& o) override { o.durability = Durability::none; }
+};
+
+TEST_F(HttpMemoryTest, FullTileRoundTripIsBitwiseIdenticalToOneRender) {
+  check_full_round_trip();
+  EXPECT_FALSE(fs::exists(server_->data_dir() / DurableStore::kFileName));
 }
 
 TEST_F(HttpTest, ThreeWorkersFailingATileFailTheJob) {

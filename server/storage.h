@@ -24,7 +24,10 @@ using StorageError = FileError;
 enum class Durability {
   machine,  ///< A power cut: what is acknowledged was flushed to the disk first (fsync). `tessera serve`'s default.
   process,  ///< A crash of the process only: nothing is flushed (the page cache keeps every write). For a private
-            ///< coordinator whose folder dies with the command that started it (`render --workers`).
+            ///< coordinator whose folder is thrown away (`render --workers` before memory stores).
+  none,     ///< Nothing: jobs, tiles and leases are kept in memory and a restart forgets them (merged results and
+            ///< blobs are still files, never flushed). For a coordinator that dies with the command that started it
+            ///< (`render --workers`).
 };
 
 /// How a file written under `durability` is flushed (write_file_atomic).
