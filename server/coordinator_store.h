@@ -6,18 +6,36 @@
 #include "server/storage.h"
 
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace tessera::server {
 
-/// The scheduler's store and the job store of one coordinator.
+/// The scheduler's store and the job store of one coordinator. The job outputs are files either way: merged results
+/// in DIR/jobs/<id>/result.exr, written as the durability asks, and scratch files in DIR/tmp/.
 class CoordinatorStore : public SchedulerStore, public JobStore {
  public:
+  /// Outputs under `dir` (DIR/jobs/ and DIR/tmp/ are made here), results written with `durability`'s flush.
+  CoordinatorStore(const std::filesystem::path& dir, Durability durability);
+
   /// How many leftovers of an earlier run opening it removed.
   virtual size_t leftovers_removed() const = 0;
   /// Where the state is kept, for log lines (a database file, or "memory").
   virtual std::string where() const = 0;
+
+  std::filesystem::path result_path(const std::string& job) final;
+  void write_result(const std::string& job, const std::function<void(const std::filesystem::path&)>& write) final;
+  std::filesystem::path scratch_dir() final { return scratch_; }
+  void remove_outputs(const std::string& job) final;
+  std::vector<std::string> jobs_with_outputs() final;
+
+ protected:
+  const std::filesystem::path jobs_dir_, scratch_;
+
+ private:
+  Durability durability_;
 };
 
 /// The store under `dir` for `durability`: a DurableStore, or a MemoryStore for Durability::none. Throws StorageError.

@@ -246,14 +246,12 @@ void Transaction::commit() {
 // ---- DurableStore
 
 DurableStore::DurableStore(const fs::path& dir, Durability durability)
-    : durability_(durability), jobs_dir_(dir / "jobs"), scratch_(dir / "tmp"),
+    : CoordinatorStore(dir, durability), durability_(durability),
       // Commits survive a process crash without waiting for the disk; sync() makes them survive a power cut when the
       // scheduler acknowledges something, outside its lock (see SchedulerStore::sync). A store that only has to
       // survive the process lets SQLite skip its own flushes too (at checkpoints and when the file is made).
       db_((make_dirs(dir), dir / kFileName), durability == Durability::machine ? "NORMAL" : "OFF"),
       group_([this] { flush_log(); }) {
-  make_dirs(jobs_dir_);
-  make_dirs(scratch_);
   // Uploads being validated and results being written when the last run was killed.
   leftovers_removed_ = remove_leftovers(scratch_, true) + remove_leftovers(jobs_dir_);
   // Purged jobs' pages are returned to the file system (see give_back_free_pages). The mode is set before the first
@@ -569,15 +567,6 @@ std::optional<json> DurableStore::load_record(const std::string& job) {
   }
 }
 
-fs::path DurableStore::result_path(const std::string& job) {
-  make_dirs(jobs_dir_ / job);
-  return jobs_dir_ / job / "result.exr";
-}
-
-void DurableStore::write_result(const std::string& job, const std::function<void(const fs::path&)>& write) {
-  write_file_atomic(result_path(job), write, flush_for(durability_));
-}
-
 std::vector<std::pair<int64_t, std::string>> DurableStore::tile_pixels(const std::string& job) {
   std::lock_guard lock(mu_);
   std::vector<std::pair<int64_t, std::string>> out;
@@ -614,21 +603,6 @@ std::optional<std::pair<uint32_t, std::string>> DurableStore::tile_state(const s
   if (!st.step()) return std::nullopt;
   std::pair<uint32_t, std::string> out{uint32_t(st.integer(0)), st.blob(1)};
   st.reset();
-  return out;
-}
-
-void DurableStore::remove_outputs(const std::string& job) {
-  std::error_code ec;
-  fs::remove_all(jobs_dir_ / job, ec);
-  if (ec) throw StorageError("cannot remove " + (jobs_dir_ / job).string() + ": " + ec.message());
-}
-
-std::vector<std::string> DurableStore::jobs_with_outputs() {
-  std::vector<std::string> out;
-  std::error_code ec;
-  for (auto it = fs::directory_iterator(jobs_dir_, ec); !ec && it != fs::directory_iterator(); it.increment(ec))
-    if (it->is_directory()) out.push_back(it->path().filename().string());
-  if (ec) throw StorageError("cannot list " + jobs_dir_.string() + ": " + ec.message());
   return out;
 }
 

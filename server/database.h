@@ -144,15 +144,10 @@ class DurableStore final : public CoordinatorStore {
 
   void save_record(const std::string& job, const nlohmann::json& record) override;
   std::optional<nlohmann::json> load_record(const std::string& job) override;
-  std::filesystem::path result_path(const std::string& job) override;
-  void write_result(const std::string& job, const std::function<void(const std::filesystem::path&)>& write) override;
-  std::filesystem::path scratch_dir() override { return scratch_; }
   std::vector<std::pair<int64_t, std::string>> tile_pixels(const std::string& job) override;
   void save_tile_state(const std::string& job, int64_t tile, uint32_t spp, std::string_view exr) override;
   std::optional<uint32_t> tile_state_spp(const std::string& job, int64_t tile) override;
   std::optional<std::pair<uint32_t, std::string>> tile_state(const std::string& job, int64_t tile) override;
-  void remove_outputs(const std::string& job) override;
-  std::vector<std::string> jobs_with_outputs() override;
 
   /// The database file.
   std::filesystem::path database_file() const { return db_.file(); }
@@ -173,7 +168,6 @@ class DurableStore final : public CoordinatorStore {
   };
   std::mutex wal_mu_;   // guards wal_fd_
   LogFile wal_fd_;      // the write-ahead log, opened for flush_log() (closed after group_ has stopped)
-  std::filesystem::path jobs_dir_, scratch_;
   size_t leftovers_removed_ = 0;
   Database db_;
   std::unique_ptr<WalCheckpointer> checkpointer_;  // checkpoints db_'s log (stopped before db_ closes)

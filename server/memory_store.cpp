@@ -7,14 +7,12 @@ namespace tessera::server {
 
 namespace fs = std::filesystem;
 
-MemoryStore::MemoryStore(const fs::path& dir) : jobs_dir_(dir / "jobs"), scratch_(dir / "tmp") {
+MemoryStore::MemoryStore(const fs::path& dir) : CoordinatorStore(dir, Durability::none) {
   // Opening would empty DIR/jobs/: never in a folder whose jobs a durable coordinator still knows.
   if (std::error_code ec; fs::exists(dir / DurableStore::kFileName, ec) || ec)
     throw StorageError(dir.string() + " holds a durable coordinator's database (" + DurableStore::kFileName +
                        "): a coordinator keeping its state in memory would throw that coordinator's results away; give "
                        "it a folder of its own");
-  make_dirs(jobs_dir_);
-  make_dirs(scratch_);
   leftovers_removed_ = remove_leftovers(scratch_, true) + remove_leftovers(jobs_dir_, true);
 }
 
@@ -41,15 +39,6 @@ std::optional<nlohmann::json> MemoryStore::load_record(const std::string& job) {
   const auto it = records_.find(job);
   if (it == records_.end()) return std::nullopt;
   return it->second;
-}
-
-fs::path MemoryStore::result_path(const std::string& job) {
-  make_dirs(jobs_dir_ / job);
-  return jobs_dir_ / job / "result.exr";
-}
-
-void MemoryStore::write_result(const std::string& job, const std::function<void(const fs::path&)>& write) {
-  write_file_atomic(result_path(job), write, Flush::none);
 }
 
 std::vector<std::pair<int64_t, std::string>> MemoryStore::tile_pixels(const std::string& job) {
@@ -79,27 +68,5 @@ std::optional<std::pair<uint32_t, std::string>> MemoryStore::tile_state(const st
   return it->second;
 }
 
-void MemoryStore::remove_outputs(const std::string& job) {
-  std::error_code ec;
-  fs::remove_all(jobs_dir_ / job, ec);
-  if (ec) throw StorageError("cannot remove " + (jobs_dir_ / job).string() + ": " + ec.message());
-}
-
-std::vector<std::string> MemoryStore::jobs_with_outputs() {
-  std::vector<std::string> out;
-  std::error_code ec;
-  for (auto it = fs::directory_iterator(jobs_dir_, ec); !ec && it != fs::directory_iterator(); it.increment(ec))
-    if (it->is_directory()) out.push_back(it->path().filename().string());
-  if (ec) throw StorageError("cannot list " + jobs_dir_.string() + ": " + ec.message());
-  return out;
-}
-
-std::unique_ptr<CoordinatorStore> open_coordinator_store(const fs::path& dir, Durability durability) {
-  if (durability == Durability::none) {
-    make_dirs(dir);
-    return std::make_unique<MemoryStore>(dir);
-  }
-  return std::make_unique<DurableStore>(dir, durability);
-}
 
 }  // namespace tessera::server

@@ -15,7 +15,8 @@ namespace tessera::server {
 /// Thread-safe (one mutex).
 class MemoryStore final : public CoordinatorStore {
  public:
-  /// Makes DIR/jobs/ and DIR/tmp/ and removes whatever an earlier run left in them; throws StorageError.
+  /// Makes DIR/jobs/ and DIR/tmp/ and removes whatever an earlier run left in them; throws StorageError, also when DIR
+  /// holds a durable coordinator's database.
   explicit MemoryStore(const std::filesystem::path& dir);
 
   void apply(const SchedulerChanges& changes) override;
@@ -24,21 +25,15 @@ class MemoryStore final : public CoordinatorStore {
 
   void save_record(const std::string& job, const nlohmann::json& record) override;
   std::optional<nlohmann::json> load_record(const std::string& job) override;
-  std::filesystem::path result_path(const std::string& job) override;
-  void write_result(const std::string& job, const std::function<void(const std::filesystem::path&)>& write) override;
-  std::filesystem::path scratch_dir() override { return scratch_; }
   std::vector<std::pair<int64_t, std::string>> tile_pixels(const std::string& job) override;
   void save_tile_state(const std::string& job, int64_t tile, uint32_t spp, std::string_view exr) override;
   std::optional<uint32_t> tile_state_spp(const std::string& job, int64_t tile) override;
   std::optional<std::pair<uint32_t, std::string>> tile_state(const std::string& job, int64_t tile) override;
-  void remove_outputs(const std::string& job) override;
-  std::vector<std::string> jobs_with_outputs() override;
 
   size_t leftovers_removed() const override { return leftovers_removed_; }
   std::string where() const override { return "memory"; }
 
  private:
-  std::filesystem::path jobs_dir_, scratch_;
   size_t leftovers_removed_ = 0;
   std::mutex mu_;
   std::map<std::string, std::map<int64_t, std::string>> pixels_;  // job -> done tile -> float32 RGB rows (mu_)
