@@ -51,7 +51,7 @@ int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& o, const 
           const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
           bar.update(RenderProgress{int(s.tiles.done), int(s.tiles.total), s.rays, secs});
         },
-        stop);
+        stop, std::chrono::milliseconds(200), std::chrono::seconds(120), !quiet);  // quiet: no tile events
     if (!end.finished()) {
       spdlog::warn("interrupted: cancelling {}", job);
       try {

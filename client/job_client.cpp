@@ -4,6 +4,7 @@
 #include "core/scene_loader.h"
 #include "core/sha256.h"
 #include "protocol/events.h"
+#include "protocol/query.h"
 #include "protocol/routes.h"
 #include "client/backoff.h"
 #include "client/sse_parser.h"
@@ -224,7 +225,7 @@ void report(const JobStatus& s, JobStatus& last, const std::function<void(const 
 // then its job events and a done tile count from tile_done events. Returns true when the job ended or stop() said
 // so; false when the stream was refused or broke first (the caller polls).
 bool follow_events(HttpClient& http, const std::string& id, const std::function<void(const JobStatus&)>& progress,
-                   const std::function<bool()>& stop, JobStatus& last) {
+                   const std::function<bool()>& stop, JobStatus& last, bool tile_progress) {
   namespace ev = protocol::events;
   bool ended = false;
   SseParser parser([&](const SseMessage& m) {
@@ -244,7 +245,7 @@ bool follow_events(HttpClient& http, const std::string& id, const std::function<
     return !ended;
   });
   HttpRequest req;
-  req.target = routes::events();
+  req.target = routes::events() + (tile_progress ? "" : protocol::event_filter_query({ev::kJob}));
   req.headers["Accept"] = "text/event-stream";
   try {
     const HttpResponse r = http.another()->stream(req, std::chrono::seconds(60), [&](std::string_view bytes) {
@@ -270,9 +271,10 @@ bool follow_events(HttpClient& http, const std::string& id, const std::function<
 }  // namespace
 
 JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::function<void(const JobStatus&)>& progress,
-                       const std::function<bool()>& stop, std::chrono::milliseconds poll, std::chrono::seconds give_up) {
+                       const std::function<bool()>& stop, std::chrono::milliseconds poll, std::chrono::seconds give_up,
+                       bool tile_progress) {
   JobStatus last;
-  if (follow_events(http, id, progress, stop, last)) return last;
+  if (follow_events(http, id, progress, stop, last, tile_progress)) return last;
   Backoff backoff(poll, std::chrono::milliseconds(5000));
   auto failing_since = std::chrono::steady_clock::time_point{};
   while (true) {

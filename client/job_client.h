@@ -80,10 +80,11 @@ protocol::JobSpec get_job_spec(HttpClient& http, const std::string& id);
 /// Follows the job until it is done, failed or cancelled, calling progress on each change: on the coordinator's
 /// event stream (GET /v1/events, on a second connection) while it is available, else (refused, e.g. 503, or broken)
 /// by polling every poll interval, where transport errors are retried with backoff (the coordinator may be
-/// restarting) up to `give_up` in a row. Returns early (with the last status) when stop() says true.
+/// restarting) up to `give_up` in a row. Returns early (with the last status) when stop() says true. Without
+/// `tile_progress`, the stream carries only job events (progress is then called on state changes only).
 JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::function<void(const JobStatus&)>& progress,
                        const std::function<bool()>& stop, std::chrono::milliseconds poll = std::chrono::milliseconds(200),
-                       std::chrono::seconds give_up = std::chrono::seconds(120));
+                       std::chrono::seconds give_up = std::chrono::seconds(120), bool tile_progress = true);
 
 /// Downloads the finished job's result.exr to path atomically (temporary file, fsync, rename); throws SubmitError
 /// or TransportError. Returns the number of bytes.

@@ -24,6 +24,9 @@ inline constexpr const char* kTileRequeued = "tile_requeued";    ///< An operato
 inline constexpr const char* kJobRemoved = "job_removed";        ///< A job was purged; data: PurgeAnswer.
 inline constexpr const char* kWorkerChanged = "worker_changed";  ///< data: WorkerEvent (reason draining or undrained).
 inline constexpr const char* kResync = "resync";            ///< Events were missed: reload the state; data: {}.
+/// Every event a stream can be limited to (`GET /v1/events?only=...`); resync is always sent.
+inline constexpr const char* kFilterable[] = {kJob, kTileLeased, kTileDone, kTileFailed, kWorkerSeen,
+                                              kWorkerLost, kTileRequeued, kJobRemoved, kWorkerChanged};
 }  // namespace events
 
 /// What happened to one tile.

@@ -1,5 +1,7 @@
 #include "protocol/query.h"
 
+#include "protocol/events.h"
+
 #include "protocol/errors.h"
 
 #include <algorithm>
@@ -150,6 +152,33 @@ std::string JobListQuery::to_query() const {
   }
   if (limit > 0) add("limit", std::to_string(limit));
   if (!after.empty()) add("after", after);
+  return q;
+}
+
+std::set<std::string> parse_event_filter(std::string_view target) {
+  const auto params = query_params(target, {"only"});
+  std::set<std::string> only;
+  const auto it = params.find("only");
+  if (it == params.end()) return only;
+  std::string_view rest = it->second;
+  while (true) {
+    const size_t comma = rest.find(',');
+    const std::string name(rest.substr(0, comma));
+    if (std::none_of(std::begin(events::kFilterable), std::end(events::kFilterable), [&](const char* e) { return name == e; })) {
+      std::string all;
+      for (const char* e : events::kFilterable) all += std::string(all.empty() ? "" : ", ") + e;
+      throw ProtocolError("only: '" + name + "' is not an event (one or more of " + all + ", comma-separated)");
+    }
+    only.insert(name);
+    if (comma == std::string_view::npos) break;
+    rest = rest.substr(comma + 1);
+  }
+  return only;
+}
+
+std::string event_filter_query(const std::set<std::string>& only) {
+  std::string q;
+  for (const std::string& name : only) q += (q.empty() ? "?only=" : ",") + name;
   return q;
 }
 

@@ -1,4 +1,5 @@
-// Query strings of request targets: GET /v1/jobs?state=S[,S]&limit=N&after=CURSOR and DELETE /v1/jobs/{id}?purge=B.
+// Query strings of request targets: GET /v1/jobs?state=S[,S]&limit=N&after=CURSOR, DELETE /v1/jobs/{id}?purge=B and
+// GET /v1/events?only=NAME[,NAME].
 // Parsers refuse unknown keys, repeated keys and bad values with a ProtocolError (400) naming them.
 #pragma once
 
@@ -7,6 +8,7 @@
 #include <cstddef>
 #include <initializer_list>
 #include <map>
+#include <set>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -32,5 +34,9 @@ std::map<std::string, std::string> query_params(std::string_view target, std::in
 JobListQuery parse_job_list_query(std::string_view target);
 /// Parses the query of DELETE /v1/jobs/{id}: true for purge=true; false for none or purge=false.
 bool parse_purge_query(std::string_view target);
+/// Parses the query of GET /v1/events (only=NAME[,NAME]: just those events, and resync); empty: every event.
+std::set<std::string> parse_event_filter(std::string_view target);
+/// The query string asking for `only` those events ("" for every event).
+std::string event_filter_query(const std::set<std::string>& only);
 
 }  // namespace tessera::protocol

@@ -204,9 +204,8 @@ void Api::handle_async(HttpRequest&& req, Reply done) noexcept {
       metrics_.observe_request("GET " + route.name, 0.0);
       return done(events_handler_.open(req));
     }
-  } catch (const std::exception& e) {
-    spdlog::error("GET /v1/events: internal error: {}", e.what());
-    return done({json_error(http::status::internal_server_error, std::string("internal error: ") + e.what(), req.version()), nullptr});
+  } catch (...) {
+    return done({refusal(std::current_exception(), req), nullptr});  // a bad ?only= is a 400
   }
   answer(std::move(req), [done](HttpResponse res) { done({std::move(res), nullptr}); });
 }

@@ -52,7 +52,7 @@ void EventBus::publish(std::string name, std::string data) {
     if (core_->closed) return;
     Event e{core_->run + "-" + std::to_string(++core_->last), std::move(name), std::move(data)};
     for (Subscription* s : core_->subs) {
-      if (s->status_ != Subscription::Status::open) continue;
+      if (s->status_ != Subscription::Status::open || !s->wants(e)) continue;
       if (s->queue_.size() >= core_->opt.queue_limit) {
         s->status_ = Subscription::Status::dropped;
         s->queue_.clear();
@@ -69,10 +69,12 @@ void EventBus::publish(std::string name, std::string data) {
   call_all(wakes);
 }
 
-std::shared_ptr<Subscription> EventBus::subscribe(const std::optional<std::string>& last_event_id) {
+std::shared_ptr<Subscription> EventBus::subscribe(const std::optional<std::string>& last_event_id,
+                                                  std::set<std::string> only) {
   std::lock_guard lock(core_->mu);
   if (core_->closed || core_->subs.size() >= core_->opt.max_subscribers) return nullptr;
   auto s = std::make_shared<Subscription>(core_, false);
+  s->only_ = std::move(only);
   if (last_event_id) {
     const std::optional<uint64_t> n = event_number(*last_event_id, core_->run);
     const uint64_t oldest = core_->ring.empty() ? core_->last + 1 : core_->last + 1 - core_->ring.size();
@@ -81,7 +83,7 @@ std::shared_ptr<Subscription> EventBus::subscribe(const std::optional<std::strin
       s->resync_ = true;
     } else {
       for (const Event& e : core_->ring)
-        if (*event_number(e.id, core_->run) > *n) s->queue_.push_back(e);
+        if (*event_number(e.id, core_->run) > *n && s->wants(e)) s->queue_.push_back(e);
     }
   }
   core_->subs.push_back(s.get());

@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <set>
 #include <memory>
 #include <optional>
 #include <string>
@@ -45,7 +46,9 @@ class EventBus {
   /// A new subscription, or nullptr when max_subscribers are open or the bus is closed. With `last_event_id`, the
   /// queue starts with the events after it from the ring; when they are no longer all there (or the id is from
   /// another run or malformed), the subscription starts with needs_resync set instead.
-  std::shared_ptr<Subscription> subscribe(const std::optional<std::string>& last_event_id = std::nullopt);
+  /// With `only` not empty, the subscription gets just the events of those names (and resync).
+  std::shared_ptr<Subscription> subscribe(const std::optional<std::string>& last_event_id = std::nullopt,
+                                          std::set<std::string> only = {});
   /// Ends every subscription (their status becomes closed) and refuses new ones.
   void close();
   /// Open subscriptions.
@@ -89,6 +92,8 @@ class Subscription {
   std::shared_ptr<EventBus::Core> core_;
   // Guarded by the bus's lock.
   std::vector<Event> queue_;
+  std::set<std::string> only_;  // the event names it gets (empty: all); set before it is shared
+  bool wants(const Event& e) const { return only_.empty() || only_.count(e.name) > 0; }
   bool resync_ = false;
   Status status_ = Status::open;
   std::function<void()> wake_;

@@ -98,6 +98,18 @@ TEST(EventBus, LastEventIdResumesFromTheRingOrAsksForAResync) {
   }
 }
 
+// A subscription limited to some event names gets only those, live and when resuming from the ring.
+TEST(EventBus, ASubscriptionLimitedToSomeNamesGetsOnlyThose) {
+  EventBus bus({}, "run");
+  bus.publish("job", "{}");
+  bus.publish("tile_done", "{}");
+  auto live = bus.subscribe(std::nullopt, {"job"});
+  auto resumed = bus.subscribe(std::string("run-0"), {"job", "worker_seen"});
+  for (const char* name : {"tile_leased", "job", "tile_done", "worker_seen", "job"}) bus.publish(name, "{}");
+  EXPECT_EQ(names(live->take()), (std::vector<std::string>{"job", "job"}));
+  EXPECT_EQ(names(resumed->take()), (std::vector<std::string>{"job", "job", "worker_seen", "job"}));
+}
+
 TEST(EventBus, SubscriberLimitAndClose) {
   EventBusOptions o;
   o.max_subscribers = 2;

@@ -1,6 +1,7 @@
 #include "server/events_handler.h"
 
 #include "protocol/events.h"
+#include "protocol/query.h"
 
 #include <spdlog/spdlog.h>
 
@@ -57,7 +58,7 @@ std::string sse_message(const Event& e) { return "id: " + e.id + "\nevent: " + e
 HttpReply EventsHandler::open(const HttpRequest& req) {
   std::optional<std::string> last;
   if (const auto h = req["Last-Event-ID"]; !h.empty()) last = std::string(h);
-  std::shared_ptr<Subscription> sub = bus_.subscribe(last);
+  std::shared_ptr<Subscription> sub = bus_.subscribe(last, protocol::parse_event_filter(req.target()));
   if (!sub) {
     const std::size_t limit = bus_.options().max_subscribers;
     HttpResponse res = json_error(http::status::service_unavailable,

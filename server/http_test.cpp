@@ -771,6 +771,28 @@ using testing::SseEvent;
 using testing::SseReader;
 
 
+// ?only= limits a stream to some events (what `submit -q` asks for: job events only); an unknown name is a 400.
+TEST_F(HttpTest, AnEventStreamCanBeLimitedToSomeEvents) {
+  SseReader jobs(server_->endpoint(), "/v1/events?only=job");
+  ASSERT_EQ(jobs.status(), 200);
+  const std::string w = register_worker("only");
+  const std::string id = submit(small_cbox(job_for("cbox_no_light.json")));
+  const json l = call(http::verb::post, "/v1/workers/" + w + "/lease").js();
+  ASSERT_EQ(call(http::verb::post, "/v1/leases/" + l["lease"].get<std::string>() + "/fail", R"({"error":"boom"})").status, 200u);
+  ASSERT_EQ(call(http::verb::delete_, "/v1/jobs/" + id).status, 200u);
+  std::vector<std::string> states;
+  for (int i = 0; i < 3; ++i) {
+    auto e = jobs.next();
+    ASSERT_TRUE(e) << "stream ended after " << i << " events";
+    EXPECT_EQ(e->event, "job");
+    states.push_back(json::parse(e->data)["state"]);
+  }
+  EXPECT_EQ(states, (std::vector<std::string>{"queued", "running", "cancelled"}));
+  const Reply bad = call(http::verb::get, "/v1/events?only=job,tiles");
+  EXPECT_EQ(bad.status, 400u) << bad.body;
+  EXPECT_NE(bad.body.find("'tiles' is not an event"), std::string::npos) << bad.body;
+}
+
 TEST_F(HttpTest, EventStreamCarriesJobTileAndWorkerEventsInOrder) {
   SseReader events(server_->endpoint(), "/v1/events");
   ASSERT_EQ(events.status(), 200);
