@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Coordinator CPU per job and per tile: one `tessera serve` (--durability process, as `render --workers` runs it), one
-# 2-thread worker, and farm_bench.sh's 2-s scene (640x480, 32 spp) submitted at tile sizes 64, 32 and 16 (80, 300 and
+# Coordinator CPU per job and per tile: one `tessera serve` (--durability none, as `render --workers` runs it; process
+# for the figures before 5766e51), one 2-thread worker, and farm_bench.sh's 2-s scene (640x480, 32 spp) submitted at tile sizes 64, 32 and 16 (80, 300 and
 # 1200 tiles), twice; the coordinator's utime+stime read from /proc around each job. The slope over the tile counts is
 # the per-tile cost, the rest the per-job cost (submission with its scene checks, result, the client's event stream).
 # Usage: bench/coordinator_cpu.sh BUILD_DIR [SHARED_DIR]   (TILES="64 16" to choose the tile sizes, SPP=N the spp)
@@ -12,7 +12,7 @@ source "$(dirname "$0")/bench_common.sh" coordcpu
 scene a 640 480 "${SPP:-32}"
 echo "tessera coordinator CPU per job and per tile, $(date -u +%FT%TZ), $(nproc) cores, commit $(git -C "$(dirname "$0")" rev-parse --short HEAD 2>/dev/null || echo unknown)"
 TCK=$(getconf CLK_TCK)
-start_serve --durability process
+start_serve --durability none
 "$T" worker --coordinator "$URL" --cache "$WORK/cache" --name w --threads 2 >"$WORK/w.log" 2>&1 &
 PIDS+=($!)
 FIT=""
