@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Coordinator CPU per job and per tile: one `tessera serve` (--durability none, as `render --workers` runs it; process
-# for the figures before 5766e51), one 2-thread worker, and farm_bench.sh's 2-s scene (640x480, 32 spp) submitted at tile sizes 64, 32 and 16 (80, 300 and
-# 1200 tiles), twice; the coordinator's utime+stime read from /proc around each job. The slope over the tile counts is
-# the per-tile cost, the rest the per-job cost (submission with its scene checks, result, the client's event stream).
+# for the figures before 5766e51), one 2-thread worker, and farm_bench.sh's 2-s scene (640x480, 32 spp) submitted at
+# tile sizes 64, 32 and 16 (80, 300 and 1200 tiles), twice; the coordinator's utime+stime read from /proc around
+# each job. The slope over the tile counts is the per-tile cost, the rest the per-job cost (submission with its scene
+# checks, result, the client's event stream).
 # Usage: bench/coordinator_cpu.sh BUILD_DIR [SHARED_DIR]   (TILES="64 16" to choose the tile sizes, SPP=N the spp)
 set -euo pipefail
 BUILD=${1:?usage: coordinator_cpu.sh BUILD_DIR [SHARED_DIR]}
