@@ -4,6 +4,7 @@
 #include "cli/submit_command.h"
 #include "core/image.h"
 #include "server/auth.h"
+#include "server/coordinator_store.h"
 #include "core/file_io.h"
 #include "core/scene_loader.h"
 #include "worker/arena_pinning.h"
@@ -16,7 +17,9 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <string>
 #include <thread>
@@ -69,6 +72,28 @@ std::string wait_for_ready(const fs::path& ready, farm::ChildProcess& serve) {
   }
   throw std::runtime_error("the coordinator did not write " + ready.string() + " within 30 s; its log:\n" +
                            farm::tail_of_file(serve.log, 20));
+}
+
+// The done job's result is a file in the private coordinator's folder, which this command owns and throws away: it is
+// synced and moved to `output` (as a download would have written it, synced and renamed into place), or copied when
+// `output` is on another file system, instead of being sent over HTTP and written again.
+uint64_t take_result(const fs::path& data_dir, const std::string& job, const fs::path& output) {
+  const fs::path file = server::job_result_file(data_dir, job);
+  const uint64_t size = fs::file_size(file);
+  const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0 || ::fsync(fd) != 0) {
+    const int err = errno;
+    if (fd >= 0) ::close(fd);
+    throw std::runtime_error("cannot sync " + file.string() + ": " + std::strerror(err));
+  }
+  ::close(fd);
+  if (::rename(file.c_str(), output.c_str()) == 0) {
+    sync_folder_of(output);
+    return size;
+  }
+  if (errno != EXDEV) throw std::runtime_error("cannot move the result to " + output.string() + ": " + std::strerror(errno));
+  write_file_atomic(output, read_file_bytes(file));
+  return size;
 }
 
 }  // namespace
@@ -155,7 +180,8 @@ int run_render_farm(const RenderArgs& a) {
           for (size_t i = 1; i < children.size(); ++i) all_workers_gone &= farm::child_exited(children[i]);
           return all_workers_gone || farm::child_exited(children[0]);
         },
-        std::move(files));
+        std::move(files),
+        [&](const std::string& job, const std::string& output) { return take_result(dir / "data", job, output); });
     if (rc == 0 && (a.half || !a.preview.empty())) {
       const ExrImage img = read_exr(a.output);
       if (a.half) {

@@ -34,7 +34,7 @@ CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
 }
 
 int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& o, const std::string& output, bool quiet,
-                    const std::function<bool()>& stop, std::optional<farm::SceneFiles> files) {
+                    const std::function<bool()>& stop, std::optional<farm::SceneFiles> files, const ResultFetch& fetch) {
   std::string job;
   try {
     const auto t0 = std::chrono::steady_clock::now();
@@ -71,7 +71,7 @@ int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& o, const 
     }
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     if (!output.empty()) {
-      const uint64_t bytes = farm::download_result(http, job, output);
+      const uint64_t bytes = fetch ? fetch(job, output) : farm::download_result(http, job, output);
       if (!quiet)
         std::fprintf(stderr, "%s: %dx%d px, %lld tiles, %.2fs (%.2fs from the first lease), %llu bytes\n",
                      output.c_str(), end.params.width, end.params.height, static_cast<long long>(end.tiles.total), secs,

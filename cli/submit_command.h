@@ -47,11 +47,15 @@ CLI::App* add_submit_command(CLI::App& app, SubmitArgs& args);
 /// Runs it; returns the process exit code: 0 done (and downloaded), 1 failed/cancelled or transport errors, 2 refused.
 int run_submit(const SubmitArgs& args);
 
+/// Puts a done job's result at `output` and returns its size in bytes; throws on failure.
+using ResultFetch = std::function<uint64_t(const std::string& job, const std::string& output)>;
+
 /// Submits, shows progress until the job ends and downloads the result to `output` (when not empty); the shared
 /// core of `submit` and `render --workers`. stop() interrupts the wait (the job is then cancelled). Returns the exit
 /// code as run_submit does; reports errors itself. `files`, when given, is the scene as already read and hashed
-/// (farm::read_scene_files of the same options).
+/// (farm::read_scene_files of the same options); `fetch`, when given, takes the result instead of the download.
 int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& options, const std::string& output, bool quiet,
-                    const std::function<bool()>& stop, std::optional<farm::SceneFiles> files = std::nullopt);
+                    const std::function<bool()>& stop, std::optional<farm::SceneFiles> files = std::nullopt,
+                    const ResultFetch& fetch = {});
 
 }  // namespace tessera::cli

@@ -8,15 +8,17 @@ namespace tessera::server {
 
 namespace fs = std::filesystem;
 
+fs::path job_result_file(const fs::path& dir, const std::string& job) { return dir / "jobs" / job / "result.exr"; }
+
 CoordinatorStore::CoordinatorStore(const fs::path& dir, Durability durability)
-    : jobs_dir_(dir / "jobs"), scratch_(dir / "tmp"), durability_(durability) {
+    : jobs_dir_(dir / "jobs"), scratch_(dir / "tmp"), durability_(durability), dir_(dir) {
   make_dirs(jobs_dir_);
   make_dirs(scratch_);
 }
 
 fs::path CoordinatorStore::result_path(const std::string& job) {
   make_dirs(jobs_dir_ / job);
-  return jobs_dir_ / job / "result.exr";
+  return job_result_file(dir_, job);
 }
 
 void CoordinatorStore::write_result(const std::string& job, const std::function<void(const fs::path&)>& write) {

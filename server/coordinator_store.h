@@ -36,7 +36,11 @@ class CoordinatorStore : public SchedulerStore, public JobStore {
 
  private:
   Durability durability_;
+  std::filesystem::path dir_;
 };
+
+/// Where the coordinator with data folder `dir` keeps a job's merged result: DIR/jobs/<job>/result.exr.
+std::filesystem::path job_result_file(const std::filesystem::path& dir, const std::string& job);
 
 /// The store under `dir` for `durability`: a DurableStore, or a MemoryStore for Durability::none. Throws StorageError.
 std::unique_ptr<CoordinatorStore> open_coordinator_store(const std::filesystem::path& dir, Durability durability);

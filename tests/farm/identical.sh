@@ -29,6 +29,17 @@ write_sphere_scene "$WORK/tiny.json" 5 4 2
   || fail "1-pixel tiles failed"
 "$EXR_COMPARE" "$WORK/tiny-ref.exr" "$WORK/tiny-farm.exr" || fail "1-pixel tiles differ"
 
+# The private coordinator's folder (under TMPDIR) on another file system than the output: the result is copied out
+# of it instead of moved (a rename across file systems fails with EXDEV), and an older output is replaced.
+if [ -d /dev/shm ] && [ -w /dev/shm ] && [ "$(stat -f -c %T /dev/shm)" != "$(stat -f -c %T "$WORK")" ]; then
+  echo "old" >"$WORK/tiny-copied.exr"
+  TMPDIR=/dev/shm "$TESSERA" render "$WORK/tiny.json" -o "$WORK/tiny-copied.exr" --workers 1 -q \
+    >"$WORK/render-copied.log" 2>&1 || fail "render --workers with its folder on another file system failed"
+  "$EXR_COMPARE" "$WORK/tiny-ref.exr" "$WORK/tiny-copied.exr" || fail "the result copied across file systems differs"
+else
+  echo "note: /dev/shm is missing or on the file system of $WORK; the cross-file-system copy of the result is not tested"
+fi
+
 # Assets (meshes and an EXR texture) travel by hash; another seed and spp override go through the protocol.
 write_cbox_scene "$WORK/cbox" 30 22 4
 "$TESSERA" render "$WORK/cbox/scene.json" -o "$WORK/cbox-ref.exr" --spp "$(spp 2)" --seed 9 -q
