@@ -91,7 +91,8 @@ uint64_t take_result(const fs::path& data_dir, const std::string& job, const fs:
     sync_folder_of(output);
     return size;
   }
-  if (errno != EXDEV) throw std::runtime_error("cannot move the result to " + output.string() + ": " + std::strerror(errno));
+  if (const int err = errno; err != EXDEV)
+    throw std::runtime_error("cannot move the result to " + output.string() + ": " + std::strerror(err));
   write_file_atomic(output, read_file_bytes(file));
   return size;
 }

@@ -23,8 +23,7 @@ using StorageError = FileError;
 /// What a coordinator's stored state survives.
 enum class Durability {
   machine,  ///< A power cut: what is acknowledged was flushed to the disk first (fsync). `tessera serve`'s default.
-  process,  ///< A crash of the process only: nothing is flushed (the page cache keeps every write). For a private
-            ///< coordinator whose folder is thrown away (`render --workers` before memory stores).
+  process,  ///< A crash of the process only: nothing is flushed (the page cache keeps every write).
   none,     ///< Nothing: jobs, tiles and leases are kept in memory and a restart forgets them (merged results and
             ///< blobs are still files, never flushed). For a coordinator that dies with the command that started it
             ///< (`render --workers`).
