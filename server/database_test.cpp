@@ -2,6 +2,7 @@
 // done without its pixels, and a restarted scheduler resumes where the old one stopped.
 #include "server/database.h"
 
+#include "core/test_files.h"
 #include "server/assembly.h"
 #include "server/coordinator.h"
 #include "server/memory_store.h"
@@ -512,8 +513,11 @@ TEST(SchedulerSync, OnlyAcknowledgementsWaitForTheDisk) {
 
 // A scheduler over a MemoryStore: done tiles' pixels, records and tile states are there until the job is purged;
 // nothing comes back after a restart, and opening it empties the jobs and scratch folders.
-TEST(MemoryStoreTest, KeepsPixelsRecordsAndTileStatesUntilPurgedAndNothingAcrossARestart) {
-  const fs::path dir = fs::temp_directory_path() / ("tessera-memory-test-" + random_hex(6));
+// A fresh folder per test, removed afterwards even when an assertion ends the test early.
+class MemoryStoreTest : public testing::TempDirTest {};
+
+TEST_F(MemoryStoreTest, KeepsPixelsRecordsAndTileStatesUntilPurgedAndNothingAcrossARestart) {
+  const fs::path dir = file("data");
   fs::create_directories(dir / "jobs" / "j-old");
   fs::create_directories(dir / "tmp");
   std::ofstream(dir / "jobs" / "j-old" / "result.exr") << "old";
@@ -569,12 +573,11 @@ TEST(MemoryStoreTest, KeepsPixelsRecordsAndTileStatesUntilPurgedAndNothingAcross
   MemoryStore again(dir);
   Scheduler restarted(SchedulerConfig{10'000, 3, 2, "m"}, [&] { return now; }, again);
   EXPECT_TRUE(restarted.jobs().empty());
-  fs::remove_all(dir);
 }
 
 // A folder a durable coordinator used is refused, and its results stay.
-TEST(MemoryStoreTest, RefusesAFolderHoldingADurableDatabase) {
-  const fs::path dir = fs::temp_directory_path() / ("tessera-memory-test-" + random_hex(6));
+TEST_F(MemoryStoreTest, RefusesAFolderHoldingADurableDatabase) {
+  const fs::path dir = file("data");
   { DurableStore durable(dir); }
   fs::create_directories(dir / "jobs" / "j-1");
   std::ofstream(dir / "jobs" / "j-1" / "result.exr") << "kept";
@@ -587,7 +590,6 @@ TEST(MemoryStoreTest, RefusesAFolderHoldingADurableDatabase) {
   EXPECT_TRUE(fs::exists(dir / "jobs" / "j-1" / "result.exr"));
   EXPECT_THROW(open_coordinator_store(dir, Durability::none), StorageError);
   EXPECT_NO_THROW(open_coordinator_store(dir, Durability::process));
-  fs::remove_all(dir);
 }
 
 }  // namespace
