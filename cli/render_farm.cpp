@@ -75,25 +75,12 @@ std::string wait_for_ready(const fs::path& ready, farm::ChildProcess& serve) {
 }
 
 // The done job's result is a file in the private coordinator's folder, which this command owns and throws away: it is
-// synced and moved to `output` (as a download would have written it, synced and renamed into place), or copied when
-// `output` is on another file system, instead of being sent over HTTP and written again.
+// moved to `output` (synced first, as a download would have been written) or copied when `output` is on another file
+// system, instead of being sent over HTTP and written again.
 uint64_t take_result(const fs::path& data_dir, const std::string& job, const fs::path& output) {
   const fs::path file = server::job_result_file(data_dir, job);
   const uint64_t size = fs::file_size(file);
-  const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0 || ::fsync(fd) != 0) {
-    const int err = errno;
-    if (fd >= 0) ::close(fd);
-    throw std::runtime_error("cannot sync " + file.string() + ": " + std::strerror(err));
-  }
-  ::close(fd);
-  if (::rename(file.c_str(), output.c_str()) == 0) {
-    sync_folder_of(output);
-    return size;
-  }
-  if (const int err = errno; err != EXDEV)
-    throw std::runtime_error("cannot move the result to " + output.string() + ": " + std::strerror(err));
-  write_file_atomic(output, read_file_bytes(file));
+  move_file_atomic(file, output);
   return size;
 }
 

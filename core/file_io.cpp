@@ -28,6 +28,17 @@ void move_into_place(const fs::path& tmp, const fs::path& path, Flush flush) {
   if (flush == Flush::to_disk) sync_folder_of(path);
 }
 
+// Flushes a closed file's data to the disk; throws FileError naming it.
+void sync_file(const fs::path& file) {
+  const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0 || ::fsync(fd) != 0) {
+    const std::string why = errno_text();
+    if (fd >= 0) ::close(fd);
+    throw FileError("cannot sync " + file.string() + ": " + why);
+  }
+  ::close(fd);
+}
+
 }  // namespace
 
 std::string random_hex(int bytes) {
@@ -76,20 +87,23 @@ void write_file_atomic(const fs::path& path, const std::function<void(const fs::
   const fs::path tmp = temp_path_beside(path);
   try {
     write(tmp);
-    if (flush == Flush::to_disk) {
-      const int fd = ::open(tmp.c_str(), O_RDONLY | O_CLOEXEC);
-      if (fd < 0 || ::fsync(fd) != 0) {
-        const std::string why = errno_text();
-        if (fd >= 0) ::close(fd);
-        throw FileError("cannot sync " + tmp.string() + ": " + why);
-      }
-      ::close(fd);
-    }
+    if (flush == Flush::to_disk) sync_file(tmp);
   } catch (...) {
     ::unlink(tmp.c_str());
     throw;
   }
   move_into_place(tmp, path, flush);
+}
+
+void move_file_atomic(const fs::path& from, const fs::path& to) {
+  sync_file(from);
+  if (::rename(from.c_str(), to.c_str()) == 0) {
+    sync_folder_of(to);
+    return;
+  }
+  if (const int err = errno; err != EXDEV)
+    throw FileError("cannot move " + from.string() + " to " + to.string() + ": " + std::strerror(err));
+  write_file_atomic(to, read_file_bytes(from));
 }
 
 void sync_folder_of(const fs::path& file) {

@@ -35,6 +35,11 @@ inline void write_file_atomic(const std::filesystem::path& path, std::span<const
 void write_file_atomic(const std::filesystem::path& path, const std::function<void(const std::filesystem::path&)>& write,
                        Flush flush = Flush::to_disk);
 
+/// Moves the finished file `from` over `to` atomically and durably: flushed to the disk, renamed, the rename synced;
+/// across file systems (EXDEV) it is copied with write_file_atomic instead and stays in place. Throws FileError naming
+/// the files and the cause.
+void move_file_atomic(const std::filesystem::path& from, const std::filesystem::path& to);
+
 /// A fresh name for the temp file of an atomic replacement of `path`, in its folder: "PATH.<12 hex digits>.tmp", so
 /// that writers of one path never share a temp file and a crash's leftovers are found by their ".tmp".
 std::filesystem::path temp_path_beside(const std::filesystem::path& path);

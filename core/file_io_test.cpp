@@ -1,9 +1,11 @@
 // read_file_bytes: whole files of every size byte for byte, files whose reported size is not their content (procfs),
 // and clear errors for missing files and folders. write_file_atomic (of bytes, or through a writer): a replacement in
 // either flush mode leaves the new bytes and no temp file; a failed one leaves the old file and no temp file.
+// move_file_atomic: a rename, or a copy across file systems.
 #include "core/file_io.h"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <filesystem>
@@ -102,6 +104,35 @@ TEST_F(ReadFileBytes, AtomicWriteThroughAWriterReplacesOrKeepsTheOldFile) {
   }), std::runtime_error);
   EXPECT_EQ(read_file_bytes(p), "made");
   EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()), 1);  // no temp file left
+}
+
+// A move replaces the target with the file, which leaves its place; a move that cannot be made names both files and
+// keeps both; across file systems (where /dev/shm is one of its own) the file is copied and stays.
+TEST_F(ReadFileBytes, AMoveReplacesTheTargetOrCopiesAcrossFileSystems) {
+  const fs::path from = write("from.bin", "moved"), to = write("to.bin", "old");
+  move_file_atomic(from, to);
+  EXPECT_EQ(read_file_bytes(to), "moved");
+  EXPECT_FALSE(fs::exists(from));
+  fs::create_directories(dir_ / "folder");
+  const fs::path kept = write("kept.bin", "kept");
+  try {
+    move_file_atomic(kept, dir_ / "folder");  // a rename over a folder fails
+    FAIL() << "replaced a folder";
+  } catch (const FileError& e) {
+    EXPECT_NE(std::string(e.what()).find("cannot move " + kept.string() + " to "), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(read_file_bytes(kept), "kept");
+  EXPECT_TRUE(fs::is_directory(dir_ / "folder"));
+  struct stat shm {}, here {};
+  if (::stat("/dev/shm", &shm) != 0 || ::stat(dir_.c_str(), &here) != 0 || shm.st_dev == here.st_dev)
+    GTEST_SKIP() << "/dev/shm is missing or on the file system of " << dir_ << ": no move across file systems here";
+  const fs::path elsewhere = fs::path("/dev/shm") / ("tessera_file_io_" + std::to_string(::getpid()) + ".bin");
+  std::ofstream(elsewhere, std::ios::binary) << "copied";
+  move_file_atomic(elsewhere, to);
+  EXPECT_EQ(read_file_bytes(to), "copied");
+  EXPECT_TRUE(fs::exists(elsewhere));
+  fs::remove(elsewhere);
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()), 3);  // to, kept, folder: no temp file
 }
 
 TEST(TempPathBeside, IsFreshBesideThePathAndEndsInTmp) {
