@@ -17,6 +17,17 @@ const EVP_MD* sha256_md() {
   return md;
 }
 
+// Bytes as lowercase hex.
+std::string to_hex(const unsigned char* bytes, size_t n) {
+  static const char* digits = "0123456789abcdef";
+  std::string out(2 * n, '0');
+  for (size_t i = 0; i < n; ++i) {
+    out[2 * i] = digits[bytes[i] >> 4];
+    out[2 * i + 1] = digits[bytes[i] & 15];
+  }
+  return out;
+}
+
 }  // namespace
 
 struct Sha256::Impl {
@@ -38,13 +49,7 @@ std::string Sha256::hex() {
   unsigned char md[EVP_MAX_MD_SIZE];
   unsigned int len = 0;
   if (EVP_DigestFinal_ex(impl_->ctx, md, &len) != 1) throw std::runtime_error("sha256: final failed");
-  static const char* digits = "0123456789abcdef";
-  std::string out(2 * len, '0');
-  for (unsigned i = 0; i < len; ++i) {
-    out[2 * i] = digits[md[i] >> 4];
-    out[2 * i + 1] = digits[md[i] & 15];
-  }
-  return out;
+  return to_hex(md, len);
 }
 
 Sha256Digest sha256_digest(std::string_view bytes) {
@@ -56,14 +61,8 @@ Sha256Digest sha256_digest(std::string_view bytes) {
 }
 
 std::string sha256_hex(std::string_view bytes) {
-  static const char* digits = "0123456789abcdef";
   const Sha256Digest d = sha256_digest(bytes);
-  std::string out(2 * d.size(), '0');
-  for (size_t i = 0; i < d.size(); ++i) {
-    out[2 * i] = digits[d[i] >> 4];
-    out[2 * i + 1] = digits[d[i] & 15];
-  }
-  return out;
+  return to_hex(d.data(), d.size());
 }
 
 std::string sha256_file(const std::filesystem::path& path) {

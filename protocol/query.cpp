@@ -1,13 +1,14 @@
 #include "protocol/query.h"
 
-#include "protocol/events.h"
-
 #include "protocol/errors.h"
+#include "protocol/events.h"
 
 #include <algorithm>
 #include <cctype>
 #include <charconv>
+#include <span>
 #include <stdexcept>
+#include <vector>
 
 namespace tessera::protocol {
 
@@ -57,13 +58,24 @@ std::string encode(std::string_view s) {
   return out;
 }
 
-std::string known_list(std::initializer_list<const char*> known) {
+std::string known_list(std::span<const char* const> known) {
   std::string s;
   for (const char* k : known) {
     if (!s.empty()) s += ", ";
     s += k;
   }
   return s.empty() ? "none" : s;
+}
+
+// The items of a comma-separated value ("a,b" -> a, b; "" -> one empty item).
+std::vector<std::string> comma_items(std::string_view value) {
+  std::vector<std::string> items;
+  while (true) {
+    const size_t comma = value.find(',');
+    items.emplace_back(value.substr(0, comma));
+    if (comma == std::string_view::npos) return items;
+    value = value.substr(comma + 1);
+  }
 }
 
 }  // namespace
@@ -82,7 +94,8 @@ std::map<std::string, std::string> query_params(std::string_view target, std::in
     const std::string key = decode(pair.substr(0, eq));
     const std::string value = eq == std::string_view::npos ? std::string() : decode(pair.substr(eq + 1));
     if (std::none_of(known.begin(), known.end(), [&](const char* k) { return key == k; }))
-      throw ProtocolError("unknown query parameter '" + key + "' (allowed: " + known_list(known) + ")");
+      throw ProtocolError("unknown query parameter '" + key + "' (allowed: " +
+                          known_list({known.begin(), known.size()}) + ")");
     if (!out.emplace(key, value).second) throw ProtocolError("query parameter '" + key + "' is given more than once");
   }
   return out;
@@ -92,10 +105,7 @@ JobListQuery parse_job_list_query(std::string_view target) {
   const auto params = query_params(target, {"state", "limit", "after"});
   JobListQuery q;
   if (const auto it = params.find("state"); it != params.end()) {
-    std::string_view rest = it->second;
-    while (true) {
-      const size_t comma = rest.find(',');
-      const std::string name(rest.substr(0, comma));
+    for (const std::string& name : comma_items(it->second)) {
       try {
         const JobState s = job_state_from_string(name);
         if (std::find(q.states.begin(), q.states.end(), s) == q.states.end()) q.states.push_back(s);
@@ -107,8 +117,6 @@ JobListQuery parse_job_list_query(std::string_view target) {
         }
         throw ProtocolError("state: '" + name + "' is not a job state (one or more of " + all + ", comma-separated)");
       }
-      if (comma == std::string_view::npos) break;
-      rest = rest.substr(comma + 1);
     }
   }
   if (const auto it = params.find("limit"); it != params.end()) {
@@ -160,18 +168,11 @@ std::set<std::string> parse_event_filter(std::string_view target) {
   std::set<std::string> only;
   const auto it = params.find("only");
   if (it == params.end()) return only;
-  std::string_view rest = it->second;
-  while (true) {
-    const size_t comma = rest.find(',');
-    const std::string name(rest.substr(0, comma));
-    if (std::none_of(std::begin(events::kFilterable), std::end(events::kFilterable), [&](const char* e) { return name == e; })) {
-      std::string all;
-      for (const char* e : events::kFilterable) all += std::string(all.empty() ? "" : ", ") + e;
-      throw ProtocolError("only: '" + name + "' is not an event (one or more of " + all + ", comma-separated)");
-    }
+  for (const std::string& name : comma_items(it->second)) {
+    if (std::none_of(std::begin(events::kFilterable), std::end(events::kFilterable), [&](const char* e) { return name == e; }))
+      throw ProtocolError("only: '" + name + "' is not an event (one or more of " + known_list(events::kFilterable) +
+                          ", comma-separated)");
     only.insert(name);
-    if (comma == std::string_view::npos) break;
-    rest = rest.substr(comma + 1);
   }
   return only;
 }
