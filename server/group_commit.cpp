@@ -2,7 +2,6 @@
 
 #include "server/helper_thread.h"
 
-
 #include <future>
 #include <utility>
 
