@@ -14,15 +14,18 @@
 
 #include <spdlog/spdlog.h>
 
+#include <arpa/inet.h>
 #include <fcntl.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
-#include <fstream>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 namespace tessera::cli {
@@ -57,21 +60,23 @@ fs::path make_temp_dir() {
   return pattern;
 }
 
-// Waits for the coordinator's ready file (host:port) while checking that it is still running.
-std::string wait_for_ready(const fs::path& ready, farm::ChildProcess& serve) {
-  const auto deadline = std::chrono::steady_clock::now() + 30s;
-  while (std::chrono::steady_clock::now() < deadline) {
-    if (InterruptGuard::interrupted()) throw std::runtime_error("interrupted while the coordinator was starting");
-    std::ifstream in(ready);
-    std::string address;
-    if (in && std::getline(in, address) && address.find(':') != std::string::npos) return address;
-    if (farm::child_exited(serve))
-      throw std::runtime_error("the coordinator " + farm::describe_exit(serve) + " before it was ready; its log:\n" +
-                               farm::tail_of_file(serve.log, 20));
-    std::this_thread::sleep_for(1ms);
+// A TCP socket listening on a free loopback port (close-on-exec), and that port: the coordinator is started on it, so
+// the workers and the submission need not wait for it to tell its address, and connect while it starts.
+std::pair<int, unsigned short> listen_on_loopback() {
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) throw std::runtime_error(std::string("cannot create a socket: ") + std::strerror(errno));
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  addr.sin_port = 0;
+  socklen_t len = sizeof addr;
+  if (::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0 || ::listen(fd, SOMAXCONN) != 0 ||
+      ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len) != 0) {
+    const int err = errno;
+    ::close(fd);
+    throw std::runtime_error(std::string("cannot listen on a loopback port: ") + std::strerror(err));
   }
-  throw std::runtime_error("the coordinator did not write " + ready.string() + " within 30 s; its log:\n" +
-                           farm::tail_of_file(serve.log, 20));
+  return {fd, ntohs(addr.sin_port)};
 }
 
 // The done job's result is a file in the private coordinator's folder, which this command owns and throws away: it is
@@ -104,17 +109,24 @@ int run_render_farm(const RenderArgs& a) {
   try {
     dir = make_temp_dir();
     const std::string self = fs::read_symlink("/proc/self/exe").string();
-    const fs::path ready = dir / "ready";
     // Fresh tokens per render: other users of this machine cannot submit to or pose as workers of this farm.
     const std::string client_token = write_token_file(dir / "client.token");
     write_token_file(dir / "worker.token");
     // The private coordinator's folder is thrown away with this command, and a crash of the coordinator fails the
     // render anyway: it keeps its jobs in memory and never waits for the disk.
-    children.push_back(farm::spawn_child({self, "serve", "--listen", "127.0.0.1:0", "--ready-file", ready.string(),
-                                          "--data", (dir / "data").string(), "--client-token-file",
-                                          (dir / "client.token").string(), "--worker-token-file",
-                                          (dir / "worker.token").string(), "--durability", "none"},
-                                         "coordinator", dir / "serve.log"));
+    const auto [listen_fd, port] = listen_on_loopback();
+    try {
+      children.push_back(farm::spawn_child({self, "serve", "--listen-fd", std::to_string(listen_fd), "--data",
+                                            (dir / "data").string(), "--client-token-file",
+                                            (dir / "client.token").string(), "--worker-token-file",
+                                            (dir / "worker.token").string(), "--durability", "none"},
+                                           "coordinator", dir / "serve.log", listen_fd));
+    } catch (...) {
+      ::close(listen_fd);
+      throw;
+    }
+    ::close(listen_fd);  // the coordinator's now: should it die, connecting fails instead of waiting
+    const std::string url = "http://127.0.0.1:" + std::to_string(port);
     farm::SubmitOptions o = shared_job_options(a);
     o.tile_size = a.farm_tile;
     o.resumable = a.resumable;  // the result then carries the state channels, as `render --resumable` writes them
@@ -134,12 +146,14 @@ int run_render_farm(const RenderArgs& a) {
       rc = 2;
     }
     if (rc == 2) throw Refused();
-    const std::string address = wait_for_ready(ready, children[0]);
-    const std::string url = "http://" + address;
+    // The workers load the job's scene from their cache while the coordinator starts and checks the submission.
+    const fs::path expected_job = dir / "job.json";
+    write_file_atomic(expected_job, nlohmann::json(farm::job_submission(o, *files)).dump(), Flush::none);
     farm::HttpClient http(farm::parse_http_url(url));
     http.set_bearer_token(client_token);
-    // The workers start while the job is submitted: until it is in they ask for work every few milliseconds (a
-    // private farm's coordinator has nothing else to do), so the first lease follows the job's acceptance at once.
+    // The workers start while the coordinator starts and the job is submitted: until it is in they ask for work every
+    // few milliseconds (a private farm's coordinator has nothing else to do), so the first lease follows the job's
+    // acceptance at once.
     const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
     const int threads = a.threads > 0 ? a.threads : std::max(1, int(cores) / a.workers);
     // When the workers' threads fit the CPUs this command may use, each thread gets its own.
@@ -149,7 +163,7 @@ int run_render_farm(const RenderArgs& a) {
       std::vector<std::string> argv{self, "worker", "--coordinator", url, "--threads", std::to_string(threads),
                                     "--cache", (dir / "cache").string(), "--name", "local-" + std::to_string(i),
                                     "--token-file", (dir / "worker.token").string(), "--max-idle-wait-ms",
-                                    std::to_string(kPrivateIdleWaitMs)};
+                                    std::to_string(kPrivateIdleWaitMs), "--preload", expected_job.string()};
       if (pin) {
         std::string list;
         for (int t = 0; t < threads; ++t) list += (t ? "," : "") + std::to_string(cpus[size_t(i * threads + t)]);

@@ -2,6 +2,7 @@
 
 #include "cli/tls_flags.h"
 #include "cli/token.h"
+#include "core/file_io.h"
 
 #include "worker/arena_pinning.h"
 #include "worker/worker.h"
@@ -49,6 +50,11 @@ CLI::App* add_worker_command(CLI::App& app, WorkerArgs& a) {
                 "Decoded texture pixels kept in memory for later jobs that use the same image files (0: decode them "
                 "for every job)")
       ->check(CLI::Range(0, 1'048'576))->capture_default_str();
+  c->add_option("--preload", a.preload,
+                "A job submission (the JSON body of POST /v1/jobs) about to be leased, its assets already in --cache: "
+                "its scene is loaded while the worker registers, and a leased job with the same scene, assets and "
+                "loading settings renders from it (render --workers tells its workers the job it submits)")
+      ->check(CLI::ExistingFile);
   c->add_flag("-v,--verbose", a.verbose, "Debug logging");
   c->footer("SIGTERM or SIGINT: finish and upload the current tile, then exit 0. A second one: stop rendering, hand "
             "the tile back, exit 0.");
@@ -86,6 +92,13 @@ int run_worker_command(const WorkerArgs& a) {
     o.tls = a.tls;
     o.max_idle_wait = std::chrono::milliseconds(a.max_idle_wait_ms);
     o.image_cache_bytes = size_t(a.image_cache_mb) << 20;
+    if (!a.preload.empty()) {
+      try {
+        o.preload = protocol::parse_job_submission(read_file_bytes(a.preload));
+      } catch (const std::exception& e) {
+        throw std::invalid_argument("--preload " + a.preload + ": " + e.what());
+      }
+    }
     const auto ms = [](double s) { return std::chrono::milliseconds(int64_t(s * 1000)); };
     o.timeouts = farm::HttpTimeouts{ms(a.connect_timeout_seconds), ms(a.request_timeout_seconds), ms(a.request_timeout_seconds)};
     farm::run_worker(o, g_stop_requests);

@@ -87,14 +87,23 @@ std::optional<std::set<std::string>> missing_blobs(HttpClient& http, const std::
 
 }  // namespace
 
+protocol::JobSubmission job_submission(const SubmitOptions& o, SceneFiles files) {
+  protocol::JobSubmission job;
+  for (const LocalAsset& a : files.assets) job.assets[a.path] = a.sha256;
+  job.scene = std::move(files.scene);
+  job.sampling = o.sampling;
+  job.tile_size = o.tile_size;
+  job.priority = o.priority;
+  job.tile_timeout_seconds = o.tile_timeout_seconds;
+  job.name = o.name.empty() ? o.scene.filename().string() : o.name;
+  job.resumable = o.resumable;
+  return job;
+}
+
 SubmitResult submit_job(HttpClient& http, const SubmitOptions& o, SceneFiles files) {
   SubmitResult out;
-  protocol::JobSubmission job;
   std::vector<std::string> hashes;
-  for (const LocalAsset& a : files.assets) {
-    job.assets[a.path] = a.sha256;
-    hashes.push_back(a.sha256);
-  }
+  for (const LocalAsset& a : files.assets) hashes.push_back(a.sha256);
   out.assets_total = int(files.assets.size());
   // One question for every asset, then only the missing ones are sent (a coordinator without the question: one HEAD
   // per asset, as before).
@@ -115,15 +124,7 @@ SubmitResult submit_job(HttpClient& http, const SubmitOptions& o, SceneFiles fil
     sent.insert(hash);
     ++out.assets_uploaded;
   }
-
-  json scene = std::move(files.scene);
-  job.scene = std::move(scene);
-  job.sampling = o.sampling;
-  job.tile_size = o.tile_size;
-  job.priority = o.priority;
-  job.tile_timeout_seconds = o.tile_timeout_seconds;
-  job.name = o.name.empty() ? o.scene.filename().string() : o.name;
-  job.resumable = o.resumable;
+  const protocol::JobSubmission job = job_submission(o, std::move(files));
   const std::string body = json(job).dump();
   HttpResponse r = http.send("POST", routes::jobs(), body);
   // 503: every place of the coordinator's admission pool is taken (--max-validations, --validation-queue); nothing was

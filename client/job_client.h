@@ -65,6 +65,9 @@ struct SceneFiles {
 /// folder) or SubmitError (unreadable asset).
 SceneFiles read_scene_files(const SubmitOptions& options);
 
+/// What submit_job POSTs for a scene already read (read_scene_files with the same options).
+protocol::JobSubmission job_submission(const SubmitOptions& options, SceneFiles files);
+
 /// Hashes the scene's assets, uploads the missing ones (HEAD, then PUT), and POSTs the job, again after Retry-After
 /// while the coordinator answers 503 (its admission pool full). Throws SubmitError with the coordinator's message for
 /// other refusals, TransportError when it is unreachable, SceneError for unreadable scenes.

@@ -36,6 +36,9 @@ struct LoadOptions {
   /// build takes their recorded pixels and decodes those it has no pixels for), and images that decode clean are
   /// recorded, with their pixels when building. Only for asset files never rewritten in place.
   CheckedFiles* checked_files = nullptr;
+
+  /// Field by field.
+  bool operator==(const LoadOptions&) const = default;
 };
 
 /// Maps an asset path as written in the scene (and the JSON path naming it) to a readable file.

@@ -81,7 +81,7 @@ struct Coordinator::Impl {
         pool(std::size_t(opt.handler_threads > 0 ? opt.handler_threads : std::max(2u, std::thread::hardware_concurrency()))),
         admission(monitor, opt.admission),
         server(ioc, pool, admission,
-               HttpServerOptions{opt.host, opt.port, opt.read_timeout, opt.header_limit, opt.max_connections, opt.stream_idle, opt.tls}),
+               HttpServerOptions{opt.host, opt.port, opt.listen_fd, opt.read_timeout, opt.header_limit, opt.max_connections, opt.stream_idle, opt.tls}),
         tick(ioc),
         signals(ioc) {}
 
@@ -136,6 +136,7 @@ struct Coordinator::Impl {
 Coordinator::Coordinator(CoordinatorOptions options) {
   if (options.data_dir.empty()) throw std::runtime_error("the coordinator needs a data folder (--data)");
   if (options.lease_seconds <= 0) throw std::runtime_error("--lease-seconds must be positive");
+  if (options.listen_fd >= 0) options.host = listening_address(options.listen_fd);  // the rules are the address's
   check_access_setup(options.host, options.limits.tokens);
   try {
     impl_ = std::make_unique<Impl>(std::move(options));

@@ -20,6 +20,7 @@ namespace tessera::server {
 struct CoordinatorOptions {
   std::string host = "127.0.0.1";              ///< Address to bind (beyond loopback only with both tokens set).
   unsigned short port = 8470;                  ///< Port (0: an ephemeral one).
+  int listen_fd = -1;  ///< A listening TCP socket to serve on instead of binding host:port (inherited; same rules).
   std::filesystem::path data_dir;              ///< Holds tessera.db, blobs/, jobs/ and tmp/.
   Durability durability = Durability::machine;  ///< What acknowledged state survives (process: no disk flushes; none: kept in memory).
   double lease_seconds = 30;                   ///< Lease length.

@@ -15,8 +15,15 @@
 #include <openssl/ssl.h>
 #include <spdlog/spdlog.h>
 
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+
 #include <array>
 #include <atomic>
+#include <cerrno>
+#include <cstring>
 #include <limits>
 #include <map>
 #include <mutex>
@@ -463,14 +470,49 @@ void accept_next(const std::shared_ptr<HttpServer::State>& st) {
 
 }  // namespace
 
+std::string listening_address(int fd) {
+  const std::string what = "socket " + std::to_string(fd);
+  int value = 0;
+  socklen_t len = sizeof value;
+  if (::getsockopt(fd, SOL_SOCKET, SO_TYPE, &value, &len) != 0)
+    throw std::runtime_error(what + " is not an open socket: " + std::strerror(errno));
+  if (value != SOCK_STREAM) throw std::runtime_error(what + " is not a TCP socket");
+  len = sizeof value;
+  if (::getsockopt(fd, SOL_SOCKET, SO_ACCEPTCONN, &value, &len) != 0 || value == 0)
+    throw std::runtime_error(what + " is not listening");
+  sockaddr_storage addr{};
+  len = sizeof addr;
+  if (::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len) != 0)
+    throw std::runtime_error(what + ": getsockname: " + std::strerror(errno));
+  if (addr.ss_family == AF_INET) {
+    const auto& in = reinterpret_cast<const sockaddr_in&>(addr);
+    return asio::ip::address_v4(ntohl(in.sin_addr.s_addr)).to_string();
+  }
+  if (addr.ss_family == AF_INET6) {
+    const auto& in6 = reinterpret_cast<const sockaddr_in6&>(addr);
+    asio::ip::address_v6::bytes_type bytes;
+    std::memcpy(bytes.data(), in6.sin6_addr.s6_addr, bytes.size());
+    return asio::ip::address_v6(bytes, in6.sin6_scope_id).to_string();
+  }
+  throw std::runtime_error(what + " is not an IPv4 or IPv6 socket");
+}
+
 HttpServer::HttpServer(asio::io_context& ioc, asio::thread_pool& handlers, HttpHandler& handler, HttpServerOptions options)
     : state_(std::make_shared<State>(ioc, handlers, handler, std::move(options))) {
-  const std::string where = state_->opt.host + ":" + std::to_string(state_->opt.port);
+  auto& a = state_->acceptor;
   beast::error_code ec;
+  if (const int fd = state_->opt.listen_fd; fd >= 0) {
+    const auto addr = asio::ip::make_address(listening_address(fd), ec);
+    if (ec) throw std::runtime_error("socket " + std::to_string(fd) + ": " + ec.message());
+    ::fcntl(fd, F_SETFD, FD_CLOEXEC);  // not passed on to programs this one starts
+    if (a.assign(addr.is_v6() ? tcp::v6() : tcp::v4(), fd, ec); ec)
+      throw std::runtime_error("cannot serve on socket " + std::to_string(fd) + ": " + ec.message());
+    return;
+  }
+  const std::string where = state_->opt.host + ":" + std::to_string(state_->opt.port);
   const auto addr = asio::ip::make_address(state_->opt.host, ec);
   if (ec) throw std::runtime_error("cannot listen on " + where + ": bad address: " + ec.message());
   const tcp::endpoint ep{addr, state_->opt.port};
-  auto& a = state_->acceptor;
   if (a.open(ep.protocol(), ec); ec) throw std::runtime_error("cannot listen on " + where + ": open: " + ec.message());
   if (a.set_option(asio::socket_base::reuse_address(true), ec); ec)
     throw std::runtime_error("cannot listen on " + where + ": SO_REUSEADDR: " + ec.message());

@@ -80,6 +80,7 @@ class HttpHandler {
 struct HttpServerOptions {
   std::string host = "127.0.0.1";                      ///< Address to bind.
   unsigned short port = 0;                             ///< Port (0: any free one).
+  int listen_fd = -1;  ///< A listening TCP socket to serve on instead of binding host:port (it becomes the server's).
   std::chrono::milliseconds read_timeout{30'000};      ///< A whole request (or keep-alive idle time) must fit in it.
   std::size_t header_limit = 64 * 1024;                ///< Largest request header (larger ones get 431).
   std::size_t max_connections = 1024;                  ///< Open connections; more are answered 503 and closed.
@@ -92,10 +93,14 @@ struct HttpServerOptions {
 /// first request: it must finish within the read timeout and its connection counts against the connection limit.
 /// A streamed body has no read timeout; each of its writes must finish within the read timeout (a client that stops
 /// reading is closed), and a client that closes its side ends the stream at once.
+/// The address a listening TCP socket is bound to ("127.0.0.1", "::1", ...); throws std::runtime_error when `fd` is
+/// not an open, listening TCP socket.
+std::string listening_address(int fd);
+
 class HttpServer {
  public:
-  /// Reads the TLS files (if any), binds and listens (throws std::runtime_error naming the file or address on
-  /// failure); call start() to accept.
+  /// Reads the TLS files (if any), binds and listens, or takes over options.listen_fd (throws std::runtime_error
+  /// naming the file or address on failure); call start() to accept.
   HttpServer(boost::asio::io_context& ioc, boost::asio::thread_pool& handlers, HttpHandler& handler, HttpServerOptions options);
   ~HttpServer();
   HttpServer(const HttpServer&) = delete;

@@ -18,6 +18,12 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cstring>
@@ -351,6 +357,80 @@ TEST_F(HttpTest, KeepAliveServesSeveralRequestsOnOneConnection) {
   }
   EXPECT_EQ(c.send(http::verb::get, "/nope").status, 404u);
   EXPECT_EQ(c.send(http::verb::get, "/healthz").status, 200u);
+}
+
+// A TCP socket listening on a free port of `host`, as a parent process would pass one to `tessera serve --listen-fd`.
+int listening_socket(const char* host) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  ::inet_pton(AF_INET, host, &addr.sin_addr);
+  EXPECT_EQ(::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0) << std::strerror(errno);
+  EXPECT_EQ(::listen(fd, 16), 0) << std::strerror(errno);
+  return fd;
+}
+
+TEST(HttpListenFd, AConnectionMadeBeforeTheCoordinatorStartedIsServedOnTheInheritedSocket) {
+  spdlog::set_level(spdlog::level::warn);
+  const int fd = listening_socket("127.0.0.1");
+  sockaddr_in addr{};
+  socklen_t len = sizeof addr;
+  ASSERT_EQ(::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len), 0);
+  const tcp::endpoint ep(asio::ip::make_address("127.0.0.1"), ntohs(addr.sin_port));
+  // Connected and the request sent while nothing accepts yet: the kernel queues both.
+  asio::io_context ioc;
+  tcp::socket early(ioc);
+  early.connect(ep);
+  beast::http::request<beast::http::string_body> req{beast::http::verb::get, "/healthz", 11};
+  req.set(beast::http::field::host, "127.0.0.1");
+  beast::http::write(early, req);
+
+  CoordinatorOptions o;
+  o.listen_fd = fd;
+  o.handler_threads = 2;
+  testing::RunningCoordinator coordinator(o, "listen-fd");
+  EXPECT_EQ(coordinator.endpoint(), ep);
+  beast::flat_buffer buf;
+  beast::http::response<beast::http::string_body> res;
+  beast::http::read(early, buf, res);
+  EXPECT_EQ(res.result_int(), 200u);
+  EXPECT_EQ(Client(ep).send(beast::http::verb::get, "/healthz").status, 200u);
+  early.close();
+}
+
+TEST(HttpListenFd, RefusesWhatIsNotAListeningSocketAndAnOpenAddressWithoutTokens) {
+  spdlog::set_level(spdlog::level::off);
+  const auto refusal = [](int fd) {  // the address, or why the socket cannot be served on
+    try {
+      return listening_address(fd);
+    } catch (const std::runtime_error& e) {
+      return std::string(e.what());
+    }
+  };
+  const int unbound = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  EXPECT_EQ(refusal(unbound), "socket " + std::to_string(unbound) + " is not listening");
+  const int udp = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  EXPECT_EQ(refusal(udp), "socket " + std::to_string(udp) + " is not a TCP socket");
+  int pipe_fds[2];
+  ASSERT_EQ(::pipe2(pipe_fds, O_CLOEXEC), 0);
+  EXPECT_NE(refusal(pipe_fds[0]).find("is not an open socket"), std::string::npos) << refusal(pipe_fds[0]);
+  for (int fd : {unbound, udp, pipe_fds[0], pipe_fds[1]}) ::close(fd);
+
+  // Bound beyond loopback: the same rule as --listen, both tokens or nothing.
+  const int open = listening_socket("0.0.0.0");
+  EXPECT_EQ(refusal(open), "0.0.0.0");
+  CoordinatorOptions o;
+  o.listen_fd = open;
+  o.data_dir = fs::temp_directory_path() / ("tessera-listen-fd-test-" + random_hex(6));
+  try {
+    Coordinator c(o);
+    FAIL() << "served 0.0.0.0 without tokens";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("refusing to listen on 0.0.0.0 without access tokens"), std::string::npos)
+        << e.what();
+  }
+  ::close(open);
+  EXPECT_FALSE(fs::exists(o.data_dir));
 }
 
 TEST_F(HttpTest, AHeldLeaseRequestIsWokenByAJobSubmittedWhileItWaits) {

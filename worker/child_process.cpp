@@ -15,7 +15,8 @@
 
 namespace tessera::farm {
 
-ChildProcess spawn_child(const std::vector<std::string>& argv, const std::string& name, const std::filesystem::path& log) {
+ChildProcess spawn_child(const std::vector<std::string>& argv, const std::string& name, const std::filesystem::path& log,
+                         int pass_fd) {
   if (argv.empty()) throw std::runtime_error("cannot start " + name + ": empty command line");
   // Everything the child needs is prepared before fork: after it, only async-signal-safe calls.
   std::vector<char*> args;
@@ -45,6 +46,7 @@ ChildProcess spawn_child(const std::vector<std::string>& argv, const std::string
     if (null_fd >= 0) ::dup2(null_fd, STDIN_FILENO);
     ::dup2(log_fd, STDOUT_FILENO);
     ::dup2(log_fd, STDERR_FILENO);
+    if (pass_fd >= 0) ::fcntl(pass_fd, F_SETFD, 0);
     ::execv(args[0], args.data());
     ::_exit(127);
   }

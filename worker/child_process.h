@@ -19,9 +19,11 @@ struct ChildProcess {
 };
 
 /// Starts argv[0] with argv (fork + exec), stdout and stderr appended to log, in its own process group (so a
-/// terminal's Ctrl-C reaches only the parent, which stops it in order) and killed if the parent dies. Throws
+/// terminal's Ctrl-C reaches only the parent, which stops it in order) and killed if the parent dies; `pass_fd` (when
+/// not -1) stays open in the child under its number, other close-on-exec descriptors do not. Throws
 /// std::runtime_error naming the program when it cannot start.
-ChildProcess spawn_child(const std::vector<std::string>& argv, const std::string& name, const std::filesystem::path& log);
+ChildProcess spawn_child(const std::vector<std::string>& argv, const std::string& name, const std::filesystem::path& log,
+                         int pass_fd = -1);
 
 /// True (and status recorded) when the child has exited; never blocks.
 bool child_exited(ChildProcess& child);

@@ -7,6 +7,17 @@
 
 namespace tessera::farm {
 
+namespace {
+
+// What loading a job's scene takes from its sampling settings: the spp is the renderer's, not the loader's.
+LoadOptions loading(const protocol::SamplingSettings& sampling) {
+  LoadOptions lo = sampling.load_options();
+  lo.spp.reset();
+  return lo;
+}
+
+}  // namespace
+
 JobScenes::JobScenes(std::filesystem::path cache_dir, size_t jobs, size_t image_bytes)
     : assets_(std::move(cache_dir)), scenes_(jobs), images_(4096, image_bytes) {}
 
@@ -20,10 +31,11 @@ std::vector<std::string> JobScenes::jobs() {
   return scenes_.keys();
 }
 
-std::shared_ptr<const PreparedJob> JobScenes::build(const std::string& job, const protocol::JobSpec& spec,
-                                                    const AssetCache::Fetch& fetch_blob) {
+LoadedScene JobScenes::load(const std::string& label, const nlohmann::json& scene,
+                            const std::map<std::string, std::string>& assets, const protocol::SamplingSettings& sampling,
+                            const AssetCache::Fetch& fetch_blob) {
   std::map<std::string, std::filesystem::path> files;
-  for (const auto& [path, hash] : spec.assets) {
+  for (const auto& [path, hash] : assets) {
     try {
       files[path] = assets_.get(hash, fetch_blob);
     } catch (const Gone& e) {
@@ -36,11 +48,27 @@ std::shared_ptr<const PreparedJob> JobScenes::build(const std::string& job, cons
     return it->second;
   };
   // The spec's spp is already the job's (the scene's unless overridden): the loader is not told again.
-  LoadOptions lo = spec.sampling.load_options();
-  lo.spp.reset();
+  LoadOptions lo = loading(sampling);
   lo.checked_files = &images_;  // the cache's files are named by their content and never rewritten
+  return load_scene_json(scene, label, resolve, lo);
+}
+
+std::shared_ptr<const PreparedJob> JobScenes::build(const std::string& job, const protocol::JobSpec& spec,
+                                                    const AssetCache::Fetch& fetch_blob) {
   auto prepared = std::make_shared<PreparedJob>();
-  prepared->loaded = load_scene_json(spec.scene, "job " + job, resolve, lo);
+  std::optional<LoadedScene> preloaded;
+  if (preload_ && preload_->expected.scene == spec.scene && preload_->expected.assets == spec.assets &&
+      loading(preload_->expected.sampling) == loading(spec.sampling)) {
+    Preload p = std::move(*preload_);
+    preload_.reset();
+    try {
+      preloaded = p.scene.get();
+      ++preloads_used_;
+    } catch (const std::exception&) {
+      // loaded again below, which reports what is wrong
+    }
+  }
+  prepared->loaded = preloaded ? std::move(*preloaded) : load("job " + job, spec.scene, spec.assets, spec.sampling, fetch_blob);
   prepared->sampling = spec.sampling;
   const Scene& built = prepared->loaded.scene;
   if (built.width != spec.width || built.height != spec.height)
@@ -49,6 +77,16 @@ std::shared_ptr<const PreparedJob> JobScenes::build(const std::string& job, cons
   std::lock_guard lock(mutex_);
   scenes_.put(job, prepared);
   return prepared;
+}
+
+void JobScenes::preload(protocol::JobSubmission expected) {
+  Preload p{std::move(expected), {}};
+  p.scene = std::async(std::launch::async, [this, scene = p.expected.scene, assets = p.expected.assets,
+                                            sampling = p.expected.sampling] {
+    return load("the expected job", scene, assets, sampling,
+                [](const std::string& hash) -> std::string { throw AssetError(hash + " is not in the cache yet"); });
+  });
+  preload_ = std::move(p);
 }
 
 }  // namespace tessera::farm

@@ -9,8 +9,10 @@
 #include "worker/scene_cache.h"
 
 #include <filesystem>
+#include <future>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -23,7 +25,7 @@ struct Gone : std::runtime_error {
 };
 
 /// Built scenes by job id (the most recently used few), the asset cache they are built from, and decoded textures
-/// kept across jobs. find() and jobs() are thread-safe; build() is called by one thread at a time.
+/// kept across jobs. find() and jobs() are thread-safe; preload() and build() are called by one thread at a time.
 class JobScenes {
  public:
   /// Assets cached in `cache_dir`; the scenes of the `jobs` most recently used jobs kept, decoded images up to
@@ -45,11 +47,30 @@ class JobScenes {
   std::shared_ptr<const PreparedJob> build(const std::string& job, const protocol::JobSpec& spec,
                                            const AssetCache::Fetch& fetch_blob);
 
+  /// Begins loading, on a thread of its own, the scene of a job expected to be leased soon, from assets already in the
+  /// cache: the first build() whose spec has the same scene, assets and loading settings takes that scene instead of
+  /// loading its own. A preload that fails is dropped without a word (that job's build then loads and reports).
+  void preload(protocol::JobSubmission expected);
+
+  /// Builds that took a preloaded scene.
+  int preloads_used() const { return preloads_used_; }
+
  private:
+  struct Preload {
+    protocol::JobSubmission expected;
+    std::future<LoadedScene> scene;
+  };
+
+  // The scene of a job's (or an expected job's) spec, from its assets in the cache.
+  LoadedScene load(const std::string& label, const nlohmann::json& scene, const std::map<std::string, std::string>& assets,
+                   const protocol::SamplingSettings& sampling, const AssetCache::Fetch& fetch_blob);
+
   AssetCache assets_;
   std::mutex mutex_;  // guards scenes_ (looked up by the companion's thread too)
   LruCache<PreparedJob> scenes_;
-  CheckedFiles images_;  // decoded textures of earlier jobs, by cache file (used by build() alone)
+  CheckedFiles images_;  // decoded textures of earlier jobs, by cache file (thread-safe: a preload uses it too)
+  std::optional<Preload> preload_;  // until a build takes it
+  int preloads_used_ = 0;
 };
 
 }  // namespace tessera::farm

@@ -89,6 +89,7 @@ class Worker {
   WorkerStats run() {
     spdlog::info("worker {} starting: coordinator {}, {} threads, cache {}", name_, url_.to_string(), threads_,
                  scenes_.cache_dir().string());
+    if (opt_.preload) scenes_.preload(*opt_.preload);
     std::optional<PrefetchedLease> next;  // asked for while the previous tile rendered
     while (!stopping()) {
       try {
@@ -120,6 +121,7 @@ class Worker {
     }
     uploads_.wait_idle();  // the last tile's upload finishes (a second stop request cuts its retries short)
     std::lock_guard lock(stats_mutex_);
+    stats_.scenes_preloaded = scenes_.preloads_used();
     spdlog::info("worker {} stopping: {} tiles uploaded, {} dropped, {} failed, {} released", id_.empty() ? name_ : id_,
                  stats_.tiles_uploaded, stats_.tiles_dropped, stats_.tiles_failed, stats_.tiles_released);
     return stats_;

@@ -2,11 +2,13 @@
 #pragma once
 
 #include "client/http_client.h"
+#include "protocol/messages.h"
 
 #include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -26,6 +28,9 @@ struct WorkerOptions {
   std::chrono::milliseconds max_retry_wait{5000};  ///< Longest wait between retries when the coordinator is down.
   HttpTimeouts timeouts{};             ///< Timeouts of lease, spec, blob and upload requests.
   ClientTlsFiles tls;                  ///< Trust and client certificate files for an https:// coordinator.
+  /// A job expected to be leased, whose assets are in the cache already: its scene is loaded at start, while the
+  /// worker registers, and a leased job with the same scene, assets and loading settings renders from it.
+  std::optional<protocol::JobSubmission> preload;
 };
 
 /// What a worker did, for its exit log and for tests.
@@ -34,6 +39,7 @@ struct WorkerStats {
   int64_t tiles_dropped = 0;    ///< Tiles abandoned because the lease was revoked, unknown or the job ended.
   int64_t tiles_failed = 0;     ///< Tiles reported through /fail (or refused with 422).
   int64_t tiles_released = 0;   ///< Tiles handed back on shutdown.
+  int64_t scenes_preloaded = 0; ///< Jobs that rendered from the scene of WorkerOptions::preload (0 or 1).
 };
 
 /// Runs the worker until *stop_requests becomes non-zero: the first request lets the current tile finish and upload,

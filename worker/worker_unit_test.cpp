@@ -1,7 +1,10 @@
+#include "core/render.h"
+#include "core/scene_loader.h"
 #include "core/sha256.h"
 #include "core/test_files.h"
 #include "worker/arena_pinning.h"
 #include "worker/asset_cache.h"
+#include "worker/job_scenes.h"
 #include "client/backoff.h"
 #include "worker/recent_log.h"
 #include "worker/scene_cache.h"
@@ -9,6 +12,7 @@
 #include <gtest/gtest.h>
 #include <spdlog/spdlog.h>
 
+#include <cstring>
 #include <fstream>
 #include <sched.h>
 #include <atomic>
@@ -107,6 +111,86 @@ TEST_F(AssetCacheTest, ReplacesACorruptFile) {
   });
   EXPECT_EQ(fetches, 1);
   EXPECT_EQ(sha256_file(cache.path_of(hash)), hash);
+}
+
+// A job whose scene (minimal_scene() with a quad mesh) has its one asset in the cache.
+class JobScenesTest : public tessera::testing::TempDirTest {
+ protected:
+  void SetUp() override {
+    tessera::testing::TempDirTest::SetUp();
+    const std::string obj = tessera::testing::rect_obj({-1, -1, -1}, {2, 0, 0}, {0, 2, 0});
+    hash_ = sha256_hex(obj);
+    AssetCache(file("cache")).get(hash_, [&](const std::string&) { return obj; });
+    job_.scene = tessera::testing::minimal_scene();
+    job_.scene["objects"].push_back({{"type", "mesh"}, {"path", "quad.obj"}, {"material_name", "white_diffuse"}});
+    job_.assets["quad.obj"] = hash_;
+  }
+  // The spec the coordinator would send for job_ at `spp`.
+  protocol::JobSpec spec(uint32_t spp) const {
+    protocol::JobSpec s;
+    s.scene = job_.scene;
+    s.assets = job_.assets;
+    s.sampling = job_.sampling;
+    s.sampling.spp = spp;
+    s.width = 4;
+    s.height = 3;
+    return s;
+  }
+  static std::string no_fetch(const std::string& h) { throw std::runtime_error("fetched " + h); }
+  std::string hash_;
+  protocol::JobSubmission job_;
+};
+
+TEST_F(JobScenesTest, APreloadedSceneIsTakenByTheFirstJobWithTheSameSceneAssetsAndLoading) {
+  JobScenes scenes(file("cache"), 3, 1 << 20);
+  scenes.preload(job_);
+  // Another scene, or the same one loaded another way: loaded on its own, the preload kept.
+  protocol::JobSpec other = spec(4);
+  other.scene["camera"]["fov"] = 30;
+  EXPECT_TRUE(scenes.build("j-other", other, no_fetch));
+  protocol::JobSpec median = spec(4);
+  median.sampling.bvh = "median";
+  EXPECT_TRUE(scenes.build("j-median", median, no_fetch));
+  EXPECT_EQ(scenes.preloads_used(), 0);
+  // The same scene at any spp: the preloaded one, which renders as a scene loaded for the job does.
+  const auto taken = scenes.build("j-1", spec(8), no_fetch);
+  EXPECT_EQ(scenes.preloads_used(), 1);
+  EXPECT_EQ(taken->sampling.spp, 8u);
+  EXPECT_EQ(scenes.find("j-1"), taken);
+  const auto fresh = scenes.build("j-2", spec(8), no_fetch);
+  EXPECT_EQ(scenes.preloads_used(), 1);  // taken once
+  RenderOptions ro;
+  ro.spp = 4;
+  const Image a = render(taken->loaded.scene, ro).image;
+  const Image b = render(fresh->loaded.scene, ro).image;
+  ASSERT_EQ(a.rgb.size(), b.rgb.size());
+  EXPECT_EQ(std::memcmp(a.rgb.data(), b.rgb.data(), a.rgb.size() * sizeof(float)), 0);
+}
+
+TEST_F(JobScenesTest, APreloadThatFailsLeavesTheJobToLoadAndReportAsUsual) {
+  JobScenes scenes(file("cache"), 3, 1 << 20);
+  protocol::JobSubmission missing = job_;
+  const std::string obj = tessera::testing::rect_obj({-1, -1, -2}, {2, 0, 0}, {0, 2, 0});
+  missing.assets["quad.obj"] = sha256_hex(obj);  // not in the cache: the preload cannot load it
+  scenes.preload(missing);
+  protocol::JobSpec s = spec(2);
+  s.assets = missing.assets;
+  int fetched = 0;
+  EXPECT_TRUE(scenes.build("j-1", s, [&](const std::string&) {
+    ++fetched;
+    return obj;
+  }));
+  EXPECT_EQ(fetched, 1);
+  EXPECT_EQ(scenes.preloads_used(), 0);
+
+  // A scene that does not load: the job's build says why, as without a preload.
+  protocol::JobSubmission broken = job_;
+  broken.scene["objects"][0]["radius"] = -1;
+  JobScenes again(file("cache"), 3, 1 << 20);
+  again.preload(broken);
+  protocol::JobSpec b = spec(2);
+  b.scene = broken.scene;
+  EXPECT_THROW(again.build("j-2", b, no_fetch), SceneError);
 }
 
 }  // namespace
