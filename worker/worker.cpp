@@ -368,9 +368,16 @@ class Worker {
     const bool with_lease = sent.has_value();
     const JobSpec spec =
         with_lease ? std::move(*sent) : protocol::parse_answer<JobSpec>(fetch(routes::job_spec(l.job), interrupted), "job spec");
+    const int preloaded = scenes_.preloads_used();
     auto prepared = scenes_.build(l.job, spec, [&](const std::string& h) { return fetch(routes::blob(h), interrupted); });
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (scenes_.preloads_used() > preloaded) {
+      spdlog::info("{}: took the job's scene loaded at start (--preload) after {:.2f}s, spec {}", pfx, seconds,
+                   with_lease ? "sent with the lease" : "fetched");
+      return prepared;
+    }
     spdlog::info("{}: built the job's scene in {:.2f}s ({} assets, {} image(s) taken already decoded{}, spec {})", pfx,
-                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), spec.assets.size(),
+                 seconds, spec.assets.size(),
                  prepared->loaded.images_reused,
                  prepared->loaded.environment_reused ? ", the environment's sampling table kept" : "",
                  with_lease ? "sent with the lease" : "fetched");
