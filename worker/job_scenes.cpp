@@ -67,6 +67,8 @@ std::shared_ptr<const PreparedJob> JobScenes::build(const std::string& job, cons
     } catch (const std::exception&) {
       // loaded again below, which reports what is wrong
     }
+  } else if (preload_) {
+    preload_->scene.wait();  // one scene load at a time: they would share the same cores
   }
   prepared->loaded = preloaded ? std::move(*preloaded) : load("job " + job, spec.scene, spec.assets, spec.sampling, fetch_blob);
   prepared->sampling = spec.sampling;

@@ -49,7 +49,8 @@ class JobScenes {
 
   /// Begins loading, on a thread of its own, the scene of a job expected to be leased soon, from assets already in the
   /// cache: the first build() whose spec has the same scene, assets and loading settings takes that scene instead of
-  /// loading its own. A preload that fails is dropped without a word (that job's build then loads and reports).
+  /// loading its own; a build() of another job waits for the preload to end first (one load at a time). A preload
+  /// that fails is dropped without a word (that job's build then loads and reports).
   void preload(protocol::JobSubmission expected);
 
   /// Builds that took a preloaded scene.
