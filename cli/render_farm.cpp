@@ -116,7 +116,7 @@ int run_render_farm(const RenderArgs& a) {
     // render anyway: it keeps its jobs in memory and never waits for the disk.
     const auto [listen_fd, port] = listen_on_loopback();
     try {
-      children.push_back(farm::spawn_child({self, "serve", "--listen-fd", std::to_string(listen_fd), "--data",
+      children.push_back(farm::spawn_child({self, "serve", "--listen", "fd:" + std::to_string(listen_fd), "--data",
                                             (dir / "data").string(), "--client-token-file",
                                             (dir / "client.token").string(), "--worker-token-file",
                                             (dir / "worker.token").string(), "--durability", "none"},

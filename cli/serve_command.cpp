@@ -11,11 +11,10 @@ namespace tessera::cli {
 
 CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
   auto* c = app.add_subcommand("serve", "Run the coordinator (HTTP API, tile scheduler, merge)");
-  auto* listen = c->add_option("--listen", a.listen, "HOST:PORT to listen on (beyond loopback only with both tokens; port 0 picks a free one)")->capture_default_str();
-  c->add_option("--listen-fd", a.listen_fd,
-                "Serve on this listening TCP socket, inherited from the program that started this one, instead of "
-                "binding --listen (the same rule: beyond loopback only with both tokens)")
-      ->check(CLI::Range(0, 1 << 20))->excludes(listen);
+  c->add_option("--listen", a.listen,
+                "HOST:PORT to listen on (port 0 picks a free one), or fd:N to serve on the listening TCP socket "
+                "inherited as descriptor N (systemd socket activation: fd:3); beyond loopback only with both tokens")
+      ->capture_default_str();
   c->add_option("--data", a.data, "Data folder: blobs/, jobs/<id>/ (created if missing)")->required();
   c->add_option("--ready-file", a.ready_file, "Write the bound host:port here once listening");
   c->add_option("--durability", a.durability,
@@ -83,8 +82,7 @@ int run_serve(const ServeArgs& a) {
   try {
     if (a.verbose) spdlog::set_level(spdlog::level::debug);
     server::CoordinatorOptions o;
-    std::tie(o.host, o.port) = server::parse_listen_address(a.listen);
-    o.listen_fd = a.listen_fd;
+    server::set_listen_address(o, a.listen);
     o.data_dir = a.data;
     o.durability = a.durability == "process" ? server::Durability::process
                    : a.durability == "none"  ? server::Durability::none

@@ -11,8 +11,7 @@ namespace tessera::cli {
 
 /// Options of `tessera serve`.
 struct ServeArgs {
-  std::string listen = "127.0.0.1:8470";  ///< HOST:PORT to bind (port 0: ephemeral).
-  int listen_fd = -1;                     ///< An inherited listening socket to serve on instead (-1: bind `listen`).
+  std::string listen = "127.0.0.1:8470";  ///< HOST:PORT to bind (port 0: ephemeral), or fd:N (an inherited socket).
   std::string data;                       ///< Data folder (blobs, jobs).
   std::string durability = "machine";     ///< "machine" (flushed before acknowledged) or "process" (never flushed).
   std::string ready_file;                 ///< Written with the bound host:port once listening.

@@ -15,28 +15,38 @@
 #include <csignal>
 #include <pthread.h>
 #include <signal.h>
+#include <cctype>
 #include <thread>
 
 namespace tessera::server {
 
 namespace asio = boost::asio;
 
-std::pair<std::string, unsigned short> parse_listen_address(const std::string& text) {
+void set_listen_address(CoordinatorOptions& o, const std::string& text) {
+  const auto number = [&text](const std::string& digits, int max, const char* what) {
+    int n = -1;
+    try {
+      size_t used = 0;
+      n = std::stoi(digits, &used);
+      if (used != digits.size() || !std::isdigit(static_cast<unsigned char>(digits.front()))) n = -1;
+    } catch (const std::exception&) {
+      n = -1;
+    }
+    if (n < 0 || n > max) throw std::invalid_argument("listen address '" + text + "' is not " + what);
+    return n;
+  };
+  if (text.rfind("fd:", 0) == 0) {
+    o.listen_fd = number(text.substr(3), 1 << 20, "fd:N with a descriptor number N");
+    return;
+  }
   const size_t colon = text.rfind(':');
   std::string host = colon == std::string::npos ? "" : text.substr(0, colon);
   const std::string port_text = colon == std::string::npos ? text : text.substr(colon + 1);
   if (host.size() >= 2 && host.front() == '[' && host.back() == ']') host = host.substr(1, host.size() - 2);
   if (host.empty() || host == "localhost") host = "127.0.0.1";
-  int port = -1;
-  try {
-    size_t used = 0;
-    port = std::stoi(port_text, &used);
-    if (used != port_text.size()) port = -1;
-  } catch (const std::exception&) {
-    port = -1;
-  }
-  if (port < 0 || port > 65535) throw std::invalid_argument("listen address '" + text + "' is not HOST:PORT with a port in 0..65535");
-  return {host, static_cast<unsigned short>(port)};
+  o.port = static_cast<unsigned short>(number(port_text, 65535, "HOST:PORT with a port in 0..65535"));
+  o.host = host;
+  o.listen_fd = -1;
 }
 
 namespace {

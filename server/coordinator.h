@@ -62,7 +62,8 @@ class Coordinator {
   std::unique_ptr<Impl> impl_;
 };
 
-/// Splits "HOST:PORT" (or ":PORT", or "PORT") into host and port; throws std::invalid_argument naming the text.
-std::pair<std::string, unsigned short> parse_listen_address(const std::string& text);
+/// Sets where `o` listens from `serve --listen`'s text: "HOST:PORT" (or ":PORT", or "PORT") sets host and port, "fd:N"
+/// sets listen_fd (a listening socket inherited as descriptor N); throws std::invalid_argument naming the text.
+void set_listen_address(CoordinatorOptions& o, const std::string& text);
 
 }  // namespace tessera::server

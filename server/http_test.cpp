@@ -359,7 +359,7 @@ TEST_F(HttpTest, KeepAliveServesSeveralRequestsOnOneConnection) {
   EXPECT_EQ(c.send(http::verb::get, "/healthz").status, 200u);
 }
 
-// A TCP socket listening on a free port of `host`, as a parent process would pass one to `tessera serve --listen-fd`.
+// A TCP socket listening on a free port of `host`, as a parent process would pass one to `tessera serve --listen fd:N`.
 int listening_socket(const char* host) {
   const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
   sockaddr_in addr{};
@@ -368,6 +368,32 @@ int listening_socket(const char* host) {
   EXPECT_EQ(::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0) << std::strerror(errno);
   EXPECT_EQ(::listen(fd, 16), 0) << std::strerror(errno);
   return fd;
+}
+
+TEST(ListenAddress, IsHostAndPortOrAnInheritedDescriptor) {
+  const auto set = [](const std::string& text) {
+    CoordinatorOptions o;
+    set_listen_address(o, text);
+    return o;
+  };
+  CoordinatorOptions o = set("0.0.0.0:9000");
+  EXPECT_EQ(o.host, "0.0.0.0");
+  EXPECT_EQ(o.port, 9000);
+  EXPECT_EQ(o.listen_fd, -1);
+  EXPECT_EQ(set(":8470").host, "127.0.0.1");
+  EXPECT_EQ(set("[::1]:0").host, "::1");
+  EXPECT_EQ(set("8471").port, 8471);
+  o = set("fd:3");
+  EXPECT_EQ(o.listen_fd, 3);
+  for (const char* bad : {"fd:", "fd:x", "fd:-1", "fd:3x", "fd: 3", "host:99999", "host:", "host:+80", "abc"}) {
+    try {
+      set(bad);
+      ADD_FAILURE() << bad << " was taken";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(std::string("listen address '") + bad + "' is not"), std::string::npos)
+          << e.what();
+    }
+  }
 }
 
 TEST(HttpListenFd, AConnectionMadeBeforeTheCoordinatorStartedIsServedOnTheInheritedSocket) {

@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # deploy/systemd checked without booting anything: systemd-analyze verify (with ExecStart pointed at the built
-# binary) must print nothing, systemd-sysusers must accept the user file, every `tessera` flag in ExecStart must be
-# one the binary's --help lists, every
-# variable ExecStart uses must come from the unit, its /etc/default file or a directory/credential setting of the
-# unit, and the worker must stop on a single SIGTERM with time to finish a tile. A self-test first breaks the units
-# in known ways and expects each to be caught. Arguments: TESSERA SOURCE_DIR.
+# binary) must print nothing, for the optional socket unit too (which must listen where TESSERA_LISTEN says by
+# default), systemd-sysusers must accept the user file, every `tessera` flag in ExecStart must be one the binary's
+# --help lists, every variable ExecStart uses must come from the unit, its /etc/default file or a
+# directory/credential setting of the unit, and the worker must stop on a single SIGTERM with time to finish a tile.
+# A self-test first breaks the units in known ways and expects each to be caught. Arguments: TESSERA SOURCE_DIR.
 set -euo pipefail
 TESSERA=$(realpath "$1")
 SRC=$(realpath "$2")
@@ -50,6 +50,20 @@ check_units() {
       esac
     done
   done
+  # The optional socket unit: verified beside its service, listening where the service would by default.
+  local socket=$dir/tessera-coordinator.socket
+  if [ -f "$socket" ]; then
+    cp "$socket" "$dir/verify/"
+    out=$(cd "$dir/verify" && systemd-analyze verify "$dir/verify/tessera-coordinator.socket" 2>&1) ||
+      echo "tessera-coordinator.socket: verify failed"
+    [ -z "$out" ] || echo "tessera-coordinator.socket: systemd-analyze verify: $out"
+    local stream listen
+    stream=$(sed -n 's/^ListenStream=//p' "$socket")
+    listen=$(sed -n 's/^TESSERA_LISTEN=//p' "$dir/tessera-coordinator.default")
+    [ "$stream" = "$listen" ] || echo "tessera-coordinator.socket: ListenStream=$stream is not TESSERA_LISTEN=$listen"
+  else
+    echo "tessera-coordinator.socket: missing"
+  fi
   # TLS: the coordinator serves HTTPS and reloads its certificate on `systemctl reload`; the worker's URL is
   # https:// and it is told which CA to trust.
   local coord=$dir/tessera-coordinator.service
@@ -86,6 +100,8 @@ mutations=(
   "tessera-coordinator.service|s/^ExecReload=.*/ExecReload=/|ExecReload must send SIGHUP"
   "tessera-coordinator.default|s/^TESSERA_TLS_CERT=.*//|TESSERA_TLS_CERT is set neither"
   "tessera-worker.default|s#^TESSERA_COORDINATOR=https#TESSERA_COORDINATOR=http#|URL is not https"
+  "tessera-coordinator.socket|s/^Backlog=/Backlogs=/|Unknown key"
+  "tessera-coordinator.socket|s/^ListenStream=0.0.0.0:8470/ListenStream=0.0.0.0:8471/|is not TESSERA_LISTEN"
 )
 for m in "${mutations[@]}"; do
   IFS='|' read -r file expr expected <<<"$m"
