@@ -12,10 +12,10 @@
 #include <spdlog/spdlog.h>
 
 #include <atomic>
+#include <cctype>
 #include <csignal>
 #include <pthread.h>
 #include <signal.h>
-#include <cctype>
 #include <thread>
 
 namespace tessera::server {
