@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # render --workers stops its coordinator and workers whatever happens: after Ctrl-C (SIGINT) in the middle of a
 # render it exits 130, its workers stop cleanly (none has to be killed) and none of its children is left; a scene the
-# coordinator refuses is reported with the coordinator's message (exit 2) and leaves no child behind either; a
-# finished render (whose children are killed once the result is saved) leaves neither a child nor its folder.
+# coordinator refuses is reported with the coordinator's message (exit 2) and leaves no child behind either; so does a
+# render whose coordinator dies (exit 1, the logs kept); a finished render (whose children are killed once the result is saved) leaves neither a child nor its folder.
 # "In the middle" by construction: the render runs as tessera-failpoints with every tile held at worker.render (the
 # workers inherit the setting), and the interrupt comes once both workers hold one; the hold ends with the cancel.
 source "$(dirname "$0")/common.sh"
@@ -39,6 +39,26 @@ sed -i 's/"radius": 0.7/"radius": -1/' "$WORK/bad.json"
 expect_exit 2 "$WORK/render-bad.log" -- "$TESSERA" render "$WORK/bad.json" -o "$WORK/bad.exr" --workers 1
 log_has "$WORK/render-bad.log" "radius" || fail "the coordinator's message was not shown"
 [ -z "$(leftovers)" ] || fail "processes of the failed render are still running: $(leftovers)"
+
+# The coordinator dying while it checks the submission (held at submit.validate, then SIGKILLed): the render fails at
+# once (exit 1) saying so, shows the children's logs and keeps them, and leaves no child running.
+write_sphere_scene "$WORK/lost.json" 16 16 2
+TESSERA_FAIL_POINTS=submit.validate=pause "$TESSERA_FP" render "$WORK/lost.json" -o "$WORK/lost.exr" --workers 1 \
+  >"$WORK/render-lost.log" 2>&1 &
+RENDER=$!
+PIDS+=("$RENDER")
+checking() { paused "$(compgen -G "$WORK/tessera-render-*/serve.log" | head -n1)" submit.validate; }
+wait_for checking || fail "the coordinator did not hold the submission's check"
+pkill -KILL -f -- " serve --listen fd:[0-9]+ --data $WORK/tessera-render-" || fail "no coordinator to kill"
+rc=0
+wait "$RENDER" || rc=$?
+[ $rc = 1 ] || fail "a render whose coordinator died exited with $rc, not 1"
+log_has "$WORK/render-lost.log" "coordinator \(killed by signal 9\)" ||
+  fail "the coordinator's death was not reported: $(cat "$WORK/render-lost.log")"
+log_has "$WORK/render-lost.log" "logs kept in $WORK/tessera-render-" || fail "the logs were not kept"
+[ -z "$(leftovers)" ] || fail "processes of the render whose coordinator died are still running: $(leftovers)"
+[ ! -e "$WORK/lost.exr" ] || fail "a failed render wrote its output"
+rm -rf "$WORK"/tessera-render-*
 
 write_sphere_scene "$WORK/done.json" 16 16 2
 "$TESSERA" render "$WORK/done.json" -o "$WORK/done.exr" --workers 2 --farm-tile 8 >"$WORK/render-done.log" 2>&1 ||
