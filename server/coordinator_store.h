@@ -33,9 +33,9 @@ class CoordinatorStore : public SchedulerStore, public JobStore {
 
  protected:
   const std::filesystem::path jobs_dir_, scratch_;
+  const Durability durability_;
 
  private:
-  Durability durability_;
   std::filesystem::path dir_;
 };
 

@@ -246,7 +246,7 @@ void Transaction::commit() {
 // ---- DurableStore
 
 DurableStore::DurableStore(const fs::path& dir, Durability durability)
-    : CoordinatorStore(dir, durability), durability_(durability),
+    : CoordinatorStore(dir, durability),
       // Commits survive a process crash without waiting for the disk; sync() makes them survive a power cut when the
       // scheduler acknowledges something, outside its lock (see SchedulerStore::sync). A store that only has to
       // survive the process lets SQLite skip its own flushes too (at checkpoints and when the file is made).

@@ -159,7 +159,6 @@ class DurableStore final : public CoordinatorStore {
  private:
   void give_back_free_pages();  // after a purge: shrink the file and the log (mu_ held)
   void flush_log();             // fdatasync of the write-ahead log, on the group commit's thread
-  Durability durability_;
   std::mutex mu_;
   CounterRow written_counters_;  // as the meta table holds them, next_seq the reserved bound (mu_)
   struct LogFile {

@@ -68,5 +68,4 @@ std::optional<std::pair<uint32_t, std::string>> MemoryStore::tile_state(const st
   return it->second;
 }
 
-
 }  // namespace tessera::server
