@@ -1,5 +1,5 @@
 // Talking to the coordinator: the bearer token (kept in sessionStorage, never in a URL), JSON calls, the preview
-// image, which endpoints this coordinator has, and the event stream when it exists.
+// image, the result's download, which endpoints this coordinator has, and the event stream when it exists.
 import { SseParser } from './sse.js';
 
 const TOKEN_KEY = 'tessera.clientToken';
@@ -65,6 +65,29 @@ export async function previewUrl(jobId) {
   const res = await fetch('/v1/jobs/' + encodeURIComponent(jobId) + '/preview.png', { headers: headers(), cache: 'no-store' });
   if (!res.ok) throw await errorOf(res);
   return URL.createObjectURL(await res.blob());
+}
+
+/**
+ * Saves a job's result (GET /v1/jobs/{id}/result.exr, fetched with the bearer header, which a plain link cannot
+ * send) as a download named `filename`; resolves with the file's size in bytes, rejects with ApiError.
+ */
+export async function downloadResult(jobId, filename) {
+  const res = await fetch('/v1/jobs/' + encodeURIComponent(jobId) + '/result.exr', { headers: headers(), cache: 'no-store' });
+  if (!res.ok) {
+    const err = await errorOf(res);
+    if (err.isAuth) authListener(err);
+    throw err;
+  }
+  const blob = await res.blob();
+  const url = URL.createObjectURL(blob);
+  const a = document.createElement('a');
+  a.href = url;
+  a.download = filename;
+  document.body.append(a);
+  a.click();
+  a.remove();
+  setTimeout(() => URL.revokeObjectURL(url), 60000);  // the browser has taken the bytes long before
+  return blob.size;
 }
 
 /** What this coordinator offers: {tokens_required, endpoints: {pause, resume, retry, ...}}. */

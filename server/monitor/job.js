@@ -25,11 +25,19 @@ function confirmButton(label, confirmLabel, action, cls) {
   return b;
 }
 
+/** The file name a job's result is saved under: its name (or id), reduced to safe characters, with .exr. */
+function exrName(job) {
+  const base = String(job.name || job.id).replace(/[^A-Za-z0-9._-]+/g, '_').replace(/^[._]+/, '').slice(0, 100);
+  return (base || 'tessera-' + job.id) + '.exr';
+}
+
 export function mount(host, ctx) {
   const id = ctx.arg;
   const ep = ctx.caps.endpoints;
   const path = '/v1/jobs/' + encodeURIComponent(id);
-  let job = null, tiles = [], previewKey = '', previewBusy = false, previewUrl = null, selected = -1;
+  let job = null, tiles = [], previewUrl = null, selected = -1;
+  // The preview shown is of previewKey (tiles done / state); a change that comes while one is fetched asks again after.
+  let previewKey = '', previewBusy = false, previewAgain = false;
   let mounted = true, deleted = false;  // a refresh finishing after the page left or the job was deleted draws nothing
   let spec = null, specAsked = false;  // the job's spec, read once for its sampling settings (they do not change)
 
@@ -79,6 +87,19 @@ export function mount(host, ctx) {
   const cancelB = confirmButton('Cancel', 'Click to confirm', () => act('Cancel', 'DELETE', path), 'danger');
   cancelB.dataset.action = 'cancel';
   cancelB.dataset.supported = 'yes';
+  // The result as a file, named after the job (a plain link could not carry the token).
+  const downloadB = el('button', { type: 'button', class: 'primary', text: 'Download EXR', 'data-action': 'download',
+    onclick: async () => {
+      actionMsg.className = 'action-msg';
+      actionMsg.textContent = 'Download…';
+      try {
+        const bytes = await api.downloadResult(id, exrName(job));
+        actionMsg.textContent = `Download: ${exrName(job)} (${(bytes / 1048576).toFixed(1)} MB).`;
+      } catch (e) {
+        actionMsg.textContent = 'Download failed: ' + e.message;
+        actionMsg.className = 'action-msg error';
+      }
+    } });
   const deleteB = confirmButton('Delete', 'Click to delete for good',
     () => act('Delete', 'DELETE', path + '?purge=true', undefined, () => { deleted = true; location.hash = '#/jobs'; }), 'danger');
   deleteB.dataset.action = 'delete';
@@ -93,7 +114,7 @@ export function mount(host, ctx) {
     el('div', { class: 'crumbs' }, el('a', { href: '#/jobs', text: 'Jobs' }), ' / ', el('span', { text: id })),
     el('div', { class: 'page-head' },
       el('div', { class: 'title' }, title, stateBadge),
-      el('div', { class: 'actions' }, pauseB, resumeB, retryB, cancelB,
+      el('div', { class: 'actions' }, downloadB, pauseB, resumeB, retryB, cancelB,
         el('span', { class: 'prio' }, prioInput, prioB), deleteB)),
     actionMsg, errorBox,
     el('div', { class: 'card figures-card' }, figures),
@@ -135,6 +156,7 @@ export function mount(host, ctx) {
     retryB.hidden = !(job.state === 'failed' || job.state === 'cancelled');
     cancelB.hidden = final;
     deleteB.hidden = !final;
+    downloadB.hidden = job.state !== 'done';
     if (document.activeElement !== prioInput) prioInput.value = String(job.priority ?? 0);
   }
 
@@ -189,9 +211,15 @@ export function mount(host, ctx) {
     ].filter(Boolean));
   }
 
+  // Fetches the preview when the job's tiles done or state changed since the one shown. The count is taken before
+  // the fetch: the coordinator pastes a tile into the image before it counts it done, so the image holds at least
+  // the tiles the label says. A change while a fetch is in flight fetches again once it ends, so the last preview is
+  // of the last change.
   async function refreshPreview() {
-    const key = `${job.tiles.done}/${job.state}`;
-    if (key === previewKey || previewBusy || job.tiles.done === 0) return;
+    if (previewBusy) { previewAgain = true; return; }
+    const done = job.tiles.done, total = job.tiles.total;
+    const key = `${done}/${job.state}`;
+    if (key === previewKey || done === 0) return;
     previewBusy = true;
     try {
       const url = await api.previewUrl(id);
@@ -200,11 +228,15 @@ export function mount(host, ctx) {
       previewUrl = url;
       previewKey = key;
       img.hidden = false;
-      img.dataset.tilesDone = String(job.tiles.done);
+      img.dataset.tilesDone = String(done);
       imgNote.hidden = true;
-      document.getElementById('preview-age').textContent = `${job.tiles.done} of ${job.tiles.total} tiles`;
+      document.getElementById('preview-age').textContent = `${done} of ${total} tiles`;
     } finally {
       previewBusy = false;
+    }
+    if (previewAgain && mounted) {
+      previewAgain = false;
+      await refreshPreview();
     }
   }
 

@@ -39,6 +39,7 @@ if not (os.access(CHROMIUM, os.X_OK) and os.access(CHROMEDRIVER, os.X_OK)):
 TESSERA, ARTEFACTS = sys.argv[1], sys.argv[2]
 os.makedirs(ARTEFACTS, exist_ok=True)
 WORK = tempfile.mkdtemp(prefix="tessera-browser-")
+DOWNLOADS = os.path.join(WORK, "downloads")
 PROCS = []
 
 FARM_COMMON = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "farm", "common.sh")
@@ -121,7 +122,32 @@ def browser():
     d = webdriver.Chrome(service=Service(CHROMEDRIVER, log_path=os.path.join(WORK, "chromedriver.log")), options=o)
     # A laptop screen's page area, whatever the headless window's decorations.
     d.execute_cdp_cmd("Emulation.setDeviceMetricsOverride", {"width": 1366, "height": 768, "deviceScaleFactor": 1, "mobile": False})
+    # Downloads go to a folder of the test's, without asking.
+    os.makedirs(DOWNLOADS, exist_ok=True)
+    d.execute_cdp_cmd("Browser.setDownloadBehavior", {"behavior": "allow", "downloadPath": DOWNLOADS})
     return d
+
+
+def preview_is_the_coordinators(d, job):
+    """Whether the preview the page shows has the same pixels as the one the coordinator makes now."""
+    return d.execute_async_script("""
+        const [job, done] = arguments;
+        const pixels = (img) => {
+          const c = document.createElement('canvas');
+          c.width = img.naturalWidth;
+          c.height = img.naturalHeight;
+          const g = c.getContext('2d');
+          g.drawImage(img, 0, 0);
+          return g.getImageData(0, 0, c.width, c.height).data;
+        };
+        import('/monitor/api.js').then(async (api) => {
+          const url = await api.previewUrl(job);
+          const now = new Image();
+          await new Promise((resolve, reject) => { now.onload = resolve; now.onerror = reject; now.src = url; });
+          const a = pixels(document.getElementById('preview')), b = pixels(now);
+          URL.revokeObjectURL(url);
+          done(a.length === b.length && a.every((v, i) => v === b[i]));
+        }).catch((e) => done('error: ' + e));""", job)
 
 
 def console_errors(d):
@@ -272,6 +298,11 @@ def main():
         wait_for("the partial preview", lambda: d.execute_script(
             "const i = document.getElementById('preview'); return !i.hidden && i.complete && i.naturalWidth === arguments[1] "
             "&& i.dataset.tilesDone === String(arguments[0]);", TOTAL_TILES - HELD, WIDTH))
+        # No tile lands while the holder keeps its tiles, so the image that says it holds every tile done is the
+        # coordinator's preview as it is now (a preview fetched while tiles landed is fetched again after them).
+        same = preview_is_the_coordinators(d, job)
+        if same is not True:
+            fail(f"the page's preview, said to hold {TOTAL_TILES - HELD} tiles, is not the coordinator's preview ({same})")
         click(d, '#tilemap .tile[data-state="leased"]', "a leased tile")
         wait_for("the tile details", lambda: "holder" in d.find_element(By.ID, "tile-detail").text)
         click(d, '#tilemap .tile[data-state="done"]', "a done tile")
@@ -301,6 +332,16 @@ def main():
         wait_for("the final preview", lambda: d.execute_script(
             "const i = document.getElementById('preview'); return i.complete && i.dataset.tilesDone === String(arguments[0]);",
             TOTAL_TILES))
+        if preview_is_the_coordinators(d, job) is not True:
+            fail("the finished job's preview is not the coordinator's")
+        # The result downloaded from the page is the coordinator's EXR, byte for byte, named after the job.
+        click(d, '[data-action="download"]', "the download button")
+        saved = os.path.join(DOWNLOADS, "browser-test_spheres.exr")
+        wait_for("the downloaded EXR", lambda: os.path.exists(saved) and "Download: " in d.find_element(By.ID, "action-msg").text)
+        status, exr = client.call("GET", f"/v1/jobs/{job}/result.exr")
+        if status != 200 or open(saved, "rb").read() != exr:
+            fail(f"the downloaded file is not the job's result ({status}, {os.path.getsize(saved)} / {len(exr)} bytes)")
+        print(f"download: {os.path.basename(saved)}, {len(exr)} bytes, the coordinator's result")
         d.save_screenshot(os.path.join(ARTEFACTS, "monitor-job-done.png"))
 
         # Delete the finished job from its page (the button asks for a second click); another job stays listed.
@@ -379,7 +420,8 @@ def main():
         raise
     finally:
         d.quit()
-    print("PASS: job listed, tiles done on the map, preview shown, tokens checked, job deleted; screenshots in", ARTEFACTS)
+    print("PASS: job listed, tiles done on the map, preview shown, result downloaded, tokens checked, job deleted; screenshots in",
+          ARTEFACTS)
 
 
 try:
