@@ -1,11 +1,15 @@
 #include "cli/jobs_command.h"
 
+#include "cli/interrupt_guard.h"
+#include "cli/output_check.h"
+#include "cli/submit_command.h"
 #include "client/http_client.h"
 #include "client/job_client.h"
 
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include <chrono>
 #include <cstdio>
 
 namespace tessera::cli {
@@ -49,9 +53,12 @@ CLI::App* add_jobs_command(CLI::App& app, JobsArgs& a) {
   c->add_option("action", a.action, "ls: list; show ID: the job as JSON, with its sampling settings; pause ID: no new leases (running tiles "
                                     "finish); resume ID; tiles ID: one line per tile, then failures with their log "
                                     "lines; requeue ID N: render tile N again; priority ID N: lease its tiles in a new order; spp ID M: raise a --resumable job to M samples per pixel, continuing its stored tiles; retry ID: render a failed or cancelled job's missing tiles; "
-                                    "cancel ID; rm ID: cancel it, or with --purge delete an ended job, its tiles and result")
+                                    "cancel ID; rm ID: cancel it, or with --purge delete an ended job, its tiles and result; "
+                                    "wait ID: follow the job until it ends and, with -o, save its result (Ctrl-C stops "
+                                    "waiting and leaves the job as it is)")
       ->required()
-      ->check(CLI::IsMember({"ls", "show", "tiles", "requeue", "pause", "resume", "priority", "spp", "retry", "cancel", "rm"}));
+      ->check(CLI::IsMember({"ls", "show", "tiles", "requeue", "pause", "resume", "priority", "spp", "retry", "cancel", "rm",
+                             "wait"}));
   c->add_option("job", a.job, "Job id (all but ls)");
   c->add_option("value", a.priority, "New priority, higher runs first (priority); new samples per pixel (spp); the tile number (requeue)");
   c->add_flag("--tiles", a.tiles, "show: print the tile table after the job");
@@ -61,6 +68,8 @@ CLI::App* add_jobs_command(CLI::App& app, JobsArgs& a) {
   c->add_option("--limit", a.limit, "ls: at most this many jobs, newest first")
       ->check(CLI::Range(size_t(1), protocol::kMaxJobListLimit));
   c->add_option("--after", a.after, "ls: the page after this cursor (printed by a listing with --limit) or job id");
+  c->add_option("-o,--output", a.output, "wait: save the finished job's EXR to this file");
+  c->add_flag("-q,--quiet", a.quiet, "wait: no progress bar");
   add_coordinator_access_flags(c, a.access);
   return c;
 }
@@ -82,7 +91,19 @@ int run_jobs(const JobsArgs& a) {
     spdlog::error("jobs requeue needs a job id and a tile number");
     return 2;
   }
+  if (!a.output.empty() && a.action != "wait") {
+    spdlog::error("-o goes with jobs wait");
+    return 2;
+  }
+  // Before waiting: a result that could not be saved would be found out only at the end.
+  if (!a.output.empty() && !output_writable(a.output)) return 2;
   return run_with_coordinator(a.access, "jobs " + a.action, [&](farm::HttpClient& http) {
+    if (a.action == "wait") {
+      farm::get_job(http, a.job);  // an unknown id is refused here (exit 2), not after a wait
+      InterruptGuard interrupts;
+      return follow_job(http, a.job, a.output, a.quiet, [] { return InterruptGuard::interrupted(); }, false,
+                        std::chrono::steady_clock::now());
+    }
     if (a.action == "ls") {
       protocol::JobListQuery q;
       for (const std::string& s : a.states) {

@@ -1,13 +1,13 @@
 #include "cli/render_command.h"
 
 #include "cli/interrupt_guard.h"
+#include "cli/output_check.h"
 #include "cli/progress_bar.h"
 #include "cli/render_farm.h"
 #include "cli/render_resume.h"
 
 #include "core/enum_names.h"
 #include "core/exr_stream.h"
-#include "core/output_file.h"
 #include "core/render.h"
 #include "core/scene_loader.h"
 
@@ -100,13 +100,8 @@ int run_render(const RenderArgs& given) {
   if (!logger) logger = spdlog::stderr_color_mt("render");
   spdlog::set_default_logger(logger);
   // Before anything long: an output that cannot be written is reported now, not after the render.
-  try {
-    check_output_writable(given.output, "output");
-    if (!given.preview.empty()) check_output_writable(given.preview, "preview");
-  } catch (const std::exception& e) {
-    spdlog::error("{}", e.what());
+  if (!output_writable(given.output) || (!given.preview.empty() && !output_writable(given.preview, "preview")))
     return 2;
-  }
   if (given.workers > 0) {
     if (given.tile_budget > 0) {
       spdlog::error("--workers renders whole jobs: drop --tile-budget");

@@ -1,7 +1,8 @@
 #include "cli/submit_command.h"
 
+#include "cli/interrupt_guard.h"
+#include "cli/output_check.h"
 #include "cli/progress_bar.h"
-#include "core/output_file.h"
 #include "core/scene_loader.h"
 
 #include <spdlog/spdlog.h>
@@ -33,17 +34,10 @@ CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
   return c;
 }
 
-int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& o, const std::string& output, bool quiet,
-                    const std::function<bool()>& stop, std::optional<farm::SceneFiles> files, const ResultFetch& fetch) {
-  std::string job;
+int follow_job(farm::HttpClient& http, const std::string& job, const std::string& output, bool quiet,
+               const std::function<bool()>& stop, bool cancel_on_stop, std::chrono::steady_clock::time_point t0,
+               const ResultFetch& fetch) {
   try {
-    const auto t0 = std::chrono::steady_clock::now();
-    const farm::SubmitResult sub =
-        files ? farm::submit_job(http, o, std::move(*files)) : farm::submit_job(http, o);
-    job = sub.job_id;
-    if (!quiet)
-      std::fprintf(stderr, "submitted %s as %s (%d assets, %d uploaded)\n", o.scene.c_str(), job.c_str(),
-                   sub.assets_total, sub.assets_uploaded);
     ProgressBar bar(!quiet);
     const farm::JobStatus end = farm::wait_for_job(
         http, job,
@@ -53,6 +47,12 @@ int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& o, const 
         },
         stop, std::chrono::milliseconds(200), std::chrono::seconds(120), !quiet);  // quiet: no tile events
     if (!end.finished()) {
+      if (!cancel_on_stop) {
+        std::fprintf(stderr, "stopped waiting: %s is still %s on the coordinator (tessera jobs wait %s -o FILE to fetch "
+                     "it later, tessera jobs cancel %s to stop it)\n", job.c_str(), protocol::to_string(end.state),
+                     job.c_str(), job.c_str());
+        return 130;
+      }
       spdlog::warn("interrupted: cancelling {}", job);
       try {
         farm::cancel_job(http, job);
@@ -81,27 +81,47 @@ int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& o, const 
     }
     return 0;
   } catch (const farm::SubmitError& e) {
-    spdlog::error("{}", e.what());
-    return job.empty() ? 2 : 1;
-  } catch (const SceneError& e) {
-    spdlog::error("{}", e.what());
-    return 2;
+    spdlog::error("job {}: {}", job, e.what());
+    return 1;
   } catch (const std::exception& e) {
-    spdlog::error("{}{}", job.empty() ? "" : "job " + job + ": ", e.what());
+    spdlog::error("job {}: {}", job, e.what());
     return 1;
   }
 }
 
+int submit_reporting(farm::HttpClient& http, const farm::SubmitOptions& o, bool quiet,
+                     std::optional<farm::SceneFiles> files, std::string& job) {
+  try {
+    const farm::SubmitResult sub =
+        files ? farm::submit_job(http, o, std::move(*files)) : farm::submit_job(http, o);
+    job = sub.job_id;
+    if (!quiet)
+      std::fprintf(stderr, "submitted %s as %s (%d assets, %d uploaded)\n", o.scene.c_str(), job.c_str(),
+                   sub.assets_total, sub.assets_uploaded);
+    return 0;
+  } catch (const farm::SubmitError& e) {
+    spdlog::error("{}", e.what());
+    return 2;
+  } catch (const SceneError& e) {
+    spdlog::error("{}", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return 1;
+  }
+}
+
+int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& o, const std::string& output, bool quiet,
+                    const std::function<bool()>& stop, std::optional<farm::SceneFiles> files, const ResultFetch& fetch) {
+  const auto t0 = std::chrono::steady_clock::now();
+  std::string job;
+  if (const int rc = submit_reporting(http, o, quiet, std::move(files), job)) return rc;
+  return follow_job(http, job, output, quiet, stop, true, t0, fetch);
+}
+
 int run_submit(const SubmitArgs& a) {
   // Before submitting: a result that could not be saved would waste the farm's work.
-  if (!a.output.empty()) {
-    try {
-      check_output_writable(a.output, "output");
-    } catch (const std::exception& e) {
-      spdlog::error("{}", e.what());
-      return 2;
-    }
-  }
+  if (!a.output.empty() && !output_writable(a.output)) return 2;
   return run_with_coordinator(a.access, "submit", [&](farm::HttpClient& http) {
     farm::SubmitOptions o = shared_job_options(a);
     o.tile_size = a.tile_size;
@@ -114,7 +134,12 @@ int run_submit(const SubmitArgs& a) {
       std::printf("%s\n", sub.job_id.c_str());
       return 0;
     }
-    return submit_and_wait(http, o, a.output, a.quiet, {});
+    const auto t0 = std::chrono::steady_clock::now();
+    std::string job;
+    if (const int rc = submit_reporting(http, o, a.quiet, std::nullopt, job)) return rc;
+    // Once the job exists, Ctrl-C stops the wait, not the job: the farm's work goes on and `jobs wait` fetches it.
+    InterruptGuard interrupts;
+    return follow_job(http, job, a.output, a.quiet, [] { return InterruptGuard::interrupted(); }, false, t0);
   });
 }
 

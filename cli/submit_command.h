@@ -8,6 +8,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <optional>
@@ -44,16 +45,31 @@ farm::SubmitOptions shared_job_options(const Args& a) {
 /// Registers the subcommand's options on `app`.
 CLI::App* add_submit_command(CLI::App& app, SubmitArgs& args);
 
-/// Runs it; returns the process exit code: 0 done (and downloaded), 1 failed/cancelled or transport errors, 2 refused.
+/// Runs it; returns the process exit code: 0 done (and downloaded), 1 failed/cancelled or transport errors, 2 refused,
+/// 130 stopped waiting by Ctrl-C or SIGTERM (the job goes on; `jobs wait` fetches it later).
 int run_submit(const SubmitArgs& args);
 
 /// Puts a done job's result at `output` and returns its size in bytes; throws on failure.
 using ResultFetch = std::function<uint64_t(const std::string& job, const std::string& output)>;
 
-/// Submits, shows progress until the job ends and downloads the result to `output` (when not empty); the shared
-/// core of `submit` and `render --workers`. stop() interrupts the wait (the job is then cancelled). Returns the exit
-/// code as run_submit does; reports errors itself. `files`, when given, is the scene as already read and hashed
-/// (farm::read_scene_files of the same options); `fetch`, when given, takes the result instead of the download.
+/// Follows a submitted job until it ends, with a progress bar (timed from t0) unless `quiet`, and saves its result to
+/// `output` (when not empty); the shared core of `submit`, `render --workers` and `jobs wait`. stop() ends the wait
+/// early: the job is then cancelled when `cancel_on_stop` (exit code 1), else left as it is, which it says (130).
+/// Returns the exit code as run_submit does; reports errors itself. `fetch`, when given, takes the result instead
+/// of the download.
+int follow_job(farm::HttpClient& http, const std::string& job, const std::string& output, bool quiet,
+               const std::function<bool()>& stop, bool cancel_on_stop, std::chrono::steady_clock::time_point t0,
+               const ResultFetch& fetch = {});
+
+/// Submits (uploading the assets the coordinator lacks) and sets `job` to the new job's id; says so unless `quiet`.
+/// Returns 0, or the exit code as run_submit does after reporting the error. `files`, when given, is the scene as
+/// already read and hashed (farm::read_scene_files of the same options).
+int submit_reporting(farm::HttpClient& http, const farm::SubmitOptions& options, bool quiet,
+                     std::optional<farm::SceneFiles> files, std::string& job);
+
+/// Submits, then follows the job as follow_job does (stop() cancels it); the shared core of `submit` and `render
+/// --workers`. Returns the exit code as run_submit does; reports errors itself. `files` as for submit_reporting,
+/// `fetch` as for follow_job.
 int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& options, const std::string& output, bool quiet,
                     const std::function<bool()>& stop, std::optional<farm::SceneFiles> files = std::nullopt,
                     const ResultFetch& fetch = {});
