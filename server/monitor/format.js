@@ -42,14 +42,39 @@ export function shownState(job) { return isPaused(job) && job.state !== 'paused'
 export function badge(state) { return el('span', { class: 'badge state-' + state, text: state }); }
 
 /** Derived figures of a job: progress fraction, ETA (seconds or null) and average Mrays/s (or null). */
+// When each job status arrived (performance.now()), so that the figures of a job that has started go on counting
+// between the coordinator's answers: its render_seconds is the wall time since its first lease as of the answer.
+const received = new WeakMap();
+
+/** Records that `job` (a status from the coordinator) arrived now; returns it. */
+export function arrived(job) {
+  received.set(job, performance.now());
+  return job;
+}
+
+/** The states a job ends in. */
+export const FINAL = ['done', 'failed', 'cancelled'];
+
+/** Whether a job's clock runs (it has started and not ended): its page redraws its figures every second. */
+export function clockRuns(job) {
+  return Boolean(job.started_ms) && !FINAL.includes(job.state);
+}
+
+/**
+ * A job's progress, elapsed seconds (extrapolated from its status's arrival while its clock runs), ETA (the elapsed
+ * time per tile done so far, times the tiles left; tile events keep the counts current) and Mrays/s (the status's
+ * rays over its render time).
+ */
 export function jobFigures(job) {
   const t = job.tiles || { total: 0, done: 0 };
   const frac = t.total ? t.done / t.total : 0;
-  const secs = job.render_seconds || 0;
+  const reported = job.render_seconds || 0;
+  const at = received.get(job);
+  const secs = clockRuns(job) && at !== undefined ? reported + (performance.now() - at) / 1000 : reported;
   let eta = null;
   if ((job.state === 'running') && t.done > 0 && secs > 0) eta = secs / t.done * (t.total - t.done);
   if (job.state === 'done') eta = 0;
-  const mrays = secs > 0 && job.rays ? job.rays / secs / 1e6 : null;
+  const mrays = reported > 0 && job.rays ? job.rays / reported / 1e6 : null;
   return { frac, eta, mrays, secs };
 }
 

@@ -1,9 +1,8 @@
 // One job: its figures, the live tile map, the partial image, tile details, and the job's controls.
 import * as api from './api.js';
-import { el, badge, duration, clock, jobFigures, progressBar, mrays, isPaused, shownState, samplingText } from './format.js';
+import { el, badge, duration, clock, jobFigures, progressBar, mrays, isPaused, shownState, samplingText, arrived,
+  clockRuns, FINAL } from './format.js';
 import { TileMap, tileWindow, shownTileState, workerColor } from './tilemap.js';
-
-const FINAL = ['done', 'failed', 'cancelled'];
 
 /** A button that needs a second click within 4 s (for cancel and delete). */
 function confirmButton(label, confirmLabel, action, cls) {
@@ -127,6 +126,9 @@ export function mount(host, ctx) {
           el('div', { class: 'card-head' }, el('h2', { text: 'Image' }), el('span', { class: 'sub', id: 'preview-age' })),
           el('div', { class: 'preview-box' }, img), imgNote),
         el('section', { class: 'card' }, detail))));
+
+  // Elapsed time and ETA go on between answers and events while the job's clock runs.
+  const ticker = setInterval(() => { if (job && clockRuns(job)) drawHead(); }, 1000);
 
   function drawHead() {
     title.textContent = job.name || job.id;
@@ -255,7 +257,7 @@ export function mount(host, ctx) {
         }
         throw e;
       }
-      job = j;
+      job = arrived(j);
       if (!specAsked) {
         specAsked = true;
         spec = await api.call('GET', path + '/spec').catch(() => null);
@@ -271,7 +273,7 @@ export function mount(host, ctx) {
       if (!job) return false;
       if (type === 'job') {
         if (d.id !== id) return true;
-        job = d;
+        job = arrived(d);
         drawHead();
         refreshPreview().catch(() => {});
         return true;
@@ -307,6 +309,7 @@ export function mount(host, ctx) {
     },
     unmount() {
       mounted = false;
+      clearInterval(ticker);
       if (previewUrl) URL.revokeObjectURL(previewUrl);
     },
   };

@@ -1,6 +1,6 @@
 // The job list: state, progress, priority, elapsed time, ETA and Mrays/s of every job, filtered by state.
 import * as api from './api.js';
-import { el, badge, duration, clock, jobFigures, progressBar, mrays, shownState } from './format.js';
+import { el, badge, duration, clock, jobFigures, progressBar, mrays, shownState, arrived, clockRuns } from './format.js';
 
 const STATES = ['all', 'queued', 'running', 'paused', 'done', 'failed', 'cancelled'];
 
@@ -20,6 +20,8 @@ export function mount(host) {
       empty));
 
   let jobs = [];
+  // Elapsed times and ETAs of running jobs go on between answers and events.
+  const ticker = setInterval(() => { if (jobs.some(clockRuns)) draw(); }, 1000);
   function draw() {
     const counts = Object.fromEntries(STATES.map((s) => [s, 0]));
     for (const j of jobs) { counts.all++; counts[shownState(j)] = (counts[shownState(j)] || 0) + 1; }
@@ -53,15 +55,15 @@ export function mount(host) {
   return {
     async refresh() {
       const body = await api.call('GET', '/v1/jobs');
-      jobs = body.jobs || [];
+      jobs = (body.jobs || []).map(arrived);
       draw();
     },
     /** Applies an event of the stream (true: applied, no refresh needed). */
     onEvent(type, d) {
       if (type === 'job') {
         const i = jobs.findIndex((j) => j.id === d.id);
-        if (i >= 0) jobs[i] = d;
-        else jobs.unshift(d);
+        if (i >= 0) jobs[i] = arrived(d);
+        else jobs.unshift(arrived(d));
         draw();
         return true;
       }
@@ -76,5 +78,6 @@ export function mount(host) {
       }
       return type !== 'tile_failed';  // a failure may change the job: refresh; worker events are not shown here
     },
+    unmount() { clearInterval(ticker); },
   };
 }

@@ -266,6 +266,30 @@ def main():
             fail(f"the page's SSE parser: {bad[:3]} (want {want!r})")
         print(f"SSE parser: {len(parsed)} split points parsed alike")
 
+        # The figures' clock (server/monitor/format.js), on the page's clock set by hand: a started job's elapsed time
+        # goes on from its status's arrival until it ends, its ETA follows, and its Mrays/s are the status's own.
+        figures = d.execute_async_script("""
+            const done = arguments[arguments.length - 1];
+            import('/monitor/format.js').then(({ arrived, jobFigures }) => {
+              const real = performance.now;
+              let t = 1000;
+              performance.now = () => t;
+              const tiles = { total: 10, done: 2, leased: 1, pending: 7 };
+              const job = (state, started) => arrived({ state, started_ms: started ? 1 : null, render_seconds: started ? 10 : 0,
+                                                        rays: started ? 20e6 : 0, tiles: { ...tiles } });
+              const running = job('running', true), paused = job('paused', true), ended = job('done', true);
+              const queued = job('queued', false);
+              t += 6000;
+              const f = (j) => { const x = jobFigures(j); return [x.secs, x.eta, x.mrays]; };
+              const out = { running: f(running), paused: f(paused), done: f(ended), queued: f(queued) };
+              performance.now = real;
+              done(out);
+            }, (e) => done('error: ' + e));""")
+        want = {"running": [16, 64, 2], "paused": [16, None, 2], "done": [10, 0, 2], "queued": [0, None, None]}
+        if figures != want:
+            fail(f"the job figures' clock: {figures} (want {want})")
+        print("figures: elapsed time extrapolated from each status's arrival while the job's clock runs")
+
         # The job list shows the job, running (the holder's leases started it).
         row = f'tr[data-job="{job}"]'
         wait_for("state running in the list", lambda: any("running" in r.text for r in visible(d, row)))
