@@ -80,10 +80,7 @@ int follow_job(farm::HttpClient& http, const std::string& job, const std::string
       std::fprintf(stderr, "%s done in %.2fs\n", job.c_str(), secs);
     }
     return 0;
-  } catch (const farm::SubmitError& e) {
-    spdlog::error("job {}: {}", job, e.what());
-    return 1;
-  } catch (const std::exception& e) {
+  } catch (const std::exception& e) {  // a refusal after the submission too (the job purged meanwhile): the wait failed
     spdlog::error("job {}: {}", job, e.what());
     return 1;
   }

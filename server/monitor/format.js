@@ -41,7 +41,6 @@ export function shownState(job) { return isPaused(job) && job.state !== 'paused'
 
 export function badge(state) { return el('span', { class: 'badge state-' + state, text: state }); }
 
-/** Derived figures of a job: progress fraction, ETA (seconds or null) and average Mrays/s (or null). */
 // When each job status arrived (performance.now()), so that the figures of a job that has started go on counting
 // between the coordinator's answers: its render_seconds is the wall time since its first lease as of the answer.
 const received = new WeakMap();

@@ -92,8 +92,9 @@ export function mount(host, ctx) {
       actionMsg.className = 'action-msg';
       actionMsg.textContent = 'Download…';
       try {
-        const bytes = await api.downloadResult(id, exrName(job));
-        actionMsg.textContent = `Download: ${exrName(job)} (${(bytes / 1048576).toFixed(1)} MB).`;
+        const name = exrName(job);
+        const bytes = await api.downloadResult(id, name);
+        actionMsg.textContent = `Download: ${name} (${(bytes / 1048576).toFixed(1)} MB).`;
       } catch (e) {
         actionMsg.textContent = 'Download failed: ' + e.message;
         actionMsg.className = 'action-msg error';
