@@ -114,11 +114,12 @@ Vec3 direct_lighting(const Scene& scene, const SurfaceHit& h, const Vec3& n, con
 
 }  // namespace
 
-Vec3 trace_radiance(const Scene& scene, Ray r, PixelSampler& sampler, RayCounters& counters) {
+Vec3 trace_radiance(const Scene& scene, Ray r, const std::optional<Hit>& camera_hit, PixelSampler& sampler,
+                    RayCounters& counters) {
   ++counters.camera;
   Vec3 L(0.f);
   for (int depth = 0;; ++depth) {
-    const auto hit = trace_closest(scene, r, depth == 0 ? RayKind::kCamera : RayKind::kSpecular, counters);
+    const auto hit = depth == 0 ? camera_hit : trace_closest(scene, r, RayKind::kSpecular, counters);
     if (!hit) {
       if (scene.environment) L += scene.environment->radiance(glm::normalize(r.d));
       break;

@@ -33,8 +33,16 @@ inline bool trace_occluded(const Scene& scene, const Ray& r, RayCounters& counte
   return scene.bvh.occluded(r);
 }
 
-/// Radiance arriving along camera ray r; never NaN or Inf (such samples are counted and return zero).
-Vec3 trace_radiance(const Scene& scene, Ray r, PixelSampler& sampler, RayCounters& counters);
+/// Radiance arriving along camera ray r, whose closest hit the caller traced (trace_closest, RayKind::kCamera): so
+/// that the camera rays of several samples can be traced one after the other before any is shaded. Never NaN or Inf
+/// (such samples are counted and return zero).
+Vec3 trace_radiance(const Scene& scene, Ray r, const std::optional<Hit>& camera_hit, PixelSampler& sampler,
+                    RayCounters& counters);
+
+/// Radiance arriving along camera ray r, traced here.
+inline Vec3 trace_radiance(const Scene& scene, const Ray& r, PixelSampler& sampler, RayCounters& counters) {
+  return trace_radiance(scene, r, trace_closest(scene, r, RayKind::kCamera, counters), sampler, counters);
+}
 
 /// Refracts w (pointing away from the surface) through normal n (unit, any orientation) for
 /// eta = n_inside / n_outside, where n points to the outside. Returns false for total internal reflection.

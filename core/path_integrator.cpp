@@ -65,7 +65,8 @@ float emission_weight(PathProfile profile, bool after_delta, float bsdf_pdf, flo
 
 }  // namespace
 
-Vec3 trace_path(const Scene& scene, Ray r, PixelSampler& sampler, RayCounters& counters) {
+Vec3 trace_path(const Scene& scene, Ray r, const std::optional<Hit>& camera_hit, PixelSampler& sampler,
+                RayCounters& counters) {
   ++counters.camera;
   const IntegratorSettings& st = scene.settings;
   Vec3 L(0.f), beta(1.f);
@@ -73,8 +74,8 @@ Vec3 trace_path(const Scene& scene, Ray r, PixelSampler& sampler, RayCounters& c
   float bsdf_pdf = 0.f;     // density of the last BSDF sample
   Vec3 prev_p(0.f);         // the vertex the current ray left
   for (int depth = 0;; ++depth) {
-    const RayKind kind = depth == 0 ? RayKind::kCamera : after_delta ? RayKind::kSpecular : RayKind::kBounce;
-    const auto hit = trace_closest(scene, r, kind, counters);
+    const auto hit =
+        depth == 0 ? camera_hit : trace_closest(scene, r, after_delta ? RayKind::kSpecular : RayKind::kBounce, counters);
     if (!hit) {
       if (scene.environment) {
         const Vec3 d = glm::normalize(r.d);

@@ -32,10 +32,30 @@ PixelSampler pixel_sampler(uint64_t seed, int px, int row, uint32_t s, uint32_t 
 
 namespace {
 
-// One sample of pixel (px, row) from its sampler.
-inline Vec3 sample_pixel(const Scene& scene, int px, int row, PixelSampler sampler, RayCounters& counters) {
-  const Ray r = scene.camera.generate_pixel(px, row, sampler.next_2d(), scene.width, scene.height);
-  return trace_sample(scene, r, sampler, counters);
+// Adds samples [acc.count(), end) of pixel (px, row) to acc, in order, sampler(s) giving sample s's stream. Two
+// samples at a time: both camera rays are traced before either sample is shaded, so the CPU overlaps the two
+// traversals (independent work), which one sample at a time cannot give it: each ray of a sample waits for the answer
+// before it (`integrator_vs_traversal`'s chained replay). Each sample's arithmetic and the order of the sums are
+// those of one sample at a time, so no pixel changes.
+template <class Sampler>
+void add_samples_paired(const Scene& scene, int px, int row, uint32_t end, const Sampler& sampler, PixelAccumulator& acc,
+                        RayCounters& counters) {
+  const auto camera_ray = [&](PixelSampler& p) {
+    return scene.camera.generate_pixel(px, row, p.next_2d(), scene.width, scene.height);
+  };
+  uint32_t s = acc.count();
+  for (; s + 2 <= end; s += 2) {
+    PixelSampler a = sampler(s), b = sampler(s + 1);
+    const Ray ra = camera_ray(a), rb = camera_ray(b);
+    const std::optional<Hit> ha = trace_closest(scene, ra, RayKind::kCamera, counters);
+    const std::optional<Hit> hb = trace_closest(scene, rb, RayKind::kCamera, counters);
+    acc.add(trace_sample(scene, ra, ha, a, counters));
+    acc.add(trace_sample(scene, rb, hb, b, counters));
+  }
+  if (s < end) {
+    PixelSampler a = sampler(s);
+    acc.add(trace_sample(scene, camera_ray(a), a, counters));
+  }
 }
 
 // Adds samples [acc.count(), end) of pixel (px, row) to acc, in order: the samplers of pixel_sampler(), with the
@@ -44,23 +64,18 @@ void add_samples(const Scene& scene, int px, int row, uint64_t seed, uint32_t en
                  PixelAccumulator& acc, RayCounters& counters) {
   if (replicates <= 1) {
     const uint32_t key = PixelSampler::pixel_key(seed, px, row);
-    for (uint32_t s = acc.count(); s < end; ++s) {
-      PixelSampler sampler(key, s);
-      const Ray r = scene.camera.generate_pixel(px, row, sampler.next_2d(), scene.width, scene.height);
-      acc.add(trace_sample(scene, r, sampler, counters));
-    }
+    add_samples_paired(scene, px, row, end, [key](uint32_t s) { return PixelSampler(key, s); }, acc, counters);
     return;
   }
   if (replicates > kMaxReplicates) {
-    for (uint32_t s = acc.count(); s < end; ++s)
-      acc.add(sample_pixel(scene, px, row, pixel_sampler(seed, px, row, s, replicates), counters));
+    add_samples_paired(
+        scene, px, row, end, [&](uint32_t s) { return pixel_sampler(seed, px, row, s, replicates); }, acc, counters);
     return;
   }
   uint32_t keys[kMaxReplicates];
   const uint32_t k = replicates;
   for (uint32_t r = 0; r < k; ++r) keys[r] = PixelSampler::pixel_key(replicate_seed(seed, r), px, row);
-  for (uint32_t s = acc.count(); s < end; ++s)
-    acc.add(sample_pixel(scene, px, row, PixelSampler(keys[s % k], s / k), counters));
+  add_samples_paired(scene, px, row, end, [&](uint32_t s) { return PixelSampler(keys[s % k], s / k); }, acc, counters);
 }
 
 }  // namespace
