@@ -5,6 +5,7 @@
 // variance of stratified samples overestimates the variance of their mean, so these bounds are conservative.
 #include "core/render.h"
 
+#include "core/path_integrator.h"
 #include "core/scene_loader.h"
 #include "core/test_closed_forms.h"
 #include "core/test_files.h"
@@ -349,6 +350,36 @@ TEST_F(RenderTest, EveryCourseSceneRendersFiniteAndNonBlack) {
     EXPECT_EQ(res.counters.nonfinite, 0u) << name;
     EXPECT_GT(sum / double(res.image.rgb.size()), 1e-3) << name;
     std::printf("%s: mean %.4f, %.3fs\n", name, sum / double(res.image.rgb.size()), res.seconds);
+  }
+}
+
+// render_pixel traces a pixel's samples two at a time (both camera rays before either sample is shaded): the
+// estimate must be bitwise that of tracing each sample alone, in order, through trace_sample, for even and odd
+// sample counts, replicates (including more than kMaxReplicates) and both integrators.
+TEST_F(RenderTest, SamplesTracedInPairsGiveBitwiseTheEstimateOfOneAtATime) {
+  for (const char* name : {"cbox_refract_textured.json", "glass_sphere.json"}) {  // direct lighting; path tracing
+    Scene scene = load_scene_file(fs::path(TESSERA_SHARED_DIR) / "compat/rdr171" / name).scene;
+    scene.width = 16;
+    scene.height = 12;
+    for (const uint32_t replicates : {1u, 2u, 3u, kMaxReplicates + 1})
+      for (const uint32_t spp : {1u, 2u, 5u, 8u})
+        for (int y = 0; y < scene.height; y += 5)
+          for (int x = 0; x < scene.width; x += 3) {
+            RayCounters paired_counters, single_counters;
+            const PixelEstimate paired = render_pixel(scene, x, y, 99, spp, paired_counters, replicates);
+            PixelAccumulator acc(std::min(replicates, kMaxReplicates));
+            for (uint32_t s = 0; s < spp; ++s) {
+              PixelSampler sampler = pixel_sampler(99, x, y, s, replicates);
+              const Ray r = scene.camera.generate_pixel(x, y, sampler.next_2d(), scene.width, scene.height);
+              acc.add(trace_sample(scene, r, sampler, single_counters));
+            }
+            const PixelEstimate single = acc.estimate();
+            ASSERT_EQ(std::memcmp(&paired.mean, &single.mean, sizeof paired.mean), 0)
+                << name << " pixel " << x << "," << y << " at " << spp << " spp, " << replicates << " replicates";
+            ASSERT_EQ(std::memcmp(&paired.var_mean, &single.var_mean, sizeof paired.var_mean), 0) << name;
+            ASSERT_EQ(paired_counters.rays, single_counters.rays) << name;
+            ASSERT_EQ(paired_counters.camera, single_counters.camera) << name;
+          }
   }
 }
 
