@@ -38,6 +38,13 @@ async function errorOf(res) {
   return new ApiError(res.status, text);
 }
 
+/** The ApiError of a refused answer, after telling the auth listener when the token was the reason. */
+async function refusal(res) {
+  const err = await errorOf(res);
+  if (err.isAuth) authListener(err);
+  return err;
+}
+
 /** A JSON call; resolves to the parsed body (null for an empty one), rejects with ApiError. */
 export async function call(method, path, body) {
   let res;
@@ -51,11 +58,7 @@ export async function call(method, path, body) {
   } catch (e) {
     throw new ApiError(0, 'the coordinator is not reachable (' + e.message + ')');
   }
-  if (!res.ok) {
-    const err = await errorOf(res);
-    if (err.isAuth) authListener(err);
-    throw err;
-  }
+  if (!res.ok) throw await refusal(res);
   const text = await res.text();
   return text ? JSON.parse(text) : null;
 }
@@ -73,11 +76,7 @@ export async function previewUrl(jobId) {
  */
 export async function downloadResult(jobId, filename) {
   const res = await fetch('/v1/jobs/' + encodeURIComponent(jobId) + '/result.exr', { headers: headers(), cache: 'no-store' });
-  if (!res.ok) {
-    const err = await errorOf(res);
-    if (err.isAuth) authListener(err);
-    throw err;
-  }
+  if (!res.ok) throw await refusal(res);
   const blob = await res.blob();
   const url = URL.createObjectURL(blob);
   const a = document.createElement('a');
@@ -106,11 +105,7 @@ export async function streamEvents(onEvent, onOpen, lastEventId, signal) {
   const extra = { Accept: 'text/event-stream' };
   if (lastEventId) extra['Last-Event-ID'] = lastEventId;
   const res = await fetch('/v1/events', { headers: headers(extra), signal, cache: 'no-store' });
-  if (!res.ok) {
-    const err = await errorOf(res);
-    if (err.isAuth) authListener(err);
-    throw err;
-  }
+  if (!res.ok) throw await refusal(res);
   onOpen();
   const parser = new SseParser(onEvent);
   const reader = res.body.pipeThrough(new TextDecoderStream()).getReader();
