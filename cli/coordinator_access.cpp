@@ -1,5 +1,6 @@
 #include "cli/coordinator_access.h"
 
+#include "cli/exit_status.h"
 #include "cli/tls_flags.h"
 #include "cli/token.h"
 #include "client/job_client.h"
@@ -22,10 +23,10 @@ int run_with_coordinator(const CoordinatorAccess& access, std::string_view comma
     return body(*client);
   } catch (const farm::SubmitError& e) {
     spdlog::error("{}", e.what());
-    return 2;
+    return kExitRefused;
   } catch (const std::exception& e) {
     spdlog::error("{}: {}", command, e.what());
-    return 1;
+    return kExitFailed;
   }
 }
 

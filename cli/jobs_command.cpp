@@ -1,5 +1,6 @@
 #include "cli/jobs_command.h"
 
+#include "cli/exit_status.h"
 #include "cli/interrupt_guard.h"
 #include "cli/output_check.h"
 #include "cli/submit_command.h"
@@ -77,26 +78,26 @@ CLI::App* add_jobs_command(CLI::App& app, JobsArgs& a) {
 int run_jobs(const JobsArgs& a) {
   if (a.action != "ls" && a.job.empty()) {
     spdlog::error("jobs {} needs a job id", a.action);
-    return 2;
+    return kExitRefused;
   }
   if (a.action == "priority" && !a.priority) {
     spdlog::error("jobs priority needs a job id and the new priority");
-    return 2;
+    return kExitRefused;
   }
   if (a.action == "spp" && (!a.priority || *a.priority < 1)) {
     spdlog::error("jobs spp needs a job id and the new samples per pixel (a positive number)");
-    return 2;
+    return kExitRefused;
   }
   if (a.action == "requeue" && !a.priority) {
     spdlog::error("jobs requeue needs a job id and a tile number");
-    return 2;
+    return kExitRefused;
   }
   if (!a.output.empty() && a.action != "wait") {
     spdlog::error("-o goes with jobs wait");
-    return 2;
+    return kExitRefused;
   }
   // Before waiting: a result that could not be saved would be found out only at the end.
-  if (!a.output.empty() && !output_writable(a.output)) return 2;
+  if (!a.output.empty() && !output_writable(a.output)) return kExitRefused;
   return run_with_coordinator(a.access, "jobs " + a.action, [&](farm::HttpClient& http) {
     if (a.action == "wait") {
       farm::get_job(http, a.job);  // an unknown id is refused here (exit 2), not after a wait
@@ -111,7 +112,7 @@ int run_jobs(const JobsArgs& a) {
           q.states.push_back(protocol::job_state_from_string(s));
         } catch (const std::invalid_argument& e) {
           spdlog::error("--state: {}", e.what());
-          return 2;
+          return kExitRefused;
         }
       }
       q.limit = a.limit;
@@ -150,11 +151,11 @@ int run_jobs(const JobsArgs& a) {
                   static_cast<long long>(s.tiles.total - s.tiles.done), static_cast<long long>(s.tiles.total));
     } else if (!farm::cancel_job(http, a.job)) {
       spdlog::error("job {} had already ended", a.job);
-      return 2;
+      return kExitRefused;
     } else {
       std::printf("%s: cancelled\n", a.job.c_str());
     }
-    return 0;
+    return kExitOk;
   });
 }
 

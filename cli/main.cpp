@@ -1,4 +1,6 @@
-// The single `tessera` executable: one subcommand per way of using the farm.
+// The single `tessera` executable: one subcommand per way of using the farm, one rule for exit statuses
+// (cli/exit_status.h).
+#include "cli/exit_status.h"
 #include "cli/jobs_command.h"
 #include "cli/merge_command.h"
 #include "cli/render_command.h"
@@ -34,7 +36,13 @@ int main(int argc, char** argv) {
     tessera::cli::MergeArgs merge_args;
     auto* merge = tessera::cli::add_merge_command(app, merge_args);
 
-    CLI11_PARSE(app, argc, argv);
+    try {
+      app.parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+      // --help and --version exit 0; any other parse error is a refused command line, like the commands' own checks
+      // (CLI11 would exit 105-109 by the kind of error).
+      return app.exit(e) == 0 ? tessera::cli::kExitOk : tessera::cli::kExitRefused;
+    }
 
     if (render->parsed()) return tessera::cli::run_render(render_args);
     if (serve->parsed()) return tessera::cli::run_serve(serve_args);
@@ -44,9 +52,9 @@ int main(int argc, char** argv) {
     if (workers->parsed()) return tessera::cli::run_workers(workers_args);
     if (merge->parsed()) return tessera::cli::run_merge(merge_args);
     std::fputs(app.help().c_str(), stdout);
-    return 0;
+    return tessera::cli::kExitOk;
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());
-    return 1;
+    return tessera::cli::kExitFailed;
   }
 }

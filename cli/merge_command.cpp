@@ -1,5 +1,7 @@
 #include "cli/merge_command.h"
 
+#include "cli/exit_status.h"
+
 #include "core/image.h"
 #include "core/merge.h"
 
@@ -24,30 +26,34 @@ CLI::App* add_merge_command(CLI::App& app, MergeArgs& a) {
 }
 
 int run_merge(const MergeArgs& a) {
+  // Tiles that cannot be read, or do not make one image, are refused before the output is touched.
+  std::vector<MergeInput> inputs;
+  MergeResult merged;
   try {
-    std::vector<MergeInput> inputs;
     inputs.reserve(a.inputs.size());
     for (const auto& path : a.inputs) inputs.push_back({path, read_exr(path)});
-    const MergeResult merged = merge_tiles(inputs);
+    merged = merge_tiles(inputs);
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return kExitRefused;
+  }
+  try {
     ExrWriteOptions wo;
     wo.half = a.half;
     wo.data_window = merged.display_window;
     wo.display_window = merged.display_window;
     wo.metadata = merged.metadata;
     write_exr(a.output, merged.image, wo);
-    std::fprintf(stderr, "%s: %dx%d px from %zu tiles", a.output.c_str(), merged.display_window.width(),
-                 merged.display_window.height(), inputs.size());
-    if (merged.overlap_pixels > 0)
-      std::fprintf(stderr, " (%lld overlapping pixels, identical)", static_cast<long long>(merged.overlap_pixels));
-    std::fputc('\n', stderr);
-    return 0;
-  } catch (const MergeError& e) {
-    spdlog::error("{}", e.what());
-    return 1;
   } catch (const std::exception& e) {
     spdlog::error("merge failed: {}", e.what());
-    return 1;
+    return kExitFailed;
   }
+  std::fprintf(stderr, "%s: %dx%d px from %zu tiles", a.output.c_str(), merged.display_window.width(),
+               merged.display_window.height(), inputs.size());
+  if (merged.overlap_pixels > 0)
+    std::fprintf(stderr, " (%lld overlapping pixels, identical)", static_cast<long long>(merged.overlap_pixels));
+  std::fputc('\n', stderr);
+  return kExitOk;
 }
 
 }  // namespace tessera::cli

@@ -1,5 +1,6 @@
 #include "cli/render_command.h"
 
+#include "cli/exit_status.h"
 #include "cli/interrupt_guard.h"
 #include "cli/output_check.h"
 #include "cli/progress_bar.h"
@@ -65,23 +66,23 @@ namespace {
 StoredRender load_previous(const ExrImage& file, const RenderArgs& a, const Scene& scene) {
   const auto it = file.metadata.find("tessera:sceneHash");
   if (it == file.metadata.end() || it->second != scene.hash)
-    throw std::runtime_error(a.resume + " was rendered from another scene (or other assets) than " + a.scene);
+    throw Refusal(a.resume + " was rendered from another scene (or other assets) than " + a.scene);
   if (file.display_window != PixelWindow{0, 0, scene.width, scene.height})
-    throw std::runtime_error(a.resume + " is not a " + std::to_string(scene.width) + "x" +
+    throw Refusal(a.resume + " is not a " + std::to_string(scene.width) + "x" +
                              std::to_string(scene.height) + " picture");
   StoredRender prev;
   try {
     prev = StoredRender{file.pixels, read_state_channels(file.pixels, a.replicates)};
   } catch (const ImageError& e) {
-    throw std::runtime_error(a.resume + ": " + e.what() +
+    throw Refusal(a.resume + ": " + e.what() +
                              "; only partial renders and --resumable ones can be resumed");
   }
   const uint32_t stored = recorded_spp(file);
   if (a.target_error <= 0.f && *a.spp != stored && !prev.state.exact())
-    throw std::runtime_error(a.resume + " holds no exact sample sums (render with --resumable to refine later): it "
+    throw Refusal(a.resume + " holds no exact sample sums (render with --resumable to refine later): it "
                                         "can only be finished at its own " + std::to_string(stored) + " spp");
   if (a.resumable && !prev.state.exact())
-    throw std::runtime_error(a.resume + " holds no exact sample sums, so its continuation cannot be --resumable");
+    throw Refusal(a.resume + " holds no exact sample sums, so its continuation cannot be --resumable");
   return prev;
 }
 
@@ -101,17 +102,23 @@ int run_render(const RenderArgs& given) {
   spdlog::set_default_logger(logger);
   // Before anything long: an output that cannot be written is reported now, not after the render.
   if (!output_writable(given.output) || (!given.preview.empty() && !output_writable(given.preview, "preview")))
-    return 2;
+    return kExitRefused;
   if (given.workers > 0) {
     if (given.tile_budget > 0) {
       spdlog::error("--workers renders whole jobs: drop --tile-budget");
-      return 2;
+      return kExitRefused;
     }
     return run_render_farm(given);
   }
   try {
     std::optional<ExrImage> resume_file;
-    if (!given.resume.empty()) resume_file = read_exr(given.resume);
+    if (!given.resume.empty()) {
+      try {
+        resume_file = read_exr(given.resume);
+      } catch (const std::exception& e) {
+        throw Refusal(e.what());
+      }
+    }
     const RenderArgs a = resume_file ? resumed_args(given, *resume_file) : given;
     std::unique_ptr<tbb::global_control> limit;
     if (a.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(a.threads));
@@ -126,7 +133,7 @@ int run_render(const RenderArgs& given) {
     lo.bvh = enum_from_name<SplitMethod>(a.bvh, kSplitMethodNames);
     if (a.target_error > 0.f && a.min_spp > a.max_spp) {
       spdlog::error("--min-spp {} is larger than --max-spp {}", a.min_spp, a.max_spp);
-      return 2;
+      return kExitRefused;
     }
     const auto t_load = std::chrono::steady_clock::now();
     LoadedScene loaded = load_scene_file(a.scene, lo);
@@ -160,7 +167,7 @@ int run_render(const RenderArgs& given) {
       if (ro.window.empty() || !full.contains(ro.window)) {
         spdlog::error("--crop {} {} {} {} is empty or outside the {}x{} image", a.crop[0], a.crop[1], a.crop[2],
                       a.crop[3], scene.width, scene.height);
-        return 2;
+        return kExitRefused;
       }
     }
     ProgressBar bar(!a.quiet);
@@ -236,16 +243,19 @@ int run_render(const RenderArgs& given) {
                  static_cast<unsigned long long>(res.counters.camera), load_s, res.seconds,
                  res.seconds > 0 ? double(res.counters.rays) / res.seconds * 1e-6 : 0.0,
                  static_cast<unsigned long long>(res.counters.rays));
-    if (!res.cancelled) return 0;
+    if (!res.cancelled) return kExitOk;
     std::fprintf(stderr, "%s: partial, %zu of %zu pixels rendered; finish it with: tessera render %s -o %s --resume %s\n",
                  a.output.c_str(), done, pixels_total, a.scene.c_str(), a.output.c_str(), a.output.c_str());
-    return InterruptGuard::interrupted() ? 130 : 3;
+    return InterruptGuard::interrupted() ? kExitInterrupted : kExitBudget;
   } catch (const SceneError& e) {
     spdlog::error("{}", e.what());
-    return 1;
+    return kExitRefused;
+  } catch (const Refusal& e) {
+    spdlog::error("{}", e.what());
+    return kExitRefused;
   } catch (const std::exception& e) {
     spdlog::error("render failed: {}", e.what());
-    return 1;
+    return kExitFailed;
   }
 }
 

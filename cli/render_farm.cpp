@@ -1,5 +1,6 @@
 #include "cli/render_farm.h"
 
+#include "cli/exit_status.h"
 #include "cli/interrupt_guard.h"
 #include "cli/submit_command.h"
 #include "core/image.h"
@@ -38,7 +39,7 @@ namespace {
 // Longest wait of a private farm's idle worker between lease requests (a shared coordinator's workers wait up to 2 s).
 constexpr int kPrivateIdleWaitMs = 5;
 
-// The scene or its assets could not be read; the reason was logged (exit status 2).
+// The scene or its assets could not be read; the reason was logged (exit status kExitRefused).
 struct Refused : std::exception {};
 
 // Writes a fresh random token to a file only this user can read and returns the token.
@@ -94,17 +95,17 @@ uint64_t take_result(const fs::path& data_dir, const std::string& job, const fs:
 int run_render_farm(const RenderArgs& a) {
   if (!a.crop.empty() || a.variance) {
     spdlog::error("--workers renders whole images without variance channels: drop --crop/--variance");
-    return 2;
+    return kExitRefused;
   }
   // --strict is a property of loading the file here, which the coordinator does not repeat: refused, never dropped.
   if (a.strict) {
     spdlog::error("--workers does not pass on --strict: check the scene with `tessera render --strict` first");
-    return 2;
+    return kExitRefused;
   }
   InterruptGuard guard;
   std::vector<farm::ChildProcess> children;
   fs::path dir;
-  int rc = 1;
+  int rc = kExitFailed;
   bool show_logs = false;
   try {
     dir = make_temp_dir();
@@ -140,12 +141,12 @@ int run_render_farm(const RenderArgs& a) {
         cache.get(asset.sha256, [&](const std::string&) { return read_file_bytes(asset.file); });
     } catch (const SceneError& e) {
       spdlog::error("{}", e.what());
-      rc = 2;
+      rc = kExitRefused;
     } catch (const farm::SubmitError& e) {
       spdlog::error("{}", e.what());
-      rc = 2;
+      rc = kExitRefused;
     }
-    if (rc == 2) throw Refused();
+    if (rc == kExitRefused) throw Refused();
     // The workers load the job's scene from their cache while the coordinator starts and checks the submission.
     const fs::path expected_job = dir / "job.json";
     write_file_atomic(expected_job, nlohmann::json(farm::job_submission(o, *files)).dump(), Flush::none);
@@ -198,14 +199,14 @@ int run_render_farm(const RenderArgs& a) {
     }
     if (InterruptGuard::interrupted()) {
       spdlog::warn("interrupted");
-      rc = 130;
+      rc = kExitInterrupted;
     }
-    show_logs = rc == 1;  // 2: the coordinator refused the job and said why; 130: interrupted
+    show_logs = rc == kExitFailed;  // not when the coordinator refused the job and said why, nor when interrupted
   } catch (const Refused&) {
-    // said why already (rc 2)
+    // said why already (rc is kExitRefused)
   } catch (const std::exception& e) {
     spdlog::error("render --workers: {}", e.what());
-    rc = 1;
+    rc = kExitFailed;
     show_logs = true;
   }
   std::vector<farm::ChildProcess> workers(children.begin() + std::min<size_t>(1, children.size()), children.end());

@@ -1,5 +1,7 @@
 #include "cli/render_resume.h"
 
+#include "cli/exit_status.h"
+
 #include <charconv>
 #include <stdexcept>
 
@@ -11,7 +13,7 @@ namespace {
 const std::string& meta(const ExrImage& file, const std::string& path, const std::string& key) {
   const auto it = file.metadata.find(key);
   if (it == file.metadata.end())
-    throw std::runtime_error(path + " has no " + key + " metadata: it was not written by `tessera render`");
+    throw Refusal(path + " has no " + key + " metadata: it was not written by `tessera render`");
   return it->second;
 }
 
@@ -21,7 +23,7 @@ T number(const ExrImage& file, const std::string& path, const std::string& key) 
   T v{};
   const auto r = std::from_chars(text.data(), text.data() + text.size(), v);
   if (r.ec != std::errc() || r.ptr != text.data() + text.size())
-    throw std::runtime_error(path + ": metadata " + key + " is not a number (\"" + text + "\")");
+    throw Refusal(path + ": metadata " + key + " is not a number (\"" + text + "\")");
   return v;
 }
 
@@ -41,7 +43,7 @@ RenderArgs resumed_args(const RenderArgs& given, const ExrImage& file) {
   const std::string& spp = meta(file, path, "tessera:spp");
   if (spp == "adaptive") {
     if (given.spp)
-      throw std::runtime_error(path + " is an adaptive (--target-error) render: each pixel stopped on its own error "
+      throw Refusal(path + " is an adaptive (--target-error) render: each pixel stopped on its own error "
                                       "rule, so it can be finished but not refined with --spp");
     a.target_error = number<float>(file, path, "tessera:targetError");
     a.min_spp = number<uint32_t>(file, path, "tessera:minSpp");
@@ -50,7 +52,7 @@ RenderArgs resumed_args(const RenderArgs& given, const ExrImage& file) {
   } else {
     const uint32_t stored = number<uint32_t>(file, path, "tessera:spp");
     if (given.spp && *given.spp < stored)
-      throw std::runtime_error(path + " was rendered at " + std::to_string(stored) + " spp; --spp " +
+      throw Refusal(path + " was rendered at " + std::to_string(stored) + " spp; --spp " +
                                std::to_string(*given.spp) + " cannot take samples away");
     a.spp = given.spp ? *given.spp : stored;
   }

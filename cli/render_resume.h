@@ -12,7 +12,7 @@
 namespace tessera::cli {
 
 /// `given` with the sampling settings of the render stored in `file` (seed, spp unless given, crop window,
-/// variance, replicates, adaptive settings, strategies). Throws std::runtime_error naming `given.resume` when the
+/// variance, replicates, adaptive settings, strategies). Throws Refusal (cli/exit_status.h) naming `given.resume` when the
 /// file lacks them, is not a render of this kind, or --spp asks for something that cannot be continued exactly.
 RenderArgs resumed_args(const RenderArgs& given, const ExrImage& file);
 

@@ -1,5 +1,6 @@
 #include "cli/serve_command.h"
 
+#include "cli/exit_status.h"
 #include "cli/token.h"
 
 #include "server/coordinator.h"
@@ -79,6 +80,7 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
 }
 
 int run_serve(const ServeArgs& a) {
+  bool started = false;  // before coordinator.run(), an error means the coordinator did not start: refused
   try {
     if (a.verbose) spdlog::set_level(spdlog::level::debug);
     server::CoordinatorOptions o;
@@ -127,11 +129,12 @@ int run_serve(const ServeArgs& a) {
                  t.complete() ? "client and worker" : t.client.empty() ? (t.worker.empty() ? "none" : "worker only") : "client only",
                  o.tls.client_ca_file.empty() ? "" : ", client certificates required");
     if (!a.ready_file.empty()) write_file_atomic(a.ready_file, bound + "\n", server::flush_for(o.durability));  // after the log lines above
+    started = true;
     coordinator.run();
-    return 0;
+    return kExitOk;
   } catch (const std::exception& e) {
     spdlog::error("serve: {}", e.what());
-    return 1;
+    return started ? kExitFailed : kExitRefused;
   }
 }
 

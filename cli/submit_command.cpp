@@ -1,5 +1,6 @@
 #include "cli/submit_command.h"
 
+#include "cli/exit_status.h"
 #include "cli/interrupt_guard.h"
 #include "cli/output_check.h"
 #include "cli/progress_bar.h"
@@ -51,7 +52,7 @@ int follow_job(farm::HttpClient& http, const std::string& job, const std::string
         std::fprintf(stderr, "stopped waiting: %s is still %s on the coordinator (tessera jobs wait %s -o FILE to fetch "
                      "it later, tessera jobs cancel %s to stop it)\n", job.c_str(), protocol::to_string(end.state),
                      job.c_str(), job.c_str());
-        return 130;
+        return kExitInterrupted;
       }
       spdlog::warn("interrupted: cancelling {}", job);
       try {
@@ -59,15 +60,15 @@ int follow_job(farm::HttpClient& http, const std::string& job, const std::string
       } catch (const std::exception& e) {
         spdlog::warn("cannot cancel {}: {}", job, e.what());
       }
-      return 1;
+      return kExitFailed;
     }
     if (end.state == protocol::JobState::failed) {
       spdlog::error("job {} failed: {}", job, end.error.value_or("(no reason given)"));
-      return 1;
+      return kExitFailed;
     }
     if (end.state == protocol::JobState::cancelled) {
       spdlog::error("job {} was cancelled", job);
-      return 1;
+      return kExitFailed;
     }
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     if (!output.empty()) {
@@ -79,10 +80,10 @@ int follow_job(farm::HttpClient& http, const std::string& job, const std::string
     } else if (!quiet) {
       std::fprintf(stderr, "%s done in %.2fs\n", job.c_str(), secs);
     }
-    return 0;
+    return kExitOk;
   } catch (const std::exception& e) {  // a refusal after the submission too (the job purged meanwhile): the wait failed
     spdlog::error("job {}: {}", job, e.what());
-    return 1;
+    return kExitFailed;
   }
 }
 
@@ -95,16 +96,16 @@ int submit_reporting(farm::HttpClient& http, const farm::SubmitOptions& o, bool 
     if (!quiet)
       std::fprintf(stderr, "submitted %s as %s (%d assets, %d uploaded)\n", o.scene.c_str(), job.c_str(),
                    sub.assets_total, sub.assets_uploaded);
-    return 0;
+    return kExitOk;
   } catch (const farm::SubmitError& e) {
     spdlog::error("{}", e.what());
-    return 2;
+    return kExitRefused;
   } catch (const SceneError& e) {
     spdlog::error("{}", e.what());
-    return 2;
+    return kExitRefused;
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());
-    return 1;
+    return kExitFailed;
   }
 }
 
@@ -118,7 +119,7 @@ int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& o, const 
 
 int run_submit(const SubmitArgs& a) {
   // Before submitting: a result that could not be saved would waste the farm's work.
-  if (!a.output.empty() && !output_writable(a.output)) return 2;
+  if (!a.output.empty() && !output_writable(a.output)) return kExitRefused;
   return run_with_coordinator(a.access, "submit", [&](farm::HttpClient& http) {
     farm::SubmitOptions o = shared_job_options(a);
     o.tile_size = a.tile_size;
@@ -129,7 +130,7 @@ int run_submit(const SubmitArgs& a) {
     if (a.detach) {
       const farm::SubmitResult sub = farm::submit_job(http, o);
       std::printf("%s\n", sub.job_id.c_str());
-      return 0;
+      return kExitOk;
     }
     const auto t0 = std::chrono::steady_clock::now();
     std::string job;

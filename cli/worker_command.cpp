@@ -1,5 +1,6 @@
 #include "cli/worker_command.h"
 
+#include "cli/exit_status.h"
 #include "cli/tls_flags.h"
 #include "cli/token.h"
 #include "core/file_io.h"
@@ -102,10 +103,10 @@ int run_worker_command(const WorkerArgs& a) {
     const auto ms = [](double s) { return std::chrono::milliseconds(int64_t(s * 1000)); };
     o.timeouts = farm::HttpTimeouts{ms(a.connect_timeout_seconds), ms(a.request_timeout_seconds), ms(a.request_timeout_seconds)};
     farm::run_worker(o, g_stop_requests);
-    return 0;
+    return kExitOk;
   } catch (const std::exception& e) {
     spdlog::error("worker: {}", e.what());
-    return 2;
+    return kExitRefused;
   }
 }
 

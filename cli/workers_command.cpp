@@ -1,5 +1,7 @@
 #include "cli/workers_command.h"
 
+#include "cli/exit_status.h"
+
 #include "client/http_client.h"
 #include "client/job_client.h"
 
@@ -43,7 +45,7 @@ CLI::App* add_workers_command(CLI::App& app, WorkersArgs& a) {
 int run_workers(const WorkersArgs& a) {
   if (a.action != "ls" && a.worker.empty()) {
     spdlog::error("workers {} needs a worker id", a.action);
-    return 2;
+    return kExitRefused;
   }
   return run_with_coordinator(a.access, "workers " + a.action, [&](farm::HttpClient& http) {
     if (a.action == "ls") {
@@ -52,7 +54,7 @@ int run_workers(const WorkersArgs& a) {
       const protocol::WorkerInfo w = farm::drain_worker(http, a.worker, a.action == "drain");
       std::printf("%s: %s\n", w.id.c_str(), protocol::to_string(w.state));
     }
-    return 0;
+    return kExitOk;
   });
 }
 

@@ -213,12 +213,37 @@ TEST_F(CliRender, WorkersRefuseStrict) {
   EXPECT_FALSE(fs::exists(file("w.exr")));
 }
 
+// One rule for exit statuses (cli/exit_status.h, README "Exit status"): whatever is refused before any work exits 2
+// and writes nothing, whether CLI11 or a command refused it; --help and --version exit 0.
+TEST_F(CliRender, EveryRefusalBeforeAnyWorkExitsTwo) {
+  const fs::path sc = scene();
+  write("broken.json", "{\"camera\": ");
+  write("not.exr", "not an EXR");
+  const std::vector<std::pair<std::vector<std::string>, std::string>> refused = {
+      {{sc.string(), "-o", f("o.exr"), "--no-such-flag"}, "render"},         // CLI11: unknown option
+      {{sc.string(), "-o", f("o.exr"), "--spp", "0"}, "render"},             // CLI11: out of range
+      {{sc.string()}, "render"},                                             // CLI11: -o missing
+      {{f("missing.json"), "-o", f("o.exr")}, "render"},                     // CLI11: no such file
+      {{f("broken.json"), "-o", f("o.exr")}, "render"},                      // the scene loader
+      {{sc.string(), "-o", f("o.exr"), "--resume", f("not.exr")}, "render"},  // the resume file
+      {{f("not.exr"), "-o", f("o.exr")}, "merge"},                           // a tile that is no EXR
+      {{"no-such-subcommand"}, ""},
+  };
+  for (const auto& [args, command] : refused) {
+    const CliRun r = tessera(args, command);
+    EXPECT_EQ(r.exit_code, 2) << command << " " << ::testing::PrintToString(args) << ": " << r.err;
+    EXPECT_FALSE(fs::exists(file("o.exr"))) << ::testing::PrintToString(args);
+  }
+  EXPECT_EQ(tessera({"--help"}).exit_code, 0);
+  EXPECT_EQ(tessera({"--version"}, "").exit_code, 0);
+}
+
 TEST_F(CliRender, BadInputFailsWithTheJsonPath) {
   json s = testing::minimal_scene();
   s["objects"][0]["radius"] = -1;
   write_scene("bad.json", s);
   CliRun r = tessera({f("bad.json"), "-o", f("bad.exr"), "-q"});
-  EXPECT_NE(r.exit_code, 0);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_NE(r.err.find("objects[0].radius"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(file("bad.exr")));
 
@@ -226,7 +251,7 @@ TEST_F(CliRender, BadInputFailsWithTheJsonPath) {
   s["integrator"]["type"] = "photon";
   write_scene("photon.json", s);
   r = tessera({f("photon.json"), "-o", f("photon.exr"), "-q"});
-  EXPECT_NE(r.exit_code, 0);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_NE(r.err.find("integrator.type"), std::string::npos) << r.err;
   r = tessera({f("photon.json"), "-o", f("photon.exr"), "-q", "--integrator", "direct"});
   EXPECT_EQ(r.exit_code, 0) << r.err;
@@ -244,11 +269,11 @@ TEST_F(CliRender, BadInputFailsWithTheJsonPath) {
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.err.find("objects[0].colour"), std::string::npos) << r.err;  // a warning
   r = tessera({f("unknown.json"), "-o", f("u.exr"), "-q", "--strict"});
-  EXPECT_NE(r.exit_code, 0);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_NE(r.err.find("objects[0].colour"), std::string::npos) << r.err;
 
   r = tessera({scene().string(), "-o", f("c.exr"), "-q", "--crop", "0", "0", "21", "5"});  // outside the 20 x 12 film
-  EXPECT_NE(r.exit_code, 0);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_NE(r.err.find("--crop"), std::string::npos) << r.err;
 }
 
@@ -373,16 +398,16 @@ TEST_F(CliRender, PartialRenderResumesBitwise) {
   EXPECT_FALSE(read_exr(file("part2.exr")).metadata.count("tessera:partial"));
   // A partial file cannot be refined (no exact sums), nor resumed against another scene or with other settings.
   r = tessera({sc.string(), "-o", f("x.exr"), "-q", "--resume", f("part.exr"), "--spp", "6"});
-  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_NE(r.err.find("--resumable"), std::string::npos) << r.err;
   r = tessera({sc.string(), "-o", f("x.exr"), "-q", "--resume", f("part.exr"), "--seed", "6"});
-  EXPECT_NE(r.exit_code, 0);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_NE(r.err.find("--seed excludes --resume"), std::string::npos) << r.err;
   json other = testing::minimal_scene();
   other["film"]["resolution"] = {20, 12};
   write_scene("other.json", other);
   r = tessera({f("other.json"), "-o", f("x.exr"), "-q", "--resume", f("part.exr")});
-  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_NE(r.err.find("another scene"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(file("x.exr")));
 }
@@ -397,15 +422,15 @@ TEST_F(CliRender, ResumableRenderRefinesBitwise) {
   expect_same_exr(file("4n.exr"), file("ref.exr"));
   EXPECT_EQ(read_exr(file("4n.exr")).metadata.at("tessera:spp"), "8");
   r = tessera({sc.string(), "-o", f("x.exr"), "-q", "--resume", f("4n.exr"), "--spp", "4"});
-  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_NE(r.err.find("cannot take samples away"), std::string::npos) << r.err;
   // A finished render without --resumable cannot be continued; an adaptive one cannot be refined.
   r = tessera({sc.string(), "-o", f("x.exr"), "-q", "--resume", f("ref.exr"), "--spp", "16"});
-  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_NE(r.err.find("tessera.samples"), std::string::npos) << r.err;
   ASSERT_EQ(tessera({sc.string(), "-o", f("a.exr"), "-q", "--target-error", "0.3", "--resumable"}).exit_code, 0);
   r = tessera({sc.string(), "-o", f("x.exr"), "-q", "--resume", f("a.exr"), "--spp", "64"});
-  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_NE(r.err.find("adaptive"), std::string::npos) << r.err;
 }
 

@@ -20,11 +20,11 @@ R -o "$WORK/other-seed.exr" --crop 12 8 18 12 --seed 7
 log_has "$WORK/merge-ident.log" "100 overlapping pixels, identical" || fail "overlap not reported"
 "$EXR_COMPARE" "$WORK/full.exr" "$WORK/m2.exr" || fail "merge with identical overlap differs"
 
-expect_exit 1 "$WORK/merge-gap.log" -- "$TESSERA" merge "$WORK/a.exr" "$WORK/c.exr" -o "$WORK/gap.exr"
+expect_exit 2 "$WORK/merge-gap.log" -- "$TESSERA" merge "$WORK/a.exr" "$WORK/c.exr" -o "$WORK/gap.exr"
 log_has "$WORK/merge-gap.log" 'pixels covered by no tile: \[16,30\) x \[0,10\) \(140 pixels\)' || fail "gap message"
 [ ! -e "$WORK/gap.exr" ] || fail "output written despite the error"
 
-expect_exit 1 "$WORK/merge-conflict.log" -- "$TESSERA" merge "$WORK/a.exr" "$WORK/b.exr" "$WORK/c.exr" \
+expect_exit 2 "$WORK/merge-conflict.log" -- "$TESSERA" merge "$WORK/a.exr" "$WORK/b.exr" "$WORK/c.exr" \
   "$WORK/other-seed.exr" -o "$WORK/conflict.exr"
 log_has "$WORK/merge-conflict.log" "conflicting overlap of $WORK/a.exr and $WORK/other-seed.exr \(different values\): \[12,16\) x \[8,12\)" \
   || fail "conflict message (a)"

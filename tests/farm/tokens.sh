@@ -11,7 +11,7 @@ CLIENT_TOKEN=$(cat "$WORK/client.token")
 WORKER_TOKEN=$(cat "$WORK/worker.token")
 
 # Beyond loopback without tokens: refused with the reason.
-expect_exit 1 "$WORK/open.log" -- "$TESSERA" serve --listen 0.0.0.0:0 --data "$WORK/data-open"
+expect_exit 2 "$WORK/open.log" -- "$TESSERA" serve --listen 0.0.0.0:0 --data "$WORK/data-open"
 log_has "$WORK/open.log" "without access tokens" || fail "no reason given for refusing 0.0.0.0"
 
 LISTEN=0.0.0.0:0 start_serve --client-token-file "$WORK/client.token" --worker-token-file "$WORK/worker.token"

@@ -26,11 +26,11 @@ probe() {
 }
 
 # 0. Half a TLS setup is refused at start, never served as plain HTTP.
-expect_exit 1 "$WORK/half1.log" -- "$TESSERA" serve --listen 127.0.0.1:0 --data "$WORK/d0" --tls-client-ca "$T/ca.pem"
+expect_exit 2 "$WORK/half1.log" -- "$TESSERA" serve --listen 127.0.0.1:0 --data "$WORK/d0" --tls-client-ca "$T/ca.pem"
 log_has "$WORK/half1.log" "--tls-client-ca needs --tls-cert and --tls-key" || fail "a client CA without a certificate was accepted"
-expect_exit 1 "$WORK/half2.log" -- "$TESSERA" serve --listen 127.0.0.1:0 --data "$WORK/d0" --tls-key "$T/server.key"
+expect_exit 2 "$WORK/half2.log" -- "$TESSERA" serve --listen 127.0.0.1:0 --data "$WORK/d0" --tls-key "$T/server.key"
 log_has "$WORK/half2.log" "needs both --tls-cert and --tls-key" || fail "a key without a certificate was accepted"
-expect_exit 1 "$WORK/half3.log" -- "$TESSERA" serve --listen 127.0.0.1:0 --data "$WORK/d0" --tls-cert "$T/server.pem" \
+expect_exit 2 "$WORK/half3.log" -- "$TESSERA" serve --listen 127.0.0.1:0 --data "$WORK/d0" --tls-cert "$T/server.pem" \
   --tls-key "$T/client.key"
 log_has "$WORK/half3.log" "cannot use TLS key.*mismatch" || fail "a key of another certificate was accepted"
 
