@@ -20,6 +20,7 @@ inline std::string format_duration(double s) {
 }
 
 /// A one-line progress bar on a terminal; on a pipe, a line at every 10% instead. Ray rates are shown when known.
+/// The ETA is shown once a tile is done ("ETA -" before), and the last line gives the elapsed time instead.
 class ProgressBar {
  public:
   /// A bar that prints nothing unless enabled.
@@ -28,25 +29,34 @@ class ProgressBar {
   void update(const RenderProgress& p) {
     if (!enabled_ || p.tiles_total == 0) return;
     const double frac = double(p.tiles_done) / p.tiles_total;
-    const double eta = frac > 0 ? p.seconds * (1 - frac) / frac : 0;
+    const bool done = p.tiles_done == p.tiles_total;
     char rate[48] = "";
     if (p.rays > 0 && p.seconds > 0) std::snprintf(rate, sizeof rate, "  %.1f Mrays/s", double(p.rays) / p.seconds * 1e-6);
+    const std::string time = done       ? "in " + format_duration(p.seconds)
+                             : frac > 0 ? "ETA " + format_duration(p.seconds * (1 - frac) / frac)
+                                        : std::string("ETA -");
     if (tty_) {
       constexpr int kWidth = 30;
       const int filled = int(frac * kWidth);
-      std::fprintf(stderr, "\r[%.*s%*s] %d/%d tiles%s  ETA %s   ", filled, "##############################",
-                   kWidth - filled, "", p.tiles_done, p.tiles_total, rate, format_duration(eta).c_str());
-      if (p.tiles_done == p.tiles_total) std::fputc('\n', stderr);
-    } else if (int(frac * 10) > last_decile_ || p.tiles_done == p.tiles_total) {
+      std::fprintf(stderr, "\r[%.*s%*s] %d/%d tiles%s  %s   ", filled, "##############################",
+                   kWidth - filled, "", p.tiles_done, p.tiles_total, rate, time.c_str());
+      if (done) std::fputc('\n', stderr);
+      return;
+    }
+    // On a pipe: a line per decile, and the last one again only if it has news (the rate, known at the end).
+    char line[160];
+    std::snprintf(line, sizeof line, "%3d%%  %d/%d tiles%s", int(frac * 100), p.tiles_done, p.tiles_total, rate);
+    if (int(frac * 10) > last_decile_ || (done && line != last_line_)) {
       last_decile_ = int(frac * 10);
-      std::fprintf(stderr, "%3d%%  %d/%d tiles%s  ETA %s\n", int(frac * 100), p.tiles_done, p.tiles_total, rate,
-                   format_duration(eta).c_str());
+      last_line_ = line;
+      std::fprintf(stderr, "%s  %s\n", line, time.c_str());
     }
   }
 
  private:
   bool enabled_, tty_;
   int last_decile_ = -1;
+  std::string last_line_;  // the last line printed on a pipe, without its time
 };
 
 }  // namespace tessera::cli

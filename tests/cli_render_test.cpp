@@ -161,9 +161,12 @@ TEST_F(CliRender, HalfVarianceAndPreview) {
 TEST_F(CliRender, ProgressReportsTilesRaysAndEta) {
   const CliRun r = tessera({scene().string(), "-o", f("p.exr"), "--tile", "4"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  // On a pipe the bar prints a line per 10%: the last one has every tile.
-  EXPECT_NE(r.err.find("100%  15/15 tiles"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("ETA"), std::string::npos) << r.err;
+  // On a pipe the bar prints a line per 10% with an ETA; the last one, once, has every tile and the time taken.
+  const size_t last = r.err.find("100%  15/15 tiles");
+  ASSERT_NE(last, std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("100%", last + 1), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(" Mrays/s  in ", last), std::string::npos) << r.err;
+  EXPECT_LT(r.err.find("ETA "), last) << r.err;
 }
 
 // --timing accounts for the wall time: its parts add up, and the idle thread time lies within the threads' time.
