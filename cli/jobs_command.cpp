@@ -27,12 +27,18 @@ void print_table(const std::vector<protocol::JobStatus>& jobs) {
   }
 }
 
-// One line per tile (index, state, worker, attempts, render seconds, rays, failing workers), then each failure with the
-// log lines its worker sent.
+// "id (name)", or the id when the name is unknown, or "-".
+std::string worker_text(const std::optional<std::string>& id, const std::optional<std::string>& name) {
+  if (!id) return "-";
+  return *id + (name && !name->empty() ? " (" + *name + ")" : "");
+}
+
+// One line per tile (index, state, its worker: the lease holder's, or for a done tile the one that rendered it,
+// attempts, render seconds, rays, failing workers), then each failure with the log lines its worker sent.
 void print_tiles(const protocol::TileList& list) {
   std::printf("%6s %-8s %-24s %8s %9s %14s %8s\n", "TILE", "STATE", "WORKER", "ATTEMPTS", "SECONDS", "RAYS", "FAILURES");
   for (const protocol::TileInfo& t : list.tiles) {
-    const std::string worker = t.worker ? *t.worker + (t.worker_name && !t.worker_name->empty() ? " (" + *t.worker_name + ")" : "") : "-";
+    const std::string worker = t.worker ? worker_text(t.worker, t.worker_name) : worker_text(t.rendered_by, t.rendered_by_name);
     char seconds[32] = "-";
     if (t.render_seconds) std::snprintf(seconds, sizeof seconds, "%.3f", *t.render_seconds);
     std::printf("%6lld %-8s %-24s %8lld %9s %14llu %8zu\n", static_cast<long long>(t.index), t.state.c_str(),

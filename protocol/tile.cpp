@@ -29,6 +29,8 @@ void to_json(json& j, const TileInfo& t) {
        {"attempts", t.attempts},
        {"render_seconds", optional_json(t.render_seconds)},
        {"rays", t.rays},
+       {"rendered_by", optional_json(t.rendered_by)},
+       {"rendered_by_name", optional_json(t.rendered_by_name)},
        {"failures", t.failures}};
 }
 
@@ -47,6 +49,10 @@ void from_json(const json& j, TileInfo& t) {
   if (j.contains("render_seconds") && !j["render_seconds"].is_null())
     t.render_seconds = answer_field<double>(j, "render_seconds", kMsg);
   t.rays = answer_field_or<uint64_t>(j, "rays", kMsg, 0);
+  if (j.contains("rendered_by") && !j["rendered_by"].is_null())
+    t.rendered_by = answer_field<std::string>(j, "rendered_by", kMsg);
+  if (j.contains("rendered_by_name") && !j["rendered_by_name"].is_null())
+    t.rendered_by_name = answer_field<std::string>(j, "rendered_by_name", kMsg);
   t.failures = answer_field_or<std::vector<TileFailure>>(j, "failures", kMsg, {});
 }
 

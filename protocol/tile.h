@@ -34,6 +34,8 @@ struct TileInfo {
   int64_t attempts = 0;                      ///< Leases granted for it.
   std::optional<double> render_seconds;      ///< Lease grant to upload of the accepted result (done tiles).
   uint64_t rays = 0;                         ///< Rays the accepted result's worker reported (done tiles).
+  std::optional<std::string> rendered_by;    ///< The worker whose result was accepted (done tiles).
+  std::optional<std::string> rendered_by_name;  ///< That worker's name ("" once the coordinator forgot it).
   std::vector<TileFailure> failures;         ///< Each failing worker's latest failure, by worker id.
 };
 

@@ -84,6 +84,7 @@ constexpr AddedColumn kAddedColumns[] = {
     {"tiles", "render_ms", "INTEGER NOT NULL DEFAULT -1"},
     {"tiles", "rays", "INTEGER NOT NULL DEFAULT 0"},
     {"tiles", "logs", "TEXT NOT NULL DEFAULT '{}'"},
+    {"tiles", "rendered_by", "TEXT NOT NULL DEFAULT ''"},
     {"leases", "granted_ms", "INTEGER NOT NULL DEFAULT 0"},
     {"jobs", "tile_timeout_s", "INTEGER NOT NULL DEFAULT 3600"},
     {"workers", "drained", "INTEGER NOT NULL DEFAULT 0"},
@@ -370,19 +371,19 @@ void DurableStore::apply(const SchedulerChanges& c) {
     const std::string logs = json(r.logs).dump();
     Statement& up = db_.statement(
         "UPDATE tiles SET state = ?, lease = ?, failures = ?, pixels = coalesce(?, pixels), attempts = ?, render_ms = ?,"
-        " rays = ?, logs = ? WHERE job = ? AND idx = ?");
+        " rays = ?, logs = ?, rendered_by = ? WHERE job = ? AND idx = ?");
     up.bind_text(1, to_string(r.state)).bind_text(2, r.lease).bind_text(3, failures);
     if (r.pixels) up.bind_blob_uncopied(4, *r.pixels);  // the tile's bytes outlive this change
     up.bind(5, r.attempts).bind(6, r.render_ms).bind(7, int64_t(r.rays)).bind_text(8, logs);
-    up.bind_text(9, r.job).bind(10, r.index);
+    up.bind_text(9, r.rendered_by).bind_text(10, r.job).bind(11, r.index);
     up.run();
     if (db_.changes() > 0) continue;
     Statement& ins = db_.statement(
-        "INSERT INTO tiles(job, idx, state, lease, failures, pixels, attempts, render_ms, rays, logs)"
-        " VALUES(?,?,?,?,?,?,?,?,?,?)");
+        "INSERT INTO tiles(job, idx, state, lease, failures, pixels, attempts, render_ms, rays, logs, rendered_by)"
+        " VALUES(?,?,?,?,?,?,?,?,?,?,?)");
     ins.bind_text(1, r.job).bind(2, r.index).bind_text(3, to_string(r.state)).bind_text(4, r.lease).bind_text(5, failures);
     if (r.pixels) ins.bind_blob_uncopied(6, *r.pixels);
-    ins.bind(7, r.attempts).bind(8, r.render_ms).bind(9, int64_t(r.rays)).bind_text(10, logs);
+    ins.bind(7, r.attempts).bind(8, r.render_ms).bind(9, int64_t(r.rays)).bind_text(10, logs).bind_text(11, r.rendered_by);
     ins.run();
   }
   for (const LeaseRow& r : c.leases) {
@@ -500,7 +501,7 @@ SchedulerSnapshot DurableStore::load() {
     }
   }
   {
-    Statement& st = db_.statement("SELECT job, idx, state, lease, failures, attempts, render_ms, rays, logs FROM tiles");
+    Statement& st = db_.statement("SELECT job, idx, state, lease, failures, attempts, render_ms, rays, logs, rendered_by FROM tiles");
     while (st.step()) {
       TileRow r;
       r.job = st.text(0);
@@ -516,6 +517,7 @@ SchedulerSnapshot DurableStore::load() {
       r.render_ms = st.integer(6);
       r.rays = uint64_t(st.integer(7));
       r.logs = json_map<std::vector<std::string>>(st.text(8), "tile failure logs");
+      r.rendered_by = st.text(9);
       snap.tiles.push_back(std::move(r));
     }
   }

@@ -212,6 +212,7 @@ TEST_F(DatabaseTest, TileDetailsSurviveARestart) {
   ASSERT_TRUE(t0.render_seconds);
   EXPECT_DOUBLE_EQ(*t0.render_seconds, 2.0);
   EXPECT_EQ(t0.rays, 100u);
+  EXPECT_EQ(t0.rendered_by, w);
   ASSERT_EQ(t0.failures.size(), 1u);
   EXPECT_EQ(t0.failures[0].log, std::vector<std::string>{"a log line"});
   EXPECT_EQ(tiles->tiles[1].attempts, 1);
@@ -351,7 +352,7 @@ TEST_F(DatabaseTest, ABatchIsStoredWhollyOrNotAtAll) {
   row.status.state = JobState::failed;
   SchedulerChanges c;
   c.jobs.push_back(row);
-  c.tiles.push_back(TileRow{j, 0, TileState::done, "", {}, std::nullopt, {}, 0, -1, 0});  // done without pixels
+  c.tiles.push_back(TileRow{j, 0, TileState::done, "", {}, std::nullopt, {}, 0, -1, 0, ""});  // done without pixels
   EXPECT_THROW(store->apply(c), StorageError);
   reopen();
   EXPECT_EQ(sched->job(j)->state, JobState::queued);

@@ -172,7 +172,8 @@ void Scheduler::flush_locked() {
     const auto it = jobs_.find(key.first);
     if (it == jobs_.end()) continue;
     const Tile& t = it->second->tiles[size_t(key.second)];
-    TileRow row{key.first, key.second, t.state, t.lease, t.failures, std::nullopt, t.logs, t.attempts, t.render_ms, t.rays};
+    TileRow row{key.first, key.second, t.state, t.lease, t.failures, std::nullopt, t.logs, t.attempts, t.render_ms, t.rays,
+                t.rendered_by};
     if (pixels && pixels->first == key && !pixels->second.empty()) row.pixels = pixels->second;
     c.tiles.push_back(std::move(row));
   }
@@ -235,6 +236,7 @@ void Scheduler::restore_locked(SchedulerSnapshot snap, int64_t now) {
     t.attempts = row.attempts;
     t.render_ms = row.render_ms;
     t.rays = row.rays;
+    t.rendered_by = std::move(row.rendered_by);
   }
   for (LeaseRow& row : snap.leases) {
     const auto jt = jobs_.find(row.lease.job);
@@ -355,6 +357,10 @@ std::optional<protocol::TileList> Scheduler::tiles(const std::string& job) {
       if (l != leases_.end()) {
         v.worker = l->second.lease.worker;
         v.worker_name = name_of(*v.worker);
+      }
+      if (t.state == TileState::done && !t.rendered_by.empty()) {
+        v.rendered_by = t.rendered_by;
+        v.rendered_by_name = name_of(t.rendered_by);
       }
       for (const auto& [worker, error] : t.failures) {
         const auto log = t.logs.find(worker);
@@ -720,6 +726,7 @@ FinishResult Scheduler::finish_result_locked(const std::string& lease, uint64_t 
     t.lease.clear();
     t.render_ms = std::max<int64_t>(0, now - it->second.granted_ms);
     t.rays = it->second.rays + rays;
+    t.rendered_by = it->second.lease.worker;
     ++j.status.tiles.done;
     ++tiles_rendered_;
     j.status.rays += rays;
@@ -915,6 +922,7 @@ RequeueResult Scheduler::requeue(const std::string& job, int64_t tile) {
       }
       t.render_ms = -1;
       t.rays = 0;
+      t.rendered_by.clear();
       touch_job(j);
     }
     t.failures.clear();

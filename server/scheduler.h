@@ -206,6 +206,7 @@ struct TileRow {
   int64_t attempts = 0;                           ///< Leases granted for it.
   int64_t render_ms = -1;                         ///< Lease grant to upload of the accepted result (-1: none yet).
   uint64_t rays = 0;                              ///< Rays of the accepted result's lease.
+  std::string rendered_by;                        ///< The worker whose result was accepted ("" until done).
 };
 
 /// A lease as the store keeps it.
@@ -405,6 +406,7 @@ class Scheduler {
     int64_t attempts = 0;                            // leases granted
     int64_t render_ms = -1;                          // grant to upload of the accepted result
     uint64_t rays = 0;                               // rays of the accepted result's lease
+    std::string rendered_by;                         // the worker whose result was accepted
     bool unflushed = false;                          // done and committed, its flush not returned yet
   };
   struct JobRec {

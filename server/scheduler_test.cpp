@@ -737,6 +737,8 @@ TEST_F(SchedulerTest, TileDetailsCountAttemptsTimeRaysAndFailuresWithTheirLogLin
   EXPECT_DOUBLE_EQ(*t0.render_seconds, 2.5);  // the accepted lease's grant to its upload
   EXPECT_EQ(t0.rays, 310u);
   EXPECT_FALSE(t0.worker);
+  EXPECT_EQ(t0.rendered_by, b);  // the worker whose result was accepted, not the one that failed
+  EXPECT_EQ(t0.rendered_by_name, "beta");
   ASSERT_EQ(t0.failures.size(), 1u);
   EXPECT_EQ(t0.failures[0].worker, a);
   EXPECT_EQ(t0.failures[0].worker_name, "alpha");
@@ -748,6 +750,7 @@ TEST_F(SchedulerTest, TileDetailsCountAttemptsTimeRaysAndFailuresWithTheirLogLin
   EXPECT_EQ(t1.worker_name, "beta");
   EXPECT_EQ(t1.attempts, 1);
   EXPECT_FALSE(t1.render_seconds);
+  EXPECT_FALSE(t1.rendered_by);
   EXPECT_EQ(tiles->tiles[3].attempts, 0);
   EXPECT_EQ(tiles->tiles[3].state, "pending");
   EXPECT_FALSE(s.tiles("j-nobody"));
@@ -770,6 +773,7 @@ TEST_F(SchedulerTest, RequeueRendersADoneOrLeasedTileAgainAndRefusesOtherStates)
   EXPECT_EQ(done.status, RequeueResult::requeued);
   EXPECT_EQ(done.was, TileState::done);
   EXPECT_EQ(s.job(j)->tiles.done, 0);
+  EXPECT_FALSE(s.tiles(j)->tiles[0].rendered_by);  // no longer rendered by anyone
   const RequeueResult leased = s.requeue(j, 1);
   EXPECT_EQ(leased.status, RequeueResult::requeued);
   EXPECT_TRUE(leased.revoked);

@@ -25,6 +25,9 @@ function confirmButton(label, confirmLabel, action, cls) {
 }
 
 /** The file name a job's result is saved under: its name (or id), reduced to safe characters, with .exr. */
+// A worker as the page names it: "name (id)", or the id when it has no name.
+function workerText(id, name) { return name ? `${name} (${id})` : id; }
+
 function exrName(job) {
   const base = String(job.name || job.id).replace(/[^A-Za-z0-9._-]+/g, '_').replace(/^[._]+/, '').slice(0, 100);
   return (base || 'tessera-' + job.id) + '.exr';
@@ -192,7 +195,9 @@ export function mount(host, ctx) {
     const rows = [
       ['State', t.state],
       ['Pixels', `[${x0}, ${x1}) × [${y0}, ${y1})`],
-      ['Worker', t.worker ? `${t.worker_name || ''} (${t.worker})` : '–'],
+      t.state === 'done'
+        ? ['Rendered by', t.rendered_by ? workerText(t.rendered_by, t.rendered_by_name) : '–']
+        : ['Worker', t.worker ? workerText(t.worker, t.worker_name) : '–'],
       ['Attempts', String(t.attempts ?? 0)],
       ['Render time', t.render_seconds == null ? '–' : `${t.render_seconds.toFixed(2)} s`],
       ['Rays', t.rays ? t.rays.toLocaleString('en-US') : '–'],
@@ -208,7 +213,7 @@ export function mount(host, ctx) {
       failures.length
         ? el('div', { class: 'tile-failures' }, el('h4', { text: 'Failures' }),
             ...failures.map((f) => el('div', { class: 'tile-failure' },
-              el('p', { class: 'failure-head', text: `${f.worker_name ? f.worker_name + ' ' : ''}(${f.worker}): ${f.error}` }),
+              el('p', { class: 'failure-head', text: `${workerText(f.worker, f.worker_name)}: ${f.error}` }),
               (f.log || []).length ? el('pre', { class: 'log', text: f.log.join('\n') }) : el('p', { class: 'sub', text: 'No log lines sent.' }))))
         : el('p', { class: 'sub', text: 'No failures on this tile.' }),
     ].filter(Boolean));
@@ -285,13 +290,14 @@ export function mount(host, ctx) {
         if (!t) return false;
         const was = t.state;
         if (type === 'tile_leased') {
-          Object.assign(t, { state: 'leased', worker: d.worker, worker_name: null, attempts: (t.attempts || 0) + 1 });
+          Object.assign(t, { state: 'leased', worker: d.worker, worker_name: null, rendered_by: null, attempts: (t.attempts || 0) + 1 });
         } else if (type === 'tile_done') {
-          Object.assign(t, { state: 'done', worker: null, worker_name: null });
+          const name = t.worker === d.worker ? t.worker_name : null;
+          Object.assign(t, { state: 'done', worker: null, worker_name: null, rendered_by: d.worker, rendered_by_name: name });
           // Tiles the map turned done from events (the browser test reads it).
           map.grid.dataset.eventTilesDone = String(Number(map.grid.dataset.eventTilesDone || 0) + 1);
         } else {
-          Object.assign(t, { state: 'pending', worker: null, worker_name: null });
+          Object.assign(t, { state: 'pending', worker: null, worker_name: null, rendered_by: null });
           if (Array.isArray(t.failures)) t.failures.push({ worker: d.worker, error: d.error || '' });
           else t.failures = { ...(t.failures || {}), [d.worker]: d.error || '' };
         }

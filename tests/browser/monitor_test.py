@@ -330,8 +330,9 @@ def main():
         click(d, '#tilemap .tile[data-state="leased"]', "a leased tile")
         wait_for("the tile details", lambda: "holder" in d.find_element(By.ID, "tile-detail").text)
         click(d, '#tilemap .tile[data-state="done"]', "a done tile")
-        wait_for("a done tile's details from GET /v1/jobs/{id}/tiles", lambda: all(
-            w in d.find_element(By.ID, "tile-detail").text for w in ("Attempts", "Render time", "Rays", "No failures")))
+        wait_for("a done tile's details from GET /v1/jobs/{id}/tiles, with the worker that rendered it", lambda: all(
+            w in d.find_element(By.ID, "tile-detail").text
+            for w in ("Attempts", "Render time", "Rays", "No failures", "Rendered by", "render-1 (w-")))
         d.save_screenshot(os.path.join(ARTEFACTS, "monitor-job-mid-render.png"))
 
         if ep["pause"] and ep["resume"]:

@@ -29,7 +29,8 @@ log_has "$WORK/tiles-failed.txt" "^  \\| .*cannot render the tile: fail point wo
   || fail "the tile table does not show the log lines the worker sent"
 DONE_BEFORE=$(grep -cE '^ +[0-9]+ done ' "$WORK/tiles-failed.txt" || true)
 [ "$DONE_BEFORE" -le 6 ] || fail "$DONE_BEFORE tiles done before the failure"
-grep -E '^ +[0-9]+ done ' "$WORK/tiles-failed.txt" | awk '{print $1, $4}' >"$WORK/done-before.txt"
+# Each done tile's index and attempts (counted from the end: the worker column is "id (name)", two words).
+grep -E '^ +[0-9]+ done ' "$WORK/tiles-failed.txt" | awk '{print $1, $(NF - 3)}' >"$WORK/done-before.txt"
 
 # Restart the coordinator on the same data and port, without fail points anywhere.
 kill -TERM "$SERVE_PID"
