@@ -5,6 +5,7 @@
 #include "core/exr_layout.h"
 #include "core/exr_uncompressed.h"
 #include "core/file_io.h"
+#include "core/zeroed_buffer.h"
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfDoubleAttribute.h>
@@ -494,7 +495,7 @@ Image Image::make(int width, int height) {
   Image img;
   img.width = width;
   img.height = height;
-  img.rgb.assign(3 * size_t(width) * size_t(height), 0.f);
+  assign_zeroed(img.rgb, 3 * size_t(width) * size_t(height));
   return img;
 }
 

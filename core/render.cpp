@@ -1,6 +1,7 @@
 #include "core/render.h"
 
 #include "core/path_integrator.h"
+#include "core/zeroed_buffer.h"
 
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/global_control.h>
@@ -151,15 +152,15 @@ RenderResult render(const Scene& scene, const RenderOptions& opt) {
   const size_t npix = size_t(w.width()) * size_t(w.height());
   res.image = Image::make(w.width(), w.height());
   res.state.replicates = k;
-  res.state.samples.assign(npix, 0U);
-  if (opt.keep_state) res.state.sums.assign(npix * PixelAccumulator::state_size(k), 0.0);
+  assign_zeroed(res.state.samples, npix);
+  if (opt.keep_state) assign_zeroed(res.state.sums, npix * PixelAccumulator::state_size(k));
   // Channel pointers taken once: threads write disjoint pixels and never touch the maps themselves.
   float* var_ch[4] = {nullptr, nullptr, nullptr, nullptr};
   const float* prev_var_ch[4] = {nullptr, nullptr, nullptr, nullptr};
   if (opt.variance) {
     for (int c = 0; c < 4; ++c) {
       std::vector<float>& ch = res.image.extra[kVarianceChannels[c]];
-      ch.assign(npix, 0.f);
+      assign_zeroed(ch, npix);
       var_ch[c] = ch.data();
       if (prev) prev_var_ch[c] = prev->image.extra.at(kVarianceChannels[c]).data();
     }
