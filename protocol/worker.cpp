@@ -34,6 +34,8 @@ void to_json(json& j, const WorkerInfo& w) {
        {"tile", w.tile ? json(*w.tile) : json(nullptr)},
        {"threads", w.threads},
        {"tiles_done", w.tiles_done},
+       {"rays", w.rays},
+       {"render_seconds", w.render_seconds},
        {"last_seen_ms", w.last_seen_ms},
        {"blocklisted_for", w.blocklisted_for}};
 }
@@ -52,6 +54,8 @@ void from_json(const json& j, WorkerInfo& w) {
   if (j.contains("tile") && !j["tile"].is_null()) w.tile = answer_field<int64_t>(j, "tile", kMsg);
   w.threads = answer_field_or<int64_t>(j, "threads", kMsg, 0);
   w.tiles_done = answer_field_or<int64_t>(j, "tiles_done", kMsg, 0);
+  w.rays = answer_field_or<uint64_t>(j, "rays", kMsg, 0);
+  w.render_seconds = answer_field_or<double>(j, "render_seconds", kMsg, 0.0);
   w.last_seen_ms = answer_field_or<int64_t>(j, "last_seen_ms", kMsg, 0);
   w.blocklisted_for = answer_field_or<std::vector<std::string>>(j, "blocklisted_for", kMsg, {});
 }

@@ -32,6 +32,8 @@ struct WorkerInfo {
   std::optional<int64_t> tile;               ///< The tile it renders, if any.
   int64_t threads = 0;                       ///< Render threads it announced (0: unknown).
   int64_t tiles_done = 0;                    ///< Tiles of it the coordinator accepted.
+  uint64_t rays = 0;                         ///< Rays of those tiles.
+  double render_seconds = 0;                 ///< Their render times (lease grant to acceptance), summed.
   int64_t last_seen_ms = 0;                  ///< Last request from it (Unix ms).
   std::vector<std::string> blocklisted_for;  ///< Unfinished jobs it failed too often to be given tiles of.
 };

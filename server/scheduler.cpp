@@ -490,6 +490,8 @@ protocol::WorkerInfo Scheduler::worker_info_locked(const std::string& id, const 
   info.name = w.name;
   info.threads = w.threads;
   info.tiles_done = w.tiles_done;
+  info.rays = w.rays;
+  info.render_seconds = double(w.render_ms) / 1000.0;
   info.last_seen_ms = w.last_seen_ms;
   if (holding) {
     info.job = holding->job;
@@ -733,7 +735,13 @@ FinishResult Scheduler::finish_result_locked(const std::string& lease, uint64_t 
     rays_ += rays;
     const std::string& w = it->second.lease.worker;
     const auto wr = workers_.find(w);
-    if (wr != workers_.end()) ++wr->second.tiles_done;
+    const uint64_t t_rays = t.rays;
+    const int64_t t_render_ms = t.render_ms;
+    if (wr != workers_.end()) {
+      ++wr->second.tiles_done;
+      wr->second.rays += t_rays;
+      wr->second.render_ms += t_render_ms;
+    }
     const bool new_worker = j.worker_set.insert(w).second;
     if (new_worker) {
       new_job_workers_.push_back(JobWorkerRow{j.status.id, int64_t(j.status.workers.size()), w});
@@ -756,7 +764,11 @@ FinishResult Scheduler::finish_result_locked(const std::string& lease, uint64_t 
       }
       rays_ = rays_before;
       tiles_rendered_ = rendered_before;
-      if (wr != workers_.end()) --wr->second.tiles_done;
+      if (wr != workers_.end()) {
+        --wr->second.tiles_done;
+        wr->second.rays -= t_rays;
+        wr->second.render_ms -= t_render_ms;
+      }
       throw;
     }
     // Done and committed, but shown as being merged until the flush that makes it durable has returned.

@@ -431,6 +431,8 @@ class Scheduler {
     int64_t last_seen_ms = 0;  // register, lease request, heartbeat, upload or failure report
     int64_t threads = 0;       // announced at registration (0: unknown, e.g. after a restart)
     int64_t tiles_done = 0;    // accepted uploads since this coordinator started
+    uint64_t rays = 0;         // rays of those tiles
+    int64_t render_ms = 0;     // their render times (lease grant to acceptance), summed
     bool drained = false;      // no new leases
   };
   using QueueKey = std::tuple<int, int64_t, uint64_t>;  // (-priority, created_ms, seq)

@@ -670,11 +670,16 @@ TEST_F(SchedulerTest, WorkerListShowsStateLeaseTilesAndBlocklists) {
   EXPECT_EQ(ws[0].state, protocol::WorkerState::rendering);
   EXPECT_EQ(ws[0].job, j);
   EXPECT_EQ(ws[0].tile, l.tile);
+  EXPECT_EQ(ws[0].rays, 0u);
+  now += 2'000;
   EXPECT_EQ(upload(l.id), ResultClaim::proceed);
   EXPECT_FALSE(s.fail(lease(b).id, "boom 1").job_failed);
   EXPECT_FALSE(s.fail(lease(b).id, "boom 2").job_failed);  // b is now blocklisted for j
   ws = s.workers();
   EXPECT_EQ(ws[0].tiles_done, 1);
+  EXPECT_EQ(ws[0].rays, 10u);  // the upload's (upload() sends 10)
+  EXPECT_DOUBLE_EQ(ws[0].render_seconds, 2.0);
+  EXPECT_EQ(ws[1].rays, 0u);  // failed tiles count for nothing
   EXPECT_EQ(ws[0].state, protocol::WorkerState::idle);
   EXPECT_EQ(ws[0].last_seen_ms, now);
   EXPECT_EQ(ws[1].blocklisted_for, std::vector<std::string>{j});

@@ -1,6 +1,6 @@
-// Workers: state, current tile, threads, tiles done, last seen, blocklists, and drain/undrain.
+// Workers: state, current tile, threads, tiles done and their rate, last seen, blocklists, and drain/undrain.
 import * as api from './api.js';
-import { el, badge, ago } from './format.js';
+import { el, badge, ago, mrays } from './format.js';
 import { workerColor } from './tilemap.js';
 
 export function mount(host, ctx) {
@@ -15,7 +15,7 @@ export function mount(host, ctx) {
     return { async refresh() {} };
   }
   host.append(el('div', { class: 'card' }, el('table', { class: 'workers', id: 'workers-table' },
-    el('thead', {}, el('tr', {}, ['Worker', 'State', 'Current tile', 'Threads', 'Tiles done', 'Last seen', 'Blocklisted for', '']
+    el('thead', {}, el('tr', {}, ['Worker', 'State', 'Current tile', 'Threads', 'Tiles done', 'Mrays/s', 'Last seen', 'Blocklisted for', '']
       .map((h) => el('th', { text: h })))),
     tbody)));
 
@@ -52,6 +52,8 @@ export function mount(host, ctx) {
       el('td', {}, job ? el('a', { href: '#/jobs/' + encodeURIComponent(job), text: `${job} #${tile ?? '?'}` }) : '–'),
       el('td', { class: 'num', text: w.threads ? String(w.threads) : '–' }),
       el('td', { class: 'num', text: String(w.tiles_done ?? '–') }),
+      // Its rate over the tiles it rendered: their rays over their render times (lease grant to acceptance).
+      el('td', { class: 'num rate', text: mrays(w.rays && w.render_seconds > 0 ? w.rays / w.render_seconds / 1e6 : null) }),
       el('td', { text: ago(w.last_seen_ms) }),
       el('td', { class: 'sub', text: blocked.length ? blocked.join(', ') : '–' }),
       el('td', {}, button));
@@ -62,7 +64,7 @@ export function mount(host, ctx) {
       const body = await api.call('GET', '/v1/workers');
       const list = Array.isArray(body) ? body : body.workers || [];
       tbody.replaceChildren(...list.map(row));
-      if (!list.length) tbody.append(el('tr', {}, el('td', { colspan: '8', class: 'empty', text: 'No workers registered.' })));
+      if (!list.length) tbody.append(el('tr', {}, el('td', { colspan: '9', class: 'empty', text: 'No workers registered.' })));
     },
   };
 }

@@ -393,6 +393,17 @@ def main():
 
         # Workers page: drain when the coordinator has it.
         d.get(base + "/#/workers")
+        if ep["workers"]:
+            # Each worker's rate over the tiles it rendered, as the API's rays over render seconds (render-1 is idle
+            # by now, so its figures stand still).
+            def rate_shown_is_the_apis():
+                w = next(w for w in client.call("GET", "/v1/workers")[1]["workers"] if w["name"] == "render-1")
+                if not (w["rays"] > 0 and w["render_seconds"] > 0):
+                    return False
+                v = w["rays"] / w["render_seconds"] / 1e6
+                want = f"{v:.0f}" if v >= 100 else f"{v:.1f}"
+                return d.find_element(By.CSS_SELECTOR, 'tr[data-name="render-1"] td.rate').text == want
+            wait_for("render-1's Mrays/s as the API has it", rate_shown_is_the_apis)
         if ep["workers"] and ep["drain"]:
             click(d, 'tr[data-name="render-1"] [data-action="drain"]', "the drain button")
             wait_for("the worker draining", lambda: "draining" in d.find_element(By.CSS_SELECTOR, 'tr[data-name="render-1"]').text)
