@@ -3,6 +3,7 @@
 #include "cli/exit_status.h"
 #include "cli/interrupt_guard.h"
 #include "cli/output_check.h"
+#include "cli/progress_bar.h"
 #include "cli/submit_command.h"
 #include "client/http_client.h"
 #include "client/job_client.h"
@@ -17,13 +18,17 @@ namespace tessera::cli {
 
 namespace {
 
-// One line per job: id, state, priority, tiles done/total, name.
+// One line per job: id, state, priority, tiles done/total, render time (first lease to the end, or to now) and the
+// rays per second over it, name.
 void print_table(const std::vector<protocol::JobStatus>& jobs) {
-  std::printf("%-20s %-10s %8s %13s  %s\n", "ID", "STATE", "PRIORITY", "TILES", "NAME");
+  std::printf("%-20s %-10s %8s %13s %8s %8s  %s\n", "ID", "STATE", "PRIORITY", "TILES", "TIME", "MRAYS/S", "NAME");
   for (const protocol::JobStatus& j : jobs) {
     const std::string tiles = std::to_string(j.tiles.done) + "/" + std::to_string(j.tiles.total);
-    std::printf("%-20s %-10s %8d %13s  %s\n", j.id.c_str(), protocol::to_string(j.state), j.params.priority,
-                tiles.c_str(), j.params.name.c_str());
+    const std::string time = j.render_seconds > 0 ? format_duration(j.render_seconds) : "-";
+    char rate[32] = "-";
+    if (j.rays > 0 && j.render_seconds > 0) std::snprintf(rate, sizeof rate, "%.1f", double(j.rays) / j.render_seconds * 1e-6);
+    std::printf("%-20s %-10s %8d %13s %8s %8s  %s\n", j.id.c_str(), protocol::to_string(j.state), j.params.priority,
+                tiles.c_str(), time.c_str(), rate, j.params.name.c_str());
   }
 }
 
