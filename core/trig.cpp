@@ -61,8 +61,9 @@ constexpr double kAtanTable[17] = {
     0.7531512809621944,
     0.7853981633974483,
 };
-constexpr double kPi = 3.141592653589793;
-constexpr double kPio2 = 1.5707963267948966;
+// In double, and named apart from math.h's float kPi, which the arithmetic here must never pick up.
+constexpr double kPiD = 3.141592653589793;
+constexpr double kHalfPiD = 1.5707963267948966;
 
 // atan(a) for a in [0, 1]: atan(c) + atan((a - c) / (1 + a c)) with c = k/16 the nearest table point, so the
 // reduced argument is at most 1/32 and its series (to t^9) is exact to 1e-17 relative.
@@ -80,8 +81,8 @@ double atan2_nonneg_y(double y, double x) {
   double r;
   if (y == 0.0) r = 0.0;
   else if (y <= ax) r = atan_unit(y / ax);
-  else r = kPio2 - atan_unit(ax / y);
-  return std::signbit(x) ? kPi - r : r;
+  else r = kHalfPiD - atan_unit(ax / y);
+  return std::signbit(x) ? kPiD - r : r;
 }
 
 }  // namespace
@@ -89,8 +90,8 @@ double atan2_nonneg_y(double y, double x) {
 float portable_atan2(float y, float x) {
   if (std::isnan(x) || std::isnan(y)) return x + y;
   double r;
-  if (std::isinf(y)) r = std::isinf(x) ? (x > 0 ? kPi / 4 : 3 * kPi / 4) : kPio2;  // C's values at infinity
-  else if (std::isinf(x)) r = x > 0 ? 0.0 : kPi;
+  if (std::isinf(y)) r = std::isinf(x) ? (x > 0 ? kPiD / 4 : 3 * kPiD / 4) : kHalfPiD;  // C's values at infinity
+  else if (std::isinf(x)) r = x > 0 ? 0.0 : kPiD;
   else r = atan2_nonneg_y(std::abs(double(y)), double(x));
   return float(std::signbit(y) ? -r : r);
 }
