@@ -25,10 +25,8 @@ void print_table(const std::vector<protocol::JobStatus>& jobs) {
   for (const protocol::JobStatus& j : jobs) {
     const std::string tiles = std::to_string(j.tiles.done) + "/" + std::to_string(j.tiles.total);
     const std::string time = j.render_seconds > 0 ? format_duration(j.render_seconds) : "-";
-    char rate[32] = "-";
-    if (j.rays > 0 && j.render_seconds > 0) std::snprintf(rate, sizeof rate, "%.1f", double(j.rays) / j.render_seconds * 1e-6);
     std::printf("%-20s %-10s %8d %13s %8s %8s  %s\n", j.id.c_str(), protocol::to_string(j.state), j.params.priority,
-                tiles.c_str(), time.c_str(), rate, j.params.name.c_str());
+                tiles.c_str(), time.c_str(), format_mrays(j.rays, j.render_seconds).c_str(), j.params.name.c_str());
   }
 }
 

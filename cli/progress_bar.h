@@ -1,4 +1,5 @@
-// The progress display shared by `tessera render` (local or farm) and `tessera submit`.
+// The progress display shared by `tessera render` (local or farm), `submit` and `jobs wait`, and the time and rate texts
+// the listings share with it.
 #pragma once
 
 #include "core/render.h"
@@ -19,6 +20,14 @@ inline std::string format_duration(double s) {
   return buf;
 }
 
+/// Rays per second in millions ("12.3"), or "-" when there are no rays or no time to divide by.
+inline std::string format_mrays(uint64_t rays, double seconds) {
+  if (rays == 0 || !(seconds > 0)) return "-";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.1f", double(rays) / seconds * 1e-6);
+  return buf;
+}
+
 /// A one-line progress bar on a terminal; on a pipe, a line at every 10% instead. Ray rates are shown when known.
 /// The ETA is shown once a tile is done ("ETA -" before), and the last line gives the elapsed time instead.
 class ProgressBar {
@@ -30,8 +39,7 @@ class ProgressBar {
     if (!enabled_ || p.tiles_total == 0) return;
     const double frac = double(p.tiles_done) / p.tiles_total;
     const bool done = p.tiles_done == p.tiles_total;
-    char rate[48] = "";
-    if (p.rays > 0 && p.seconds > 0) std::snprintf(rate, sizeof rate, "  %.1f Mrays/s", double(p.rays) / p.seconds * 1e-6);
+    const std::string rate = p.rays > 0 && p.seconds > 0 ? "  " + format_mrays(p.rays, p.seconds) + " Mrays/s" : "";
     const std::string time = done       ? "in " + format_duration(p.seconds)
                              : frac > 0 ? "ETA " + format_duration(p.seconds * (1 - frac) / frac)
                                         : std::string("ETA -");
@@ -39,13 +47,13 @@ class ProgressBar {
       constexpr int kWidth = 30;
       const int filled = int(frac * kWidth);
       std::fprintf(stderr, "\r[%.*s%*s] %d/%d tiles%s  %s   ", filled, "##############################",
-                   kWidth - filled, "", p.tiles_done, p.tiles_total, rate, time.c_str());
+                   kWidth - filled, "", p.tiles_done, p.tiles_total, rate.c_str(), time.c_str());
       if (done) std::fputc('\n', stderr);
       return;
     }
     // On a pipe: a line per decile, and the last one again only if it has news (the rate, known at the end).
     char line[160];
-    std::snprintf(line, sizeof line, "%3d%%  %d/%d tiles%s", int(frac * 100), p.tiles_done, p.tiles_total, rate);
+    std::snprintf(line, sizeof line, "%3d%%  %d/%d tiles%s", int(frac * 100), p.tiles_done, p.tiles_total, rate.c_str());
     if (int(frac * 10) > last_decile_ || (done && line != last_line_)) {
       last_decile_ = int(frac * 10);
       last_line_ = line;

@@ -1,6 +1,7 @@
 #include "cli/workers_command.h"
 
 #include "cli/exit_status.h"
+#include "cli/progress_bar.h"
 
 #include "client/http_client.h"
 #include "client/job_client.h"
@@ -26,10 +27,9 @@ void print_table(const std::vector<protocol::WorkerInfo>& workers) {
     const std::string seen = std::to_string((now - w.last_seen_ms) / 1000) + "s";
     std::string blocked;
     for (const std::string& j : w.blocklisted_for) blocked += (blocked.empty() ? "  blocklisted for " : ", ") + j;
-    char rate[32] = "-";
-    if (w.rays > 0 && w.render_seconds > 0) std::snprintf(rate, sizeof rate, "%.1f", double(w.rays) / w.render_seconds * 1e-6);
     std::printf("%-14s %-10s %7lld %6lld %8s %-26s %6s  %s%s\n", w.id.c_str(), protocol::to_string(w.state),
-                static_cast<long long>(w.threads), static_cast<long long>(w.tiles_done), rate, doing.c_str(),
+                static_cast<long long>(w.threads), static_cast<long long>(w.tiles_done),
+                format_mrays(w.rays, w.render_seconds).c_str(), doing.c_str(),
                 seen.c_str(), w.name.c_str(), blocked.c_str());
   }
 }
