@@ -68,19 +68,18 @@ StoredRender load_previous(const ExrImage& file, const RenderArgs& a, const Scen
   if (it == file.metadata.end() || it->second != scene.hash)
     throw Refusal(a.resume + " was rendered from another scene (or other assets) than " + a.scene);
   if (file.display_window != PixelWindow{0, 0, scene.width, scene.height})
-    throw Refusal(a.resume + " is not a " + std::to_string(scene.width) + "x" +
-                             std::to_string(scene.height) + " picture");
+    throw Refusal(a.resume + " is not a " + std::to_string(scene.width) + "x" + std::to_string(scene.height) +
+                  " picture");
   StoredRender prev;
   try {
     prev = StoredRender{file.pixels, read_state_channels(file.pixels, a.replicates)};
   } catch (const ImageError& e) {
-    throw Refusal(a.resume + ": " + e.what() +
-                             "; only partial renders and --resumable ones can be resumed");
+    throw Refusal(a.resume + ": " + e.what() + "; only partial renders and --resumable ones can be resumed");
   }
   const uint32_t stored = recorded_spp(file);
   if (a.target_error <= 0.f && *a.spp != stored && !prev.state.exact())
     throw Refusal(a.resume + " holds no exact sample sums (render with --resumable to refine later): it "
-                                        "can only be finished at its own " + std::to_string(stored) + " spp");
+                           "can only be finished at its own " + std::to_string(stored) + " spp");
   if (a.resumable && !prev.state.exact())
     throw Refusal(a.resume + " holds no exact sample sums, so its continuation cannot be --resumable");
   return prev;

@@ -44,7 +44,7 @@ RenderArgs resumed_args(const RenderArgs& given, const ExrImage& file) {
   if (spp == "adaptive") {
     if (given.spp)
       throw Refusal(path + " is an adaptive (--target-error) render: each pixel stopped on its own error "
-                                      "rule, so it can be finished but not refined with --spp");
+                           "rule, so it can be finished but not refined with --spp");
     a.target_error = number<float>(file, path, "tessera:targetError");
     a.min_spp = number<uint32_t>(file, path, "tessera:minSpp");
     a.max_spp = number<uint32_t>(file, path, "tessera:maxSpp");
@@ -53,7 +53,7 @@ RenderArgs resumed_args(const RenderArgs& given, const ExrImage& file) {
     const uint32_t stored = number<uint32_t>(file, path, "tessera:spp");
     if (given.spp && *given.spp < stored)
       throw Refusal(path + " was rendered at " + std::to_string(stored) + " spp; --spp " +
-                               std::to_string(*given.spp) + " cannot take samples away");
+                    std::to_string(*given.spp) + " cannot take samples away");
     a.spp = given.spp ? *given.spp : stored;
   }
   const auto override_of = [&](const char* key) {

@@ -735,12 +735,10 @@ FinishResult Scheduler::finish_result_locked(const std::string& lease, uint64_t 
     rays_ += rays;
     const std::string& w = it->second.lease.worker;
     const auto wr = workers_.find(w);
-    const uint64_t t_rays = t.rays;
-    const int64_t t_render_ms = t.render_ms;
     if (wr != workers_.end()) {
       ++wr->second.tiles_done;
-      wr->second.rays += t_rays;
-      wr->second.render_ms += t_render_ms;
+      wr->second.rays += t.rays;
+      wr->second.render_ms += t.render_ms;
     }
     const bool new_worker = j.worker_set.insert(w).second;
     if (new_worker) {
@@ -754,6 +752,11 @@ FinishResult Scheduler::finish_result_locked(const std::string& lease, uint64_t 
     try {
       flush_locked();  // here rather than after: a tile the store did not take must not look done
     } catch (...) {
+      if (wr != workers_.end()) {  // before t is restored: its rays and time are what was added
+        --wr->second.tiles_done;
+        wr->second.rays -= t.rays;
+        wr->second.render_ms -= t.render_ms;
+      }
       t = tile_before;
       --j.status.tiles.done;
       j.status.rays = job_rays_before;
@@ -764,11 +767,6 @@ FinishResult Scheduler::finish_result_locked(const std::string& lease, uint64_t 
       }
       rays_ = rays_before;
       tiles_rendered_ = rendered_before;
-      if (wr != workers_.end()) {
-        --wr->second.tiles_done;
-        wr->second.rays -= t_rays;
-        wr->second.render_ms -= t_render_ms;
-      }
       throw;
     }
     // Done and committed, but shown as being merged until the flush that makes it durable has returned.
