@@ -15,11 +15,11 @@
 //   --csv         also print the results as CSV after the tables
 
 #include "bench/run_environment.h"
-#include "core/bvh.h"
-#include "core/math.h"
-#include "core/mesh.h"
-#include "core/ray.h"
-#include "core/simd_path.h"
+#include "core/geometry/bvh.h"
+#include "core/util/math.h"
+#include "core/geometry/mesh.h"
+#include "core/geometry/ray.h"
+#include "core/util/simd_path.h"
 
 #include <embree3/rtcore.h>
 #include <tbb/global_control.h>

@@ -7,7 +7,7 @@
 //
 // Candidates from the default render's own samples (its colours unchanged, relMSE cost 0): the i.i.d. variance
 // s^2/n (today's variance channel), the half difference h(n/2) and three extrapolations over the block sizes
-// (core/block_differences.h): the rate pooled over the top three levels, the rate over two doublings of the top four
+// (core/sampling/block_differences.h): the rate pooled over the top three levels, the rate over two doublings of the top four
 // levels, and the same from the four levels below the top. Each extrapolation is also applied to the levels averaged
 // over the S renders ("expected levels"): a per-pixel estimate with no noise at all, which shows what extrapolating
 // the levels can reach at best. Candidates that change the samples: K = 2 and K = 4 independent replicates of n/K
@@ -25,10 +25,10 @@
 // --closed-forms: no scene; integrands of the first one or two 2D draws of one pixel's PixelSampler, the true
 // variance of the n-sample mean over S seeds (default 4096) against the mean of each estimate.
 #include "bench/error_metrics.h"
-#include "core/block_differences.h"
-#include "core/path_integrator.h"
-#include "core/render.h"
-#include "core/scene_loader.h"
+#include "core/sampling/block_differences.h"
+#include "core/render/path_integrator.h"
+#include "core/render/render.h"
+#include "core/scene/scene_loader.h"
 
 #include <tbb/parallel_for.h>
 
@@ -140,7 +140,7 @@ std::string own_name(int e) {
   return kExtNames[e - 2];
 }
 
-// --target-error's rule (core/adaptive.h: rounds of 16, 32, ... 1024 samples; stop when sqrt(var + (u s/n)^2) / s
+// --target-error's rule (core/sampling/adaptive.h: rounds of 16, 32, ... 1024 samples; stop when sqrt(var + (u s/n)^2) / s
 // <= E with s = max(mean luminance, 0.1), u = 1 today) with estimates of var on luminance: the i.i.d. one (today),
 // the rate over two doublings with today's unseen-event term, and the same with that term a tenth as large (u =
 // 0.1; with an estimate that is not inflated, the rule's s/n term alone stops every pixel at about 1/E samples).

@@ -2,7 +2,7 @@
 // relMSE, RMSE and the 99th-percentile pixel error of an image against a reference.
 #pragma once
 
-#include "core/image.h"
+#include "core/image/image.h"
 
 #include <algorithm>
 #include <cmath>

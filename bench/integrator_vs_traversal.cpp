@@ -13,11 +13,11 @@
 // the best of the repetitions. One-thread figures are per second of that thread's CPU time, all-thread ones per
 // second of wall time.
 #include "bench/run_environment.h"
-#include "core/bvh.h"
-#include "core/ray_recorder.h"
-#include "core/render.h"
-#include "core/scene_loader.h"
-#include "core/sha256.h"
+#include "core/geometry/bvh.h"
+#include "core/render/ray_recorder.h"
+#include "core/render/render.h"
+#include "core/scene/scene_loader.h"
+#include "core/util/sha256.h"
 
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/info.h>

@@ -52,7 +52,7 @@ int main(int argc, char** argv) {
     std::ifstream in(token_file);
     std::getline(in, token);
   }
-  const tessera::farm::HttpUrl parsed = tessera::farm::parse_http_url(url);
+  const tessera::client::HttpUrl parsed = tessera::client::parse_http_url(url);
   std::vector<ConnectionLog> logs(static_cast<size_t>(connections));
   std::atomic<bool> stop{false};
   std::vector<std::thread> threads;
@@ -62,7 +62,7 @@ int main(int argc, char** argv) {
       ConnectionLog& log = logs[size_t(c)];
       log.latency_ms.resize(targets.size());
       log.errors.assign(targets.size(), 0);
-      tessera::farm::HttpClient http(parsed);
+      tessera::client::HttpClient http(parsed);
       http.set_bearer_token(token);
       for (size_t i = size_t(c) % targets.size(); !stop.load(std::memory_order_relaxed); i = (i + 1) % targets.size()) {
         const auto a = Clock::now();

@@ -14,7 +14,7 @@
 //
 // The simulated workers share the machine with the coordinator; their own CPU use is printed too, so a row where
 // the clients starve the coordinator can be told apart from one where the coordinator is the limit.
-#include "core/image.h"
+#include "core/image/image.h"
 #include "protocol/messages.h"
 #include "protocol/routes.h"
 #include "worker/child_process.h"
@@ -44,9 +44,9 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 using namespace std::chrono_literals;
-using tessera::farm::HttpClient;
-using tessera::farm::TransportError;
-using tessera::farm::HttpResponse;
+using tessera::client::HttpClient;
+using tessera::client::TransportError;
+using tessera::client::HttpResponse;
 namespace protocol = tessera::protocol;
 namespace routes = tessera::protocol::routes;
 
@@ -157,10 +157,10 @@ std::string job_body(int image, int tile) {
 /// Shared state of one run.
 struct Farm {
   /// A farm for these settings and tiles, talking to the coordinator at url.
-  Farm(const Options& o, const TileBank& b, tessera::farm::HttpUrl u) : opt(o), bank(b), url(std::move(u)) {}
+  Farm(const Options& o, const TileBank& b, tessera::client::HttpUrl u) : opt(o), bank(b), url(std::move(u)) {}
   const Options& opt;
   const TileBank& bank;
-  tessera::farm::HttpUrl url;
+  tessera::client::HttpUrl url;
   int workers = 0;  ///< N, for the feeder's supply of pending tiles.
   std::atomic<bool> stop{false};
   std::mutex stop_mu;                  ///< With stop_cv: naps end at once when the farm stops.
@@ -258,7 +258,7 @@ void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
       }
       if (farm.stop.load() || revoked) continue;
       const std::string& exr = farm.bank.at(window);
-      tessera::farm::HttpRequest up;
+      tessera::client::HttpRequest up;
       up.method = "PUT";
       up.target = routes::lease_result(lease_id);
       up.body = exr;
@@ -315,12 +315,12 @@ void feeder(Farm& farm, WorkerTally& tally) {
 }
 
 /// Waits up to 30 s for the coordinator's ready file; returns its "host:port" or "" on timeout or exit.
-std::string wait_ready(const fs::path& ready, tessera::farm::ChildProcess& serve) {
+std::string wait_ready(const fs::path& ready, tessera::worker::ChildProcess& serve) {
   for (int i = 0; i < 600; ++i) {
     std::ifstream in(ready);
     std::string line;
     if (in && std::getline(in, line) && !line.empty()) return line;
-    if (tessera::farm::child_exited(serve)) return {};
+    if (tessera::worker::child_exited(serve)) return {};
     std::this_thread::sleep_for(50ms);
   }
   return {};
@@ -331,19 +331,19 @@ RunResult run_farm(const Options& opt, const TileBank& bank, const fs::path& bas
   const fs::path dir = base / ("n" + std::to_string(n));
   fs::remove_all(dir);
   fs::create_directories(dir);
-  std::vector<tessera::farm::ChildProcess> children;
-  children.push_back(tessera::farm::spawn_child(
+  std::vector<tessera::worker::ChildProcess> children;
+  children.push_back(tessera::worker::spawn_child(
       {opt.tessera.string(), "serve", "--listen", "127.0.0.1:0", "--data", (dir / "data").string(), "--ready-file",
        (dir / "ready").string(), "--heartbeat-seconds", std::to_string(opt.heartbeat_seconds), "--max-connections",
        std::to_string(std::max(1024, n + 64))},  // one connection per simulated worker, the feeder's, and spare
       "coordinator", dir / "serve.log"));
   const std::string hostport = wait_ready(dir / "ready", children[0]);
   if (hostport.empty()) {
-    tessera::farm::stop_children(children, 2s);
-    throw std::runtime_error("the coordinator did not start: " + tessera::farm::tail_of_file(dir / "serve.log", 10));
+    tessera::worker::stop_children(children, 2s);
+    throw std::runtime_error("the coordinator did not start: " + tessera::worker::tail_of_file(dir / "serve.log", 10));
   }
 
-  Farm farm{opt, bank, tessera::farm::parse_http_url("http://" + hostport)};
+  Farm farm{opt, bank, tessera::client::parse_http_url("http://" + hostport)};
   farm.workers = n;
   const auto start = Clock::now();
   farm.window_start = start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(opt.warmup));
@@ -360,7 +360,7 @@ RunResult run_farm(const Options& opt, const TileBank& bank, const fs::path& bas
   const double serve_cpu1 = process_cpu_seconds(children[0].pid), self_cpu1 = self_cpu_seconds();
   stop_farm(farm);
   for (std::thread& t : threads) t.join();
-  tessera::farm::stop_children(children, 10s);
+  tessera::worker::stop_children(children, 10s);
 
   RunResult result;
   result.workers = n;

@@ -9,8 +9,8 @@
 // the median of --repeats runs, because the machine is shared.
 #include "bench/error_metrics.h"
 #include "bench/run_environment.h"
-#include "core/render.h"
-#include "core/scene_loader.h"
+#include "core/render/render.h"
+#include "core/scene/scene_loader.h"
 
 #include <tbb/global_control.h>
 
@@ -64,7 +64,7 @@ constexpr const char* kAdaptiveDiscussion = R"(How to read it (from the run of c
 - It loses on cbox_env_light, whose every pixel has the same kind of noise (visibility of a constant sky through
   the open front): there is nothing to redistribute, and the per-pixel estimate only adds scatter. With M = 8 a
   dark corner whose first 8 samples all miss the sky has zero sample variance and stops at once (about 15% of that
-  image at E = 0.2, holding over 90% of its error; -580%); the rule's 1/n term (core/adaptive.h) cannot know the
+  image at E = 0.2, holding over 90% of its error; -580%); the rule's 1/n term (core/sampling/adaptive.h) cannot know the
   size of an event it has not seen, so M must be large enough to see the events that matter. M = 32 brings E = 0.2
   to -8%; at tighter targets the conservative estimate (next point) still over-samples by 2x.
 - K = 4 replicates give an unbiased estimate (see the predicted-against-measured table) but lose more to weaker
@@ -392,7 +392,7 @@ int path_tracing_report(const Args& a, const fs::path& data, const std::string& 
     md << "\n";
   };
   md << "\n## Profiles at equal time\n\n"
-     << "Each profile renders the same scene (converging to the same image; core/path_integrator_test.cpp checks "
+     << "Each profile renders the same scene (converging to the same image; core/render/path_integrator_test.cpp checks "
      << "that); errors against the MIS reference. Equal time = the relMSE each profile's curve reaches at MIS's "
      << "64-spp CPU time (log-log interpolation).\n\n";
   const std::vector<VariantRow> profiles = {{"MIS", PathProfile::kMis, {}}, {"NEE", PathProfile::kNee, {}},
@@ -482,7 +482,7 @@ int main(int argc, char** argv) {
      << "0.006 per sample).\n"
      << "- References: none of the five scenes has a closed-form pixel value (every pixel integrates over its area "
      << "across edges, and light over occluded area lights or maps), so each reference is a " << a.ref_spp
-     << " spp render with 8 independent replicates (unbiased error estimate; core/adaptive.h), with its own "
+     << " spp render with 8 independent replicates (unbiased error estimate; core/sampling/adaptive.h), with its own "
      << "estimated relMSE stated.\n\n";
 
   // ---- 1. error against time per scene, and predicted vs measured --------------------------------------------

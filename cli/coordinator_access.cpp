@@ -9,19 +9,19 @@
 
 namespace tessera::cli {
 
-std::unique_ptr<farm::HttpClient> CoordinatorAccess::client() const {
-  auto http = std::make_unique<farm::HttpClient>(farm::parse_http_url(coordinator), farm::HttpTimeouts{},
+std::unique_ptr<client::HttpClient> CoordinatorAccess::client() const {
+  auto http = std::make_unique<client::HttpClient>(client::parse_http_url(coordinator), client::HttpTimeouts{},
                                                  uint64_t(2) << 30, tls);
   http->set_bearer_token(load_token(token_file, "TESSERA_CLIENT_TOKEN"));
   return http;
 }
 
 int run_with_coordinator(const CoordinatorAccess& access, std::string_view command,
-                         const std::function<int(farm::HttpClient&)>& body) {
+                         const std::function<int(client::HttpClient&)>& body) {
   try {
     const auto client = access.client();
     return body(*client);
-  } catch (const farm::SubmitError& e) {
+  } catch (const client::SubmitError& e) {
     spdlog::error("{}", e.what());
     return kExitRefused;
   } catch (const std::exception& e) {

@@ -107,9 +107,9 @@ int run_jobs(const JobsArgs& a) {
   }
   // Before waiting: a result that could not be saved would be found out only at the end.
   if (!a.output.empty() && !output_writable(a.output)) return kExitRefused;
-  return run_with_coordinator(a.access, "jobs " + a.action, [&](farm::HttpClient& http) {
+  return run_with_coordinator(a.access, "jobs " + a.action, [&](client::HttpClient& http) {
     if (a.action == "wait") {
-      farm::get_job(http, a.job);  // an unknown id is refused here (exit 2), not after a wait
+      client::get_job(http, a.job);  // an unknown id is refused here (exit 2), not after a wait
       InterruptGuard interrupts;
       return follow_job(http, a.job, a.output, a.quiet, [] { return InterruptGuard::interrupted(); }, false,
                         std::chrono::steady_clock::now());
@@ -126,39 +126,39 @@ int run_jobs(const JobsArgs& a) {
       }
       q.limit = a.limit;
       q.after = a.after;
-      const protocol::JobList page = farm::list_jobs(http, q);
+      const protocol::JobList page = client::list_jobs(http, q);
       print_table(page.jobs);
       if (page.next) std::printf("more: --after %s\n", page.next->c_str());
     } else if (a.action == "rm" && a.purge) {
-      const protocol::PurgeAnswer p = farm::purge_job(http, a.job);
+      const protocol::PurgeAnswer p = client::purge_job(http, a.job);
       std::printf("%s: purged (was %s)\n", p.id.c_str(), protocol::to_string(p.was));
     } else if (a.action == "show") {
       // The job's status, and how it samples (all of its settings, from its spec).
-      nlohmann::json job = farm::get_job(http, a.job);
-      job["sampling"] = farm::get_job_spec(http, a.job).sampling;
+      nlohmann::json job = client::get_job(http, a.job);
+      job["sampling"] = client::get_job_spec(http, a.job).sampling;
       std::printf("%s\n", job.dump(2).c_str());
-      if (a.tiles) print_tiles(farm::get_job_tiles(http, a.job));
+      if (a.tiles) print_tiles(client::get_job_tiles(http, a.job));
     } else if (a.action == "tiles") {
-      print_tiles(farm::get_job_tiles(http, a.job));
+      print_tiles(client::get_job_tiles(http, a.job));
     } else if (a.action == "requeue") {
-      const protocol::TileInfo t = farm::requeue_tile(http, a.job, *a.priority);
+      const protocol::TileInfo t = client::requeue_tile(http, a.job, *a.priority);
       std::printf("%s tile %lld: %s again\n", a.job.c_str(), static_cast<long long>(t.index), t.state.c_str());
     } else if (a.action == "pause" || a.action == "resume") {
-      const protocol::JobStatus s = a.action == "pause" ? farm::pause_job(http, a.job) : farm::resume_job(http, a.job);
+      const protocol::JobStatus s = a.action == "pause" ? client::pause_job(http, a.job) : client::resume_job(http, a.job);
       std::printf("%s: %s\n", s.id.c_str(), protocol::to_string(s.state));
     } else if (a.action == "priority") {
-      const protocol::JobStatus s = farm::set_job_priority(http, a.job, *a.priority);
+      const protocol::JobStatus s = client::set_job_priority(http, a.job, *a.priority);
       std::printf("%s: %s, priority %d\n", s.id.c_str(), protocol::to_string(s.state), s.params.priority);
     } else if (a.action == "spp") {
-      const protocol::JobStatus s = farm::raise_job_spp(http, a.job, uint32_t(*a.priority));
+      const protocol::JobStatus s = client::raise_job_spp(http, a.job, uint32_t(*a.priority));
       std::printf("%s: %s at %u spp, %lld of %lld tiles to continue\n", s.id.c_str(), protocol::to_string(s.state),
                   s.params.spp, static_cast<long long>(s.tiles.total - s.tiles.done),
                   static_cast<long long>(s.tiles.total));
     } else if (a.action == "retry") {
-      const protocol::JobStatus s = farm::retry_job(http, a.job);
+      const protocol::JobStatus s = client::retry_job(http, a.job);
       std::printf("%s: %s again, %lld of %lld tiles to render\n", s.id.c_str(), protocol::to_string(s.state),
                   static_cast<long long>(s.tiles.total - s.tiles.done), static_cast<long long>(s.tiles.total));
-    } else if (!farm::cancel_job(http, a.job)) {
+    } else if (!client::cancel_job(http, a.job)) {
       spdlog::error("job {} had already ended", a.job);
       return kExitRefused;
     } else {

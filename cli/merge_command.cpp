@@ -2,8 +2,8 @@
 
 #include "cli/exit_status.h"
 
-#include "core/image.h"
-#include "core/merge.h"
+#include "core/image/image.h"
+#include "core/image/merge.h"
 
 #include <spdlog/spdlog.h>
 

@@ -1,7 +1,7 @@
 // The commands' check, before their long work, that the file they will write can be created.
 #pragma once
 
-#include "core/output_file.h"
+#include "core/util/output_file.h"
 
 #include <spdlog/spdlog.h>
 

@@ -2,7 +2,7 @@
 // the listings share with it.
 #pragma once
 
-#include "core/render.h"
+#include "core/render/render.h"
 
 #include <cstdio>
 #include <string>

@@ -7,10 +7,10 @@
 #include "cli/render_farm.h"
 #include "cli/render_resume.h"
 
-#include "core/enum_names.h"
-#include "core/exr_stream.h"
-#include "core/render.h"
-#include "core/scene_loader.h"
+#include "core/util/enum_names.h"
+#include "core/image/exr_stream.h"
+#include "core/render/render.h"
+#include "core/scene/scene_loader.h"
 
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>

@@ -3,11 +3,11 @@
 #include "cli/exit_status.h"
 #include "cli/interrupt_guard.h"
 #include "cli/submit_command.h"
-#include "core/image.h"
+#include "core/image/image.h"
 #include "server/auth.h"
 #include "server/coordinator_store.h"
-#include "core/file_io.h"
-#include "core/scene_loader.h"
+#include "core/util/file_io.h"
+#include "core/scene/scene_loader.h"
 #include "worker/arena_pinning.h"
 #include "worker/asset_cache.h"
 #include "worker/child_process.h"
@@ -103,7 +103,7 @@ int run_render_farm(const RenderArgs& a) {
     return kExitRefused;
   }
   InterruptGuard guard;
-  std::vector<farm::ChildProcess> children;
+  std::vector<worker::ChildProcess> children;
   fs::path dir;
   int rc = kExitFailed;
   bool show_logs = false;
@@ -117,7 +117,7 @@ int run_render_farm(const RenderArgs& a) {
     // render anyway: it keeps its jobs in memory and never waits for the disk.
     const auto [listen_fd, port] = listen_on_loopback();
     try {
-      children.push_back(farm::spawn_child({self, "serve", "--listen", "fd:" + std::to_string(listen_fd), "--data",
+      children.push_back(worker::spawn_child({self, "serve", "--listen", "fd:" + std::to_string(listen_fd), "--data",
                                             (dir / "data").string(), "--client-token-file",
                                             (dir / "client.token").string(), "--worker-token-file",
                                             (dir / "worker.token").string(), "--durability", "none"},
@@ -128,29 +128,29 @@ int run_render_farm(const RenderArgs& a) {
     }
     ::close(listen_fd);  // the coordinator's now: should it die, connecting fails instead of waiting
     const std::string url = "http://127.0.0.1:" + std::to_string(port);
-    farm::SubmitOptions o = shared_job_options(a);
+    client::SubmitOptions o = shared_job_options(a);
     o.tile_size = a.farm_tile;
     o.resumable = a.resumable;  // the result then carries the state channels, as `render --resumable` writes them
     // While the coordinator starts: the scene's assets are hashed and put in the workers' cache, where they would
     // otherwise fetch them one by one from the coordinator.
-    std::optional<farm::SceneFiles> files;
+    std::optional<client::SceneFiles> files;
     try {
-      files = farm::read_scene_files(o);
-      farm::AssetCache cache(dir / "cache");
-      for (const farm::LocalAsset& asset : files->assets)
+      files = client::read_scene_files(o);
+      worker::AssetCache cache(dir / "cache");
+      for (const client::LocalAsset& asset : files->assets)
         cache.get(asset.sha256, [&](const std::string&) { return read_file_bytes(asset.file); });
     } catch (const SceneError& e) {
       spdlog::error("{}", e.what());
       rc = kExitRefused;
-    } catch (const farm::SubmitError& e) {
+    } catch (const client::SubmitError& e) {
       spdlog::error("{}", e.what());
       rc = kExitRefused;
     }
     if (rc == kExitRefused) throw Refused();
     // The workers load the job's scene from their cache while the coordinator starts and checks the submission.
     const fs::path expected_job = dir / "job.json";
-    write_file_atomic(expected_job, nlohmann::json(farm::job_submission(o, *files)).dump(), Flush::none);
-    farm::HttpClient http(farm::parse_http_url(url));
+    write_file_atomic(expected_job, nlohmann::json(client::job_submission(o, *files)).dump(), Flush::none);
+    client::HttpClient http(client::parse_http_url(url));
     http.set_bearer_token(client_token);
     // The workers start while the coordinator starts and the job is submitted: until it is in they ask for work every
     // few milliseconds (a private farm's coordinator has nothing else to do), so the first lease follows the job's
@@ -158,7 +158,7 @@ int run_render_farm(const RenderArgs& a) {
     const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
     const int threads = a.threads > 0 ? a.threads : std::max(1, int(cores) / a.workers);
     // When the workers' threads fit the CPUs this command may use, each thread gets its own.
-    const std::vector<int> cpus = farm::allowed_cpus();
+    const std::vector<int> cpus = worker::allowed_cpus();
     const bool pin = size_t(a.workers) * size_t(threads) <= cpus.size();
     for (int i = 0; i < a.workers; ++i) {
       std::vector<std::string> argv{self, "worker", "--coordinator", url, "--threads", std::to_string(threads),
@@ -170,7 +170,7 @@ int run_render_farm(const RenderArgs& a) {
         for (int t = 0; t < threads; ++t) list += (t ? "," : "") + std::to_string(cpus[size_t(i * threads + t)]);
         argv.insert(argv.end(), {"--cpus", list});
       }
-      children.push_back(farm::spawn_child(argv, "worker " + std::to_string(i), dir / ("worker-" + std::to_string(i) + ".log")));
+      children.push_back(worker::spawn_child(argv, "worker " + std::to_string(i), dir / ("worker-" + std::to_string(i) + ".log")));
     }
     if (!a.quiet)
       std::fprintf(stderr, "coordinator on %s, %d worker(s) with %d thread(s) each\n", url.c_str(), a.workers, threads);
@@ -180,8 +180,8 @@ int run_render_farm(const RenderArgs& a) {
           if (InterruptGuard::interrupted()) return true;
           // Every worker gone means no progress is possible.
           bool all_workers_gone = children.size() > 1;
-          for (size_t i = 1; i < children.size(); ++i) all_workers_gone &= farm::child_exited(children[i]);
-          return all_workers_gone || farm::child_exited(children[0]);
+          for (size_t i = 1; i < children.size(); ++i) all_workers_gone &= worker::child_exited(children[i]);
+          return all_workers_gone || worker::child_exited(children[0]);
         },
         std::move(files),
         [&](const std::string& job, const std::string& output) { return take_result(dir / "data", job, output); });
@@ -209,20 +209,20 @@ int run_render_farm(const RenderArgs& a) {
     rc = kExitFailed;
     show_logs = true;
   }
-  std::vector<farm::ChildProcess> workers(children.begin() + std::min<size_t>(1, children.size()), children.end());
-  std::vector<farm::ChildProcess> serve(children.begin(), children.begin() + std::min<size_t>(1, children.size()));
+  std::vector<worker::ChildProcess> workers(children.begin() + std::min<size_t>(1, children.size()), children.end());
+  std::vector<worker::ChildProcess> serve(children.begin(), children.begin() + std::min<size_t>(1, children.size()));
   std::vector<std::string> killed;
   if (rc == 0) {
     // The job is done and its result saved: the workers hold nothing and the coordinator's folder is thrown away, so
     // a clean shutdown (the coordinator's last checkpoint, joining every thread) would only make the user wait, about
     // 10 ms. The coordinator is built to survive SIGKILL at any moment anyway.
-    farm::kill_children(children);
+    worker::kill_children(children);
     workers.assign(children.begin() + std::min<size_t>(1, children.size()), children.end());
     serve.assign(children.begin(), children.begin() + std::min<size_t>(1, children.size()));
   } else {
     // Workers first (told twice, so they drop their tile at once), then the coordinator.
-    killed = farm::stop_children(workers, 5s, 2);
-    const auto killed_serve = farm::stop_children(serve, 5s);
+    killed = worker::stop_children(workers, 5s, 2);
+    const auto killed_serve = worker::stop_children(serve, 5s);
     killed.insert(killed.end(), killed_serve.begin(), killed_serve.end());
   }
   for (const auto& name : killed) spdlog::warn("{} did not stop within 5 s and was killed", name);
@@ -230,8 +230,8 @@ int run_render_farm(const RenderArgs& a) {
   children.insert(children.end(), workers.begin(), workers.end());
   if (show_logs) {
     for (const auto& c : children)
-      spdlog::error("{} ({}), last lines of {}:\n{}", c.name, farm::describe_exit(c), c.log.string(),
-                    farm::tail_of_file(c.log, 8));
+      spdlog::error("{} ({}), last lines of {}:\n{}", c.name, worker::describe_exit(c), c.log.string(),
+                    worker::tail_of_file(c.log, 8));
     if (!dir.empty()) spdlog::error("logs kept in {}", dir.string());
   } else if (!dir.empty()) {
     std::error_code ec;

@@ -2,7 +2,7 @@
 #pragma once
 
 #include "cli/render_command.h"
-#include "core/image.h"
+#include "core/image/image.h"
 #include "protocol/messages.h"
 
 #include <cstdint>

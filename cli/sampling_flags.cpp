@@ -1,7 +1,7 @@
 #include "cli/sampling_flags.h"
 
-#include "core/enum_names.h"
-#include "core/render.h"
+#include "core/util/enum_names.h"
+#include "core/render/render.h"
 
 namespace tessera::cli {
 

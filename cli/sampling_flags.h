@@ -3,7 +3,7 @@
 // machine would be.
 #pragma once
 
-#include "core/adaptive.h"
+#include "core/sampling/adaptive.h"
 #include "protocol/messages.h"
 
 #include <CLI/CLI.hpp>

@@ -4,7 +4,7 @@
 #include "cli/interrupt_guard.h"
 #include "cli/output_check.h"
 #include "cli/progress_bar.h"
-#include "core/scene_loader.h"
+#include "core/scene/scene_loader.h"
 
 #include <spdlog/spdlog.h>
 
@@ -35,14 +35,14 @@ CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
   return c;
 }
 
-int follow_job(farm::HttpClient& http, const std::string& job, const std::string& output, bool quiet,
+int follow_job(client::HttpClient& http, const std::string& job, const std::string& output, bool quiet,
                const std::function<bool()>& stop, bool cancel_on_stop, std::chrono::steady_clock::time_point t0,
                const ResultFetch& fetch) {
   try {
     ProgressBar bar(!quiet);
-    const farm::JobStatus end = farm::wait_for_job(
+    const client::JobStatus end = client::wait_for_job(
         http, job,
-        [&](const farm::JobStatus& s) {
+        [&](const client::JobStatus& s) {
           const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
           bar.update(RenderProgress{int(s.tiles.done), int(s.tiles.total), s.rays, secs});
         },
@@ -56,7 +56,7 @@ int follow_job(farm::HttpClient& http, const std::string& job, const std::string
       }
       spdlog::warn("interrupted: cancelling {}", job);
       try {
-        farm::cancel_job(http, job);
+        client::cancel_job(http, job);
       } catch (const std::exception& e) {
         spdlog::warn("cannot cancel {}: {}", job, e.what());
       }
@@ -72,7 +72,7 @@ int follow_job(farm::HttpClient& http, const std::string& job, const std::string
     }
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     if (!output.empty()) {
-      const uint64_t bytes = fetch ? fetch(job, output) : farm::download_result(http, job, output);
+      const uint64_t bytes = fetch ? fetch(job, output) : client::download_result(http, job, output);
       if (!quiet)
         std::fprintf(stderr, "%s: %dx%d px, %lld tiles, %.2fs (%.2fs from the first lease), %llu bytes\n",
                      output.c_str(), end.params.width, end.params.height, static_cast<long long>(end.tiles.total), secs,
@@ -87,17 +87,17 @@ int follow_job(farm::HttpClient& http, const std::string& job, const std::string
   }
 }
 
-int submit_reporting(farm::HttpClient& http, const farm::SubmitOptions& o, bool quiet,
-                     std::optional<farm::SceneFiles> files, std::string& job) {
+int submit_reporting(client::HttpClient& http, const client::SubmitOptions& o, bool quiet,
+                     std::optional<client::SceneFiles> files, std::string& job) {
   try {
-    const farm::SubmitResult sub =
-        files ? farm::submit_job(http, o, std::move(*files)) : farm::submit_job(http, o);
+    const client::SubmitResult sub =
+        files ? client::submit_job(http, o, std::move(*files)) : client::submit_job(http, o);
     job = sub.job_id;
     if (!quiet)
       std::fprintf(stderr, "submitted %s as %s (%d assets, %d uploaded)\n", o.scene.c_str(), job.c_str(),
                    sub.assets_total, sub.assets_uploaded);
     return kExitOk;
-  } catch (const farm::SubmitError& e) {
+  } catch (const client::SubmitError& e) {
     spdlog::error("{}", e.what());
     return kExitRefused;
   } catch (const SceneError& e) {
@@ -109,8 +109,8 @@ int submit_reporting(farm::HttpClient& http, const farm::SubmitOptions& o, bool 
   }
 }
 
-int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& o, const std::string& output, bool quiet,
-                    const std::function<bool()>& stop, std::optional<farm::SceneFiles> files, const ResultFetch& fetch) {
+int submit_and_wait(client::HttpClient& http, const client::SubmitOptions& o, const std::string& output, bool quiet,
+                    const std::function<bool()>& stop, std::optional<client::SceneFiles> files, const ResultFetch& fetch) {
   const auto t0 = std::chrono::steady_clock::now();
   std::string job;
   if (const int rc = submit_reporting(http, o, quiet, std::move(files), job)) return rc;
@@ -120,15 +120,15 @@ int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& o, const 
 int run_submit(const SubmitArgs& a) {
   // Before submitting: a result that could not be saved would waste the farm's work.
   if (!a.output.empty() && !output_writable(a.output)) return kExitRefused;
-  return run_with_coordinator(a.access, "submit", [&](farm::HttpClient& http) {
-    farm::SubmitOptions o = shared_job_options(a);
+  return run_with_coordinator(a.access, "submit", [&](client::HttpClient& http) {
+    client::SubmitOptions o = shared_job_options(a);
     o.tile_size = a.tile_size;
     o.priority = a.priority;
     o.tile_timeout_seconds = a.tile_timeout_seconds;
     o.name = a.name;
     o.resumable = a.resumable;
     if (a.detach) {
-      const farm::SubmitResult sub = farm::submit_job(http, o);
+      const client::SubmitResult sub = client::submit_job(http, o);
       std::printf("%s\n", sub.job_id.c_str());
       return kExitOk;
     }

@@ -34,8 +34,8 @@ struct SubmitArgs : SamplingArgs {
 /// The job settings `submit` and `render --workers` share, from either's arguments (the fields have the same names):
 /// the scene, where its assets may lie, and every sampling setting; the caller adds the tile size, priority and name.
 template <class Args>
-farm::SubmitOptions shared_job_options(const Args& a) {
-  farm::SubmitOptions o;
+client::SubmitOptions shared_job_options(const Args& a) {
+  client::SubmitOptions o;
   o.scene = a.scene;
   if (!a.asset_root.empty()) o.asset_root = a.asset_root;
   o.sampling = sampling_settings(a, a.spp.value_or(0));  // 0: the scene's spp
@@ -57,21 +57,21 @@ using ResultFetch = std::function<uint64_t(const std::string& job, const std::st
 /// early: the job is then cancelled when `cancel_on_stop` (exit code 1), else left as it is, which it says (130).
 /// Returns the exit code as run_submit does; reports errors itself. `fetch`, when given, takes the result instead
 /// of the download.
-int follow_job(farm::HttpClient& http, const std::string& job, const std::string& output, bool quiet,
+int follow_job(client::HttpClient& http, const std::string& job, const std::string& output, bool quiet,
                const std::function<bool()>& stop, bool cancel_on_stop, std::chrono::steady_clock::time_point t0,
                const ResultFetch& fetch = {});
 
 /// Submits (uploading the assets the coordinator lacks) and sets `job` to the new job's id; says so unless `quiet`.
 /// Returns 0, or the exit code as run_submit does after reporting the error. `files`, when given, is the scene as
-/// already read and hashed (farm::read_scene_files of the same options).
-int submit_reporting(farm::HttpClient& http, const farm::SubmitOptions& options, bool quiet,
-                     std::optional<farm::SceneFiles> files, std::string& job);
+/// already read and hashed (client::read_scene_files of the same options).
+int submit_reporting(client::HttpClient& http, const client::SubmitOptions& options, bool quiet,
+                     std::optional<client::SceneFiles> files, std::string& job);
 
 /// Submits, then follows the job as follow_job does (stop() cancels it); the shared core of `submit` and `render
 /// --workers`. Returns the exit code as run_submit does; reports errors itself. `files` as for submit_reporting,
 /// `fetch` as for follow_job.
-int submit_and_wait(farm::HttpClient& http, const farm::SubmitOptions& options, const std::string& output, bool quiet,
-                    const std::function<bool()>& stop, std::optional<farm::SceneFiles> files = std::nullopt,
+int submit_and_wait(client::HttpClient& http, const client::SubmitOptions& options, const std::string& output, bool quiet,
+                    const std::function<bool()>& stop, std::optional<client::SceneFiles> files = std::nullopt,
                     const ResultFetch& fetch = {});
 
 }  // namespace tessera::cli

@@ -2,7 +2,7 @@
 
 namespace tessera::cli {
 
-void add_client_tls_flags(CLI::App* command, farm::ClientTlsFiles& files) {
+void add_client_tls_flags(CLI::App* command, client::ClientTlsFiles& files) {
   command->add_option("--ca-file", files.ca_file,
                       "https:// only: trust the CA certificates in this PEM file instead of the system store");
   command->add_option("--tls-cert", files.cert_file,

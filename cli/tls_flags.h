@@ -8,6 +8,6 @@
 namespace tessera::cli {
 
 /// Registers --ca-file, --tls-cert and --tls-key on `command`, filling `files`.
-void add_client_tls_flags(CLI::App* command, farm::ClientTlsFiles& files);
+void add_client_tls_flags(CLI::App* command, client::ClientTlsFiles& files);
 
 }  // namespace tessera::cli

@@ -3,7 +3,7 @@
 #include "cli/exit_status.h"
 #include "cli/tls_flags.h"
 #include "cli/token.h"
-#include "core/file_io.h"
+#include "core/util/file_io.h"
 
 #include "worker/arena_pinning.h"
 #include "worker/worker.h"
@@ -73,12 +73,12 @@ int run_worker_command(const WorkerArgs& a) {
     sigaction(SIGINT, &sa, nullptr);
     std::signal(SIGPIPE, SIG_IGN);
 
-    farm::WorkerOptions o;
+    worker::WorkerOptions o;
     o.coordinator = a.coordinator;
     o.threads = a.threads;
     if (!a.cpus.empty()) {
-      o.cpus = farm::parse_cpu_list(a.cpus);
-      const std::vector<int> allowed = farm::allowed_cpus();
+      o.cpus = worker::parse_cpu_list(a.cpus);
+      const std::vector<int> allowed = worker::allowed_cpus();
       for (int c : o.cpus)
         if (!std::binary_search(allowed.begin(), allowed.end(), c))
           throw std::invalid_argument("--cpus " + a.cpus + ": CPU " + std::to_string(c) + " is not one this process may run on");
@@ -101,8 +101,8 @@ int run_worker_command(const WorkerArgs& a) {
       }
     }
     const auto ms = [](double s) { return std::chrono::milliseconds(int64_t(s * 1000)); };
-    o.timeouts = farm::HttpTimeouts{ms(a.connect_timeout_seconds), ms(a.request_timeout_seconds), ms(a.request_timeout_seconds)};
-    farm::run_worker(o, g_stop_requests);
+    o.timeouts = client::HttpTimeouts{ms(a.connect_timeout_seconds), ms(a.request_timeout_seconds), ms(a.request_timeout_seconds)};
+    worker::run_worker(o, g_stop_requests);
     return kExitOk;
   } catch (const std::exception& e) {
     spdlog::error("worker: {}", e.what());

@@ -17,7 +17,7 @@ struct WorkerArgs {
   std::string cache;        ///< Asset cache folder (empty: the default).
   std::string name;         ///< Worker name (empty: host-pid).
   std::string token_file;   ///< File holding the worker token (else $TESSERA_WORKER_TOKEN).
-  farm::ClientTlsFiles tls; ///< CA and client certificate files for https:// coordinators.
+  client::ClientTlsFiles tls; ///< CA and client certificate files for https:// coordinators.
   double connect_timeout_seconds = 3;   ///< Connecting and the TLS handshake.
   double request_timeout_seconds = 30;  ///< Sending a request, and receiving its response.
   int max_idle_wait_ms = 2000;          ///< Longest wait between lease requests when there is no work.

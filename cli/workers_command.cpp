@@ -51,11 +51,11 @@ int run_workers(const WorkersArgs& a) {
     spdlog::error("workers {} needs a worker id", a.action);
     return kExitRefused;
   }
-  return run_with_coordinator(a.access, "workers " + a.action, [&](farm::HttpClient& http) {
+  return run_with_coordinator(a.access, "workers " + a.action, [&](client::HttpClient& http) {
     if (a.action == "ls") {
-      print_table(farm::list_workers(http));
+      print_table(client::list_workers(http));
     } else {
-      const protocol::WorkerInfo w = farm::drain_worker(http, a.worker, a.action == "drain");
+      const protocol::WorkerInfo w = client::drain_worker(http, a.worker, a.action == "drain");
       std::printf("%s: %s\n", w.id.c_str(), protocol::to_string(w.state));
     }
     return kExitOk;

@@ -7,7 +7,7 @@
 #include <random>
 #include <thread>
 
-namespace tessera::farm {
+namespace tessera::client {
 
 /// Delays that double from `initial` up to `max`, each drawn uniformly from [delay/2, delay] so that many clients
 /// retrying together spread out.
@@ -46,4 +46,4 @@ inline bool sleep_unless(std::chrono::milliseconds d, const std::function<bool()
   }
 }
 
-}  // namespace tessera::farm
+}  // namespace tessera::client

@@ -24,7 +24,7 @@
 #include <charconv>
 #include <optional>
 
-namespace tessera::farm {
+namespace tessera::client {
 
 namespace asio = boost::asio;
 namespace beast = boost::beast;
@@ -455,4 +455,4 @@ HttpResponse HttpClient::stream(const HttpRequest& request, std::chrono::millise
   return out;
 }
 
-}  // namespace tessera::farm
+}  // namespace tessera::client

@@ -14,7 +14,7 @@
 #include <string_view>
 #include <vector>
 
-namespace tessera::farm {
+namespace tessera::client {
 
 /// The request did not complete: cannot resolve, connect, hand-shake, send or receive, or a timeout. An answer with an
 /// HTTP error status is not one: that is an HttpResponse with the status.
@@ -125,4 +125,4 @@ class HttpClient {
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace tessera::farm
+}  // namespace tessera::client

@@ -12,7 +12,7 @@
 #include <functional>
 #include <thread>
 
-namespace tessera::farm {
+namespace tessera::client {
 namespace {
 
 namespace asio = boost::asio;
@@ -303,4 +303,4 @@ TEST(HttpClient, HeadResponsesHaveNoBody) {
 }
 
 }  // namespace
-}  // namespace tessera::farm
+}  // namespace tessera::client

@@ -1,8 +1,8 @@
 #include "client/job_client.h"
 
-#include "core/file_io.h"
-#include "core/scene_loader.h"
-#include "core/sha256.h"
+#include "core/util/file_io.h"
+#include "core/scene/scene_loader.h"
+#include "core/util/sha256.h"
 #include "protocol/events.h"
 #include "protocol/query.h"
 #include "protocol/routes.h"
@@ -18,7 +18,7 @@
 #include <thread>
 #include <vector>
 
-namespace tessera::farm {
+namespace tessera::client {
 
 namespace fs = std::filesystem;
 namespace routes = protocol::routes;
@@ -321,4 +321,4 @@ bool cancel_job(HttpClient& http, const std::string& id) {
   refuse("cancelling " + id, r);
 }
 
-}  // namespace tessera::farm
+}  // namespace tessera::client

@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-namespace tessera::farm {
+namespace tessera::client {
 
 /// The coordinator refused a request with a definitive answer; the message carries its explanation.
 struct SubmitError : std::runtime_error {
@@ -133,4 +133,4 @@ protocol::PurgeAnswer purge_job(HttpClient& http, const std::string& id);
 /// DELETE /v1/jobs/{id}; true when cancelled, false when it had already ended (409). Throws for other answers.
 bool cancel_job(HttpClient& http, const std::string& id);
 
-}  // namespace tessera::farm
+}  // namespace tessera::client

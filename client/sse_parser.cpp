@@ -1,6 +1,6 @@
 #include "client/sse_parser.h"
 
-namespace tessera::farm {
+namespace tessera::client {
 
 bool SseParser::feed(std::string_view bytes) {
   pending_.append(bytes);
@@ -47,4 +47,4 @@ bool SseParser::line(std::string_view text) {
   return true;
 }
 
-}  // namespace tessera::farm
+}  // namespace tessera::client

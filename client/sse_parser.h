@@ -7,7 +7,7 @@
 #include <string>
 #include <string_view>
 
-namespace tessera::farm {
+namespace tessera::client {
 
 /// One received event.
 struct SseMessage {
@@ -32,4 +32,4 @@ class SseParser {
   bool has_data_ = false;
 };
 
-}  // namespace tessera::farm
+}  // namespace tessera::client

@@ -5,7 +5,7 @@
 
 #include <vector>
 
-namespace tessera::farm {
+namespace tessera::client {
 namespace {
 
 TEST(SseParser, EventsSplitAnywhereAreReassembled) {
@@ -40,4 +40,4 @@ TEST(SseParser, StopsWhenAskedTo) {
 }
 
 }  // namespace
-}  // namespace tessera::farm
+}  // namespace tessera::client

@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <system_error>
 
-namespace tessera::farm {
+namespace tessera::client {
 
 namespace ssl = boost::asio::ssl;
 
@@ -44,4 +44,4 @@ std::shared_ptr<ssl::context> make_client_tls_context(const ClientTlsFiles& file
   return ctx;
 }
 
-}  // namespace tessera::farm
+}  // namespace tessera::client

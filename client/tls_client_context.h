@@ -6,7 +6,7 @@
 #include <memory>
 #include <string>
 
-namespace tessera::farm {
+namespace tessera::client {
 
 /// PEM files for https:// URLs (all optional).
 struct ClientTlsFiles {
@@ -23,4 +23,4 @@ struct ClientTlsFiles {
 /// naming the file and OpenSSL's reason when a file cannot be used.
 std::shared_ptr<boost::asio::ssl::context> make_client_tls_context(const ClientTlsFiles& files);
 
-}  // namespace tessera::farm
+}  // namespace tessera::client

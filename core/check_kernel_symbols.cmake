@@ -1,4 +1,4 @@
-# Fails when a BVH kernel object file (core/bvh_sse2.cpp, bvh_avx2.cpp, bvh_avx512.cpp) defines a global or weak
+# Fails when a BVH kernel object file (core/geometry/kernels/bvh_sse2.cpp, bvh_avx2.cpp, bvh_avx512.cpp) defines a global or weak
 # symbol other than its Kernels table. Run by ctest as BvhKernelSymbols: cmake -DNM=nm -DOBJECTS=a.o;b.o -P this file.
 if(NOT NM OR NOT OBJECTS)
   message(FATAL_ERROR "usage: cmake -DNM=<nm> -DOBJECTS=<objects> -P check_kernel_symbols.cmake")

@@ -1,6 +1,6 @@
 # Fails when the tracing library calls a C library function whose result may depend on the CPU (glibc picks FMA or
 # plain variants of sinf, cosf, expf, exp, ... at run time) or on the library's release: the renderer computes those
-# itself (core/trig.h, core/exp_log.h) so that pixels never depend on the machine. Two callers are allowed because
+# itself (core/util/trig.h, core/util/exp_log.h) so that pixels never depend on the machine. Two callers are allowed because
 # their results are not pixels: the sRGB curve of the PNG preview (image.cpp) and the generated test meshes of
 # mesh.cpp (used by tests and benchmarks, never by a scene). sqrt, floor, ldexp and frexp are exact and allowed.
 # Run by ctest as CoreLibmSymbols: cmake -DNM=nm -DARCHIVE=libtessera_core.a -P this file.
@@ -43,6 +43,6 @@ if(seen EQUAL 0)
 endif()
 if(bad)
   message(FATAL_ERROR "the tracing library calls C library functions whose results may differ between machines:\n${bad}"
-    "use portable_* from core/trig.h or core/exp_log.h")
+    "use portable_* from core/util/trig.h or core/util/exp_log.h")
 endif()
 message(STATUS "${seen} undefined symbols read, none of them a machine-dependent math function")

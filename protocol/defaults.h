@@ -1,7 +1,7 @@
 // The protocol's defaults, in one place: what a job, a worker or a lease gets when a value is not given.
 #pragma once
 
-#include "core/adaptive.h"
+#include "core/sampling/adaptive.h"
 
 #include <cstdint>
 

@@ -1,6 +1,6 @@
 #include "protocol/json_fields.h"
 
-#include "core/scene_loader.h"
+#include "core/scene/scene_loader.h"
 
 #include <algorithm>
 #include <limits>

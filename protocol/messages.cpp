@@ -4,10 +4,10 @@
 
 #include <charconv>
 
-#include "core/bvh.h"
-#include "core/enum_names.h"
-#include "core/light.h"
-#include "core/sha256.h"
+#include "core/geometry/bvh.h"
+#include "core/util/enum_names.h"
+#include "core/render/light.h"
+#include "core/util/sha256.h"
 
 namespace tessera::protocol {
 

@@ -3,9 +3,9 @@
 // rendering are all written here.
 #pragma once
 
-#include "core/image.h"
-#include "core/render.h"
-#include "core/scene_loader.h"
+#include "core/image/image.h"
+#include "core/render/render.h"
+#include "core/scene/scene_loader.h"
 #include "protocol/defaults.h"
 #include "protocol/job.h"
 #include "protocol/json_fields.h"
@@ -29,7 +29,7 @@ struct SamplingSettings {
   uint32_t min_spp = kDefaultMinSpp;  ///< Adaptive sampling: first round.
   uint32_t max_spp = kDefaultMaxSpp;  ///< Adaptive sampling: most samples per pixel.
   double error_floor = AdaptiveOptions{}.error_floor;  ///< Adaptive sampling: luminance floor of the relative error.
-  uint32_t replicates = 1;     ///< Independent replicates per pixel (see core/adaptive.h).
+  uint32_t replicates = 1;     ///< Independent replicates per pixel (see core/sampling/adaptive.h).
   std::string area_sampling;   ///< Overrides the scene's integrator.area_sampling ("": the scene's).
   std::string env_sampling;    ///< Overrides the scene's integrator.env_sampling ("": the scene's).
   std::string bvh;             ///< Overrides the scene's integrator.bvh ("": the scene's).
@@ -142,7 +142,7 @@ struct Lease {
   uint64_t seed = 0;        ///< Sample seed.
   std::string scene_hash;   ///< Scene content hash (informative).
   int64_t deadline_ms = 0;  ///< Expiry unless extended by a heartbeat.
-  bool resumable = false;   ///< Upload the tile with its exact sums (core/render_state.h channels).
+  bool resumable = false;   ///< Upload the tile with its exact sums (core/render/render_state.h channels).
   /// When > 0: the tile was rendered before at this spp; continue from its state, GET /v1/leases/{lease}/state.
   uint32_t state_spp = 0;
 };

@@ -1,7 +1,7 @@
 // One job's tiles as the protocol describes them: answer of GET /v1/jobs/{id}/tiles (docs/protocol.md, "Tiles").
 #pragma once
 
-#include "core/image.h"
+#include "core/image/image.h"
 
 #include <nlohmann/json_fwd.hpp>
 

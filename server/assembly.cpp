@@ -1,6 +1,6 @@
 #include "server/assembly.h"
 
-#include "core/exr_uncompressed.h"
+#include "core/image/exr_uncompressed.h"
 
 #include "failpoint/failpoint.h"
 

@@ -1,7 +1,7 @@
 // Merging tiles into a job's image: validating uploaded tile EXRs, copying them in, writing the result and previews.
 #pragma once
 
-#include "core/image.h"
+#include "core/image/image.h"
 
 #include <cstdint>
 #include <filesystem>

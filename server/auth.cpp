@@ -1,6 +1,6 @@
 #include "server/auth.h"
 
-#include "core/sha256.h"
+#include "core/util/sha256.h"
 
 #include <openssl/crypto.h>
 #include <openssl/rand.h>

@@ -1,7 +1,7 @@
 // Bearer-token access control: which token each endpoint needs and a constant-time check of the Authorization header.
 #pragma once
 
-#include "core/sha256.h"
+#include "core/util/sha256.h"
 
 #include <optional>
 #include <string>

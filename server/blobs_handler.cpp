@@ -1,6 +1,6 @@
 #include "server/blobs_handler.h"
 
-#include "core/sha256.h"
+#include "core/util/sha256.h"
 
 #include <spdlog/spdlog.h>
 

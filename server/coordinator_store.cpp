@@ -1,6 +1,6 @@
 #include "server/coordinator_store.h"
 
-#include "core/file_io.h"
+#include "core/util/file_io.h"
 #include "server/database.h"
 #include "server/memory_store.h"
 

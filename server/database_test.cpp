@@ -2,7 +2,7 @@
 // done without its pixels, and a restarted scheduler resumes where the old one stopped.
 #include "server/database.h"
 
-#include "core/test_files.h"
+#include "tests/support/test_files.h"
 #include "server/assembly.h"
 #include "server/coordinator.h"
 #include "server/memory_store.h"

@@ -5,10 +5,10 @@
 #include "server/test_http_client.h"
 #include "server/test_sse_client.h"
 
-#include "core/render.h"
-#include "core/scene_loader.h"
-#include "core/sha256.h"
-#include "core/tiles.h"
+#include "core/render/render.h"
+#include "core/scene/scene_loader.h"
+#include "core/util/sha256.h"
+#include "core/image/tiles.h"
 
 #include <boost/asio/connect.hpp>
 #include <boost/asio/ip/tcp.hpp>

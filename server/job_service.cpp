@@ -1,8 +1,8 @@
 #include "server/job_service.h"
 
-#include "core/file_io.h"
-#include "core/scene_loader.h"
-#include "core/tiles.h"
+#include "core/util/file_io.h"
+#include "core/scene/scene_loader.h"
+#include "core/image/tiles.h"
 #include "failpoint/failpoint.h"
 #include "server/tile_state.h"
 

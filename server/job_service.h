@@ -3,7 +3,7 @@
 // are protocol::ApiError (with the status to answer) or protocol::ProtocolError (400).
 #pragma once
 
-#include "core/checked_files.h"
+#include "core/scene/checked_files.h"
 #include "protocol/messages.h"
 #include "protocol/query.h"
 #include "protocol/tile.h"

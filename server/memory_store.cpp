@@ -1,6 +1,6 @@
 #include "server/memory_store.h"
 
-#include "core/file_io.h"
+#include "core/util/file_io.h"
 #include "server/database.h"
 
 namespace tessera::server {

@@ -7,7 +7,7 @@
 #include "server/farm_events.h"
 #include "server/job_service.h"
 
-#include "core/sha256.h"
+#include "core/util/sha256.h"
 
 #include <gtest/gtest.h>
 

@@ -2,7 +2,7 @@
 
 #include <utility>
 
-#include "core/tiles.h"
+#include "core/image/tiles.h"
 
 #include <spdlog/spdlog.h>
 

@@ -2,7 +2,7 @@
 // go to an injected SchedulerStore as one batch (one transaction when the store is a database).
 #pragma once
 
-#include "core/image.h"
+#include "core/image/image.h"
 #include "protocol/job.h"
 #include "protocol/worker.h"
 #include "protocol/messages.h"

@@ -1,7 +1,7 @@
 #include "server/storage.h"
 
-#include "core/sha256.h"
-#include "core/file_io.h"
+#include "core/util/sha256.h"
+#include "core/util/file_io.h"
 
 #include <chrono>
 

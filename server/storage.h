@@ -1,7 +1,7 @@
 // The coordinator's storage behind interfaces: a content-addressed blob store and per-job records and results.
 #pragma once
 
-#include "core/file_io.h"
+#include "core/util/file_io.h"
 
 #include <nlohmann/json.hpp>
 

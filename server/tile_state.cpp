@@ -1,6 +1,6 @@
 #include "server/tile_state.h"
 
-#include "core/render_state.h"
+#include "core/render/render_state.h"
 
 #include <algorithm>
 #include <bit>

@@ -1,10 +1,10 @@
 // The tiles of resumable jobs (docs/resume.md): each tile is uploaded with its pixels' exact sums (the UINT channels of
-// core/render_state.h), stored as uploaded, continued from by the worker that renders it at a higher spp, and
+// core/render/render_state.h), stored as uploaded, continued from by the worker that renders it at a higher spp, and
 // gathered into the result's state channels so the merged EXR can be refined by `tessera render --resume` too.
 #pragma once
 
-#include "core/image.h"
-#include "core/tiles.h"
+#include "core/image/image.h"
+#include "core/image/tiles.h"
 #include "server/storage.h"
 
 #include <cstdint>

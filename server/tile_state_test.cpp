@@ -1,10 +1,10 @@
 #include "server/tile_state.h"
 
-#include "core/render.h"
-#include "core/render_state.h"
-#include "core/scene_loader.h"
+#include "core/render/render.h"
+#include "core/render/render_state.h"
+#include "core/scene/scene_loader.h"
 #include "server/database.h"
-#include "core/file_io.h"
+#include "core/util/file_io.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>

@@ -1,8 +1,8 @@
 // `tessera render` with --target-error and the strategy overrides, run as a process: the options reach the
 // renderer, a whole image and odd-sized crops agree bitwise, the samples channel holds per-pixel counts, strategies
 // agree in expectation, and a bad option is refused with its exit status and message.
-#include "core/image.h"
-#include "core/test_error.h"
+#include "core/image/image.h"
+#include "tests/support/test_error.h"
 
 #include <gtest/gtest.h>
 

@@ -1,9 +1,9 @@
 // Integration tests of `tessera render`: runs the built binary on small scenes and inspects what it writes (EXR
 // windows, channels, pixel type and metadata, the PNG preview, the progress and summary lines) and how it fails.
 #include "cli/interrupt_guard.h"
-#include "core/render.h"
-#include "core/scene_loader.h"
-#include "core/test_files.h"
+#include "core/render/render.h"
+#include "core/scene/scene_loader.h"
+#include "tests/support/test_files.h"
 #include "tests/spp_scale.h"
 
 #include <OpenEXR/ImfChannelList.h>

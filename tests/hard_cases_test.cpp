@@ -1,11 +1,11 @@
 // Issue 5's hard cases, each small enough to run in seconds and each failing on a naive implementation:
 // a Cornell box 1e5 to 1e7 units from the origin and rotated, geometry too far from the camera for floats, a camera sealed inside a finely tessellated mesh, extreme geometry and
 // lighting (needles and a huge ground, a camera inside glass, grazing light, a 10^4 sun), and degenerate input.
-#include "core/image.h"
-#include "core/mesh.h"
-#include "core/render.h"
-#include "core/scene_loader.h"
-#include "core/test_error.h"
+#include "core/image/image.h"
+#include "core/geometry/mesh.h"
+#include "core/render/render.h"
+#include "core/scene/scene_loader.h"
+#include "tests/support/test_error.h"
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
@@ -59,7 +59,7 @@ json read_json(const fs::path& p) {
 }
 
 // Rendered with K independent replicates per pixel: unbiased variance estimates with K - 1 degrees of freedom
-// (core/adaptive.h).
+// (core/sampling/adaptive.h).
 RenderResult render_with_variance(const Scene& scene, uint32_t spp, uint64_t seed, uint32_t replicates = 4) {
   RenderOptions o;
   o.spp = spp;
@@ -161,7 +161,7 @@ NoiseComparison compare_with_noise(const RenderResult& a, const RenderResult& b)
 
 // The Cornell box moved 1e5, 1e6 and 1e7 units along every axis and turned by an arbitrary rotation, camera and
 // lights with it, renders like the original: the loader re-expresses every position in double in a frame centred on
-// the camera (core/camera_frame.h), so the box is traced in the same small float coordinates wherever it lies. Two
+// the camera (core/render/camera_frame.h), so the box is traced in the same small float coordinates wherever it lies. Two
 // scenes: the area light (penumbrae, contact shadows under the boxes) and the point light with a glass sphere
 // (refraction chains). Each moved render is compared with a render of the original at another seed; the reference
 // for "within noise" is the same comparison between two seeds of the original itself. Measured with the frame

@@ -5,7 +5,7 @@
 #include <stdexcept>
 #include <algorithm>
 
-namespace tessera::farm {
+namespace tessera::worker {
 
 namespace {
 
@@ -79,4 +79,4 @@ void ArenaPinning::on_scheduler_exit(bool) {
   t_saved = false;
 }
 
-}  // namespace tessera::farm
+}  // namespace tessera::worker

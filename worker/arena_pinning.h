@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-namespace tessera::farm {
+namespace tessera::worker {
 
 /// The CPUs this process may run on (sched_getaffinity), in ascending order.
 std::vector<int> allowed_cpus();
@@ -33,4 +33,4 @@ class ArenaPinning : public tbb::task_scheduler_observer {
   std::vector<int> cpus_;
 };
 
-}  // namespace tessera::farm
+}  // namespace tessera::worker

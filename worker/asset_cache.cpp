@@ -1,14 +1,14 @@
 #include "worker/asset_cache.h"
 
-#include "core/file_io.h"
-#include "core/sha256.h"
+#include "core/util/file_io.h"
+#include "core/util/sha256.h"
 
 #include <unistd.h>
 
 #include <cstdlib>
 #include <system_error>
 
-namespace tessera::farm {
+namespace tessera::worker {
 
 namespace fs = std::filesystem;
 
@@ -65,4 +65,4 @@ fs::path default_cache_dir() {
   return fs::temp_directory_path() / ("tessera-cache-" + std::to_string(::getuid()));
 }
 
-}  // namespace tessera::farm
+}  // namespace tessera::worker

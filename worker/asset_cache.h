@@ -8,7 +8,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace tessera::farm {
+namespace tessera::worker {
 
 /// An asset that could not be fetched or failed its hash check.
 struct AssetError : std::runtime_error {
@@ -45,4 +45,4 @@ class AssetCache {
 /// The default cache folder: $XDG_CACHE_HOME/tessera, else ~/.cache/tessera, else a folder under /tmp.
 std::filesystem::path default_cache_dir();
 
-}  // namespace tessera::farm
+}  // namespace tessera::worker

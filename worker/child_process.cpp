@@ -13,7 +13,7 @@
 #include <stdexcept>
 #include <thread>
 
-namespace tessera::farm {
+namespace tessera::worker {
 
 ChildProcess spawn_child(const std::vector<std::string>& argv, const std::string& name, const std::filesystem::path& log,
                          int pass_fd) {
@@ -136,4 +136,4 @@ std::string tail_of_file(const std::filesystem::path& path, int max_lines) {
   return out;
 }
 
-}  // namespace tessera::farm
+}  // namespace tessera::worker

@@ -7,7 +7,7 @@
 #include <sys/types.h>
 #include <vector>
 
-namespace tessera::farm {
+namespace tessera::worker {
 
 /// A child process started by spawn_child; stopping is explicit (stop_children), never in a destructor.
 struct ChildProcess {
@@ -43,4 +43,4 @@ std::string describe_exit(const ChildProcess& child);
 /// The last max_lines lines of a text file ("" when unreadable), for error reports.
 std::string tail_of_file(const std::filesystem::path& path, int max_lines);
 
-}  // namespace tessera::farm
+}  // namespace tessera::worker

@@ -1,11 +1,11 @@
 #include "worker/job_scenes.h"
 
-#include "core/scene_loader.h"
+#include "core/scene/scene_loader.h"
 
 #include <map>
 #include <utility>
 
-namespace tessera::farm {
+namespace tessera::worker {
 
 namespace {
 
@@ -91,4 +91,4 @@ void JobScenes::preload(protocol::JobSubmission expected) {
   preload_ = std::move(p);
 }
 
-}  // namespace tessera::farm
+}  // namespace tessera::worker

@@ -2,7 +2,7 @@
 // kept for the job's later tiles.
 #pragma once
 
-#include "core/checked_files.h"
+#include "core/scene/checked_files.h"
 #include "protocol/messages.h"
 #include "worker/asset_cache.h"
 #include "worker/prefetched_lease.h"
@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-namespace tessera::farm {
+namespace tessera::worker {
 
 /// What fetching from the coordinator throws when it no longer has the job, lease or blob asked for (404).
 struct Gone : std::runtime_error {
@@ -74,4 +74,4 @@ class JobScenes {
   int preloads_used_ = 0;
 };
 
-}  // namespace tessera::farm
+}  // namespace tessera::worker

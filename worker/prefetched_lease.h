@@ -1,8 +1,8 @@
 // A lease asked for while the worker's previous tile rendered, and the render of its tile when that was begun ahead.
 #pragma once
 
-#include "core/render.h"
-#include "core/scene_loader.h"
+#include "core/render/render.h"
+#include "core/scene/scene_loader.h"
 #include "protocol/messages.h"
 #include "worker/render_signals.h"
 
@@ -15,7 +15,7 @@
 #include <mutex>
 #include <optional>
 
-namespace tessera::farm {
+namespace tessera::worker {
 
 /// A job's built scene and the sampling settings of its spec, cached per job id.
 struct PreparedJob {
@@ -47,4 +47,4 @@ struct PrefetchedLease {
   std::optional<protocol::JobSpec> spec;  ///< The job's spec when it came with the lease.
 };
 
-}  // namespace tessera::farm
+}  // namespace tessera::worker

@@ -4,7 +4,7 @@
 
 #include <algorithm>
 
-namespace tessera::farm {
+namespace tessera::worker {
 
 void RecentLog::sink_it_(const spdlog::details::log_msg& msg) {
   spdlog::memory_buf_t buf;
@@ -34,4 +34,4 @@ RecentLogScope::~RecentLogScope() {
   sinks.erase(std::remove(sinks.begin(), sinks.end(), log_), sinks.end());
 }
 
-}  // namespace tessera::farm
+}  // namespace tessera::worker

@@ -11,7 +11,7 @@
 #include <string_view>
 #include <vector>
 
-namespace tessera::farm {
+namespace tessera::worker {
 
 /// A log sink keeping the last `capacity` formatted lines in memory.
 class RecentLog final : public spdlog::sinks::base_sink<std::mutex> {
@@ -44,4 +44,4 @@ class RecentLogScope {
   std::shared_ptr<RecentLog> log_;
 };
 
-}  // namespace tessera::farm
+}  // namespace tessera::worker

@@ -2,7 +2,7 @@
 
 #include <utility>
 
-namespace tessera::farm {
+namespace tessera::worker {
 
 void RenderSignals::want_next() {
   std::lock_guard lock(mutex_);
@@ -17,4 +17,4 @@ void RenderSignals::attach(std::function<void()> ask_next) {
   if (ask_next_ && wants_next_) ask_next_();
 }
 
-}  // namespace tessera::farm
+}  // namespace tessera::worker

@@ -7,7 +7,7 @@
 #include <functional>
 #include <mutex>
 
-namespace tessera::farm {
+namespace tessera::worker {
 
 /// Why a tile's render was stopped early.
 enum class Stop : int { kNone = 0, kRevoked = 1, kShutdown = 2 };
@@ -30,4 +30,4 @@ struct RenderSignals {
   bool wants_next_ = false;
 };
 
-}  // namespace tessera::farm
+}  // namespace tessera::worker

@@ -8,7 +8,7 @@
 #include <utility>
 #include <vector>
 
-namespace tessera::farm {
+namespace tessera::worker {
 
 /// Keeps the `capacity` most recently used values; used by one thread.
 template <class T>
@@ -49,4 +49,4 @@ class LruCache {
   std::list<std::pair<std::string, std::shared_ptr<const T>>> entries_;
 };
 
-}  // namespace tessera::farm
+}  // namespace tessera::worker

@@ -7,7 +7,7 @@
 
 #include <utility>
 
-namespace tessera::farm {
+namespace tessera::worker {
 
 using namespace std::chrono_literals;
 namespace routes = protocol::routes;
@@ -123,4 +123,4 @@ bool TileCompanion::beat(const std::string& lease, const std::string& body) {
   return true;
 }
 
-}  // namespace tessera::farm
+}  // namespace tessera::worker

@@ -15,7 +15,7 @@
 #include <string>
 #include <thread>
 
-namespace tessera::farm {
+namespace tessera::worker {
 
 /// Heartbeats a tile's lease every `period` (the first beat after `first_beat`) on a thread of its own; on 410/404 it
 /// sets the render's cancel flag, and on a second stop request it cancels for shutdown. When asked (near the end of
@@ -60,4 +60,4 @@ class TileCompanion {
   std::thread thread_;  // last: starts after every other member is ready
 };
 
-}  // namespace tessera::farm
+}  // namespace tessera::worker

@@ -1,7 +1,7 @@
 #include "worker/tile_upload.h"
 
 #include "client/backoff.h"
-#include "core/image.h"
+#include "core/image/image.h"
 #include "failpoint/failpoint.h"
 #include "protocol/routes.h"
 
@@ -10,7 +10,7 @@
 
 #include <limits>
 
-namespace tessera::farm {
+namespace tessera::worker {
 
 using namespace std::chrono_literals;
 
@@ -96,4 +96,4 @@ UploadOutcome upload_tile(HttpClient& http, const protocol::Lease& l, const std:
   }
 }
 
-}  // namespace tessera::farm
+}  // namespace tessera::worker

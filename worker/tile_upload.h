@@ -3,14 +3,14 @@
 #pragma once
 
 #include "client/http_client.h"
-#include "core/render.h"
+#include "core/render/render.h"
 #include "protocol/messages.h"
 
 #include <chrono>
 #include <functional>
 #include <string>
 
-namespace tessera::farm {
+namespace tessera::worker {
 
 /// How a tile's upload ended.
 enum class UploadOutcome {
@@ -26,4 +26,4 @@ UploadOutcome upload_tile(HttpClient& http, const protocol::Lease& l, const std:
                           int width, int height, std::chrono::milliseconds max_retry_wait,
                           const std::function<bool()>& abandon);
 
-}  // namespace tessera::farm
+}  // namespace tessera::worker

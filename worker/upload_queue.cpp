@@ -1,6 +1,6 @@
 #include "worker/upload_queue.h"
 
-namespace tessera::farm {
+namespace tessera::worker {
 
 UploadQueue::UploadQueue() : thread_([this] { loop(); }) {}
 
@@ -43,4 +43,4 @@ void UploadQueue::loop() {
   }
 }
 
-}  // namespace tessera::farm
+}  // namespace tessera::worker

@@ -7,7 +7,7 @@
 #include <mutex>
 #include <thread>
 
-namespace tessera::farm {
+namespace tessera::worker {
 
 /// Runs one task at a time on a background thread. post() waits until the previous task has finished before it
 /// hands over the next, so at most one task (one finished tile) is outstanding: the worker never runs ahead of its
@@ -36,4 +36,4 @@ class UploadQueue {
   std::thread thread_;  // last: starts after every other member is ready
 };
 
-}  // namespace tessera::farm
+}  // namespace tessera::worker

@@ -1,9 +1,9 @@
 #include "worker/worker.h"
 
 #include "client/backoff.h"
-#include "core/image.h"
-#include "core/render.h"
-#include "core/render_state.h"
+#include "core/image/image.h"
+#include "core/render/render.h"
+#include "core/render/render_state.h"
 #include "failpoint/failpoint.h"
 #include "protocol/messages.h"
 #include "protocol/routes.h"
@@ -30,7 +30,7 @@
 #include <optional>
 #include <thread>
 
-namespace tessera::farm {
+namespace tessera::worker {
 
 using nlohmann::json;
 using namespace std::chrono_literals;
@@ -565,4 +565,4 @@ WorkerStats run_worker(const WorkerOptions& options, const std::atomic<int>& sto
   return worker.run();
 }
 
-}  // namespace tessera::farm
+}  // namespace tessera::worker

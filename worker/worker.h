@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-namespace tessera::farm {
+namespace tessera::worker {
 
 /// How a worker runs.
 struct WorkerOptions {
@@ -48,4 +48,4 @@ struct WorkerStats {
 /// the worker token (401/403).
 WorkerStats run_worker(const WorkerOptions& options, const std::atomic<int>& stop_requests);
 
-}  // namespace tessera::farm
+}  // namespace tessera::worker

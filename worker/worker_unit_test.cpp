@@ -1,7 +1,7 @@
-#include "core/render.h"
-#include "core/scene_loader.h"
-#include "core/sha256.h"
-#include "core/test_files.h"
+#include "core/render/render.h"
+#include "core/scene/scene_loader.h"
+#include "core/util/sha256.h"
+#include "tests/support/test_files.h"
 #include "worker/arena_pinning.h"
 #include "worker/asset_cache.h"
 #include "worker/job_scenes.h"
@@ -18,7 +18,7 @@
 #include <atomic>
 #include <tbb/parallel_for.h>
 
-namespace tessera::farm {
+namespace tessera::worker {
 namespace {
 
 namespace fs = std::filesystem;
@@ -194,10 +194,10 @@ TEST_F(JobScenesTest, APreloadThatFailsLeavesTheJobToLoadAndReportAsUsual) {
 }
 
 }  // namespace
-}  // namespace tessera::farm
+}  // namespace tessera::worker
 
 TEST(CpuList, ParsesRangesAndListsAndRefusesNonsense) {
-  using tessera::farm::parse_cpu_list;
+  using tessera::worker::parse_cpu_list;
   EXPECT_EQ(parse_cpu_list("0"), (std::vector<int>{0}));
   EXPECT_EQ(parse_cpu_list("3,0-2,2"), (std::vector<int>{0, 1, 2, 3}));
   EXPECT_EQ(parse_cpu_list("6,4"), (std::vector<int>{4, 6}));
@@ -209,11 +209,11 @@ TEST(CpuList, ParsesRangesAndListsAndRefusesNonsense) {
 // Each thread of the arena runs on its slot's CPU while it works there, and the thread that entered it has its CPUs
 // back afterwards.
 TEST(ArenaPinning, PinsEachSlotToItsCpuAndGivesTheCpusBack) {
-  const std::vector<int> cpus = tessera::farm::allowed_cpus();
+  const std::vector<int> cpus = tessera::worker::allowed_cpus();
   ASSERT_FALSE(cpus.empty());
   const int threads = int(std::min<size_t>(cpus.size(), 2));
   tbb::task_arena arena(threads);
-  tessera::farm::ArenaPinning pinning(arena, cpus);
+  tessera::worker::ArenaPinning pinning(arena, cpus);
   std::atomic<int> wrong{0}, seen{0};
   arena.execute([&] {
     tbb::parallel_for(0, 2000, [&](int) {
@@ -225,5 +225,5 @@ TEST(ArenaPinning, PinsEachSlotToItsCpuAndGivesTheCpusBack) {
   });
   EXPECT_EQ(seen.load(), 2000);
   EXPECT_EQ(wrong.load(), 0);
-  EXPECT_EQ(tessera::farm::allowed_cpus(), cpus);  // this thread (slot 0 while inside) has every CPU again
+  EXPECT_EQ(tessera::worker::allowed_cpus(), cpus);  // this thread (slot 0 while inside) has every CPU again
 }

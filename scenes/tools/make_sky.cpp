@@ -5,8 +5,8 @@
 // angular radius `--sun-radius` degrees whose radiance is `--sun-ratio` times the sky's zenith radiance. Each pixel
 // stores the average over its footprint (8 x 8 stratified sub-samples), so the disc's edge is anti-aliased and the
 // sun's total power does not depend on the map's resolution.
-#include "core/image.h"
-#include "core/math.h"
+#include "core/image/image.h"
+#include "core/util/math.h"
 
 #include <CLI/CLI.hpp>
 

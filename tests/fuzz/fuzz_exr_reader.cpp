@@ -2,7 +2,7 @@
 // states (OpenEXRCore for the common scanline files, OpenEXR's C++ library for the rest and for what OpenEXRCore
 // declines). An ImageError is a clean refusal; anything else is a finding. What is read must have the shape the
 // header promised.
-#include "core/image.h"
+#include "core/image/image.h"
 
 #include <cstddef>
 #include <cstdint>

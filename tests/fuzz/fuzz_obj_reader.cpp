@@ -1,7 +1,7 @@
 // libFuzzer target: an OBJ file's bytes through the scene loader's OBJ reader (a fixed scene with one mesh object,
 // transformed and used as an emitter so the area-light split runs too). The bytes go to a file in a per-process
 // scratch folder because the loader reads assets by path. A SceneError is a clean refusal; anything else is a finding.
-#include "core/scene_loader.h"
+#include "core/scene/scene_loader.h"
 #include "tests/fuzz/scratch_dir.h"
 
 #include <nlohmann/json.hpp>

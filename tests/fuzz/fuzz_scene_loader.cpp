@@ -1,8 +1,8 @@
 // libFuzzer target: a scene file's text through the scene loader. Every asset path resolves to one small valid
 // file of its kind (an OBJ quad or a 2x2 EXR), so the fuzzer explores the JSON side; any SceneError is a clean
 // refusal, anything else (another exception, a crash, UB, a leak) is a finding.
-#include "core/image.h"
-#include "core/scene_loader.h"
+#include "core/image/image.h"
+#include "core/scene/scene_loader.h"
 #include "tests/fuzz/scratch_dir.h"
 
 #include <cstddef>

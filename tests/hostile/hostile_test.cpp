@@ -4,8 +4,8 @@
 // bits as a single-process render, that a second good job does too, and that /healthz still answers.
 // docs/hostile-inputs.md is generated from the same case list (TESSERA_UPDATE_HOSTILE_DOC=1 rewrites it) and a test
 // fails when the two differ.
-#include "core/image.h"
-#include "core/sha256.h"
+#include "core/image/image.h"
+#include "core/util/sha256.h"
 #include "worker/child_process.h"
 
 #include <boost/asio/buffer.hpp>
@@ -81,18 +81,18 @@ void spit(const fs::path& p, const std::string& bytes) {
 // SIGKILL after 10 s) when destroyed.
 class Process {
  public:
-  Process(const std::vector<std::string>& args, const fs::path& log) : child_{farm::spawn_child(args, args[0], log)} {}
+  Process(const std::vector<std::string>& args, const fs::path& log) : child_{worker::spawn_child(args, args[0], log)} {}
   ~Process() { stop(); }
   Process(const Process&) = delete;
   Process& operator=(const Process&) = delete;
 
   /// True while the process has not exited.
-  bool alive() { return !farm::child_exited(child_[0]); }
+  bool alive() { return !worker::child_exited(child_[0]); }
   /// SIGTERM, up to 10 s to exit, then SIGKILL.
-  void stop() { farm::stop_children(child_, std::chrono::seconds(10)); }
+  void stop() { worker::stop_children(child_, std::chrono::seconds(10)); }
 
  private:
-  std::vector<farm::ChildProcess> child_;  // one element: the form stop_children takes
+  std::vector<worker::ChildProcess> child_;  // one element: the form stop_children takes
 };
 
 // Runs a command to completion with its output in a fresh log; returns its exit status (-1 when it did not exit
@@ -100,8 +100,8 @@ class Process {
 int run(const std::vector<std::string>& args, const fs::path& log) {
   std::error_code ec;
   fs::remove(log, ec);  // spawn_child appends
-  farm::ChildProcess c = farm::spawn_child(args, args[0], log);
-  while (!farm::child_exited(c)) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  worker::ChildProcess c = worker::spawn_child(args, args[0], log);
+  while (!worker::child_exited(c)) std::this_thread::sleep_for(std::chrono::milliseconds(20));
   return WIFEXITED(c.exit_status) ? WEXITSTATUS(c.exit_status) : -1;
 }
 

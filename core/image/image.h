@@ -1,0 +1,135 @@
+// Float images and their files: OpenEXR read/write with windows, extra channels and metadata, sRGB PNG previews.
+#pragma once
+
+#include "core/util/math.h"
+
+#include <cassert>
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace tessera {
+
+/// Any failure to read, write or encode an image; the message names the file (when there is one) and the reason.
+struct ImageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// A half-open pixel rectangle [x0,x1) x [y0,y1); y = 0 is the top row of the picture.
+struct PixelWindow {
+  int x0 = 0;  ///< First column.
+  int y0 = 0;  ///< First row.
+  int x1 = 0;  ///< One past the last column.
+  int y1 = 0;  ///< One past the last row.
+
+  /// Number of columns (zero for an empty window).
+  int width() const { return empty() ? 0 : x1 - x0; }
+  /// Number of rows (zero for an empty window).
+  int height() const { return empty() ? 0 : y1 - y0; }
+  /// True when the window holds no pixel.
+  bool empty() const { return x1 <= x0 || y1 <= y0; }
+  /// True when every pixel of w lies inside this window (always true for an empty w).
+  bool contains(const PixelWindow& w) const {
+    return w.empty() || (w.x0 >= x0 && w.y0 >= y0 && w.x1 <= x1 && w.y1 <= y1);
+  }
+  /// Exact equality of the four bounds.
+  bool operator==(const PixelWindow&) const = default;
+};
+
+/// A float RGB image (row-major, first row = top), optionally with extra named float channels of the same size.
+struct Image {
+  int width = 0;   ///< Columns.
+  int height = 0;  ///< Rows.
+  std::vector<float> rgb;  ///< 3 * width * height floats, RGB interleaved.
+  /// Further channels (e.g. "variance.R", "samples"), each width * height floats.
+  std::map<std::string, std::vector<float>> extra;
+  /// Further 32-bit unsigned integer channels (e.g. a resumable render's state, core/render/render_state.h), each
+  /// width * height values; written and read as EXR UINT channels, so every bit survives.
+  std::map<std::string, std::vector<uint32_t>> uint_extra;
+
+  /// The colour of pixel (x, y); x, y must lie inside the image.
+  Vec3 at(int x, int y) const {
+    const size_t i = index(x, y);
+    return {rgb[i], rgb[i + 1], rgb[i + 2]};
+  }
+  /// Sets the colour of pixel (x, y); x, y must lie inside the image.
+  void set(int x, int y, const Vec3& c) {
+    const size_t i = index(x, y);
+    rgb[i] = c.x;
+    rgb[i + 1] = c.y;
+    rgb[i + 2] = c.z;
+  }
+  /// A zero-filled image without extra channels; throws ImageError for negative sizes.
+  static Image make(int width, int height);
+
+ private:
+  size_t index(int x, int y) const {
+    assert(x >= 0 && x < width && y >= 0 && y < height);
+    return 3 * (size_t(y) * size_t(width) + size_t(x));
+  }
+};
+
+/// Rows [y0, y1) of img as an image of their own, extra channels included; throws ImageError unless
+/// 0 <= y0 <= y1 <= img.height.
+Image image_rows(const Image& img, int y0, int y1);
+
+/// An EXR as read: its pixels over its data window, the display window and string/int/double metadata.
+struct ExrImage {
+  Image pixels;                ///< Exactly the data window's pixels.
+  PixelWindow data_window;     ///< Where the pixels lie in EXR pixel space.
+  PixelWindow display_window;  ///< The picture's frame; the data window may lie partly or wholly outside it.
+  std::map<std::string, std::string> metadata;  ///< Header attributes of type string, int or double, as text.
+};
+
+/// Reads the first part of an EXR (scanline or tiled, half/float/uint) with R,G,B channels, or Y (grey; with RY,BY
+/// as luminance/chroma). Other full-resolution channels go to pixels.extra (half and float ones) or pixels.uint_extra
+/// (UINT ones, exactly); subsampled extra channels are skipped.
+/// Pixel values are returned as stored, non-finite ones included. Throws ImageError (naming the file) for a missing,
+/// unreadable, truncated or non-EXR file, deep data, no colour channels, or a data window over 65536 pixels per side
+/// or 2^28 pixels in all.
+ExrImage read_exr(const std::filesystem::path& path);
+
+/// read_exr for a file's bytes held in memory (e.g. received over HTTP); throws ImageError as read_exr does.
+ExrImage decode_exr(std::string_view bytes);
+
+/// Lossless compression of an EXR's pixels. Rendered float data is noisy and barely compresses (measured on a 3840x2160
+/// float frame: ZIP 7.4 s for 5% smaller, PIZ 5.0 s for 23% smaller, none 0.19 s), so the farm's hot paths use kNone.
+enum class ExrCompression {
+  kZip,   ///< zlib over 16 scanlines (the default).
+  kPiz,   ///< Wavelet + Huffman: smaller on noisy data, slower to decode.
+  kNone,  ///< Uncompressed: fastest to write and read.
+};
+
+/// How write_exr lays out the file.
+struct ExrWriteOptions {
+  ExrCompression compression = ExrCompression::kZip;  ///< Pixel compression.
+  /// Store R,G,B as 16-bit half, rounded to nearest (beyond +-65504 they become infinite); extra channels stay float.
+  bool half = false;
+  PixelWindow display_window{};  ///< The picture's frame; empty means the data window.
+  PixelWindow data_window{};     ///< Where the pixels go; empty means [0,width) x [0,height), else its size must match.
+  /// Written as string attributes; the EXR layout attributes and standard attributes of other types are refused.
+  std::map<std::string, std::string> metadata{};
+  bool write_extra = true;  ///< Also write the image's extra channels (extra as float, uint_extra as UINT).
+};
+
+/// Writes img as a scanline EXR (compressed as opt.compression says): R,G,B (float, or half) plus the extra channels and metadata. Atomic:
+/// the bytes go to path + ".tmp", which is synced and renamed over path, so path is never seen half-written. Throws
+/// ImageError naming the file; on failure path is untouched and no .tmp file is left.
+void write_exr(const std::filesystem::path& path, const Image& img, const ExrWriteOptions& opt = {});
+
+/// The bytes write_exr would write, in memory (e.g. for an HTTP upload); throws ImageError.
+std::vector<uint8_t> encode_exr(const Image& img, const ExrWriteOptions& opt = {});
+
+/// The bytes of an 8-bit sRGB PNG of img: each value times exposure, clamped to [0,1] (NaN -> 0), sRGB-encoded and
+/// rounded. Throws ImageError for an empty or malformed image.
+std::vector<uint8_t> encode_png_srgb(const Image& img, float exposure = 1.f);
+
+/// Writes encode_png_srgb(img, exposure) to path, atomically like write_exr. Throws ImageError naming the file.
+void write_png_srgb(const std::filesystem::path& path, const Image& img, float exposure = 1.f);
+
+}  // namespace tessera

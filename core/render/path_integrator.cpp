@@ -1,0 +1,131 @@
+#include "core/render/path_integrator.h"
+
+#include "core/render/bsdf.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace tessera {
+
+namespace {
+
+// Light gathered at a non-delta vertex by sampling every light once: the point light always (a delta light, no
+// other strategy can find it); area lights and the environment unless the profile is RW, weighted against BSDF
+// sampling by the power heuristic under MIS.
+Vec3 sample_lights(const Scene& scene, const SurfaceHit& h, const Bsdf& bsdf, const Vec3& wo, PixelSampler& sampler,
+                   RayCounters& counters) {
+  const IntegratorSettings& st = scene.settings;
+  const Vec3 n = h.ns;
+  Vec3 L(0.f);
+  auto unoccluded = [&](const Ray& ray) { return !trace_occluded(scene, ray, counters); };
+  if (scene.point_light) {
+    const PointLight& pl = *scene.point_light;
+    const Vec3 d = pl.position - h.sp.p;
+    const float d2 = length_squared(d);
+    const Vec3 wi = d / std::sqrt(d2);
+    const Vec3 f = bsdf.f(wo, wi);
+    if (max_component(f) > 0.f && unoccluded(spawn_ray_to(h.sp, pl.position)))
+      L += f * std::abs(glm::dot(n, wi)) * pl.flux / (4.f * kPi * d2);
+  }
+  if (st.profile == PathProfile::kRw) return L;
+  const bool mis = st.profile == PathProfile::kMis;
+  for (const AreaLight& light : scene.area_lights) {
+    const float u_part = sampler.next_1d();
+    const Vec2 u = sampler.next_2d();
+    const LightSample ls = light.sample(h.sp.p, u_part, u, st.area_sampling);
+    if (!(ls.pdf > 0.f) || max_component(ls.radiance) <= 0.f) continue;
+    const Vec3 wi = glm::normalize(ls.p - h.sp.p);
+    const Vec3 f = bsdf.f(wo, wi);
+    if (max_component(f) <= 0.f) continue;
+    if (!unoccluded(spawn_ray_to(h.sp, SurfacePoint{ls.p, ls.p_error, ls.n}))) continue;
+    const float w = mis ? power_heuristic(ls.pdf, bsdf.pdf(wo, wi)) : 1.f;
+    L += f * ls.radiance * (std::abs(glm::dot(n, wi)) * w / ls.pdf);
+  }
+  if (scene.environment) {
+    const Environment& env = *scene.environment;
+    const LightSample ls = env.sample(sampler.next_2d());
+    const Vec3 wi = ls.p;
+    if (ls.pdf > 0.f && max_component(ls.radiance) > 0.f) {
+      const Vec3 f = bsdf.f(wo, wi);
+      if (max_component(f) > 0.f && unoccluded(spawn_ray(h.sp, wi))) {
+        const float w = mis ? power_heuristic(ls.pdf, bsdf.pdf(wo, wi)) : 1.f;
+        L += f * ls.radiance * (std::abs(glm::dot(n, wi)) * w / ls.pdf);
+      }
+    }
+  }
+  return L;
+}
+
+// Weight of emission found by a BSDF-sampled ray (light_pdf: the light sampler's density for that point).
+float emission_weight(PathProfile profile, bool after_delta, float bsdf_pdf, float light_pdf) {
+  if (after_delta || profile == PathProfile::kRw) return 1.f;
+  if (profile == PathProfile::kNee) return 0.f;
+  return power_heuristic(bsdf_pdf, light_pdf);
+}
+
+}  // namespace
+
+Vec3 trace_path(const Scene& scene, Ray r, const std::optional<Hit>& camera_hit, PixelSampler& sampler,
+                RayCounters& counters) {
+  ++counters.camera;
+  const IntegratorSettings& st = scene.settings;
+  Vec3 L(0.f), beta(1.f);
+  bool after_delta = true;  // the camera ray counts as a delta bounce: emitters it sees count fully
+  float bsdf_pdf = 0.f;     // density of the last BSDF sample
+  Vec3 prev_p(0.f);         // the vertex the current ray left
+  for (int depth = 0;; ++depth) {
+    const auto hit =
+        depth == 0 ? camera_hit : trace_closest(scene, r, after_delta ? RayKind::kSpecular : RayKind::kBounce, counters);
+    if (!hit) {
+      if (scene.environment) {
+        const Vec3 d = glm::normalize(r.d);
+        float lp = 0.f;
+        const Vec3 le = after_delta ? scene.environment->radiance(d) : scene.environment->radiance_and_pdf(d, &lp);
+        L += beta * le * emission_weight(st.profile, after_delta, bsdf_pdf, lp);
+      }
+      break;
+    }
+    const SurfaceHit h = scene.surface(r, *hit);
+    const Vec3 wo = -glm::normalize(r.d);
+    if (h.light >= 0 && glm::dot(wo, h.sp.n) > 0.f) {  // emitters radiate only to the side their normal faces
+      const AreaLight& light = scene.area_lights[size_t(h.light)];
+      const float lp = after_delta ? 0.f : light.pdf(prev_p, h.sp.p, h.sp.n, st.area_sampling);
+      L += beta * light.radiance * emission_weight(st.profile, after_delta, bsdf_pdf, lp);
+    }
+    if (depth >= st.max_depth) break;
+    const Material& m = *h.material;
+    const Vec3 reflectance = (m.kind == MaterialKind::kDiffuse || m.kind == MaterialKind::kRoughConductor)
+                                 ? scene.textures[m.texture].evaluate(h.uv)
+                                 : Vec3(1.f);
+    const Bsdf bsdf(m, h.ns, h.sp.n, reflectance);
+    if (bsdf.black()) break;
+    if (!bsdf.delta()) L += beta * sample_lights(scene, h, bsdf, wo, sampler, counters);
+    const float uc = sampler.next_1d();
+    const auto s = bsdf.sample(wo, uc, sampler.next_2d());
+    if (!s) break;
+    beta *= s->f * (std::abs(glm::dot(s->wi, h.ns)) / s->pdf);
+    after_delta = s->delta;
+    bsdf_pdf = s->pdf;
+    prev_p = h.sp.p;
+    r = spawn_ray(h.sp, s->wi);
+    // Russian roulette: below the threshold a path survives with probability equal to its throughput's largest
+    // channel and is reweighted by its inverse, so the estimate stays unbiased.
+    const float b = max_component(beta);
+    if (!std::isfinite(b) || std::isnan(beta.x + beta.y + beta.z)) {
+      ++counters.nonfinite;
+      return Vec3(0.f);
+    }
+    if (!(b > 0.f)) break;
+    if (b < st.rr_threshold) {
+      if (sampler.next_1d() >= b) break;
+      beta /= b;
+    }
+  }
+  if (!is_finite(L)) {
+    ++counters.nonfinite;
+    return Vec3(0.f);
+  }
+  return L;
+}
+
+}  // namespace tessera

@@ -1,0 +1,34 @@
+// Names of the render-strategy enums as written in scene files, on the command line and in EXR metadata: one table
+// per enum (in core/render/light.h and core/geometry/bvh.h), read in both directions by the two functions here.
+#pragma once
+
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace tessera {
+
+/// The name of `e` in `names`, a table listing every enumerator's name in declaration order.
+template <class E, std::size_t N>
+constexpr std::string_view enum_name(E e, const std::string_view (&names)[N]) {
+  const auto i = static_cast<std::size_t>(e);
+  return i < N ? names[i] : std::string_view("unknown");
+}
+
+/// The enumerator named `s` in `names` (declaration order), or nothing when no name matches.
+template <class E, std::size_t N>
+constexpr std::optional<E> enum_from_name(std::string_view s, const std::string_view (&names)[N]) {
+  for (std::size_t i = 0; i < N; ++i)
+    if (names[i] == s) return static_cast<E>(i);
+  return std::nullopt;
+}
+
+/// The table as strings, e.g. for a command-line option's list of allowed values.
+template <std::size_t N>
+std::vector<std::string> enum_names(const std::string_view (&names)[N]) {
+  return std::vector<std::string>(std::begin(names), std::end(names));
+}
+
+}  // namespace tessera
