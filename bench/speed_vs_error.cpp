@@ -1,4 +1,4 @@
-// Speed against error (issue 5): for each project scene, error against a reference as a function of render time,
+// Speed against error: for each project scene, error against a reference as a function of render time,
 // equal-error comparisons of the sampling strategies and BVH builds, adaptive sampling (--target-error) against
 // uniform sample counts, the environment-map fix before/after, and predicted against measured error. Writes
 // docs/speed-vs-error.md, its data files and a gnuplot script, and runs gnuplot on it.

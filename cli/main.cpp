@@ -1,5 +1,6 @@
 // The single `tessera` executable: one subcommand per way of using the farm, one rule for exit statuses
 // (cli/exit_status.h).
+#include "cli/build_commit.h"
 #include "cli/exit_status.h"
 #include "cli/jobs_command.h"
 #include "cli/merge_command.h"
@@ -18,7 +19,9 @@
 int main(int argc, char** argv) {
   try {
     CLI::App app{"Tessera: a render-farm tile service"};
-    app.set_version_flag("--version", std::string("tessera ") + TESSERA_VERSION);
+    // --version: the release number and the commit it was built from, e.g. "tessera 0.1.0 (commit 03cac3c)".
+    app.set_version_flag("--version", std::string("tessera ") + TESSERA_VERSION + " (commit " +
+                                          tessera::cli::build_commit() + ")");
     app.require_subcommand(0, 1);
 
     tessera::cli::RenderArgs render_args;

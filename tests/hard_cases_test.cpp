@@ -1,4 +1,4 @@
-// Issue 5's hard cases, each small enough to run in seconds and each failing on a naive implementation:
+// Hard cases, each small enough to run in seconds and each failing on a naive implementation:
 // a Cornell box 1e5 to 1e7 units from the origin and rotated, geometry too far from the camera for floats, a camera sealed inside a finely tessellated mesh, extreme geometry and
 // lighting (needles and a huge ground, a camera inside glass, grazing light, a 10^4 sun), and degenerate input.
 #include "core/image/image.h"
