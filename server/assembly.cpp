@@ -111,6 +111,27 @@ std::optional<std::string> check_channels(const ExrLayout& h) {
   return std::nullopt;
 }
 
+// What a tile's header must say before any of its pixels are decoded: one flat part (no deep data, no parts), at most
+// kMaxTileChannels channels among which R, G and B are float32 at full resolution, the job's image as display window
+// and the lease's tile as data window.
+constexpr size_t kMaxTileChannels = 64;
+std::optional<std::string> check_header(const ExrLayout& h, const PixelWindow& window, int width, int height) {
+  constexpr int32_t kDeep = 0x800, kMultiPart = 0x1000;
+  if ((h.version & 0xff) != 2) return "OpenEXR version " + std::to_string(h.version & 0xff) + " is not 2";
+  if (h.version & (kDeep | kMultiPart)) return std::string("a tile must be one flat image, not deep or multi-part");
+  if (h.channels.size() > kMaxTileChannels)
+    return std::to_string(h.channels.size()) + " channels, more than the " + std::to_string(kMaxTileChannels) +
+           " a tile may have";
+  if (auto e = check_channels(h)) return e;
+  const PixelWindow full{0, 0, width, height};
+  if (!h.display) return std::string("the header has no display window");
+  if (!(*h.display == full)) return "display window is " + describe(*h.display) + ", expected " + describe(full);
+  if (!h.data) return std::string("the header has no data window");
+  if (!(*h.data == window))
+    return "data window is " + describe(*h.data) + ", expected the tile's " + describe(window);
+  return std::nullopt;
+}
+
 // A tile in the exact layout workers send (single-part scanline, uncompressed, channels B, G, R float32 and nothing
 // else, one line per block, every block in place), decoded without OpenEXR's generic machinery: each line's three
 // planes are interleaved into RGB. Anything else, or anything inconsistent, gives nothing and the caller decodes with
@@ -151,32 +172,22 @@ std::optional<ExrImage> decode_plain_tile(std::string_view exr, const ExrLayout&
 TileCheck check_tile_exr(std::string_view bytes, const PixelWindow& window, int width, int height) {
   TileCheck r;
   try {
-    // The layout workers send is decoded directly (most of an upload's decoding cost was OpenEXR's generic path);
-    // any other file goes through OpenEXR, which also reads what the fast path refuses to guess at.
-    std::optional<ExrLayout> layout;
-    if (bytes.size() >= 8 && std::memcmp(bytes.data(), "\x76\x2f\x31\x01", 4) == 0) {
-      try {
-        layout = read_layout(bytes);
-      } catch (const std::runtime_error&) {
-      }
+    // The header is checked against the lease before a pixel is decoded, so that a decoder never allocates more than
+    // the tile's window: a file claiming a larger image is refused from its header alone.
+    if (bytes.size() < 8 || std::memcmp(bytes.data(), "\x76\x2f\x31\x01", 4) != 0) {
+      r.error = "not a readable OpenEXR file: no OpenEXR magic number";
+      return r;
     }
-    std::optional<ExrImage> plain = layout ? decode_plain_tile(bytes, *layout) : std::nullopt;
-    ExrImage exr = plain ? std::move(*plain) : decode_exr(bytes);
-    if (!layout) layout = read_layout(bytes);  // decode_exr accepted it, so the header can be walked
-    if (auto e = check_channels(*layout)) {
+    const ExrLayout layout = read_layout(bytes);
+    if (auto e = check_header(layout, window, width, height)) {
       r.error = *e;
       return r;
     }
-    const PixelWindow full{0, 0, width, height};
-    if (!(exr.display_window == full)) {
-      r.error = "display window is " + describe(exr.display_window) + ", expected " + describe(full);
-      return r;
-    }
-    if (!(exr.data_window == window)) {
-      r.error = "data window is " + describe(exr.data_window) + ", expected the tile's " + describe(window);
-      return r;
-    }
-    if (exr.pixels.width != window.width() || exr.pixels.height != window.height()) {
+    // The layout workers send is decoded directly (most of an upload's decoding cost was OpenEXR's generic path);
+    // any other file goes through OpenEXR, which also reads what the fast path refuses to guess at.
+    std::optional<ExrImage> plain = decode_plain_tile(bytes, layout);
+    ExrImage exr = plain ? std::move(*plain) : decode_exr(bytes);
+    if (!(exr.data_window == window) || exr.pixels.width != window.width() || exr.pixels.height != window.height()) {
       r.error = "pixel block does not match the data window";
       return r;
     }

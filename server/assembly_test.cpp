@@ -7,6 +7,8 @@
 #include <limits>
 #include <random>
 
+#include <sys/resource.h>
+
 namespace tessera::server {
 namespace {
 
@@ -77,6 +79,29 @@ TEST(CheckTileExr, RefusalsNameTheProblem) {
   const std::vector<uint8_t> half = encode_exr(Image::make(8, 8), o);
   EXPECT_EQ(check_tile_exr(std::string(half.begin(), half.end()), w, 16, 16).error.value_or(""),
             "channel R is not float32");
+}
+
+// A tile's header that claims a huge image (its data window rewritten in place to 8192x8192, the file still a few
+// hundred bytes of ZIP data) is refused from the header, before a decoder allocates the claim.
+TEST(CheckTileExr, AHeaderClaimingMoreThanTheTileIsRefusedBeforeDecoding) {
+  const PixelWindow w{0, 0, 16, 16};
+  std::string exr = tile_exr(w, 8192, 8192, ExrCompression::kZip);
+  const std::string key("dataWindow\0box2i\0", 17);
+  const size_t at = exr.find(key);
+  ASSERT_NE(at, std::string::npos);
+  const int32_t claim[4] = {0, 0, 8191, 8191};  // xMin, yMin, xMax, yMax (inclusive), little-endian
+  std::memcpy(exr.data() + at + key.size() + 4, claim, sizeof claim);
+  rusage before{};
+  ::getrusage(RUSAGE_SELF, &before);
+  EXPECT_EQ(check_tile_exr(exr, w, 8192, 8192).error.value_or(""),
+            "data window is [0, 0, 8192, 8192), expected the tile's [0, 0, 16, 16)");
+  rusage after{};
+  ::getrusage(RUSAGE_SELF, &after);
+  EXPECT_LT(after.ru_maxrss - before.ru_maxrss, 64 * 1024) << "peak memory grew by more than 64 MiB (in KiB)";
+  // Multi-part and deep files are not tiles.
+  std::string parts = tile_exr(w, 16, 16);
+  parts[5] = char(parts[5] | 0x10);  // the multi-part flag (0x1000 of the version field)
+  EXPECT_EQ(check_tile_exr(parts, w, 16, 16).error.value_or(""), "a tile must be one flat image, not deep or multi-part");
 }
 
 }  // namespace
