@@ -5,6 +5,8 @@
 #include <openssl/crypto.h>
 #include <openssl/rand.h>
 
+#include <algorithm>
+#include <cctype>
 #include <stdexcept>
 
 namespace tessera::server {
@@ -69,11 +71,17 @@ AuthDecision TokenCheck::authorize(Access need, std::string_view authorization) 
                     : need == Access::worker ? !worker_
                                              : !client_ && !worker_;
   if (open) return {};
-  constexpr std::string_view kScheme = "Bearer ";
   if (authorization.empty()) return {AuthDecision::missing, std::string("this endpoint needs ") + role_name(need) + " (Authorization: Bearer <token>)"};
-  if (authorization.size() <= kScheme.size() || authorization.substr(0, kScheme.size()) != kScheme)
+  // The scheme is case-insensitive and followed by one or more spaces (RFC 9110, 11.4).
+  constexpr std::string_view kScheme = "bearer";
+  const bool scheme_ok = authorization.size() > kScheme.size() + 1 && authorization[kScheme.size()] == ' ' &&
+                         std::equal(kScheme.begin(), kScheme.end(), authorization.begin(), [](char a, char b) {
+                           return a == char(std::tolower(static_cast<unsigned char>(b)));
+                         });
+  const size_t token_at = scheme_ok ? authorization.find_first_not_of(' ', kScheme.size()) : std::string_view::npos;
+  if (token_at == std::string_view::npos)
     return {AuthDecision::invalid, "the Authorization header must be 'Bearer <token>'"};
-  const std::string_view presented = authorization.substr(kScheme.size());
+  const std::string_view presented = authorization.substr(token_at);
   // Both comparisons always run, so the time taken does not say which token (if any) matched.
   const Sha256Digest d = sha256_digest(presented);
   const bool is_client = client_ && same_digest(d, *client_);

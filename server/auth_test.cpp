@@ -67,6 +67,12 @@ TEST(Authorize, ChecksSchemeTokenAndRole) {
   EXPECT_EQ(authorize(Access::either, "Bearer nope-nope-nope-nope", kTokens).status, AuthDecision::invalid);
   EXPECT_EQ(authorize(Access::client, "Basic " + kTokens.client, kTokens).status, AuthDecision::invalid);
   EXPECT_EQ(authorize(Access::client, "Bearer", kTokens).status, AuthDecision::invalid);
+  EXPECT_EQ(authorize(Access::client, "Bearer   ", kTokens).status, AuthDecision::invalid);
+  EXPECT_EQ(authorize(Access::client, "Bearer" + kTokens.client, kTokens).status, AuthDecision::invalid);
+  // The scheme is case-insensitive and may be followed by several spaces (RFC 9110).
+  EXPECT_EQ(authorize(Access::client, "bearer " + kTokens.client, kTokens).status, AuthDecision::allowed);
+  EXPECT_EQ(authorize(Access::client, "BEARER  " + kTokens.client, kTokens).status, AuthDecision::allowed);
+  EXPECT_EQ(authorize(Access::client, "bEaReR " + kTokens.worker, kTokens).status, AuthDecision::wrong_role);
   EXPECT_EQ(authorize(Access::client, client + "x", kTokens).status, AuthDecision::invalid);
   // A token that is a prefix of the real one is not the real one.
   EXPECT_EQ(authorize(Access::client, client.substr(0, client.size() - 1), kTokens).status, AuthDecision::invalid);
