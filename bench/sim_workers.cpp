@@ -263,7 +263,7 @@ void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
       up.target = routes::lease_result(lease_id);
       up.body = exr;
       up.content_type = "image/x-exr";
-      up.headers["X-Tessera-Rays"] = "4096";
+      up.headers[protocol::kRaysHeader] = "4096";
       const auto t0 = Clock::now();
       const HttpResponse u = timed(kUpload, [&] { return http.send(up); });
       if (u.status == 200) {

@@ -4,13 +4,21 @@
 #include "cli/token.h"
 
 #include "server/coordinator.h"
+#include "core/util/enum_names.h"
 #include "server/storage.h"
 
 #include <spdlog/spdlog.h>
 
 namespace tessera::cli {
 
+namespace {
+constexpr std::string_view kDurabilityNames[] = {"machine", "process", "none"};  // server::Durability's order
+}  // namespace
+
+std::string_view durability_name(server::Durability d) { return enum_name(d, kDurabilityNames); }
+
 CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
+  server::CoordinatorOptions& o = a.options;
   auto* c = app.add_subcommand("serve", "Run the coordinator (HTTP API, tile scheduler, merge)");
   c->add_option("--listen", a.listen,
                 "HOST:PORT to listen on (port 0 picks a free one), or fd:N to serve on the listening TCP socket "
@@ -23,42 +31,42 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
                 "is flushed, state survives a crash of the coordinator only; none: jobs, tiles and leases are kept "
                 "in memory and a restart forgets them (for a coordinator that dies with the command that started "
                 "it, as render --workers does; refused in a folder a durable coordinator has used)")
-      ->check(CLI::IsMember({"machine", "process", "none"}))->capture_default_str();
-  c->add_option("--lease-seconds", a.lease_seconds, "Lease length in seconds")->check(CLI::Range(0.05, 86400.0))->capture_default_str();
-  c->add_option("--worker-failure-limit", a.worker_failure_limit,
+      ->check(CLI::IsMember(enum_names(kDurabilityNames)))->capture_default_str();
+  c->add_option("--lease-seconds", o.lease_seconds, "Lease length in seconds")->check(CLI::Range(0.05, 86400.0))->capture_default_str();
+  c->add_option("--worker-failure-limit", o.worker_failure_limit,
                  "Failures on one job after which a worker is blocklisted for that job")
       ->check(CLI::Range(1, 1000))->capture_default_str();
-  c->add_option("--tile-failure-workers", a.tile_failure_workers,
+  c->add_option("--tile-failure-workers", o.tile_failure_workers,
                 "Distinct workers failing one tile that fail its job")
       ->check(CLI::Range(1, 1000))->capture_default_str();
-  c->add_option("--heartbeat-seconds", a.heartbeat_seconds, "Heartbeat interval announced to workers")
+  c->add_option("--heartbeat-seconds", o.limits.heartbeat_seconds, "Heartbeat interval announced to workers")
       ->check(CLI::Range(1, 3600))->capture_default_str();
   c->add_option("--read-timeout-seconds", a.read_timeout_seconds, "A whole request must arrive within this time")
       ->check(CLI::Range(0.1, 3600.0))->capture_default_str();
-  c->add_option("--threads", a.threads, "Request handler threads (0: all cores)")->check(CLI::Range(0, 1024));
+  c->add_option("--threads", o.handler_threads, "Request handler threads (0: all cores)")->check(CLI::Range(0, 1024));
   c->add_option("--client-token-file", a.client_token_file,
                 "File holding the bearer token clients must send (default: $TESSERA_CLIENT_TOKEN)");
   c->add_option("--worker-token-file", a.worker_token_file,
                 "File holding the bearer token workers must send (default: $TESSERA_WORKER_TOKEN)");
-  c->add_option("--tls-cert", a.tls_cert, "Serve HTTPS with this PEM certificate chain (re-read on SIGHUP)");
-  c->add_option("--tls-key", a.tls_key, "Private key (PEM) of --tls-cert (re-read on SIGHUP)");
-  c->add_option("--tls-client-ca", a.tls_client_ca,
+  c->add_option("--tls-cert", o.tls.cert_file, "Serve HTTPS with this PEM certificate chain (re-read on SIGHUP)");
+  c->add_option("--tls-key", o.tls.key_file, "Private key (PEM) of --tls-cert (re-read on SIGHUP)");
+  c->add_option("--tls-client-ca", o.tls.client_ca_file,
                 "Require every client to present a certificate from this PEM CA file (mutual TLS; tokens still apply; re-read on SIGHUP)");
-  c->add_option("--max-queued-jobs", a.max_queued_jobs, "Queued, running and paused jobs; more submissions get 429 with Retry-After")
+  c->add_option("--max-queued-jobs", o.limits.max_queued_jobs, "Queued, running and paused jobs; more submissions get 429 with Retry-After")
       ->check(CLI::Range(int64_t(1), int64_t(1) << 40))->capture_default_str();
-  c->add_option("--max-job-pixels", a.max_job_pixels, "Largest width x height of one job (400 above it)")
+  c->add_option("--max-job-pixels", o.limits.max_job_pixels, "Largest width x height of one job (400 above it)")
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 28))->capture_default_str();
-  c->add_option("--max-job-samples", a.max_job_samples, "Largest width x height x spp of one job (400 above it)")
+  c->add_option("--max-job-samples", o.limits.max_job_samples, "Largest width x height x spp of one job (400 above it)")
       ->check(CLI::Range(1.0, 1e18))->capture_default_str();
-  c->add_option("--max-json-bytes", a.max_json_bytes, "Largest JSON request body (413 above it)")
+  c->add_option("--max-json-bytes", o.limits.json_limit, "Largest JSON request body (413 above it)")
       ->check(CLI::Range(std::size_t(1024), std::size_t(1) << 32))->capture_default_str();
-  c->add_option("--max-blob-bytes", a.max_blob_bytes, "Largest asset upload (413 above it)")
+  c->add_option("--max-blob-bytes", o.limits.blob_limit, "Largest asset upload (413 above it)")
       ->check(CLI::Range(std::size_t(1), std::size_t(1) << 40))->capture_default_str();
-  c->add_option("--max-result-bytes", a.max_result_bytes, "Largest tile result upload (413 above it)")
+  c->add_option("--max-result-bytes", o.limits.result_limit, "Largest tile result upload (413 above it)")
       ->check(CLI::Range(std::size_t(1024), std::size_t(1) << 40))->capture_default_str();
-  c->add_option("--max-header-bytes", a.max_header_bytes, "Largest request header (431 above it)")
+  c->add_option("--max-header-bytes", o.header_limit, "Largest request header (431 above it)")
       ->check(CLI::Range(std::size_t(1024), std::size_t(1) << 24))->capture_default_str();
-  c->add_option("--max-connections", a.max_connections, "Open connections; more are answered 503 and closed")
+  c->add_option("--max-connections", o.max_connections, "Open connections; more are answered 503 and closed")
       ->check(CLI::Range(std::size_t(1), std::size_t(1) << 20))->capture_default_str();
   c->add_option("--retain-finished-hours", a.retain_finished_hours,
                 "Purge done, failed and cancelled jobs this many hours after they ended (default 0: keep them forever)")
@@ -66,13 +74,13 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
   c->add_option("--blob-grace-minutes", a.blob_grace_minutes,
                 "Delete an asset no job references only this many minutes after it was last uploaded or checked")
       ->check(CLI::Range(0.0, 1e8))->capture_default_str();
-  c->add_option("--max-validations", a.max_validations,
+  c->add_option("--max-validations", o.admission.validations,
                 "Job submissions whose scenes are checked at once, on threads of their own (never the request handlers')")
       ->check(CLI::Range(1, 256))->capture_default_str();
-  c->add_option("--validation-queue", a.validation_queue,
+  c->add_option("--validation-queue", o.admission.queue,
                 "Submissions waiting for a check; more get 503 with Retry-After")
       ->check(CLI::Range(0, 4096))->capture_default_str();
-  c->add_option("--max-event-streams", a.max_event_streams,
+  c->add_option("--max-event-streams", o.events.max_subscribers,
                 "Open GET /v1/events streams; more are answered 503 (0: none, clients poll)")
       ->check(CLI::Range(std::size_t(0), std::size_t(1) << 16))->capture_default_str();
   c->add_flag("-v,--verbose", a.verbose, "Log every lease and connection event");
@@ -83,33 +91,14 @@ int run_serve(const ServeArgs& a) {
   bool started = false;  // before coordinator.run(), an error means the coordinator did not start: refused
   try {
     if (a.verbose) spdlog::set_level(spdlog::level::debug);
-    server::CoordinatorOptions o;
+    server::CoordinatorOptions o = a.options;
     server::set_listen_address(o, a.listen);
     o.data_dir = a.data;
-    o.durability = a.durability == "process" ? server::Durability::process
-                   : a.durability == "none"  ? server::Durability::none
-                                             : server::Durability::machine;
-    o.lease_seconds = a.lease_seconds;
-    o.heartbeat_seconds = a.heartbeat_seconds;
-    o.worker_failure_limit = a.worker_failure_limit;
-    o.tile_failure_workers = a.tile_failure_workers;
+    o.durability = *enum_from_name<server::Durability>(a.durability, kDurabilityNames);  // checked by the parser
     o.read_timeout = std::chrono::milliseconds(int64_t(a.read_timeout_seconds * 1000));
-    o.handler_threads = a.threads;
-    o.limits.max_queued_jobs = a.max_queued_jobs;
-    o.limits.max_job_pixels = a.max_job_pixels;
-    o.limits.max_job_samples = a.max_job_samples;
-    o.limits.json_limit = a.max_json_bytes;
-    o.limits.blob_limit = a.max_blob_bytes;
-    o.limits.result_limit = a.max_result_bytes;
     if (a.retain_finished_hours > 0) o.limits.retention.retain_finished_ms = int64_t(a.retain_finished_hours * 3'600'000.0);
     o.limits.retention.blob_grace_ms = int64_t(a.blob_grace_minutes * 60'000.0);
-    o.header_limit = a.max_header_bytes;
-    o.max_connections = a.max_connections;
-    o.admission.validations = a.max_validations;
-    o.admission.queue = a.validation_queue;
-    o.events.max_subscribers = a.max_event_streams;
     o.handle_signals = true;
-    o.tls = server::TlsServerFiles{a.tls_cert, a.tls_key, a.tls_client_ca};
     o.limits.tokens.client = load_token(a.client_token_file, "TESSERA_CLIENT_TOKEN");
     o.limits.tokens.worker = load_token(a.worker_token_file, "TESSERA_WORKER_TOKEN");
     server::Coordinator coordinator(o);
@@ -124,8 +113,8 @@ int run_serve(const ServeArgs& a) {
                  o.durability == server::Durability::process ? " never flushed to the disk"
                  : o.durability == server::Durability::none  ? ", jobs kept in memory only"
                                                              : "",
-                 a.lease_seconds,
-                 a.heartbeat_seconds,
+                 o.lease_seconds,
+                 o.limits.heartbeat_seconds,
                  t.complete() ? "client and worker" : t.client.empty() ? (t.worker.empty() ? "none" : "worker only") : "client only",
                  o.tls.client_ca_file.empty() ? "" : ", client certificates required");
     if (!a.ready_file.empty()) write_file_atomic(a.ready_file, bound + "\n", server::flush_for(o.durability));  // after the log lines above

@@ -1,6 +1,7 @@
 #include "client/http_client.h"
 
 #include "net/byte_stream.h"
+#include "protocol/messages.h"
 
 #include <boost/asio/connect.hpp>
 #include <boost/asio/io_context.hpp>
@@ -84,8 +85,10 @@ std::string HttpResponse::header(std::string_view name) const {
 }
 
 std::string HttpResponse::error_text() const {
-  const auto j = nlohmann::json::parse(body, nullptr, /*allow_exceptions=*/false);
-  if (j.is_object() && j.contains("error") && j["error"].is_string()) return j["error"].get<std::string>();
+  try {
+    return protocol::parse_answer<protocol::ErrorAnswer>(body, "error answer").error;
+  } catch (const protocol::ProtocolError&) {  // not a JSON refusal: the body itself
+  }
   std::string text = body.size() > 300 ? body.substr(0, 300) + "..." : body;
   std::replace_if(text.begin(), text.end(), [](unsigned char c) { return c < 0x20; }, ' ');
   while (!text.empty() && text.back() == ' ') text.pop_back();

@@ -361,6 +361,27 @@ HeartbeatReport parse_heartbeat_report(const std::string& body) {
   return HeartbeatReport{request_uint(j, "rays", 0)};
 }
 
+void to_json(json& j, const HeartbeatAnswer& a) { j = {{"deadline_ms", a.deadline_ms}}; }
+
+void from_json(const json& j, HeartbeatAnswer& a) { a.deadline_ms = answer_field<int64_t>(j, "deadline_ms", "heartbeat answer"); }
+
+namespace {
+constexpr std::string_view kUploadStatusNames[] = {"accepted", "duplicate", "discarded"};
+}  // namespace
+
+const char* to_string(UploadStatus s) { return kUploadStatusNames[int(s)].data(); }
+
+UploadStatus upload_status_from_string(const std::string& name) {
+  if (const auto s = enum_from_name<UploadStatus>(name, kUploadStatusNames)) return *s;
+  throw ProtocolError("unknown upload status '" + name + "'");
+}
+
+void to_json(json& j, const ResultAnswer& a) { j = {{"status", to_string(a.status)}}; }
+
+void from_json(const json& j, ResultAnswer& a) {
+  a.status = upload_status_from_string(answer_field<std::string>(j, "status", "result answer"));
+}
+
 void to_json(json& j, const FailReport& f) {
   j = {{"error", f.error}};
   if (!f.log.empty()) j["log"] = f.log;
@@ -380,6 +401,42 @@ FailReport parse_fail_report(const std::string& body) {
     f.log.push_back(line.get<std::string>());
   }
   return f;
+}
+
+void to_json(json& j, const FailAnswer& a) { j = {{"status", a.status}}; }
+void from_json(const json& j, FailAnswer& a) { a.status = answer_field<std::string>(j, "status", "fail answer"); }
+
+void to_json(json& j, const ReleaseAnswer& a) { j = {{"status", a.status}}; }
+void from_json(const json& j, ReleaseAnswer& a) { a.status = answer_field<std::string>(j, "status", "release answer"); }
+
+void to_json(json& j, const HealthAnswer& a) { j = {{"status", a.status}}; }
+void from_json(const json& j, HealthAnswer& a) { a.status = answer_field<std::string>(j, "status", "health answer"); }
+
+void to_json(json& j, const BlobPutAnswer& a) { j = {{"sha256", a.sha256}, {"size", a.size}}; }
+
+void from_json(const json& j, BlobPutAnswer& a) {
+  a.sha256 = answer_field<std::string>(j, "sha256", "blob upload answer");
+  a.size = answer_field<uint64_t>(j, "size", "blob upload answer");
+}
+
+void to_json(json& j, const ErrorAnswer& a) { j = {{"error", a.error}}; }
+void from_json(const json& j, ErrorAnswer& a) { a.error = answer_field<std::string>(j, "error", "error answer"); }
+
+std::string error_text(const ErrorAnswer& a) { return json(a).dump(-1, ' ', false, json::error_handler_t::replace); }
+
+void to_json(json& j, const Capabilities& c) { j = {{"tokens_required", c.tokens_required}, {"endpoints", c.endpoints}}; }
+
+void from_json(const json& j, Capabilities& c) {
+  c.tokens_required = answer_field<bool>(j, "tokens_required", "capabilities");
+  c.endpoints = answer_field<std::map<std::string, bool>>(j, "endpoints", "capabilities");
+}
+
+Capabilities capabilities(bool tokens_required) {
+  Capabilities c{tokens_required, {}};
+  for (const RouteSpec& r : route_table())
+    for (const MethodSpec& m : r.methods)
+      if (!m.capability.empty()) c.endpoints[std::string(m.capability)] = true;
+  return c;
 }
 
 void parse_empty_request(const std::string& body) { parse_request_object(body, {}, true); }

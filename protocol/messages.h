@@ -7,8 +7,10 @@
 #include "core/render/render.h"
 #include "core/scene/scene_loader.h"
 #include "protocol/defaults.h"
+#include "protocol/headers.h"
 #include "protocol/job.h"
 #include "protocol/json_fields.h"
+#include "protocol/routes.h"
 
 #include <nlohmann/json.hpp>
 
@@ -160,8 +162,6 @@ struct LeaseRequest {
 };
 inline constexpr size_t kMaxKnownJobs = 64;       ///< The most jobs a lease request may list as known.
 inline constexpr int64_t kMaxLeaseWaitMs = 10000;  ///< The longest wait_ms a lease request may ask for.
-/// Header of the answer to a lease request that was held for work: how long it was held, in milliseconds.
-inline constexpr const char* kHeldMsHeader = "X-Tessera-Held-Ms";
 void to_json(nlohmann::json& j, const LeaseRequest& r);
 /// Parses a lease request; throws ProtocolError (400).
 LeaseRequest parse_lease_request(const std::string& body);
@@ -183,6 +183,30 @@ struct HeartbeatReport {
 void to_json(nlohmann::json& j, const HeartbeatReport& h);
 HeartbeatReport parse_heartbeat_report(const std::string& body);
 
+/// Answer 200 to POST /v1/leases/{lease}/heartbeat.
+struct HeartbeatAnswer {
+  int64_t deadline_ms = 0;  ///< The lease's new expiry (coordinator clock, ms since the epoch).
+};
+void to_json(nlohmann::json& j, const HeartbeatAnswer& a);
+void from_json(const nlohmann::json& j, HeartbeatAnswer& a);
+
+/// How the coordinator settled a tile result upload.
+enum class UploadStatus {
+  accepted,   ///< Stored (answer 200).
+  duplicate,  ///< The tile was stored before, by this lease or another (answer 200).
+  discarded,  ///< The job was cancelled or failed meanwhile (answer 410).
+};
+const char* to_string(UploadStatus s);
+/// Throws ProtocolError for a name that is none of the statuses.
+UploadStatus upload_status_from_string(const std::string& name);
+
+/// Answer to PUT /v1/leases/{lease}/result (200 accepted or duplicate, 410 discarded).
+struct ResultAnswer {
+  UploadStatus status = UploadStatus::accepted;  ///< How the upload was settled.
+};
+void to_json(nlohmann::json& j, const ResultAnswer& a);
+void from_json(const nlohmann::json& j, ResultAnswer& a);
+
 /// Body of POST /v1/leases/{lease}/fail.
 struct FailReport {
   std::string error = "(no error text)";  ///< What went wrong.
@@ -190,6 +214,54 @@ struct FailReport {
 };
 void to_json(nlohmann::json& j, const FailReport& f);
 FailReport parse_fail_report(const std::string& body);
+
+/// Answer 200 to POST /v1/leases/{lease}/fail.
+struct FailAnswer {
+  std::string status = "recorded";  ///< Always "recorded".
+};
+void to_json(nlohmann::json& j, const FailAnswer& a);
+void from_json(const nlohmann::json& j, FailAnswer& a);
+
+/// Answer 200 to POST /v1/leases/{lease}/release.
+struct ReleaseAnswer {
+  std::string status = "released";  ///< Always "released".
+};
+void to_json(nlohmann::json& j, const ReleaseAnswer& a);
+void from_json(const nlohmann::json& j, ReleaseAnswer& a);
+
+/// Answer 200 to GET /healthz.
+struct HealthAnswer {
+  std::string status = "ok";  ///< Always "ok".
+};
+void to_json(nlohmann::json& j, const HealthAnswer& a);
+void from_json(const nlohmann::json& j, HealthAnswer& a);
+
+/// Answer 200 or 201 to PUT /v1/blobs/{sha256}.
+struct BlobPutAnswer {
+  std::string sha256;  ///< The stored blob.
+  uint64_t size = 0;   ///< Its size in bytes.
+};
+void to_json(nlohmann::json& j, const BlobPutAnswer& a);
+void from_json(const nlohmann::json& j, BlobPutAnswer& a);
+
+/// The body of every refusal (4xx and 5xx with a JSON body).
+struct ErrorAnswer {
+  std::string error;  ///< What was wrong, as a sentence.
+};
+void to_json(nlohmann::json& j, const ErrorAnswer& a);
+void from_json(const nlohmann::json& j, ErrorAnswer& a);
+/// The refusal's JSON text; bytes of `error` that are not UTF-8 become U+FFFD (it may quote a request target).
+std::string error_text(const ErrorAnswer& a);
+
+/// Answer of GET /monitor/capabilities.json: what the web monitor may offer on this coordinator.
+struct Capabilities {
+  bool tokens_required = false;         ///< The page asks for the client token before its first call.
+  std::map<std::string, bool> endpoints;  ///< Monitor control (e.g. "pause") -> the coordinator has its route.
+};
+void to_json(nlohmann::json& j, const Capabilities& c);
+void from_json(const nlohmann::json& j, Capabilities& c);
+/// The capabilities of this protocol: every control a route's method names (protocol/routes.h).
+Capabilities capabilities(bool tokens_required);
 
 /// Body of a POST that carries nothing (release, retry): empty or {}; throws ProtocolError for anything else.
 void parse_empty_request(const std::string& body);

@@ -25,33 +25,46 @@ bool is_param(std::string_view segment) { return segment.size() > 2 && segment.f
 }  // namespace
 
 const std::vector<RouteSpec>& route_table() {
+  using A = Access;
+  using R = Resource;
   static const std::vector<RouteSpec> table = {
-      {Endpoint::healthz, "/healthz", {"GET"}},
-      {Endpoint::metrics, "/metrics", {"GET"}},
-      {Endpoint::blobs, "/v1/blobs", {"POST"}},
-      {Endpoint::blob, "/v1/blobs/{sha256}", {"PUT", "HEAD", "GET"}},
-      {Endpoint::jobs, "/v1/jobs", {"GET", "POST"}},
-      {Endpoint::job, "/v1/jobs/{id}", {"GET", "PATCH", "DELETE"}},
-      {Endpoint::job_result, "/v1/jobs/{id}/result.exr", {"GET"}},
-      {Endpoint::job_preview, "/v1/jobs/{id}/preview.png", {"GET"}},
-      {Endpoint::job_spec, "/v1/jobs/{id}/spec", {"GET"}},
-      {Endpoint::job_retry, "/v1/jobs/{id}/retry", {"POST"}},
-      {Endpoint::job_pause, "/v1/jobs/{id}/pause", {"POST"}},
-      {Endpoint::job_resume, "/v1/jobs/{id}/resume", {"POST"}},
-      {Endpoint::job_tiles, "/v1/jobs/{id}/tiles", {"GET"}},
-      {Endpoint::job_tile_requeue, "/v1/jobs/{id}/tiles/{n}/requeue", {"POST"}},
-      {Endpoint::workers, "/v1/workers", {"GET", "POST"}},
-      {Endpoint::worker_drain, "/v1/workers/{wid}/drain", {"POST"}},
-      {Endpoint::worker_undrain, "/v1/workers/{wid}/undrain", {"POST"}},
-      {Endpoint::worker_lease, "/v1/workers/{wid}/lease", {"POST"}},
-      {Endpoint::lease_heartbeat, "/v1/leases/{lease}/heartbeat", {"POST"}},
-      {Endpoint::lease_result, "/v1/leases/{lease}/result", {"PUT"}},
-      {Endpoint::lease_fail, "/v1/leases/{lease}/fail", {"POST"}},
-      {Endpoint::lease_release, "/v1/leases/{lease}/release", {"POST"}},
-      {Endpoint::lease_state, "/v1/leases/{lease}/state", {"GET"}},
-      {Endpoint::events, "/v1/events", {"GET"}},
+      {Endpoint::healthz, "healthz", "/healthz", R::health, {{"GET", A::open}}},
+      {Endpoint::metrics, "metrics", "/metrics", R::health, {{"GET", A::either}}},
+      // Which blobs a submission still has to upload.
+      {Endpoint::blobs, "blobs", "/v1/blobs", R::blobs, {{"POST", A::client}}},
+      // HEAD and PUT are a submission's; GET is a worker's too.
+      {Endpoint::blob, "blob", "/v1/blobs/{sha256}", R::blobs, {{"PUT", A::client}, {"HEAD", A::client}, {"GET", A::either}}},
+      {Endpoint::jobs, "jobs", "/v1/jobs", R::jobs, {{"GET", A::client}, {"POST", A::client, true}}},
+      {Endpoint::job, "job", "/v1/jobs/{id}", R::jobs,
+       {{"GET", A::client}, {"PATCH", A::client, false, "priority"}, {"DELETE", A::client, false, "purge"}}},
+      {Endpoint::job_result, "job_result", "/v1/jobs/{id}/result.exr", R::jobs, {{"GET", A::client}}},
+      {Endpoint::job_preview, "job_preview", "/v1/jobs/{id}/preview.png", R::jobs, {{"GET", A::client}}},
+      {Endpoint::job_spec, "job_spec", "/v1/jobs/{id}/spec", R::jobs, {{"GET", A::either}}},
+      {Endpoint::job_retry, "job_retry", "/v1/jobs/{id}/retry", R::jobs, {{"POST", A::client, false, "retry"}}},
+      {Endpoint::job_pause, "job_pause", "/v1/jobs/{id}/pause", R::jobs, {{"POST", A::client, false, "pause"}}},
+      {Endpoint::job_resume, "job_resume", "/v1/jobs/{id}/resume", R::jobs, {{"POST", A::client, false, "resume"}}},
+      {Endpoint::job_tiles, "job_tiles", "/v1/jobs/{id}/tiles", R::tiles, {{"GET", A::client}}},
+      {Endpoint::job_tile_requeue, "job_tile_requeue", "/v1/jobs/{id}/tiles/{n}/requeue", R::tiles,
+       {{"POST", A::client, false, "requeue"}}},
+      // GET lists the workers (a client's view); POST registers one.
+      {Endpoint::workers, "workers", "/v1/workers", R::workers, {{"GET", A::client, false, "workers"}, {"POST", A::worker}}},
+      {Endpoint::worker_drain, "worker_drain", "/v1/workers/{wid}/drain", R::workers, {{"POST", A::client, false, "drain"}}},
+      {Endpoint::worker_undrain, "worker_undrain", "/v1/workers/{wid}/undrain", R::workers, {{"POST", A::client}}},
+      {Endpoint::worker_lease, "worker_lease", "/v1/workers/{wid}/lease", R::leases, {{"POST", A::worker}}},
+      {Endpoint::lease_heartbeat, "lease_heartbeat", "/v1/leases/{lease}/heartbeat", R::leases, {{"POST", A::worker}}},
+      {Endpoint::lease_result, "lease_result", "/v1/leases/{lease}/result", R::leases, {{"PUT", A::worker}}},
+      {Endpoint::lease_fail, "lease_fail", "/v1/leases/{lease}/fail", R::leases, {{"POST", A::worker}}},
+      {Endpoint::lease_release, "lease_release", "/v1/leases/{lease}/release", R::leases, {{"POST", A::worker}}},
+      {Endpoint::lease_state, "lease_state", "/v1/leases/{lease}/state", R::leases, {{"GET", A::worker}}},
+      {Endpoint::events, "events", "/v1/events", R::events, {{"GET", A::client, false, "events"}}},
   };
   return table;
+}
+
+const MethodSpec* RouteSpec::method(std::string_view name) const {
+  for (const MethodSpec& m : methods)
+    if (m.name == name) return &m;
+  return nullptr;
 }
 
 RouteMatch match_route(std::string_view target) {

@@ -1,5 +1,5 @@
-// Every URL of the farm protocol, once: the route table the coordinator matches requests against, and the builders
-// clients make request targets with.
+// Every URL of the farm protocol, once: the route table the coordinator matches requests against (with each method's
+// access rule, admission and the resource that answers it), and the builders clients make request targets with.
 #pragma once
 
 #include <cstddef>
@@ -17,11 +17,39 @@ enum class Endpoint {
   lease_release, lease_state, events
 };
 
+/// The token a request must carry (docs/protocol.md, "Access").
+enum class Access {
+  open,    ///< No token (health probes).
+  client,  ///< The client token (submit, cancel, results, blob uploads).
+  worker,  ///< The worker token (register, lease, heartbeat, upload tiles, fail, release).
+  either,  ///< Either token (read-only views both sides use: blob downloads, job specs, metrics).
+};
+
+/// The coordinator's resource handler that answers a route.
+enum class Resource { health, blobs, jobs, tiles, workers, leases, events };
+
+/// One method a route accepts.
+struct MethodSpec {
+  std::string_view name;        ///< e.g. "GET".
+  Access access;                ///< The token it needs.
+  /// Answered after a turn in the submission queue (a scene load: server/admission_handler.h), not at once.
+  bool admission;
+  std::string_view capability;  ///< The web monitor's control it enables (capabilities.json), "" none.
+
+  MethodSpec(std::string_view name, Access access, bool admission = false, std::string_view capability = {})
+      : name(name), access(access), admission(admission), capability(capability) {}
+};
+
 /// One route: its path pattern ("{name}" segments are its path parameters, at most two) and the methods it accepts.
 struct RouteSpec {
-  Endpoint endpoint;                       ///< Which endpoint.
-  std::string_view pattern;                ///< e.g. "/v1/jobs/{id}/spec".
-  std::vector<std::string_view> methods;   ///< e.g. {"GET"}.
+  Endpoint endpoint;                 ///< Which endpoint.
+  std::string_view name;             ///< The endpoint's name, e.g. "job_spec" (the monitor's route names).
+  std::string_view pattern;          ///< e.g. "/v1/jobs/{id}/spec".
+  Resource resource;                 ///< Who answers it.
+  std::vector<MethodSpec> methods;   ///< e.g. {{"GET", Access::either}}.
+
+  /// The method called `method`, or nullptr when the route does not accept it.
+  const MethodSpec* method(std::string_view method) const;
 };
 
 /// Every route of the protocol.
@@ -32,6 +60,11 @@ struct RouteMatch {
   const RouteSpec* route = nullptr;  ///< nullptr: no route (404).
   std::string param;                 ///< The value of the pattern's first parameter.
   std::string param2;                ///< The value of its second parameter (e.g. the tile of a requeue), if any.
+
+  /// The matched endpoint (none when no route matched).
+  Endpoint endpoint() const { return route ? route->endpoint : Endpoint::none; }
+  /// The matched route's method called `method`; nullptr when no route matched or it does not accept the method.
+  const MethodSpec* method(std::string_view method) const { return route ? route->method(method) : nullptr; }
 };
 
 /// Matches a request target (query string ignored); empty segments ("//", a trailing slash) never match.

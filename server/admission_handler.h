@@ -2,7 +2,7 @@
 // seconds on a big mesh) run on a small pool of their own, so leases, heartbeats and uploads never wait behind them.
 #pragma once
 
-#include "server/http_server.h"
+#include "server/route.h"
 
 #include <boost/asio/thread_pool.hpp>
 
@@ -18,23 +18,24 @@ struct AdmissionOptions {
   int retry_after_seconds = 1;  ///< Retry-After announced with that 503.
 };
 
-/// An HttpHandler in front of `inner`: POST /v1/jobs is answered by `inner` on the admission pool (503 with
+/// The first handler of a request, in front of `inner`: routes it (once; `inner` is given the route) and answers the
+/// routes that take admission (POST /v1/jobs, protocol/routes.h) through `inner` on the admission pool (503 with
 /// Retry-After when `validations + queue` submissions are already there), every other request on the calling thread.
-class AdmissionHandler final : public HttpHandler {
+class AdmissionHandler final : public RoutedHandler {
  public:
-  AdmissionHandler(HttpHandler& inner, AdmissionOptions options);
+  AdmissionHandler(RoutedHandler& inner, AdmissionOptions options);
   /// Lets the submissions under way finish; queued ones are dropped (their connections close unanswered).
   ~AdmissionHandler() override;
   AdmissionHandler(const AdmissionHandler&) = delete;
   AdmissionHandler& operator=(const AdmissionHandler&) = delete;
 
-  std::size_t body_limit(const http::request_header<>& header) override { return inner_.body_limit(header); }
-  std::optional<HttpResponse> early_response(const http::request_header<>& header) noexcept override {
-    return inner_.early_response(header);
+  std::size_t routed_body_limit(const http::request_header<>& header, const Route& route) override {
+    return inner_.routed_body_limit(header, route);
   }
-  HttpResponse handle(HttpRequest&& request) noexcept override { return inner_.handle(std::move(request)); }
-  HttpReply reply(HttpRequest&& request) noexcept override { return inner_.reply(std::move(request)); }
-  void handle_async(HttpRequest&& request, Reply done) noexcept override;
+  std::optional<HttpResponse> routed_early_response(const http::request_header<>& header, const Route& route) noexcept override {
+    return inner_.routed_early_response(header, route);
+  }
+  void handle_routed(HttpRequest&& request, const Route& route, Reply done) noexcept override;
 
   /// Waits for the submissions under way, then ends the pool's threads: after the network threads stopped, so that no
   /// thread but the caller's is left to take a late stop signal.
@@ -43,7 +44,7 @@ class AdmissionHandler final : public HttpHandler {
   int in_flight() const { return in_flight_.load(); }
 
  private:
-  HttpHandler& inner_;
+  RoutedHandler& inner_;
   AdmissionOptions opt_;
   boost::asio::thread_pool pool_;
   std::atomic<int> in_flight_{0};

@@ -12,46 +12,13 @@ namespace tessera::server {
 using protocol::ApiError;
 using protocol::ProtocolError;
 
-Route match_route(std::string_view target) {
-  const protocol::RouteMatch m = protocol::match_route(target);
-  Route r;
-  if (!m.route) return r;
-  r.id = m.route->endpoint;
-  r.param = m.param;
-  r.name = std::string(m.route->pattern);
-  for (std::string_view v : m.route->methods) r.methods.push_back(http::string_to_verb(v));
-  return r;
-}
-
 Access route_access(RouteId route, http::verb method) {
-  switch (route) {
-    case RouteId::healthz: return Access::open;
-    case RouteId::metrics: return Access::either;
-    case RouteId::blobs: return Access::client;  // which blobs a submission still has to upload
-    case RouteId::blob: return method == http::verb::get ? Access::either : Access::client;  // HEAD/PUT: submitting
-    case RouteId::job_spec: return Access::either;
-    case RouteId::jobs:
-    case RouteId::job:
-    case RouteId::job_result:
-    case RouteId::job_preview:
-    case RouteId::job_retry:
-    case RouteId::job_pause:
-    case RouteId::job_resume:
-    case RouteId::job_tiles:
-    case RouteId::job_tile_requeue:
-    case RouteId::worker_drain:
-    case RouteId::worker_undrain:
-    case RouteId::events: return Access::client;
-    case RouteId::workers: return method == http::verb::get ? Access::client : Access::worker;  // POST: registration
-    case RouteId::worker_lease:
-    case RouteId::lease_heartbeat:
-    case RouteId::lease_result:
-    case RouteId::lease_fail:
-    case RouteId::lease_release:
-    case RouteId::lease_state: return Access::worker;
-    case RouteId::none: break;
+  for (const protocol::RouteSpec& r : protocol::route_table()) {
+    if (r.endpoint != route) continue;
+    const protocol::MethodSpec* m = r.method(http::to_string(method));
+    return (m ? *m : r.methods.front()).access;  // a method the route does not take: its first method's token
   }
-  return Access::client;  // unreachable for matched routes; the strictest answer otherwise
+  return Access::client;  // no such route: the strictest answer
 }
 
 Api::Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock, ApiOptions options,
@@ -62,7 +29,7 @@ Api::Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metric
       sched_(scheduler),
       lease_waiters_(std::make_unique<LeaseWaiters>()),
       jobs_(scheduler, blobs, jobs, metrics, clock,
-            AdmissionLimits{opt_.max_queued_jobs, opt_.retry_after_seconds, opt_.max_job_pixels, opt_.max_job_samples},
+            static_cast<const AdmissionLimits&>(opt_),
             events, std::move(background)),
       collector_(jobs_, scheduler, blobs, clock, opt_.retention),
       jobs_handler_(jobs_, collector_),
@@ -80,15 +47,14 @@ Api::~Api() {
   lease_waiters_.reset();  // expires what it holds, answering through the handlers and the transport, which still live
 }
 
-std::size_t Api::body_limit(const http::request_header<>& h) {
-  const Route r = match_route(h.target());
-  if (r.id == RouteId::blob && h.method() == http::verb::put) return opt_.blob_limit;
-  if (r.id == RouteId::lease_result && h.method() == http::verb::put) return opt_.result_limit;
+std::size_t Api::routed_body_limit(const http::request_header<>&, const Route& route) {
+  if (route.method && route.match.endpoint() == RouteId::blob && route.method->name == "PUT") return opt_.blob_limit;
+  if (route.method && route.match.endpoint() == RouteId::lease_result) return opt_.result_limit;  // PUT only
   return opt_.json_limit;
 }
 
 std::optional<HttpResponse> Api::check_access(const Route& route, const http::request_header<>& h) {
-  const AuthDecision d = token_check_.authorize(route_access(route.id, h.method()), h[http::field::authorization]);
+  const AuthDecision d = token_check_.authorize(route.method->access, h[http::field::authorization]);
   if (d.status == AuthDecision::allowed) return std::nullopt;
   const bool forbidden = d.status == AuthDecision::wrong_role;
   HttpResponse res = json_error(forbidden ? http::status::forbidden : http::status::unauthorized, d.reason, h.version());
@@ -96,18 +62,15 @@ std::optional<HttpResponse> Api::check_access(const Route& route, const http::re
     res.set(http::field::www_authenticate,
             d.status == AuthDecision::missing ? "Bearer realm=\"tessera\"" : "Bearer realm=\"tessera\", error=\"invalid_token\"");
   // The reason names roles, never the presented or configured token.
-  spdlog::warn("{} {}: {} {}", std::string(h.method_string()), route.name, forbidden ? 403 : 401, d.reason);
+  spdlog::warn("{} {}: {} {}", std::string(h.method_string()), route.match.route->pattern, forbidden ? 403 : 401, d.reason);
   return res;
 }
 
-std::optional<HttpResponse> Api::early_response(const http::request_header<>& h) noexcept {
+std::optional<HttpResponse> Api::routed_early_response(const http::request_header<>& h, const Route& route) noexcept {
   try {
-    const Route route = match_route(h.target());
-    if (route.id == RouteId::none ||
-        std::find(route.methods.begin(), route.methods.end(), h.method()) == route.methods.end())
-      return std::nullopt;  // handle() answers 404/405 (after the body, which is small or refused by its limit)
+    if (!route.method) return std::nullopt;  // handle_routed() answers 404/405 (after the body, which is small or refused by its limit)
     std::optional<HttpResponse> res = check_access(route, h);
-    if (res) metrics_.observe_request(std::string(h.method_string()) + " " + route.name, 0.0);
+    if (res) metrics_.observe_request(std::string(h.method_string()) + " " + std::string(route.match.route->pattern), 0.0);
     return res;
   } catch (...) {
     return json_error(http::status::internal_server_error, "internal error", h.version());
@@ -133,7 +96,7 @@ HttpResponse Api::refusal(std::exception_ptr error, const HttpRequest& req) cons
   }
 }
 
-void Api::answer(HttpRequest&& req, std::function<void(HttpResponse)> send) noexcept {
+void Api::answer(HttpRequest&& req, const Route& route, std::function<void(HttpResponse)> send) noexcept {
   const auto t0 = std::chrono::steady_clock::now();
   const unsigned version = req.version();
   // What every answer gets on its way out, now or later: a HEAD answer loses its body, the route's latency is counted.
@@ -164,25 +127,26 @@ void Api::answer(HttpRequest&& req, std::function<void(HttpResponse)> send) noex
   };
   auto finish = std::make_shared<Finish>(Finish{this, t0, "unmatched", req.method() == http::verb::head, std::move(send)});
   try {
-    const Route route = match_route(req.target());
-    if (route.id == RouteId::none) {
+    const protocol::RouteSpec* spec = route.match.route;
+    if (!spec) {
       return (*finish)(json_error(http::status::not_found, "no such endpoint: " + std::string(req.target()), version));
     }
-    finish->label = std::string(req.method_string()) + " " + route.name;
-    if (std::find(route.methods.begin(), route.methods.end(), req.method()) == route.methods.end()) {
+    const std::string pattern(spec->pattern);
+    finish->label = std::string(req.method_string()) + " " + pattern;
+    if (!route.method) {
       std::string allow;
-      for (http::verb v : route.methods) allow += (allow.empty() ? "" : ", ") + std::string(http::to_string(v));
-      finish->label = "other " + route.name;
+      for (const protocol::MethodSpec& m : spec->methods) allow += (allow.empty() ? "" : ", ") + std::string(m.name);
+      finish->label = "other " + pattern;
       HttpResponse res = json_error(http::status::method_not_allowed,
-                                    std::string(req.method_string()) + " is not allowed on " + route.name + " (allowed: " + allow + ")", version);
+                                    std::string(req.method_string()) + " is not allowed on " + pattern + " (allowed: " + allow + ")", version);
       res.set(http::field::allow, allow);
       return (*finish)(std::move(res));
     }
     if (auto denied = check_access(route, req.base())) return (*finish)(std::move(*denied));
-    if (route.id == RouteId::events) return (*finish)(events_handler_.open(req).response);  // only the header: reply() streams
+    if (spec->resource == protocol::Resource::events) return (*finish)(events_handler_.open(req).response);  // the header only
     // The request's method and target, for a refusal's log line, once the handler has let go of the request.
     auto head = std::make_shared<HttpRequest>(req.method(), std::string(req.target()), version);
-    handler_for(route.id).handle_async(route.id, route.param, req, [this, finish, head](HttpResponse res, std::exception_ptr e) {
+    handler_for(spec->resource).handle_async(route.match, req, [this, finish, head](HttpResponse res, std::exception_ptr e) {
       (*finish)(e ? refusal(e, *head) : std::move(res));
     });
   } catch (...) {
@@ -190,60 +154,27 @@ void Api::answer(HttpRequest&& req, std::function<void(HttpResponse)> send) noex
   }
 }
 
-HttpResponse Api::handle(HttpRequest&& req) noexcept {
-  std::promise<HttpResponse> promise;
-  std::future<HttpResponse> answered = promise.get_future();
-  answer(std::move(req), [&promise](HttpResponse res) { promise.set_value(std::move(res)); });
-  return answered.get();
-}
-
-void Api::handle_async(HttpRequest&& req, Reply done) noexcept {
+void Api::handle_routed(HttpRequest&& req, const Route& route, Reply done) noexcept {
   try {
-    const Route route = match_route(req.target());
-    if (route.id == RouteId::events && req.method() == http::verb::get && !check_access(route, req.base())) {
-      metrics_.observe_request("GET " + route.name, 0.0);
+    if (route.match.endpoint() == RouteId::events && route.method && !check_access(route, req.base())) {
+      metrics_.observe_request("GET " + std::string(route.match.route->pattern), 0.0);
       return done(events_handler_.open(req));
     }
   } catch (...) {
     return done({refusal(std::current_exception(), req), nullptr});  // a bad ?only= is a 400
   }
-  answer(std::move(req), [done](HttpResponse res) { done({std::move(res), nullptr}); });
+  answer(std::move(req), route, [done](HttpResponse res) { done({std::move(res), nullptr}); });
 }
 
-HttpReply Api::reply(HttpRequest&& req) noexcept {
-  std::promise<HttpReply> promise;
-  std::future<HttpReply> answered = promise.get_future();
-  handle_async(std::move(req), [&promise](HttpReply r) { promise.set_value(std::move(r)); });
-  return answered.get();
-}
-
-ResourceHandler& Api::handler_for(RouteId route) {
-  switch (route) {
-    case RouteId::healthz:
-    case RouteId::metrics: return health_handler_;
-    case RouteId::blobs:
-    case RouteId::blob: return blobs_handler_;
-    case RouteId::jobs:
-    case RouteId::job:
-    case RouteId::job_result:
-    case RouteId::job_preview:
-    case RouteId::job_spec:
-    case RouteId::job_retry:
-    case RouteId::job_pause:
-    case RouteId::job_resume: return jobs_handler_;
-    case RouteId::job_tiles:
-    case RouteId::job_tile_requeue: return tiles_handler_;
-    case RouteId::workers:
-    case RouteId::worker_drain:
-    case RouteId::worker_undrain: return workers_handler_;
-    case RouteId::worker_lease:
-    case RouteId::lease_heartbeat:
-    case RouteId::lease_result:
-    case RouteId::lease_fail:
-    case RouteId::lease_release:
-    case RouteId::lease_state: return leases_handler_;
-    case RouteId::events:
-    case RouteId::none: break;
+ResourceHandler& Api::handler_for(protocol::Resource resource) {
+  switch (resource) {
+    case protocol::Resource::health: return health_handler_;
+    case protocol::Resource::blobs: return blobs_handler_;
+    case protocol::Resource::jobs: return jobs_handler_;
+    case protocol::Resource::tiles: return tiles_handler_;
+    case protocol::Resource::workers: return workers_handler_;
+    case protocol::Resource::leases: return leases_handler_;
+    case protocol::Resource::events: break;  // answered by the router itself (a stream)
   }
   throw ApiError(404, "no such endpoint");
 }

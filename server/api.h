@@ -16,6 +16,7 @@
 #include "server/lease_waiters.h"
 #include "server/leases_handler.h"
 #include "server/metrics.h"
+#include "server/route.h"
 #include "server/health_handler.h"
 #include "server/scheduler.h"
 #include "server/storage.h"
@@ -32,39 +33,25 @@
 
 namespace tessera::server {
 
-/// Size limits and timings the API announces and enforces.
-struct ApiOptions {
+/// Size limits and timings the API announces and enforces (with the admission limits of a job it inherits).
+struct ApiOptions : AdmissionLimits {
   std::size_t json_limit = std::size_t(16) << 20;    ///< JSON request bodies.
   std::size_t blob_limit = std::size_t(256) << 20;   ///< Blob uploads.
   std::size_t result_limit = std::size_t(64) << 20;  ///< Tile result uploads.
   int heartbeat_seconds = protocol::kDefaultHeartbeatSeconds;  ///< Heartbeat interval announced to workers.
   AccessTokens tokens;                               ///< Bearer tokens (empty: that side's endpoints are open).
-  int64_t max_queued_jobs = 1000;                    ///< Queued plus running jobs; more submissions get 429.
-  int retry_after_seconds = 30;                      ///< Retry-After announced with 429.
-  uint64_t max_job_pixels = uint64_t(1) << 26;       ///< width x height of one job (the merged image lives in memory).
-  double max_job_samples = 4e10;                     ///< width x height x spp (x max_spp when adaptive) of one job.
   RetentionOptions retention;                        ///< How long finished jobs and unreferenced blobs are kept.
 };
 
 /// The endpoints a request target can name (protocol/routes.h).
 using RouteId = protocol::Endpoint;
 
-/// A matched request target.
-struct Route {
-  RouteId id = RouteId::none;          ///< Which endpoint (none: 404).
-  std::string param;                   ///< The id or hash in the path.
-  std::string name;                    ///< Route label for logs and metrics, e.g. "GET /v1/jobs/{id}".
-  std::vector<http::verb> methods;     ///< Methods the endpoint accepts.
-};
-
-/// Matches a request target (query string ignored) to an endpoint.
-Route match_route(std::string_view target);
-
-/// The token an endpoint needs for a method (see docs/protocol.md, "Access").
+/// The token an endpoint needs for a method (the route table's, protocol/routes.h); for a method the endpoint does not
+/// accept, that of its first method.
 Access route_access(RouteId route, http::verb method);
 
 /// The HTTP handler implementing docs/protocol.md.
-class Api final : public HttpHandler {
+class Api final : public RoutedHandler {
  public:
   /// An API over the given state, publishing changes through `events` and streaming `bus` at GET /v1/events; all
   /// references must outlive it.
@@ -73,14 +60,12 @@ class Api final : public HttpHandler {
   ~Api() override;
   Api(const Api&) = delete;
   Api& operator=(const Api&) = delete;
-  std::size_t body_limit(const http::request_header<>& header) override;
-  std::optional<HttpResponse> early_response(const http::request_header<>& header) noexcept override;
-  /// Answers a request, waiting for an answer given later (a result upload waits for its flush).
-  HttpResponse handle(HttpRequest&& request) noexcept override;
-  /// As handle(), but GET /v1/events (once its token is checked) is answered with a stream.
-  HttpReply reply(HttpRequest&& request) noexcept override;
-  /// As reply(), without waiting: a result upload's answer comes from the thread that flushed its tile.
-  void handle_async(HttpRequest&& request, Reply done) noexcept override;
+  std::size_t routed_body_limit(const http::request_header<>& header, const Route& route) override;
+  /// The refusal of a token that does not let the request's method on its route (401/403), before the body is read.
+  std::optional<HttpResponse> routed_early_response(const http::request_header<>& header, const Route& route) noexcept override;
+  /// Answers a request; GET /v1/events (once its token is checked) with a stream; a result upload's answer comes
+  /// from the thread that flushed its tile.
+  void handle_routed(HttpRequest&& request, const Route& route, Reply done) noexcept override;
   /// After a restart: finishes jobs whose every tile was stored but whose result was not written yet.
   void recover() { jobs_.recover(); }
   /// Purges finished jobs past their retention time and collects unreferenced blobs (see Collector::sweep).
@@ -90,12 +75,13 @@ class Api final : public HttpHandler {
   void stop_holding_leases() { lease_waiters_->close(); }
 
  private:
+  /// The refusal of the request's token on its route and method (both matched), or nothing when it may pass.
   std::optional<HttpResponse> check_access(const Route& route, const http::request_header<>& header);
-  /// Routes, checks and hands the request to its resource handler; `send` gets the answer once (maybe later).
-  void answer(HttpRequest&& request, std::function<void(HttpResponse)> send) noexcept;
+  /// Checks the routed request and hands it to its resource handler; `send` gets the answer once (maybe later).
+  void answer(HttpRequest&& request, const Route& route, std::function<void(HttpResponse)> send) noexcept;
   /// The answer to a refused request: 400, the ApiError's status, or 500 (logged).
   HttpResponse refusal(std::exception_ptr error, const HttpRequest& request) const;
-  ResourceHandler& handler_for(RouteId route);
+  ResourceHandler& handler_for(protocol::Resource resource);
 
   Metrics& metrics_;
   ApiOptions opt_;

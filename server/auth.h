@@ -2,6 +2,7 @@
 #pragma once
 
 #include "core/util/sha256.h"
+#include "protocol/routes.h"
 
 #include <optional>
 #include <string>
@@ -9,13 +10,8 @@
 
 namespace tessera::server {
 
-/// The token a request must carry.
-enum class Access {
-  open,    ///< No token (health probes).
-  client,  ///< The client token (submit, cancel, results, blob uploads).
-  worker,  ///< The worker token (register, lease, heartbeat, upload tiles, fail, release).
-  either,  ///< Either token (read-only views both sides use: blob downloads, job specs, metrics).
-};
+/// The token a request must carry (each route's, protocol/routes.h).
+using Access = protocol::Access;
 
 /// The configured tokens; an empty one leaves its endpoints open (allowed on loopback only).
 struct AccessTokens {

@@ -12,7 +12,9 @@ namespace tessera::server {
 
 using protocol::ApiError;
 
-HttpResponse BlobsHandler::handle(protocol::Endpoint endpoint, const std::string& sha, HttpRequest& req) {
+HttpResponse BlobsHandler::handle(const protocol::RouteMatch& route, HttpRequest& req) {
+  const protocol::Endpoint endpoint = route.endpoint();
+  const std::string& sha = route.param;
   if (endpoint == protocol::Endpoint::blobs) {
     // A client checks every blob of a submission at once: each one held starts its grace period again (as HEAD).
     const protocol::BlobQuery q = protocol::parse_blob_query(req.body());
@@ -28,7 +30,7 @@ HttpResponse BlobsHandler::handle(protocol::Endpoint endpoint, const std::string
     if (r.status == PutBlobResult::mismatch) throw ApiError(400, "body hashes to " + r.actual + ", not " + sha);
     if (r.status == PutBlobResult::created) spdlog::info("blob {}: stored ({} bytes)", sha, r.size);
     return json_response(r.status == PutBlobResult::created ? http::status::created : http::status::ok,
-                         {{"sha256", sha}, {"size", r.size}}, req.version());
+                         protocol::BlobPutAnswer{sha, r.size}, req.version());
   }
   if (req.method() == http::verb::head) {
     // A client checks the blobs of a submission it is about to send: the blob's grace period starts again.

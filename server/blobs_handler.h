@@ -11,7 +11,7 @@ class BlobsHandler final : public ResourceHandler {
  public:
   /// Endpoints over `blobs` (which must outlive it).
   explicit BlobsHandler(BlobStore& blobs) : blobs_(blobs) {}
-  HttpResponse handle(protocol::Endpoint endpoint, const std::string& sha256, HttpRequest& req) override;
+  HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& req) override;
 
  private:
   BlobStore& blobs_;

@@ -85,7 +85,7 @@ struct Coordinator::Impl {
               wall_ms, *store),
         bus(opt.events, random_hex(4)),
         farm_events(bus),
-        api(sched, blobs, *store, metrics, wall_ms, with_heartbeat(opt), bus, farm_events,
+        api(sched, blobs, *store, metrics, wall_ms, opt.limits, bus, farm_events,
             [this](std::function<void()> work) { asio::post(pool, std::move(work)); }),  // a finished job's result
         monitor(api, !opt.limits.tokens.client.empty()),
         pool(std::size_t(opt.handler_threads > 0 ? opt.handler_threads : std::max(2u, std::thread::hardware_concurrency()))),
@@ -94,12 +94,6 @@ struct Coordinator::Impl {
                HttpServerOptions{opt.host, opt.port, opt.listen_fd, opt.read_timeout, opt.header_limit, opt.max_connections, opt.stream_idle, opt.tls}),
         tick(ioc),
         signals(ioc) {}
-
-  static ApiOptions with_heartbeat(const CoordinatorOptions& o) {
-    ApiOptions a = o.limits;
-    a.heartbeat_seconds = o.heartbeat_seconds;
-    return a;
-  }
 
   void arm_tick() {
     tick.expires_after(std::chrono::seconds(1));

@@ -23,16 +23,16 @@ struct CoordinatorOptions {
   int listen_fd = -1;  ///< A listening TCP socket to serve on instead of binding host:port (inherited; same rules).
   std::filesystem::path data_dir;              ///< Holds tessera.db, blobs/, jobs/ and tmp/.
   Durability durability = Durability::machine;  ///< What acknowledged state survives (process: no disk flushes; none: kept in memory).
-  double lease_seconds = 30;                   ///< Lease length.
+  double lease_seconds = protocol::kDefaultLeaseSeconds;  ///< Lease length.
   int worker_failure_limit = SchedulerConfig{}.worker_failure_limit;  ///< Failures blocklisting a worker for a job.
   int tile_failure_workers = SchedulerConfig{}.tile_failure_workers;  ///< Workers failing one tile that fail its job.
-  int heartbeat_seconds = 5;                   ///< Heartbeat interval announced to workers.
-  ApiOptions limits;                           ///< Body sizes, queued jobs, job size, access tokens.
-  std::chrono::milliseconds read_timeout{30'000};  ///< Whole-request read timeout.
-  std::size_t header_limit = 64 * 1024;        ///< Largest request header.
-  std::size_t max_connections = 1024;          ///< Open connections (more get 503).
+  ApiOptions limits;  ///< Heartbeat interval, body sizes, queued jobs, job size, access tokens, retention.
+  std::chrono::milliseconds read_timeout = HttpServerOptions{}.read_timeout;  ///< Whole-request read timeout.
+  std::size_t header_limit = HttpServerOptions{}.header_limit;        ///< Largest request header.
+  std::size_t max_connections = HttpServerOptions{}.max_connections;  ///< Open connections (more get 503).
   EventBusOptions events;                      ///< GET /v1/events: open streams (more get 503), queues, resume ring.
-  std::chrono::milliseconds stream_idle{15'000};  ///< An event stream writes a keep-alive comment after this long quiet.
+  /// An event stream writes a keep-alive comment after this long quiet.
+  std::chrono::milliseconds stream_idle = HttpServerOptions{}.stream_idle;
   TlsServerFiles tls;                          ///< HTTPS certificate files (none: plain HTTP).
   int io_threads = 1;                          ///< Network threads.
   int handler_threads = 0;                     ///< Request handler threads (0: max(2, cores)).

@@ -62,8 +62,8 @@ HttpReply EventsHandler::open(const HttpRequest& req) {
   if (!sub) {
     const std::size_t limit = bus_.options().max_subscribers;
     HttpResponse res = json_error(http::status::service_unavailable,
-                                  limit == 0 ? std::string("this coordinator serves no event streams (--max-event-streams 0); poll GET /v1/jobs")
-                                             : "too many event streams (the limit is " + std::to_string(limit) + "); retry later or poll GET /v1/jobs",
+                                  limit == 0 ? std::string("this coordinator serves no event streams (--max-event-streams 0); poll GET " + protocol::routes::jobs())
+                                             : "too many event streams (the limit is " + std::to_string(limit) + "); retry later or poll GET " + protocol::routes::jobs(),
                                   req.version());
     res.set(http::field::retry_after, "5");
     return {std::move(res), nullptr};

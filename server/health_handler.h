@@ -14,7 +14,7 @@ class HealthHandler final : public ResourceHandler {
   /// Endpoints over the given state (which must outlive it).
   HealthHandler(Scheduler& scheduler, Metrics& metrics, ClockMs clock, LeaseWaiters& waiters)
       : sched_(scheduler), metrics_(metrics), clock_(std::move(clock)), waiters_(waiters) {}
-  HttpResponse handle(protocol::Endpoint endpoint, const std::string& param, HttpRequest& req) override;
+  HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& req) override;
 
  private:
   Scheduler& sched_;

@@ -1,6 +1,7 @@
 #include "server/http_server.h"
 
 #include "net/byte_stream.h"
+#include "protocol/messages.h"
 
 #include <boost/asio/dispatch.hpp>
 #include <boost/asio/executor_work_guard.hpp>
@@ -10,7 +11,6 @@
 #include <boost/asio/strand.hpp>
 #include <boost/asio/write.hpp>
 #include <boost/beast/core.hpp>
-#include <nlohmann/json.hpp>
 #include <openssl/err.h>
 #include <openssl/ssl.h>
 #include <spdlog/spdlog.h>
@@ -40,7 +40,7 @@ HttpResponse json_error(http::status status, const std::string& text, unsigned v
   HttpResponse res{status, version};
   res.set(http::field::content_type, "application/json");
   // The text may quote a request target or key with arbitrary bytes: replace what is not UTF-8 instead of throwing.
-  res.body() = nlohmann::json{{"error", text}}.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+  res.body() = protocol::error_text(protocol::ErrorAnswer{text});
   res.prepare_payload();
   return res;
 }

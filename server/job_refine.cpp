@@ -15,7 +15,7 @@ std::optional<std::string> refine_refusal(const protocol::JobStatus& status, con
   const std::string job = "job " + status.id;
   if (status.state == protocol::JobState::failed || status.state == protocol::JobState::cancelled)
     return job + " is " + protocol::to_string(status.state) +
-           ": retry it first (POST /v1/jobs/" + status.id + "/retry), then raise its spp";
+           ": retry it first (POST " + protocol::routes::job_retry(status.id) + "), then raise its spp";
   if (spec.sampling.target_error > 0.0)
     return job + " uses adaptive sampling (target_error): each pixel stopped at its own sample count, so there is no "
                  "common spp to raise";

@@ -36,11 +36,8 @@ struct AdmissionLimits {
   double max_job_samples = 4e10;                 ///< width x height x spp (x max_spp when adaptive) of one job.
 };
 
-/// How an upload was settled.
-enum class UploadOutcome { accepted, duplicate, discarded };
-
-/// The name the protocol gives an outcome ("accepted", "duplicate", "discarded").
-const char* to_string(UploadOutcome o);
+/// How an upload was settled (its name is the result answer's "status").
+using UploadOutcome = protocol::UploadStatus;
 
 /// Where an upload's answer goes once it may be given: its outcome, or (error set) the refusal to answer with
 /// (protocol::ApiError, or another exception for a 500).

@@ -6,7 +6,9 @@ namespace tessera::server {
 
 using protocol::Endpoint;
 
-HttpResponse JobsHandler::handle(Endpoint endpoint, const std::string& id, HttpRequest& req) {
+HttpResponse JobsHandler::handle(const protocol::RouteMatch& route, HttpRequest& req) {
+  const Endpoint endpoint = route.endpoint();
+  const std::string& id = route.param;
   const unsigned v = req.version();
   const bool get = req.method() == http::verb::get;
   switch (endpoint) {

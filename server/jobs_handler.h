@@ -12,7 +12,7 @@ class JobsHandler final : public ResourceHandler {
  public:
   /// Endpoints over `jobs`, purging through `collector` (both must outlive it).
   JobsHandler(JobService& jobs, Collector& collector) : jobs_(jobs), collector_(collector) {}
-  HttpResponse handle(protocol::Endpoint endpoint, const std::string& id, HttpRequest& req) override;
+  HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& req) override;
 
  private:
   JobService& jobs_;

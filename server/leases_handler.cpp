@@ -11,7 +11,9 @@ namespace tessera::server {
 using protocol::ApiError;
 using protocol::Endpoint;
 
-HttpResponse LeasesHandler::handle(Endpoint endpoint, const std::string& id, HttpRequest& req) {
+HttpResponse LeasesHandler::handle(const protocol::RouteMatch& route, HttpRequest& req) {
+  const Endpoint endpoint = route.endpoint();
+  const std::string& id = route.param;
   const unsigned v = req.version();
   switch (endpoint) {
     case Endpoint::worker_lease:
@@ -29,12 +31,12 @@ HttpResponse LeasesHandler::handle(Endpoint endpoint, const std::string& id, Htt
     case Endpoint::lease_heartbeat: return heartbeat(id, req);
     case Endpoint::lease_fail:
       jobs_.record_failure(id, protocol::parse_fail_report(req.body()));
-      return json_response(http::status::ok, {{"status", "recorded"}}, v);
+      return json_response(http::status::ok, protocol::FailAnswer{}, v);
     case Endpoint::lease_release:
       protocol::parse_empty_request(req.body());
       if (!sched_.release(id)) throw ApiError(404, "unknown lease " + id);
       spdlog::debug("lease {}: released", id);
-      return json_response(http::status::ok, {{"status", "released"}}, v);
+      return json_response(http::status::ok, protocol::ReleaseAnswer{}, v);
     case Endpoint::lease_state: return bytes_response(jobs_.lease_state(id), "image/x-exr", v);
     default: break;
   }
@@ -96,12 +98,14 @@ HttpResponse LeasesHandler::heartbeat(const std::string& lease, HttpRequest& req
   if (h.status == HeartbeatResult::gone)
     throw ApiError(410, "lease " + lease + " was revoked or expired: stop rendering this tile");
   metrics_.add_rays(rays, clock_());
-  return json_response(http::status::ok, {{"deadline_ms", h.deadline_ms}}, req.version());
+  return json_response(http::status::ok, protocol::HeartbeatAnswer{h.deadline_ms}, req.version());
 }
 
-void LeasesHandler::handle_async(Endpoint endpoint, const std::string& id, HttpRequest& req, Answer answer) {
+void LeasesHandler::handle_async(const protocol::RouteMatch& route, HttpRequest& req, Answer answer) {
+  const Endpoint endpoint = route.endpoint();
+  const std::string& id = route.param;
   if (endpoint != Endpoint::lease_result && endpoint != Endpoint::worker_lease)
-    return ResourceHandler::handle_async(endpoint, id, req, std::move(answer));
+    return ResourceHandler::handle_async(route, req, std::move(answer));
   try {
     if (endpoint == Endpoint::worker_lease) lease(id, req, answer);
     else result(id, req, answer);
@@ -112,16 +116,16 @@ void LeasesHandler::handle_async(Endpoint endpoint, const std::string& id, HttpR
 
 void LeasesHandler::result(const std::string& lease, HttpRequest& req, Answer answer) {
   uint64_t rays = 0;
-  if (const auto h = req["X-Tessera-Rays"]; !h.empty()) {
+  if (const auto h = req[protocol::kRaysHeader]; !h.empty()) {
     const auto [ptr, ec] = std::from_chars(h.data(), h.data() + h.size(), rays);
     if (ec != std::errc() || ptr != h.data() + h.size())
-      throw ApiError(400, "X-Tessera-Rays must be a non-negative integer (got '" + std::string(h) + "')");
+      throw ApiError(400, std::string(protocol::kRaysHeader) + " must be a non-negative integer (got '" + std::string(h) + "')");
   }
   const unsigned version = req.version();
   jobs_.accept_tile(lease, req.body(), rays, [answer, version](UploadOutcome o, std::exception_ptr refusal) {
     if (refusal) return answer(HttpResponse{}, refusal);
     answer(json_response(o == UploadOutcome::discarded ? http::status::gone : http::status::ok,
-                         {{"status", to_string(o)}}, version),
+                         protocol::ResultAnswer{o}, version),
            nullptr);
   });
 }

@@ -1,7 +1,8 @@
 #include "server/monitor_handler.h"
 
-#include "protocol/routes.h"
+#include "protocol/messages.h"
 #include "server/monitor_assets.h"
+#include "server/scheduler.h"
 
 #include <nlohmann/json.hpp>
 
@@ -14,8 +15,8 @@ namespace tessera::server {
 
 namespace {
 
-constexpr std::string_view kPrefix = "/monitor/";
 constexpr std::string_view kCapabilities = "capabilities.json";
+constexpr std::string_view kProtocolModule = "protocol.js";
 
 // Scripts, styles and images only from this origin; no inline code, no framing, no forms posting elsewhere.
 // Preview images arrive through fetch() with the bearer token and are shown as blob: URLs.
@@ -25,14 +26,6 @@ constexpr const char* kContentSecurityPolicy =
 
 std::string_view path_of(std::string_view target) { return target.substr(0, target.find('?')); }
 
-bool is_monitor_path(std::string_view path) { return path == "/" || path.starts_with(kPrefix); }
-
-// True when the protocol's route table has `method target` (the page shows the controls it can use).
-bool api_has(std::string_view target, http::verb method) {
-  const protocol::RouteMatch m = protocol::match_route(target);
-  return m.route && std::find(m.route->methods.begin(), m.route->methods.end(), http::to_string(method)) != m.route->methods.end();
-}
-
 const char* content_type(std::string_view path) {
   if (path.ends_with(".html")) return "text/html; charset=utf-8";
   if (path.ends_with(".js")) return "text/javascript; charset=utf-8";
@@ -40,6 +33,25 @@ const char* content_type(std::string_view path) {
   if (path.ends_with(".svg")) return "image/svg+xml";
   if (path.ends_with(".json")) return "application/json";
   return "application/octet-stream";
+}
+
+// The page's ES module of the protocol's tables: every route's pattern by name, the job states (and those a job ends
+// in) and the tile states.
+std::string protocol_module() {
+  nlohmann::json routes = nlohmann::json::object(), job_states = nlohmann::json::array(),
+                 final_states = nlohmann::json::array(), tile_states = nlohmann::json::array();
+  for (const protocol::RouteSpec& r : protocol::route_table()) routes[std::string(r.name)] = r.pattern;
+  for (protocol::JobState s : protocol::kAllJobStates) {
+    job_states.push_back(protocol::to_string(s));
+    if (protocol::is_final(s)) final_states.push_back(protocol::to_string(s));
+  }
+  for (TileState s : {TileState::pending, TileState::leased, TileState::merging, TileState::done})
+    tile_states.push_back(to_string(s));
+  return "// The coordinator's protocol tables (protocol/routes.h, protocol/job.h), as this coordinator serves them.\n"
+         "export const ROUTES = " + routes.dump() + ";\n"
+         "export const JOB_STATES = " + job_states.dump() + ";\n"
+         "export const FINAL_JOB_STATES = " + final_states.dump() + ";\n"
+         "export const TILE_STATES = " + tile_states.dump() + ";\n";
 }
 
 void set_monitor_headers(HttpResponse& res) {
@@ -60,52 +72,47 @@ HttpResponse monitor_response(http::status status, std::string body, const char*
 
 }  // namespace
 
-MonitorHandler::MonitorHandler(HttpHandler& api, bool tokens_required) : api_(api), tokens_required_(tokens_required) {}
+MonitorHandler::MonitorHandler(RoutedHandler& api, bool tokens_required) : api_(api), tokens_required_(tokens_required) {}
 
-std::size_t MonitorHandler::body_limit(const http::request_header<>& header) {
-  return is_monitor_path(path_of(header.target())) ? 0 : api_.body_limit(header);
+std::size_t MonitorHandler::routed_body_limit(const http::request_header<>& header, const Route& route) {
+  return route.monitor ? 0 : api_.routed_body_limit(header, route);
 }
 
-std::optional<HttpResponse> MonitorHandler::early_response(const http::request_header<>& header) noexcept {
-  const std::string_view path = path_of(header.target());
-  if (is_monitor_path(path)) return std::nullopt;  // the page itself needs no token
-  return api_.early_response(header);
+std::optional<HttpResponse> MonitorHandler::routed_early_response(const http::request_header<>& header,
+                                                                  const Route& route) noexcept {
+  if (route.monitor) return std::nullopt;  // the page itself needs no token
+  return api_.routed_early_response(header, route);
 }
 
-HttpResponse MonitorHandler::handle(HttpRequest&& req) noexcept {
+void MonitorHandler::handle_routed(HttpRequest&& req, const Route& route, Reply done) noexcept {
+  if (!route.monitor) return api_.handle_routed(std::move(req), route, std::move(done));
+  done({serve(req), nullptr});
+}
+
+HttpResponse MonitorHandler::serve(const HttpRequest& req) const {
   try {
-    const std::string_view path = path_of(req.target());
-    if (is_monitor_path(path)) {
-      if (req.method() != http::verb::get) {
-        HttpResponse res = json_error(http::status::method_not_allowed,
-                                      std::string(req.method_string()) + " is not allowed on the monitor (allowed: GET)", req.version());
-        res.set(http::field::allow, "GET");
-        return res;
-      }
-      if (path == std::string(kPrefix) + std::string(kCapabilities)) return capabilities(req);
-      return serve_static(req);
+    if (req.method() != http::verb::get) {
+      HttpResponse res = json_error(http::status::method_not_allowed,
+                                    std::string(req.method_string()) + " is not allowed on the monitor (allowed: GET)", req.version());
+      res.set(http::field::allow, "GET");
+      return res;
     }
+    const std::string_view path = path_of(req.target());
+    if (path == std::string(kMonitorPrefix) + std::string(kCapabilities)) return capabilities(req);
+    if (path == std::string(kMonitorPrefix) + std::string(kProtocolModule)) {
+      HttpResponse res = monitor_response(http::status::ok, protocol_module(), content_type(path), req.version());
+      res.set(http::field::cache_control, "no-cache");
+      return res;
+    }
+    return serve_static(req);
   } catch (const std::exception& e) {
     return json_error(http::status::internal_server_error, std::string("internal error: ") + e.what(), req.version());
   }
-  return api_.handle(std::move(req));
-}
-
-HttpReply MonitorHandler::reply(HttpRequest&& req) noexcept {
-  const std::string_view path = path_of(req.target());
-  if (is_monitor_path(path) || path.ends_with("/tiles")) return {handle(std::move(req)), nullptr};
-  return api_.reply(std::move(req));
-}
-
-void MonitorHandler::handle_async(HttpRequest&& req, Reply done) noexcept {
-  const std::string_view path = path_of(req.target());
-  if (is_monitor_path(path) || path.ends_with("/tiles")) return done({handle(std::move(req)), nullptr});
-  api_.handle_async(std::move(req), std::move(done));
 }
 
 HttpResponse MonitorHandler::serve_static(const HttpRequest& req) const {
   const std::string_view path = path_of(req.target());
-  const std::string_view name = path == "/" ? std::string_view("index.html") : path.substr(kPrefix.size());
+  const std::string_view name = path == "/" ? std::string_view("index.html") : path.substr(kMonitorPrefix.size());
   const auto files = monitor_assets();
   const auto it = std::find_if(files.begin(), files.end(), [&](const EmbeddedFile& f) { return f.path == name; });
   if (it == files.end())
@@ -119,20 +126,8 @@ HttpResponse MonitorHandler::serve_static(const HttpRequest& req) const {
 }
 
 HttpResponse MonitorHandler::capabilities(const HttpRequest& req) const {
-  using V = http::verb;
-  const nlohmann::json body = {
-      {"tokens_required", tokens_required_},
-      {"endpoints",
-       {{"pause", api_has("/v1/jobs/j/pause", V::post)},
-        {"resume", api_has("/v1/jobs/j/resume", V::post)},
-        {"retry", api_has("/v1/jobs/j/retry", V::post)},
-        {"priority", api_has("/v1/jobs/j", V::patch)},
-        {"purge", true},  // DELETE /v1/jobs/{id}?purge=true (the route also cancels, so it cannot be asked)
-        {"requeue", api_has("/v1/jobs/j/tiles/0/requeue", V::post)},
-        {"workers", api_has("/v1/workers", V::get)},
-        {"drain", api_has("/v1/workers/w/drain", V::post)},
-        {"events", api_has("/v1/events", V::get)}}}};
-  HttpResponse res = monitor_response(http::status::ok, body.dump(), "application/json", req.version());
+  HttpResponse res = monitor_response(http::status::ok, nlohmann::json(protocol::capabilities(tokens_required_)).dump(),
+                                      "application/json", req.version());
   res.set(http::field::cache_control, "no-store");
   return res;
 }

@@ -2,31 +2,29 @@
 // API endpoints this coordinator has, and hands every other request to the API unchanged.
 #pragma once
 
-#include "server/http_server.h"
+#include "server/route.h"
 
 #include <optional>
 
 namespace tessera::server {
 
-/// An HttpHandler that serves the monitor and forwards everything else to `api`.
-class MonitorHandler final : public HttpHandler {
+/// A RoutedHandler that serves the monitor's routes and hands every other request, with its route, to `api`.
+class MonitorHandler final : public RoutedHandler {
  public:
   /// `api` answers every request that is not the monitor's; `tokens_required` is reported to the page so it asks for
   /// the client token before its first call.
-  MonitorHandler(HttpHandler& api, bool tokens_required);
-  std::size_t body_limit(const http::request_header<>& header) override;
-  std::optional<HttpResponse> early_response(const http::request_header<>& header) noexcept override;
-  HttpResponse handle(HttpRequest&& request) noexcept override;
-  /// The API's streamed answers (GET /v1/events) pass through; everything else is handle().
-  HttpReply reply(HttpRequest&& request) noexcept override;
-  /// As reply(), passing on the API's answers given later (result uploads).
-  void handle_async(HttpRequest&& request, Reply done) noexcept override;
+  MonitorHandler(RoutedHandler& api, bool tokens_required);
+  std::size_t routed_body_limit(const http::request_header<>& header, const Route& route) override;
+  std::optional<HttpResponse> routed_early_response(const http::request_header<>& header, const Route& route) noexcept override;
+  /// The monitor's files at once; the API's answers (streamed, or given later) pass through.
+  void handle_routed(HttpRequest&& request, const Route& route, Reply done) noexcept override;
 
  private:
+  HttpResponse serve(const HttpRequest& req) const;
   HttpResponse serve_static(const HttpRequest& req) const;
   HttpResponse capabilities(const HttpRequest& req) const;
 
-  HttpHandler& api_;
+  RoutedHandler& api_;
   bool tokens_required_;
 };
 

@@ -2,11 +2,10 @@
 
 namespace tessera::server {
 
-void ResourceHandler::handle_async(protocol::Endpoint endpoint, const std::string& param, HttpRequest& request,
-                                   Answer answer) {
+void ResourceHandler::handle_async(const protocol::RouteMatch& route, HttpRequest& request, Answer answer) {
   HttpResponse res;
   try {
-    res = handle(endpoint, param, request);
+    res = handle(route, request);
   } catch (...) {
     return answer(HttpResponse{}, std::current_exception());
   }

@@ -21,11 +21,11 @@ using Answer = std::function<void(HttpResponse response, std::exception_ptr refu
 class ResourceHandler {
  public:
   virtual ~ResourceHandler() = default;
-  /// Answers a request for `endpoint` (one of this handler's) with the path parameter `param`.
-  virtual HttpResponse handle(protocol::Endpoint endpoint, const std::string& param, HttpRequest& request) = 0;
+  /// Answers a request for the matched `route` (one of this handler's endpoints, with its path parameters).
+  virtual HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& request) = 0;
   /// As handle(), but the answer may come later, from another thread (the request is read only before this returns).
   /// By default handle() answers at once.
-  virtual void handle_async(protocol::Endpoint endpoint, const std::string& param, HttpRequest& request, Answer answer);
+  virtual void handle_async(const protocol::RouteMatch& route, HttpRequest& request, Answer answer);
 };
 
 /// A JSON answer.

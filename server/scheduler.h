@@ -37,7 +37,7 @@ using protocol::TileCounts;
 
 /// Scheduler tunables.
 struct SchedulerConfig {
-  int64_t lease_ms = 30'000;       ///< Lease length; every heartbeat moves the deadline to now + lease_ms.
+  int64_t lease_ms = int64_t(protocol::kDefaultLeaseSeconds * 1000);  ///< Lease length; every heartbeat moves the deadline to now + lease_ms.
   int tile_failure_workers = 3;    ///< Distinct workers failing one tile that fail the job.
   int worker_failure_limit = 2;    ///< Failures after which a worker is blocklisted for a job.
   std::string id_tag;              ///< Inserted into generated ids ("j-<tag>-1") so ids differ between runs.

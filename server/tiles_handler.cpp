@@ -4,13 +4,15 @@ namespace tessera::server {
 
 using protocol::Endpoint;
 
-HttpResponse TilesHandler::handle(Endpoint endpoint, const std::string& id, HttpRequest& req) {
+HttpResponse TilesHandler::handle(const protocol::RouteMatch& route, HttpRequest& req) {
+  const Endpoint endpoint = route.endpoint();
+  const std::string& id = route.param;
   const unsigned v = req.version();
   switch (endpoint) {
     case Endpoint::job_tiles: return json_response(http::status::ok, jobs_.tiles(id), v);
     case Endpoint::job_tile_requeue:
       protocol::parse_empty_request(req.body());
-      return json_response(http::status::ok, jobs_.requeue_tile(id, protocol::match_route(req.target()).param2), v);
+      return json_response(http::status::ok, jobs_.requeue_tile(id, route.param2), v);
     default: break;
   }
   throw protocol::ApiError(404, "no such endpoint");

@@ -6,7 +6,9 @@ namespace tessera::server {
 
 using protocol::Endpoint;
 
-HttpResponse WorkersHandler::handle(Endpoint endpoint, const std::string& id, HttpRequest& req) {
+HttpResponse WorkersHandler::handle(const protocol::RouteMatch& route, HttpRequest& req) {
+  const Endpoint endpoint = route.endpoint();
+  const std::string& id = route.param;
   const unsigned v = req.version();
   if (endpoint == Endpoint::worker_drain || endpoint == Endpoint::worker_undrain) {
     protocol::parse_empty_request(req.body());

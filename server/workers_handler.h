@@ -14,7 +14,7 @@ class WorkersHandler final : public ResourceHandler {
   /// publishes registrations to `events`.
   WorkersHandler(Scheduler& scheduler, int heartbeat_seconds, FarmEvents& events)
       : sched_(scheduler), heartbeat_seconds_(heartbeat_seconds), events_(events) {}
-  HttpResponse handle(protocol::Endpoint endpoint, const std::string& id, HttpRequest& req) override;
+  HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& req) override;
 
  private:
   Scheduler& sched_;

@@ -54,16 +54,19 @@ UploadOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, co
   req.target = protocol::routes::lease_result(l.id);
   req.body.assign(bytes.begin(), bytes.end());
   req.content_type = "image/x-exr";
-  req.headers["X-Tessera-Rays"] = std::to_string(res.counters.rays);
+  req.headers[protocol::kRaysHeader] = std::to_string(res.counters.rays);
   TESSERA_FAIL_POINT("worker.upload");
   client::Backoff backoff(200ms, max_retry_wait);
   for (int attempt = 1;; ++attempt) {
     try {
       const client::HttpResponse r = http.send(req);
       if (r.status == 200) {
-        const nlohmann::json j = nlohmann::json::parse(r.body, nullptr, false);
-        const std::string status = j.is_object() ? j.value("status", "") : "";
-        spdlog::info("{}: upload {}", prefix, status.empty() ? "acknowledged" : status);
+        std::string status = "acknowledged";  // an answer without a known status is still an acknowledgement
+        try {
+          status = protocol::to_string(protocol::parse_answer<protocol::ResultAnswer>(r.body, "result answer").status);
+        } catch (const protocol::ProtocolError&) {
+        }
+        spdlog::info("{}: upload {}", prefix, status);
         bool again = false;  // tests send the result again, as a worker that missed the answer would
         TESSERA_FAIL_POINT_RETURN("worker.upload.repeat", [&](const std::string&) { again = true; });
         if (again) continue;

@@ -1,6 +1,16 @@
 // Talking to the coordinator: the bearer token (kept in sessionStorage, never in a URL), JSON calls, the preview
 // image, the result's download, which endpoints this coordinator has, and the event stream when it exists.
 import { SseParser } from './sse.js';
+import { ROUTES, JOB_STATES, TILE_STATES } from './protocol.js';
+
+/** The job and tile states, as the coordinator names them (protocol.js, served by the coordinator). */
+export { JOB_STATES, TILE_STATES };
+
+/** The path of the coordinator's route `name` (protocol.js) with its {parameters} filled in, in order. */
+export function route(name, ...params) {
+  let i = 0;
+  return ROUTES[name].replace(/\{[^}]+\}/g, () => encodeURIComponent(String(params[i++])));
+}
 
 const TOKEN_KEY = 'tessera.clientToken';
 
@@ -65,7 +75,7 @@ export async function call(method, path, body) {
 
 /** The preview PNG as an object URL (the caller revokes it). */
 export async function previewUrl(jobId) {
-  const res = await fetch('/v1/jobs/' + encodeURIComponent(jobId) + '/preview.png', { headers: headers(), cache: 'no-store' });
+  const res = await fetch(route('job_preview', jobId), { headers: headers(), cache: 'no-store' });
   if (!res.ok) throw await errorOf(res);
   return URL.createObjectURL(await res.blob());
 }
@@ -75,7 +85,7 @@ export async function previewUrl(jobId) {
  * send) as a download named `filename`; resolves with the file's size in bytes, rejects with ApiError.
  */
 export async function downloadResult(jobId, filename) {
-  const res = await fetch('/v1/jobs/' + encodeURIComponent(jobId) + '/result.exr', { headers: headers(), cache: 'no-store' });
+  const res = await fetch(route('job_result', jobId), { headers: headers(), cache: 'no-store' });
   if (!res.ok) throw await refusal(res);
   const blob = await res.blob();
   const url = URL.createObjectURL(blob);
@@ -104,7 +114,7 @@ export async function capabilities() {
 export async function streamEvents(onEvent, onOpen, lastEventId, signal) {
   const extra = { Accept: 'text/event-stream' };
   if (lastEventId) extra['Last-Event-ID'] = lastEventId;
-  const res = await fetch('/v1/events', { headers: headers(extra), signal, cache: 'no-store' });
+  const res = await fetch(route('events'), { headers: headers(extra), signal, cache: 'no-store' });
   if (!res.ok) throw await refusal(res);
   onOpen();
   const parser = new SseParser(onEvent);

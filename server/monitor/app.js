@@ -52,7 +52,7 @@ $('token-form').addEventListener('submit', async (ev) => {
   if (!t) { askToken('Enter the client token.'); return; }
   api.setToken(t);
   try {
-    await api.call('GET', '/v1/jobs?limit=1');
+    await api.call('GET', api.route('jobs') + '?limit=1');
   } catch (e) {
     if (!e.isAuth) askToken(e.message);
     return;  // onAuthError already reopened the dialog with the reason

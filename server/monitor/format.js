@@ -1,4 +1,6 @@
 // Small display helpers shared by the pages.
+import { FINAL_JOB_STATES } from './protocol.js';
+
 export function el(tag, attrs, ...children) {
   const e = document.createElement(tag);
   for (const [k, v] of Object.entries(attrs || {})) {
@@ -51,8 +53,8 @@ export function arrived(job) {
   return job;
 }
 
-/** The states a job ends in. */
-export const FINAL = ['done', 'failed', 'cancelled'];
+/** The states a job ends in (protocol.js, served by the coordinator). */
+export const FINAL = FINAL_JOB_STATES;
 
 /** Whether a job's clock runs (it has started and not ended): its page redraws its figures every second. */
 export function clockRuns(job) {

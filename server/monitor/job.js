@@ -2,7 +2,7 @@
 import * as api from './api.js';
 import { el, badge, duration, clock, jobFigures, progressBar, mrays, isPaused, shownState, samplingText, arrived,
   clockRuns, FINAL } from './format.js';
-import { TileMap, tileWindow, shownTileState, workerColor } from './tilemap.js';
+import { TileMap, shownTileState, workerColor } from './tilemap.js';
 
 /** A button that needs a second click within 4 s (for cancel and delete). */
 function confirmButton(label, confirmLabel, action, cls) {
@@ -33,10 +33,14 @@ function exrName(job) {
   return (base || 'tessera-' + job.id) + '.exr';
 }
 
+// The tile states the map shows, most advanced first: the coordinator's, a merging tile shown as leased
+// (shownTileState), and failed for a pending tile that failed before.
+const SHOWN_TILE_STATES = [...api.TILE_STATES.filter((s) => s !== 'merging').reverse(), 'failed'];
+
 export function mount(host, ctx) {
   const id = ctx.arg;
   const ep = ctx.caps.endpoints;
-  const path = '/v1/jobs/' + encodeURIComponent(id);
+  const path = api.route('job', id);
   let job = null, tiles = [], previewUrl = null, selected = -1;
   // The preview shown is of previewKey (tiles done / state); a change that comes while one is fetched asks again after.
   let previewKey = '', previewBusy = false, previewAgain = false;
@@ -54,7 +58,7 @@ export function mount(host, ctx) {
   const map = new TileMap((i) => { selected = i; drawDetail(); reloadTiles().catch(() => {}); });
   // The tile list as the coordinator has it (events carry states only: attempts, times, rays and logs come from here).
   async function reloadTiles() {
-    const body = await api.call('GET', path + '/tiles');
+    const body = await api.call('GET', api.route('job_tiles', id));
     tiles = Array.isArray(body) ? body : body.tiles || [];
     drawTiles();
     drawDetail();
@@ -83,9 +87,9 @@ export function mount(host, ctx) {
     if (!enabledBy) { b.disabled = true; b.title = missing(label.toLowerCase()); }
     return b;
   };
-  const pauseB = btn('Pause', 'pause', ep.pause, () => act('Pause', 'POST', path + '/pause'));
-  const resumeB = btn('Resume', 'resume', ep.resume, () => act('Resume', 'POST', path + '/resume'));
-  const retryB = btn('Retry', 'retry', ep.retry, () => act('Retry', 'POST', path + '/retry'), 'primary');
+  const pauseB = btn('Pause', 'pause', ep.pause, () => act('Pause', 'POST', api.route('job_pause', id)));
+  const resumeB = btn('Resume', 'resume', ep.resume, () => act('Resume', 'POST', api.route('job_resume', id)));
+  const retryB = btn('Retry', 'retry', ep.retry, () => act('Retry', 'POST', api.route('job_retry', id)), 'primary');
   const cancelB = confirmButton('Cancel', 'Click to confirm', () => act('Cancel', 'DELETE', path), 'danger');
   cancelB.dataset.action = 'cancel';
   cancelB.dataset.supported = 'yes';
@@ -111,7 +115,7 @@ export function mount(host, ctx) {
   const prioInput = el('input', { type: 'number', id: 'priority-input', step: '1', 'aria-label': 'Priority' });
   const prioB = btn('Set priority', 'priority', ep.priority,
     () => act('Priority', 'PATCH', path, { priority: Number(prioInput.value) }));
-  if (!ep.priority) { prioInput.disabled = true; prioInput.title = missing('PATCH /v1/jobs/{id}'); }
+  if (!ep.priority) { prioInput.disabled = true; prioInput.title = missing('priority (PATCH)'); }
 
   host.append(
     el('div', { class: 'crumbs' }, el('a', { href: '#/jobs', text: 'Jobs' }), ' / ', el('span', { text: id })),
@@ -167,9 +171,9 @@ export function mount(host, ctx) {
   }
 
   function drawTiles() {
-    map.layout(job);
+    map.layout(job, tiles);
     map.update(tiles);
-    const n = { pending: 0, leased: 0, done: 0, failed: 0 };
+    const n = Object.fromEntries(SHOWN_TILE_STATES.map((s) => [s, 0]));
     const workers = new Map();
     for (const t of tiles) {
       const s = shownTileState(t);
@@ -177,7 +181,7 @@ export function mount(host, ctx) {
       if (s === 'leased' && t.worker) workers.set(t.worker, t.worker_name || t.worker);
     }
     tileCounts.replaceChildren(
-      ...['done', 'leased', 'pending', 'failed'].map((s) =>
+      ...SHOWN_TILE_STATES.map((s) =>
         el('span', { class: 'key', 'data-count': s }, el('i', { class: 'swatch tile', 'data-state': s }), `${s} ${n[s] || 0}`)),
       ...[...workers].map(([w, name]) => {
         const sw = el('i', { class: 'swatch' });
@@ -191,7 +195,7 @@ export function mount(host, ctx) {
     if (selected < 0 || !job) return;
     const t = tiles.find((x) => x.index === selected);
     if (!t) return;
-    const [x0, y0, x1, y1] = t.window || tileWindow(job, selected);
+    const [x0, y0, x1, y1] = t.window;
     const rows = [
       ['State', t.state],
       ['Pixels', `[${x0}, ${x1}) × [${y0}, ${y1})`],
@@ -205,7 +209,7 @@ export function mount(host, ctx) {
     const failures = t.failures || [];
     // A requeue renders a done tile again, or hands back a failed one; the coordinator answers 409 otherwise.
     const requeue = ep.requeue && (t.state === 'done' || failures.length) && !['done', 'cancelled'].includes(job.state)
-      ? el('button', { type: 'button', id: 'tile-requeue', text: 'Requeue tile', onclick: () => act('Requeue', 'POST', `${path}/tiles/${selected}/requeue`) })
+      ? el('button', { type: 'button', id: 'tile-requeue', text: 'Requeue tile', onclick: () => act('Requeue', 'POST', api.route('job_tile_requeue', id, selected)) })
       : null;
     detail.replaceChildren(...[
       el('h3', {}, `Tile ${selected}`, requeue),
@@ -266,10 +270,10 @@ export function mount(host, ctx) {
       job = arrived(j);
       if (!specAsked) {
         specAsked = true;
-        spec = await api.call('GET', path + '/spec').catch(() => null);
+        spec = await api.call('GET', api.route('job_spec', id)).catch(() => null);
       }
       drawHead();
-      const body = await api.call('GET', path + '/tiles');
+      const body = await api.call('GET', api.route('job_tiles', id));
       tiles = Array.isArray(body) ? body : body.tiles || [];
       drawTiles();
       await refreshPreview();

@@ -2,7 +2,7 @@
 import * as api from './api.js';
 import { el, badge, duration, clock, jobFigures, progressBar, mrays, shownState, arrived, clockRuns } from './format.js';
 
-const STATES = ['all', 'queued', 'running', 'paused', 'done', 'failed', 'cancelled'];
+const STATES = ['all', ...api.JOB_STATES];
 
 export function mount(host) {
   let filter = sessionStorage.getItem('tessera.jobFilter') || 'all';
@@ -54,7 +54,7 @@ export function mount(host) {
 
   return {
     async refresh() {
-      const body = await api.call('GET', '/v1/jobs');
+      const body = await api.call('GET', api.route('jobs'));
       jobs = (body.jobs || []).map(arrived);
       draw();
     },

@@ -18,13 +18,6 @@ export function shownTileState(t) {
   return t.state === 'pending' && (t.failures || []).length ? 'failed' : t.state;
 }
 
-export function tileWindow(job, index) {
-  const cols = Math.ceil(job.width / job.tile_size);
-  const x0 = (index % cols) * job.tile_size;
-  const y0 = Math.floor(index / cols) * job.tile_size;
-  return [x0, y0, Math.min(x0 + job.tile_size, job.width), Math.min(y0 + job.tile_size, job.height)];
-}
-
 export class TileMap {
   constructor(onSelect) {
     this.grid = el('div', { class: 'tilemap', id: 'tilemap', role: 'grid', 'aria-label': 'Tiles' });
@@ -34,15 +27,17 @@ export class TileMap {
     this.selected = -1;
   }
 
-  layout(job) {
-    const shape = `${job.width}x${job.height}/${job.tile_size}`;
+  /** Lays the grid out from the tiles' windows (the list from GET of the job's tiles, in tile order). */
+  layout(job, tiles) {
+    if (!tiles.length) return;
+    const shape = `${job.width}x${job.height}/${tiles.length}/${tiles[0].window}`;
     if (shape === this.shape) return;
     this.shape = shape;
-    const ts = job.tile_size;
-    const cols = Math.ceil(job.width / ts), rows = Math.ceil(job.height / ts);
-    const lastW = job.width - (cols - 1) * ts, lastH = job.height - (rows - 1) * ts;
-    this.grid.style.gridTemplateColumns = (cols > 1 ? `repeat(${cols - 1}, ${ts}fr) ` : '') + `${lastW}fr`;
-    this.grid.style.gridTemplateRows = (rows > 1 ? `repeat(${rows - 1}, ${ts}fr) ` : '') + `${lastH}fr`;
+    const firstRow = tiles.filter((t) => t.window[1] === tiles[0].window[1]);
+    const firstCol = tiles.filter((t) => t.window[0] === tiles[0].window[0]);
+    const cols = firstRow.length, rows = firstCol.length;
+    this.grid.style.gridTemplateColumns = firstRow.map((t) => `${t.window[2] - t.window[0]}fr`).join(' ');
+    this.grid.style.gridTemplateRows = firstCol.map((t) => `${t.window[3] - t.window[1]}fr`).join(' ');
     this.grid.style.aspectRatio = `${job.width} / ${job.height}`;
     this.grid.style.setProperty('--aspect', String(job.width / job.height));
     this.grid.classList.toggle('dense', cols * rows > 1500);

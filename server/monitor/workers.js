@@ -10,7 +10,7 @@ export function mount(host, ctx) {
   host.append(el('div', { class: 'page-head' }, el('h1', { text: 'Workers' })), msg);
   if (!ep.workers) {
     host.append(el('div', { class: 'card notice', id: 'workers-unavailable' },
-      el('p', { text: 'This coordinator does not list its workers (it has no GET /v1/workers endpoint yet).' }),
+      el('p', { text: 'This coordinator does not list its workers (it has no worker list endpoint yet).' }),
       el('p', { class: 'sub', text: 'Each job page still shows which worker holds each tile.' })));
     return { async refresh() {} };
   }
@@ -33,14 +33,14 @@ export function mount(host, ctx) {
   }
 
   function row(w) {
-    const id = w.id, url = '/v1/workers/' + encodeURIComponent(id);
+    const id = w.id;
     const draining = w.state === 'draining' || w.draining === true;
     const button = !ep.drain
       ? el('button', { type: 'button', text: 'Drain', disabled: true, title: 'This coordinator has no drain endpoint yet.' })
       : draining
-        ? el('button', { type: 'button', text: 'Undrain', 'data-action': 'undrain', onclick: () => act('Undrain ' + (w.name || id), url + '/undrain') })
+        ? el('button', { type: 'button', text: 'Undrain', 'data-action': 'undrain', onclick: () => act('Undrain ' + (w.name || id), api.route('worker_undrain', id)) })
         : el('button', { type: 'button', text: 'Drain', 'data-action': 'drain', disabled: w.state === 'offline',
-            onclick: () => act('Drain ' + (w.name || id), url + '/drain') });
+            onclick: () => act('Drain ' + (w.name || id), api.route('worker_drain', id)) });
     const sw = el('i', { class: 'swatch' });
     sw.style.background = workerColor(id);
     const job = w.job || w.current_job;
@@ -61,7 +61,7 @@ export function mount(host, ctx) {
 
   return {
     async refresh() {
-      const body = await api.call('GET', '/v1/workers');
+      const body = await api.call('GET', api.route('workers'));
       const list = Array.isArray(body) ? body : body.workers || [];
       tbody.replaceChildren(...list.map(row));
       if (!list.length) tbody.append(el('tr', {}, el('td', { colspan: '9', class: 'empty', text: 'No workers registered.' })));

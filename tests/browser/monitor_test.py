@@ -303,8 +303,7 @@ def main():
         if not all(w in sampling for w in ("fixed spp", "2 replicates", "BVH: median")):
             fail(f"the job's sampling settings are not shown: {sampling!r}")
 
-        if ep["events"]:
-            wait_for("the event stream open", lambda: d.find_element(By.TAG_NAME, "body").get_attribute("data-events-live") == "true")
+        wait_for("the event stream open", lambda: d.find_element(By.TAG_NAME, "body").get_attribute("data-events-live") == "true")
         # A real worker renders everything else; the page follows tile by tile.
         worker = start([TESSERA, "worker", "--coordinator", base, "--token-file", worker_path, "--threads", "1",
                         "--name", "render-1", "--cache", os.path.join(WORK, "cache")], "worker.log")
@@ -312,13 +311,12 @@ def main():
         wait_for("the free tiles done on the map", lambda: tiles_in(d, "done") == TOTAL_TILES - HELD)
         if tiles_in(d, "leased") != HELD:
             fail("the held tiles are not shown leased")
-        if ep["events"]:
-            # The map was fed by the event stream, not only by polling.
-            from_events = int(d.find_element(By.ID, "tilemap").get_attribute("data-event-tiles-done") or 0)
-            received = int(d.find_element(By.TAG_NAME, "body").get_attribute("data-events") or 0)
-            if from_events < 1 or received < from_events:
-                fail(f"the tile map did not follow the event stream: {from_events} tiles done from {received} events")
-            print(f"events: {received} received, {from_events} tiles turned done from them")
+        # The map was fed by the event stream, not only by polling.
+        from_events = int(d.find_element(By.ID, "tilemap").get_attribute("data-event-tiles-done") or 0)
+        received = int(d.find_element(By.TAG_NAME, "body").get_attribute("data-events") or 0)
+        if from_events < 1 or received < from_events:
+            fail(f"the tile map did not follow the event stream: {from_events} tiles done from {received} events")
+        print(f"events: {received} received, {from_events} tiles turned done from them")
         wait_for("the partial preview", lambda: d.execute_script(
             "const i = document.getElementById('preview'); return !i.hidden && i.complete && i.naturalWidth === arguments[1] "
             "&& i.dataset.tilesDone === String(arguments[0]);", TOTAL_TILES - HELD, WIDTH))
@@ -335,22 +333,16 @@ def main():
             for w in ("Attempts", "Render time", "Rays", "No failures", "Rendered by", "render-1 (w-")))
         d.save_screenshot(os.path.join(ARTEFACTS, "monitor-job-mid-render.png"))
 
-        if ep["pause"] and ep["resume"]:
-            click(d, '[data-action="pause"]', "the pause button")
-            wait_for("paused", lambda: (lambda j: j.get("state") == "paused" or j.get("paused") is True)(client.call("GET", f"/v1/jobs/{job}")[1]))
-            for lease in held:
-                workerside.call("POST", f"/v1/leases/{lease}/release")
-            status, _ = workerside.call("POST", f"/v1/workers/{holder}/lease")
-            if status != 204:
-                fail(f"a paused job handed out a lease ({status})")
-            wait_for("released tiles pending on the map", lambda: tiles_in(d, "pending") == HELD)
-            click(d, '[data-action="resume"]', "the resume button")
-            print("pause: no lease while paused; resumed from the page")
-        else:
-            print("pause/resume: not on this coordinator (buttons disabled):",
-                  d.find_element(By.CSS_SELECTOR, '[data-action="pause"]').get_attribute("title"))
-            for lease in held:
-                workerside.call("POST", f"/v1/leases/{lease}/release")
+        click(d, '[data-action="pause"]', "the pause button")
+        wait_for("paused", lambda: (lambda j: j.get("state") == "paused" or j.get("paused") is True)(client.call("GET", f"/v1/jobs/{job}")[1]))
+        for lease in held:
+            workerside.call("POST", f"/v1/leases/{lease}/release")
+        status, _ = workerside.call("POST", f"/v1/workers/{holder}/lease")
+        if status != 204:
+            fail(f"a paused job handed out a lease ({status})")
+        wait_for("released tiles pending on the map", lambda: tiles_in(d, "pending") == HELD)
+        click(d, '[data-action="resume"]', "the resume button")
+        print("pause: no lease while paused; resumed from the page")
 
         wait_for("job done on the page", lambda: "done" in d.find_element(By.ID, "job-state").text)
         wait_for("every tile done on the map", lambda: tiles_in(d, "done") == TOTAL_TILES)
@@ -370,48 +362,40 @@ def main():
         d.save_screenshot(os.path.join(ARTEFACTS, "monitor-job-done.png"))
 
         # Delete the finished job from its page (the button asks for a second click); another job stays listed.
-        if ep["purge"]:
-            status, kept = client.call("POST", "/v1/jobs", {"scene": sphere_scene(), "assets": {}, "tile_size": TILE,
-                                                            "seed": 4, "name": "browser-test kept"})
-            if status != 201:
-                fail(f"submit of the second job answered {status}: {kept}")
-            click(d, '[data-action="delete"]', "the delete button")
-            wait_for("the delete confirmation", lambda: "for good" in d.find_element(By.CSS_SELECTOR, '[data-action="delete"]').text)
-            d.save_screenshot(os.path.join(ARTEFACTS, "monitor-job-delete-confirm.png"))
-            click(d, '[data-action="delete"]', "the delete confirmation")
-            wait_for("the job list", lambda: d.current_url.endswith("#/jobs") and visible(d, f'tr[data-job="{kept["id"]}"]'))
-            wait_for("the deleted job gone from the list", lambda: not d.find_elements(By.CSS_SELECTOR, row))
-            status, _ = client.call("GET", f"/v1/jobs/{job}")
-            if status != 404:
-                fail(f"the deleted job still answers {status}")
-            if os.path.exists(os.path.join(WORK, "data", "jobs", job)):
-                fail("the deleted job's result folder is left")
-            d.save_screenshot(os.path.join(ARTEFACTS, "monitor-jobs-after-delete.png"))
-            print("delete: the finished job is gone from the page and the API (404)")
-        else:
-            print("delete: not on this coordinator (button disabled)")
+        status, kept = client.call("POST", "/v1/jobs", {"scene": sphere_scene(), "assets": {}, "tile_size": TILE,
+                                                        "seed": 4, "name": "browser-test kept"})
+        if status != 201:
+            fail(f"submit of the second job answered {status}: {kept}")
+        click(d, '[data-action="delete"]', "the delete button")
+        wait_for("the delete confirmation", lambda: "for good" in d.find_element(By.CSS_SELECTOR, '[data-action="delete"]').text)
+        d.save_screenshot(os.path.join(ARTEFACTS, "monitor-job-delete-confirm.png"))
+        click(d, '[data-action="delete"]', "the delete confirmation")
+        wait_for("the job list", lambda: d.current_url.endswith("#/jobs") and visible(d, f'tr[data-job="{kept["id"]}"]'))
+        wait_for("the deleted job gone from the list", lambda: not d.find_elements(By.CSS_SELECTOR, row))
+        status, _ = client.call("GET", f"/v1/jobs/{job}")
+        if status != 404:
+            fail(f"the deleted job still answers {status}")
+        if os.path.exists(os.path.join(WORK, "data", "jobs", job)):
+            fail("the deleted job's result folder is left")
+        d.save_screenshot(os.path.join(ARTEFACTS, "monitor-jobs-after-delete.png"))
+        print("delete: the finished job is gone from the page and the API (404)")
 
         # Workers page: drain when the coordinator has it.
         d.get(base + "/#/workers")
-        if ep["workers"]:
-            # Each worker's rate over the tiles it rendered, as the API's rays over render seconds (render-1 is idle
-            # by now, so its figures stand still).
-            def rate_shown_is_the_apis():
-                w = next(w for w in client.call("GET", "/v1/workers")[1]["workers"] if w["name"] == "render-1")
-                if not (w["rays"] > 0 and w["render_seconds"] > 0):
-                    return False
-                v = w["rays"] / w["render_seconds"] / 1e6
-                want = f"{v:.0f}" if v >= 100 else f"{v:.1f}"
-                return d.find_element(By.CSS_SELECTOR, 'tr[data-name="render-1"] td.rate').text == want
-            wait_for("render-1's Mrays/s as the API has it", rate_shown_is_the_apis)
-        if ep["workers"] and ep["drain"]:
-            click(d, 'tr[data-name="render-1"] [data-action="drain"]', "the drain button")
-            wait_for("the worker draining", lambda: "draining" in d.find_element(By.CSS_SELECTOR, 'tr[data-name="render-1"]').text)
-            d.save_screenshot(os.path.join(ARTEFACTS, "monitor-workers.png"))
-            print("drain: render-1 draining")
-        else:
-            wait_for("the workers notice", lambda: visible(d, "#workers-unavailable"))
-            print("workers/drain: not on this coordinator (the page says so)")
+        # Each worker's rate over the tiles it rendered, as the API's rays over render seconds (render-1 is idle
+        # by now, so its figures stand still).
+        def rate_shown_is_the_apis():
+            w = next(w for w in client.call("GET", "/v1/workers")[1]["workers"] if w["name"] == "render-1")
+            if not (w["rays"] > 0 and w["render_seconds"] > 0):
+                return False
+            v = w["rays"] / w["render_seconds"] / 1e6
+            want = f"{v:.0f}" if v >= 100 else f"{v:.1f}"
+            return d.find_element(By.CSS_SELECTOR, 'tr[data-name="render-1"] td.rate').text == want
+        wait_for("render-1's Mrays/s as the API has it", rate_shown_is_the_apis)
+        click(d, 'tr[data-name="render-1"] [data-action="drain"]', "the drain button")
+        wait_for("the worker draining", lambda: "draining" in d.find_element(By.CSS_SELECTOR, 'tr[data-name="render-1"]').text)
+        d.save_screenshot(os.path.join(ARTEFACTS, "monitor-workers.png"))
+        print("drain: render-1 draining")
 
         # A job that fails part-way (the scripted worker reports a failure with log lines; --tile-failure-workers 1
         # fails the job at once): the tile details show the failure and its log lines, and Retry on the page renders
@@ -434,9 +418,8 @@ def main():
         wait_for("the failure and its log lines in the tile details", lambda: all(
             w in d.find_element(By.ID, "tile-detail").text for w in ("out of memory (scripted)", log[0], log[1], "Attempts")))
         d.save_screenshot(os.path.join(ARTEFACTS, "monitor-tile-details.png"))
-        if ep["drain"]:
-            for w in client.call("GET", "/v1/workers")[1]["workers"]:
-                client.call("POST", f"/v1/workers/{w['id']}/undrain")
+        for w in client.call("GET", "/v1/workers")[1]["workers"]:
+            client.call("POST", f"/v1/workers/{w['id']}/undrain")
         click(d, '[data-action="retry"]', "the retry button")
         wait_for("the retried job done on the page", lambda: "done" in d.find_element(By.ID, "job-state").text)
         attempts = [t["attempts"] for t in client.call("GET", f"/v1/jobs/{failing}/tiles")[1]["tiles"]]
@@ -446,7 +429,7 @@ def main():
         stop(worker)
 
         # A poll of the job page that was in flight when the job was deleted may have logged its 404; nothing else.
-        errors = [e for e in console_errors(d) if not (ep["purge"] and f"/v1/jobs/{job} " in e["message"] and "404" in e["message"])]
+        errors = [e for e in console_errors(d) if not (f"/v1/jobs/{job} " in e["message"] and "404" in e["message"])]
         if errors:
             fail(f"console errors: {errors}")
     except BaseException:

@@ -111,8 +111,9 @@ def self_test():
 def route_table_agrees():
     src = open(os.path.join(SOURCE, "protocol", "routes.cpp")).read()
     table = {}
-    for pattern, methods in re.findall(r'\{Endpoint::\w+, "([^"]+)", \{([^}]*)\}\}', src):
-        table[pattern] = {m.strip().strip('"').lower() for m in methods.split(",")}
+    # {Endpoint::e, "name", "pattern", R::resource, {{"METHOD", A::access, ...}, ...}}
+    for pattern, methods in re.findall(r'\{Endpoint::\w+, "\w+", "([^"]+)", R::\w+,\s*\{((?:\{[^}]*\},?\s*)+)\}\}', src):
+        table[pattern] = {m.lower() for m in re.findall(r'\{"([A-Z]+)"', methods)}
     documented = {p: {m for m in ops if m in ("get", "put", "post", "delete", "head", "patch")}
                   for p, ops in DOC["paths"].items()}
     if not table:
