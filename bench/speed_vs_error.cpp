@@ -1,4 +1,4 @@
-// Speed against error (issue 5): for each project scene, error against a reference as a function of render time,
+// Speed against error: for each project scene, error against a reference as a function of render time,
 // equal-error comparisons of the sampling strategies and BVH builds, adaptive sampling (--target-error) against
 // uniform sample counts, the environment-map fix before/after, and predicted against measured error. Writes
 // docs/speed-vs-error.md, its data files and a gnuplot script, and runs gnuplot on it.
@@ -297,10 +297,10 @@ int path_tracing_report(const Args& a, const fs::path& data, const std::string& 
     std::string name;
     fs::path file;
   };
-  const fs::path shared = fs::path(TESSERA_SOURCE_DIR) / ".." / "shared" / "compat" / "rdr171";
   const fs::path own = fs::path(TESSERA_SOURCE_DIR) / "scenes";
-  const std::vector<PathScene> scenes = {{"sphere", shared / "sphere.json"},
-                                         {"glass_sphere", shared / "glass_sphere.json"},
+  const fs::path course = own / "course";
+  const std::vector<PathScene> scenes = {{"sphere", course / "sphere.json"},
+                                         {"glass_sphere", course / "glass_sphere.json"},
                                          {"cbox_gi", own / "cbox_gi.json"},
                                          {"cbox_glass", own / "cbox_glass.json"},
                                          {"veach_mis", own / "veach_mis.json"}};

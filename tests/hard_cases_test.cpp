@@ -1,4 +1,4 @@
-// Issue 5's hard cases, each small enough to run in seconds and each failing on a naive implementation:
+// Hard cases, each small enough to run in seconds and each failing on a naive implementation:
 // a Cornell box 1e5 to 1e7 units from the origin and rotated, geometry too far from the camera for floats, a camera sealed inside a finely tessellated mesh, extreme geometry and
 // lighting (needles and a huge ground, a camera inside glass, grazing light, a 10^4 sun), and degenerate input.
 #include "core/image/image.h"
@@ -376,7 +376,7 @@ TEST(HardCases, DegenerateInputLoadsWithClearWarnings) {
 
 // The course's textured Cornell box lists the floor twice (two materials on the same triangles): the loader says so.
 TEST(HardCases, CourseSceneWithTwoFloorsWarnsAboutCoincidentFaces) {
-  const fs::path file = fs::path(TESSERA_SHARED_DIR) / "compat/rdr171/cbox_refract_textured.json";
+  const fs::path file = fs::path(TESSERA_COURSE_DIR) / "cbox_refract_textured.json";
   if (!fs::exists(file)) GTEST_SKIP() << file << " not present";
   const LoadedScene ls = load_scene_file(file);
   bool found = false;
