@@ -12,7 +12,7 @@ namespace tessera::worker {
 using namespace std::chrono_literals;
 namespace routes = protocol::routes;
 
-TileCompanion::TileCompanion(HttpClient& http, std::string prefix, std::string lease, std::chrono::milliseconds period,
+TileCompanion::TileCompanion(client::HttpClient& http, std::string prefix, std::string lease, std::chrono::milliseconds period,
                              std::chrono::milliseconds first_beat, RenderSignals& signals,
                              const std::atomic<int>& stop_requests,
                              std::function<std::optional<PrefetchedLease>()> ask_lease)
@@ -107,7 +107,7 @@ void TileCompanion::run() noexcept {
 
 bool TileCompanion::beat(const std::string& lease, const std::string& body) {
   try {
-    const HttpResponse r = http_.send("POST", routes::lease_heartbeat(lease), body);
+    const client::HttpResponse r = http_.send("POST", routes::lease_heartbeat(lease), body);
     if (r.status == 200) return true;
     const std::string which = lease == lease_ ? "heartbeat" : "heartbeat of the next lease " + lease;
     if (r.status == 410 || r.status == 404) {
@@ -116,7 +116,7 @@ bool TileCompanion::beat(const std::string& lease, const std::string& body) {
       return false;
     }
     spdlog::warn("{}: {} answered {}: {}", prefix_, which, r.status, r.error_text());
-  } catch (const TransportError& e) {
+  } catch (const client::TransportError& e) {
     spdlog::warn("{}: {} failed (keeps rendering): {}", prefix_, lease == lease_ ? "heartbeat" : "heartbeat of " + lease,
                  e.what());
   }

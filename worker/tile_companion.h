@@ -24,7 +24,7 @@ namespace tessera::worker {
 class TileCompanion {
  public:
   /// Starts the thread; `prefix` begins its log lines, `lease` is the tile's lease id.
-  TileCompanion(HttpClient& http, std::string prefix, std::string lease, std::chrono::milliseconds period,
+  TileCompanion(client::HttpClient& http, std::string prefix, std::string lease, std::chrono::milliseconds period,
                 std::chrono::milliseconds first_beat, RenderSignals& signals, const std::atomic<int>& stop_requests,
                 std::function<std::optional<PrefetchedLease>()> ask_lease);
   /// Stops the thread (after a request in flight).
@@ -44,7 +44,7 @@ class TileCompanion {
   // One heartbeat; false when the lease is gone (410/404).
   bool beat(const std::string& lease, const std::string& body);
 
-  HttpClient& http_;
+  client::HttpClient& http_;
   const std::string prefix_, lease_;
   const std::chrono::milliseconds period_, first_beat_;
   std::atomic<bool>& cancel_;

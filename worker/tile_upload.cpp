@@ -39,7 +39,7 @@ std::vector<uint8_t> corrupt_tile(const Image& image, ExrWriteOptions wo, const 
 
 }  // namespace
 
-UploadOutcome upload_tile(HttpClient& http, const protocol::Lease& l, const std::string& prefix, const RenderResult& res,
+UploadOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, const std::string& prefix, const RenderResult& res,
                           int width, int height, std::chrono::milliseconds max_retry_wait,
                           const std::function<bool()>& abandon) {
   ExrWriteOptions wo;
@@ -49,17 +49,17 @@ UploadOutcome upload_tile(HttpClient& http, const protocol::Lease& l, const std:
   wo.write_extra = l.resumable;  // a resumable job's tile carries its state channels
   std::vector<uint8_t> bytes = encode_exr(res.image, wo);
   TESSERA_FAIL_POINT_RETURN("worker.upload.corrupt", [&](const std::string& how) { bytes = corrupt_tile(res.image, wo, how); });
-  HttpRequest req;
+  client::HttpRequest req;
   req.method = "PUT";
   req.target = protocol::routes::lease_result(l.id);
   req.body.assign(bytes.begin(), bytes.end());
   req.content_type = "image/x-exr";
   req.headers["X-Tessera-Rays"] = std::to_string(res.counters.rays);
   TESSERA_FAIL_POINT("worker.upload");
-  Backoff backoff(200ms, max_retry_wait);
+  client::Backoff backoff(200ms, max_retry_wait);
   for (int attempt = 1;; ++attempt) {
     try {
-      const HttpResponse r = http.send(req);
+      const client::HttpResponse r = http.send(req);
       if (r.status == 200) {
         const nlohmann::json j = nlohmann::json::parse(r.body, nullptr, false);
         const std::string status = j.is_object() ? j.value("status", "") : "";
@@ -86,10 +86,10 @@ UploadOutcome upload_tile(HttpClient& http, const protocol::Lease& l, const std:
         return UploadOutcome::kDropped;
       }
       spdlog::warn("{}: upload attempt {} answered {}: {}; retrying", prefix, attempt, r.status, r.error_text());
-    } catch (const TransportError& e) {
+    } catch (const client::TransportError& e) {
       spdlog::warn("{}: upload attempt {} failed: {}; retrying", prefix, attempt, e.what());
     }
-    if (!sleep_unless(backoff.next(), abandon)) {
+    if (!client::sleep_unless(backoff.next(), abandon)) {
       spdlog::warn("{}: asked to stop again while the coordinator is unreachable; abandoning the upload", prefix);
       return UploadOutcome::kDropped;
     }

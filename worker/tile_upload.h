@@ -22,7 +22,7 @@ enum class UploadOutcome {
 /// Uploads the render of lease `l`'s tile of a width x height image through `http`, logging under `prefix`. Transport
 /// errors and retryable answers are retried with backoff up to `max_retry_wait` apart, until `abandon` says to give
 /// up. Throws only what encoding throws.
-UploadOutcome upload_tile(HttpClient& http, const protocol::Lease& l, const std::string& prefix, const RenderResult& res,
+UploadOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, const std::string& prefix, const RenderResult& res,
                           int width, int height, std::chrono::milliseconds max_retry_wait,
                           const std::function<bool()>& abandon);
 

@@ -64,14 +64,14 @@ class Worker {
   static_assert(kFailureLogLines <= protocol::kMaxFailureLogLines && kFailureLogLineBytes <= protocol::kMaxFailureLogLineBytes);
 
   // Heartbeats must fail fast enough to be retried within a lease: at most 2 s to connect and 5 s per phase.
-  static HttpTimeouts heartbeat_timeouts(const HttpTimeouts& t) {
-    return HttpTimeouts{std::min<std::chrono::milliseconds>(t.connect, 2000ms), std::min<std::chrono::milliseconds>(t.write, 5000ms),
+  static client::HttpTimeouts heartbeat_timeouts(const client::HttpTimeouts& t) {
+    return client::HttpTimeouts{std::min<std::chrono::milliseconds>(t.connect, 2000ms), std::min<std::chrono::milliseconds>(t.write, 5000ms),
                         std::min<std::chrono::milliseconds>(t.read, 5000ms)};
   }
 
  public:
   Worker(const WorkerOptions& opt, const std::atomic<int>& stop)
-      : opt_(opt), stop_(stop), url_(parse_http_url(opt.coordinator)), http_(url_, opt.timeouts, kMaxResponse, opt.tls),
+      : opt_(opt), stop_(stop), url_(client::parse_http_url(opt.coordinator)), http_(url_, opt.timeouts, kMaxResponse, opt.tls),
         heartbeat_http_(url_, heartbeat_timeouts(opt.timeouts), kMaxResponse, opt.tls),
         upload_http_(url_, opt.timeouts, kMaxResponse, opt.tls),
         scenes_(opt.cache_dir.empty() ? default_cache_dir() : opt.cache_dir, opt.scene_cache_jobs, opt.image_cache_bytes),
@@ -112,7 +112,7 @@ class Worker {
       } catch (const std::exception& e) {
         // Unexpected (a bug or resource exhaustion): log it, wait, carry on rather than die.
         spdlog::error("worker {}: {}", id_.empty() ? name_ : id_, e.what());
-        sleep_unless(retry_.next(), [&] { return stopping(); });
+        client::sleep_unless(retry_.next(), [&] { return stopping(); });
       }
     }
     if (next) {  // asked to stop while holding the next tile: hand it back
@@ -137,11 +137,11 @@ class Worker {
   }
 
   // Notes a transport failure (loudly for the first of an outage) and waits before the next attempt.
-  void coordinator_down(const std::string& what, const TransportError& e) {
+  void coordinator_down(const std::string& what, const client::TransportError& e) {
     if (!down_) spdlog::warn("worker {}: coordinator unreachable ({}): {}; retrying with backoff", name_, what, e.what());
     else spdlog::debug("worker {}: still unreachable: {}", name_, e.what());
     down_ = true;
-    sleep_unless(retry_.next(), [&] { return stopping(); });
+    client::sleep_unless(retry_.next(), [&] { return stopping(); });
   }
   void coordinator_up() {
     if (down_) spdlog::info("worker {}: coordinator reachable again", name_);
@@ -150,7 +150,7 @@ class Worker {
   }
 
   // Throws AccessDenied for 401/403: the token is missing or wrong, which no retry fixes.
-  void refuse_if_denied(const HttpResponse& r, const char* what) const {
+  void refuse_if_denied(const client::HttpResponse& r, const char* what) const {
     if (r.status == 401 || r.status == 403)
       throw AccessDenied(std::string(what) + " refused with " + std::to_string(r.status) + ": " + r.error_text() +
                          (opt_.token.empty() ? " (no token given: use --token-file or TESSERA_WORKER_TOKEN)"
@@ -160,7 +160,7 @@ class Worker {
   bool register_worker() {
     const json body = protocol::WorkerHello{name_, threads_, TESSERA_VERSION};
     try {
-      const HttpResponse r = http_.send("POST", routes::workers(), body.dump());
+      const client::HttpResponse r = http_.send("POST", routes::workers(), body.dump());
       coordinator_up();
       if (r.status == 201 || r.status == 200) {
         const auto reg = protocol::parse_answer<Registration>(r.body, "registration");
@@ -172,11 +172,11 @@ class Worker {
       }
       refuse_if_denied(r, "registration");
       spdlog::error("worker {}: registration refused with {}: {}", name_, r.status, r.error_text());
-    } catch (const TransportError& e) {
+    } catch (const client::TransportError& e) {
       coordinator_down("register", e);
       return false;
     }
-    sleep_unless(retry_.next(), [&] { return stopping(); });
+    client::sleep_unless(retry_.next(), [&] { return stopping(); });
     return false;
   }
 
@@ -192,10 +192,10 @@ class Worker {
   // granted lease is kept; anything else (no work, an error) leaves the asking to the render loop, as before. When
   // the tile can be rendered at once (its job's scene is built, it continues from no stored state, it fits), its
   // render is begun on the arena so that threads going idle at the current tile's end take its work.
-  std::optional<PrefetchedLease> prefetch_lease(HttpClient& http, const std::string& pfx) {
+  std::optional<PrefetchedLease> prefetch_lease(client::HttpClient& http, const std::string& pfx) {
     try {
       const auto t0 = std::chrono::steady_clock::now();
-      const HttpResponse r = http.send("POST", routes::worker_lease(id_), lease_request_body());
+      const client::HttpResponse r = http.send("POST", routes::worker_lease(id_), lease_request_body());
       note_lease_round_trip(t0);
       if (r.status != 200) return std::nullopt;
       auto answer = protocol::parse_answer<protocol::LeaseAnswer>(r.body, "lease");
@@ -300,20 +300,20 @@ class Worker {
   // says that work came (or that the coordinator is stopping), and the worker asks again at once, so a job submitted
   // meanwhile starts without waiting for the next poll. (A round trip with a wait does not enter lease_rtt_ms_.)
   std::optional<protocol::LeaseAnswer> request_lease() {
-    HttpResponse r;
+    client::HttpResponse r;
     // Within half the read timeout, so that a held request never looks like a dead coordinator.
     const std::chrono::milliseconds wait = std::min(idle_.next(), opt_.timeouts.read / 2);
     const auto t0 = std::chrono::steady_clock::now();
     try {
-      HttpRequest req;
+      client::HttpRequest req;
       req.method = "POST";
       req.target = routes::worker_lease(id_);
       req.body = lease_request_body(wait);
       req.content_type = "application/json";
       r = http_.send(req, [this] { return stopping(); });  // a stop does not wait for the held request's end
-    } catch (const RequestInterrupted&) {
+    } catch (const client::RequestInterrupted&) {
       return std::nullopt;  // stopping: the coordinator forgets the request when the connection closes
-    } catch (const TransportError& e) {
+    } catch (const client::TransportError& e) {
       coordinator_down("lease", e);
       return std::nullopt;
     }
@@ -333,7 +333,7 @@ class Worker {
       return std::nullopt;
     }
     spdlog::warn("worker {}: lease request answered {}: {}", id_, r.status, r.error_text());
-    sleep_unless(retry_.next(), [&] { return stopping(); });
+    client::sleep_unless(retry_.next(), [&] { return stopping(); });
     return std::nullopt;
   }
 
@@ -343,20 +343,20 @@ class Worker {
 
   // GETs target, retrying transport errors and 5xx until it succeeds or `interrupted` says to give up; 404 is Gone.
   std::string fetch(const std::string& target, const std::function<bool()>& interrupted) {
-    Backoff backoff(200ms, opt_.max_retry_wait);
+    client::Backoff backoff(200ms, opt_.max_retry_wait);
     while (true) {
       if (interrupted()) throw Interrupted("interrupted while fetching " + target);
       try {
-        const HttpResponse r = http_.send("GET", target);
+        const client::HttpResponse r = http_.send("GET", target);
         if (r.status == 200) return r.body;
         if (r.status == 404) throw Gone("GET " + target + ": not found (" + r.error_text() + ")");
         if (!r.retryable())
           throw std::runtime_error("GET " + target + " answered " + std::to_string(r.status) + ": " + r.error_text());
         spdlog::warn("GET {} answered {}: {}; retrying", target, r.status, r.error_text());
-      } catch (const TransportError& e) {
+      } catch (const client::TransportError& e) {
         spdlog::warn("{}; retrying", e.what());
       }
-      sleep_unless(backoff.next(), interrupted);
+      client::sleep_unless(backoff.next(), interrupted);
     }
   }
 
@@ -505,16 +505,16 @@ class Worker {
   // Posts a small JSON message about a lease, retrying briefly; the lease expires anyway if this never arrives.
   bool post_lease_message(const std::string& pfx, const std::string& action, const std::string& target,
                           const json& body, int attempts) {
-    Backoff backoff(100ms, 1000ms);
+    client::Backoff backoff(100ms, 1000ms);
     for (int i = 0; i < attempts; ++i) {
       try {
-        const HttpResponse r = http_.send("POST", target, body.dump());
+        const client::HttpResponse r = http_.send("POST", target, body.dump());
         if (r.status == 200) return true;
         if (!r.retryable()) {
           spdlog::warn("{}: {} answered {}: {}", pfx, action, r.status, r.error_text());
           return false;
         }
-      } catch (const TransportError& e) {
+      } catch (const client::TransportError& e) {
         spdlog::warn("{}: {} failed: {}", pfx, action, e.what());
       }
       std::this_thread::sleep_for(backoff.next());
@@ -537,12 +537,12 @@ class Worker {
   RecentLogScope recent_;  // first: it sees everything the worker logs
   const WorkerOptions& opt_;
   const std::atomic<int>& stop_;
-  HttpUrl url_;
-  HttpClient http_;
-  HttpClient heartbeat_http_;  // used only by the heartbeat thread
-  HttpClient upload_http_;     // used only by the upload thread
+  client::HttpUrl url_;
+  client::HttpClient http_;
+  client::HttpClient heartbeat_http_;  // used only by the heartbeat thread
+  client::HttpClient upload_http_;     // used only by the upload thread
   JobScenes scenes_;  // looked up by the companion's thread too (head_start, lease_request_body)
-  Backoff idle_, retry_;
+  client::Backoff idle_, retry_;
   std::string name_, id_;
   int threads_ = 1;
   tbb::task_arena arena_;  // every render runs in it, begun-ahead ones included (threads_ threads)

@@ -26,8 +26,8 @@ struct WorkerOptions {
   size_t image_cache_bytes = size_t(1) << 30;  ///< Decoded texture pixels kept across jobs (0: decode for every job).
   std::chrono::milliseconds max_idle_wait{2000};   ///< Longest wait for work per lease request (held by the coordinator up to 10 s).
   std::chrono::milliseconds max_retry_wait{5000};  ///< Longest wait between retries when the coordinator is down.
-  HttpTimeouts timeouts{};             ///< Timeouts of lease, spec, blob and upload requests.
-  ClientTlsFiles tls;                  ///< Trust and client certificate files for an https:// coordinator.
+  client::HttpTimeouts timeouts{};             ///< Timeouts of lease, spec, blob and upload requests.
+  client::ClientTlsFiles tls;                  ///< Trust and client certificate files for an https:// coordinator.
   /// A job expected to be leased, whose assets are in the cache already: its scene is loaded at start, while the
   /// worker registers, and a leased job with the same scene, assets and loading settings renders from it.
   std::optional<protocol::JobSubmission> preload;

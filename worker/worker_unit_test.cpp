@@ -27,7 +27,7 @@ namespace fs = std::filesystem;
 class AssetCacheTest : public tessera::testing::TempDirTest {};
 
 TEST(Backoff, GrowsToTheCapWithJitterAndResets) {
-  Backoff b(std::chrono::milliseconds(100), std::chrono::milliseconds(1000));
+  client::Backoff b(std::chrono::milliseconds(100), std::chrono::milliseconds(1000));
   const long long expected_base[] = {100, 200, 400, 800, 1000, 1000};
   for (long long base : expected_base) {
     const auto d = b.next().count();
