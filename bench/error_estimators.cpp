@@ -1,4 +1,4 @@
-// Error estimates for the default sampler (issue 18, section 2): what each candidate predicts against the measured
+// Error estimates for the default sampler: what each candidate predicts against the measured
 // error, and what it costs in relMSE against the default (one Owen-scrambled sequence per pixel), on the five scenes
 // of docs/speed-vs-error.md. Prints markdown tables (docs/error-estimates.md holds runs of it).
 //

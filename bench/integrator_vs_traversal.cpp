@@ -1,4 +1,4 @@
-// The integrator against the traversal limit (issue 17, section 2): for each scene, the end-to-end rate of a real
+// The integrator against the traversal limit: for each scene, the end-to-end rate of a real
 // render (rays/s on one thread and on all threads) beside the rate of traversal alone on the rays that render
 // traced, recorded through RenderOptions::recorder and replayed through Bvh::intersect / Bvh::occluded (the same
 // query each ray had). The ratio end-to-end / traversal-only is the share of a render's time spent in traversal;

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Where a render's time goes, by part of the renderer (issue 17, section 2): each scene rendered on one thread under
+"""Where a render's time goes, by part of the renderer: each scene rendered on one thread under
 `perf record` (linux-perf), its samples' functions (self time, no call graph) summed into the parts below. What is
 not traversal is what stands between a render and its traversal-only rate (bench/integrator_vs_traversal).
 

@@ -1,4 +1,4 @@
-// Capacity of one coordinator (issue 7): N simulated workers drive the real farm protocol against a real
+// Capacity of one coordinator: N simulated workers drive the real farm protocol against a real
 // `tessera serve` on loopback and we measure what the coordinator spends. Each simulated worker is one thread with
 // its own keep-alive connection doing what `tessera worker` does, minus the rendering: register, ask for a lease
 // (backing off 100 ms .. 2 s with jitter on 204) naming the job whose spec it holds, so that the first lease of

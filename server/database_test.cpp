@@ -327,6 +327,46 @@ TEST_F(DatabaseTest, CoordinatorStartRemovesTheTempFilesOfAKilledRun) {
   EXPECT_TRUE(blobs.has(sha));
 }
 
+// A commit that fails takes back what the accepted tile would have added to its worker and its job: the worker's
+// tiles, rays and render time, and the job's rays, stay those of the tiles really stored.
+TEST_F(DatabaseTest, AFailedCommitLeavesTheWorkersTilesRaysAndRenderTimeAsTheyWere) {
+  const std::string j = job(128, 64, 64);  // two tiles
+  const std::string w = sched->register_worker("w");
+  const Lease first = lease(w);
+  now += 2'000;
+  upload(first, 1.0f);
+  const auto worker_row = [&] {
+    for (const protocol::WorkerInfo& info : sched->workers())
+      if (info.id == w) return info;
+    ADD_FAILURE() << "worker " << w << " not listed";
+    return protocol::WorkerInfo{};
+  };
+  const protocol::WorkerInfo before = worker_row();
+  ASSERT_EQ(before.tiles_done, 1);
+  ASSERT_EQ(before.rays, 100u);
+  ASSERT_GT(before.render_seconds, 0.0);
+  const uint64_t job_rays = sched->job(j)->rays;
+  const Lease second = lease(w);
+  now += 3'000;
+  ASSERT_EQ(sched->claim_result(second.id).status, ResultClaim::proceed);
+  EXPECT_THROW(sched->finish_result(second.id, 5'000), StorageError);  // no pixels: the database refuses the commit
+  const protocol::WorkerInfo after = worker_row();
+  EXPECT_EQ(after.tiles_done, before.tiles_done);
+  EXPECT_EQ(after.rays, before.rays);
+  EXPECT_EQ(after.render_seconds, before.render_seconds);
+  EXPECT_EQ(sched->job(j)->rays, job_rays);
+  // The upload is given back, as the coordinator does after a failed commit, and the same lease delivers it after
+  // all: counted once.
+  sched->abandon_result(second.id);
+  ASSERT_EQ(sched->claim_result(second.id).status, ResultClaim::proceed);
+  EXPECT_TRUE(sched->finish_result(second.id, 5'000, tile_bytes(pixels_for(second.window, 2.0f))).last);
+  EXPECT_EQ(worker_row().tiles_done, 2);
+  EXPECT_EQ(worker_row().rays, 5'100u);
+  EXPECT_EQ(sched->job(j)->rays, job_rays + 5'000);
+  reopen();  // the job's rays are stored (a worker's figures count from the coordinator's start)
+  EXPECT_EQ(sched->job(j)->rays, job_rays + 5'000);
+}
+
 TEST_F(DatabaseTest, ATileIsNeverDoneWithoutItsPixels) {
   const std::string j = job(64, 64, 64);
   const std::string w = sched->register_worker("w");

@@ -35,7 +35,9 @@ void GroupCommit::flush() {
 
 GroupCommitStats GroupCommit::stats() {
   std::lock_guard lock(mu_);
-  return stats_;
+  GroupCommitStats s = stats_;
+  s.queued = waiting_.size();
+  return s;
 }
 
 void GroupCommit::loop() {

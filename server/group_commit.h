@@ -15,6 +15,7 @@ namespace tessera::server {
 struct GroupCommitStats {
   uint64_t flushes = 0;        ///< Calls of the flush function that returned.
   uint64_t acknowledged = 0;   ///< Continuations run after them.
+  uint64_t queued = 0;         ///< Continuations handed over that wait for a flush not yet begun.
 };
 
 /// Runs continuations once everything committed before they were handed over is on the disk. Thread-safe.

@@ -176,7 +176,7 @@ class Session : public std::enable_shared_from_this<Session> {
   }
 
   // A plain HTTP request reached the TLS listener: answered 400 in plain HTTP on the bare socket, so the client learns
-  // why; this session ends here.
+  // why; this connection ends here.
   void refuse_plain_http() {
     closing_ = true;
     std::make_shared<Refusal>(std::move(lowest().socket()),

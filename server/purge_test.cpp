@@ -1,4 +1,4 @@
-// Purging jobs (issue 14): the scheduler forgets an ended job in memory and in the store in one change, the database
+// Purging jobs: the scheduler forgets an ended job in memory and in the store in one change, the database
 // file gives the pages back, a sweep purges jobs past their retention time and blobs no job references are collected
 // after their grace period; listings filter by state and page with a cursor.
 #include "server/collector.h"

@@ -434,7 +434,7 @@ TEST_F(SchedulerTest, CancelRevokesLeasesAndDiscardsUploads) {
   EXPECT_EQ(s.counters().active_leases, 0);
 }
 
-// Retry (issue 14): a failed job goes back to the queue with its done tiles kept and its failures forgotten.
+// Retry: a failed job goes back to the queue with its done tiles kept and its failures forgotten.
 TEST_F(SchedulerTest, RetryOfAFailedJobLeasesOnlyTheTilesNotDone) {
   const std::string j = job();  // 4 tiles
   const std::string a = s.register_worker("a"), b = s.register_worker("b"), c = s.register_worker("c");
@@ -500,7 +500,7 @@ TEST_F(SchedulerTest, RetryOfACancelledJobRequeuesItAndRefusesOtherStates) {
   EXPECT_EQ(s.retry(d).status, RetryResult::done);
 }
 
-// Pause (issue 14): a paused job gets no new leases, its running tiles finish and their uploads count.
+// Pause: a paused job gets no new leases, its running tiles finish and their uploads count.
 TEST_F(SchedulerTest, PausedJobGetsNoNewLeasesButItsRunningTilesFinish) {
   const std::string hi = job(5);  // 4 tiles, leased first
   const std::string lo = job(0);
@@ -558,7 +558,7 @@ TEST_F(SchedulerTest, APausedJobWhoseLastTileLandsIsDone) {
   EXPECT_EQ(s.pause(j).status, PauseResult::wrong_state);
 }
 
-// Priority change (issue 14): the lease order follows the new priority at once; ended jobs keep theirs.
+// Priority change: the lease order follows the new priority at once; ended jobs keep theirs.
 TEST_F(SchedulerTest, PriorityChangeReordersLeasesAndEndedJobsRefuseIt) {
   const std::string older = job(1), newer = job(0);
   const std::string a = s.register_worker("a");
@@ -653,7 +653,7 @@ TEST_F(SchedulerTest, RaisingTheSppIsRefusedForEndedOrMergingJobs) {
   EXPECT_EQ(s.job(j)->state, JobState::paused);
 }
 
-// Workers (issue 14): the list says what each one does; a drained worker finishes its tile and then gets no work.
+// Workers: the list says what each one does; a drained worker finishes its tile and then gets no work.
 TEST_F(SchedulerTest, WorkerListShowsStateLeaseTilesAndBlocklists) {
   const std::string j = job();
   const std::string a = s.register_worker("alpha", 8), b = s.register_worker("beta");

@@ -241,6 +241,13 @@ TEST_F(CliRender, EveryRefusalBeforeAnyWorkExitsTwo) {
   EXPECT_EQ(tessera({"--version"}, "").exit_code, 0);
 }
 
+// --version names the release and the commit the binary was built from ("unknown" outside a git checkout).
+TEST_F(CliRender, VersionNamesTheReleaseAndTheCommit) {
+  const CliRun r = tessera({"--version"}, "");
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_NE(r.err.find(std::string("tessera ") + TESSERA_VERSION + " (commit "), std::string::npos) << r.err;
+}
+
 TEST_F(CliRender, BadInputFailsWithTheJsonPath) {
   json s = testing::minimal_scene();
   s["objects"][0]["radius"] = -1;

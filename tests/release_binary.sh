@@ -29,7 +29,10 @@ done
 # The names the coordinator and worker sources pass to the macros.
 mapfile -t USED < <(grep -rhoE 'TESSERA_FAIL_POINT[A-Z_]*\("[a-z_.]+"' "$SOURCE"/server "$SOURCE"/worker "$SOURCE"/cli |
   grep -Eo '"[a-z_.]+"' | tr -d '"' | sort -u)
-[ "${#USED[@]}" = 0 ] || USED+=(TESSERA_FAIL_POINTS "fail point")
+# No names found means the grep no longer matches how the sources name their fail points: the positive control below
+# would then check nothing, so that is a failure, not a pass.
+[ "${#USED[@]}" -gt 0 ] || { echo "FAIL: found no fail-point names in the sources (is the grep still right?)" >&2; exit 1; }
+USED+=(TESSERA_FAIL_POINTS "fail point")
 for s in "${USED[@]}"; do
   grep -qF -- "$s" "$WORK/test.txt" || { echo "FAIL: the test binary lacks '$s' (is the check looking right?)" >&2; failed=1; }
 done

@@ -10,6 +10,9 @@
 #include <tbb/global_control.h>
 #include <tbb/task_arena.h>
 
+#include <algorithm>
+#include <chrono>
+#include <condition_variable>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -83,8 +86,27 @@ Rendered render_case(const Case& c, int threads, const Scene& scene) {
   o.tile_size = 8;
   const int x0 = scene.width / 2 - 48, y0 = scene.height / 2 - 32;
   o.window = PixelWindow{x0, y0, x0 + 96, y0 + 64};
+  // Which threads finished tiles. With more than one thread, the first row of tiles to finish holds its thread until
+  // another thread has finished a tile (30 s at most), so every multi-threaded case really renders on several threads
+  // whatever the machine's load: the thread held takes no tiles, so the others must.
   std::set<std::thread::id> seen;
-  o.progress = [&](const RenderProgress&) { seen.insert(std::this_thread::get_id()); };
+  std::mutex seen_mutex;
+  std::condition_variable another_thread;
+  o.progress = [&](const RenderProgress&) {
+    std::lock_guard lock(seen_mutex);
+    seen.insert(std::this_thread::get_id());
+    another_thread.notify_all();
+  };
+  bool held = false;
+  if (threads > 1)
+    o.rows_final = [&](const Image&, const RenderState&, int, int) {
+      if (held) return;
+      held = true;
+      std::unique_lock lock(seen_mutex);
+      another_thread.wait_for(lock, std::chrono::seconds(30), [&] {
+        return std::any_of(seen.begin(), seen.end(), [](std::thread::id t) { return t != std::this_thread::get_id(); });
+      });
+    };
   tbb::global_control allow(tbb::global_control::max_allowed_parallelism, size_t(threads));
   tbb::task_arena arena(threads);
   RenderResult r;
@@ -115,6 +137,7 @@ TEST(Determinism, ThreadCounts1237GiveBitwiseTheSamePixels) {
       const Rendered r = render_case(c, threads);
       std::printf("%s: %d threads (%zu took tiles): %s\n", c.name.c_str(), threads, r.threads_seen, r.hash.c_str());
       EXPECT_EQ(one.hash, r.hash) << c.name << " with " << threads << " threads";
+      EXPECT_GT(r.threads_seen, 1U) << c.name << " with " << threads << " threads rendered on one thread only";
     }
   }
 }

@@ -21,7 +21,7 @@ struct PointLight {
   Vec3 flux{1.f};                ///< Radiant flux.
 };
 
-/// How area lights are sampled (issue 5's comparisons select the baseline).
+/// How area lights are sampled (the speed-against-error comparisons select each strategy by this).
 enum class AreaSampling {
   /// The default. Without a receiver normal (the path tracer): per shading point, rectangles by solid angle when it
   /// is close to them, by area when far. With one (the direct integrator): rectangles approximately in proportion

@@ -215,9 +215,9 @@ double pixel_mse(const std::function<double(Vec2, Vec2)>& f, double exact, uint3
   return mse;
 }
 
-// The expected error falls with the sample count (issue 18: the report once showed cbox_area_light's relMSE at 16 spp
-// seven times its 8-spp figure; that was three renders hitting a rare sliver, not the sampler, and this pins the
-// sampler side). Integrands like a pixel's: a rare bright sliver (a light seen edge-on in a corner of the pixel), a
+// The expected error falls with the sample count (a few renders of cbox_area_light hitting a rare sliver of its light
+// can make one spp's relMSE exceed a lower spp's; that is the scene, not the sampler, and this pins the sampler
+// side). Integrands like a pixel's: a rare bright sliver (a light seen edge-on in a corner of the pixel), a
 // slanted edge times a light's visibility, and a smooth shading term. Doubling n must cut the error by at least 0.6
 // (i.i.d. sampling: 0.5; stratification: less); between powers of two the discontinuous integrands still decrease.
 // A smooth integrand does not: a count between two powers of two can be worse than the lower one (16 -> 24 spp:

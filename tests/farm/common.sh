@@ -20,7 +20,7 @@ case $SPP_SCALE in
 esac
 [[ $SPP_NUM =~ ^[1-9][0-9]*$ && $SPP_DEN =~ ^[1-9][0-9]*$ ]] ||
   { echo "TESSERA_TEST_SPP_SCALE must be N or 1/N (got '$SPP_SCALE')" >&2; exit 2; }
-DEADLINE=$((SECONDS + BUDGET - 2))  # waits stop 2 s before the watchdog, so their own message is the one printed
+DEADLINE=$((SECONDS + BUDGET - 2))  # waits give up 2 s before the watchdog, so their own message is the one printed
 # shellcheck source-path=SCRIPTDIR source=../lib/proc.sh
 source "$(dirname "${BASH_SOURCE[0]}")/../lib/proc.sh"
 WORK=$(mktemp -d "${TMPDIR:-/tmp}/tessera-farm-test.XXXXXX")

@@ -15,7 +15,12 @@ until every job is done. Then it checks the end state only, never how fast anyth
   killed before its retry);
 - no lease is live, and the data folder holds nothing orphaned: jobs/ holds exactly the jobs' folders with their
   result.exr, tmp/ is empty, no *.tmp file anywhere, every blob is referenced by a job or is one the driver uploaded.
-Exit status 0 when every check passes, 1 otherwise; figures go to stdout and WORK/summary.json.
+- the faults met work in flight: a lease expired, the coordinator was killed while leases were live and while it wrote
+  a blob, a proxied connection was reset or left half-open (each kind of fault is tried once early on; a run where a
+  class still did not land is repeated with the next seed, up to --attempts runs);
+- renders are at least one per tile and at most one per tile plus what the faults could cost (a stored tile is never
+  rendered again).
+Exit status 0 when every check passes, 1 otherwise; figures go to stdout and WORK/seed-S/summary.json.
 """
 import argparse
 import collections
@@ -48,6 +53,8 @@ def parse_args():
     p.add_argument("--workers", type=int, default=4)
     p.add_argument("--proxied", type=int, default=2, help="workers that reach the coordinator through a proxy")
     p.add_argument("--seed", type=int, default=18)
+    p.add_argument("--attempts", type=int, default=3,
+                   help="runs (seeds --seed, --seed + 1, ...) to land every fault class before failing")
     p.add_argument("--finish-seconds", type=float, default=900, help="deadline for the jobs after the faults stop")
     p.add_argument("--work", help="work folder (default: a new temporary one, removed when the soak passes)")
     p.add_argument("--keep", action="store_true", help="keep the work folder")
@@ -271,6 +278,16 @@ def get_jobs(url):
         return json.load(r)["jobs"]
 
 
+def live_leases(url):
+    """The coordinator's live leases (its /metrics gauge), or None when it does not answer."""
+    try:
+        with urllib.request.urlopen(url + "/metrics", timeout=5) as r:
+            m = re.search(r"^tessera_leases (\d+)$", r.read().decode(), re.M)
+            return int(m.group(1)) if m else None
+    except OSError:
+        return None
+
+
 def put_blob(url, sha, data):
     try:
         req = urllib.request.Request(f"{url}/v1/blobs/{sha}", data=data, method="PUT")
@@ -298,12 +315,17 @@ def kill_in_blob_write(farm):
     return False
 
 
+FAULT_KINDS = ["kill_worker", "stop_worker", "kill_coordinator", "term_worker", "kill_coordinator_in_blob_write"]
+
+
 def inject_faults(args, farm, rng, counts):
     """The fault phase: every 1-4 s one fault; SIGCONTs and restarts follow after their own random delays."""
     pending = []  # (due time, what, name)
     end = time.monotonic() + args.seconds
     next_fault = time.monotonic() + rng.uniform(1, 4)
     names = sorted(farm.workers)
+    first = list(FAULT_KINDS)
+    rng.shuffle(first)
 
     def due(events, now):
         keep = []
@@ -327,8 +349,9 @@ def inject_faults(args, farm, rng, counts):
                 pending.append((now + rng.uniform(0.2, 2), "restart_worker", n))
         if now >= next_fault:
             next_fault = now + rng.uniform(1, 4)
-            kind = rng.choices(["kill_worker", "stop_worker", "kill_coordinator", "term_worker",
-                                "kill_coordinator_in_blob_write"], [3, 3, 2, 1, 2])[0]
+            # Each kind of fault once first, in a seeded order, so every class the end checks demand is tried
+            # early; then at random.
+            kind = first.pop() if first else rng.choices(FAULT_KINDS, [3, 3, 2, 1, 2])[0]
             live = farm.running_workers()
             if kind == "kill_coordinator_in_blob_write":
                 if farm.serve.poll() is None:
@@ -337,6 +360,8 @@ def inject_faults(args, farm, rng, counts):
                         pending.append((now + rng.uniform(0.2, 3), "restart_serve", "serve"))
             elif kind == "kill_coordinator":
                 if farm.serve.poll() is None:
+                    if (live_leases(farm.url()) or 0) > 0:
+                        counts["kill_coordinator_with_live_leases"] += 1
                     farm.serve.kill()
                     farm.serve.wait()
                     counts[kind] += 1
@@ -348,6 +373,7 @@ def inject_faults(args, farm, rng, counts):
                     pending.append((now + rng.uniform(0.2, 2), "restart_worker", name))
                 elif kind == "stop_worker":
                     farm.signal_worker(name, signal.SIGSTOP)
+                    # Some freezes outlast the 3 s lease (it expires), some do not.
                     pending.append((now + rng.uniform(0.5, 8), "cont", name))
                 else:
                     farm.signal_worker(name, signal.SIGTERM)  # restarted once it has exited (see above)
@@ -391,7 +417,7 @@ def wait_until_done(args, farm, submitter, jobs):
     return False
 
 
-def check_end_state(args, farm, jobs, submitter):
+def check_end_state(args, farm, jobs, submitter, faults, proxy):
     """Every check of the module docstring; returns (problems, figures)."""
     problems = []
     db = sqlite3.connect(f"file:{farm.data / 'tessera.db'}?mode=ro", uri=True)
@@ -487,6 +513,19 @@ def check_end_state(args, farm, jobs, submitter):
         if p.name not in ("jobs", "tmp", "blobs", "tessera.db", "tessera.db-wal", "tessera.db-shm"):
             problems.append(f"unexpected entry in the data folder: {p}")
 
+    # Every render is one lease's; a stored tile is never rendered again, so renders beyond one per tile are bounded
+    # by what the faults could cost: a worker killed, frozen past its lease or stopped loses at most the tile it
+    # renders, the one it leased ahead and the upload in flight; a coordinator kill at most one per worker; a proxied
+    # connection reset or left half-open at most one.
+    if renders < tiles_total:
+        problems.append(f"{renders} renders for {tiles_total} tiles: the worker logs miss renders")
+    allowance = (3 * (faults.get("kill_worker", 0) + faults.get("stop_worker", 0) + faults.get("term_worker", 0))
+                 + args.workers * (faults.get("kill_coordinator", 0) + faults.get("kill_coordinator_in_blob_write", 0))
+                 + proxy.get("reset", 0) + proxy.get("half_open", 0))
+    if renders > tiles_total + allowance:
+        problems.append(f"{renders} renders for {tiles_total} tiles: more than the {allowance} the faults allow "
+                        "(stored tiles rendered again?)")
+
     figures = dict(jobs_submitted=len(jobs), jobs_in_database=len(rows), submitted_twice=twice,
                    tiles=tiles_total, tile_renders=renders, uploads_accepted=sum(accepted.values()),
                    uploads_duplicate=sum(duplicate.values()), merges_not_logged=unlogged, temp_files_removed_at_restart=leftovers, lease_states=lease_states,
@@ -494,23 +533,32 @@ def check_end_state(args, farm, jobs, submitter):
     return problems, figures
 
 
-def main():
-    args = parse_args()
-    if args.proxied > args.workers:
-        sys.exit("--proxied must not exceed --workers")
-    work = Path(args.work) if args.work else Path(tempfile.mkdtemp(prefix="tessera-soak."))
-    work.mkdir(parents=True, exist_ok=True)
-    rng = random.Random(args.seed)
-    log(f"seed {args.seed} (repeat with --seed {args.seed}); {args.seconds:.0f} s of faults, {args.jobs} jobs, "
+def faults_missed(counts, proxy, lease_states, proxied):
+    """The fault classes the soak exists to exercise that did not land on work in flight in this run."""
+    missed = []
+    if lease_states.get("expired", 0) == 0:
+        missed.append("no lease expired")
+    if counts["kill_coordinator_with_live_leases"] == 0:
+        missed.append("no coordinator kill while leases were live")
+    if counts["kill_coordinator_in_blob_write"] == 0:
+        missed.append("no coordinator kill during a blob write")
+    if proxied and proxy.get("reset", 0) + proxy.get("half_open", 0) == 0:
+        missed.append("no proxied connection reset or left half-open")
+    return missed
+
+
+def soak_once(args, seed, work):
+    """One soak with one seed in WORK; returns (problems, fault classes missed)."""
+    rng = random.Random(seed)
+    log(f"seed {seed} (repeat with --seed {seed}); {args.seconds:.0f} s of faults, {args.jobs} jobs, "
         f"{args.workers} workers ({args.proxied} behind a fault proxy); work folder {work}")
     jobs = make_jobs(args, work, rng)
     render_references(args, work, jobs)
     log(f"{len(jobs)} jobs, {sum(j['tiles'] for j in jobs)} tiles; references rendered")
 
     farm = Farm(args, work)
-    counts = collections.Counter(kill_worker=0, stop_worker=0, kill_coordinator=0, term_worker=0,
-                                 kill_coordinator_in_blob_write=0)
-    passed = False
+    counts = collections.Counter({k: 0 for k in FAULT_KINDS + ["kill_coordinator_with_live_leases"]})
+    problems, missed = ["the soak did not finish"], []
     t0 = time.monotonic()
     try:
         farm.start_serve()
@@ -534,27 +582,52 @@ def main():
             problems.append(f"the jobs did not all end within {args.finish_seconds:.0f} s after the faults stopped")
         if serve_rc != 0:
             problems.append(f"the coordinator exited with {serve_rc} on SIGTERM")
-        more, figures = check_end_state(args, farm, jobs, submitter)
-        problems += more
         proxy = collections.Counter()
         for n in farm.proxies:
             f = work / f"proxy-{n}.json"
             if f.exists():
                 proxy.update(json.loads(f.read_text()))
-        figures.update(seed=args.seed, fault_minutes=round(fault_minutes, 2),
+        more, figures = check_end_state(args, farm, jobs, submitter, counts, proxy)
+        problems += more
+        missed = faults_missed(counts, proxy, figures["lease_states"], args.proxied)
+        figures.update(faults_missed=missed, seed=seed, fault_minutes=round(fault_minutes, 2),
                        total_minutes=round((time.monotonic() - t0) / 60, 2), faults=dict(counts),
                        coordinator_starts=farm.serve_starts, proxy_connections=dict(proxy), problems=problems)
         (work / "summary.json").write_text(json.dumps(figures, indent=1) + "\n")
         print(json.dumps(figures, indent=1))
         for p in problems:
             print(f"FAIL: {p}", file=sys.stderr)
-        passed = not problems
-        log("PASS" if passed else f"FAIL ({len(problems)} problems); logs in {work}; repeat with --seed {args.seed}")
+        for m in missed:
+            print(f"fault class missed: {m}", file=sys.stderr)
     finally:
         farm.kill_everything()
-        if passed and not args.keep and not args.work:
-            shutil.rmtree(work, ignore_errors=True)
-    return 0 if passed else 1
+    return problems, missed
+
+
+def main():
+    args = parse_args()
+    if args.proxied > args.workers:
+        sys.exit("--proxied must not exceed --workers")
+    root = Path(args.work) if args.work else Path(tempfile.mkdtemp(prefix="tessera-soak."))
+    # A run whose end state is wrong fails at once. A run that is right but in which a fault class never met work in
+    # flight proves less than it claims: it is run again with the next seed, and the soak fails if no run of
+    # --attempts lands every class.
+    for attempt in range(args.attempts):
+        seed = args.seed + attempt
+        work = root / f"seed-{seed}"
+        work.mkdir(parents=True, exist_ok=True)
+        problems, missed = soak_once(args, seed, work)
+        if problems:
+            log(f"FAIL ({len(problems)} problems); logs in {work}; repeat with --seed {seed}")
+            return 1
+        if not missed:
+            log(f"PASS with seed {seed}: every fault class landed")
+            if not args.keep and not args.work:
+                shutil.rmtree(root, ignore_errors=True)
+            return 0
+        log(f"seed {seed}: end state right, but {'; '.join(missed)}: again with seed {seed + 1}")
+    log(f"FAIL: in {args.attempts} runs some fault class never landed; logs in {root}")
+    return 1
 
 
 if __name__ == "__main__":

@@ -38,8 +38,25 @@ log_has "$WORK/half3.log" "cannot use TLS key.*mismatch" || fail "a key of anoth
 start_serve --tls-cert "$T/server.pem" --tls-key "$T/server.key" --tls-client-ca "$T/ca.pem" --read-timeout-seconds 1
 PORT=${URL##*:}
 URL="https://127.0.0.1:$PORT"
-head -c 65536 /dev/urandom 2>/dev/null >"/dev/tcp/127.0.0.1/$PORT" || true
-printf 'GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n' >"/dev/tcp/127.0.0.1/$PORT" || true
+# closed_after NAME ANSWER: sends what stands on stdin on a fresh connection, then expects the server to close it (EOF,
+# or a reset: cat's status 0 or 1, not timeout's 124) having answered ANSWER in plain HTTP ("" for nothing in plain
+# HTTP at all).
+closed_after() {
+  local rc=0
+  exec 3<>"/dev/tcp/127.0.0.1/$PORT"
+  cat >&3 2>/dev/null || true  # the server may close before all of it is written
+  timeout 30 cat <&3 >"$WORK/$1.out" 2>/dev/null || rc=$?
+  exec 3<&-
+  [ $rc -le 1 ] || fail "a connection sending $1 was not closed (status $rc)"
+  if [ -z "$2" ]; then
+    ! grep -qa "HTTP/1" "$WORK/$1.out" || fail "a connection sending $1 got a plain HTTP answer"
+  else
+    grep -qa "^$2" "$WORK/$1.out" || fail "a connection sending $1 was not answered '$2': $(head -c 200 "$WORK/$1.out")"
+  fi
+}
+head -c 65536 /dev/urandom | closed_after garbage ""
+# A plain HTTP request on the TLS port is told so in plain HTTP, then closed.
+printf 'GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n' | closed_after plain-http "HTTP/1.1 400"
 probe "$WORK/probe1.log" "${GOOD[@]}"
 
 # A connection that sends nothing, and one that stops after a TLS record header: both closed by the server (EOF on
