@@ -1,4 +1,4 @@
-# Shared setup of the shell benchmarks (sourced after BUILD and SHARED are set): T (the tessera binary), a temporary
+# Shared setup of the shell benchmarks (sourced after BUILD and COURSE are set): T (the tessera binary), a temporary
 # WORK folder, PIDS (every background process, stopped with SIGTERM on exit, then WORK is removed), scene() and
 # start_serve().
 # Argument: NAME, the benchmark's name in WORK's folder name (tessera-NAME-bench.XXXXXX).
@@ -18,8 +18,8 @@ trap cleanup EXIT
 # (with its assets).
 scene() {
   mkdir -p "$WORK/$1"
-  cp -r "$SHARED/compat/rdr171/assets" "$WORK/$1/"
-  python3 - "$SHARED/compat/rdr171/cbox_refract_textured.json" "$WORK/$1/scene.json" "$2" "$3" "$4" <<'PY'
+  cp -r "$COURSE/assets" "$WORK/$1/"
+  python3 - "$COURSE/cbox_refract_textured.json" "$WORK/$1/scene.json" "$2" "$3" "$4" <<'PY'
 import json, sys
 src, dst, w, h, spp = sys.argv[1:]
 s = json.load(open(src)); s["film"]["resolution"] = [int(w), int(h)]; s["integrator"]["spp"] = int(spp)

@@ -4,10 +4,10 @@
 # tile sizes 64, 32 and 16 (80, 300 and 1200 tiles), twice; the coordinator's utime+stime read from /proc around
 # each job. The slope over the tile counts is the per-tile cost, the rest the per-job cost (submission with its scene
 # checks, result, the client's event stream).
-# Usage: bench/coordinator_cpu.sh BUILD_DIR [SHARED_DIR]   (TILES="64 16" to choose the tile sizes, SPP=N the spp)
+# Usage: bench/coordinator_cpu.sh BUILD_DIR [COURSE_DIR]   (TILES="64 16" to choose the tile sizes, SPP=N the spp)
 set -euo pipefail
-BUILD=${1:?usage: coordinator_cpu.sh BUILD_DIR [SHARED_DIR]}
-SHARED=${2:-$(cd "$(dirname "$0")/../.." && pwd)/shared}
+BUILD=${1:?usage: coordinator_cpu.sh BUILD_DIR [COURSE_DIR]}
+COURSE=${2:-$(cd "$(dirname "$0")/.." && pwd)/scenes/course}
 # shellcheck source-path=SCRIPTDIR source=bench_common.sh
 source "$(dirname "$0")/bench_common.sh" coordcpu
 scene a 640 480 "${SPP:-32}"

@@ -4,10 +4,10 @@
 # one-tile render, (1c) the per-tile tax from a render long enough for the fixed cost to be small, with and without
 # it; (2) a farm tile-size sweep 16..256 with 2 workers, (3) for a 3840x2160 image, the time from the start of the
 # last tile's upload to the merged EXR on the coordinator's disk and to the client's output file.
-# Usage: bench/farm_bench.sh BUILD_DIR [SHARED_DIR]   (prints a report; wall-clock times, so run it on a quiet machine)
+# Usage: bench/farm_bench.sh BUILD_DIR [COURSE_DIR]   (prints a report; wall-clock times, so run it on a quiet machine)
 set -euo pipefail
-BUILD=${1:?usage: farm_bench.sh BUILD_DIR [SHARED_DIR]}
-SHARED=${2:-$(cd "$(dirname "$0")/../.." && pwd)/shared}
+BUILD=${1:?usage: farm_bench.sh BUILD_DIR [COURSE_DIR]}
+COURSE=${2:-$(cd "$(dirname "$0")/.." && pwd)/scenes/course}
 # shellcheck source-path=SCRIPTDIR source=bench_common.sh
 source "$(dirname "$0")/bench_common.sh" farm
 now() { date +%s.%N; }

@@ -1,14 +1,14 @@
 #!/usr/bin/env bash
-# shellcheck disable=SC2034  # A and B are read as ${!which}, SHARED by bench_common.sh
+# shellcheck disable=SC2034  # A and B are read as ${!which}, COURSE by bench_common.sh
 # Two tessera binaries side by side on a private farm's fixed cost: `render --workers 1` of farm_bench.sh's one-tile
 # scene (the course's textured box at 64x48, 1 spp), A and B alternating N times; prints each binary's mean, median
 # and minimum wall time. For commit messages of changes to the farm's start, submission, hand-over and stop.
-#   bash bench/farm_fixed_ab.sh OLD/tessera NEW/tessera [N] [SHARED_DIR]      (N = 25)
+#   bash bench/farm_fixed_ab.sh OLD/tessera NEW/tessera [N] [COURSE_DIR]      (N = 25)
 set -euo pipefail
-A=${1:?usage: farm_fixed_ab.sh TESSERA_A TESSERA_B [N] [SHARED_DIR]}
-B=${2:?usage: farm_fixed_ab.sh TESSERA_A TESSERA_B [N] [SHARED_DIR]}
+A=${1:?usage: farm_fixed_ab.sh TESSERA_A TESSERA_B [N] [COURSE_DIR]}
+B=${2:?usage: farm_fixed_ab.sh TESSERA_A TESSERA_B [N] [COURSE_DIR]}
 N=${3:-25}
-SHARED=${4:-$(cd "$(dirname "$0")/../.." && pwd)/shared}
+COURSE=${4:-$(cd "$(dirname "$0")/.." && pwd)/scenes/course}
 BUILD=$(dirname "$(dirname "$B")")  # bench_common.sh wants a build folder; only its scene() and WORK are used here
 # shellcheck source-path=SCRIPTDIR source=bench_common.sh
 source "$(dirname "$0")/bench_common.sh" farm-fixed

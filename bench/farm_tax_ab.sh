@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# shellcheck disable=SC2034  # A and B are read as ${!which}, SHARED by bench_common.sh
+# shellcheck disable=SC2034  # A and B are read as ${!which}, COURSE by bench_common.sh
 # Two tessera binaries side by side on a private farm's overhead: `render --workers 1` of farm_bench.sh's 1a scene
 # (the course's textured box at 640x480, 32 spp, 80 tiles of 64 px), A and B alternating N times with A's single
 # process between them. Besides wall time it reads the machine's CPU time from /proc/stat around each run: the busy
@@ -7,12 +7,12 @@
 # process is its work (coordinator, parent, worker's requests and encoding); its extra idle time is waiting. Both
 # vary less from run to run on a shared VM than wall time does. For commit messages of changes to the farm's per-tile
 # path.
-#   bash bench/farm_tax_ab.sh OLD/tessera NEW/tessera [N] [SHARED_DIR]      (N = 8)
+#   bash bench/farm_tax_ab.sh OLD/tessera NEW/tessera [N] [COURSE_DIR]      (N = 8)
 set -euo pipefail
-A=${1:?usage: farm_tax_ab.sh TESSERA_A TESSERA_B [N] [SHARED_DIR]}
-B=${2:?usage: farm_tax_ab.sh TESSERA_A TESSERA_B [N] [SHARED_DIR]}
+A=${1:?usage: farm_tax_ab.sh TESSERA_A TESSERA_B [N] [COURSE_DIR]}
+B=${2:?usage: farm_tax_ab.sh TESSERA_A TESSERA_B [N] [COURSE_DIR]}
 N=${3:-8}
-SHARED=${4:-$(cd "$(dirname "$0")/../.." && pwd)/shared}
+COURSE=${4:-$(cd "$(dirname "$0")/.." && pwd)/scenes/course}
 BUILD=$(dirname "$(dirname "$B")")  # bench_common.sh wants a build folder; only its scene() and WORK are used here
 # shellcheck source-path=SCRIPTDIR source=bench_common.sh
 source "$(dirname "$0")/bench_common.sh" farm-tax

@@ -3,10 +3,10 @@
 # Starts `tessera serve` with client and worker tokens, two workers (one thread each), submits 8 jobs (textured
 # Cornell box 320x240, 16 spp, tile 32) and, while they render, runs bench/load_client with C connections for S seconds
 # against /healthz, a job's status, the job list and /metrics. Prints requests/s and p50/p99 latency per endpoint.
-# Usage: bench/load_bench.sh BUILD_DIR [SHARED_DIR] [CONNECTIONS] [SECONDS]
+# Usage: bench/load_bench.sh BUILD_DIR [COURSE_DIR] [CONNECTIONS] [SECONDS]
 set -euo pipefail
-BUILD=${1:?usage: load_bench.sh BUILD_DIR [SHARED_DIR] [CONNECTIONS] [SECONDS]}
-SHARED=${2:-$(cd "$(dirname "$0")/../.." && pwd)/shared}
+BUILD=${1:?usage: load_bench.sh BUILD_DIR [COURSE_DIR] [CONNECTIONS] [SECONDS]}
+COURSE=${2:-$(cd "$(dirname "$0")/.." && pwd)/scenes/course}
 CONNS=${3:-16}
 SECS=${4:-10}
 # shellcheck source-path=SCRIPTDIR source=bench_common.sh

@@ -2,10 +2,10 @@
 # Raising a resumable farm job's spp (docs/resume.md): (1) what `--resumable` costs an ordinary job (wall time, result
 # size, database size), (2) a job at N spp raised to 4N against a job submitted at 4N from the start (wall time of the
 # raise, which renders only the 3N new samples per pixel), with the results compared bitwise.
-# Usage: bench/raise_spp_bench.sh BUILD_DIR [SHARED_DIR] [WIDTH HEIGHT N]   (wall-clock times: run it on a quiet machine)
+# Usage: bench/raise_spp_bench.sh BUILD_DIR [COURSE_DIR] [WIDTH HEIGHT N]   (wall-clock times: run it on a quiet machine)
 set -euo pipefail
-BUILD=${1:?usage: raise_spp_bench.sh BUILD_DIR [SHARED_DIR] [WIDTH HEIGHT N]}
-SHARED=${2:-$(cd "$(dirname "$0")/../.." && pwd)/shared}
+BUILD=${1:?usage: raise_spp_bench.sh BUILD_DIR [COURSE_DIR] [WIDTH HEIGHT N]}
+COURSE=${2:-$(cd "$(dirname "$0")/.." && pwd)/scenes/course}
 W=${3:-320} H=${4:-240} N=${5:-16}
 M=$((4 * N))
 # shellcheck source-path=SCRIPTDIR source=bench_common.sh

@@ -9,7 +9,7 @@
 set -euo pipefail
 BUILD=${1:?usage: scene_load.sh BUILD_DIR [OTHER_TESSERA]}
 OTHER=${2:-}
-SHARED=unused
+COURSE=unused
 # shellcheck source-path=SCRIPTDIR source=bench_common.sh
 source "$(dirname "$0")/bench_common.sh" load-time
 SCENES=$(cd "$(dirname "$0")/../scenes" && pwd)

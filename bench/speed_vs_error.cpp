@@ -297,10 +297,10 @@ int path_tracing_report(const Args& a, const fs::path& data, const std::string& 
     std::string name;
     fs::path file;
   };
-  const fs::path shared = fs::path(TESSERA_SOURCE_DIR) / ".." / "shared" / "compat" / "rdr171";
   const fs::path own = fs::path(TESSERA_SOURCE_DIR) / "scenes";
-  const std::vector<PathScene> scenes = {{"sphere", shared / "sphere.json"},
-                                         {"glass_sphere", shared / "glass_sphere.json"},
+  const fs::path course = own / "course";
+  const std::vector<PathScene> scenes = {{"sphere", course / "sphere.json"},
+                                         {"glass_sphere", course / "glass_sphere.json"},
                                          {"cbox_gi", own / "cbox_gi.json"},
                                          {"cbox_glass", own / "cbox_glass.json"},
                                          {"veach_mis", own / "veach_mis.json"}};

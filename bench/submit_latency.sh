@@ -1,16 +1,16 @@
 #!/usr/bin/env bash
-# shellcheck disable=SC2034,SC2119  # A and B are read as ${!which}, SHARED by bench_common.sh; start_serve takes no flags here
+# shellcheck disable=SC2034,SC2119  # A and B are read as ${!which}, COURSE by bench_common.sh; start_serve takes no flags here
 # What round trips cost a submission: `tessera submit --detach` of farm_bench.sh's one-tile scene (the course's
 # textured box: 9 assets) through a link of fixed latency (tests/soak/fault_proxy.py --latency, no faults) to a fresh
 # coordinator of binary B, once with every asset missing and once more with all of them stored; clients A and B
 # alternating, N rounds. Prints each submission's wall time.
-#   bash bench/submit_latency.sh OLD/tessera NEW/tessera [ONE_WAY_SECONDS] [N] [SHARED_DIR]   (0.01 s, N = 3)
+#   bash bench/submit_latency.sh OLD/tessera NEW/tessera [ONE_WAY_SECONDS] [N] [COURSE_DIR]   (0.01 s, N = 3)
 set -euo pipefail
-A=${1:?usage: submit_latency.sh TESSERA_A TESSERA_B [ONE_WAY_SECONDS] [N] [SHARED_DIR]}
-B=${2:?usage: submit_latency.sh TESSERA_A TESSERA_B [ONE_WAY_SECONDS] [N] [SHARED_DIR]}
+A=${1:?usage: submit_latency.sh TESSERA_A TESSERA_B [ONE_WAY_SECONDS] [N] [COURSE_DIR]}
+B=${2:?usage: submit_latency.sh TESSERA_A TESSERA_B [ONE_WAY_SECONDS] [N] [COURSE_DIR]}
 LATENCY=${3:-0.01}
 N=${4:-3}
-SHARED=${5:-$(cd "$(dirname "$0")/../.." && pwd)/shared}
+COURSE=${5:-$(cd "$(dirname "$0")/.." && pwd)/scenes/course}
 BUILD=$(dirname "$(dirname "$B")")
 PROXY="$(dirname "$0")/../tests/soak/fault_proxy.py"
 # shellcheck source-path=SCRIPTDIR source=bench_common.sh

@@ -5,7 +5,7 @@
 # Usage: bench/thread_scaling.sh BUILD_DIR
 set -euo pipefail
 BUILD=${1:?usage: thread_scaling.sh BUILD_DIR}
-SHARED=unused
+COURSE=unused
 # shellcheck source-path=SCRIPTDIR source=bench_common.sh
 source "$(dirname "$0")/bench_common.sh" threads
 SCENES=$(cd "$(dirname "$0")/../scenes" && pwd)

@@ -42,7 +42,7 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 using tcp = asio::ip::tcp;
 
-const fs::path kShared = TESSERA_SHARED_DIR "/compat/rdr171";
+const fs::path kCourse = TESSERA_COURSE_DIR;
 
 std::string slurp(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
@@ -83,9 +83,9 @@ class HttpTest : public ::testing::Test {
   }
   // Uploads every asset of a sample scene and returns the job body for it.
   json job_for(const std::string& scene_file) {
-    const json scene = json::parse(slurp(kShared / scene_file));
+    const json scene = json::parse(slurp(kCourse / scene_file));
     json assets = json::object();
-    for (const std::string& p : scene_asset_paths(scene)) assets[p] = put_blob(kShared / p);
+    for (const std::string& p : scene_asset_paths(scene)) assets[p] = put_blob(kCourse / p);
     return {{"scene", scene}, {"assets", assets}};
   }
   std::string submit(const json& body) {
@@ -123,7 +123,7 @@ json small_cbox(json job) {
 LoadedScene load_local(const json& scene, uint32_t spp) {
   LoadOptions lo;
   lo.spp = spp;
-  return load_scene_json(scene, "scene", [](const std::string& rel, const std::string&) { return kShared / rel; }, lo);
+  return load_scene_json(scene, "scene", [](const std::string& rel, const std::string&) { return kCourse / rel; }, lo);
 }
 
 std::string tile_exr(const fs::path& dir, const Image& img, const PixelWindow& window, int w, int h) {

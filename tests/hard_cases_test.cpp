@@ -376,7 +376,7 @@ TEST(HardCases, DegenerateInputLoadsWithClearWarnings) {
 
 // The course's textured Cornell box lists the floor twice (two materials on the same triangles): the loader says so.
 TEST(HardCases, CourseSceneWithTwoFloorsWarnsAboutCoincidentFaces) {
-  const fs::path file = fs::path(TESSERA_SHARED_DIR) / "compat/rdr171/cbox_refract_textured.json";
+  const fs::path file = fs::path(TESSERA_COURSE_DIR) / "cbox_refract_textured.json";
   if (!fs::exists(file)) GTEST_SKIP() << file << " not present";
   const LoadedScene ls = load_scene_file(file);
   bool found = false;

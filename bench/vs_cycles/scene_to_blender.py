@@ -81,7 +81,7 @@ def _emitter_material(name, radiance):
 
 
 def camera_frame(cam):
-    """Tessera's (FORMAT.md) camera frame: forward, right, up as tuples."""
+    """Tessera's (docs/scene-format.md) camera frame: forward, right, up as tuples."""
     def sub(a, b):
         return tuple(x - y for x, y in zip(a, b))
 

@@ -27,7 +27,7 @@ namespace fs = std::filesystem;
 // The course's textured Cornell box with a glass sphere at an odd size: 37 x 45 pixels.
 const Scene& cbox() {
   static const Scene s = [] {
-    Scene scene = load_scene_file(fs::path(TESSERA_SHARED_DIR) / "compat/rdr171/cbox_refract_textured.json").scene;
+    Scene scene = load_scene_file(fs::path(TESSERA_COURSE_DIR) / "cbox_refract_textured.json").scene;
     scene.width = 37;
     scene.height = 45;
     return scene;

@@ -478,8 +478,8 @@ TEST_F(ImageExr, AttributesWhoseValueDoesNotFillThemAreRefused) {
   EXPECT_NE(msg.find("'dataWindow' (box2i) holds 17 bytes, its type 16"), std::string::npos) << msg;
 }
 
-TEST_F(ImageExr, ReadsSharedBricksTexture) {
-  const fs::path p = fs::path(TESSERA_SHARED_DIR) / "compat/rdr171/assets/bricks.exr";
+TEST_F(ImageExr, ReadsCourseBricksTexture) {
+  const fs::path p = fs::path(TESSERA_COURSE_DIR) / "assets/bricks.exr";
   const ExrImage bricks = read_exr(p);
   EXPECT_GT(bricks.pixels.width, 0);
   EXPECT_GT(bricks.pixels.height, 0);

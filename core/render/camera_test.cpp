@@ -1,4 +1,4 @@
-// Camera tests: rays exactly as FORMAT.md defines them, with the written image's first row at the top.
+// Camera tests: rays exactly as docs/scene-format.md defines them, with the written image's first row at the top.
 #include "core/render/camera.h"
 
 #include "tests/support/test_closed_forms.h"

@@ -1,6 +1,6 @@
-// Light tests: environment-map orientation exactly as FORMAT.md states it, the environment's importance sampling
-// (density consistent and normalised), spherical-rectangle sampling (solid angle, unbiased irradiance, and lower
-// variance than area sampling at the same sample count), and the direct integrator's rectangle sampling with a
+// Light tests: environment-map orientation exactly as docs/scene-format.md states it, the environment's importance
+// sampling (density consistent and normalised), spherical-rectangle sampling (solid angle, unbiased irradiance, and
+// lower variance than area sampling at the same sample count), and the direct integrator's rectangle sampling with a
 // receiver normal (density by chi-square, unbiased irradiance also under a partly hidden light, lower variance).
 #include "core/render/light.h"
 
@@ -31,7 +31,7 @@ Environment index_map(int w, int h) {
   return env;
 }
 
-// FORMAT.md's direction for map coordinates (u, v): theta = v pi, phi = 2 pi u, d.y = cos(theta), and
+// docs/scene-format.md's direction for map coordinates (u, v): theta = v pi, phi = 2 pi u, d.y = cos(theta), and
 // phi = atan2(d.x, -d.z), i.e. d.x = sin(theta) sin(phi), d.z = -sin(theta) cos(phi).
 Vec3 format_direction(double u, double v) {
   const double theta = v * std::numbers::pi, phi = 2.0 * std::numbers::pi * u;

@@ -23,7 +23,7 @@ class RenderResume : public testing::TempDirTest {
  protected:
   // The course's textured Cornell box with a glass sphere, shrunk to 29 x 23 pixels.
   static Scene scene() {
-    Scene s = load_scene_file(fs::path(TESSERA_SHARED_DIR) / "compat/rdr171/cbox_refract_textured.json").scene;
+    Scene s = load_scene_file(fs::path(TESSERA_COURSE_DIR) / "cbox_refract_textured.json").scene;
     s.width = 29;
     s.height = 23;
     return s;

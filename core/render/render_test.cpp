@@ -336,7 +336,7 @@ TEST_F(RenderTest, EveryCourseSceneRendersFiniteAndNonBlack) {
   for (const char* name : {"cbox.json", "cbox_no_light.json", "cbox_no_light_refract.json", "cbox_refract_textured.json"}) {
     LoadOptions opt;
     opt.force_direct = true;  // cbox.json asks for bdpt
-    Scene scene = load_scene_file(fs::path(TESSERA_SHARED_DIR) / "compat/rdr171" / name, opt).scene;
+    Scene scene = load_scene_file(fs::path(TESSERA_COURSE_DIR) / name, opt).scene;
     scene.width = 32;  // the camera does not depend on the resolution
     scene.height = 32;
     RenderOptions ro;
@@ -358,7 +358,7 @@ TEST_F(RenderTest, EveryCourseSceneRendersFiniteAndNonBlack) {
 // sample counts, replicates (including more than kMaxReplicates) and both integrators.
 TEST_F(RenderTest, SamplesTracedInPairsGiveBitwiseTheEstimateOfOneAtATime) {
   for (const char* name : {"cbox_refract_textured.json", "glass_sphere.json"}) {  // direct lighting; path tracing
-    Scene scene = load_scene_file(fs::path(TESSERA_SHARED_DIR) / "compat/rdr171" / name).scene;
+    Scene scene = load_scene_file(fs::path(TESSERA_COURSE_DIR) / name).scene;
     scene.width = 16;
     scene.height = 12;
     for (const uint32_t replicates : {1u, 2u, 3u, kMaxReplicates + 1})
@@ -386,7 +386,7 @@ TEST_F(RenderTest, SamplesTracedInPairsGiveBitwiseTheEstimateOfOneAtATime) {
 TEST_F(RenderTest, CropsAndTileSizesGiveBitwiseIdenticalPixels) {
   LoadOptions opt;
   opt.spp = 4;
-  Scene scene = load_scene_file(fs::path(TESSERA_SHARED_DIR) / "compat/rdr171/cbox_refract_textured.json", opt).scene;
+  Scene scene = load_scene_file(fs::path(TESSERA_COURSE_DIR) / "cbox_refract_textured.json", opt).scene;
   scene.width = 37;
   scene.height = 29;
   RenderOptions whole_opt;
@@ -426,7 +426,7 @@ TEST_F(RenderTest, CropsAndTileSizesGiveBitwiseIdenticalPixels) {
 TEST_F(RenderTest, RowsFinalTellsEveryRowOnceInOrderWithItsFinalValues) {
   LoadOptions opt;
   opt.spp = 2;
-  Scene scene = load_scene_file(fs::path(TESSERA_SHARED_DIR) / "compat/rdr171/cbox_refract_textured.json", opt).scene;
+  Scene scene = load_scene_file(fs::path(TESSERA_COURSE_DIR) / "cbox_refract_textured.json", opt).scene;
   scene.width = 23;
   scene.height = 31;
   RenderOptions ro;

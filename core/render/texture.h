@@ -25,7 +25,7 @@ struct Texture {
   }
 
   /// The checkerboard at st: cells 0.5 wide; a = trunc(2 s) mod 2, b = trunc(2 t) mod 2 (in {0, 1}); color when
-  /// a == b, color1 otherwise (FORMAT.md).
+  /// a == b, color1 otherwise (docs/scene-format.md).
   Vec3 checker(Vec2 st) const;
 
   /// Bilinear lookup at st (repeat wrap); pixel centres sit at (i + 0.5)/w, (j + 0.5)/h, v = 0 is the top row.

@@ -1,5 +1,5 @@
-// Texture tests: the checkerboard follows FORMAT.md (cells 0.5 wide in scale * uv + delta, truncation toward zero,
-// parity mod 2 into {0, 1}).
+// Texture tests: the checkerboard follows docs/scene-format.md (cells 0.5 wide in scale * uv + delta, truncation
+// toward zero, parity mod 2 into {0, 1}).
 #include "core/render/texture.h"
 
 #include <gtest/gtest.h>

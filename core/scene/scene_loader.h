@@ -1,4 +1,4 @@
-// Loading scenes in the course format (../shared/compat/rdr171/FORMAT.md) into render-ready Scenes.
+// Loading scenes in the course format (docs/scene-format.md; examples in scenes/course/) into render-ready Scenes.
 #pragma once
 
 #include "core/render/scene.h"

@@ -530,7 +530,7 @@ TEST_F(SceneLoader, RectangleEmitterBecomesASphericalRectangleLight) {
 
 TEST_F(SceneLoader, CourseScenesLoad) {
   for (const char* name : {"sphere.json", "glass_sphere.json"}) {
-    const LoadedScene l = load_scene_file(fs::path(TESSERA_SHARED_DIR) / "compat/rdr171" / name);
+    const LoadedScene l = load_scene_file(fs::path(TESSERA_COURSE_DIR) / name);
     EXPECT_EQ(l.scene.settings.integrator, IntegratorKind::kPath) << name;
     EXPECT_EQ(l.scene.settings.max_depth, 64) << name;
     EXPECT_TRUE(l.warnings.empty()) << name;
@@ -538,7 +538,7 @@ TEST_F(SceneLoader, CourseScenesLoad) {
   for (const char* name : {"cbox.json", "cbox_no_light.json", "cbox_no_light_refract.json", "cbox_refract_textured.json"}) {
     LoadOptions opt;
     opt.force_direct = true;
-    const LoadedScene l = load_scene_file(fs::path(TESSERA_SHARED_DIR) / "compat/rdr171" / name, opt);
+    const LoadedScene l = load_scene_file(fs::path(TESSERA_COURSE_DIR) / name, opt);
     EXPECT_GT(l.scene.triangles.size(), 0u) << name;
     if (std::string(name) == "cbox_refract_textured.json") {
       // This user's scene lists two floors in the same place (objects[0] textured, objects[3] grey): exactly one

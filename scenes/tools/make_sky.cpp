@@ -1,5 +1,5 @@
-// Writes scenes/assets/sky.exr: an equirectangular HDR sky (FORMAT.md's mapping, +y up) with a small, very bright
-// sun, for the project's sky scene and for hard-case tests of environment importance sampling.
+// Writes scenes/assets/sky.exr: an equirectangular HDR sky (docs/scene-format.md's mapping, +y up) with a small, very
+// bright sun, for the project's sky scene and for hard-case tests of environment importance sampling.
 //
 // The sky is a smooth gradient from a bright horizon to a deeper zenith over a dim ground; the sun is a disc of
 // angular radius `--sun-radius` degrees whose radiance is `--sun-ratio` times the sky's zenith radiance. Each pixel
@@ -18,7 +18,8 @@ namespace {
 using tessera::kPi;
 using tessera::Vec3;
 
-// World direction of map coordinate (u, v) per FORMAT.md: theta = v pi from +y, phi = u 2 pi, phi = atan2(d.x, -d.z).
+// World direction of map coordinate (u, v) per docs/scene-format.md: theta = v pi from +y, phi = u 2 pi,
+// phi = atan2(d.x, -d.z).
 Vec3 direction(double u, double v) {
   const double theta = v * kPi, phi = u * 2.0 * kPi;
   return Vec3(float(std::sin(theta) * std::sin(phi)), float(std::cos(theta)), float(-std::sin(theta) * std::cos(phi)));
@@ -36,7 +37,7 @@ int main(int argc, char** argv) {
   app.add_option("--sun-ratio", sun_ratio, "Sun radiance / zenith sky radiance")->check(CLI::PositiveNumber);
   app.add_option("--sun-radius", sun_radius_deg, "Angular radius of the sun disc, degrees")->check(CLI::Range(0.05, 20.0));
   app.add_option("--sun-elevation", sun_elevation_deg, "Sun elevation above the horizon, degrees")->check(CLI::Range(-90.0, 90.0));
-  app.add_option("--sun-azimuth", sun_azimuth_deg, "Sun azimuth phi (FORMAT.md: atan2(d.x, -d.z)), degrees");
+  app.add_option("--sun-azimuth", sun_azimuth_deg, "Sun azimuth phi (docs/scene-format.md: atan2(d.x, -d.z)), degrees");
   CLI11_PARSE(app, argc, argv);
 
   const int height = width / 2;

@@ -1,12 +1,13 @@
-# Shared helpers of the farm tests (sourced). Arguments of every test: TESSERA EXR_COMPARE SHARED_DIR TESSERA_FP
-# (TESSERA_FP: the test binary tessera-failpoints, run instead of TESSERA by processes given FAIL_POINTS).
+# Shared helpers of the farm tests (sourced). Arguments of every test: TESSERA EXR_COMPARE COURSE_DIR TESSERA_FP
+# (COURSE_DIR: the course scenes, scenes/course/ in the repository; TESSERA_FP: the test binary tessera-failpoints,
+# run instead of TESSERA by processes given FAIL_POINTS).
 # Every process a test starts is recorded in PIDS and stopped on exit (SIGCONT, SIGTERM, then SIGKILL), by pid.
 # A test never outlives its budget (TESSERA_TEST_BUDGET seconds, set by CMake 10 s under ctest's TIMEOUT): waits give
 # up at the deadline with their own message, and a watchdog stops whatever still runs then, with the logs.
 set -euo pipefail
 TESSERA=$1
 EXR_COMPARE=$2
-SHARED=$3
+COURSE=$3
 TESSERA_FP=${4:-}
 ulimit -c 0  # processes crashed on purpose (fail point abort) leave no core files
 BUDGET=${TESSERA_TEST_BUDGET:-50}
@@ -159,8 +160,8 @@ JSON
 # and EXR assets) at a small size and spp SPP (scaled).
 write_cbox_scene() {
   mkdir -p "$1"
-  cp -r "$SHARED/compat/rdr171/assets" "$1/"
-  python3 - "$SHARED/compat/rdr171/${5:-cbox_refract_textured.json}" "$1/scene.json" "$2" "$3" "$(spp "$4")" <<'PY'
+  cp -r "$COURSE/assets" "$1/"
+  python3 - "$COURSE/${5:-cbox_refract_textured.json}" "$1/scene.json" "$2" "$3" "$(spp "$4")" <<'PY'
 import json, sys
 src, dst, w, h, spp = sys.argv[1:]
 scene = json.load(open(src))

@@ -13,7 +13,7 @@
 # One worker renders the 12 tiles in order; after a crash the coordinator starts again (release binary) on the same
 # data folder and port. Every job that can finish does, bitwise identical to a single-process render, with every
 # tile rendered once and acknowledged exactly once (nothing lost, nothing acknowledged twice; counted from the logs).
-# Usage: durability.sh TESSERA EXR_COMPARE SHARED TESSERA_FP CASE
+# Usage: durability.sh TESSERA EXR_COMPARE COURSE_DIR TESSERA_FP CASE
 source "$(dirname "$0")/common.sh"
 CASE=${5:?durability.sh needs a CASE}
 # HIT: the tile whose upload the fail point hits; ANSWER: how that upload is answered in the end.

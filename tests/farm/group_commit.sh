@@ -9,7 +9,7 @@
 #   crash    SIGKILL of the coordinator         a restart finds the three tiles stored; their retries are answered
 #                                               duplicate, and nothing acknowledged is lost
 # The job ends bitwise identical to the single-process render, every tile acknowledged exactly once.
-# Usage: group_commit.sh TESSERA EXR_COMPARE SHARED TESSERA_FP CASE
+# Usage: group_commit.sh TESSERA EXR_COMPARE COURSE_DIR TESSERA_FP CASE
 source "$(dirname "$0")/common.sh"
 CASE=${5:?group_commit.sh needs a CASE}
 case $CASE in release | crash) ;; *) fail "unknown case $CASE" ;; esac

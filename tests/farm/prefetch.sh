@@ -10,7 +10,7 @@
 # with tiles 1 and 2 in hand. With two threads (drain, stop) the worker also begins rendering a tile as soon as its
 # lease arrives, so tile 2's render has begun: drained, that render is the one uploaded; stopped, it is cancelled and
 # the tile handed back. Each job ends bitwise identical to the single-process render, every tile acknowledged.
-# Usage: prefetch.sh TESSERA EXR_COMPARE SHARED TESSERA_FP CASE
+# Usage: prefetch.sh TESSERA EXR_COMPARE COURSE_DIR TESSERA_FP CASE
 source "$(dirname "$0")/common.sh"
 CASE=${5:?prefetch.sh needs a CASE}
 case $CASE in kill | drain | stop) ;; *) fail "unknown case $CASE" ;; esac

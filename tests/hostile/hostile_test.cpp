@@ -380,7 +380,7 @@ class HostileFarm : public ::testing::Test {
 
   // The good scene: the course's textured Cornell box (OBJ meshes and an EXR texture), small.
   json good_scene() {
-    json scene = json::parse(slurp(fs::path(TESSERA_SHARED_DIR) / "compat/rdr171/cbox_refract_textured.json"));
+    json scene = json::parse(slurp(fs::path(TESSERA_COURSE_DIR) / "cbox_refract_textured.json"));
     scene["film"]["resolution"] = {128, 96};
     scene["integrator"]["spp"] = 128;
     return scene;
@@ -576,7 +576,7 @@ TEST_F(HostileFarm, EveryCaseGetsItsAnswerAndTheGoodJobStillRendersRight) {
   // The good job (and the reference it must match bit for bit).
   const fs::path scene_dir = work_ / "good";
   fs::create_directories(scene_dir);
-  fs::copy(fs::path(TESSERA_SHARED_DIR) / "compat/rdr171/assets", scene_dir / "assets", fs::copy_options::recursive);
+  fs::copy(fs::path(TESSERA_COURSE_DIR) / "assets", scene_dir / "assets", fs::copy_options::recursive);
   const json scene = good_scene();
   spit(scene_dir / "scene.json", scene.dump());
   ASSERT_EQ(run({TESSERA_BINARY, "render", (scene_dir / "scene.json").string(), "-o", (work_ / "ref.exr").string(), "-q",

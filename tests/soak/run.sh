@@ -20,4 +20,4 @@ done
 SECONDS_OF_FAULTS=$(python3 -c "print(round(float('$MINUTES') * 60))")
 [ -n "$JOBS" ] || JOBS=$(python3 -c "print(max(4, round(float('$MINUTES') * 12)))")
 exec python3 "$ROOT/tests/soak/soak.py" --tessera "$BUILD/cli/tessera" --exr-compare "$BUILD/tests/exr_compare" \
-  --shared "$ROOT/../shared" --seconds "$SECONDS_OF_FAULTS" --jobs "$JOBS" "${ARGS[@]}"
+  --course "$ROOT/scenes/course" --seconds "$SECONDS_OF_FAULTS" --jobs "$JOBS" "${ARGS[@]}"

@@ -47,7 +47,7 @@ def parse_args():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--tessera", required=True)
     p.add_argument("--exr-compare", required=True)
-    p.add_argument("--shared", help="the shared folder (adds a textured Cornell box job with assets)")
+    p.add_argument("--course", help="the course scenes folder, scenes/course (adds a textured Cornell box job with assets)")
     p.add_argument("--seconds", type=float, default=75, help="how long faults are injected")
     p.add_argument("--jobs", type=int, default=8)
     p.add_argument("--workers", type=int, default=4)
@@ -207,8 +207,8 @@ def make_jobs(args, work, rng):
         path = work / f"spheres-{w}x{h}.json"
         path.write_text(SPHERES.format(w=w, h=h))
         scenes[path.stem] = (path, w, h, (1024, 2048, 4096))
-    if args.shared:  # the textured Cornell box (OBJ and EXR assets, uploaded as blobs), renders a tile in ~0.1-1 s
-        src = Path(args.shared) / "compat/rdr171"
+    if args.course:  # the textured Cornell box (OBJ and EXR assets, uploaded as blobs), renders a tile in ~0.1-1 s
+        src = Path(args.course)
         base = json.loads((src / "cbox_refract_textured.json").read_text())
         for w, h in ((32, 32), (48, 48), (64, 40)):
             box = work / f"cbox-{w}x{h}"

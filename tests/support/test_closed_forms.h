@@ -1,4 +1,4 @@
-// Test-only: closed-form radiometry in double precision, and the course camera of FORMAT.md written out
+// Test-only: closed-form radiometry in double precision, and the course camera of docs/scene-format.md written out
 // independently of core/render/camera.h, so image tests can compute what each pixel must show.
 #pragma once
 
@@ -33,7 +33,7 @@ inline double centered_rect_solid_angle(double a, double b, double d) {
   return 4.0 * std::asin(a * b / std::sqrt((a * a + d * d) * (b * b + d * d)));
 }
 
-/// The course's pinhole camera, exactly as FORMAT.md states it, in double precision.
+/// The course's pinhole camera, exactly as docs/scene-format.md states it, in double precision.
 struct CourseCamera {
   Vec3d position, forward, right, up;
   double tan_half_fov;
