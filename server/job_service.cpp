@@ -44,15 +44,6 @@ void check_path(const std::string& rel, const std::string& where) {
 
 }  // namespace
 
-const char* to_string(UploadOutcome o) {
-  switch (o) {
-    case UploadOutcome::accepted: return "accepted";
-    case UploadOutcome::duplicate: return "duplicate";
-    case UploadOutcome::discarded: return "discarded";
-  }
-  return "unknown";
-}
-
 JobService::JobService(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock,
                        AdmissionLimits limits, FarmEvents& events, Background background)
     : sched_(scheduler), blobs_(blobs), jobs_(jobs), metrics_(metrics), clock_(std::move(clock)), limits_(limits),

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "core/scene/checked_files.h"
+#include "core/util/enum_names.h"
 #include "protocol/messages.h"
 #include "protocol/query.h"
 #include "protocol/tile.h"
@@ -38,9 +39,11 @@ struct AdmissionLimits {
 
 /// How an upload was settled.
 enum class UploadOutcome { accepted, duplicate, discarded };
+/// The name the protocol gives each outcome, in declaration order.
+inline constexpr std::string_view kUploadOutcomeNames[] = {"accepted", "duplicate", "discarded"};
 
 /// The name the protocol gives an outcome ("accepted", "duplicate", "discarded").
-const char* to_string(UploadOutcome o);
+inline const char* to_string(UploadOutcome o) { return enum_c_name(o, kUploadOutcomeNames); }
 
 /// Where an upload's answer goes once it may be given: its outcome, or (error set) the refusal to answer with
 /// (protocol::ApiError, or another exception for a 500).

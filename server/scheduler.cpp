@@ -23,52 +23,12 @@ std::string join_worker_errors(const std::map<std::string, std::string>& errors)
   return out;
 }
 
-template <class E, size_t N>
-E parse_state(std::string_view s, const E (&all)[N], const char* what) {
-  for (E e : all)
-    if (s == to_string(e)) return e;
-  throw std::invalid_argument(std::string("unknown ") + what + " state '" + std::string(s) + "'");
-}
-
 // A job that has started and not ended: its last upload completes it.
 bool started_and_open(const JobStatus& s) {
   return s.state == JobState::running || (s.state == JobState::paused && s.started_ms);
 }
 
 }  // namespace
-
-const char* to_string(TileState s) {
-  switch (s) {
-    case TileState::pending: return "pending";
-    case TileState::leased: return "leased";
-    case TileState::merging: return "merging";
-    case TileState::done: return "done";
-  }
-  return "unknown";
-}
-
-const char* to_string(LeaseState s) {
-  switch (s) {
-    case LeaseState::live: return "live";
-    case LeaseState::expired: return "expired";
-    case LeaseState::revoked: return "revoked";
-    case LeaseState::completed: return "completed";
-    case LeaseState::released: return "released";
-    case LeaseState::failed: return "failed";
-  }
-  return "unknown";
-}
-
-TileState tile_state_from_string(std::string_view s) {
-  static constexpr TileState all[] = {TileState::pending, TileState::leased, TileState::merging, TileState::done};
-  return parse_state(s, all, "tile");
-}
-
-LeaseState lease_state_from_string(std::string_view s) {
-  static constexpr LeaseState all[] = {LeaseState::live, LeaseState::expired, LeaseState::revoked,
-                                       LeaseState::completed, LeaseState::released, LeaseState::failed};
-  return parse_state(s, all, "lease");
-}
 
 Scheduler::Scheduler(SchedulerConfig config, ClockMs clock) : config_(std::move(config)), clock_(std::move(clock)) {
   if (!clock_) throw std::invalid_argument("scheduler needs a clock");

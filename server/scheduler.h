@@ -4,6 +4,7 @@
 
 #include "core/image/image.h"
 #include "protocol/job.h"
+#include "protocol/lease.h"
 #include "protocol/worker.h"
 #include "protocol/messages.h"
 #include "protocol/tile.h"
@@ -25,7 +26,7 @@ namespace tessera::server {
 /// Milliseconds since the Unix epoch (or any fixed origin in tests); injected so tests control time.
 using ClockMs = std::function<int64_t()>;
 
-// The protocol's job and lease types are the scheduler's own (protocol/job.h, protocol/messages.h).
+// The protocol's job, tile and lease types are the scheduler's own (protocol/job.h, tile.h, lease.h, messages.h).
 using protocol::is_final;
 using protocol::to_string;
 using protocol::job_state_from_string;
@@ -34,6 +35,10 @@ using protocol::JobState;
 using protocol::JobStatus;
 using protocol::Lease;
 using protocol::TileCounts;
+using protocol::TileState;
+using protocol::LeaseState;
+using protocol::tile_state_from_string;
+using protocol::lease_state_from_string;
 
 /// Scheduler tunables.
 struct SchedulerConfig {
@@ -151,21 +156,6 @@ struct SchedulerCounters {
   int64_t workers = 0;                ///< Registered workers.
   int64_t active_leases = 0;          ///< Live leases.
 };
-
-/// Where a tile is: pending (waiting), leased (a worker renders it), merging (an upload is being stored), done.
-enum class TileState { pending, leased, merging, done };
-
-/// Where a lease is: live until it expires, is revoked (cancel, re-lease), completes, is released or fails.
-enum class LeaseState { live, expired, revoked, completed, released, failed };
-
-/// The lowercase name of a tile state (as stored).
-const char* to_string(TileState s);
-/// The lowercase name of a lease state (as stored).
-const char* to_string(LeaseState s);
-/// Parses a stored tile state name; throws std::invalid_argument for unknown names.
-TileState tile_state_from_string(std::string_view s);
-/// Parses a stored lease state name; throws std::invalid_argument for unknown names.
-LeaseState lease_state_from_string(std::string_view s);
 
 /// Outcome of requeueing one tile.
 struct RequeueResult {
