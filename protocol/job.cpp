@@ -10,24 +10,6 @@ namespace tessera::protocol {
 
 using nlohmann::json;
 
-const char* to_string(JobState s) {
-  switch (s) {
-    case JobState::queued: return "queued";
-    case JobState::running: return "running";
-    case JobState::paused: return "paused";
-    case JobState::done: return "done";
-    case JobState::failed: return "failed";
-    case JobState::cancelled: return "cancelled";
-  }
-  return "unknown";
-}
-
-JobState job_state_from_string(std::string_view s) {
-  for (JobState e : kAllJobStates)
-    if (s == to_string(e)) return e;
-  throw std::invalid_argument("unknown job state '" + std::string(s) + "'");
-}
-
 void to_json(json& j, const JobStatus& s) {
   j = {{"id", s.id},
        {"name", s.params.name},

@@ -1,6 +1,7 @@
 // A job as the protocol describes it: its life-cycle state, what it renders and its progress (GET /v1/jobs/{id}).
 #pragma once
 
+#include "core/util/enum_names.h"
 #include "protocol/defaults.h"
 
 #include <nlohmann/json_fwd.hpp>
@@ -19,10 +20,15 @@ enum class JobState { queued, running, paused, done, failed, cancelled };
 inline constexpr JobState kAllJobStates[] = {JobState::queued, JobState::running, JobState::paused,
                                              JobState::done,   JobState::failed,  JobState::cancelled};
 
+/// The protocol's lowercase name of each job state, in declaration order.
+inline constexpr std::string_view kJobStateNames[] = {"queued", "running", "paused", "done", "failed", "cancelled"};
+
 /// The protocol's lowercase name of a job state.
-const char* to_string(JobState s);
+inline const char* to_string(JobState s) { return enum_c_name(s, kJobStateNames); }
 /// Parses a job state name; throws std::invalid_argument for unknown names.
-JobState job_state_from_string(std::string_view s);
+inline JobState job_state_from_string(std::string_view s) {
+  return enum_from_name_or_throw<JobState>(s, kJobStateNames, "job state");
+}
 /// True for states a job never leaves (done, failed, cancelled).
 inline bool is_final(JobState s) { return s == JobState::done || s == JobState::failed || s == JobState::cancelled; }
 

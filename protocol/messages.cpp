@@ -365,12 +365,6 @@ void to_json(json& j, const HeartbeatAnswer& a) { j = {{"deadline_ms", a.deadlin
 
 void from_json(const json& j, HeartbeatAnswer& a) { a.deadline_ms = answer_field<int64_t>(j, "deadline_ms", "heartbeat answer"); }
 
-namespace {
-constexpr std::string_view kUploadStatusNames[] = {"accepted", "duplicate", "discarded"};
-}  // namespace
-
-const char* to_string(UploadStatus s) { return kUploadStatusNames[int(s)].data(); }
-
 UploadStatus upload_status_from_string(const std::string& name) {
   if (const auto s = enum_from_name<UploadStatus>(name, kUploadStatusNames)) return *s;
   throw ProtocolError("unknown upload status '" + name + "'");

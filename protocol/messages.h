@@ -196,7 +196,10 @@ enum class UploadStatus {
   duplicate,  ///< The tile was stored before, by this lease or another (answer 200).
   discarded,  ///< The job was cancelled or failed meanwhile (answer 410).
 };
-const char* to_string(UploadStatus s);
+/// The name of each status (the result answer's "status"), in declaration order.
+inline constexpr std::string_view kUploadStatusNames[] = {"accepted", "duplicate", "discarded"};
+/// The name of a status.
+inline const char* to_string(UploadStatus s) { return enum_c_name(s, kUploadStatusNames); }
 /// Throws ProtocolError for a name that is none of the statuses.
 UploadStatus upload_status_from_string(const std::string& name);
 

@@ -1,16 +1,31 @@
-// One job's tiles as the protocol describes them: answer of GET /v1/jobs/{id}/tiles (docs/protocol.md, "Tiles").
+// One job's tiles as the protocol describes them: where a tile is, and the answer of GET /v1/jobs/{id}/tiles
+// (docs/protocol.md, "Tiles").
 #pragma once
 
 #include "core/image/image.h"
+#include "core/util/enum_names.h"
 
 #include <nlohmann/json_fwd.hpp>
 
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace tessera::protocol {
+
+/// Where a tile is: pending (waiting), leased (a worker renders it), merging (an upload is being stored), done.
+enum class TileState { pending, leased, merging, done };
+/// The lowercase name of each tile state (as stored and answered), in declaration order.
+inline constexpr std::string_view kTileStateNames[] = {"pending", "leased", "merging", "done"};
+
+/// The lowercase name of a tile state (as stored and answered).
+inline const char* to_string(TileState s) { return enum_c_name(s, kTileStateNames); }
+/// Parses a tile state name; throws std::invalid_argument for unknown names.
+inline TileState tile_state_from_string(std::string_view s) {
+  return enum_from_name_or_throw<TileState>(s, kTileStateNames, "tile state");
+}
 
 /// The most log lines a failure report carries, and the longest line (bytes); longer reports are refused (400).
 inline constexpr size_t kMaxFailureLogLines = 50;

@@ -10,22 +10,6 @@ namespace tessera::protocol {
 
 using nlohmann::json;
 
-const char* to_string(WorkerState s) {
-  switch (s) {
-    case WorkerState::idle: return "idle";
-    case WorkerState::rendering: return "rendering";
-    case WorkerState::draining: return "draining";
-    case WorkerState::offline: return "offline";
-  }
-  return "unknown";
-}
-
-WorkerState worker_state_from_string(std::string_view s) {
-  for (WorkerState e : kAllWorkerStates)
-    if (s == to_string(e)) return e;
-  throw std::invalid_argument("unknown worker state '" + std::string(s) + "'");
-}
-
 void to_json(json& j, const WorkerInfo& w) {
   j = {{"id", w.id},
        {"name", w.name},

@@ -1,6 +1,8 @@
 // A worker as the coordinator reports it (GET /v1/workers): what it is doing, what it has done, what it may not take.
 #pragma once
 
+#include "core/util/enum_names.h"
+
 #include <nlohmann/json_fwd.hpp>
 
 #include <cstdint>
@@ -18,10 +20,15 @@ enum class WorkerState { idle, rendering, draining, offline };
 inline constexpr WorkerState kAllWorkerStates[] = {WorkerState::idle, WorkerState::rendering, WorkerState::draining,
                                                    WorkerState::offline};
 
+/// The protocol's lowercase name of each worker state, in declaration order.
+inline constexpr std::string_view kWorkerStateNames[] = {"idle", "rendering", "draining", "offline"};
+
 /// The protocol's lowercase name of a worker state.
-const char* to_string(WorkerState s);
+inline const char* to_string(WorkerState s) { return enum_c_name(s, kWorkerStateNames); }
 /// Parses a worker state name; throws std::invalid_argument for unknown names.
-WorkerState worker_state_from_string(std::string_view s);
+inline WorkerState worker_state_from_string(std::string_view s) {
+  return enum_from_name_or_throw<WorkerState>(s, kWorkerStateNames, "worker state");
+}
 
 /// One worker of GET /v1/workers.
 struct WorkerInfo {

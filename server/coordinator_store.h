@@ -2,7 +2,7 @@
 // (DurableStore) or, for a coordinator that dies with the command that started it, in memory (MemoryStore).
 #pragma once
 
-#include "server/scheduler.h"
+#include "server/scheduler_store.h"
 #include "server/storage.h"
 
 #include <filesystem>

@@ -4,7 +4,7 @@
 
 #include "server/coordinator_store.h"
 #include "server/group_commit.h"
-#include "server/scheduler.h"
+#include "server/scheduler_store.h"
 #include "server/storage.h"
 #include "server/wal_checkpointer.h"
 

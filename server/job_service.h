@@ -4,6 +4,7 @@
 #pragma once
 
 #include "core/scene/checked_files.h"
+#include "core/util/enum_names.h"
 #include "protocol/messages.h"
 #include "protocol/query.h"
 #include "protocol/tile.h"

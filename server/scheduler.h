@@ -1,282 +1,28 @@
 // The farm's job/tile/lease state machine: no I/O, an injected clock, every operation one atomic step, whose changes
-// go to an injected SchedulerStore as one batch (one transaction when the store is a database).
+// go to an injected SchedulerStore as one batch (one transaction when the store is a database). This class holds the
+// lock, the clock and the state, and hands each operation to the part that does it: server/lease_flow.h (workers),
+// server/job_control.h (operators), server/farm_queries.h (views), over server/farm_state.h, persisted through
+// server/change_log.h.
 #pragma once
 
-#include "core/image/image.h"
-#include "protocol/job.h"
-#include "protocol/worker.h"
-#include "protocol/messages.h"
 #include "protocol/tile.h"
+#include "protocol/worker.h"
+#include "server/farm_queries.h"
+#include "server/farm_state.h"
+#include "server/job_control.h"
+#include "server/lease_flow.h"
+#include "server/scheduler_store.h"
+#include "server/scheduler_types.h"
 
 #include <cstdint>
 #include <functional>
-#include <map>
-#include <memory>
 #include <mutex>
 #include <optional>
-#include <set>
 #include <string>
 #include <string_view>
-#include <tuple>
 #include <vector>
 
 namespace tessera::server {
-
-/// Milliseconds since the Unix epoch (or any fixed origin in tests); injected so tests control time.
-using ClockMs = std::function<int64_t()>;
-
-// The protocol's job and lease types are the scheduler's own (protocol/job.h, protocol/messages.h).
-using protocol::is_final;
-using protocol::to_string;
-using protocol::job_state_from_string;
-using protocol::JobParams;
-using protocol::JobState;
-using protocol::JobStatus;
-using protocol::Lease;
-using protocol::TileCounts;
-
-/// Scheduler tunables.
-struct SchedulerConfig {
-  int64_t lease_ms = int64_t(protocol::kDefaultLeaseSeconds * 1000);  ///< Lease length; every heartbeat moves the deadline to now + lease_ms.
-  int tile_failure_workers = 3;    ///< Distinct workers failing one tile that fail the job.
-  int worker_failure_limit = 2;    ///< Failures after which a worker is blocklisted for a job.
-  std::string id_tag;              ///< Inserted into generated ids ("j-<tag>-1") so ids differ between runs.
-  int64_t worker_gone_ms = 0;      ///< A worker not seen for this long no longer counts as present (0: 3 leases).
-};
-
-/// Outcome of asking for work.
-struct AcquireResult {
-  enum Status { granted, no_work, unknown_worker } status = no_work;  ///< What happened.
-  Lease lease;  ///< The lease when granted.
-  JobState job_state = JobState::running;  ///< The state of the lease's job after the grant.
-};
-
-/// Outcome of a heartbeat.
-struct HeartbeatResult {
-  enum Status { ok, gone, unknown } status = unknown;  ///< ok: extended; gone: revoked/expired/ended (410).
-  int64_t deadline_ms = 0;  ///< New deadline when ok.
-};
-
-/// Outcome of checking or claiming a lease's result upload.
-struct ResultClaim {
-  /// proceed: merge it; duplicate: tile already done (200); discarded: job ended (410); unknown: no such lease (404).
-  enum Status { proceed, duplicate, discarded, unknown } status = unknown;
-  std::string job;      ///< Job id.
-  std::string worker;   ///< Worker that held the lease.
-  int64_t tile = 0;     ///< Tile index.
-  PixelWindow window;   ///< Tile pixels.
-  int width = 0;        ///< Full image columns.
-  int height = 0;       ///< Full image rows.
-  uint32_t spp = 0;     ///< The job's samples per pixel (a lease of another spp, from before a raise, is discarded).
-};
-
-/// Outcome of finishing a claimed result.
-struct FinishResult {
-  bool last = false;  ///< Every tile of the job is now merged: write the final image, then call complete_job.
-};
-
-/// Outcome of a failure report.
-struct FailResult {
-  enum Status { recorded, unknown } status = unknown;  ///< unknown: no such lease.
-  bool blocklisted = false;  ///< The worker is now blocklisted for the job.
-  bool job_failed = false;   ///< The job failed because of this report.
-};
-
-/// Outcome of cancelling a job.
-struct CancelResult {
-  enum Status { cancelled, already_ended, unknown } status = unknown;  ///< What happened.
-  int revoked_leases = 0;  ///< Leases revoked.
-};
-
-/// Outcome of retrying a job.
-struct RetryResult {
-  /// retried: queued again; not_ended: still queued or running; done: nothing to retry; unknown: no such job.
-  enum Status { retried, not_ended, done, unknown } status = unknown;
-  JobState was = JobState::queued;  ///< The state it had.
-  int64_t pending = 0;              ///< Tiles to render again (done tiles are kept).
-};
-
-/// Outcome of pausing or resuming a job.
-struct PauseResult {
-  /// changed: now paused (or resumed); wrong_state: the job is not in a state that allows it; unknown: no such job.
-  enum Status { changed, wrong_state, unknown } status = unknown;
-  JobState was = JobState::queued;  ///< The state it had.
-};
-
-/// Outcome of changing a job's priority.
-struct PriorityResult {
-  /// changed: the queue uses the new priority; ended: the job is done, failed or cancelled; unknown: no such job.
-  enum Status { changed, ended, unknown } status = unknown;
-  JobState was = JobState::queued;  ///< The state it has.
-};
-
-/// Outcome of raising a job's spp.
-struct RaiseResult {
-  /// raised: running (or queued, paused) again at the new spp; wrong_state: failed or cancelled; not_higher: the spp
-  /// is not above the job's; merging: an upload is being merged (retry in a moment); unknown: no such job.
-  enum Status { raised, wrong_state, not_higher, merging, unknown } status = unknown;
-  JobState was = JobState::queued;  ///< The state it had.
-  int revoked_leases = 0;           ///< Leases of the old spp revoked.
-  JobStatus job;                    ///< The job as raised (when raised), before any worker took a tile.
-};
-
-/// Outcome of purging a job.
-struct PurgeResult {
-  /// purged: gone from memory and store; not_ended: queued, running or paused; busy: an upload of one of its tiles is
-  /// being stored (try again); unknown: no such job.
-  enum Status { purged, not_ended, busy, unknown } status = unknown;
-  JobState was = JobState::queued;  ///< The state it had.
-};
-
-/// Which jobs a listing wants: states (empty: all), at most `limit` (0: no limit), older than the job with `after_seq`.
-struct JobQuery {
-  std::set<JobState> states;      ///< Wanted states; empty means every state.
-  size_t limit = 0;               ///< Most jobs in the answer; 0: all.
-  std::optional<uint64_t> after;  ///< Only jobs submitted before the one with this seq (a cursor).
-};
-
-/// One page of a listing, newest first.
-struct JobPage {
-  std::vector<JobStatus> jobs;   ///< The jobs.
-  std::vector<uint64_t> seqs;    ///< Their submission numbers (for cursors), in the same order.
-  bool more = false;             ///< More jobs match after the last one.
-};
-
-/// Counters for /metrics.
-struct SchedulerCounters {
-  std::map<JobState, int64_t> jobs;   ///< Jobs by state.
-  uint64_t tiles_rendered = 0;        ///< Tiles merged.
-  uint64_t lease_expiries = 0;        ///< Leases that expired.
-  uint64_t rays = 0;                  ///< Rays reported by workers.
-  int64_t workers = 0;                ///< Registered workers.
-  int64_t active_leases = 0;          ///< Live leases.
-};
-
-/// Where a tile is: pending (waiting), leased (a worker renders it), merging (an upload is being stored), done.
-enum class TileState { pending, leased, merging, done };
-
-/// Where a lease is: live until it expires, is revoked (cancel, re-lease), completes, is released or fails.
-enum class LeaseState { live, expired, revoked, completed, released, failed };
-
-/// The lowercase name of a tile state (as stored).
-const char* to_string(TileState s);
-/// The lowercase name of a lease state (as stored).
-const char* to_string(LeaseState s);
-/// Parses a stored tile state name; throws std::invalid_argument for unknown names.
-TileState tile_state_from_string(std::string_view s);
-/// Parses a stored lease state name; throws std::invalid_argument for unknown names.
-LeaseState lease_state_from_string(std::string_view s);
-
-/// Outcome of requeueing one tile.
-struct RequeueResult {
-  /// requeued: pending again; wrong_job_state: the job is queued, done or cancelled; wrong_tile_state: the tile is
-  /// pending without failures or an upload of it is being stored; no_tile: no such tile; unknown: no such job.
-  enum Status { requeued, wrong_job_state, wrong_tile_state, no_tile, unknown } status = unknown;
-  JobState job_state = JobState::queued;     ///< The job's state.
-  TileState was = TileState::pending;        ///< The tile's state before.
-  int64_t tiles = 0;                         ///< Tiles in the job.
-  bool revoked = false;                      ///< A live lease on it was revoked.
-};
-
-/// A job as the store keeps it: its snapshot (tile counts are derived from the tiles) and its failure bookkeeping.
-struct JobRow {
-  JobStatus status;                                       ///< Params, state, times, error, rays, workers.
-  uint64_t seq = 0;                                       ///< Submission order (ties in the queue).
-  std::map<std::string, int> worker_failures;             ///< Worker -> failures on this job.
-  std::map<std::string, std::string> worker_last_error;   ///< Worker -> its latest error on this job.
-};
-
-/// A worker that rendered a tile of a job, `index` in the order of their first tiles (status.workers). A job's list
-/// grows a row at a time, so a change never rewrites a list as long as the farm.
-struct JobWorkerRow {
-  std::string job;     ///< Job id.
-  int64_t index = 0;   ///< Position in the job's list.
-  std::string worker;  ///< Worker id.
-};
-
-/// A tile as the store keeps it; `pixels` is set only in the change that makes it done.
-struct TileRow {
-  std::string job;                                ///< Job id.
-  int64_t index = 0;                              ///< Tile number.
-  TileState state = TileState::pending;           ///< Where it is.
-  std::string lease;                              ///< The live or claiming lease.
-  std::map<std::string, std::string> failures;    ///< Worker -> last error text on this tile.
-  std::optional<std::string_view> pixels;         ///< The validated tile's bytes (float32 RGB rows), when it became done.
-  std::map<std::string, std::vector<std::string>> logs;  ///< Worker -> log lines sent with its last failure.
-  int64_t attempts = 0;                           ///< Leases granted for it.
-  int64_t render_ms = -1;                         ///< Lease grant to upload of the accepted result (-1: none yet).
-  uint64_t rays = 0;                              ///< Rays of the accepted result's lease.
-  std::string rendered_by;                        ///< The worker whose result was accepted ("" until done).
-};
-
-/// A lease as the store keeps it.
-struct LeaseRow {
-  Lease lease;                             ///< What was granted (window, spp, seed are derived from the job on load).
-  LeaseState state = LeaseState::live;     ///< Where it is.
-  int64_t granted_ms = 0;                  ///< When it was granted (the tile timeout counts from here).
-};
-
-/// A registered worker.
-struct WorkerRow {
-  std::string id;        ///< Worker id.
-  std::string name;      ///< Its self-reported name.
-  bool drained = false;  ///< An operator drained it (no new leases until undrained).
-};
-
-/// Counters and the id sequence, kept so a restarted coordinator continues them.
-struct CounterRow {
-  uint64_t next_seq = 1;        ///< Next number in generated ids.
-  uint64_t tiles_rendered = 0;  ///< Tiles merged.
-  uint64_t lease_expiries = 0;  ///< Leases that expired.
-  uint64_t rays = 0;            ///< Rays reported by workers.
-  /// Field-wise equality (to skip writing unchanged counters).
-  bool operator==(const CounterRow&) const = default;
-};
-
-/// What one scheduler operation changed: rows to insert or replace, in one batch.
-struct SchedulerChanges {
-  std::vector<JobRow> jobs;        ///< Changed jobs (their status.workers is empty: see job_workers).
-  std::vector<JobWorkerRow> job_workers;  ///< Workers added to jobs' lists.
-  std::vector<TileRow> tiles;      ///< Changed tiles.
-  std::vector<LeaseRow> leases;    ///< Changed leases.
-  std::vector<WorkerRow> workers;  ///< New workers, and workers drained or undrained.
-  std::vector<std::string> purged_jobs;  ///< Jobs whose every row (job, tiles, leases, record) goes.
-  CounterRow counters;             ///< Counters after the operation.
-  /// True when nothing but the counters changed.
-  bool empty() const {
-    return jobs.empty() && job_workers.empty() && tiles.empty() && leases.empty() && workers.empty() && purged_jobs.empty();
-  }
-};
-
-/// Everything a store holds, for a scheduler starting over it (tile pixels are not loaded).
-struct SchedulerSnapshot {
-  std::vector<JobRow> jobs;        ///< Every job.
-  std::vector<TileRow> tiles;      ///< Every tile of every job (pixels unset).
-  std::vector<LeaseRow> leases;    ///< Every lease ever granted.
-  std::vector<WorkerRow> workers;  ///< Every registered worker.
-  CounterRow counters;             ///< Counters and id sequence.
-};
-
-/// Durable home of the scheduler's state. apply() is all-or-nothing: after it returns, the changes survive a crash of
-/// the process (when it throws, none of them were stored); after a later sync() returns they survive a power cut too.
-class SchedulerStore {
- public:
-  virtual ~SchedulerStore() = default;
-  /// Stores one operation's changes atomically; throws StorageError (or another std::exception) on failure.
-  virtual void apply(const SchedulerChanges& changes) = 0;
-  /// Everything stored so far.
-  virtual SchedulerSnapshot load() = 0;
-  /// Waits until every change applied so far is on the disk. The scheduler calls it without holding its lock after
-  /// operations that acknowledge something (a submission, a done tile, a job's end), so concurrent callers share one
-  /// disk flush and lease grants never wait for one.
-  virtual void sync() {}
-  /// Runs `then` once every change applied before the call is on the disk, without making the caller wait (from
-  /// any thread; by default at once, after sync()).
-  virtual void sync_async(std::function<void()> then) {
-    sync();
-    then();
-  }
-};
 
 /// The job/tile/lease state machine. Thread-safe: each call takes one lock and is one atomic step. Expired leases are
 /// reclaimed at the start of every call, and leases older than their job's tile_timeout_seconds (since the grant) are
@@ -294,12 +40,12 @@ class Scheduler {
   Scheduler& operator=(const Scheduler&) = delete;
 
   /// The configuration it runs with.
-  const SchedulerConfig& config() const { return config_; }
+  const SchedulerConfig& config() const { return state_.config; }
 
   /// Calls `noted` whenever tiles may have become leasable: a job added, resumed or retried, a tile pending again, a
   /// worker undrained. It runs under the scheduler's lock, so it must only take note (never call the scheduler). Set
   /// before the scheduler is shared.
-  void on_work(std::function<void()> noted) { work_noted_ = std::move(noted); }
+  void on_work(std::function<void()> noted) { state_.work_noted = std::move(noted); }
 
   /// A fresh job id for add_job (so the caller can store the job's record before the job becomes leasable).
   std::string new_job_id();
@@ -398,112 +144,16 @@ class Scheduler {
   std::vector<std::string> unfinalized_jobs();
 
  private:
-  struct Tile {
-    TileState state = TileState::pending;
-    std::string lease;                               // live lease or claiming lease
-    std::map<std::string, std::string> failures;     // worker -> last error text
-    std::map<std::string, std::vector<std::string>> logs;  // worker -> log lines of its last failure
-    int64_t attempts = 0;                            // leases granted
-    int64_t render_ms = -1;                          // grant to upload of the accepted result
-    uint64_t rays = 0;                               // rays of the accepted result's lease
-    std::string rendered_by;                         // the worker whose result was accepted
-    bool unflushed = false;                          // done and committed, its flush not returned yet
-  };
-  struct JobRec {
-    JobStatus status;
-    uint64_t seq = 0;
-    std::vector<Tile> tiles;
-    std::set<int64_t> pending;
-    std::map<std::string, int> worker_failures;
-    std::map<std::string, std::string> worker_last_error;  // worker -> the latest error it reported on this job
-    std::set<std::string> worker_set;                      // status.workers, for lookups
-    int64_t unflushed = 0;                                 // tiles done but not yet flushed (Tile::unflushed)
-  };
-  struct LeaseRec {
-    Lease lease;
-    LeaseState state = LeaseState::live;
-    int64_t granted_ms = 0;
-    uint64_t rays = 0;  // reported by heartbeats (not stored: a restarted lease counts from zero)
-    bool live_at_claim = false;  // it was live when its upload claimed the tile (abandon_result gives it back)
-  };
-  struct WorkerRec {
-    std::string name;
-    int64_t last_seen_ms = 0;  // register, lease request, heartbeat, upload or failure report
-    int64_t threads = 0;       // announced at registration (0: unknown, e.g. after a restart)
-    int64_t tiles_done = 0;    // accepted uploads since this coordinator started
-    uint64_t rays = 0;         // rays of those tiles
-    int64_t render_ms = 0;     // their render times (lease grant to acceptance), summed
-    bool drained = false;      // no new leases
-  };
-  using QueueKey = std::tuple<int, int64_t, uint64_t>;  // (-priority, created_ms, seq)
-
+  // Runs f(now) as one operation under the lock, then stores its changes (see scheduler.cpp).
   template <class F>
   auto transact(F&& f, bool store_now = true, std::function<void()> durable = {});
-  template <class R, class F>
-  R with_job(const std::string& job, F&& f);
-  static bool has_merging_tile(const JobRec& j);  // an upload of one of its tiles is being stored
-  void restore_locked(SchedulerSnapshot snap, int64_t now);
-  void flush_locked();
-  void touch_job(const JobRec& j) { dirty_jobs_.insert(j.status.id); }
-  void touch_tile(const JobRec& j, int64_t tile) { dirty_tiles_.emplace(j.status.id, tile); }
-  void touch_lease(const LeaseRec& l) { dirty_leases_.insert(l.lease.id); }
-  void seen_locked(const std::string& worker, int64_t now);
-  bool blocklisted_locked(const JobRec& j, const std::string& worker) const;  // too many failures on j
-  void work_appeared_locked() const {
-    if (work_noted_) work_noted_();
-  }
-  PauseResult set_paused(const std::string& job, bool paused);  // pause (true) or resume (false)
-  int64_t gone_ms() const;  // a worker not seen for this long is offline
-  protocol::WorkerInfo worker_info_locked(const std::string& id, const WorkerRec& w, int64_t now) const;
-  // The same from the worker's lease (nullptr: none) and the jobs it is blocklisted for, gathered by the caller.
-  protocol::WorkerInfo worker_info_locked(const std::string& id, const WorkerRec& w, int64_t now, const Lease* holding,
-                                          std::vector<std::string> blocklisted_for) const;
-  bool all_present_blocklisted_locked(const JobRec& j, int64_t now, size_t* present) const;
-  bool fail_if_all_blocklisted_locked(JobRec& j, int64_t now);
-  void expire_locked(int64_t now);
-  /// Counts a failure of the lease's worker on its tile (ends the lease, returns the tile to pending, blocklists the
-  /// worker, fails the job by the thresholds of SchedulerConfig).
-  FailResult record_failure_locked(JobRec& j, LeaseRec& l, const std::string& error, std::vector<std::string> log,
-                                   int64_t now);
-  /// Hands a tile back to the queue: pending, no lease, leasable again.
-  void return_to_pending_locked(JobRec& j, int64_t tile);
-  void end_lease_locked(LeaseRec& l, LeaseState to);
-  void finish_job_locked(JobRec& j, JobState to, int64_t now, std::optional<std::string> error);
-  ResultClaim claim_view_locked(const std::string& lease, JobRec** job_out, LeaseRec** lease_out);
-  FinishResult finish_result_locked(const std::string& lease, uint64_t rays, std::string_view pixels, int64_t now,
-                                    std::pair<std::string, int64_t>* tile_key);
-  // The tile's done state, committed earlier, is now on the disk: it counts as done in snapshots from now on.
-  void flushed(const std::string& job, int64_t tile);
-  JobStatus snapshot_locked(const JobRec& j, int64_t now) const;
-  std::string next_id(char kind);
 
-  SchedulerConfig config_;
-  ClockMs clock_;
-  std::function<void()> work_noted_;  // on_work
-  std::mutex mu_;
-  uint64_t next_seq_ = 1;
-  std::map<std::string, std::unique_ptr<JobRec>> jobs_;
-  std::map<QueueKey, JobRec*> queue_;                 // active (queued/running) jobs in scheduling order
-  std::map<std::string, LeaseRec> leases_;            // every lease ever granted (answers 410 vs 404)
-  std::set<std::string> live_leases_;
-  // When lease l next needs a look: the first moment it has expired or timed out.
-  int64_t expiry_check_ms(const LeaseRec& l) const;
-  // No live lease can expire or time out before this (a lower bound: heartbeats only move deadlines later), so
-  // expire_locked skips its scan of live_leases_ until then.
-  int64_t next_expiry_check_ms_ = 0;
-  std::map<std::string, WorkerRec> workers_;
-  SchedulerStore* store_ = nullptr;                   // nullptr: memory only
-  std::set<std::string> dirty_jobs_, dirty_leases_, new_workers_;
-  std::vector<JobWorkerRow> new_job_workers_;         // workers added to jobs' lists since the last flush
-  std::set<std::pair<std::string, int64_t>> dirty_tiles_;
-  std::set<std::string> purged_jobs_;                 // purged since the last flush
-  std::optional<std::pair<std::pair<std::string, int64_t>, std::string_view>> done_pixels_;  // tile -> pixels
-  CounterRow flushed_counters_;                       // counters as last stored
-  bool sync_needed_ = false;                          // the pending changes include an acknowledgement (see SchedulerStore::sync)
-  bool sync_due_ = false;                             // such changes were stored: sync() before the operation returns
-  uint64_t tiles_rendered_ = 0;
-  uint64_t lease_expiries_ = 0;
-  uint64_t rays_ = 0;
+  ClockMs clock_;                // the injected time
+  std::mutex mu_;                // held by every operation
+  FarmState state_;              // everything the scheduler knows (mu_)
+  LeaseFlow leases_{state_};     // the workers' operations on state_
+  JobControl control_{state_};   // the operators' operations on state_
+  FarmQueries views_{state_};    // the read-only views of state_
 };
 
 }  // namespace tessera::server

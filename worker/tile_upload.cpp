@@ -39,7 +39,7 @@ std::vector<uint8_t> corrupt_tile(const Image& image, ExrWriteOptions wo, const 
 
 }  // namespace
 
-UploadOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, const std::string& prefix, const RenderResult& res,
+DeliveryOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, const std::string& prefix, const RenderResult& res,
                           int width, int height, std::chrono::milliseconds max_retry_wait,
                           const std::function<bool()>& abandon) {
   ExrWriteOptions wo;
@@ -70,23 +70,23 @@ UploadOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, co
         bool again = false;  // tests send the result again, as a worker that missed the answer would
         TESSERA_FAIL_POINT_RETURN("worker.upload.repeat", [&](const std::string&) { again = true; });
         if (again) continue;
-        return UploadOutcome::kUploaded;
+        return DeliveryOutcome::kUploaded;
       }
       if (r.status == 410) {
         spdlog::info("{}: upload discarded (job cancelled or failed)", prefix);
-        return UploadOutcome::kDropped;
+        return DeliveryOutcome::kDropped;
       }
       if (r.status == 422) {
         spdlog::error("{}: the coordinator refused the result as invalid: {}", prefix, r.error_text());
-        return UploadOutcome::kFailed;
+        return DeliveryOutcome::kFailed;
       }
       if (r.status == 404) {
         spdlog::warn("{}: the coordinator does not know the lease any more; tile dropped", prefix);
-        return UploadOutcome::kDropped;
+        return DeliveryOutcome::kDropped;
       }
       if (!r.retryable()) {
         spdlog::error("{}: upload answered {}: {}; tile dropped", prefix, r.status, r.error_text());
-        return UploadOutcome::kDropped;
+        return DeliveryOutcome::kDropped;
       }
       spdlog::warn("{}: upload attempt {} answered {}: {}; retrying", prefix, attempt, r.status, r.error_text());
     } catch (const client::TransportError& e) {
@@ -94,7 +94,7 @@ UploadOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, co
     }
     if (!client::sleep_unless(backoff.next(), abandon)) {
       spdlog::warn("{}: asked to stop again while the coordinator is unreachable; abandoning the upload", prefix);
-      return UploadOutcome::kDropped;
+      return DeliveryOutcome::kDropped;
     }
   }
 }

@@ -13,7 +13,7 @@
 namespace tessera::worker {
 
 /// How a tile's upload ended.
-enum class UploadOutcome {
+enum class DeliveryOutcome {
   kUploaded,  ///< The coordinator accepted the result (or acknowledged it as a duplicate).
   kDropped,   ///< The lease or job is gone, the answer cannot be retried, or the upload was abandoned.
   kFailed,    ///< The coordinator refused the result as invalid (422).
@@ -22,7 +22,7 @@ enum class UploadOutcome {
 /// Uploads the render of lease `l`'s tile of a width x height image through `http`, logging under `prefix`. Transport
 /// errors and retryable answers are retried with backoff up to `max_retry_wait` apart, until `abandon` says to give
 /// up. Throws only what encoding throws.
-UploadOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, const std::string& prefix, const RenderResult& res,
+DeliveryOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, const std::string& prefix, const RenderResult& res,
                           int width, int height, std::chrono::milliseconds max_retry_wait,
                           const std::function<bool()>& abandon);
 

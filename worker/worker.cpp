@@ -479,10 +479,10 @@ class Worker {
     // one) while the previous upload is still going, and a worker that dies here loses only leases, which expire.
     uploads_.post([this, l, pfx, res = std::make_shared<RenderResult>(std::move(*result)), width, height] {
       try {
-        const UploadOutcome outcome = upload_tile(upload_http_, l, pfx, *res, width, height, opt_.max_retry_wait,
+        const DeliveryOutcome outcome = upload_tile(upload_http_, l, pfx, *res, width, height, opt_.max_retry_wait,
                                                   [this] { return stop_.load() >= 2; });
-        count(outcome == UploadOutcome::kUploaded ? &WorkerStats::tiles_uploaded
-              : outcome == UploadOutcome::kFailed ? &WorkerStats::tiles_failed
+        count(outcome == DeliveryOutcome::kUploaded ? &WorkerStats::tiles_uploaded
+              : outcome == DeliveryOutcome::kFailed ? &WorkerStats::tiles_failed
                                                   : &WorkerStats::tiles_dropped);
       } catch (const std::exception& e) {
         spdlog::error("{}: upload stopped: {}; tile dropped", pfx, e.what());

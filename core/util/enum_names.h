@@ -1,9 +1,10 @@
-// Names of the render-strategy enums as written in scene files, on the command line and in EXR metadata: one table
-// per enum (in core/render/light.h and core/geometry/bvh.h), read in both directions by the two functions here.
+// Names of enums as written in scene files, on the command line, in EXR metadata, on the wire and in the database: one
+// table per enum beside it (e.g. core/render/light.h, protocol/job.h), read in both directions by the functions here.
 #pragma once
 
 #include <cstddef>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -23,6 +24,19 @@ constexpr std::optional<E> enum_from_name(std::string_view s, const std::string_
   for (std::size_t i = 0; i < N; ++i)
     if (names[i] == s) return static_cast<E>(i);
   return std::nullopt;
+}
+
+/// enum_name as a C string (every table entry is a string literal, so it ends in a NUL).
+template <class E, std::size_t N>
+constexpr const char* enum_c_name(E e, const std::string_view (&names)[N]) {
+  return enum_name(e, names).data();
+}
+
+/// The enumerator named `s` in `names`; throws std::invalid_argument ("unknown <what> '<s>'") when no name matches.
+template <class E, std::size_t N>
+E enum_from_name_or_throw(std::string_view s, const std::string_view (&names)[N], std::string_view what) {
+  if (const std::optional<E> e = enum_from_name<E>(s, names)) return *e;
+  throw std::invalid_argument("unknown " + std::string(what) + " '" + std::string(s) + "'");
 }
 
 /// The table as strings, e.g. for a command-line option's list of allowed values.

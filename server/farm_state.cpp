@@ -1,0 +1,135 @@
+#include "server/farm_state.h"
+
+#include <utility>
+
+namespace tessera::server {
+
+namespace {
+
+// "w-1: text; w-2: text": the error texts of a job's failing workers, for its failure reason.
+std::string join_worker_errors(const std::map<std::string, std::string>& errors) {
+  std::string out;
+  for (const auto& [worker, text] : errors) out += (out.empty() ? "" : "; ") + worker + ": " + text;
+  return out;
+}
+
+}  // namespace
+
+FarmState::FarmState(SchedulerConfig c, SchedulerStore* store)
+    : config(std::move(c)),
+      workers(config.worker_gone_ms > 0 ? config.worker_gone_ms : 3 * config.lease_ms),
+      changes(store) {}
+
+std::string FarmState::next_id(char kind) {
+  return std::string(1, kind) + "-" + (config.id_tag.empty() ? "" : config.id_tag + "-") + std::to_string(next_seq++);
+}
+
+JobRec* FarmState::find_job(const std::string& id) {
+  const auto it = jobs.find(id);
+  return it == jobs.end() ? nullptr : it->second.get();
+}
+
+JobStatus FarmState::snapshot(const JobRec& j, int64_t now) const {
+  JobStatus s = j.status;
+  s.tiles.done -= j.unflushed;  // not durable yet: counted with the tiles in progress
+  s.tiles.pending = int64_t(j.pending.size());
+  s.tiles.leased = s.tiles.total - s.tiles.done - s.tiles.pending;
+  if (s.started_ms) s.render_seconds = double(s.finished_ms.value_or(now) - *s.started_ms) / 1000.0;
+  return s;
+}
+
+bool FarmState::blocklisted(const JobRec& j, const std::string& worker) const {
+  const auto wf = j.worker_failures.find(worker);
+  return wf != j.worker_failures.end() && wf->second >= config.worker_failure_limit;
+}
+
+bool FarmState::fail_if_all_blocklisted(JobRec& j, int64_t now) {
+  if (is_final(j.status.state)) return false;
+  size_t present = 0;
+  for (const auto& [id, w] : workers.all()) {
+    if (!workers.present(w, now)) continue;  // died or left: it will not take this job's tiles
+    ++present;
+    if (!blocklisted(j, id)) return false;
+  }
+  if (present == 0) return false;
+  // Failures spread over several tiles can blocklist every worker before any one tile fails on enough of them; the
+  // job could then never finish, so it fails, with each worker's last error.
+  finish_job(j, JobState::failed, now,
+             "every registered worker that is still present (" + std::to_string(present) + ") failed " +
+                 std::to_string(config.worker_failure_limit) + " tiles of this job and is blocklisted for it: " +
+                 join_worker_errors(j.worker_last_error));
+  return true;
+}
+
+FailResult FarmState::record_failure(JobRec& j, LeaseRec& l, const std::string& error, std::vector<std::string> log,
+                                     int64_t now) {
+  FailResult r;
+  r.status = FailResult::recorded;
+  TileRec& t = j.tiles[size_t(l.lease.tile)];
+  const bool was_live = l.state == LeaseState::live;
+  end_lease(l, LeaseState::failed);
+  if (was_live && t.lease == l.lease.id) return_to_pending(j, l.lease.tile);
+  const std::string& w = l.lease.worker;
+  t.failures[w] = error;
+  if (log.empty()) t.logs.erase(w);
+  else t.logs[w] = std::move(log);
+  const int n = ++j.worker_failures[w];
+  j.worker_last_error[w] = error;
+  touch(j, l.lease.tile);
+  touch(j);
+  r.blocklisted = n == config.worker_failure_limit;
+  if (int(t.failures.size()) >= config.tile_failure_workers) {
+    finish_job(j, JobState::failed, now,
+               "tile " + std::to_string(l.lease.tile) + " failed on " + std::to_string(t.failures.size()) +
+                   " workers: " + join_worker_errors(t.failures));
+    r.job_failed = true;
+    return r;
+  }
+  r.job_failed = fail_if_all_blocklisted(j, now);
+  return r;
+}
+
+void FarmState::return_to_pending(JobRec& j, int64_t tile) {
+  TileRec& t = j.tiles[size_t(tile)];
+  if (t.unflushed) {  // no longer done: its flush has nothing left to show
+    t.unflushed = false;
+    --j.unflushed;
+  }
+  t.state = TileState::pending;
+  t.lease.clear();
+  j.pending.insert(tile);
+  touch(j, tile);
+  work_appeared();
+}
+
+void FarmState::end_lease(LeaseRec& l, LeaseState to) {
+  l.state = to;
+  live_leases.erase(l.lease.id);
+  changes.touch_lease(l.lease.id);
+}
+
+int FarmState::revoke_leases(JobRec& j) {
+  int revoked = 0;
+  for (auto it = live_leases.begin(); it != live_leases.end();) {
+    LeaseRec& l = leases.at(*it);
+    ++it;  // end_lease erases l's entry
+    if (l.lease.job != j.status.id) continue;
+    end_lease(l, LeaseState::revoked);
+    ++revoked;
+    TileRec& t = j.tiles[size_t(l.lease.tile)];
+    if (t.state == TileState::leased && t.lease == l.lease.id) return_to_pending(j, l.lease.tile);
+  }
+  return revoked;
+}
+
+int FarmState::finish_job(JobRec& j, JobState to, int64_t now, std::optional<std::string> error) {
+  dequeue(j);
+  j.status.state = to;
+  j.status.finished_ms = now;
+  j.status.error = std::move(error);
+  changes.need_sync();
+  touch(j);
+  return revoke_leases(j);
+}
+
+}  // namespace tessera::server

@@ -1,0 +1,65 @@
+// The workers' side of the scheduler: registering, asking for work, heartbeats, result uploads (check, claim, finish,
+// abandon), failure reports, releases, and the expiry and timeout of leases.
+#pragma once
+
+#include "server/farm_state.h"
+#include "server/scheduler_types.h"
+
+#include <algorithm>
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+namespace tessera::server {
+
+/// The lease operations on a FarmState; Scheduler documents each one. Not thread-safe: the scheduler calls it under
+/// its lock, with the time of the call as `now`.
+class LeaseFlow {
+ public:
+  /// Operations on `s`, which must outlive it.
+  explicit LeaseFlow(FarmState& s) : s_(s) {}
+
+  /// Registers a worker and returns its id.
+  std::string register_worker(const std::string& name, int64_t threads, int64_t now);
+  /// Leases the next tile the worker may take.
+  AcquireResult acquire(const std::string& worker, int64_t now);
+  /// How many tiles acquire() could lease to the worker now.
+  int64_t leasable_tiles(const std::string& worker) const;
+  /// Extends a live lease and counts its rays.
+  HeartbeatResult heartbeat(const std::string& lease, uint64_t rays, int64_t now);
+  /// What an upload for this lease would do, changing nothing.
+  ResultClaim check_result(const std::string& lease);
+  /// Claims the lease's tile for merging.
+  ResultClaim claim_result(const std::string& lease, int64_t now);
+  /// Marks a claimed tile done and writes the change to the store at once (restoring the tile when that throws); sets
+  /// `tile_key` to (job, tile) for flushed().
+  FinishResult finish_result(const std::string& lease, uint64_t rays, std::string_view pixels, int64_t now,
+                             std::pair<std::string, int64_t>* tile_key);
+  /// The tile's done state, committed earlier, is now on the disk: it counts as done in snapshots from now on.
+  void flushed(const std::string& job, int64_t tile);
+  /// Gives up a claimed tile's merge.
+  void abandon_result(const std::string& lease, int64_t now);
+  /// Records that the lease's worker could not render its tile.
+  FailResult fail(const std::string& lease, const std::string& error, const std::vector<std::string>& log, int64_t now);
+  /// Hands a live lease's tile back without counting a failure; false for an unknown lease.
+  bool release(const std::string& lease);
+  /// Reclaims leases past their deadline and fails those past their job's tile timeout.
+  void expire(int64_t now);
+
+ private:
+  // The result claim's view of the lease, with its job and lease records (unset for an unknown lease).
+  ResultClaim claim_view(const std::string& lease, JobRec** job_out, LeaseRec** lease_out);
+  // When lease l next needs a look: the first moment it has expired or timed out.
+  int64_t expiry_check_ms(const LeaseRec& l) const;
+  // A lease became live: expire() looks at it by its expiry_check_ms.
+  void watch(const LeaseRec& l) { next_expiry_check_ms_ = std::min(next_expiry_check_ms_, expiry_check_ms(l)); }
+
+  FarmState& s_;
+  // No live lease can expire or time out before this (a lower bound: heartbeats only move deadlines later), so
+  // expire() skips its scan of the live leases until then.
+  int64_t next_expiry_check_ms_ = 0;
+};
+
+}  // namespace tessera::server
