@@ -1,6 +1,7 @@
 #include "protocol/json_fields.h"
 
-#include "core/scene/scene_loader.h"
+#include "core/scene/json_depth.h"
+
 
 #include <algorithm>
 #include <limits>

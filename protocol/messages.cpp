@@ -4,9 +4,9 @@
 
 #include <charconv>
 
-#include "core/geometry/bvh.h"
+#include "core/geometry/split_method.h"
 #include "core/util/enum_names.h"
-#include "core/render/light.h"
+#include "core/render/light_sampling.h"
 #include "core/util/sha256.h"
 
 namespace tessera::protocol {

@@ -3,9 +3,9 @@
 // rendering are all written here.
 #pragma once
 
-#include "core/image/image.h"
-#include "core/render/render.h"
-#include "core/scene/scene_loader.h"
+#include "core/image/pixel_window.h"
+#include "core/render/render_options.h"
+#include "core/scene/load_options.h"
 #include "protocol/defaults.h"
 #include "protocol/headers.h"
 #include "protocol/job.h"

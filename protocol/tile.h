@@ -2,7 +2,7 @@
 // (docs/protocol.md, "Tiles").
 #pragma once
 
-#include "core/image/image.h"
+#include "core/image/pixel_window.h"
 #include "core/util/enum_names.h"
 
 #include <nlohmann/json_fwd.hpp>

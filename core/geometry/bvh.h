@@ -3,6 +3,7 @@
 #pragma once
 
 #include "core/geometry/bounds.h"
+#include "core/geometry/split_method.h"
 #include "core/geometry/bvh_layout.h"
 #include "core/geometry/ray.h"
 #include "core/util/simd_path.h"
@@ -27,15 +28,6 @@ struct Hit {
   float b1, b2;   ///< Barycentric weights of p1 and p2 (triangles only; b0 = 1 - b1 - b2).
   uint32_t prim;  ///< Primitive id.
 };
-
-/// How interior nodes are split.
-enum class SplitMethod {
-  kSah,     ///< Binned surface-area heuristic over all three axes (default).
-  kMedian,  ///< Object median along the longest centroid axis (the baseline to beat).
-};
-
-/// Names of the SplitMethod values (scene key integrator.bvh, --bvh), in declaration order.
-inline constexpr std::string_view kSplitMethodNames[] = {"sah", "median"};
 
 /// Build parameters.
 struct BvhOptions {

@@ -1,6 +1,7 @@
 // Float images and their files: OpenEXR read/write with windows, extra channels and metadata, sRGB PNG previews.
 #pragma once
 
+#include "core/image/pixel_window.h"
 #include "core/util/math.h"
 
 #include <cassert>
@@ -18,27 +19,6 @@ namespace tessera {
 /// Any failure to read, write or encode an image; the message names the file (when there is one) and the reason.
 struct ImageError : std::runtime_error {
   using std::runtime_error::runtime_error;
-};
-
-/// A half-open pixel rectangle [x0,x1) x [y0,y1); y = 0 is the top row of the picture.
-struct PixelWindow {
-  int x0 = 0;  ///< First column.
-  int y0 = 0;  ///< First row.
-  int x1 = 0;  ///< One past the last column.
-  int y1 = 0;  ///< One past the last row.
-
-  /// Number of columns (zero for an empty window).
-  int width() const { return empty() ? 0 : x1 - x0; }
-  /// Number of rows (zero for an empty window).
-  int height() const { return empty() ? 0 : y1 - y0; }
-  /// True when the window holds no pixel.
-  bool empty() const { return x1 <= x0 || y1 <= y0; }
-  /// True when every pixel of w lies inside this window (always true for an empty w).
-  bool contains(const PixelWindow& w) const {
-    return w.empty() || (w.x0 >= x0 && w.y0 >= y0 && w.x1 <= x1 && w.y1 <= y1);
-  }
-  /// Exact equality of the four bounds.
-  bool operator==(const PixelWindow&) const = default;
 };
 
 /// A float RGB image (row-major, first row = top), optionally with extra named float channels of the same size.

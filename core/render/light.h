@@ -5,6 +5,7 @@
 #include "core/util/math.h"
 #include "core/sampling/sampling.h"
 #include "core/geometry/sphere.h"
+#include "core/render/light_sampling.h"
 #include "core/render/texture.h"
 
 #include <cstdint>
@@ -20,21 +21,6 @@ struct PointLight {
   Vec3 position{0.f, 5.f, 0.f};  ///< Position.
   Vec3 flux{1.f};                ///< Radiant flux.
 };
-
-/// How area lights are sampled (the speed-against-error comparisons select each strategy by this).
-enum class AreaSampling {
-  /// The default. Without a receiver normal (the path tracer): per shading point, rectangles by solid angle when it
-  /// is close to them, by area when far. With one (the direct integrator): rectangles approximately in proportion
-  /// to their unoccluded contribution, by projected solid angle when close (spherical rectangles warped by the
-  /// cosines towards their corners, Hart et al. 2020) and by area warped by the contributions of their corners when
-  /// far. Other triangles by area, spheres by cone in both cases.
-  kAuto,
-  kSolidAngle,  ///< Spherical rectangles for rectangles, uniform cones for spheres.
-  kArea,        ///< Uniform points by area (the baseline).
-};
-
-/// Names of the AreaSampling values (scene key integrator.area_sampling, --area-sampling), in declaration order.
-inline constexpr std::string_view kAreaSamplingNames[] = {"auto", "solid_angle", "area"};
 
 /// With AreaSampling::kAuto a rectangle is sampled by solid angle when its area exceeds this times the squared
 /// distance to its centre (the point is closer than about the light's width), by area otherwise. Far away the two
@@ -54,17 +40,6 @@ inline constexpr float kAutoProjectedRatio = 0.2f;
 /// Floor of the warps' corner weights, relative to the largest: keeps the density positive over the whole rectangle,
 /// so that no point where the integrand is positive is missed (and the weight of a sample stays bounded).
 inline constexpr float kBilinearWeightFloor = 0.01f;
-
-/// How the environment is sampled at a diffuse point.
-enum class EnvSampling {
-  kMis,         ///< Importance sampling of the map and cosine sampling, power heuristic (default).
-  kImportance,  ///< Importance sampling of the map only.
-  kCosine,      ///< Cosine-weighted hemisphere only.
-  kUniform,     ///< Uniform sphere directions (the baseline).
-};
-
-/// Names of the EnvSampling values (scene key integrator.env_sampling, --env-sampling), in declaration order.
-inline constexpr std::string_view kEnvSamplingNames[] = {"mis", "importance", "cosine", "uniform"};
 
 /// A light sample as seen from a shading point.
 struct LightSample {

@@ -558,25 +558,6 @@ LoadedScene load_scene_file(const fs::path& path, const LoadOptions& options) {
   }, options);
 }
 
-int json_nesting_depth(std::string_view text) {
-  int depth = 0, deepest = 0;
-  bool in_string = false, escaped = false;
-  for (const char c : text) {
-    if (in_string) {
-      if (escaped) escaped = false;
-      else if (c == '\\') escaped = true;
-      else if (c == '"') in_string = false;
-    } else if (c == '"') {
-      in_string = true;
-    } else if (c == '[' || c == '{') {
-      deepest = std::max(deepest, ++depth);
-    } else if ((c == ']' || c == '}') && depth > 0) {
-      --depth;
-    }
-  }
-  return deepest;
-}
-
 LoadedScene load_scene_text(std::string_view text, const std::string& name, const AssetResolver& resolve,
                             const LoadOptions& options) {
   if (json_nesting_depth(text) > kMaxSceneJsonDepth)

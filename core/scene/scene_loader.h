@@ -1,6 +1,9 @@
 // Loading scenes in the course format (docs/scene-format.md; examples in scenes/course/) into render-ready Scenes.
 #pragma once
 
+#include "core/scene/json_depth.h"
+#include "core/scene/load_options.h"
+
 #include "core/render/scene.h"
 
 #include <nlohmann/json_fwd.hpp>
@@ -22,25 +25,6 @@ struct SceneError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// How strictly and from where to load.
-struct LoadOptions {
-  bool strict = false;                           ///< Unknown keys are errors instead of warnings.
-  bool force_direct = false;                     ///< Render other integrator types with the direct integrator.
-  std::optional<std::filesystem::path> asset_root;  ///< Assets may lie anywhere below this folder (default: the scene's folder).
-  std::optional<uint32_t> spp;                   ///< Overrides integrator.spp.
-  std::optional<AreaSampling> area_sampling;     ///< Overrides integrator.area_sampling.
-  std::optional<EnvSampling> env_sampling;       ///< Overrides integrator.env_sampling.
-  std::optional<SplitMethod> bvh;                ///< Overrides integrator.bvh (sah or median).
-  bool build = true;  ///< Build the BVH and the lights' tables; false stops after validation (a scene to check, not render).
-  /// Image textures recorded here as clean are not decoded again (their recorded SHA-256 enters the scene's hash; a
-  /// build takes their recorded pixels and decodes those it has no pixels for), and images that decode clean are
-  /// recorded, with their pixels when building. Only for asset files never rewritten in place.
-  CheckedFiles* checked_files = nullptr;
-
-  /// Field by field.
-  bool operator==(const LoadOptions&) const = default;
-};
-
 /// Maps an asset path as written in the scene (and the JSON path naming it) to a readable file.
 using AssetResolver = std::function<std::filesystem::path(const std::string& path, const std::string& json_path)>;
 
@@ -56,13 +40,6 @@ struct LoadedScene {
 
 /// Loads a scene file; assets resolve against its folder and must stay inside it (or inside asset_root).
 LoadedScene load_scene_file(const std::filesystem::path& path, const LoadOptions& options = {});
-
-/// Deepest nesting of arrays and objects in a JSON text (brackets inside strings do not count); scans without
-/// recursion, so callers can refuse deep input before parsing it (printing or copying it would recurse).
-int json_nesting_depth(std::string_view text);
-
-/// Nesting depth load_scene_text accepts (the format needs 5).
-inline constexpr int kMaxSceneJsonDepth = 64;
 
 /// Loads a scene from its JSON text (as read from a file named `name`); malformed or too deeply nested JSON is a
 /// SceneError too.

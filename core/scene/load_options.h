@@ -1,0 +1,34 @@
+// What a scene load may override or skip: the options of load_scene_file, as a value the farm's protocol carries.
+#pragma once
+
+#include "core/geometry/split_method.h"
+#include "core/render/light_sampling.h"
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+
+namespace tessera {
+
+class CheckedFiles;
+
+/// How strictly and from where to load.
+struct LoadOptions {
+  bool strict = false;                           ///< Unknown keys are errors instead of warnings.
+  bool force_direct = false;                     ///< Render other integrator types with the direct integrator.
+  std::optional<std::filesystem::path> asset_root;  ///< Assets may lie anywhere below this folder (default: the scene's folder).
+  std::optional<uint32_t> spp;                   ///< Overrides integrator.spp.
+  std::optional<AreaSampling> area_sampling;     ///< Overrides integrator.area_sampling.
+  std::optional<EnvSampling> env_sampling;       ///< Overrides integrator.env_sampling.
+  std::optional<SplitMethod> bvh;                ///< Overrides integrator.bvh (sah or median).
+  bool build = true;  ///< Build the BVH and the lights' tables; false stops after validation (a scene to check, not render).
+  /// Image textures recorded here as clean are not decoded again (their recorded SHA-256 enters the scene's hash; a
+  /// build takes their recorded pixels and decodes those it has no pixels for), and images that decode clean are
+  /// recorded, with their pixels when building. Only for asset files never rewritten in place.
+  CheckedFiles* checked_files = nullptr;
+
+  /// Field by field.
+  bool operator==(const LoadOptions&) const = default;
+};
+
+}  // namespace tessera
