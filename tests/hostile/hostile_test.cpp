@@ -338,13 +338,21 @@ class HostileFarm : public ::testing::Test {
     }
     ASSERT_NE(port_, 0) << "the coordinator did not become ready:\n" << slurp(work_ / "serve.log");
     url_ = "http://127.0.0.1:" + std::to_string(port_);
-    worker_ = std::make_unique<Process>(std::vector<std::string>{TESSERA_BINARY, "worker", "--coordinator", url_, "--threads",
-                                                                 "1", "--cache", (work_ / "cache").string(), "--name", "good"},
+    // The worker renders the good job's first tile, then holds before its second (fail point worker.render, in the
+    // test binary) until the file `release_` exists: the good job is running, with a tile done and one leased,
+    // through every case, whatever the machine's speed.
+    ::setenv("TESSERA_FAIL_POINTS", ("worker.render=1*off->pause(" + release_.string() + ")").c_str(), 1);
+    worker_ = std::make_unique<Process>(std::vector<std::string>{TESSERA_FAILPOINTS_BINARY, "worker", "--coordinator", url_,
+                                                                 "--threads", "1", "--cache", (work_ / "cache").string(),
+                                                                 "--name", "good"},
                                         work_ / "worker.log");
+    ::unsetenv("TESSERA_FAIL_POINTS");
   }
 
   void TearDown() override {
+    std::ofstream(release_) << "go";  // a held worker stops at once
     worker_.reset();
+    fs::remove(release_);
     serve_.reset();
     if (!HasFailure()) fs::remove_all(work_);
     else std::fprintf(stderr, "logs kept in %s\n", work_.c_str());
@@ -392,6 +400,7 @@ class HostileFarm : public ::testing::Test {
   int port_ = 0;
   std::string url_;
   std::unique_ptr<Process> serve_, worker_;
+  fs::path release_ = fs::temp_directory_path() / ("tessera-hostile-release-" + std::to_string(::getpid()));
 };
 
 // Sends one case and checks its answer.
@@ -642,10 +651,20 @@ TEST_F(HostileFarm, EveryCaseGetsItsAnswerAndTheGoodJobStillRendersRight) {
   vars["CANCELLED_JOB"] = json::parse(r.body)["id"].get<std::string>();
   ASSERT_EQ(call("DELETE", "/v1/jobs/" + vars["CANCELLED_JOB"]).status, 200u);
 
-  // Every case, while the good job renders.
+  // Every case, while the good job renders: its first tile done and the worker held on its second.
   const json cases = load_cases();
-  const json start = json::parse(call("GET", "/v1/jobs/" + good_job).body, nullptr, false);
-  std::printf("the good job is %s when the cases start\n", start.is_object() ? start.value("state", "?").c_str() : "?");
+  json start;
+  for (int i = 0; i < 3000; ++i) {  // 300 s at most; the worker's log says when it holds
+    start = json::parse(call("GET", "/v1/jobs/" + good_job).body, nullptr, false);
+    if (slurp(work_ / "worker.log").find("fail point worker.render: hit") != std::string::npos) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  ASSERT_NE(slurp(work_ / "worker.log").find("fail point worker.render: hit"), std::string::npos)
+      << "the worker never held its second tile:\n" << slurp(work_ / "worker.log");
+  start = json::parse(call("GET", "/v1/jobs/" + good_job).body, nullptr, false);
+  ASSERT_EQ(start.value("state", ""), "running") << start.dump();
+  ASSERT_GE(start["tiles"].value("done", 0), 1) << start.dump();
+  ASSERT_EQ(start["tiles"].value("leased", 0), 1) << start.dump();
   const auto t0 = std::chrono::steady_clock::now();
   for (const json& c : cases) {
     check_case(c, vars, bases);
@@ -653,6 +672,9 @@ TEST_F(HostileFarm, EveryCaseGetsItsAnswerAndTheGoodJobStillRendersRight) {
   }
   const json mid = json::parse(call("GET", "/v1/jobs/" + good_job).body, nullptr, false);
   const json tiles = mid.is_object() ? mid.value("tiles", json::object()) : json::object();
+  EXPECT_EQ(mid.value("state", ""), "running") << "the good job was not rendering through the cases: " << mid.dump();
+  EXPECT_EQ(tiles.value("leased", 0), 1) << "the held tile's lease did not survive the cases: " << mid.dump();
+  std::ofstream(release_) << "go";  // the worker carries on
   std::printf("%zu cases in %.1f s; the good job was %s (%s of %s tiles done) when they ended\n", cases.size(),
               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
               mid.is_object() ? mid.value("state", "?").c_str() : "?", tiles.value("done", json(0)).dump().c_str(),
