@@ -66,7 +66,7 @@ class Scheduler {
   /// Every registered worker with its state (offline after worker_gone_ms without a request), lease and blocklists.
   std::vector<protocol::WorkerInfo> workers();
   /// Drains a worker (true: it finishes its current tile, then every lease request answers no work) or undrains it;
-  /// the worker as it is now, nullopt for unknown ids. Not stored: a restarted coordinator forgets it.
+  /// the worker as it is now, nullopt for unknown ids. Stored: a restarted coordinator keeps the worker drained.
   std::optional<protocol::WorkerInfo> set_drained(const std::string& worker, bool drained);
   /// True when the worker id is registered.
   bool has_worker(const std::string& id);
