@@ -235,13 +235,25 @@ class Worker {
     return ro;
   }
 
+  // Where tests fail a tile's render, or hold it until released (a pause ends when the tile is cancelled, as a long
+  // render would): just before the render, whether it is begun ahead (on a thread of the arena) or not.
+  static void before_render([[maybe_unused]] int64_t tile, [[maybe_unused]] RenderSignals& signals) {
+    TESSERA_FAIL_POINT_CANCELLABLE("worker.render", [&] { return signals.cancel.load(); });
+    TESSERA_FAIL_POINT_RETURN("worker.render.fail_tiles", [&](const std::string& tiles) {
+      for (size_t i = 0; i < tiles.size();) {
+        const size_t comma = std::min(tiles.find(',', i), tiles.size());
+        if (tiles.substr(i, comma - i) == std::to_string(tile))
+          throw std::runtime_error("fail point worker.render.fail_tiles: tile " + std::to_string(tile) +
+                                   " fails on every worker");
+        i = comma + 1;
+      }
+    });
+  }
+
   // Begins the render of a tile just leased (see prefetch_lease), or gives nothing when it cannot start now.
   std::shared_ptr<HeadStart> head_start(const Lease& l) {
-    // Tests that hold or fail renders at their fail points see every render pass them, in order; a worker with
-    // one thread has no second thread to fill a tail with.
-    if (threads_ < 2 || l.state_spp > 0 || stopping() || TESSERA_FAIL_POINT_SET("worker.render") ||
-        TESSERA_FAIL_POINT_SET("worker.render.fail_tiles"))
-      return nullptr;
+    // A worker with one thread has no second thread to fill a tail with.
+    if (threads_ < 2 || l.state_spp > 0 || stopping()) return nullptr;
     std::shared_ptr<const PreparedJob> job = scenes_.find(l.job);
     if (!job || !PixelWindow{0, 0, job->loaded.scene.width, job->loaded.scene.height}.contains(l.window)) return nullptr;
     // However it is dropped from here on, its task has ended before it goes.
@@ -254,9 +266,10 @@ class Worker {
     // Enqueued into the arena (this thread does not wait): a thread of it takes the task once it has no other work,
     // i.e. when the current tile's thread tiles run out, and puts the render into the group, which the render loop
     // then waits for, helping.
-    arena_.enqueue([h = head.get(), ro] {
-      h->group.run([h, ro] {
+    arena_.enqueue([h = head.get(), ro, tile = l.tile] {
+      h->group.run([h, ro, tile] {
         try {
+          before_render(tile, h->signals);
           h->result = render(h->scene->loaded.scene, ro);
         } catch (...) {
           h->error = std::current_exception();
@@ -425,24 +438,15 @@ class Worker {
           if (!PixelWindow{0, 0, width, height}.contains(l.window))
             throw std::runtime_error("tile window lies outside the " + std::to_string(width) + "x" +
                                      std::to_string(height) + " image");
-          // Tests fail the render here, or hold it until released (a pause ends when the tile is cancelled, as a
-          // long render would).
-          TESSERA_FAIL_POINT_CANCELLABLE("worker.render", [&] { return signals.cancel.load(); });
-          TESSERA_FAIL_POINT_RETURN("worker.render.fail_tiles", [&](const std::string& tiles) {
-            for (size_t i = 0; i < tiles.size();) {
-              const size_t comma = std::min(tiles.find(',', i), tiles.size());
-              if (tiles.substr(i, comma - i) == std::to_string(l.tile))
-                throw std::runtime_error("fail point worker.render.fail_tiles: tile " + std::to_string(l.tile) +
-                                         " fails on every worker");
-              i = comma + 1;
-            }
-          });
+          before_render(l.tile, signals);
           // A resumable job's tile rendered before (state_spp samples per pixel): continue from its exact sums.
           std::optional<StoredRender> previous;
           if (l.state_spp > 0)
             previous = stored_tile(l, scene->sampling.replicates, [&] { return signals.cancel.load(); });
           const RenderOptions ro = render_options(l, *scene, signals, previous ? &*previous : nullptr);
-          arena_.execute([&] { result = render(scene->loaded.scene, ro); });
+          // Isolated: while it waits for this tile's last thread tiles, the loop's thread takes none of a render
+          // begun ahead (which may be held at a fail point), so this tile's upload never waits for the next tile.
+          arena_.execute([&] { tbb::this_task_arena::isolate([&] { result = render(scene->loaded.scene, ro); }); });
         }
         if (result && result->cancelled) result.reset();
         else if (result && l.resumable) write_state_channels(result->state, result->image);
