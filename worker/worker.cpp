@@ -128,7 +128,35 @@ class Worker {
   }
 
  private:
-  bool stopping() const { return stop_.load() > 0; }
+  // Also notes when this worker first saw a stop request (the signal handler only counts them).
+  bool stopping() const {
+    if (stop_.load() == 0) return false;
+    if (stop_seen_.load() == std::chrono::steady_clock::time_point{}) {
+      auto none = std::chrono::steady_clock::time_point{};
+      stop_seen_.compare_exchange_strong(none, std::chrono::steady_clock::now());
+    }
+    return true;
+  }
+
+  // Why the upload of a tile whose render ended at `rendered` is to be given up now ("": keep trying). Only a stopping
+  // worker gives up: on a second stop request, once the lease has run out on the coordinator (`lease_end`, as far as
+  // the worker knows: a lease's length after its last answered heartbeat), or --stop-timeout after the stop request
+  // or `rendered`, whichever is later.
+  std::string upload_give_up(std::chrono::steady_clock::time_point rendered,
+                             std::chrono::steady_clock::time_point lease_end) const {
+    if (stop_.load() >= 2) return "asked to stop again";
+    if (!stopping()) return {};
+    const auto now = std::chrono::steady_clock::now();
+    const auto seconds = [](auto d) { return std::chrono::duration<double>(d).count(); };
+    if (now >= lease_end)
+      return fmt::format("stopping, and its lease ran out {:.1f} s ago (a lease lasts {:.1f} s after its last answered "
+                         "heartbeat); the coordinator gives the tile to another worker",
+                         seconds(now - lease_end), seconds(lease_length_));
+    if (now - std::max(rendered, stop_seen_.load()) >= opt_.stop_timeout)
+      return fmt::format("stopping, and the coordinator has not taken it within --stop-timeout ({:.1f} s)",
+                         seconds(opt_.stop_timeout));
+    return {};
+  }
 
   // Counts a tile's outcome (from the render loop or the upload thread).
   void count(int64_t WorkerStats::*outcome) {
@@ -166,6 +194,7 @@ class Worker {
         const auto reg = protocol::parse_answer<Registration>(r.body, "registration");
         id_ = reg.id;
         heartbeat_period_ = std::chrono::milliseconds(std::max<int64_t>(100, int64_t(reg.heartbeat_seconds * 1000)));
+        lease_length_ = std::chrono::milliseconds(int64_t(reg.lease_seconds * 1000));
         spdlog::info("worker {} registered as {} (lease {}s, heartbeat {}s)", name_, id_, reg.lease_seconds,
                      reg.heartbeat_seconds);
         return true;
@@ -481,10 +510,15 @@ class Worker {
                  result->counters.rays, 1000.0 * result->idle_thread_seconds, head ? ", begun ahead" : "");
     // Encoded and sent while the next tile is leased and rendered; the companion heartbeats this lease (and the next
     // one) while the previous upload is still going, and a worker that dies here loses only leases, which expire.
-    uploads_.post([this, l, pfx, res = std::make_shared<RenderResult>(std::move(*result)), width, height] {
+    // The lease runs out a lease's length after its last answered heartbeat, known once the heartbeats stop (below).
+    using LeaseEnd = std::atomic<std::chrono::steady_clock::time_point>;
+    const auto lease_end = std::make_shared<LeaseEnd>(std::chrono::steady_clock::time_point::max());
+    const auto rendered = std::chrono::steady_clock::now();
+    uploads_.post([this, l, pfx, res = std::make_shared<RenderResult>(std::move(*result)), width, height, lease_end, rendered] {
       try {
-        const UploadOutcome outcome = upload_tile(upload_http_, l, pfx, *res, width, height, opt_.max_retry_wait,
-                                                  [this] { return stop_.load() >= 2; });
+        const UploadOutcome outcome =
+            upload_tile(upload_http_, l, pfx, *res, width, height, opt_.max_retry_wait,
+                        [this, lease_end, rendered] { return upload_give_up(rendered, lease_end->load()); });
         count(outcome == UploadOutcome::kUploaded ? &WorkerStats::tiles_uploaded
               : outcome == UploadOutcome::kFailed ? &WorkerStats::tiles_failed
                                                   : &WorkerStats::tiles_dropped);
@@ -493,7 +527,9 @@ class Worker {
         count(&WorkerStats::tiles_dropped);
       }
     });
-    return finish();  // heartbeats stop here
+    std::optional<PrefetchedLease> next = finish();  // heartbeats stop here
+    lease_end->store(std::max(beaten, companion.last_beat().value_or(beaten)) + lease_length_);
+    return next;
   }
 
   // The lease's tile as the coordinator stored it (GET /v1/leases/{lease}/state): its pixels and exact sums.
@@ -552,6 +588,8 @@ class Worker {
   tbb::task_arena arena_;  // every render runs in it, begun-ahead ones included (threads_ threads)
   std::optional<ArenaPinning> pinning_;  // with opt.cpus: each of arena_'s threads on its own CPU
   std::chrono::milliseconds heartbeat_period_{5000};
+  std::chrono::milliseconds lease_length_{30'000};  // from the registration
+  mutable std::atomic<std::chrono::steady_clock::time_point> stop_seen_{};  // see stopping()
   bool down_ = false;
   std::atomic<double> lease_rtt_ms_{0};  // moving average of lease round trips (0: none yet)
   std::mutex stats_mutex_;
