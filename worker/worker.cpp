@@ -312,7 +312,11 @@ class Worker {
     return head;
   }
 
-  // Waits for a begun render (also when it is to be dropped: its task must end before it goes).
+  // Waits for a begun render (also when it is to be dropped: its task must end before it goes), helping with it. Not
+  // isolated, or this thread could not help (the render's tasks come from another thread); so while it waits it may
+  // also take up the render begun for the tile after (TBB hands a waiting thread any task of its arena), and this
+  // tile then waits for that one too: farm tests hold at worker.render only renders begun after a render not begun
+  // ahead.
   void wait_for(HeadStart& head) {
     {
       std::unique_lock lock(head.mutex);
