@@ -56,9 +56,16 @@ CLI::App* add_worker_command(CLI::App& app, WorkerArgs& a) {
                 "its scene is loaded while the worker registers, and a leased job with the same scene, assets and "
                 "loading settings renders from it (render --workers tells its workers the job it submits)")
       ->check(CLI::ExistingFile);
+  c->add_option("--stop-timeout", a.stop_timeout_seconds,
+                "Once asked to stop (SIGTERM), how long the worker keeps retrying the upload of its last tile while the "
+                "coordinator does not take it, counted from the stop request or the end of the tile's render, whichever "
+                "is later; it gives up sooner once the tile's lease has run out (the lease's length after its last "
+                "answered heartbeat), logs \"giving up the upload of tile N of job J\" and exits 0 (a service manager's stop "
+                "timeout must allow for the longest tile plus this)")
+      ->check(CLI::Range(0.0, 86400.0))->capture_default_str();
   c->add_flag("-v,--verbose", a.verbose, "Debug logging");
-  c->footer("SIGTERM or SIGINT: finish and upload the current tile, then exit 0. A second one: stop rendering, hand "
-            "the tile back, exit 0.");
+  c->footer("SIGTERM or SIGINT: finish and upload the current tile (within --stop-timeout), then exit 0. A second "
+            "one: stop rendering, hand the tile back, exit 0.");
   return c;
 }
 
@@ -93,6 +100,7 @@ int run_worker_command(const WorkerArgs& a) {
     o.tls = a.tls;
     o.max_idle_wait = std::chrono::milliseconds(a.max_idle_wait_ms);
     o.image_cache_bytes = size_t(a.image_cache_mb) << 20;
+    o.stop_timeout = std::chrono::milliseconds(int64_t(a.stop_timeout_seconds * 1000));
     if (!a.preload.empty()) {
       try {
         o.preload = protocol::parse_job_submission(read_file_bytes(a.preload));

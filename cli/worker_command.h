@@ -22,6 +22,7 @@ struct WorkerArgs {
   double request_timeout_seconds = 30;  ///< Sending a request, and receiving its response.
   int max_idle_wait_ms = 2000;          ///< Longest wait between lease requests when there is no work.
   int image_cache_mb = 1024;            ///< Decoded texture pixels kept across jobs, in MiB.
+  double stop_timeout_seconds = 60;     ///< How long a stopping worker keeps trying to deliver its last upload.
   std::string preload;      ///< A job submission (JSON) whose scene is loaded at start (empty: none).
   bool verbose = false;     ///< Debug logging.
 };

@@ -37,6 +37,11 @@ std::optional<PrefetchedLease> TileCompanion::finish() {
   return std::move(next_);
 }
 
+std::optional<std::chrono::steady_clock::time_point> TileCompanion::last_beat() {
+  std::lock_guard lock(mutex_);
+  return last_beat_;
+}
+
 void TileCompanion::stop() {
   {
     std::lock_guard lock(mutex_);
@@ -108,7 +113,13 @@ void TileCompanion::run() noexcept {
 bool TileCompanion::beat(const std::string& lease, const std::string& body) {
   try {
     const client::HttpResponse r = http_.send("POST", routes::lease_heartbeat(lease), body);
-    if (r.status == 200) return true;
+    if (r.status == 200) {
+      if (lease == lease_) {
+        std::lock_guard lock(mutex_);
+        last_beat_ = std::chrono::steady_clock::now();
+      }
+      return true;
+    }
     const std::string which = lease == lease_ ? "heartbeat" : "heartbeat of the next lease " + lease;
     if (r.status == 410 || r.status == 404) {
       spdlog::info("{}: {} answered {} ({}), {}", prefix_, which, r.status, r.error_text(),

@@ -38,6 +38,9 @@ class TileCompanion {
   /// Stops the thread (after a request in flight) and hands over the next lease, if one was granted and is still live.
   std::optional<PrefetchedLease> finish();
 
+  /// When the last heartbeat of the tile's lease that the coordinator answered 200 came back (none yet: nullopt).
+  std::optional<std::chrono::steady_clock::time_point> last_beat();
+
  private:
   void stop();
   void run() noexcept;
@@ -57,6 +60,7 @@ class TileCompanion {
   bool done_ = false;
   bool asked_ = false;                   // ask_next_lease was called
   std::optional<PrefetchedLease> next_;  // its answer, when a lease was granted
+  std::optional<std::chrono::steady_clock::time_point> last_beat_;  // see last_beat()
   std::thread thread_;  // last: starts after every other member is ready
 };
 

@@ -41,7 +41,7 @@ std::vector<uint8_t> corrupt_tile(const Image& image, ExrWriteOptions wo, const 
 
 DeliveryOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, const std::string& prefix, const RenderResult& res,
                           int width, int height, std::chrono::milliseconds max_retry_wait,
-                          const std::function<bool()>& abandon) {
+                          const std::function<std::string()>& give_up) {
   ExrWriteOptions wo;
   wo.compression = ExrCompression::kNone;  // noisy floats barely compress; the CPU is better spent rendering
   wo.data_window = l.window;
@@ -57,9 +57,14 @@ DeliveryOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, 
   req.headers[protocol::kRaysHeader] = std::to_string(res.counters.rays);
   TESSERA_FAIL_POINT("worker.upload");
   client::Backoff backoff(200ms, max_retry_wait);
+  std::string why;  // the reason to give up, once there is one
+  const auto giving_up = [&] {
+    if (why.empty() && give_up) why = give_up();
+    return !why.empty();
+  };
   for (int attempt = 1;; ++attempt) {
     try {
-      const client::HttpResponse r = http.send(req);
+      const client::HttpResponse r = http.send(req, giving_up);
       if (r.status == 200) {
         std::string status = "acknowledged";  // an answer without a known status is still an acknowledgement
         try {
@@ -89,11 +94,13 @@ DeliveryOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, 
         return DeliveryOutcome::kDropped;
       }
       spdlog::warn("{}: upload attempt {} answered {}: {}; retrying", prefix, attempt, r.status, r.error_text());
+    } catch (const client::RequestInterrupted&) {
+      // the attempt under way was cut short: `why` says why
     } catch (const client::TransportError& e) {
       spdlog::warn("{}: upload attempt {} failed: {}; retrying", prefix, attempt, e.what());
     }
-    if (!client::sleep_unless(backoff.next(), abandon)) {
-      spdlog::warn("{}: asked to stop again while the coordinator is unreachable; abandoning the upload", prefix);
+    if (giving_up() || !client::sleep_unless(backoff.next(), giving_up)) {
+      spdlog::warn("{}: giving up the upload of tile {} of job {}: {}", prefix, l.tile, l.job, why);
       return DeliveryOutcome::kDropped;
     }
   }

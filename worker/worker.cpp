@@ -128,7 +128,35 @@ class Worker {
   }
 
  private:
-  bool stopping() const { return stop_.load() > 0; }
+  // Also notes when this worker first saw a stop request (the signal handler only counts them).
+  bool stopping() const {
+    if (stop_.load() == 0) return false;
+    if (stop_seen_.load() == std::chrono::steady_clock::time_point{}) {
+      auto none = std::chrono::steady_clock::time_point{};
+      stop_seen_.compare_exchange_strong(none, std::chrono::steady_clock::now());
+    }
+    return true;
+  }
+
+  // Why the upload of a tile whose render ended at `rendered` is to be given up now ("": keep trying). Only a stopping
+  // worker gives up: on a second stop request, once the lease has run out on the coordinator (`lease_end`, as far as
+  // the worker knows: a lease's length after its last answered heartbeat), or --stop-timeout after the stop request
+  // or `rendered`, whichever is later.
+  std::string upload_give_up(std::chrono::steady_clock::time_point rendered,
+                             std::chrono::steady_clock::time_point lease_end) const {
+    if (stop_.load() >= 2) return "asked to stop again";
+    if (!stopping()) return {};
+    const auto now = std::chrono::steady_clock::now();
+    const auto seconds = [](auto d) { return std::chrono::duration<double>(d).count(); };
+    if (now >= lease_end)
+      return fmt::format("stopping, and its lease ran out {:.1f} s ago (a lease lasts {:.1f} s after its last answered "
+                         "heartbeat); the coordinator gives the tile to another worker",
+                         seconds(now - lease_end), seconds(lease_length_));
+    if (now - std::max(rendered, stop_seen_.load()) >= opt_.stop_timeout)
+      return fmt::format("stopping, and the coordinator has not taken it within --stop-timeout ({:.1f} s)",
+                         seconds(opt_.stop_timeout));
+    return {};
+  }
 
   // Counts a tile's outcome (from the render loop or the upload thread).
   void count(int64_t WorkerStats::*outcome) {
@@ -166,6 +194,7 @@ class Worker {
         const auto reg = protocol::parse_answer<Registration>(r.body, "registration");
         id_ = reg.id;
         heartbeat_period_ = std::chrono::milliseconds(std::max<int64_t>(100, int64_t(reg.heartbeat_seconds * 1000)));
+        lease_length_ = std::chrono::milliseconds(int64_t(reg.lease_seconds * 1000));
         spdlog::info("worker {} registered as {} (lease {}s, heartbeat {}s)", name_, id_, reg.lease_seconds,
                      reg.heartbeat_seconds);
         return true;
@@ -235,13 +264,25 @@ class Worker {
     return ro;
   }
 
+  // Where tests fail a tile's render, or hold it until released (a pause ends when the tile is cancelled, as a long
+  // render would): just before the render, whether it is begun ahead (on a thread of the arena) or not.
+  static void before_render([[maybe_unused]] int64_t tile, [[maybe_unused]] RenderSignals& signals) {
+    TESSERA_FAIL_POINT_CANCELLABLE("worker.render", [&] { return signals.cancel.load(); });
+    TESSERA_FAIL_POINT_RETURN("worker.render.fail_tiles", [&](const std::string& tiles) {
+      for (size_t i = 0; i < tiles.size();) {
+        const size_t comma = std::min(tiles.find(',', i), tiles.size());
+        if (tiles.substr(i, comma - i) == std::to_string(tile))
+          throw std::runtime_error("fail point worker.render.fail_tiles: tile " + std::to_string(tile) +
+                                   " fails on every worker");
+        i = comma + 1;
+      }
+    });
+  }
+
   // Begins the render of a tile just leased (see prefetch_lease), or gives nothing when it cannot start now.
   std::shared_ptr<HeadStart> head_start(const Lease& l) {
-    // Tests that hold or fail renders at their fail points see every render pass them, in order; a worker with
-    // one thread has no second thread to fill a tail with.
-    if (threads_ < 2 || l.state_spp > 0 || stopping() || TESSERA_FAIL_POINT_SET("worker.render") ||
-        TESSERA_FAIL_POINT_SET("worker.render.fail_tiles"))
-      return nullptr;
+    // A worker with one thread has no second thread to fill a tail with.
+    if (threads_ < 2 || l.state_spp > 0 || stopping()) return nullptr;
     std::shared_ptr<const PreparedJob> job = scenes_.find(l.job);
     if (!job || !PixelWindow{0, 0, job->loaded.scene.width, job->loaded.scene.height}.contains(l.window)) return nullptr;
     // However it is dropped from here on, its task has ended before it goes.
@@ -254,9 +295,10 @@ class Worker {
     // Enqueued into the arena (this thread does not wait): a thread of it takes the task once it has no other work,
     // i.e. when the current tile's thread tiles run out, and puts the render into the group, which the render loop
     // then waits for, helping.
-    arena_.enqueue([h = head.get(), ro] {
-      h->group.run([h, ro] {
+    arena_.enqueue([h = head.get(), ro, tile = l.tile] {
+      h->group.run([h, ro, tile] {
         try {
+          before_render(tile, h->signals);
           h->result = render(h->scene->loaded.scene, ro);
         } catch (...) {
           h->error = std::current_exception();
@@ -270,7 +312,11 @@ class Worker {
     return head;
   }
 
-  // Waits for a begun render (also when it is to be dropped: its task must end before it goes).
+  // Waits for a begun render (also when it is to be dropped: its task must end before it goes), helping with it. Not
+  // isolated, or this thread could not help (the render's tasks come from another thread); so while it waits it may
+  // also take up the render begun for the tile after (TBB hands a waiting thread any task of its arena), and this
+  // tile then waits for that one too: farm tests hold at worker.render only renders begun after a render not begun
+  // ahead.
   void wait_for(HeadStart& head) {
     {
       std::unique_lock lock(head.mutex);
@@ -425,24 +471,15 @@ class Worker {
           if (!PixelWindow{0, 0, width, height}.contains(l.window))
             throw std::runtime_error("tile window lies outside the " + std::to_string(width) + "x" +
                                      std::to_string(height) + " image");
-          // Tests fail the render here, or hold it until released (a pause ends when the tile is cancelled, as a
-          // long render would).
-          TESSERA_FAIL_POINT_CANCELLABLE("worker.render", [&] { return signals.cancel.load(); });
-          TESSERA_FAIL_POINT_RETURN("worker.render.fail_tiles", [&](const std::string& tiles) {
-            for (size_t i = 0; i < tiles.size();) {
-              const size_t comma = std::min(tiles.find(',', i), tiles.size());
-              if (tiles.substr(i, comma - i) == std::to_string(l.tile))
-                throw std::runtime_error("fail point worker.render.fail_tiles: tile " + std::to_string(l.tile) +
-                                         " fails on every worker");
-              i = comma + 1;
-            }
-          });
+          before_render(l.tile, signals);
           // A resumable job's tile rendered before (state_spp samples per pixel): continue from its exact sums.
           std::optional<StoredRender> previous;
           if (l.state_spp > 0)
             previous = stored_tile(l, scene->sampling.replicates, [&] { return signals.cancel.load(); });
           const RenderOptions ro = render_options(l, *scene, signals, previous ? &*previous : nullptr);
-          arena_.execute([&] { result = render(scene->loaded.scene, ro); });
+          // Isolated: while it waits for this tile's last thread tiles, the loop's thread takes none of a render
+          // begun ahead (which may be held at a fail point), so this tile's upload never waits for the next tile.
+          arena_.execute([&] { tbb::this_task_arena::isolate([&] { result = render(scene->loaded.scene, ro); }); });
         }
         if (result && result->cancelled) result.reset();
         else if (result && l.resumable) write_state_channels(result->state, result->image);
@@ -477,10 +514,15 @@ class Worker {
                  result->counters.rays, 1000.0 * result->idle_thread_seconds, head ? ", begun ahead" : "");
     // Encoded and sent while the next tile is leased and rendered; the companion heartbeats this lease (and the next
     // one) while the previous upload is still going, and a worker that dies here loses only leases, which expire.
-    uploads_.post([this, l, pfx, res = std::make_shared<RenderResult>(std::move(*result)), width, height] {
+    // The lease runs out a lease's length after its last answered heartbeat, known once the heartbeats stop (below).
+    using LeaseEnd = std::atomic<std::chrono::steady_clock::time_point>;
+    const auto lease_end = std::make_shared<LeaseEnd>(std::chrono::steady_clock::time_point::max());
+    const auto rendered = std::chrono::steady_clock::now();
+    uploads_.post([this, l, pfx, res = std::make_shared<RenderResult>(std::move(*result)), width, height, lease_end, rendered] {
       try {
-        const DeliveryOutcome outcome = upload_tile(upload_http_, l, pfx, *res, width, height, opt_.max_retry_wait,
-                                                  [this] { return stop_.load() >= 2; });
+        const DeliveryOutcome outcome =
+            upload_tile(upload_http_, l, pfx, *res, width, height, opt_.max_retry_wait,
+                        [this, lease_end, rendered] { return upload_give_up(rendered, lease_end->load()); });
         count(outcome == DeliveryOutcome::kUploaded ? &WorkerStats::tiles_uploaded
               : outcome == DeliveryOutcome::kFailed ? &WorkerStats::tiles_failed
                                                   : &WorkerStats::tiles_dropped);
@@ -489,7 +531,9 @@ class Worker {
         count(&WorkerStats::tiles_dropped);
       }
     });
-    return finish();  // heartbeats stop here
+    std::optional<PrefetchedLease> next = finish();  // heartbeats stop here
+    lease_end->store(std::max(beaten, companion.last_beat().value_or(beaten)) + lease_length_);
+    return next;
   }
 
   // The lease's tile as the coordinator stored it (GET /v1/leases/{lease}/state): its pixels and exact sums.
@@ -548,6 +592,8 @@ class Worker {
   tbb::task_arena arena_;  // every render runs in it, begun-ahead ones included (threads_ threads)
   std::optional<ArenaPinning> pinning_;  // with opt.cpus: each of arena_'s threads on its own CPU
   std::chrono::milliseconds heartbeat_period_{5000};
+  std::chrono::milliseconds lease_length_{30'000};  // from the registration
+  mutable std::atomic<std::chrono::steady_clock::time_point> stop_seen_{};  // see stopping()
   bool down_ = false;
   std::atomic<double> lease_rtt_ms_{0};  // moving average of lease round trips (0: none yet)
   std::mutex stats_mutex_;

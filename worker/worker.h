@@ -27,6 +27,9 @@ struct WorkerOptions {
   std::chrono::milliseconds max_idle_wait{2000};   ///< Longest wait for work per lease request (held by the coordinator up to 10 s).
   std::chrono::milliseconds max_retry_wait{5000};  ///< Longest wait between retries when the coordinator is down.
   client::HttpTimeouts timeouts{};             ///< Timeouts of lease, spec, blob and upload requests.
+  /// Once stopping, how long an upload the coordinator does not take is retried after the stop request or the end of
+  /// its tile's render, whichever is later (it is given up sooner once its lease has run out).
+  std::chrono::milliseconds stop_timeout{60'000};
   client::ClientTlsFiles tls;                  ///< Trust and client certificate files for an https:// coordinator.
   /// A job expected to be leased, whose assets are in the cache already: its scene is loaded at start, while the
   /// worker registers, and a leased job with the same scene, assets and loading settings renders from it.
@@ -42,8 +45,9 @@ struct WorkerStats {
   int64_t scenes_preloaded = 0; ///< Jobs that rendered from the scene of WorkerOptions::preload (0 or 1).
 };
 
-/// Runs the worker until *stop_requests becomes non-zero: the first request lets the current tile finish and upload,
-/// a second one cancels the render and hands the tile back. Never returns because the coordinator is unreachable
+/// Runs the worker until *stop_requests becomes non-zero: the first request lets the current tile finish and upload
+/// (an upload the coordinator does not take is given up after WorkerOptions::stop_timeout, or once its lease has run
+/// out), a second one cancels the render and hands the tile back. Never returns because the coordinator is unreachable
 /// (it retries with backoff and jitter); throws for bad options (URL, cache folder) and when the coordinator refuses
 /// the worker token (401/403).
 WorkerStats run_worker(const WorkerOptions& options, const std::atomic<int>& stop_requests);

@@ -12,6 +12,8 @@ start_serve --worker-failure-limit 2 --tile-failure-workers 2
 ADDRESS=$(head -n1 "$WORK/ready")
 # Both workers register before the job exists: were one alone when it failed tiles 5 and 6, it would be blocklisted
 # with no other worker present and the job would fail before the second worker ever leased a tile.
+# One thread each: the count of tiles done before the failure (below) relies on a worker rendering one tile at a
+# time, which a second thread (its next tile's render begun ahead of the lease round trip) would not hold to.
 for w in a b; do FAIL_POINTS='worker.render.fail_tiles=return(5,6)' start_worker "$w" --threads 1; done
 for w in a b; do wait_for log_has "$WORK/$w.log" "registered as" || fail "worker $w did not register"; done
 JOB=$("$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 8 --seed 3 --detach 2>"$WORK/submit.log") \
@@ -44,7 +46,7 @@ LISTEN=$ADDRESS start_serve
 "$TESSERA" jobs retry "$JOB" --coordinator "$URL" >"$WORK/retry.log" 2>&1 || fail "jobs retry failed"
 MISSING=$((8 - DONE_BEFORE))
 log_has "$WORK/retry.log" "^$JOB: running again, $MISSING of 8 tiles to render" || fail "retry: $(cat "$WORK/retry.log")"
-start_worker c --threads 1
+start_worker c --threads 2
 wait_for job_state done || fail "the retried job did not finish"
 LEASED=$(grep -c "leased window" "$WORK/c.log")
 [ "$LEASED" = "$MISSING" ] || fail "the worker leased $LEASED tiles after the retry, not the $MISSING missing ones"

@@ -10,7 +10,7 @@ source "$(dirname "$0")/common.sh"
 write_sphere_scene "$WORK/s.json" 32 24 2
 "$TESSERA" render "$WORK/s.json" -o "$WORK/ref.exr" -q
 start_serve
-FAIL_POINTS="worker.render=1*off->pause($WORK/go)" start_worker w --threads 1
+FAIL_POINTS="worker.render=1*off->pause($WORK/go)" start_worker w --threads 2
 
 job_state() { curl -sS -f "$URL/v1/jobs/$1" | python3 -c 'import json, sys; print(json.load(sys.stdin)["state"])'; }
 

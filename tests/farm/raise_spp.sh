@@ -38,7 +38,7 @@ hand_upload "$HB" --spp "$M" --resumable | grep -q "$M samples at tile pixel (0,
 hand_upload "$HA" --spp "$N" --resumable | grep -q accepted || fail "a tile with its sums was not accepted"
 "$TESSERA" jobs cancel "$HAND" --coordinator "$URL" >"$WORK/cancel-hand.log" 2>&1 || fail "cancel failed"
 
-FAIL_POINTS="worker.render=1*off->1*pause->off" start_worker w1 --threads 1
+FAIL_POINTS="worker.render=1*off->1*pause->off" start_worker w1 --threads 2
 W1_PID=$WORKER_PID
 
 # Submitted at N and finished: identical to render --resumable at N (state channels included).
@@ -51,7 +51,7 @@ wait_for paused "$WORK/w1.log" || fail "the second tile was not held"
 log_has "$WORK/raise-running.log" "^$JOB: running at $M spp, 12 of 12 tiles to continue" \
   || fail "jobs spp did not report the running job at $M spp"
 wait_for log_has "$WORK/w1.log" "tile=1 .*lease revoked, tile dropped" || fail "the held tile was not dropped"
-start_worker w2 --threads 1
+start_worker w2 --threads 2
 W2_PID=$WORKER_PID
 job_done() { "$TESSERA" jobs show "$JOB" --coordinator "$URL" 2>/dev/null | grep -q '"state": "done"'; }
 wait_for job_done || fail "the job raised while running did not finish"
@@ -102,7 +102,7 @@ kill -TERM "$W1_PID" "$W2_PID"  # asked to stop: no tile renders before the rest
 kill -KILL "$SERVE_PID"
 wait "$SERVE_PID" 2>/dev/null || true
 start_serve --lease-seconds 5 --heartbeat-seconds 1
-start_worker w3 --threads 1
+start_worker w3 --threads 2
 wait_for rep_done || fail "the raised job with replicates did not finish after the restart"
 [ "$(grep -c "at $M spp continuing from $N" "$WORK/w3.log")" = 12 ] || fail "not every tile continued after the restart"
 curl -sS -f -o "$WORK/rep-$M.exr" "$URL/v1/jobs/$REP/result.exr" || fail "no result with replicates"

@@ -13,7 +13,7 @@ leftovers() { pgrep -f -- "$WORK/tessera-render" || true; }
 export TMPDIR=$WORK
 
 write_sphere_scene "$WORK/slow.json" 64 64 16
-TESSERA_FAIL_POINTS=worker.render=pause "$TESSERA_FP" render "$WORK/slow.json" -o "$WORK/slow.exr" --workers 2 \
+TESSERA_FAIL_POINTS=worker.render=pause "$TESSERA_FP" render "$WORK/slow.json" -o "$WORK/slow.exr" --workers 2 --threads 2 \
   --farm-tile 16 >"$WORK/render.log" 2>&1 &
 RENDER=$!
 PIDS+=("$RENDER")

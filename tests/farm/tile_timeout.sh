@@ -11,7 +11,7 @@ start_serve --lease-seconds 10 --heartbeat-seconds 1
 JOB=$("$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 8 --seed 5 --tile-timeout 2 --detach \
   2>"$WORK/submit.log") || fail "submit failed"
 "$TESSERA" jobs show "$JOB" --coordinator "$URL" | grep -q '"tile_timeout_seconds": 2' || fail "the job has no 2 s timeout"
-FAIL_POINTS=worker.render=pause start_worker a --threads 1
+FAIL_POINTS=worker.render=pause start_worker a --threads 2
 wait_for log_has "$WORK/serve.log" "worker w-[^ ]+: lease [^ ]+ revoked: tile timed out after 2 s" \
   || fail "the coordinator did not revoke the hung lease"
 wait_for log_has "$WORK/a.log" "heartbeat answered 410" || fail "worker a's heartbeat was not answered 410"
@@ -19,7 +19,7 @@ wait_for log_has "$WORK/a.log" "lease revoked, tile dropped" || fail "worker a d
 "$TESSERA" jobs tiles "$JOB" --coordinator "$URL" >"$WORK/tiles.txt" 2>&1 || fail "jobs tiles failed"
 log_has "$WORK/tiles.txt" "^tile 0 failed on w-[^ ]+ \\(a\\): tile timed out after 2 s" \
   || fail "the tile table does not show the timeout: $(cat "$WORK/tiles.txt")"
-start_worker b --threads 1
+start_worker b --threads 2
 job_done() { "$TESSERA" jobs show "$JOB" --coordinator "$URL" 2>/dev/null | grep -q '"state": "done"'; }
 wait_for job_done || fail "worker b did not finish the job"
 curl -sS -f -o "$WORK/out.exr" "$URL/v1/jobs/$JOB/result.exr" || fail "no result"

@@ -10,7 +10,7 @@ write_sphere_scene "$WORK/s.json" 32 32 16
 start_serve --lease-seconds 2 --heartbeat-seconds 1
 start_submit "$WORK/submit.log" "$WORK/s.json" --tile 16 -o "$WORK/out.exr" -q
 
-FAIL_POINTS=worker.render=pause start_worker victim --threads 1
+FAIL_POINTS=worker.render=pause start_worker victim --threads 2
 VICTIM=$WORKER_PID
 wait_for paused "$WORK/victim.log" || fail "the victim held no tile"
 kill -KILL "$VICTIM"
@@ -21,7 +21,7 @@ LEASE=$(echo "$TILE" | grep -Eo "lease=[^:]+" | cut -d= -f2)
 TILE=$(echo "$TILE" | grep -Eo "tile=[0-9]+")
 [ -n "$LEASE" ] || fail "no lease in the victim's log"
 
-start_worker survivor --threads 1
+start_worker survivor --threads 2
 SURVIVOR=$WORKER_PID
 wait "$SUBMIT_PID" || fail "submit exited with $?"
 "$EXR_COMPARE" "$WORK/ref.exr" "$WORK/out.exr" || fail "result differs after a worker was killed"

@@ -14,7 +14,7 @@ start_serve
 PORT=${URL##*:}
 kill -TERM "$SERVE_PID"
 wait "$SERVE_PID" || fail "the coordinator did not exit 0 on SIGTERM"
-start_worker patient --threads 1
+start_worker patient --threads 2
 PATIENT=$WORKER_PID
 wait_for log_has "$WORK/patient.log" "coordinator unreachable" || fail "the worker did not notice the missing coordinator"
 kill -STOP "$PATIENT"   # keep it out of the shutdown checks below until they are done
@@ -25,7 +25,7 @@ is_stopped "$PATIENT" || fail "the worker exited while the coordinator was down 
 LISTEN=127.0.0.1:$PORT start_serve --lease-seconds 30 --heartbeat-seconds 1
 start_submit "$WORK/submit.log" "$WORK/s.json" --tile 32 -o "$WORK/out.exr" -q
 
-FAIL_POINTS="worker.render=pause($WORK/go-once)" start_worker once --threads 1
+FAIL_POINTS="worker.render=pause($WORK/go-once)" start_worker once --threads 2
 ONCE=$WORKER_PID
 wait_for paused "$WORK/once.log" || fail "worker 'once' did not hold a tile"
 log_has "$WORK/once.log" "tile=0 .*leased window" || fail "worker 'once' holds another tile than 0"
@@ -35,7 +35,7 @@ release go-once
 wait "$ONCE" || fail "worker 'once' exited with $? after one SIGTERM"
 log_has "$WORK/once.log" "tile=0 .*upload accepted" || fail "one SIGTERM did not let the tile finish and upload"
 
-FAIL_POINTS="worker.render=pause" start_worker twice --threads 1
+FAIL_POINTS="worker.render=pause" start_worker twice --threads 2
 TWICE=$WORKER_PID
 wait_for paused "$WORK/twice.log" || fail "worker 'twice' did not hold a tile"
 log_has "$WORK/twice.log" "tile=1 .*leased window" || fail "worker 'twice' holds another tile than 1"

@@ -141,7 +141,7 @@ class Farm:
             out.flush()
             self.workers[name] = subprocess.Popen(
                 [self.args.tessera, "worker", "--coordinator", f"http://127.0.0.1:{port}",
-                 "--cache", str(self.work / f"cache-{name}"), "--name", name, "--threads", "1"],
+                 "--cache", str(self.work / f"cache-{name}"), "--name", name, "--threads", "2"],
                 stdout=out, stderr=subprocess.STDOUT)
         self.stopped.discard(name)
 
