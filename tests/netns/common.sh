@@ -152,7 +152,7 @@ start_short_lease_farm() {
   serve_on c "$COORD" "${SERVE_TLS[@]}" --lease-seconds 2 --heartbeat-seconds 1
   URL=https://$COORD
   SUBMIT=("${CLIENT_TLS[@]}" --token-file "$CLIENT_TOKEN_FILE" --tile 8 -q)
-  WORKER=(--threads 1 "${CLIENT_TLS[@]}" --token-file "$WORKER_TOKEN_FILE" --connect-timeout-seconds 1
+  WORKER=(--threads 2 "${CLIENT_TLS[@]}" --token-file "$WORKER_TOKEN_FILE" --connect-timeout-seconds 1
           --request-timeout-seconds 2)
   submit_on "$1" "$WORK/submit.log" "$WORK/s.json" "$URL" "${SUBMIT[@]}" -o "$WORK/out.exr"
 }

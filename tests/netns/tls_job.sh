@@ -13,8 +13,8 @@ write_sphere_scene "$WORK/s.json" 48 32 4
 serve_on c "$COORD" "${SERVE_TLS[@]}"
 log_has "$WORK/serve.log" "clear text" && fail "a TLS coordinator warned about clear text"
 URL=https://$COORD
-worker_on w1 w1 "$URL" --threads 1 "${CLIENT_TLS[@]}" --token-file "$WORKER_TOKEN_FILE"
-worker_on w2 w2 "$URL" --threads 1 "${CLIENT_TLS[@]}" --token-file "$WORKER_TOKEN_FILE"
+worker_on w1 w1 "$URL" --threads 2 "${CLIENT_TLS[@]}" --token-file "$WORKER_TOKEN_FILE"
+worker_on w2 w2 "$URL" --threads 2 "${CLIENT_TLS[@]}" --token-file "$WORKER_TOKEN_FILE"
 both_registered() { log_has "$WORK/w1.log" "registered as" && log_has "$WORK/w2.log" "registered as"; }
 wait_for both_registered || fail "the workers did not register over TLS"
 expect_exit 0 "$WORK/submit.log" -- on w3 "$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 8 --seed 5 -q \
