@@ -68,6 +68,19 @@ std::string request_string(const json& j, const char* key, const std::string& fa
   return j[key].get<std::string>();
 }
 
+std::string bounded_text(std::string text, size_t max_bytes) {
+  if (text.size() <= max_bytes) return text;
+  const size_t original = text.size();
+  size_t cut = max_bytes;
+  while (cut > 0 && (static_cast<unsigned char>(text[cut]) & 0xC0) == 0x80) --cut;  // not inside a UTF-8 character
+  text.resize(cut);
+  return text + " [cut from " + std::to_string(original) + " bytes]";
+}
+
+std::string request_bounded_string(const json& j, const char* key, const std::string& fallback, size_t max_bytes) {
+  return bounded_text(request_string(j, key, fallback), max_bytes);
+}
+
 std::optional<std::vector<std::string>> request_strings(const json& j, const char* key, size_t max_count) {
   if (!j.contains(key)) return std::nullopt;
   const json& list = j[key];

@@ -27,6 +27,12 @@ int64_t request_int(const nlohmann::json& j, const char* key, int64_t fallback, 
 uint64_t request_uint(const nlohmann::json& j, const char* key, uint64_t fallback);
 /// A string request field.
 std::string request_string(const nlohmann::json& j, const char* key, const std::string& fallback);
+/// A string request field the coordinator stores: longer than `max_bytes`, it is cut (at a UTF-8 character boundary)
+/// and marked as cut, " [cut from N bytes]", so a stored text never exceeds max_bytes plus that mark.
+std::string request_bounded_string(const nlohmann::json& j, const char* key, const std::string& fallback,
+                                   size_t max_bytes);
+/// `text` as request_bounded_string stores it.
+std::string bounded_text(std::string text, size_t max_bytes);
 /// An array-of-strings request field of at most `max_count` entries; nothing when absent.
 std::optional<std::vector<std::string>> request_strings(const nlohmann::json& j, const char* key, size_t max_count);
 

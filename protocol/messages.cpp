@@ -196,7 +196,7 @@ JobSubmission parse_job_submission(const std::string& body) {
   s.assets = request_assets(j);
   s.tile_size = int(request_int(j, "tile_size", kDefaultTileSize, 1, 4096));
   s.priority = request_priority(j);
-  s.name = request_string(j, "name", "");
+  s.name = request_bounded_string(j, "name", "", kMaxNameBytes);
   s.tile_timeout_seconds = request_int(j, "tile_timeout_seconds", kDefaultTileTimeoutSeconds, 1, kMaxTileTimeoutSeconds);
   s.sampling = request_sampling(j);
   if (j.contains("resumable")) {
@@ -275,7 +275,7 @@ void to_json(json& j, const WorkerHello& h) { j = {{"name", h.name}, {"threads",
 WorkerHello parse_worker_hello(const std::string& body) {
   const json j = parse_request_object(body, {"name", "threads", "version"}, true);
   WorkerHello h;
-  h.name = request_string(j, "name", "");
+  h.name = request_bounded_string(j, "name", "", kMaxNameBytes);
   h.threads = request_int(j, "threads", 0, 0, 1 << 20);
   h.version = request_string(j, "version", "");
   return h;
@@ -383,7 +383,7 @@ void to_json(json& j, const FailReport& f) {
 
 FailReport parse_fail_report(const std::string& body) {
   const json j = parse_request_object(body, {"error", "log"}, true);
-  FailReport f{request_string(j, "error", FailReport{}.error), {}};
+  FailReport f{request_bounded_string(j, "error", FailReport{}.error, kMaxFailureErrorBytes), {}};
   if (!j.contains("log")) return f;
   const json& log = j["log"];
   if (!log.is_array() || log.size() > kMaxFailureLogLines)

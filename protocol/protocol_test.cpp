@@ -322,5 +322,24 @@ TEST(Messages, ASubmissionsSettingsReachTheSpecUnchanged) {
   EXPECT_EQ(ro.seed, 3u);
 }
 
+
+// Texts the coordinator stores are bounded: a failure text, a worker's name and a job's name longer than their limit
+// are cut at a character boundary and marked as cut, never stored whole.
+TEST(Messages, StoredTextsAreCutAndMarkedBeyondTheirBound) {
+  const std::string huge(15 << 20, 'x');
+  const FailReport f = parse_fail_report(nlohmann::json{{"error", huge}}.dump());
+  EXPECT_EQ(f.error, std::string(kMaxFailureErrorBytes, 'x') + " [cut from " + std::to_string(huge.size()) + " bytes]");
+  const WorkerHello h = parse_worker_hello(nlohmann::json{{"name", std::string(1 << 20, 'w')}}.dump());
+  EXPECT_EQ(h.name.substr(0, kMaxNameBytes), std::string(kMaxNameBytes, 'w'));
+  EXPECT_EQ(h.name.substr(kMaxNameBytes), " [cut from 1048576 bytes]");
+  EXPECT_EQ(parse_worker_hello(R"({"name":"render-1"})").name, "render-1");  // within the bound: unchanged
+  // A cut never splits a UTF-8 character: 'é' is two bytes, and 255 of 256 bytes end inside the 128th.
+  std::string accented;
+  for (int i = 0; i < 200; ++i) accented += "\xc3\xa9";
+  const std::string cut = bounded_text(accented, kMaxNameBytes - 1);
+  EXPECT_EQ(cut.substr(0, cut.find(' ')).size(), 254u);
+  EXPECT_EQ(cut.substr(cut.find(' ')), " [cut from 400 bytes]");
+}
+
 }  // namespace
 }  // namespace tessera::protocol

@@ -30,6 +30,8 @@ inline TileState tile_state_from_string(std::string_view s) {
 /// The most log lines a failure report carries, and the longest line (bytes); longer reports are refused (400).
 inline constexpr size_t kMaxFailureLogLines = 50;
 inline constexpr size_t kMaxFailureLogLineBytes = 1000;
+/// The longest failure text stored (bytes); a longer one is cut and marked (protocol::bounded_text).
+inline constexpr size_t kMaxFailureErrorBytes = 4096;
 
 /// A worker's latest failure on a tile.
 struct TileFailure {
