@@ -241,10 +241,32 @@ void JobImage::paste(const Image& tile, const PixelWindow& w) {
                 row_floats * sizeof(float));
 }
 
+Image preview_image(const Image* image, int width, int height) {
+  // At most kMaxPreviewSide pixels on the long side: an integer factor f of box-filtered blocks, the edge blocks
+  // averaged over what they cover. Without an image nothing is allocated at the frame's size.
+  const int f = (std::max(width, height) + kMaxPreviewSide - 1) / kMaxPreviewSide;
+  Image small = Image::make((width + f - 1) / f, (height + f - 1) / f);
+  if (image) {
+    for (int sy = 0; sy < small.height; ++sy)
+      for (int sx = 0; sx < small.width; ++sx) {
+        Vec3 sum(0.f);
+        int n = 0;
+        for (int y = sy * f; y < std::min(height, (sy + 1) * f); ++y)
+          for (int x = sx * f; x < std::min(width, (sx + 1) * f); ++x, ++n) sum = sum + image->at(x, y);
+        small.set(sx, sy, sum * (1.f / float(n)));
+      }
+  }
+  return small;
+}
+
+std::vector<uint8_t> preview_png(const Image* image, int width, int height) {
+  if (image && std::max(width, height) <= kMaxPreviewSide) return encode_png_srgb(*image);
+  return encode_png_srgb(preview_image(image, width, height));
+}
+
 std::vector<uint8_t> JobImage::preview_png() {
   std::lock_guard lock(mu_);
-  allocate_locked();
-  return encode_png_srgb(image_);
+  return server::preview_png(image_.rgb.empty() ? nullptr : &image_, width_, height_);
 }
 
 void JobImage::write_exr(const std::filesystem::path& file, const std::map<std::string, std::string>& metadata,

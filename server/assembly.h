@@ -33,13 +33,23 @@ std::string_view tile_bytes(const Image& tile);
 Image tile_from_bytes(std::string_view bytes, int width, int height);
 
 /// One job's float image, filled tile by tile. Thread-safe.
+/// The longest side of a job's preview PNG, in pixels.
+inline constexpr int kMaxPreviewSide = 1024;
+
+/// A width x height frame (`image`, nullptr: black) scaled down by a whole factor to at most kMaxPreviewSide pixels on
+/// its long side, each pixel the mean of the block it covers.
+Image preview_image(const Image* image, int width, int height);
+/// preview_image as an sRGB PNG (a frame within the bound is encoded as it is).
+std::vector<uint8_t> preview_png(const Image* image, int width, int height);
+
 class JobImage {
  public:
   /// A black width x height image; its memory is allocated on the first paste.
   JobImage(int width, int height);
   /// Copies a window-sized tile into the image; throws std::invalid_argument when it does not fit.
   void paste(const Image& tile, const PixelWindow& window);
-  /// An sRGB PNG of the image as far as it is filled (black elsewhere).
+  /// An sRGB PNG of the image as far as it is filled (black elsewhere), scaled down by a whole factor to at most
+  /// kMaxPreviewSide pixels on its long side; a job with no tile yet costs only the PNG's pixels.
   std::vector<uint8_t> preview_png();
   /// Writes the image to `file` as an uncompressed float32 EXR with string metadata (and UINT channels, e.g. a
   /// resumable job's state channels), straight from the image (a finished 4K frame is 100 MB: no copy of it is made

@@ -104,5 +104,40 @@ TEST(CheckTileExr, AHeaderClaimingMoreThanTheTileIsRefusedBeforeDecoding) {
   EXPECT_EQ(check_tile_exr(parts, w, 16, 16).error.value_or(""), "a tile must be one flat image, not deep or multi-part");
 }
 
+// The width and height a PNG's header gives.
+std::pair<uint32_t, uint32_t> png_size(const std::vector<uint8_t>& png) {
+  const auto be32 = [&](size_t at) {
+    return uint32_t(png.at(at)) << 24 | uint32_t(png.at(at + 1)) << 16 | uint32_t(png.at(at + 2)) << 8 | png.at(at + 3);
+  };
+  return {be32(16), be32(20)};
+}
+
+// A preview is at most kMaxPreviewSide on its long side, a whole-factor box filter of the frame; a job none of whose
+// tiles arrived costs only the preview's pixels, not the frame's.
+TEST(JobImage, PreviewsAreBoundedAndAQueuedJobAllocatesNoFrame) {
+  rusage before{};
+  ::getrusage(RUSAGE_SELF, &before);
+  JobImage queued(8192, 8192);
+  EXPECT_EQ(png_size(queued.preview_png()), std::make_pair(1024u, 1024u));
+  EXPECT_EQ(png_size(preview_png(nullptr, 3000, 2000)), std::make_pair(1000u, 667u));  // factor 3, edge blocks partial
+  rusage after{};
+  ::getrusage(RUSAGE_SELF, &after);
+  EXPECT_LT(after.ru_maxrss - before.ru_maxrss, 64 * 1024) << "peak memory grew by more than 64 MiB (in KiB)";
+  // Small frames keep their size; a frame just over the bound is scaled by 3 and its blocks averaged: the first
+  // pixel of a 2050 x 1 frame whose first three pixels are 1, 1, 0.25 is their mean, 0.75, and the last block holds
+  // the frame's last pixel alone.
+  EXPECT_EQ(png_size(JobImage(640, 480).preview_png()), std::make_pair(640u, 480u));
+  Image frame = Image::make(2050, 1);
+  frame.set(0, 0, Vec3(1.f));
+  frame.set(1, 0, Vec3(1.f));
+  frame.set(2, 0, Vec3(0.25f));
+  const std::vector<uint8_t> png = preview_png(&frame, 2050, 1);
+  EXPECT_EQ(png_size(png), std::make_pair(684u, 1u));
+  frame.set(2049, 0, Vec3(0.5f));
+  const Image small = preview_image(&frame, 2050, 1);
+  EXPECT_EQ(small.at(0, 0), Vec3(0.75f));
+  EXPECT_EQ(small.at(683, 0), Vec3(0.5f));
+}
+
 }  // namespace
 }  // namespace tessera::server

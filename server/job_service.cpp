@@ -280,8 +280,11 @@ std::string JobService::result_exr(const std::string& id) {
 std::vector<uint8_t> JobService::preview_png(const std::string& id) {
   const protocol::JobStatus s = status(id);
   if (!is_final(s.state)) return image_for(id, s.params.width, s.params.height)->preview_png();
-  if (s.state == JobState::done) return encode_png_srgb(read_exr(jobs_.result_path(id)).pixels);
-  return encode_png_srgb(Image::make(s.params.width, s.params.height));
+  if (s.state == JobState::done) {
+    const Image result = read_exr(jobs_.result_path(id)).pixels;
+    return server::preview_png(&result, s.params.width, s.params.height);
+  }
+  return server::preview_png(nullptr, s.params.width, s.params.height);  // failed or cancelled: black
 }
 
 std::shared_ptr<JobImage> JobService::image_for(const std::string& job, int width, int height) {
