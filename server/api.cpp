@@ -61,8 +61,11 @@ std::optional<HttpResponse> Api::check_access(const Route& route, const http::re
   if (!forbidden)
     res.set(http::field::www_authenticate,
             d.status == AuthDecision::missing ? "Bearer realm=\"tessera\"" : "Bearer realm=\"tessera\", error=\"invalid_token\"");
-  // The reason names roles, never the presented or configured token.
-  spdlog::warn("{} {}: {} {}", std::string(h.method_string()), route.match.route->pattern, forbidden ? 403 : 401, d.reason);
+  // The reason names roles, never the presented or configured token; a flood of refusals logs 10 lines a minute.
+  uint64_t left_out = 0;
+  if (refusal_log_.allow(left_out))
+    spdlog::warn("{} {}: {} {}{}", std::string(h.method_string()), route.match.route->pattern, forbidden ? 403 : 401,
+                 d.reason, left_out ? fmt::format(" ({} more refusals not logged before this one)", left_out) : "");
   return res;
 }
 

@@ -5,6 +5,7 @@
 #include "protocol/messages.h"
 #include "protocol/routes.h"
 #include "server/auth.h"
+#include "server/log_limit.h"
 #include "server/blobs_handler.h"
 #include "server/collector.h"
 #include "server/event_bus.h"
@@ -86,6 +87,7 @@ class Api final : public RoutedHandler {
   Metrics& metrics_;
   ApiOptions opt_;
   TokenCheck token_check_;  // opt_.tokens' digests
+  LogLimit refusal_log_{10, std::chrono::minutes(1)};  // the 401 and 403 lines
   Scheduler& sched_;                              // notes new work to lease_waiters_ while this lives
   std::unique_ptr<LeaseWaiters> lease_waiters_;  // ended first in ~Api, while what its requests answer through lives
   JobService jobs_;
