@@ -1,5 +1,7 @@
 #include "server/http_server.h"
 
+#include "server/log_limit.h"
+
 #include "net/byte_stream.h"
 #include "protocol/messages.h"
 
@@ -18,8 +20,10 @@
 #include <arpa/inet.h>
 #include <fcntl.h>
 #include <netinet/in.h>
+#include <sys/resource.h>
 #include <sys/socket.h>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <cerrno>
@@ -64,6 +68,12 @@ struct HttpServer::State {
   std::map<uint64_t, std::weak_ptr<Session>> sessions;
   uint64_t next_session = 1;
   std::shared_ptr<ssl::context> tls_context;  // guarded by mu; replaced by reload_tls(), null for plain HTTP
+  // Failed accepts (out of descriptors, say) wait before the next try, 10 ms doubling to 1 s, back to none after an
+  // accept that works; their log lines, and those of connections over the limit, are bounded.
+  asio::steady_timer accept_pause{acceptor.get_executor()};
+  std::chrono::milliseconds accept_backoff{0};
+  LogLimit accept_log{10, std::chrono::minutes(1)};
+  LogLimit over_limit_log{10, std::chrono::minutes(1)};
 };
 
 namespace {
@@ -425,12 +435,44 @@ class Session : public std::enable_shared_from_this<Session> {
 
 namespace {
 
+// Descriptors kept for what is not a connection: the database and its journal, blobs and results being read or
+// written, the listening socket, the log.
+constexpr rlim_t kReservedDescriptors = 64;
+
+// --max-connections must fit the process's descriptor limit: the soft limit is raised towards the hard one when it is
+// too low, and if that is not enough the connection limit is lowered to fit, saying so.
+void fit_connections_to_descriptors(std::size_t& max_connections) {
+  rlimit lim{};
+  if (::getrlimit(RLIMIT_NOFILE, &lim) != 0) return;
+  const rlim_t needed = rlim_t(max_connections) + kReservedDescriptors;
+  if (lim.rlim_cur != RLIM_INFINITY && lim.rlim_cur < needed) {
+    rlimit raised = lim;
+    raised.rlim_cur = lim.rlim_max == RLIM_INFINITY ? needed : std::min(needed, lim.rlim_max);
+    if (::setrlimit(RLIMIT_NOFILE, &raised) == 0) lim = raised;
+  }
+  if (lim.rlim_cur == RLIM_INFINITY || lim.rlim_cur >= needed) return;
+  const std::size_t fits = lim.rlim_cur > kReservedDescriptors ? std::size_t(lim.rlim_cur - kReservedDescriptors) : 1;
+  spdlog::warn("--max-connections {} does not fit the limit of {} open files (ulimit -n; {} kept for the database and "
+               "files): serving at most {} connections",
+               max_connections, uint64_t(lim.rlim_cur), uint64_t(kReservedDescriptors), fits);
+  max_connections = fits;
+}
+
 void accept_next(const std::shared_ptr<HttpServer::State>& st) {
   st->acceptor.async_accept(asio::make_strand(st->ioc), [st](beast::error_code ec, tcp::socket socket) {
     if (ec == asio::error::operation_aborted || !st->acceptor.is_open() || st->stopping) return;
     if (ec) {
-      spdlog::warn("accept failed: {}", ec.message());
-    } else {
+      st->accept_backoff = std::clamp(2 * st->accept_backoff, std::chrono::milliseconds(10), std::chrono::milliseconds(1000));
+      uint64_t left_out = 0;
+      if (st->accept_log.allow(left_out))
+        spdlog::warn("accept failed: {}; next try in {} ms{}", ec.message(), st->accept_backoff.count(),
+                     left_out ? fmt::format(" ({} more failures not logged before this one)", left_out) : "");
+      st->accept_pause.expires_after(st->accept_backoff);
+      st->accept_pause.async_wait([st](beast::error_code) { accept_next(st); });
+      return;
+    }
+    st->accept_backoff = std::chrono::milliseconds(0);
+    {
       // Responses are small writes a client waits for: no Nagle delay (see client/http_client.cpp).
       beast::error_code nodelay_ec;
       socket.set_option(tcp::no_delay(true), nodelay_ec);
@@ -448,7 +490,10 @@ void accept_next(const std::shared_ptr<HttpServer::State>& st) {
         }
       }
       if (over_limit) {
-        spdlog::warn("connection refused: {} connections open (--max-connections)", st->opt.max_connections);
+        uint64_t left_out = 0;
+        if (st->over_limit_log.allow(left_out))
+          spdlog::warn("connection refused: {} connections open (--max-connections){}", st->opt.max_connections,
+                       left_out ? fmt::format(" ({} more refused before this one)", left_out) : "");
         if (tls) {
           // No handshake for a connection over the limit: doing one would let a flood of them cost CPU.
           beast::error_code ignored;
@@ -499,6 +544,7 @@ std::string listening_address(int fd) {
 
 HttpServer::HttpServer(asio::io_context& ioc, asio::thread_pool& handlers, HttpHandler& handler, HttpServerOptions options)
     : state_(std::make_shared<State>(ioc, handlers, handler, std::move(options))) {
+  fit_connections_to_descriptors(state_->opt.max_connections);
   auto& a = state_->acceptor;
   beast::error_code ec;
   if (const int fd = state_->opt.listen_fd; fd >= 0) {
