@@ -29,34 +29,29 @@ SamplingSettings full_sampling() {
   return s;
 }
 
+// A default T with `set` applied.
+template <class T, class Set>
+T with(Set set) {
+  T v;
+  set(v);
+  return v;
+}
+
 JobStatus full_job() {
-  JobStatus s;
-  s.id = "j-1";
-  s.started_ms = 1;
-  s.finished_ms = 2;
-  s.error = "e";
-  s.workers = {"w-1"};
-  return s;
+  return with<JobStatus>([](JobStatus& s) {
+    s.id = "j-1"; s.started_ms = 1; s.finished_ms = 2; s.error = "e"; s.workers = {"w-1"};
+  });
 }
 
 WorkerInfo full_worker() {
-  WorkerInfo w;
-  w.id = "w-1";
-  w.job = "j-1";
-  w.tile = 0;
-  w.blocklisted_for = {"j-2"};
-  return w;
+  return with<WorkerInfo>([](WorkerInfo& w) { w.id = "w-1"; w.job = "j-1"; w.tile = 0; w.blocklisted_for = {"j-2"}; });
 }
 
 TileInfo full_tile() {
-  TileInfo t;
-  t.worker = "w-1";
-  t.worker_name = "n";
-  t.render_seconds = 1.0;
-  t.rendered_by = "w-1";
-  t.rendered_by_name = "n";
-  t.failures = {TileFailure{"w-2", "m", "e", {"line"}}};
-  return t;
+  return with<TileInfo>([](TileInfo& t) {
+    t.worker = "w-1"; t.worker_name = "n"; t.render_seconds = 1.0; t.rendered_by = "w-1"; t.rendered_by_name = "n";
+    t.failures = {TileFailure{"w-2", "m", "e", {"line"}}};
+  });
 }
 
 }  // namespace
