@@ -653,15 +653,17 @@ TEST_F(HostileFarm, EveryCaseGetsItsAnswerAndTheGoodJobStillRendersRight) {
 
   // Every case, while the good job renders: its first tile done and the worker held on its second.
   const json cases = load_cases();
+  // The worker holds its second tile while the first one's upload may still be on its way: wait for both.
   json start;
-  for (int i = 0; i < 3000; ++i) {  // 300 s at most; the worker's log says when it holds
+  const auto held_with_one_done = [&] {
     start = json::parse(call("GET", "/v1/jobs/" + good_job).body, nullptr, false);
-    if (slurp(work_ / "worker.log").find("fail point worker.render: hit") != std::string::npos) break;
+    return slurp(work_ / "worker.log").find("fail point worker.render: hit") != std::string::npos &&
+           start.is_object() && start["tiles"].value("done", 0) >= 1 && start["tiles"].value("leased", 0) == 1;
+  };
+  for (int i = 0; i < 3000 && !held_with_one_done(); ++i)  // 300 s at most
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
   ASSERT_NE(slurp(work_ / "worker.log").find("fail point worker.render: hit"), std::string::npos)
       << "the worker never held its second tile:\n" << slurp(work_ / "worker.log");
-  start = json::parse(call("GET", "/v1/jobs/" + good_job).body, nullptr, false);
   ASSERT_EQ(start.value("state", ""), "running") << start.dump();
   ASSERT_GE(start["tiles"].value("done", 0), 1) << start.dump();
   ASSERT_EQ(start["tiles"].value("leased", 0), 1) << start.dump();
