@@ -1,112 +1,132 @@
-// Prints the JSON form of every protocol type that goes on the wire, keyed by the name of its schema in
-// docs/openapi.yaml: {"Schema": {"full": <a value with every optional field set and every list non-empty>,
-// "minimal": <a default value>}}. tests/openapi/check_types.py compares both with the document's properties and
-// required fields, so that the document and the types cannot drift apart.
+// Prints the JSON form of every protocol type that goes on the wire, for tests/openapi/check_types.py to compare with
+// docs/openapi.yaml. The output is one object: schema name (components/schemas) -> C++ type -> {"answer", "full",
+// "minimal"}. "full" is a sample with every optional field set and every list non-empty, so it holds every key the code
+// can write; "minimal" is a default-constructed value, so it holds the keys the code always writes. "answer" is true
+// for what the coordinator writes (its always-written keys are exactly the schema's required ones) and false for
+// request bodies and parts of them (whose required keys are what the coordinator insists on).
 #include "protocol/events.h"
 #include "protocol/job.h"
 #include "protocol/messages.h"
 #include "protocol/tile.h"
 #include "protocol/worker.h"
 
-#include <cstdio>
+#include <nlohmann/json.hpp>
 
-using namespace tessera::protocol;
-using nlohmann::json;
+#include <iostream>
+#include <string>
+#include <vector>
 
+namespace tessera::protocol {
 namespace {
 
+using nlohmann::json;
+
+const std::string kSha = std::string(64, 'a');
+
+// The full samples name every field of their type: GCC's -Wmissing-field-initializers (in -Wextra; an error with
+// TESSERA_WERROR) reports a field added to a type but not to its sample.
+
 SamplingSettings full_sampling() {
-  SamplingSettings s;
-  s.spp = 16;
-  s.seed = 3;
-  s.integrator = "direct";
-  s.target_error = 0.02;
-  s.error_floor = 0.5;
-  s.replicates = 4;
-  s.area_sampling = "area";
-  s.env_sampling = "cosine";
-  s.bvh = "median";
-  return s;
+  return {.spp = 4, .seed = 7, .integrator = "direct", .target_error = 0.05, .min_spp = 8, .max_spp = 64,
+          .error_floor = 0.02, .replicates = 2, .area_sampling = "area", .env_sampling = "cosine", .bvh = "median"};
 }
 
-// A default T with `set` applied.
-template <class T, class Set>
-T with(Set set) {
-  T v;
-  set(v);
-  return v;
+json sample_scene() { return {{"film", {{"resolution", {16, 16}}}}}; }
+
+JobSubmission full_submission() {
+  return {.scene = sample_scene(), .assets = {{"assets/floor.obj", kSha}}, .sampling = full_sampling(), .tile_size = 8,
+          .priority = 3, .name = "sample", .resumable = true, .tile_timeout_seconds = 60};
+}
+
+JobSpec full_spec() {
+  return {.scene = sample_scene(), .assets = {{"assets/floor.obj", kSha}}, .sampling = full_sampling(), .width = 16,
+          .height = 16, .tile_size = 8, .resumable = true};
 }
 
 JobStatus full_job() {
-  return with<JobStatus>([](JobStatus& s) {
-    s.id = "j-1"; s.started_ms = 1; s.finished_ms = 2; s.error = "e"; s.workers = {"w-1"};
-  });
+  return {.id = "j-1",
+          .params = {.name = "sample", .priority = 3, .width = 16, .height = 16, .tile_size = 8, .spp = 4, .seed = 7,
+                     .scene_hash = "hash", .tile_timeout_seconds = 60},
+          .state = JobState::failed,
+          .tiles = {.total = 4, .done = 1, .leased = 1, .pending = 2},
+          .created_ms = 1000,
+          .started_ms = 2000,
+          .finished_ms = 3000,
+          .error = "a tile failed on 3 workers",
+          .rays = 123,
+          .workers = {"w-1"},
+          .render_seconds = 1.5};
+}
+
+Lease full_lease() {
+  return {.id = "l-1", .job = "j-1", .worker = "w-1", .tile = 2, .window = {8, 0, 16, 8}, .spp = 4, .seed = 7,
+          .scene_hash = "hash", .deadline_ms = 5000, .resumable = true, .state_spp = 2};
 }
 
 WorkerInfo full_worker() {
-  return with<WorkerInfo>([](WorkerInfo& w) { w.id = "w-1"; w.job = "j-1"; w.tile = 0; w.blocklisted_for = {"j-2"}; });
+  return {.id = "w-1", .name = "host-1", .state = WorkerState::rendering, .job = "j-1", .tile = 2, .threads = 8,
+          .tiles_done = 5, .rays = 456, .render_seconds = 2.5, .last_seen_ms = 4000, .blocklisted_for = {"j-2"}};
+}
+
+TileFailure full_failure() {
+  return {.worker = "w-2", .worker_name = "host-2", .error = "out of memory", .log = {"a log line"}};
 }
 
 TileInfo full_tile() {
-  return with<TileInfo>([](TileInfo& t) {
-    t.worker = "w-1"; t.worker_name = "n"; t.render_seconds = 1.0; t.rendered_by = "w-1"; t.rendered_by_name = "n";
-    t.failures = {TileFailure{"w-2", "m", "e", {"line"}}};
-  });
+  return {.index = 2, .window = {8, 0, 16, 8}, .state = "leased", .worker = "w-1", .worker_name = "host-1",
+          .attempts = 2, .render_seconds = 0.5, .rays = 789, .rendered_by = "w-3", .rendered_by_name = "host-3",
+          .failures = {full_failure()}};
+}
+
+// One entry of the output: out[schema][type].
+void add(json& out, const char* schema, const char* type, bool answer, const json& full, const json& minimal) {
+  out[schema][type] = {{"answer", answer}, {"full", full}, {"minimal", minimal}};
+}
+
+json dump() {
+  constexpr bool kAnswer = true, kRequest = false;
+  json out = json::object();
+  add(out, "Sampling", "SamplingSettings", kRequest, full_sampling(), SamplingSettings{});
+  add(out, "JobSubmission", "JobSubmission", kRequest, full_submission(), JobSubmission{});
+  add(out, "JobPatch", "JobPatch", kRequest, JobPatch{3, 8}, JobPatch{});
+  add(out, "SubmitAnswer", "SubmitAnswer", kAnswer, SubmitAnswer{"j-1", {"a warning"}}, SubmitAnswer{});
+  add(out, "JobSpec", "JobSpec", kAnswer, full_spec(), JobSpec{});
+  add(out, "Job", "JobStatus", kAnswer, full_job(), JobStatus{});
+  add(out, "JobList", "JobList", kAnswer, JobList{{full_job()}, "c1"}, JobList{});
+  add(out, "PurgeAnswer", "PurgeAnswer", kAnswer, PurgeAnswer{"j-1", JobState::cancelled}, PurgeAnswer{});
+  add(out, "BlobQuery", "BlobQuery", kRequest, BlobQuery{{kSha}}, BlobQuery{});
+  add(out, "BlobQueryAnswer", "BlobQueryAnswer", kAnswer, BlobQueryAnswer{{kSha}}, BlobQueryAnswer{});
+  add(out, "BlobStored", "BlobPutAnswer", kAnswer, BlobPutAnswer{kSha, 42}, BlobPutAnswer{});
+  add(out, "WorkerHello", "WorkerHello", kRequest, WorkerHello{"host-1", 8, "0.1.0"}, WorkerHello{});
+  add(out, "Registration", "Registration", kAnswer, Registration{"w-1", 0.5, 5}, Registration{});
+  add(out, "Worker", "WorkerInfo", kAnswer, full_worker(), WorkerInfo{});
+  add(out, "WorkerList", "WorkerList", kAnswer, WorkerList{{full_worker()}}, WorkerList{});
+  // The lease answer: the lease's keys with the job's spec beside them, as the coordinator writes it.
+  const std::string spec_text = json(full_spec()).dump();
+  add(out, "Lease", "Lease", kAnswer, json::parse(lease_answer_text(full_lease(), &spec_text)),
+      json::parse(lease_answer_text(Lease{}, nullptr)));
+  add(out, "LeaseRequest", "LeaseRequest", kRequest, LeaseRequest{std::vector<std::string>{"j-1"}, 100}, LeaseRequest{});
+  add(out, "HeartbeatReport", "HeartbeatReport", kRequest, HeartbeatReport{10}, HeartbeatReport{});
+  add(out, "HeartbeatAnswer", "HeartbeatAnswer", kAnswer, HeartbeatAnswer{5000}, HeartbeatAnswer{});
+  add(out, "UploadStatus", "ResultAnswer", kAnswer, ResultAnswer{UploadStatus::duplicate}, ResultAnswer{});
+  add(out, "FailReport", "FailReport", kRequest, FailReport{"it broke", {"a log line"}}, FailReport{});
+  add(out, "Status", "FailAnswer", kAnswer, FailAnswer{}, FailAnswer{});
+  add(out, "Status", "ReleaseAnswer", kAnswer, ReleaseAnswer{}, ReleaseAnswer{});
+  add(out, "Health", "HealthAnswer", kAnswer, HealthAnswer{}, HealthAnswer{});
+  add(out, "Error", "ErrorAnswer", kAnswer, ErrorAnswer{"what was wrong"}, ErrorAnswer{});
+  add(out, "Capabilities", "Capabilities", kAnswer, capabilities(true), Capabilities{});
+  add(out, "TileFailure", "TileFailure", kAnswer, full_failure(), TileFailure{});
+  add(out, "Tile", "TileInfo", kAnswer, full_tile(), TileInfo{});
+  add(out, "TileList", "TileList", kAnswer, TileList{"j-1", {full_tile()}}, TileList{});
+  add(out, "TileEvent", "TileEvent", kAnswer, TileEvent{"j-1", 2, "w-1", "l-1", "it broke"}, TileEvent{});
+  add(out, "WorkerEvent", "WorkerEvent", kAnswer, WorkerEvent{"registered", full_worker()}, WorkerEvent{});
+  return out;
 }
 
 }  // namespace
+}  // namespace tessera::protocol
 
 int main() {
-  json out = json::object();
-  const auto add = [&](const char* schema, const json& full, const json& minimal) {
-    out[schema] = {{"full", full}, {"minimal", minimal}};
-  };
-  add("Sampling", full_sampling(), SamplingSettings{});
-  JobSubmission sub;
-  sub.sampling = full_sampling();
-  sub.tile_timeout_seconds = kDefaultTileTimeoutSeconds + 1;
-  sub.resumable = true;
-  add("JobSubmission", sub, JobSubmission{});
-  JobPatch patch;
-  patch.priority = 1;
-  patch.spp = 2;
-  add("JobPatch", patch, JobPatch{});
-  add("SubmitAnswer", SubmitAnswer{"j-1", {"w"}}, SubmitAnswer{});
-  JobSpec spec;
-  spec.sampling = full_sampling();
-  spec.resumable = true;
-  add("JobSpec", spec, JobSpec{});
-  add("BlobQuery", BlobQuery{{"a"}}, BlobQuery{});
-  add("BlobQueryAnswer", BlobQueryAnswer{{"a"}}, BlobQueryAnswer{});
-  add("WorkerHello", WorkerHello{}, WorkerHello{});
-  add("Registration", Registration{}, Registration{});
-  Lease lease;
-  lease.resumable = true;
-  lease.state_spp = 4;
-  // The lease answer: the lease's keys, and its job's spec when the worker does not hold it.
-  const std::string spec_text = json(spec).dump();
-  add("Lease", json::parse(lease_answer_text(lease, &spec_text)), json::parse(lease_answer_text(Lease{}, nullptr)));
-  LeaseRequest request;
-  request.known_jobs = std::vector<std::string>{"j-1"};
-  request.wait_ms = 5;
-  add("LeaseRequest", request, LeaseRequest{});
-  add("HeartbeatReport", HeartbeatReport{}, HeartbeatReport{});
-  add("HeartbeatAnswer", HeartbeatAnswer{}, HeartbeatAnswer{});
-  add("FailReport", FailReport{"e", {"line"}}, FailReport{});
-  add("Health", HealthAnswer{}, HealthAnswer{});
-  add("BlobStored", BlobPutAnswer{}, BlobPutAnswer{});
-  add("Error", ErrorAnswer{"e"}, ErrorAnswer{});
-  add("Job", full_job(), JobStatus{});
-  add("JobList", JobList{{full_job()}, "j-0"}, JobList{});
-  add("PurgeAnswer", PurgeAnswer{}, PurgeAnswer{});
-  add("Worker", full_worker(), WorkerInfo{});
-  add("WorkerList", WorkerList{{full_worker()}}, WorkerList{});
-  add("TileFailure", TileFailure{"w-1", "n", "e", {"line"}}, TileFailure{});
-  add("Tile", full_tile(), TileInfo{});
-  add("TileList", TileList{"j-1", {full_tile()}}, TileList{});
-  add("TileEvent", TileEvent{"j-1", 0, "w-1", "l-1", "e"}, TileEvent{});
-  add("WorkerEvent", WorkerEvent{"registered", full_worker()}, WorkerEvent{});
-  // The three status answers share one schema, "Status" (and the upload's names its UploadStatus).
-  add("Status", ResultAnswer{}, ResultAnswer{});
-  std::puts(out.dump(1).c_str());
+  std::cout << tessera::protocol::dump().dump(2) << '\n';
+  return 0;
 }
