@@ -65,7 +65,7 @@ std::optional<HttpResponse> Api::check_access(const Route& route, const http::re
   uint64_t left_out = 0;
   if (refusal_log_.allow(left_out))
     spdlog::warn("{} {}: {} {}{}", std::string(h.method_string()), route.match.route->pattern, forbidden ? 403 : 401,
-                 d.reason, left_out ? fmt::format(" ({} more refusals not logged before this one)", left_out) : "");
+                 d.reason, LogLimit::left_out_note(left_out, "refusals"));
   return res;
 }
 

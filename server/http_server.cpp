@@ -466,7 +466,7 @@ void accept_next(const std::shared_ptr<HttpServer::State>& st) {
       uint64_t left_out = 0;
       if (st->accept_log.allow(left_out))
         spdlog::warn("accept failed: {}; next try in {} ms{}", ec.message(), st->accept_backoff.count(),
-                     left_out ? fmt::format(" ({} more failures not logged before this one)", left_out) : "");
+                     LogLimit::left_out_note(left_out, "failures"));
       st->accept_pause.expires_after(st->accept_backoff);
       st->accept_pause.async_wait([st](beast::error_code) { accept_next(st); });
       return;
@@ -493,7 +493,7 @@ void accept_next(const std::shared_ptr<HttpServer::State>& st) {
         uint64_t left_out = 0;
         if (st->over_limit_log.allow(left_out))
           spdlog::warn("connection refused: {} connections open (--max-connections){}", st->opt.max_connections,
-                       left_out ? fmt::format(" ({} more refused before this one)", left_out) : "");
+                       LogLimit::left_out_note(left_out, "refused connections"));
         if (tls) {
           // No handshake for a connection over the limit: doing one would let a flood of them cost CPU.
           beast::error_code ignored;

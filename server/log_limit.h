@@ -5,6 +5,8 @@
 #include <chrono>
 #include <cstdint>
 #include <mutex>
+#include <string>
+#include <string_view>
 
 namespace tessera::server {
 
@@ -13,6 +15,13 @@ class LogLimit {
  public:
   /// At most `lines` lines per `period`.
   LogLimit(int lines, std::chrono::steady_clock::duration period) : lines_(lines), period_(period) {}
+
+  /// What a line allowed after `left_out` refused ones appends: " (N more WHAT not logged before this one)", or
+  /// nothing when none was left out.
+  static std::string left_out_note(uint64_t left_out, std::string_view what) {
+    if (left_out == 0) return {};
+    return " (" + std::to_string(left_out) + " more " + std::string(what) + " not logged before this one)";
+  }
 
   /// True when a line may be written now; `left_out` is then set to the lines refused since the last one allowed
   /// (to be said in it), and is untouched otherwise.

@@ -22,6 +22,8 @@ TEST(LogLimit, LetsAFewLinesThroughPerPeriodAndCountsTheRest) {
   EXPECT_EQ(left_out, 1001u);
   EXPECT_TRUE(limit.allow(left_out, t0 + seconds(61)));
   EXPECT_EQ(left_out, 0u);
+  EXPECT_EQ(LogLimit::left_out_note(1001, "refusals"), " (1001 more refusals not logged before this one)");
+  EXPECT_EQ(LogLimit::left_out_note(0, "refusals"), "");
 }
 
 }  // namespace
