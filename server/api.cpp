@@ -69,9 +69,27 @@ std::optional<HttpResponse> Api::check_access(const Route& route, const http::re
   return res;
 }
 
+HttpResponse Api::unrouted(const Route& route, const http::request_header<>& h) {
+  const protocol::RouteSpec* spec = route.match.route;
+  if (!spec) return json_error(http::status::not_found, "no such endpoint: " + std::string(h.target()), h.version());
+  std::string allow;
+  for (const protocol::MethodSpec& m : spec->methods) allow += (allow.empty() ? "" : ", ") + std::string(m.name);
+  HttpResponse res = json_error(http::status::method_not_allowed,
+                                std::string(h.method_string()) + " is not allowed on " + std::string(spec->pattern) +
+                                    " (allowed: " + allow + ")",
+                                h.version());
+  res.set(http::field::allow, allow);
+  return res;
+}
+
 std::optional<HttpResponse> Api::routed_early_response(const http::request_header<>& h, const Route& route) noexcept {
   try {
-    if (!route.method) return std::nullopt;  // handle_routed() answers 404/405 (after the body, which is small or refused by its limit)
+    // No route or no such method: answered from the header, before any body byte is read.
+    if (!route.method) {
+      HttpResponse res = unrouted(route, h);
+      metrics_.observe_request(route.match.route ? "other " + std::string(route.match.route->pattern) : "unmatched", 0.0);
+      return res;
+    }
     std::optional<HttpResponse> res = check_access(route, h);
     if (res) metrics_.observe_request(std::string(h.method_string()) + " " + std::string(route.match.route->pattern), 0.0);
     return res;
@@ -99,7 +117,7 @@ HttpResponse Api::refusal(std::exception_ptr error, const HttpRequest& req) cons
   }
 }
 
-void Api::answer(HttpRequest&& req, const Route& route, std::function<void(HttpResponse)> send) noexcept {
+void Api::answer(HttpRequest&& req, const Route& route, std::function<void(HttpReply)> send) noexcept {
   const auto t0 = std::chrono::steady_clock::now();
   const unsigned version = req.version();
   // What every answer gets on its way out, now or later: a HEAD answer loses its body, the route's latency is counted.
@@ -108,13 +126,18 @@ void Api::answer(HttpRequest&& req, const Route& route, std::function<void(HttpR
     std::chrono::steady_clock::time_point t0;
     std::string label = "unmatched";
     bool head = false;
-    std::function<void(HttpResponse)> send;
-    void operator()(HttpResponse res) const noexcept {
+    std::function<void(HttpReply)> send;
+    void operator()(HttpReply reply) const noexcept {
+      HttpResponse& res = reply.response;
       try {
         if (head && !res.body().empty()) {
           const size_t n = res.body().size();
           res.body().clear();
           res.content_length(n);
+        }
+        if (head && reply.stream) {
+          reply.stream->stop();  // the header alone, with the Content-Length the body would have had
+          reply.stream.reset();
         }
         // A lease request held for work is counted apart, so that the route's times stay its service times.
         const bool held = res.find(protocol::kHeldMsHeader) != res.end();
@@ -122,34 +145,28 @@ void Api::answer(HttpRequest&& req, const Route& route, std::function<void(HttpR
                                       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
       } catch (...) {
         const unsigned v = res.version();
-        res = HttpResponse{http::status::internal_server_error, v};
-        res.content_length(0);
+        reply = HttpReply{HttpResponse{http::status::internal_server_error, v}};
+        reply.response.content_length(0);
       }
-      send(std::move(res));
+      send(std::move(reply));
     }
   };
   auto finish = std::make_shared<Finish>(Finish{this, t0, "unmatched", req.method() == http::verb::head, std::move(send)});
   try {
     const protocol::RouteSpec* spec = route.match.route;
-    if (!spec) {
-      return (*finish)(json_error(http::status::not_found, "no such endpoint: " + std::string(req.target()), version));
+    if (!spec || !route.method) {
+      if (spec) finish->label = "other " + std::string(spec->pattern);
+      return (*finish)(unrouted(route, req.base()));
     }
     const std::string pattern(spec->pattern);
     finish->label = std::string(req.method_string()) + " " + pattern;
-    if (!route.method) {
-      std::string allow;
-      for (const protocol::MethodSpec& m : spec->methods) allow += (allow.empty() ? "" : ", ") + std::string(m.name);
-      finish->label = "other " + pattern;
-      HttpResponse res = json_error(http::status::method_not_allowed,
-                                    std::string(req.method_string()) + " is not allowed on " + pattern + " (allowed: " + allow + ")", version);
-      res.set(http::field::allow, allow);
-      return (*finish)(std::move(res));
-    }
     if (auto denied = check_access(route, req.base())) return (*finish)(std::move(*denied));
     if (spec->resource == protocol::Resource::events) return (*finish)(events_handler_.open(req).response);  // the header only
     // The request's method and target, for a refusal's log line, once the handler has let go of the request.
+    ResourceHandler& handler = handler_for(spec->resource);
+    if (std::optional<HttpReply> streamed = handler.stream(route.match, req)) return (*finish)(std::move(*streamed));
     auto head = std::make_shared<HttpRequest>(req.method(), std::string(req.target()), version);
-    handler_for(spec->resource).handle_async(route.match, req, [this, finish, head](HttpResponse res, std::exception_ptr e) {
+    handler.handle_async(route.match, req, [this, finish, head](HttpResponse res, std::exception_ptr e) {
       (*finish)(e ? refusal(e, *head) : std::move(res));
     });
   } catch (...) {
@@ -166,7 +183,7 @@ void Api::handle_routed(HttpRequest&& req, const Route& route, Reply done) noexc
   } catch (...) {
     return done({refusal(std::current_exception(), req), nullptr});  // a bad ?only= is a 400
   }
-  answer(std::move(req), route, [done](HttpResponse res) { done({std::move(res), nullptr}); });
+  answer(std::move(req), route, std::move(done));
 }
 
 ResourceHandler& Api::handler_for(protocol::Resource resource) {

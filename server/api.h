@@ -78,8 +78,10 @@ class Api final : public RoutedHandler {
  private:
   /// The refusal of the request's token on its route and method (both matched), or nothing when it may pass.
   std::optional<HttpResponse> check_access(const Route& route, const http::request_header<>& header);
+  /// The 404 (no route) or 405 (no such method on the route, with Allow) for a request without a method entry.
+  static HttpResponse unrouted(const Route& route, const http::request_header<>& header);
   /// Checks the routed request and hands it to its resource handler; `send` gets the answer once (maybe later).
-  void answer(HttpRequest&& request, const Route& route, std::function<void(HttpResponse)> send) noexcept;
+  void answer(HttpRequest&& request, const Route& route, std::function<void(HttpReply)> send) noexcept;
   /// The answer to a refused request: 400, the ApiError's status, or 500 (logged).
   HttpResponse refusal(std::exception_ptr error, const HttpRequest& request) const;
   ResourceHandler& handler_for(protocol::Resource resource);

@@ -1,6 +1,7 @@
 #include "server/blobs_handler.h"
 
 #include "core/util/sha256.h"
+#include "server/file_stream.h"
 
 #include <spdlog/spdlog.h>
 
@@ -42,9 +43,15 @@ HttpResponse BlobsHandler::handle(const protocol::RouteMatch& route, HttpRequest
     if (f) res.set(http::field::content_type, "application/octet-stream");
     return res;
   }
-  std::optional<std::string> bytes = blobs_.read(sha);
-  if (!bytes) throw ApiError(404, "blob " + sha + " is not stored");
-  return bytes_response(std::move(*bytes), "application/octet-stream", req.version());
+  throw ApiError(404, "blob " + sha + " is not stored");  // GET is answered by stream()
+}
+
+std::optional<HttpReply> BlobsHandler::stream(const protocol::RouteMatch& route, HttpRequest& req) {
+  if (route.endpoint() != protocol::Endpoint::blob || req.method() != http::verb::get) return std::nullopt;
+  const std::optional<fs::path> f = blobs_.file(route.param);
+  std::optional<HttpReply> r = f ? file_reply(*f, "application/octet-stream", req.version()) : std::nullopt;
+  if (!r) throw ApiError(404, "blob " + route.param + " is not stored");
+  return r;
 }
 
 }  // namespace tessera::server

@@ -12,6 +12,8 @@ class BlobsHandler final : public ResourceHandler {
   /// Endpoints over `blobs` (which must outlive it).
   explicit BlobsHandler(BlobStore& blobs) : blobs_(blobs) {}
   HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& req) override;
+  /// GET of a blob, streamed from its file.
+  std::optional<HttpReply> stream(const protocol::RouteMatch& route, HttpRequest& req) override;
 
  private:
   BlobStore& blobs_;

@@ -199,6 +199,9 @@ class Session : public std::enable_shared_from_this<Session> {
     parser_.emplace();
     parser_->header_limit(std::uint32_t(st_->opt.header_limit));
     parser_->body_limit(std::numeric_limits<std::uint64_t>::max());
+    // What the parser cannot consume piecewise (a header, a chunk's size line with its extensions, the trailer) must
+    // fit the buffer, so the buffer's bound is what such a request can cost: a longer line is refused, not buffered.
+    buffer_.max_size(st_->opt.header_limit + net::kHttpReadBytes);
     waiting_ = true;
     lowest().expires_after(st_->opt.read_timeout);  // covers the whole request, body included
     http::async_read_header(*stream_, buffer_, *parser_, beast::bind_front_handler(&Session::on_header, shared_from_this()));
@@ -208,11 +211,21 @@ class Session : public std::enable_shared_from_this<Session> {
     waiting_ = false;
     if (ec) return on_read_error(ec);
     const auto& req = parser_->get();
-    if (auto early = st_->handler.early_response(req.base())) return reply_and_close(std::move(*early));
+    if (auto early = st_->handler.early_response(req.base())) {
+      if (req.method() == http::verb::head) {
+        const std::size_t n = early->body().size();
+        early->body().clear();
+        early->content_length(n);
+      }
+      return reply_and_close(std::move(*early));
+    }
     const std::size_t limit = st_->handler.body_limit(req.base());
     parser_->body_limit(limit);
     if (const auto len = parser_->content_length(); len && *len > limit)
       return too_large(limit);
+    // A chunked body's extensions count against the limit with its data (the parser counts only the data).
+    chunk_budget_ = limit;
+    parser_->on_chunk_header(count_chunk_);
     if (beast::iequals(req[http::field::expect], "100-continue")) {
       auto cont = std::make_shared<http::response<http::empty_body>>(http::status::continue_, req.version());
       http::async_write(*stream_, *cont, [self = shared_from_this(), cont](beast::error_code wec, std::size_t) {
@@ -236,6 +249,12 @@ class Session : public std::enable_shared_from_this<Session> {
 
   void on_read_error(beast::error_code ec) {
     if (ec == http::error::body_limit) return too_large(std::size_t(-1));
+    if (ec == http::error::buffer_overflow) {
+      // Only a header (whose own limit comes first), a chunk line or a trailer can fill the buffer.
+      return reply_and_close(json_error(http::status::payload_too_large,
+                                        "a chunk's size line or the trailer is longer than " +
+                                            std::to_string(buffer_.max_size()) + " bytes"));
+    }
     if (ec == http::error::end_of_stream || ec == beast::error::timeout || ec == asio::error::operation_aborted ||
         ec == asio::error::eof || ec == asio::error::connection_reset || ec.category() == asio::error::get_ssl_category() ||
         ec == ssl::error::stream_truncated) {
@@ -290,16 +309,19 @@ class Session : public std::enable_shared_from_this<Session> {
     });
   }
 
-  // A streamed answer: the header at once, then the stream's chunks as they come (chunked over HTTP/1.1; raw bytes
-  // ended by the close over HTTP/1.0), idle text after stream_idle of quiet, and the connection's end when the stream
-  // ends. A read on the socket notices a client that closes its side (bytes it sends are ignored).
+  // A streamed answer: the header at once, then the stream's chunks as they come (raw under a Content-Length the
+  // handler set; otherwise chunked over HTTP/1.1, raw bytes ended by the close over HTTP/1.0), idle text after
+  // stream_idle of quiet, and the connection's end when the stream ends. A read on the socket notices a client that closes its side (bytes it sends are ignored).
   void start_stream(HttpResponse head, std::shared_ptr<BodyStream> body) {
     body_ = std::move(body);
-    chunked_ = head.version() >= 11;
+    // A body of known length (a file) keeps its Content-Length and goes out raw; one of unknown length is chunked
+    // over HTTP/1.1 and ended by the close over HTTP/1.0.
+    const bool sized = head.has_content_length();
+    chunked_ = !sized && head.version() >= 11;
     head.keep_alive(false);
     head.body().clear();
     if (chunked_) head.chunked(true);
-    else head.erase(http::field::content_length);
+    else if (!sized) head.erase(http::field::content_length);
     auto header = std::make_shared<HttpResponse>(std::move(head));
     auto sr = std::make_shared<http::response_serializer<http::string_body>>(*header);
     writing_ = true;
@@ -416,6 +438,13 @@ class Session : public std::enable_shared_from_this<Session> {
   std::unique_ptr<net::ByteStream> stream_;
   beast::flat_buffer buffer_;
   std::optional<http::request_parser<http::string_body>> parser_;
+  std::uint64_t chunk_budget_ = 0;  // body bytes (data and chunk extensions) the request may still send
+  std::function<void(std::uint64_t, beast::string_view, beast::error_code&)> count_chunk_ =
+      [this](std::uint64_t size, beast::string_view extensions, beast::error_code& ec) {
+        const std::uint64_t cost = size + extensions.size();
+        if (cost > chunk_budget_) ec = http::error::body_limit;
+        else chunk_budget_ -= cost;
+      };
   std::shared_ptr<HttpServer::State> st_;
   uint64_t id_;
   bool waiting_ = false;

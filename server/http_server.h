@@ -53,6 +53,11 @@ class BodyStream {
 /// A handler's answer: a whole response, or (with `stream`) a header whose body the stream writes. A streamed answer
 /// ends its connection; over HTTP/1.1 it is sent chunked.
 struct HttpReply {
+  HttpReply() = default;
+  /// A whole response, or with `body`, a header whose body the stream writes (under the header's Content-Length when
+  /// it has one).
+  HttpReply(HttpResponse res, std::shared_ptr<BodyStream> body = nullptr)  // NOLINT(google-explicit-constructor)
+      : response(std::move(res)), stream(std::move(body)) {}
   HttpResponse response;               ///< The response (its header only, when streamed).
   std::shared_ptr<BodyStream> stream;  ///< The body, when streamed.
 };

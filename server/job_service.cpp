@@ -271,10 +271,10 @@ void JobService::cache_spec_locked(const std::string& id, const protocol::JobSpe
   spec_json_[id] = json(spec).dump();
 }
 
-std::string JobService::result_exr(const std::string& id) {
+std::filesystem::path JobService::result_exr(const std::string& id) {
   const protocol::JobStatus s = status(id);
   if (s.state != JobState::done) throw ApiError(409, "job " + id + " is " + to_string(s.state) + ", not done");
-  return read_file_bytes(jobs_.result_path(id));
+  return jobs_.result_path(id);
 }
 
 std::vector<uint8_t> JobService::preview_png(const std::string& id) {

@@ -23,6 +23,7 @@
 #include <mutex>
 #include <optional>
 #include <set>
+#include <filesystem>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -87,8 +88,8 @@ class JobService {
   protocol::Lease with_state(protocol::Lease lease);
   /// The stored state (EXR bytes) of a lease's tile, to continue from; ApiError 404 when there is none.
   std::string lease_state(const std::string& lease);
-  /// The merged EXR of a done job; ApiError 404 unknown, 409 not done.
-  std::string result_exr(const std::string& id);
+  /// Where the merged EXR of a done job is stored; ApiError 404 unknown, 409 not done.
+  std::filesystem::path result_exr(const std::string& id);
   /// The image as far as it has rendered, as PNG; ApiError 404.
   std::vector<uint8_t> preview_png(const std::string& id);
 

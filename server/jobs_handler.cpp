@@ -1,5 +1,7 @@
 #include "server/jobs_handler.h"
 
+#include "server/file_stream.h"
+
 #include <optional>
 
 namespace tessera::server {
@@ -30,7 +32,6 @@ HttpResponse JobsHandler::handle(const protocol::RouteMatch& route, HttpRequest&
       // DELETE without purge=true cancels (as it always has); with it, deletes a job that has ended.
       if (!protocol::parse_purge_query(req.target())) return json_response(http::status::ok, jobs_.cancel(id), v);
       return json_response(http::status::ok, protocol::PurgeAnswer{id, collector_.purge(id)}, v);
-    case Endpoint::job_result: return bytes_response(jobs_.result_exr(id), "image/x-exr", v);
     case Endpoint::job_preview: {
       const std::vector<uint8_t> png = jobs_.preview_png(id);
       return bytes_response(std::string(png.begin(), png.end()), "image/png", v);
@@ -48,6 +49,13 @@ HttpResponse JobsHandler::handle(const protocol::RouteMatch& route, HttpRequest&
     default: break;
   }
   throw protocol::ApiError(404, "no such endpoint");
+}
+
+std::optional<HttpReply> JobsHandler::stream(const protocol::RouteMatch& route, HttpRequest& req) {
+  if (route.endpoint() != Endpoint::job_result) return std::nullopt;
+  std::optional<HttpReply> r = file_reply(jobs_.result_exr(route.param), "image/x-exr", req.version());
+  if (!r) throw protocol::ApiError(404, "job " + route.param + " has no stored result");
+  return r;
 }
 
 }  // namespace tessera::server

@@ -13,6 +13,8 @@ class JobsHandler final : public ResourceHandler {
   /// Endpoints over `jobs`, purging through `collector` (both must outlive it).
   JobsHandler(JobService& jobs, Collector& collector) : jobs_(jobs), collector_(collector) {}
   HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& req) override;
+  /// The result EXR, streamed from its file.
+  std::optional<HttpReply> stream(const protocol::RouteMatch& route, HttpRequest& req) override;
 
  private:
   JobService& jobs_;

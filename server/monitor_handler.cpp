@@ -70,6 +70,15 @@ HttpResponse monitor_response(http::status status, std::string body, const char*
   return res;
 }
 
+// The 405 for a monitor request that is not a GET.
+HttpResponse not_get(const http::request_header<>& header) {
+  HttpResponse res = json_error(http::status::method_not_allowed,
+                                std::string(header.method_string()) + " is not allowed on the monitor (allowed: GET)",
+                                header.version());
+  res.set(http::field::allow, "GET");
+  return res;
+}
+
 }  // namespace
 
 MonitorHandler::MonitorHandler(RoutedHandler& api, bool tokens_required) : api_(api), tokens_required_(tokens_required) {}
@@ -80,7 +89,8 @@ std::size_t MonitorHandler::routed_body_limit(const http::request_header<>& head
 
 std::optional<HttpResponse> MonitorHandler::routed_early_response(const http::request_header<>& header,
                                                                   const Route& route) noexcept {
-  if (route.monitor) return std::nullopt;  // the page itself needs no token
+  // The page itself needs no token; anything but GET on it is refused before its body is read.
+  if (route.monitor) return header.method() == http::verb::get ? std::nullopt : std::optional(not_get(header));
   return api_.routed_early_response(header, route);
 }
 
@@ -91,12 +101,7 @@ void MonitorHandler::handle_routed(HttpRequest&& req, const Route& route, Reply 
 
 HttpResponse MonitorHandler::serve(const HttpRequest& req) const {
   try {
-    if (req.method() != http::verb::get) {
-      HttpResponse res = json_error(http::status::method_not_allowed,
-                                    std::string(req.method_string()) + " is not allowed on the monitor (allowed: GET)", req.version());
-      res.set(http::field::allow, "GET");
-      return res;
-    }
+    if (req.method() != http::verb::get) return not_get(req.base());
     const std::string_view path = path_of(req.target());
     if (path == std::string(kMonitorPrefix) + std::string(kCapabilities)) return capabilities(req);
     if (path == std::string(kMonitorPrefix) + std::string(kProtocolModule)) {

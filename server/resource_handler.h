@@ -10,6 +10,7 @@
 
 #include <exception>
 #include <functional>
+#include <optional>
 #include <string>
 
 namespace tessera::server {
@@ -26,6 +27,11 @@ class ResourceHandler {
   /// As handle(), but the answer may come later, from another thread (the request is read only before this returns).
   /// By default handle() answers at once.
   virtual void handle_async(const protocol::RouteMatch& route, HttpRequest& request, Answer answer);
+  /// An answer whose body is streamed (a stored file), or nothing for handle_async() to answer instead. Throws
+  /// refusals as handle() does.
+  virtual std::optional<HttpReply> stream(const protocol::RouteMatch& /*route*/, HttpRequest& /*request*/) {
+    return std::nullopt;
+  }
 };
 
 /// A JSON answer.

@@ -109,9 +109,4 @@ void DiskBlobStore::remove(const std::string& sha) {
   if (ec) throw StorageError("cannot remove " + path_of(sha).string() + ": " + ec.message());
 }
 
-std::optional<std::string> DiskBlobStore::read(const std::string& sha) {
-  if (!has(sha)) return std::nullopt;
-  return read_file_bytes(path_of(sha));
-}
-
 }  // namespace tessera::server

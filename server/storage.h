@@ -51,8 +51,6 @@ class BlobStore {
   virtual bool has(const std::string& sha256) = 0;
   /// A readable file holding the blob, or nothing when it is not stored.
   virtual std::optional<std::filesystem::path> file(const std::string& sha256) = 0;
-  /// The blob's bytes, or nothing when it is not stored; throws StorageError on read errors.
-  virtual std::optional<std::string> read(const std::string& sha256) = 0;
   /// Marks a stored blob as just used (a client checked or uploaded it), which keeps it for the collector's grace
   /// period; false when it is not stored.
   virtual bool touch(const std::string& sha256) = 0;
@@ -73,7 +71,6 @@ class DiskBlobStore final : public BlobStore {
   PutBlobResult put(const std::string& sha256, std::string_view bytes) override;
   bool has(const std::string& sha256) override;
   std::optional<std::filesystem::path> file(const std::string& sha256) override;
-  std::optional<std::string> read(const std::string& sha256) override;
   bool touch(const std::string& sha256) override;
   std::vector<std::pair<std::string, int64_t>> list() override;
   void remove(const std::string& sha256) override;

@@ -54,6 +54,8 @@ constexpr double kCloseBoundSeconds = kReadTimeoutSeconds + 9.0;
 // The client's own socket timeout: three times the bound, so that it can never be mistaken for a server close
 // (the test also tells them apart by how the socket call ended).
 constexpr int kClientTimeoutSeconds = 30;
+// The most any case may raise the coordinator's peak resident memory (VmHWM), in kB.
+constexpr uint64_t kCaseMemoryBoundKb = 64 * 1024;
 static_assert(kClientTimeoutSeconds >= 3 * kCloseBoundSeconds);
 
 // The limits the coordinator under test runs with (the case list's texts quote them).
@@ -90,10 +92,29 @@ class Process {
   bool alive() { return !worker::child_exited(child_[0]); }
   /// SIGTERM, up to 10 s to exit, then SIGKILL.
   void stop() { worker::stop_children(child_, std::chrono::seconds(10)); }
+  /// The process id.
+  pid_t pid() const { return child_[0].pid; }
 
  private:
   std::vector<worker::ChildProcess> child_;  // one element: the form stop_children takes
 };
+
+// A line of /proc/PID/status in kB (VmRSS: resident now, VmHWM: its peak since the last reset_peak_rss), 0 when
+// unreadable.
+uint64_t status_kb(pid_t pid, const std::string& key) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind(key + ":", 0) == 0) return std::stoull(line.substr(key.size() + 1));
+  return 0;
+}
+
+// Resets the process's peak resident size (VmHWM) to its current one; false when the kernel refuses.
+bool reset_peak_rss(pid_t pid) {
+  std::ofstream out("/proc/" + std::to_string(pid) + "/clear_refs");
+  out << "5";
+  out.flush();
+  return bool(out);
+}
 
 // Runs a command to completion with its output in a fresh log; returns its exit status (-1 when it did not exit
 // normally).
@@ -414,6 +435,11 @@ void HostileFarm::check_case(const json& c, const std::map<std::string, std::str
     std::string bytes;
     if (c.contains("raw")) {
       bytes = c["raw"].get<std::string>();
+    } else if (c.contains("raw_repeat")) {
+      const json& g = c["raw_repeat"];
+      bytes = g["prefix"].get<std::string>();
+      for (int i = 0, n = g["count"].get<int>(); i < n; ++i) bytes += g["unit"].get<std::string>();
+      bytes += g.value("suffix", "");
     } else {
       std::string body;
       if (c.contains("base")) {
@@ -668,10 +694,25 @@ TEST_F(HostileFarm, EveryCaseGetsItsAnswerAndTheGoodJobStillRendersRight) {
   ASSERT_GE(start["tiles"].value("done", 0), 1) << start.dump();
   ASSERT_EQ(start["tiles"].value("leased", 0), 1) << start.dump();
   const auto t0 = std::chrono::steady_clock::now();
+  // No case may raise the coordinator's peak memory more than kCaseMemoryBoundKb above where it stood when the cases
+  // began, and /healthz answers after each.
+  const uint64_t base_kb = status_kb(serve_->pid(), "VmRSS");
+  ASSERT_GT(base_kb, 0u) << "cannot read the coordinator's VmRSS";
+  uint64_t worst_kb = 0;
+  std::string worst_case;
   for (const json& c : cases) {
+    const bool peak = reset_peak_rss(serve_->pid());
     check_case(c, vars, bases);
     ASSERT_TRUE(serve_->alive()) << "the coordinator died at case " << c["name"] << ":\n" << slurp(work_ / "serve.log");
+    const uint64_t used_kb = status_kb(serve_->pid(), peak ? "VmHWM" : "VmRSS");
+    const uint64_t grew_kb = used_kb > base_kb ? used_kb - base_kb : 0;
+    EXPECT_LE(grew_kb, kCaseMemoryBoundKb) << "case " << c["name"] << " raised the coordinator's memory by " << grew_kb / 1024
+                                           << " MB";
+    if (grew_kb >= worst_kb) worst_kb = grew_kb, worst_case = c["name"].get<std::string>();
+    EXPECT_EQ(call("GET", "/healthz").status, 200u) << "/healthz did not answer after case " << c["name"];
   }
+  std::printf("coordinator memory: %llu MB when the cases began; the most any case raised it: %llu MB (%s)\n",
+              (unsigned long long)(base_kb / 1024), (unsigned long long)(worst_kb / 1024), worst_case.c_str());
   const json mid = json::parse(call("GET", "/v1/jobs/" + good_job).body, nullptr, false);
   const json tiles = mid.is_object() ? mid.value("tiles", json::object()) : json::object();
   EXPECT_EQ(mid.value("state", ""), "running") << "the good job was not rendering through the cases: " << mid.dump();
