@@ -68,6 +68,15 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
       ->check(CLI::Range(std::size_t(1024), std::size_t(1) << 24))->capture_default_str();
   c->add_option("--max-connections", o.max_connections, "Open connections; more are answered 503 and closed")
       ->check(CLI::Range(std::size_t(1), std::size_t(1) << 20))->capture_default_str();
+  c->add_option("--max-anonymous-per-address", o.peers.anonymous_per_address,
+                "Connections one address may hold before sending a token; when every slot is taken, a new connection "
+                "closes the oldest idle one of the address holding the most beyond this (0: a quarter of "
+                "--max-connections)")
+      ->check(CLI::Range(std::size_t(0), std::size_t(1) << 20))->capture_default_str();
+  c->add_option("--max-refusals-per-minute", o.peers.refusals_per_minute,
+                "401 and 403 answers one address may draw per minute; beyond, its connections get 429 until the "
+                "minute ends (0: no limit)")
+      ->check(CLI::Range(std::size_t(0), std::size_t(1) << 30))->capture_default_str();
   c->add_option("--retain-finished-hours", a.retain_finished_hours,
                 "Purge done, failed and cancelled jobs this many hours after they ended (default 0: keep them forever)")
       ->check(CLI::Range(0.0, 1e6));

@@ -36,6 +36,7 @@ class AdmissionHandler final : public RoutedHandler {
     return inner_.routed_early_response(header, route);
   }
   void handle_routed(HttpRequest&& request, const Route& route, Reply done) noexcept override;
+  bool authenticated(const http::request_header<>& header) noexcept override { return inner_.authenticated(header); }
 
   /// Waits for the submissions under way, then ends the pool's threads: after the network threads stopped, so that no
   /// thread but the caller's is left to take a late stop signal.

@@ -47,6 +47,16 @@ Api::~Api() {
   lease_waiters_.reset();  // expires what it holds, answering through the handlers and the transport, which still live
 }
 
+bool Api::authenticated(const http::request_header<>& h) noexcept {
+  try {
+    const std::string_view authorization = h[http::field::authorization];
+    return token_check_.authorize(Access::client, authorization).status == AuthDecision::allowed ||
+           token_check_.authorize(Access::worker, authorization).status == AuthDecision::allowed;
+  } catch (...) {
+    return false;
+  }
+}
+
 std::size_t Api::routed_body_limit(const http::request_header<>&, const Route& route) {
   if (route.method && route.match.endpoint() == RouteId::blob && route.method->name == "PUT") return opt_.blob_limit;
   if (route.method && route.match.endpoint() == RouteId::lease_result) return opt_.result_limit;  // PUT only

@@ -61,6 +61,8 @@ class Api final : public RoutedHandler {
   ~Api() override;
   Api(const Api&) = delete;
   Api& operator=(const Api&) = delete;
+  /// True when the header's token is the client's or the worker's (or no token is required).
+  bool authenticated(const http::request_header<>& header) noexcept override;
   std::size_t routed_body_limit(const http::request_header<>& header, const Route& route) override;
   /// The refusal of a token that does not let the request's method on its route (401/403), before the body is read.
   std::optional<HttpResponse> routed_early_response(const http::request_header<>& header, const Route& route) noexcept override;

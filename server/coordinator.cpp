@@ -91,7 +91,8 @@ struct Coordinator::Impl {
         pool(std::size_t(opt.handler_threads > 0 ? opt.handler_threads : std::max(2u, std::thread::hardware_concurrency()))),
         admission(monitor, opt.admission),
         server(ioc, pool, admission,
-               HttpServerOptions{opt.host, opt.port, opt.listen_fd, opt.read_timeout, opt.header_limit, opt.max_connections, opt.stream_idle, opt.tls}),
+               HttpServerOptions{opt.host, opt.port, opt.listen_fd, opt.read_timeout, opt.header_limit, opt.max_connections,
+                                 opt.stream_idle, opt.peers, opt.tls}),
         tick(ioc),
         signals(ioc) {}
 

@@ -30,6 +30,7 @@ struct CoordinatorOptions {
   std::chrono::milliseconds read_timeout = HttpServerOptions{}.read_timeout;  ///< Whole-request read timeout.
   std::size_t header_limit = HttpServerOptions{}.header_limit;        ///< Largest request header.
   std::size_t max_connections = HttpServerOptions{}.max_connections;  ///< Open connections (more get 503).
+  PeerLimitOptions peers;                      ///< Limits on peers before they show a credential.
   EventBusOptions events;                      ///< GET /v1/events: open streams (more get 503), queues, resume ring.
   /// An event stream writes a keep-alive comment after this long quiet.
   std::chrono::milliseconds stream_idle = HttpServerOptions{}.stream_idle;

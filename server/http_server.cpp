@@ -74,6 +74,8 @@ struct HttpServer::State {
   std::chrono::milliseconds accept_backoff{0};
   LogLimit accept_log{10, std::chrono::minutes(1)};
   LogLimit over_limit_log{10, std::chrono::minutes(1)};
+  LogLimit peer_log{10, std::chrono::minutes(1)};
+  RefusalRate refusals{opt.peers.refusals_per_minute};
 };
 
 namespace {
@@ -131,9 +133,10 @@ class Refusal : public std::enable_shared_from_this<Refusal> {
 // bytes go over TLS.
 class Session : public std::enable_shared_from_this<Session> {
  public:
-  Session(tcp::socket&& socket, std::shared_ptr<ssl::context> tls, std::shared_ptr<HttpServer::State> st, uint64_t id)
+  Session(tcp::socket&& socket, asio::ip::address peer, std::shared_ptr<ssl::context> tls,
+          std::shared_ptr<HttpServer::State> st, uint64_t id)
       : tls_(std::move(tls)), stream_(make_stream(std::move(socket), tls_.get())), st_(std::move(st)), id_(id),
-        idle_timer_(stream_->get_executor()) {}
+        peer_(std::move(peer)), idle_timer_(stream_->get_executor()) {}
 
   ~Session() {
     std::lock_guard lock(st_->mu);
@@ -150,6 +153,20 @@ class Session : public std::enable_shared_from_this<Session> {
 
   // Called at shutdown: a connection waiting for its next request is closed now; a busy one closes after answering; a
   // streamed body ends (its last chunk is written) and its connection closes.
+  /// The remote address.
+  const asio::ip::address& peer() const { return peer_; }
+  /// True until a request of this connection carried an accepted credential.
+  bool anonymous() const { return !trusted_; }
+
+  /// Closes the connection if it is still anonymous and waiting for its request (it was displaced by a new one).
+  void evict() {
+    asio::dispatch(stream_->get_executor(), [self = shared_from_this()] {
+      if (self->trusted_ || self->closing_ || !self->waiting_) return;
+      beast::error_code ignored;
+      self->lowest().socket().cancel(ignored);
+    });
+  }
+
   void stop_if_idle() {
     asio::dispatch(stream_->get_executor(), [self = shared_from_this()] {
       if (self->body_) {
@@ -211,7 +228,10 @@ class Session : public std::enable_shared_from_this<Session> {
     waiting_ = false;
     if (ec) return on_read_error(ec);
     const auto& req = parser_->get();
+    if (!trusted_ && st_->handler.authenticated(req.base())) trusted_ = true;
     if (auto early = st_->handler.early_response(req.base())) {
+      if (early->result() == http::status::unauthorized || early->result() == http::status::forbidden)
+        st_->refusals.note(peer_, std::chrono::steady_clock::now());
       if (req.method() == http::verb::head) {
         const std::size_t n = early->body().size();
         early->body().clear();
@@ -447,6 +467,8 @@ class Session : public std::enable_shared_from_this<Session> {
       };
   std::shared_ptr<HttpServer::State> st_;
   uint64_t id_;
+  asio::ip::address peer_;
+  std::atomic<bool> trusted_{false};  // written on the strand, read by the acceptor
   bool waiting_ = false;
   bool closing_ = false;
   std::array<char, 4096> drain_;
@@ -487,6 +509,38 @@ void fit_connections_to_descriptors(std::size_t& max_connections) {
   max_connections = fits;
 }
 
+// When every slot is taken: the oldest anonymous connection, waiting for its request, of the address that holds the
+// most anonymous connections beyond its share, to be closed for the new one; null when no address holds more than its
+// share. Needs st.mu.
+std::shared_ptr<Session> displaceable(HttpServer::State& st) {
+  const std::size_t share =
+      st.opt.peers.anonymous_per_address > 0 ? st.opt.peers.anonymous_per_address : std::max<std::size_t>(1, st.opt.max_connections / 4);
+  std::map<asio::ip::address, std::pair<std::size_t, std::shared_ptr<Session>>> held;  // count, oldest (lowest id)
+  for (auto& [id, w] : st.sessions) {
+    std::shared_ptr<Session> s = w.lock();
+    if (!s || !s->anonymous()) continue;
+    auto& [count, oldest] = held[s->peer()];
+    ++count;
+    if (!oldest) oldest = std::move(s);
+  }
+  std::shared_ptr<Session> pick;
+  std::size_t most = share;
+  for (auto& [address, entry] : held)
+    if (entry.first > most) most = entry.first, pick = entry.second;
+  return pick;
+}
+
+// Answers a connection at once, without reading its request (plain HTTP), or closes it (TLS: no handshake, which a
+// flood of refused connections could make cost CPU).
+void refuse(tcp::socket&& socket, bool tls, HttpResponse res) {
+  if (tls) {
+    beast::error_code ignored;
+    socket.close(ignored);
+    return;
+  }
+  std::make_shared<Refusal>(std::move(socket), std::move(res))->run();
+}
+
 void accept_next(const std::shared_ptr<HttpServer::State>& st) {
   st->acceptor.async_accept(asio::make_strand(st->ioc), [st](beast::error_code ec, tcp::socket socket) {
     if (ec == asio::error::operation_aborted || !st->acceptor.is_open() || st->stopping) return;
@@ -505,36 +559,53 @@ void accept_next(const std::shared_ptr<HttpServer::State>& st) {
       // Responses are small writes a client waits for: no Nagle delay (see client/http_client.cpp).
       beast::error_code nodelay_ec;
       socket.set_option(tcp::no_delay(true), nodelay_ec);
-      std::shared_ptr<Session> s;
+      beast::error_code peer_ec;
+      const asio::ip::address peer = socket.remote_endpoint(peer_ec).address();
+      std::shared_ptr<Session> s, displaced;
       std::shared_ptr<ssl::context> tls;
       bool over_limit = false;
+      const int blocked = st->refusals.blocked_for(peer, std::chrono::steady_clock::now());
       {
         std::lock_guard lock(st->mu);
-        over_limit = st->sessions.size() >= st->opt.max_connections;
         tls = st->tls_context;
-        if (!over_limit) {
+        over_limit = st->sessions.size() >= st->opt.max_connections;
+        if (over_limit && blocked == 0) {
+          displaced = displaceable(*st);
+          over_limit = !displaced;
+        }
+        if (!over_limit && blocked == 0) {
           const uint64_t id = st->next_session++;
-          s = std::make_shared<Session>(std::move(socket), tls, st, id);
+          s = std::make_shared<Session>(std::move(socket), peer, tls, st, id);
           st->sessions.emplace(id, s);
         }
       }
-      if (over_limit) {
-        uint64_t left_out = 0;
+      uint64_t left_out = 0;
+      if (blocked > 0) {
+        if (st->peer_log.allow(left_out))
+          spdlog::warn("connection from {} refused: over --max-refusals-per-minute ({}){}", peer.to_string(),
+                       st->opt.peers.refusals_per_minute, LogLimit::left_out_note(left_out, "refused connections"));
+        HttpResponse res = json_error(http::status::too_many_requests,
+                                      "too many refused credentials from " + peer.to_string() + "; retry in " +
+                                          std::to_string(blocked) + " s");
+        res.set(http::field::retry_after, std::to_string(blocked));
+        refuse(std::move(socket), bool(tls), std::move(res));
+      } else if (over_limit) {
         if (st->over_limit_log.allow(left_out))
           spdlog::warn("connection refused: {} connections open (--max-connections){}", st->opt.max_connections,
                        LogLimit::left_out_note(left_out, "refused connections"));
-        if (tls) {
-          // No handshake for a connection over the limit: doing one would let a flood of them cost CPU.
-          beast::error_code ignored;
-          socket.close(ignored);
-        } else {
-          HttpResponse res = json_error(http::status::service_unavailable, "too many connections (the limit is " +
-                                                                          std::to_string(st->opt.max_connections) +
-                                                                          "); retry later");
-          res.set(http::field::retry_after, "1");
-          std::make_shared<Refusal>(std::move(socket), std::move(res))->run();
-        }
+        HttpResponse res = json_error(http::status::service_unavailable, "too many connections (the limit is " +
+                                                                        std::to_string(st->opt.max_connections) +
+                                                                        "); retry later");
+        res.set(http::field::retry_after, "1");
+        refuse(std::move(socket), bool(tls), std::move(res));
       } else {
+        if (displaced) {
+          if (st->peer_log.allow(left_out))
+            spdlog::warn("every connection slot taken: closing an idle connection of {}, which holds the most without "
+                         "a credential{}",
+                         displaced->peer().to_string(), LogLimit::left_out_note(left_out, "closed connections"));
+          displaced->evict();
+        }
         s->run();
       }
     }

@@ -2,6 +2,7 @@
 // to a handler and write its answer, whole or as a stream of chunks.
 #pragma once
 
+#include "server/peer_limits.h"
 #include "server/tls_context.h"
 
 #include <boost/asio/io_context.hpp>
@@ -68,6 +69,9 @@ class HttpHandler {
   virtual ~HttpHandler() = default;
   /// The largest body accepted for a request with this header (larger ones get 413).
   virtual std::size_t body_limit(const http::request_header<>& header) = 0;
+  /// True when the header carries a credential the server accepts (always, when none is required): the connection
+  /// is then no longer an anonymous one (PeerLimitOptions).
+  virtual bool authenticated(const http::request_header<>& /*header*/) noexcept { return true; }
   /// An answer to send at once, before the body is read (e.g. 401 for a missing token), or nothing to read on.
   virtual std::optional<HttpResponse> early_response(const http::request_header<>& /*header*/) noexcept { return std::nullopt; }
   /// Answers a request; runs on the handler pool and must not throw.
@@ -90,6 +94,7 @@ struct HttpServerOptions {
   std::size_t header_limit = 64 * 1024;                ///< Largest request header (larger ones get 431).
   std::size_t max_connections = 1024;                  ///< Open connections; more are answered 503 and closed.
   std::chrono::milliseconds stream_idle{15'000};       ///< A streamed body writes its idle text after this long quiet.
+  PeerLimitOptions peers;                              ///< Limits on peers before they show a credential.
   TlsServerFiles tls;                                  ///< Certificate files (none: plain HTTP).
 };
 

@@ -14,6 +14,7 @@ class MonitorHandler final : public RoutedHandler {
   /// `api` answers every request that is not the monitor's; `tokens_required` is reported to the page so it asks for
   /// the client token before its first call.
   MonitorHandler(RoutedHandler& api, bool tokens_required);
+  bool authenticated(const http::request_header<>& header) noexcept override { return api_.authenticated(header); }
   std::size_t routed_body_limit(const http::request_header<>& header, const Route& route) override;
   std::optional<HttpResponse> routed_early_response(const http::request_header<>& header, const Route& route) noexcept override;
   /// The monitor's files at once; the API's answers (streamed, or given later) pass through.

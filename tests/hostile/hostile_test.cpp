@@ -536,6 +536,18 @@ void HostileFarm::check_case(const json& c, const std::map<std::string, std::str
     }
     EXPECT_EQ(after, 200u) << "closing connections did not free their slots";
     r = before;
+  } else if (kind == "anonymous_flood") {
+    // One address opens connections that never send a byte, more than there are slots; each new one displaces the
+    // oldest idle one, and a client arriving after them is still answered.
+    std::vector<std::unique_ptr<Conn>> idle;
+    for (int i = 0; i < 24; ++i) {
+      idle.push_back(std::make_unique<Conn>(port_));
+      ASSERT_TRUE(idle.back()->ok());
+    }
+    Conn conn(port_);
+    ASSERT_TRUE(conn.ok());
+    conn.send(request_bytes("GET", "/healthz", "", {}));
+    r = conn.read();
   } else if (kind == "event_streams") {
     // Event streams whose clients never read a byte, until the server refuses one; the coordinator goes on.
     std::vector<std::unique_ptr<Conn>> open;
