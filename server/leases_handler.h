@@ -10,7 +10,8 @@
 
 namespace tessera::server {
 
-/// /v1/workers/{wid}/lease and /v1/leases/{lease}/heartbeat, /result, /fail, /release.
+/// /v1/workers/{wid}/lease and /v1/leases/{lease}/heartbeat, /result, /fail, /release, /state: each only for the
+/// worker it names (its lease's worker), which proves who it is with its secret (protocol::kWorkerSecretHeader).
 class LeasesHandler final : public ResourceHandler {
  public:
   /// Endpoints over the given state (which must outlive it).
@@ -29,6 +30,11 @@ class LeasesHandler final : public ResourceHandler {
   // unknown worker.
   std::optional<HttpResponse> try_lease(const std::string& worker, const protocol::LeaseRequest& asked, unsigned version);
   HttpResponse heartbeat(const std::string& lease, HttpRequest& req);
+  // Throws ApiError unless the request carries the secret of the worker `worker` (404 unknown, 403 not its secret).
+  void require_worker(const std::string& worker, const HttpRequest& req);
+  // Throws ApiError unless the request carries the secret of the worker the lease was granted to (404 for an unknown
+  // lease or a forgotten worker, 403 for any other worker's secret or none).
+  void require_holder(const std::string& lease, const HttpRequest& req);
   void result(const std::string& lease, HttpRequest& req, Answer answer);
 
   Scheduler& sched_;
