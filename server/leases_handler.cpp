@@ -117,9 +117,9 @@ void LeasesHandler::require_worker(const std::string& worker, const HttpRequest&
     case WorkerCheck::unknown_worker: throw ApiError(404, "unknown worker " + worker + ": register again");
     case WorkerCheck::wrong_secret: break;
   }
-  throw ApiError(403, secret.empty() ? "a request acting as worker " + worker + " must carry its secret (" +
-                                           protocol::kWorkerSecretHeader + ", from its registration)"
-                                     : std::string(protocol::kWorkerSecretHeader) + " is not the secret of worker " + worker);
+  refuse_identity(secret.empty() ? "a request acting as worker " + worker + " must carry its secret (" +
+                                        protocol::kWorkerSecretHeader + ", from its registration)"
+                                  : std::string(protocol::kWorkerSecretHeader) + " is not the secret of worker " + worker);
 }
 
 void LeasesHandler::require_holder(const std::string& lease, const HttpRequest& req) {
@@ -133,10 +133,17 @@ void LeasesHandler::require_holder(const std::string& lease, const HttpRequest& 
                           "register again");
     case WorkerCheck::wrong_secret: break;
   }
-  throw ApiError(403, secret.empty() ? "lease " + lease + " is worker " + holder + "'s: a request on it must carry its "
-                                           "secret (" + protocol::kWorkerSecretHeader + ", from its registration)"
-                                     : "lease " + lease + " is worker " + holder + "'s, and " +
-                                           protocol::kWorkerSecretHeader + " is not its secret");
+  refuse_identity(secret.empty() ? "lease " + lease + " is worker " + holder + "'s: a request on it must carry its "
+                                        "secret (" + protocol::kWorkerSecretHeader + ", from its registration)"
+                                  : "lease " + lease + " is worker " + holder + "'s, and " +
+                                        protocol::kWorkerSecretHeader + " is not its secret");
+}
+
+void LeasesHandler::refuse_identity(const std::string& why) {
+  // The sentence names ids, never a secret; a flood of refusals logs 10 lines a minute.
+  uint64_t left_out = 0;
+  if (refusal_log_.allow(left_out)) spdlog::warn("403 {}{}", why, LogLimit::left_out_note(left_out, "refusals"));
+  throw ApiError(403, why);
 }
 
 void LeasesHandler::handle_async(const protocol::RouteMatch& route, HttpRequest& req, Answer answer) {

@@ -4,6 +4,7 @@
 #include "server/farm_events.h"
 #include "server/job_service.h"
 #include "server/lease_waiters.h"
+#include "server/log_limit.h"
 #include "server/metrics.h"
 #include "server/resource_handler.h"
 #include "server/scheduler.h"
@@ -35,6 +36,8 @@ class LeasesHandler final : public ResourceHandler {
   // Throws ApiError unless the request carries the secret of the worker the lease was granted to (404 for an unknown
   // lease or a forgotten worker, 403 for any other worker's secret or none).
   void require_holder(const std::string& lease, const HttpRequest& req);
+  // Logs (a few lines a minute) and throws the 403 of a request that is not the worker's it claims to be.
+  [[noreturn]] void refuse_identity(const std::string& why);
   void result(const std::string& lease, HttpRequest& req, Answer answer);
 
   Scheduler& sched_;
@@ -43,6 +46,7 @@ class LeasesHandler final : public ResourceHandler {
   ClockMs clock_;
   FarmEvents& events_;
   LeaseWaiters& waiters_;
+  LogLimit refusal_log_{10, std::chrono::minutes(1)};  // the 403 lines of requests with another worker's secret
 };
 
 }  // namespace tessera::server
