@@ -203,7 +203,7 @@ void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
     if (tally.first_error.empty()) tally.first_error = what;
   };
 
-  std::string id;
+  std::string id, secret;
   int heartbeat_seconds = 5;
   std::string spec_job;  // the job whose spec we have "cached"
   std::chrono::milliseconds idle{100};
@@ -215,12 +215,18 @@ void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
         if (r.status != 201) { error("register answered " + r.error_text()); nap(farm, 1s); continue; }
         const auto registration = protocol::parse_answer<protocol::Registration>(r.body, "registration");
         id = registration.id;
+        secret = registration.secret;
         heartbeat_seconds = int(registration.heartbeat_seconds);
       }
       protocol::LeaseRequest asked;
       if (!farm.opt.spec_by_get) asked.known_jobs = spec_job.empty() ? std::vector<std::string>{} : std::vector{spec_job};
       const std::string asked_body = farm.opt.spec_by_get ? std::string() : json(asked).dump();
-      const HttpResponse r = timed(kLease, [&] { return http.send("POST", routes::worker_lease(id), asked_body); });
+      const auto as_worker = [&secret](std::string method, std::string target, std::string body) {
+        tessera::client::HttpRequest req{std::move(method), std::move(target), std::move(body), "application/json", {}};
+        req.headers[protocol::kWorkerSecretHeader] = secret;
+        return req;
+      };
+      const HttpResponse r = timed(kLease, [&] { return http.send(as_worker("POST", routes::worker_lease(id), asked_body)); });
       if (r.status == 204) {
         std::uniform_int_distribution<long long> pick(idle.count() / 2, idle.count());
         nap(farm, std::chrono::milliseconds(pick(rng)));
@@ -251,7 +257,8 @@ void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
         if (!nap(farm, next - Clock::now())) break;
         if (Clock::now() >= done) break;
         const HttpResponse h = timed(kHeartbeat, [&] {
-          return http.send("POST", routes::lease_heartbeat(lease_id), json(protocol::HeartbeatReport{4096}).dump());
+          return http.send(
+              as_worker("POST", routes::lease_heartbeat(lease_id), json(protocol::HeartbeatReport{4096}).dump()));
         });
         if (h.status == 410) { revoked = true; break; }
         if (h.status != 200) error("heartbeat answered " + h.error_text());
@@ -264,6 +271,7 @@ void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
       up.body = exr;
       up.content_type = "image/x-exr";
       up.headers[protocol::kRaysHeader] = "4096";
+      up.headers[protocol::kWorkerSecretHeader] = secret;
       const auto t0 = Clock::now();
       const HttpResponse u = timed(kUpload, [&] { return http.send(up); });
       if (u.status == 200) {
@@ -335,7 +343,8 @@ RunResult run_farm(const Options& opt, const TileBank& bank, const fs::path& bas
   children.push_back(tessera::worker::spawn_child(
       {opt.tessera.string(), "serve", "--listen", "127.0.0.1:0", "--data", (dir / "data").string(), "--ready-file",
        (dir / "ready").string(), "--heartbeat-seconds", std::to_string(opt.heartbeat_seconds), "--max-connections",
-       std::to_string(std::max(1024, n + 64))},  // one connection per simulated worker, the feeder's, and spare
+       std::to_string(std::max(1024, n + 64)),  // one connection per simulated worker, the feeder's, and spare
+       "--max-registrations-per-minute", std::to_string(60 * std::max(600, n))},  // every worker registers at once
       "coordinator", dir / "serve.log"));
   const std::string hostport = wait_ready(dir / "ready", children[0]);
   if (hostport.empty()) {

@@ -77,6 +77,17 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
                 "401 and 403 answers one address may draw per minute; beyond, its connections get 429 until the "
                 "minute ends (0: no limit)")
       ->check(CLI::Range(std::size_t(0), std::size_t(1) << 30))->capture_default_str();
+  c->add_option("--max-workers", o.max_workers,
+                "Registered workers; more registrations get 503 with Retry-After (offline workers are forgotten after "
+                "--worker-retention-seconds)")
+      ->check(CLI::Range(int64_t(1), int64_t(1) << 40))->capture_default_str();
+  c->add_option("--max-registrations-per-minute", o.limits.registrations_per_minute,
+                "Worker registrations taken a minute (up to a minute's worth at once); more get 429 with Retry-After")
+      ->check(CLI::Range(0.01, 1e9))->capture_default_str();
+  c->add_option("--worker-retention-seconds", o.worker_retention_seconds,
+                "Forget a worker this long after its last request, once it is offline and holds no lease (it registers "
+                "again if it comes back; 0: never)")
+      ->check(CLI::Range(0.0, 1e9))->capture_default_str();
   c->add_option("--retain-finished-hours", a.retain_finished_hours,
                 "Purge done, failed and cancelled jobs this many hours after they ended (default 0: keep them forever)")
       ->check(CLI::Range(0.0, 1e6));

@@ -7,5 +7,8 @@ namespace tessera::protocol {
 inline constexpr const char* kRaysHeader = "X-Tessera-Rays";
 /// Header of the answer to a lease request that was held for work: how long it was held, in milliseconds.
 inline constexpr const char* kHeldMsHeader = "X-Tessera-Held-Ms";
+/// Header of every request that acts as a registered worker (its lease requests, and the heartbeats, result uploads,
+/// failure reports, releases and state downloads of its leases): the secret its registration returned.
+inline constexpr const char* kWorkerSecretHeader = "X-Tessera-Worker-Secret";
 
 }  // namespace tessera::protocol

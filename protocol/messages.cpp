@@ -284,7 +284,8 @@ WorkerHello parse_worker_hello(const std::string& body) {
 void to_json(json& j, const Registration& r) {
   // Whole seconds are written as integers, as a person would.
   auto seconds = [](double s) { return s == double(int64_t(s)) ? json(int64_t(s)) : json(s); };
-  j = {{"id", r.id}, {"lease_seconds", seconds(r.lease_seconds)}, {"heartbeat_seconds", seconds(r.heartbeat_seconds)}};
+  j = {{"id", r.id}, {"lease_seconds", seconds(r.lease_seconds)}, {"heartbeat_seconds", seconds(r.heartbeat_seconds)},
+       {"secret", r.secret}};
 }
 
 void from_json(const json& j, Registration& r) {
@@ -292,6 +293,8 @@ void from_json(const json& j, Registration& r) {
   r.lease_seconds = answer_field_or<double>(j, "lease_seconds", "registration", kDefaultLeaseSeconds);
   r.heartbeat_seconds = answer_field_or<double>(j, "heartbeat_seconds", "registration", kDefaultHeartbeatSeconds);
   if (!(r.heartbeat_seconds > 0)) throw ProtocolError("registration: heartbeat_seconds must be positive");
+  r.secret = answer_field<std::string>(j, "secret", "registration");
+  if (r.secret.empty()) throw ProtocolError("registration: secret must not be empty");
 }
 
 void to_json(json& j, const Lease& l) {

@@ -129,6 +129,9 @@ struct Registration {
   std::string id;                                               ///< Worker id (w-…).
   double lease_seconds = kDefaultLeaseSeconds;                  ///< Lease length.
   double heartbeat_seconds = kDefaultHeartbeatSeconds;          ///< Heartbeat period.
+  /// The worker's secret: every later request acting as this worker carries it (kWorkerSecretHeader). The
+  /// coordinator keeps only its SHA-256.
+  std::string secret;
 };
 void to_json(nlohmann::json& j, const Registration& r);
 void from_json(const nlohmann::json& j, Registration& r);

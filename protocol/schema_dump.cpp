@@ -98,7 +98,7 @@ json dump() {
   add(out, "BlobQueryAnswer", "BlobQueryAnswer", kAnswer, BlobQueryAnswer{{kSha}}, BlobQueryAnswer{});
   add(out, "BlobStored", "BlobPutAnswer", kAnswer, BlobPutAnswer{kSha, 42}, BlobPutAnswer{});
   add(out, "WorkerHello", "WorkerHello", kRequest, WorkerHello{"host-1", 8, "0.1.0"}, WorkerHello{});
-  add(out, "Registration", "Registration", kAnswer, Registration{"w-1", 0.5, 5}, Registration{});
+  add(out, "Registration", "Registration", kAnswer, Registration{"w-1", 0.5, 5, "9f86d081884c7d65"}, Registration{});
   add(out, "Worker", "WorkerInfo", kAnswer, full_worker(), WorkerInfo{});
   add(out, "WorkerList", "WorkerList", kAnswer, WorkerList{{full_worker()}}, WorkerList{});
   // The lease answer: the lease's keys with the job's spec beside them, as the coordinator writes it.

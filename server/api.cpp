@@ -35,7 +35,7 @@ Api::Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metric
       jobs_handler_(jobs_, collector_),
       tiles_handler_(jobs_),
       leases_handler_(scheduler, jobs_, metrics, clock, events, *lease_waiters_),
-      workers_handler_(scheduler, opt_.heartbeat_seconds, events),
+      workers_handler_(scheduler, opt_.heartbeat_seconds, opt_.registrations_per_minute, clock, events),
       blobs_handler_(blobs),
       health_handler_(scheduler, metrics, clock, *lease_waiters_),
       events_handler_(bus) {

@@ -42,6 +42,7 @@ struct ApiOptions : AdmissionLimits {
   int heartbeat_seconds = protocol::kDefaultHeartbeatSeconds;  ///< Heartbeat interval announced to workers.
   AccessTokens tokens;                               ///< Bearer tokens (empty: that side's endpoints are open).
   RetentionOptions retention;                        ///< How long finished jobs and unreferenced blobs are kept.
+  double registrations_per_minute = 600;  ///< Worker registrations taken a minute; more get 429 (0: no limit).
 };
 
 /// The endpoints a request target can name (protocol/routes.h).

@@ -128,10 +128,12 @@ class TokenServerTest : public ::testing::Test {
     spdlog::set_default_logger(previous_);
     spdlog::set_level(spdlog::level::warn);
   }
-  Reply call(V m, const std::string& target, const std::string& token, std::string body = {}) {
+  Reply call(V m, const std::string& target, const std::string& token, std::string body = {},
+             const std::string& worker_secret = {}) {
     Client c(server_->endpoint());
     std::vector<std::pair<std::string, std::string>> h;
     if (!token.empty()) h.emplace_back("Authorization", "Bearer " + token);
+    if (!worker_secret.empty()) h.emplace_back(protocol::kWorkerSecretHeader, worker_secret);
     return c.send(m, target, std::move(body), h);
   }
 
@@ -158,15 +160,17 @@ TEST_F(TokenServerTest, EndpointsAnswer401Or403WithoutTheRightToken) {
   EXPECT_EQ(call(V::post, "/v1/workers", kTokens.client, "{}").status, 403u);
   const Reply reg = call(V::post, "/v1/workers", kTokens.worker, R"({"name": "w"})");
   ASSERT_EQ(reg.status, 201u) << reg.body;
-  const std::string wid = reg.js()["id"].get<std::string>();
-  EXPECT_EQ(call(V::post, "/v1/workers/" + wid + "/lease", kTokens.client).status, 403u);
-  EXPECT_EQ(call(V::post, "/v1/workers/" + wid + "/lease", kTokens.worker).status, 204u);
+  const std::string wid = reg.js()["id"].get<std::string>(), secret = reg.js()["secret"].get<std::string>();
+  EXPECT_EQ(call(V::post, "/v1/workers/" + wid + "/lease", kTokens.client, {}, secret).status, 403u);
+  EXPECT_EQ(call(V::post, "/v1/workers/" + wid + "/lease", kTokens.worker, {}, secret).status, 204u);
+  // The worker token alone does not make a request the worker's: it needs the worker's secret too.
+  EXPECT_EQ(call(V::post, "/v1/workers/" + wid + "/lease", kTokens.worker).status, 403u);
   // Looking at and draining workers is the operator's business: the client token.
   EXPECT_EQ(call(V::get, "/v1/workers", kTokens.worker).status, 403u);
   EXPECT_EQ(call(V::get, "/v1/workers", kTokens.client).status, 200u);
   EXPECT_EQ(call(V::post, "/v1/workers/" + wid + "/drain", kTokens.worker).status, 403u);
   EXPECT_EQ(call(V::post, "/v1/workers/" + wid + "/drain", kTokens.client).status, 200u);
-  EXPECT_EQ(call(V::post, "/v1/workers/" + wid + "/lease", kTokens.worker).status, 204u);
+  EXPECT_EQ(call(V::post, "/v1/workers/" + wid + "/lease", kTokens.worker, {}, secret).status, 204u);
   EXPECT_EQ(call(V::post, "/v1/workers/" + wid + "/undrain", kTokens.client).status, 200u);
 
   const std::string sha(64, 'a');
@@ -183,6 +187,7 @@ TEST_F(TokenServerTest, EndpointsAnswer401Or403WithoutTheRightToken) {
   EXPECT_NE(log.find("401"), std::string::npos) << "refusals are logged";
   EXPECT_EQ(log.find(kTokens.client), std::string::npos) << "the client token appeared in the log";
   EXPECT_EQ(log.find(kTokens.worker), std::string::npos) << "the worker token appeared in the log";
+  EXPECT_EQ(log.find(secret), std::string::npos) << "the worker's secret appeared in the log";
 }
 
 TEST_F(TokenServerTest, UnauthorisedUploadIsRefusedBeforeItsBodyIsRead) {

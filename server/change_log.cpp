@@ -22,6 +22,7 @@ void ChangeLog::clear() {
   tiles_.clear();
   leases_.clear();
   workers_.clear();
+  forgotten_workers_.clear();
   purged_jobs_.clear();
 }
 
@@ -35,7 +36,7 @@ void ChangeLog::flush(FarmState& s) {
     return;
   }
   if (jobs_.empty() && job_workers_.empty() && tiles_.empty() && leases_.empty() && workers_.empty() &&
-      purged_jobs_.empty() && counters == flushed_counters_)
+      forgotten_workers_.empty() && purged_jobs_.empty() && counters == flushed_counters_)
     return;
   SchedulerChanges c;
   c.counters = counters;
@@ -65,7 +66,8 @@ void ChangeLog::flush(FarmState& s) {
     if (it != s.leases.end()) c.leases.push_back(LeaseRow{it->second.lease, it->second.state, it->second.granted_ms});
   }
   for (const std::string& id : workers_)
-    if (const WorkerRec* w = s.workers.find(id)) c.workers.push_back(WorkerRow{id, w->name, w->drained});
+    if (const WorkerRec* w = s.workers.find(id)) c.workers.push_back(WorkerRow{id, w->name, w->drained, w->secret_hash});
+  c.forgotten_workers.assign(forgotten_workers_.begin(), forgotten_workers_.end());
   c.purged_jobs.assign(purged_jobs_.begin(), purged_jobs_.end());
   // On failure the sets stay, so the next flush writes these rows again.
   store_->apply(c);
@@ -83,6 +85,7 @@ void restore(FarmState& s, SchedulerSnapshot snap, int64_t now) {
   for (const WorkerRow& w : snap.workers) {
     WorkerRec rec{w.name, now};  // downtime counts against nobody
     rec.drained = w.drained;
+    rec.secret_hash = w.secret_hash;
     s.workers.add(w.id, std::move(rec));
   }
   for (JobRow& row : snap.jobs) {

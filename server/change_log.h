@@ -34,6 +34,11 @@ class ChangeLog {
   void touch_lease(const std::string& lease) { leases_.insert(lease); }
   /// The worker is new, or was drained or undrained.
   void touch_worker(const std::string& worker) { workers_.insert(worker); }
+  /// The worker was forgotten: its row goes.
+  void forget_worker(const std::string& worker) {
+    workers_.erase(worker);
+    forgotten_workers_.insert(worker);
+  }
   /// A worker was added to the end of a job's list of workers.
   void add_job_worker(JobWorkerRow row) { job_workers_.push_back(std::move(row)); }
   /// Takes back the last add_job_worker (its tile was not stored).
@@ -61,7 +66,7 @@ class ChangeLog {
   void clear();
 
   SchedulerStore* store_;
-  std::set<std::string> jobs_, leases_, workers_;
+  std::set<std::string> jobs_, leases_, workers_, forgotten_workers_;
   std::vector<JobWorkerRow> job_workers_;         // workers added to jobs' lists since the last flush
   std::set<std::pair<std::string, int64_t>> tiles_;
   std::set<std::string> purged_jobs_;             // purged since the last flush

@@ -73,6 +73,18 @@ void check_access_setup(const std::string& host, const AccessTokens& tokens) {
                              "TESSERA_CLIENT_TOKEN and TESSERA_WORKER_TOKEN), or listen on 127.0.0.1");
 }
 
+// The scheduler's tunables from the coordinator's options.
+SchedulerConfig scheduler_config(const CoordinatorOptions& o) {
+  SchedulerConfig c;
+  c.lease_ms = int64_t(o.lease_seconds * 1000.0);
+  c.tile_failure_workers = o.tile_failure_workers;
+  c.worker_failure_limit = o.worker_failure_limit;
+  c.id_tag = random_hex(3);
+  c.max_workers = o.max_workers;
+  c.worker_retention_ms = int64_t(o.worker_retention_seconds * 1000.0);
+  return c;
+}
+
 }  // namespace
 
 struct Coordinator::Impl {
@@ -80,9 +92,7 @@ struct Coordinator::Impl {
       : opt(std::move(o)),
         blobs(opt.data_dir / "blobs", opt.durability),
         store(open_coordinator_store(opt.data_dir, opt.durability)),
-        sched(SchedulerConfig{int64_t(opt.lease_seconds * 1000.0), opt.tile_failure_workers, opt.worker_failure_limit,
-                              random_hex(3)},
-              wall_ms, *store),
+        sched(scheduler_config(opt), wall_ms, *store),
         bus(opt.events, random_hex(4)),
         farm_events(bus),
         api(sched, blobs, *store, metrics, wall_ms, opt.limits, bus, farm_events,

@@ -26,7 +26,10 @@ struct CoordinatorOptions {
   double lease_seconds = protocol::kDefaultLeaseSeconds;  ///< Lease length.
   int worker_failure_limit = SchedulerConfig{}.worker_failure_limit;  ///< Failures blocklisting a worker for a job.
   int tile_failure_workers = SchedulerConfig{}.tile_failure_workers;  ///< Workers failing one tile that fail its job.
-  ApiOptions limits;  ///< Heartbeat interval, body sizes, queued jobs, job size, access tokens, retention.
+  int64_t max_workers = SchedulerConfig{}.max_workers;  ///< Registered workers at most (more registrations get 503).
+  /// An offline worker holding no lease is forgotten this long after it was last seen.
+  double worker_retention_seconds = double(SchedulerConfig{}.worker_retention_ms) / 1000.0;
+  ApiOptions limits;  ///< Heartbeat interval, body sizes, queued jobs, job size, access tokens, retention, registrations.
   std::chrono::milliseconds read_timeout = HttpServerOptions{}.read_timeout;  ///< Whole-request read timeout.
   std::size_t header_limit = HttpServerOptions{}.header_limit;        ///< Largest request header.
   std::size_t max_connections = HttpServerOptions{}.max_connections;  ///< Open connections (more get 503).

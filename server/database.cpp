@@ -88,6 +88,7 @@ constexpr AddedColumn kAddedColumns[] = {
     {"leases", "granted_ms", "INTEGER NOT NULL DEFAULT 0"},
     {"jobs", "tile_timeout_s", "INTEGER NOT NULL DEFAULT 3600"},
     {"workers", "drained", "INTEGER NOT NULL DEFAULT 0"},
+    {"workers", "secret_sha256", "TEXT NOT NULL DEFAULT ''"},
 };
 
 }  // namespace
@@ -395,11 +396,13 @@ void DurableStore::apply(const SchedulerChanges& c) {
     st.run();
   }
   for (const WorkerRow& r : c.workers)
-    db_.statement("INSERT OR REPLACE INTO workers(id, name, drained) VALUES(?,?,?)")
+    db_.statement("INSERT OR REPLACE INTO workers(id, name, drained, secret_sha256) VALUES(?,?,?,?)")
         .bind_text(1, r.id)
         .bind_text(2, r.name)
         .bind(3, int64_t(r.drained))
+        .bind_text(4, r.secret_hash)
         .run();
+  for (const std::string& id : c.forgotten_workers) db_.statement("DELETE FROM workers WHERE id = ?").bind_text(1, id).run();
   // Only the counters that changed since the last commit. The id sequence is stored a block ahead (the next ids to
   // hand out are always below the stored value, so a restart continues above every id used): a lease grant, which
   // takes an id, then writes no counter.
@@ -540,8 +543,8 @@ SchedulerSnapshot DurableStore::load() {
     }
   }
   {
-    Statement& st = db_.statement("SELECT id, name, drained FROM workers");
-    while (st.step()) snap.workers.push_back(WorkerRow{st.text(0), st.text(1), st.integer(2) != 0});
+    Statement& st = db_.statement("SELECT id, name, drained, secret_sha256 FROM workers");
+    while (st.step()) snap.workers.push_back(WorkerRow{st.text(0), st.text(1), st.integer(2) != 0, st.text(3)});
   }
   tx.commit();
   return snap;

@@ -6,6 +6,7 @@
 #include "server/assembly.h"
 #include "server/coordinator.h"
 #include "server/memory_store.h"
+#include "server/worker_secret.h"
 
 #include <gtest/gtest.h>
 #include <sqlite3.h>
@@ -77,7 +78,7 @@ struct DatabaseTest : ::testing::Test {
 
 TEST_F(DatabaseTest, AJobsWorkersAreRowsOfTheirOwnAfterAListAnOlderBuildWrote) {
   const std::string j = job(192, 64, 64);  // 3 tiles
-  const std::string wa = sched->register_worker("alpha"), wb = sched->register_worker("beta");
+  const std::string wa = sched->register_worker("alpha").id, wb = sched->register_worker("beta").id;
   upload(lease(wa), 1.0f);
   reopen();
   {
@@ -103,7 +104,7 @@ TEST_F(DatabaseTest, EveryPieceOfStateSurvivesAReopen) {
   const std::string j = job(192, 64, 64);  // 3 tiles
   const std::string other = job(64, 64, 64, "other");
   ASSERT_EQ(sched->cancel(other).status, CancelResult::cancelled);
-  const std::string wa = sched->register_worker("alpha"), wb = sched->register_worker("beta");
+  const std::string wa = sched->register_worker("alpha").id, wb = sched->register_worker("beta").id;
   const Lease l0 = lease(wa);
   upload(l0, 1.0f);
   const Lease l1 = lease(wb);
@@ -171,7 +172,7 @@ TEST_F(DatabaseTest, EveryPieceOfStateSurvivesAReopen) {
 
 TEST_F(DatabaseTest, APausedJobStaysPausedAcrossARestart) {
   const std::string j = job();
-  const std::string w = sched->register_worker("w");
+  const std::string w = sched->register_worker("w").id;
   lease(w);
   ASSERT_EQ(sched->pause(j).status, PauseResult::changed);
   reopen();
@@ -184,7 +185,7 @@ TEST_F(DatabaseTest, APausedJobStaysPausedAcrossARestart) {
 
 TEST_F(DatabaseTest, ADrainedWorkerStaysDrainedAcrossARestart) {
   job();
-  const std::string w = sched->register_worker("w"), v = sched->register_worker("v");
+  const std::string w = sched->register_worker("w").id, v = sched->register_worker("v").id;
   ASSERT_TRUE(sched->set_drained(w, true));
   reopen();
   EXPECT_EQ(sched->acquire(w).status, AcquireResult::no_work);
@@ -194,9 +195,49 @@ TEST_F(DatabaseTest, ADrainedWorkerStaysDrainedAcrossARestart) {
   EXPECT_EQ(sched->acquire(w).status, AcquireResult::granted);
 }
 
+TEST_F(DatabaseTest, AWorkersSecretSurvivesARestartAsItsHashAndAForgottenWorkerStaysForgotten) {
+  job();
+  const RegisterResult w = sched->register_worker("w"), v = sched->register_worker("v");
+  const Lease l = lease(w.id);
+  reopen();
+  EXPECT_EQ(sched->check_worker(w.id, w.secret), WorkerCheck::ok) << "the worker goes on after a restart";
+  EXPECT_EQ(sched->check_worker(w.id, v.secret), WorkerCheck::wrong_secret);
+  std::string holder;
+  EXPECT_EQ(sched->check_lease_holder(l.id, w.secret, &holder), WorkerCheck::ok);
+  EXPECT_EQ(sched->check_lease_holder(l.id, v.secret, &holder), WorkerCheck::wrong_secret);
+  {
+    Database db(dir / "tessera.db");
+    Statement& st = db.statement("SELECT secret_sha256 FROM workers WHERE id = ?");
+    st.bind_text(1, w.id);
+    ASSERT_TRUE(st.step());
+    EXPECT_EQ(st.text(0), worker_secret_hash(w.secret)) << "only the secret's hash is stored";
+  }
+  std::string file = read_file_bytes(dir / "tessera.db");
+  if (fs::exists(dir / "tessera.db-wal")) file += read_file_bytes(dir / "tessera.db-wal");
+  EXPECT_EQ(file.find(w.secret), std::string::npos) << "the secret itself is nowhere in the database";
+
+  // v goes on being seen; w, its lease expired, is forgotten after its retention, and stays so across a restart.
+  now += SchedulerConfig{}.worker_retention_ms / 2;
+  EXPECT_EQ(sched->acquire(v.id).status, AcquireResult::granted);
+  now += SchedulerConfig{}.worker_retention_ms / 2 + 1;
+  EXPECT_EQ(sched->workers().size(), 1u);
+  reopen();
+  EXPECT_FALSE(sched->has_worker(w.id));
+  EXPECT_EQ(sched->check_worker(w.id, w.secret), WorkerCheck::unknown_worker) << "it registers again";
+  EXPECT_EQ(sched->check_worker(v.id, v.secret), WorkerCheck::ok);
+
+  // A worker stored without a secret (by a build that had none) cannot prove who it is: it registers again.
+  {
+    Database db(dir / "tessera.db");
+    db.exec("UPDATE workers SET secret_sha256 = ''");
+  }
+  reopen();
+  EXPECT_EQ(sched->check_worker(v.id, v.secret), WorkerCheck::unknown_worker);
+}
+
 TEST_F(DatabaseTest, TileDetailsSurviveARestart) {
   const std::string j = job();  // 2 tiles
-  const std::string w = sched->register_worker("w");
+  const std::string w = sched->register_worker("w").id;
   const Lease l0 = lease(w);
   sched->fail(l0.id, "bad", {"a log line"});
   const Lease l1 = lease(w);  // tile 0 again
@@ -233,20 +274,20 @@ TEST_F(DatabaseTest, IdsNeverRepeatAfterARestart) {
   std::set<std::string> ids;
   const std::string j = job();
   ids.insert(j);
-  const std::string w = sched->register_worker("w");
+  const std::string w = sched->register_worker("w").id;
   ids.insert(w);
   ids.insert(lease(w).id);
   ids.insert(sched->new_job_id());
   reopen("a");  // the same tag on purpose: the stored sequence alone keeps ids apart
   EXPECT_TRUE(ids.insert(job()).second);
-  const std::string w2 = sched->register_worker("w2");
+  const std::string w2 = sched->register_worker("w2").id;
   EXPECT_TRUE(ids.insert(w2).second);
   EXPECT_TRUE(ids.insert(lease(w2).id).second);
 }
 
 TEST_F(DatabaseTest, JobFinishedAcrossARestartKeepsItsImage) {
   const std::string j = job(128, 64, 64);
-  const std::string w = sched->register_worker("w");
+  const std::string w = sched->register_worker("w").id;
   const Lease a = lease(w), b = lease(w);
   upload(a, 2.0f);
   reopen();
@@ -267,7 +308,7 @@ TEST_F(DatabaseTest, JobFinishedAcrossARestartKeepsItsImage) {
 // from the stored tiles and marks the job done.
 TEST_F(DatabaseTest, CoordinatorStartFinishesAJobWhoseTilesWereAllStored) {
   const std::string j = job(128, 64, 64);
-  const std::string w = sched->register_worker("w");
+  const std::string w = sched->register_worker("w").id;
   const Lease a = lease(w), b = lease(w);
   upload(a, 2.0f);
   upload(b, 3.0f);
@@ -331,7 +372,7 @@ TEST_F(DatabaseTest, CoordinatorStartRemovesTheTempFilesOfAKilledRun) {
 // tiles, rays and render time, and the job's rays, stay those of the tiles really stored.
 TEST_F(DatabaseTest, AFailedCommitLeavesTheWorkersTilesRaysAndRenderTimeAsTheyWere) {
   const std::string j = job(128, 64, 64);  // two tiles
-  const std::string w = sched->register_worker("w");
+  const std::string w = sched->register_worker("w").id;
   const Lease first = lease(w);
   now += 2'000;
   upload(first, 1.0f);
@@ -369,7 +410,7 @@ TEST_F(DatabaseTest, AFailedCommitLeavesTheWorkersTilesRaysAndRenderTimeAsTheyWe
 
 TEST_F(DatabaseTest, ATileIsNeverDoneWithoutItsPixels) {
   const std::string j = job(64, 64, 64);
-  const std::string w = sched->register_worker("w");
+  const std::string w = sched->register_worker("w").id;
   const Lease l = lease(w);
   ASSERT_EQ(sched->claim_result(l.id).status, ResultClaim::proceed);
   // No pixels: the database refuses, and the scheduler does not pretend the tile is done.
@@ -401,7 +442,7 @@ TEST_F(DatabaseTest, ABatchIsStoredWhollyOrNotAtAll) {
 
 TEST_F(DatabaseTest, AMergeInterruptedByACrashIsRetriedOrPendingAgain) {
   const std::string j = job(128, 64, 64);
-  const std::string w = sched->register_worker("w");
+  const std::string w = sched->register_worker("w").id;
   const Lease l0 = lease(w), l1 = lease(w);
   // Killed right after the claim: the claim was not stored on its own, so the lease is still live and the worker's
   // retried upload goes through.
@@ -448,7 +489,7 @@ TEST_F(DatabaseTest, JobRecordsRoundTrip) {
 
 TEST_F(DatabaseTest, ARaisedSppAndTileStatesSurviveARestart) {
   const std::string j = job();  // 2 tiles at 7 spp
-  const std::string w = sched->register_worker("w");
+  const std::string w = sched->register_worker("w").id;
   const Lease l = lease(w);
   upload(l, 1.f);
   EXPECT_FALSE(store->tile_state_spp(j, 0));
@@ -529,7 +570,7 @@ TEST(SchedulerSync, OnlyAcknowledgementsWaitForTheDisk) {
   RecordingStore store;
   int64_t now = 1'000;
   Scheduler s(SchedulerConfig{10'000, 3, 2, "s"}, [&] { return now; }, store);
-  const std::string w = s.register_worker("w");
+  const std::string w = s.register_worker("w").id;
   EXPECT_FALSE(store.flushed()) << "a registration is not an acknowledgement that must survive a power cut";
   JobParams p;
   p.width = 8;
@@ -579,7 +620,7 @@ TEST_F(MemoryStoreTest, KeepsPixelsRecordsAndTileStatesUntilPurgedAndNothingAcro
     p.spp = 1;
     p.scene_hash = "hash";
     const std::string j = sched.add_job(p);
-    const std::string w = sched.register_worker("w");
+    const std::string w = sched.register_worker("w").id;
     std::vector<std::string> sent;
     for (int t = 0; t < 2; ++t) {
       const AcquireResult r = sched.acquire(w);

@@ -55,6 +55,7 @@ void FarmEvents::worker_registered(const protocol::WorkerInfo& worker) {
 
 void FarmEvents::workers_checked(const std::vector<protocol::WorkerInfo>& workers) {
   std::lock_guard lock(mu_);
+  std::map<std::string, protocol::WorkerState> now;  // the workers listed: forgotten ones are dropped
   for (const protocol::WorkerInfo& w : workers) {
     const auto it = worker_states_.find(w.id);
     const bool offline = w.state == protocol::WorkerState::offline;
@@ -63,8 +64,9 @@ void FarmEvents::workers_checked(const std::vector<protocol::WorkerInfo>& worker
       if (offline && !was_offline) bus_.publish(ev::kWorkerLost, dump(json(protocol::WorkerEvent{"offline", w})));
       if (!offline && was_offline) bus_.publish(ev::kWorkerSeen, dump(json(protocol::WorkerEvent{"back", w})));
     }
-    worker_states_[w.id] = w.state;
+    now.emplace(w.id, w.state);
   }
+  worker_states_.swap(now);
 }
 
 }  // namespace tessera::server

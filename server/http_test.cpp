@@ -30,6 +30,8 @@
 #include <filesystem>
 #include <fstream>
 #include <future>
+#include <map>
+#include <mutex>
 #include <sstream>
 #include <thread>
 
@@ -69,10 +71,42 @@ class HttpTest : public ::testing::Test {
     server_ = std::make_unique<testing::RunningCoordinator>(o, "http");
   }
   void TearDown() override { server_.reset(); }
+  // A request that acts as a worker (its lease requests; its leases' heartbeats, uploads, failure reports, releases
+  // and states) carries that worker's secret, as `tessera worker` sends it, unless it names a secret of its own.
   Reply call(http::verb m, const std::string& target, std::string body = {},
              std::vector<std::pair<std::string, std::string>> headers = {}) {
+    const protocol::RouteMatch route = protocol::match_route(target);
+    const bool own_secret = std::any_of(headers.begin(), headers.end(),
+                                        [](const auto& h) { return h.first == protocol::kWorkerSecretHeader; });
+    if (!own_secret)
+      if (const std::string secret = secret_for(route); !secret.empty())
+        headers.emplace_back(protocol::kWorkerSecretHeader, secret);
     Client c(server_->endpoint());
-    return c.send(m, target, std::move(body), std::move(headers));
+    Reply r = c.send(m, target, std::move(body), std::move(headers));
+    std::lock_guard lock(identities_mu_);
+    if (route.endpoint() == protocol::Endpoint::workers && r.status == 201)
+      secrets_[r.js().value("id", "")] = r.js().value("secret", "");
+    if (route.endpoint() == protocol::Endpoint::worker_lease && r.status == 200)
+      lease_workers_[r.js().value("lease", "")] = route.param;
+    return r;
+  }
+  // The secret of the worker a request to `route` acts as ("" for none known).
+  std::string secret_for(const protocol::RouteMatch& route) {
+    std::lock_guard lock(identities_mu_);
+    std::string worker;
+    switch (route.endpoint()) {
+      case protocol::Endpoint::worker_lease: worker = route.param; break;
+      case protocol::Endpoint::lease_heartbeat:
+      case protocol::Endpoint::lease_result:
+      case protocol::Endpoint::lease_fail:
+      case protocol::Endpoint::lease_release:
+      case protocol::Endpoint::lease_state:
+        if (const auto l = lease_workers_.find(route.param); l != lease_workers_.end()) worker = l->second;
+        break;
+      default: return {};
+    }
+    const auto it = secrets_.find(worker);
+    return it == secrets_.end() ? std::string() : it->second;
   }
   std::string put_blob(const fs::path& file) {
     const std::string bytes = slurp(file);
@@ -108,6 +142,9 @@ class HttpTest : public ::testing::Test {
 
   double lease_seconds_ = 30;
   std::unique_ptr<testing::RunningCoordinator> server_;
+  std::mutex identities_mu_;
+  std::map<std::string, std::string> secrets_;        // worker id -> its secret (identities_mu_)
+  std::map<std::string, std::string> lease_workers_;  // lease id -> the worker it was granted to (identities_mu_)
 };
 
 // A small job on the intersection_test Cornell box: 40x30 pixels, 2 spp, 16-pixel tiles (3x2 tiles, ragged edges).
@@ -518,6 +555,88 @@ TEST_F(HttpTest, AStoppingCoordinatorAnswersItsHeldLeaseRequestsAtOnce) {
   server_.reset();  // stops the coordinator: the held request is answered rather than waited out
   EXPECT_EQ(held.get().status, 204u);
   EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::milliseconds(10000));  // the wait was not served out
+}
+
+// A worker acts on its own leases only: with another worker's secret, a made-up one or none, every request on a
+// lease (and a lease request in the worker's name) is 403, and nothing changes.
+TEST_F(HttpTest, OnlyTheWorkerHoldingALeaseCanActOnIt) {
+  const std::string a = register_worker("a"), b = register_worker("b");
+  const std::string a_secret = secret_for(protocol::match_route(protocol::routes::worker_lease(a)));
+  const std::string b_secret = secret_for(protocol::match_route(protocol::routes::worker_lease(b)));
+  ASSERT_FALSE(a_secret.empty());
+  ASSERT_NE(a_secret, b_secret);
+  const std::string id = submit(small_cbox(job_for("cbox_no_light.json")));
+  Reply r = call(http::verb::post, "/v1/workers/" + a + "/lease");
+  ASSERT_EQ(r.status, 200u) << r.body;
+  const std::string lease = r.js()["lease"];
+  for (const std::string& secret : {b_secret, std::string("made-up"), std::string()}) {
+    SCOPED_TRACE("secret '" + secret + "'");
+    const std::vector<std::pair<std::string, std::string>> as{{protocol::kWorkerSecretHeader, secret}};
+    for (const auto& [verb, target, body] :
+         {std::tuple{http::verb::post, "/v1/leases/" + lease + "/heartbeat", std::string(R"({"rays": 5})")},
+          std::tuple{http::verb::post, "/v1/leases/" + lease + "/fail", std::string(R"({"error": "sabotage"})")},
+          std::tuple{http::verb::post, "/v1/leases/" + lease + "/release", std::string()},
+          std::tuple{http::verb::put, "/v1/leases/" + lease + "/result", std::string("not an exr")},
+          std::tuple{http::verb::get, "/v1/leases/" + lease + "/state", std::string()}}) {
+      r = call(verb, target, body, as);
+      EXPECT_EQ(r.status, 403u) << target << ": " << r.body;
+      const std::string error = r.js().value("error", "");
+      EXPECT_NE(error.find("lease " + lease + " is worker " + a + "'s"), std::string::npos) << error;
+      EXPECT_EQ(error.find(a_secret), std::string::npos);
+    }
+    r = call(http::verb::post, "/v1/workers/" + a + "/lease", "", as);
+    EXPECT_EQ(r.status, 403u) << r.body;
+  }
+  // Nothing changed: a's lease is live and its tile leased, no failure counted, no rays added, no tile pending again.
+  const json job = call(http::verb::get, "/v1/jobs/" + id).js();
+  EXPECT_EQ(job["state"], "running");
+  EXPECT_EQ(job["tiles"]["leased"], 1);
+  EXPECT_EQ(job["rays"], 0);
+  for (const json& t : call(http::verb::get, "/v1/jobs/" + id + "/tiles").js()["tiles"])
+    EXPECT_TRUE(t["failures"].empty()) << t.dump();
+  for (const json& w : call(http::verb::get, "/v1/workers").js()["workers"])
+    EXPECT_EQ(w["state"], w["id"] == a ? "rendering" : "idle") << w.dump();
+  r = call(http::verb::post, "/v1/leases/" + lease + "/heartbeat");  // a, with its own secret
+  EXPECT_EQ(r.status, 200u) << r.body;
+  // b's own lease is b's to fail, and counts against b alone.
+  r = call(http::verb::post, "/v1/workers/" + b + "/lease");
+  ASSERT_EQ(r.status, 200u) << r.body;
+  const std::string b_lease = r.js()["lease"];
+  EXPECT_EQ(call(http::verb::post, "/v1/leases/" + b_lease + "/fail", R"({"error": "b's own"})").status, 200u);
+  const json tiles = call(http::verb::get, "/v1/jobs/" + id + "/tiles").js()["tiles"];
+  ASSERT_EQ(tiles[1]["failures"].size(), 1u);
+  EXPECT_EQ(tiles[1]["failures"][0]["worker"], b);
+}
+
+// Registrations beyond --max-workers get 503 with Retry-After; the registered workers go on.
+class WorkerBoundTest : public HttpTest {
+  void configure(CoordinatorOptions& o) override { o.max_workers = 2; }
+};
+
+TEST_F(WorkerBoundTest, RegistrationsBeyondTheBoundAreRefused) {
+  const std::string a = register_worker("a"), b = register_worker("b");
+  const Reply r = call(http::verb::post, "/v1/workers", R"({"name": "c"})");
+  EXPECT_EQ(r.status, 503u) << r.body;
+  EXPECT_FALSE(std::string(r.msg[http::field::retry_after]).empty());
+  EXPECT_NE(r.js().value("error", "").find("2 registered workers, its --max-workers"), std::string::npos) << r.body;
+  EXPECT_EQ(call(http::verb::get, "/v1/workers").js()["workers"].size(), 2u);
+  EXPECT_EQ(call(http::verb::post, "/v1/workers/" + a + "/lease").status, 204u);
+}
+
+// Registrations beyond --max-registrations-per-minute get 429 with Retry-After. At a rate of one in a million minutes
+// the bucket holds one registration, whatever the machine's speed.
+class RegistrationRateTest : public HttpTest {
+  void configure(CoordinatorOptions& o) override { o.limits.registrations_per_minute = 1e-6; }
+};
+
+TEST_F(RegistrationRateTest, RegistrationsBeyondTheRateAreRefused) {
+  const std::string a = register_worker("a");
+  const Reply r = call(http::verb::post, "/v1/workers", R"({"name": "b"})");
+  EXPECT_EQ(r.status, 429u) << r.body;
+  EXPECT_GT(std::stoll(std::string(r.msg[http::field::retry_after])), 0);
+  EXPECT_NE(r.js().value("error", "").find("--max-registrations-per-minute"), std::string::npos) << r.body;
+  EXPECT_EQ(call(http::verb::get, "/v1/workers").js()["workers"].size(), 1u);
+  EXPECT_EQ(call(http::verb::post, "/v1/workers/" + a + "/lease").status, 204u);
 }
 
 TEST_F(HttpTest, RegisterLeaseAndEmptyQueue) {

@@ -1,6 +1,7 @@
 #include "server/lease_flow.h"
 
 #include "core/image/tiles.h"
+#include "server/worker_secret.h"
 
 #include <spdlog/spdlog.h>
 
@@ -9,11 +10,32 @@
 
 namespace tessera::server {
 
-std::string LeaseFlow::register_worker(const std::string& name, int64_t threads, int64_t now) {
+std::string LeaseFlow::register_worker(const std::string& name, int64_t threads, const std::string& secret_hash,
+                                       int64_t now) {
+  if (s_.config.max_workers > 0 && int64_t(s_.workers.size()) >= s_.config.max_workers) return {};
   const std::string id = s_.next_id('w');
-  s_.workers.add(id, WorkerRec{name, now, threads});
+  WorkerRec rec{name, now, threads};
+  rec.secret_hash = secret_hash;
+  s_.workers.add(id, std::move(rec));
   s_.changes.touch_worker(id);
+  if (s_.config.worker_retention_ms > 0)  // the first moment forget_workers() may forget it
+    next_forget_check_ms_ =
+        std::min(next_forget_check_ms_, now + std::max(s_.config.worker_retention_ms, s_.workers.gone_ms()) + 1);
   return id;
+}
+
+WorkerCheck LeaseFlow::check_worker(const std::string& worker, std::string_view secret) const {
+  const WorkerRec* w = s_.workers.find(worker);
+  // A worker stored without a secret (by a build that had none) cannot prove who it is: it registers again.
+  if (!w || w->secret_hash.empty()) return WorkerCheck::unknown_worker;
+  return worker_secret_matches(w->secret_hash, secret) ? WorkerCheck::ok : WorkerCheck::wrong_secret;
+}
+
+WorkerCheck LeaseFlow::check_lease_holder(const std::string& lease, std::string_view secret, std::string* holder) const {
+  const auto it = s_.leases.find(lease);
+  if (it == s_.leases.end()) return WorkerCheck::unknown_lease;
+  *holder = it->second.lease.worker;
+  return check_worker(*holder, secret);
 }
 
 AcquireResult LeaseFlow::acquire(const std::string& worker, int64_t now) {
@@ -312,6 +334,37 @@ void LeaseFlow::expire(int64_t now) {
                  error);
     const FailResult f = s_.record_failure(j, l, error, {}, now);
     if (f.job_failed) spdlog::warn("job {}: failed: {}", j.status.id, j.status.error.value_or(""));
+  }
+}
+
+void LeaseFlow::forget_workers(int64_t now) {
+  const int64_t retention = s_.config.worker_retention_ms;
+  if (retention <= 0 || now < next_forget_check_ms_) return;
+  next_forget_check_ms_ = std::numeric_limits<int64_t>::max();
+  // A worker holding a live lease is kept at least until that lease's deadline (it then expires, unless renewed).
+  std::map<std::string, int64_t> held;  // worker -> the latest deadline of its live leases
+  for (const std::string& id : s_.live_leases) {
+    const Lease& l = s_.leases.at(id).lease;
+    int64_t& until = held[l.worker];
+    until = std::max(until, l.deadline_ms);
+  }
+  std::vector<std::string> gone;
+  for (const auto& [id, w] : s_.workers.all()) {
+    // Not before it is offline, its retention has passed and its leases have run out.
+    int64_t due = w.last_seen_ms + std::max(retention, s_.workers.gone_ms());
+    if (const auto h = held.find(id); h != held.end()) due = std::max(due, h->second);
+    if (now > due) gone.push_back(id);
+    else next_forget_check_ms_ = std::min(next_forget_check_ms_, due + 1);
+  }
+  if (gone.empty()) return;
+  std::string named;
+  for (size_t i = 0; i < gone.size() && i < 3; ++i)
+    named += (i ? ", " : "") + gone[i] + " ('" + s_.workers.name_of(gone[i]) + "')";
+  spdlog::info("forgot {} worker(s) not seen for {} s or more: {}{}", gone.size(), retention / 1000, named,
+               gone.size() > 3 ? ", ..." : "");
+  for (const std::string& id : gone) {
+    s_.workers.forget(id);
+    s_.changes.forget_worker(id);
   }
 }
 

@@ -21,8 +21,12 @@ class LeaseFlow {
   /// Operations on `s`, which must outlive it.
   explicit LeaseFlow(FarmState& s) : s_(s) {}
 
-  /// Registers a worker and returns its id.
-  std::string register_worker(const std::string& name, int64_t threads, int64_t now);
+  /// Registers a worker whose secret hashes to `secret_hash` and returns its id; "" when max_workers are registered.
+  std::string register_worker(const std::string& name, int64_t threads, const std::string& secret_hash, int64_t now);
+  /// Whether `secret` is the secret of the worker `worker`.
+  WorkerCheck check_worker(const std::string& worker, std::string_view secret) const;
+  /// Whether `secret` is the secret of the worker the lease was granted to; sets `holder` to that worker's id.
+  WorkerCheck check_lease_holder(const std::string& lease, std::string_view secret, std::string* holder) const;
   /// Leases the next tile the worker may take.
   AcquireResult acquire(const std::string& worker, int64_t now);
   /// How many tiles acquire() could lease to the worker now.
@@ -47,6 +51,9 @@ class LeaseFlow {
   bool release(const std::string& lease);
   /// Reclaims leases past their deadline and fails those past their job's tile timeout.
   void expire(int64_t now);
+  /// Forgets the workers that are not present, hold no live lease and were last seen more than the retention time
+  /// ago (SchedulerConfig::worker_retention_ms).
+  void forget_workers(int64_t now);
 
  private:
   // The result claim's view of the lease, with its job and lease records (unset for an unknown lease).
@@ -60,6 +67,9 @@ class LeaseFlow {
   // No live lease can expire or time out before this (a lower bound: heartbeats only move deadlines later), so
   // expire() skips its scan of the live leases until then.
   int64_t next_expiry_check_ms_ = 0;
+  // No worker can be due to be forgotten before this (last-seen times only grow), so forget_workers() skips its scan
+  // of the workers until then.
+  int64_t next_forget_check_ms_ = 0;
 };
 
 }  // namespace tessera::server

@@ -29,15 +29,21 @@ HttpResponse LeasesHandler::handle(const protocol::RouteMatch& route, HttpReques
       return answered.get();
     }
     case Endpoint::lease_heartbeat: return heartbeat(id, req);
-    case Endpoint::lease_fail:
-      jobs_.record_failure(id, protocol::parse_fail_report(req.body()));
+    case Endpoint::lease_fail: {
+      const protocol::FailReport report = protocol::parse_fail_report(req.body());
+      require_holder(id, req);
+      jobs_.record_failure(id, report);
       return json_response(http::status::ok, protocol::FailAnswer{}, v);
+    }
     case Endpoint::lease_release:
       protocol::parse_empty_request(req.body());
+      require_holder(id, req);
       if (!sched_.release(id)) throw ApiError(404, "unknown lease " + id);
       spdlog::debug("lease {}: released", id);
       return json_response(http::status::ok, protocol::ReleaseAnswer{}, v);
-    case Endpoint::lease_state: return bytes_response(jobs_.lease_state(id), "image/x-exr", v);
+    case Endpoint::lease_state:
+      require_holder(id, req);
+      return bytes_response(jobs_.lease_state(id), "image/x-exr", v);
     default: break;
   }
   throw ApiError(404, "no such endpoint");
@@ -46,6 +52,7 @@ HttpResponse LeasesHandler::handle(const protocol::RouteMatch& route, HttpReques
 void LeasesHandler::lease(const std::string& worker, HttpRequest& req, Answer answer) {
   const unsigned version = req.version();
   const protocol::LeaseRequest asked = protocol::parse_lease_request(req.body());  // before a tile is taken
+  require_worker(worker, req);
   if (std::optional<HttpResponse> leased = try_lease(worker, asked, version)) return answer(std::move(*leased), nullptr);
   if (asked.wait_ms <= 0) return answer(HttpResponse{http::status::no_content, version}, nullptr);
   // A held request's answer says how long it was held (the API counts its time apart from the route's service time).
@@ -93,12 +100,50 @@ std::optional<HttpResponse> LeasesHandler::try_lease(const std::string& worker, 
 
 HttpResponse LeasesHandler::heartbeat(const std::string& lease, HttpRequest& req) {
   const uint64_t rays = protocol::parse_heartbeat_report(req.body()).rays;
+  require_holder(lease, req);
   const HeartbeatResult h = sched_.heartbeat(lease, rays);
   if (h.status == HeartbeatResult::unknown) throw ApiError(404, "unknown lease " + lease);
   if (h.status == HeartbeatResult::gone)
     throw ApiError(410, "lease " + lease + " was revoked or expired: stop rendering this tile");
   metrics_.add_rays(rays, clock_());
   return json_response(http::status::ok, protocol::HeartbeatAnswer{h.deadline_ms}, req.version());
+}
+
+void LeasesHandler::require_worker(const std::string& worker, const HttpRequest& req) {
+  const std::string_view secret = req[protocol::kWorkerSecretHeader];
+  switch (sched_.check_worker(worker, secret)) {
+    case WorkerCheck::ok: return;
+    case WorkerCheck::unknown_lease:
+    case WorkerCheck::unknown_worker: throw ApiError(404, "unknown worker " + worker + ": register again");
+    case WorkerCheck::wrong_secret: break;
+  }
+  refuse_identity(secret.empty() ? "a request acting as worker " + worker + " must carry its secret (" +
+                                        protocol::kWorkerSecretHeader + ", from its registration)"
+                                  : std::string(protocol::kWorkerSecretHeader) + " is not the secret of worker " + worker);
+}
+
+void LeasesHandler::require_holder(const std::string& lease, const HttpRequest& req) {
+  const std::string_view secret = req[protocol::kWorkerSecretHeader];
+  std::string holder;
+  switch (sched_.check_lease_holder(lease, secret, &holder)) {
+    case WorkerCheck::ok: return;
+    case WorkerCheck::unknown_lease: throw ApiError(404, "unknown lease " + lease);
+    case WorkerCheck::unknown_worker:
+      throw ApiError(404, "lease " + lease + " belongs to worker " + holder + ", which this coordinator does not know: "
+                          "register again");
+    case WorkerCheck::wrong_secret: break;
+  }
+  refuse_identity(secret.empty() ? "lease " + lease + " is worker " + holder + "'s: a request on it must carry its "
+                                        "secret (" + protocol::kWorkerSecretHeader + ", from its registration)"
+                                  : "lease " + lease + " is worker " + holder + "'s, and " +
+                                        protocol::kWorkerSecretHeader + " is not its secret");
+}
+
+void LeasesHandler::refuse_identity(const std::string& why) {
+  // The sentence names ids, never a secret; a flood of refusals logs 10 lines a minute.
+  uint64_t left_out = 0;
+  if (refusal_log_.allow(left_out)) spdlog::warn("403 {}{}", why, LogLimit::left_out_note(left_out, "refusals"));
+  throw ApiError(403, why);
 }
 
 void LeasesHandler::handle_async(const protocol::RouteMatch& route, HttpRequest& req, Answer answer) {
@@ -121,6 +166,7 @@ void LeasesHandler::result(const std::string& lease, HttpRequest& req, Answer an
     if (ec != std::errc() || ptr != h.data() + h.size())
       throw ApiError(400, std::string(protocol::kRaysHeader) + " must be a non-negative integer (got '" + std::string(h) + "')");
   }
+  require_holder(lease, req);
   const unsigned version = req.version();
   jobs_.accept_tile(lease, req.body(), rays, [answer, version](UploadOutcome o, std::exception_ptr refusal) {
     if (refusal) return answer(HttpResponse{}, refusal);

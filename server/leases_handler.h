@@ -4,13 +4,15 @@
 #include "server/farm_events.h"
 #include "server/job_service.h"
 #include "server/lease_waiters.h"
+#include "server/log_limit.h"
 #include "server/metrics.h"
 #include "server/resource_handler.h"
 #include "server/scheduler.h"
 
 namespace tessera::server {
 
-/// /v1/workers/{wid}/lease and /v1/leases/{lease}/heartbeat, /result, /fail, /release.
+/// /v1/workers/{wid}/lease and /v1/leases/{lease}/heartbeat, /result, /fail, /release, /state: each only for the
+/// worker it names (its lease's worker), which proves who it is with its secret (protocol::kWorkerSecretHeader).
 class LeasesHandler final : public ResourceHandler {
  public:
   /// Endpoints over the given state (which must outlive it).
@@ -29,6 +31,13 @@ class LeasesHandler final : public ResourceHandler {
   // unknown worker.
   std::optional<HttpResponse> try_lease(const std::string& worker, const protocol::LeaseRequest& asked, unsigned version);
   HttpResponse heartbeat(const std::string& lease, HttpRequest& req);
+  // Throws ApiError unless the request carries the secret of the worker `worker` (404 unknown, 403 not its secret).
+  void require_worker(const std::string& worker, const HttpRequest& req);
+  // Throws ApiError unless the request carries the secret of the worker the lease was granted to (404 for an unknown
+  // lease or a forgotten worker, 403 for any other worker's secret or none).
+  void require_holder(const std::string& lease, const HttpRequest& req);
+  // Logs (a few lines a minute) and throws the 403 of a request that is not the worker's it claims to be.
+  [[noreturn]] void refuse_identity(const std::string& why);
   void result(const std::string& lease, HttpRequest& req, Answer answer);
 
   Scheduler& sched_;
@@ -37,6 +46,7 @@ class LeasesHandler final : public ResourceHandler {
   ClockMs clock_;
   FarmEvents& events_;
   LeaseWaiters& waiters_;
+  LogLimit refusal_log_{10, std::chrono::minutes(1)};  // the 403 lines of requests with another worker's secret
 };
 
 }  // namespace tessera::server

@@ -113,7 +113,7 @@ struct PurgeTest : ::testing::Test {
 
 TEST_F(PurgeTest, OnlyEndedJobsArePurgedAndTheirLeasesBecomeUnknown) {
   const std::string running = job();
-  const std::string w = sched->register_worker("w");
+  const std::string w = sched->register_worker("w").id;
   const AcquireResult l = sched->acquire(w);
   ASSERT_EQ(l.status, AcquireResult::granted);
   EXPECT_EQ(sched->purge(running).status, PurgeResult::not_ended);
@@ -152,7 +152,7 @@ TEST_F(PurgeTest, OnlyEndedJobsArePurgedAndTheirLeasesBecomeUnknown) {
 TEST_F(PurgeTest, PurgingGivesTheDatabasePagesBackAndLeavesOtherJobsWhole) {
   const uint64_t empty = database_bytes();
   const std::string keep = job(128);
-  const std::string w = sched->register_worker("w");
+  const std::string w = sched->register_worker("w").id;
   render_all(w);
   std::vector<std::string> doomed;
   for (int i = 0; i < 4; ++i) doomed.push_back(job(512));
@@ -216,7 +216,7 @@ TEST_F(PurgeTest, ServiceRefusesWithASentenceAndDeletesTheResultFile) {
   } catch (const protocol::ApiError& e) {
     EXPECT_EQ(e.status, 404);
   }
-  const std::string w = sched->register_worker("w");
+  const std::string w = sched->register_worker("w").id;
   render_all(w);
   const fs::path result = store->result_path(j);
   { std::ofstream(result) << "exr"; }
@@ -234,7 +234,7 @@ TEST_F(PurgeTest, ServiceRefusesWithASentenceAndDeletesTheResultFile) {
 }
 
 TEST_F(PurgeTest, SweepPurgesJobsPastTheirRetentionTimeOnly) {
-  const std::string w = sched->register_worker("w");
+  const std::string w = sched->register_worker("w").id;
   const std::string old_done = job();
   render_all(w);
   const std::string old_cancelled = job();
@@ -257,7 +257,7 @@ TEST_F(PurgeTest, SweepPurgesJobsPastTheirRetentionTimeOnly) {
 TEST_F(PurgeTest, NoRetentionKeepsFinishedJobsForever) {
   retention.retain_finished_ms.reset();
   reopen();
-  const std::string w = sched->register_worker("w");
+  const std::string w = sched->register_worker("w").id;
   const std::string j = job();
   render_all(w);
   now += int64_t(1000) * 24 * 3'600'000;
@@ -278,7 +278,7 @@ TEST_F(PurgeTest, BlobsGoWhenNoJobNamesThemAndTheirGracePeriodIsOver) {
   ASSERT_TRUE(blobs->touch(fresh));
   const std::string kept = job(128, {{"a.obj", used}, {"t.png", shared}});
   const std::string purged = job(128, {{"t.png", shared}, {"u.png", only_purged}});
-  const std::string w = sched->register_worker("w");
+  const std::string w = sched->register_worker("w").id;
   render_all(w);
 
   EXPECT_EQ(collector->collect_blobs(), 1u);
@@ -300,7 +300,7 @@ TEST_F(PurgeTest, BlobsGoWhenNoJobNamesThemAndTheirGracePeriodIsOver) {
 }
 
 TEST_F(PurgeTest, ListingsFilterByStateAndPageNewestFirst) {
-  const std::string w = sched->register_worker("w");
+  const std::string w = sched->register_worker("w").id;
   std::vector<std::string> done;
   for (int i = 0; i < 3; ++i) {
     done.push_back(job());

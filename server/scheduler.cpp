@@ -1,5 +1,7 @@
 #include "server/scheduler.h"
 
+#include "server/worker_secret.h"
+
 #include <memory>
 #include <stdexcept>
 #include <type_traits>
@@ -18,6 +20,8 @@ SchedulerConfig checked_config(SchedulerConfig config) {
   if (config.lease_ms <= 0) throw std::invalid_argument("lease length must be positive");
   if (config.worker_failure_limit < 1) throw std::invalid_argument("the worker failure limit must be at least 1");
   if (config.tile_failure_workers < 1) throw std::invalid_argument("the tile failure workers must be at least 1");
+  if (config.max_workers < 0) throw std::invalid_argument("the worker bound must not be negative");
+  if (config.worker_retention_ms < 0) throw std::invalid_argument("the worker retention must not be negative");
   return config;
 }
 
@@ -46,6 +50,7 @@ auto Scheduler::transact(F&& f, bool store_now, std::function<void()> durable) {
   std::optional<R> r;
   try {
     leases_.expire(now);
+    leases_.forget_workers(now);  // after expire(): a lease that just ran out holds its worker no longer
     r.emplace(f(now));
   } catch (...) {
     try {
@@ -89,8 +94,30 @@ std::optional<uint64_t> Scheduler::job_seq(const std::string& id) {
   return transact([&](int64_t) { return views_.job_seq(id); });
 }
 
-std::string Scheduler::register_worker(const std::string& name, int64_t threads) {
-  return transact([&](int64_t now) { return leases_.register_worker(name, threads, now); });
+RegisterResult Scheduler::register_worker(const std::string& name, int64_t threads) {
+  RegisterResult r;
+  r.secret = new_worker_secret();
+  const std::string hash = worker_secret_hash(r.secret);
+  r.id = transact([&](int64_t now) { return leases_.register_worker(name, threads, hash, now); });
+  if (r.id.empty()) {
+    r.status = RegisterResult::full;
+    r.secret.clear();
+  }
+  return r;
+}
+
+WorkerCheck Scheduler::check_worker(const std::string& worker, std::string_view secret) {
+  std::lock_guard lock(mu_);
+  return leases_.check_worker(worker, secret);
+}
+
+WorkerCheck Scheduler::check_lease_holder(const std::string& lease, std::string_view secret, std::string* holder) {
+  std::lock_guard lock(mu_);
+  return leases_.check_lease_holder(lease, secret, holder);
+}
+
+std::optional<protocol::WorkerInfo> Scheduler::worker(const std::string& id) {
+  return transact([&](int64_t now) { return views_.worker(id, now); });
 }
 
 std::vector<protocol::WorkerInfo> Scheduler::workers() {

@@ -26,7 +26,8 @@ namespace tessera::server {
 
 /// The job/tile/lease state machine. Thread-safe: each call takes one lock and is one atomic step. Expired leases are
 /// reclaimed at the start of every call, and leases older than their job's tile_timeout_seconds (since the grant) are
-/// revoked as failures of their workers ("tile timed out after N s"), so behaviour depends only on the injected clock.
+/// revoked as failures of their workers ("tile timed out after N s"), and workers past their retention are forgotten,
+/// so behaviour depends only on the injected clock.
 class Scheduler {
  public:
   /// A scheduler reading time from `clock`, keeping its state in memory only.
@@ -61,8 +62,17 @@ class Scheduler {
   /// The submission number of a job (what a listing cursor holds), or nothing for an unknown id.
   std::optional<uint64_t> job_seq(const std::string& id);
 
-  /// Registers a worker (announcing `threads` render threads, 0 unknown) and returns its id.
-  std::string register_worker(const std::string& name, int64_t threads = 0);
+  /// Registers a worker (announcing `threads` render threads, 0 unknown) with a fresh secret; refused (full) when
+  /// max_workers are registered.
+  RegisterResult register_worker(const std::string& name, int64_t threads = 0);
+  /// Whether `secret` is the secret of the worker `worker` (a lease request's check).
+  WorkerCheck check_worker(const std::string& worker, std::string_view secret);
+  /// Whether `secret` is the secret of the worker the lease was granted to (the check of every request on a lease);
+  /// sets `holder` to that worker's id when the lease exists. The lease's worker never changes, so a request that
+  /// passes may act on the lease.
+  WorkerCheck check_lease_holder(const std::string& lease, std::string_view secret, std::string* holder);
+  /// One registered worker with its state, as workers() lists it, or nothing for an unknown id.
+  std::optional<protocol::WorkerInfo> worker(const std::string& id);
   /// Every registered worker with its state (offline after worker_gone_ms without a request), lease and blocklists.
   std::vector<protocol::WorkerInfo> workers();
   /// Drains a worker (true: it finishes its current tile, then every lease request answers no work) or undrains it;
@@ -132,7 +142,7 @@ class Scheduler {
   /// Marks an unfinished job failed with a reason.
   void fail_job(const std::string& job, const std::string& error);
 
-  /// Reclaims expired leases now (also done at the start of every other call).
+  /// Reclaims expired leases and forgets workers past their retention now (also done at the start of every other call).
   void expire();
   /// Current counters.
   SchedulerCounters counters();

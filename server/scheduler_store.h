@@ -57,6 +57,7 @@ struct WorkerRow {
   std::string id;        ///< Worker id.
   std::string name;      ///< Its self-reported name.
   bool drained = false;  ///< An operator drained it (no new leases until undrained).
+  std::string secret_hash{};  ///< SHA-256 of its secret, hex ("": registered by a build without secrets).
 };
 
 /// Counters and the id sequence, kept so a restarted coordinator continues them.
@@ -76,11 +77,13 @@ struct SchedulerChanges {
   std::vector<TileRow> tiles;      ///< Changed tiles.
   std::vector<LeaseRow> leases;    ///< Changed leases.
   std::vector<WorkerRow> workers;  ///< New workers, and workers drained or undrained.
+  std::vector<std::string> forgotten_workers;  ///< Workers whose rows go (offline past their retention).
   std::vector<std::string> purged_jobs;  ///< Jobs whose every row (job, tiles, leases, record) goes.
   CounterRow counters;             ///< Counters after the operation.
   /// True when nothing but the counters changed.
   bool empty() const {
-    return jobs.empty() && job_workers.empty() && tiles.empty() && leases.empty() && workers.empty() && purged_jobs.empty();
+    return jobs.empty() && job_workers.empty() && tiles.empty() && leases.empty() && workers.empty() &&
+           forgotten_workers.empty() && purged_jobs.empty();
   }
 };
 

@@ -43,7 +43,7 @@ struct SchedulerTest : ::testing::Test {
 };
 
 TEST_F(SchedulerTest, EmptyQueueIsNoWorkNotAnError) {
-  const std::string w = s.register_worker("a");
+  const std::string w = s.register_worker("a").id;
   EXPECT_EQ(s.acquire(w).status, AcquireResult::no_work);
   EXPECT_EQ(s.acquire("w-nobody").status, AcquireResult::unknown_worker);
   EXPECT_FALSE(s.has_worker("w-nobody"));
@@ -53,7 +53,7 @@ TEST_F(SchedulerTest, EmptyQueueIsNoWorkNotAnError) {
 TEST_F(SchedulerTest, LeasableTilesCountWhatAcquireCouldGrantAndNoteNewWork) {
   int noted = 0;
   s.on_work([&] { ++noted; });
-  const std::string a = s.register_worker("a"), b = s.register_worker("b");
+  const std::string a = s.register_worker("a").id, b = s.register_worker("b").id;
   EXPECT_EQ(s.leasable_tiles(a), 0);
   EXPECT_EQ(s.leasable_tiles("w-nobody"), 0);
   const std::string j1 = job(5), j2 = job(0);  // 4 tiles each
@@ -87,7 +87,7 @@ TEST_F(SchedulerTest, LeasableTilesCountWhatAcquireCouldGrantAndNoteNewWork) {
 
 TEST_F(SchedulerTest, TilesLeasedInRowMajorOrderWithWindows) {
   const std::string j = job(0, 100, 70, 64);  // 2 columns x 2 rows; last column 36 wide, last row 6 high
-  const std::string w = s.register_worker("a");
+  const std::string w = s.register_worker("a").id;
   const Lease l0 = lease(w), l1 = lease(w), l2 = lease(w), l3 = lease(w);
   EXPECT_EQ(l0.tile, 0);
   EXPECT_EQ(l1.tile, 1);
@@ -114,7 +114,7 @@ TEST_F(SchedulerTest, PriorityThenAgeOrder) {
   const std::string high_old = job(5);
   now += 1;
   const std::string high_new = job(5);
-  const std::string w = s.register_worker("a");
+  const std::string w = s.register_worker("a").id;
   for (int i = 0; i < 4; ++i) EXPECT_EQ(lease(w).job, high_old);
   for (int i = 0; i < 4; ++i) EXPECT_EQ(lease(w).job, high_new);
   for (int i = 0; i < 4; ++i) EXPECT_EQ(lease(w).job, low);
@@ -137,7 +137,7 @@ TEST_F(SchedulerTest, NewestFirstListing) {
 
 TEST_F(SchedulerTest, LeaseExpiresAndTileIsReleasedToTheNextWorker) {
   const std::string j = job();
-  const std::string a = s.register_worker("a"), b = s.register_worker("b");
+  const std::string a = s.register_worker("a").id, b = s.register_worker("b").id;
   const Lease la = lease(a);
   now += 10'000;  // exactly at the deadline: still live
   EXPECT_EQ(s.heartbeat(la.id).status, HeartbeatResult::ok);
@@ -153,7 +153,7 @@ TEST_F(SchedulerTest, LeaseExpiresAndTileIsReleasedToTheNextWorker) {
 
 TEST_F(SchedulerTest, HeartbeatExtendsTheDeadline) {
   job();
-  const std::string a = s.register_worker("a");
+  const std::string a = s.register_worker("a").id;
   const Lease l = lease(a);
   for (int i = 0; i < 5; ++i) {
     now += 6'000;  // longer than a lease in total, never longer than one between heartbeats
@@ -167,7 +167,7 @@ TEST_F(SchedulerTest, HeartbeatExtendsTheDeadline) {
 
 TEST_F(SchedulerTest, CompletionMakesTheLastTileReportLast) {
   const std::string j = job();
-  const std::string a = s.register_worker("a");
+  const std::string a = s.register_worker("a").id;
   std::vector<Lease> ls;
   for (int i = 0; i < 4; ++i) ls.push_back(lease(a));
   bool last = true;
@@ -195,7 +195,7 @@ TEST_F(SchedulerTest, CompletionMakesTheLastTileReportLast) {
 
 TEST_F(SchedulerTest, DuplicateUploadIsAcknowledgedAndNotMergedTwice) {
   const std::string j = job(0, 64, 64, 64);  // one tile
-  const std::string a = s.register_worker("a");
+  const std::string a = s.register_worker("a").id;
   const Lease l = lease(a);
   EXPECT_EQ(s.check_result(l.id).status, ResultClaim::proceed);
   EXPECT_EQ(s.claim_result(l.id).status, ResultClaim::proceed);
@@ -211,7 +211,7 @@ TEST_F(SchedulerTest, DuplicateUploadIsAcknowledgedAndNotMergedTwice) {
 
 TEST_F(SchedulerTest, LateUploadOfAnExpiredLeaseIsAcceptedAndRevokesTheNewLease) {
   const std::string j = job(0, 64, 64, 64);
-  const std::string a = s.register_worker("a"), b = s.register_worker("b");
+  const std::string a = s.register_worker("a").id, b = s.register_worker("b").id;
   const Lease la = lease(a);
   now += 20'000;
   const Lease lb = lease(b);
@@ -227,7 +227,7 @@ TEST_F(SchedulerTest, LateUploadOfAnExpiredLeaseIsAcceptedAndRevokesTheNewLease)
 
 TEST_F(SchedulerTest, LateUploadWhileTileIsPendingIsAccepted) {
   const std::string j = job(0, 64, 64, 64);
-  const std::string a = s.register_worker("a");
+  const std::string a = s.register_worker("a").id;
   const Lease la = lease(a);
   now += 20'000;
   s.expire();
@@ -240,8 +240,8 @@ TEST_F(SchedulerTest, LateUploadWhileTileIsPendingIsAccepted) {
 
 TEST_F(SchedulerTest, AbandonedMergeKeepsTheTileWithTheLeaseThatUploadedIt) {
   const std::string j = job(0, 64, 64, 64);
-  const std::string a = s.register_worker("a");
-  const std::string b = s.register_worker("b");
+  const std::string a = s.register_worker("a").id;
+  const std::string b = s.register_worker("b").id;
   const Lease l = lease(a);
   ASSERT_EQ(s.claim_result(l.id).status, ResultClaim::proceed);
   EXPECT_EQ(s.job(j)->tiles.leased, 1);
@@ -259,7 +259,7 @@ TEST_F(SchedulerTest, AbandonedMergeKeepsTheTileWithTheLeaseThatUploadedIt) {
 
 TEST_F(SchedulerTest, AbandonedMergeOfAnExpiredLeaseReturnsTheTile) {
   const std::string j = job(0, 64, 64, 64);
-  const std::string a = s.register_worker("a");
+  const std::string a = s.register_worker("a").id;
   const Lease l = lease(a);
   now += 10'001;  // expired: the tile is pending, and a late upload may still claim it
   ASSERT_EQ(s.claim_result(l.id).status, ResultClaim::proceed);
@@ -272,7 +272,7 @@ TEST_F(SchedulerTest, AbandonedMergeOfAnExpiredLeaseReturnsTheTile) {
 
 TEST_F(SchedulerTest, ReleaseHandsTheTileBackWithoutAFailure) {
   const std::string j = job();
-  const std::string a = s.register_worker("a");
+  const std::string a = s.register_worker("a").id;
   const Lease l = lease(a);
   EXPECT_TRUE(s.release(l.id));
   EXPECT_TRUE(s.release(l.id));  // idempotent
@@ -291,7 +291,7 @@ TEST_F(SchedulerTest, ReleaseHandsTheTileBackWithoutAFailure) {
 
 TEST_F(SchedulerTest, WorkerFailingTwiceIsBlocklistedForThatJobOnly) {
   const std::string j1 = job(5), j2 = job(0);
-  const std::string a = s.register_worker("a"), b = s.register_worker("b");
+  const std::string a = s.register_worker("a").id, b = s.register_worker("b").id;
   Lease l = lease(a);
   ASSERT_EQ(l.job, j1);
   FailResult f = s.fail(l.id, "out of memory");
@@ -314,7 +314,7 @@ TEST_F(SchedulerTest, WorkerFailingTwiceIsBlocklistedForThatJobOnly) {
 
 TEST_F(SchedulerTest, TileFailingOnThreeWorkersFailsTheJobWithTheirErrors) {
   const std::string j = job(0, 64, 64, 64);
-  const std::string a = s.register_worker("a"), b = s.register_worker("b"), c = s.register_worker("c");
+  const std::string a = s.register_worker("a").id, b = s.register_worker("b").id, c = s.register_worker("c").id;
   // Two failures from one worker count once towards the three distinct workers.
   EXPECT_FALSE(s.fail(lease(a).id, "boom a1").job_failed);
   EXPECT_FALSE(s.fail(lease(b).id, "boom b").job_failed);
@@ -338,7 +338,7 @@ TEST_F(SchedulerTest, TileFailingOnThreeWorkersFailsTheJobWithTheirErrors) {
 // fail with their errors rather than wait forever.
 TEST_F(SchedulerTest, JobFailsWhenEveryRegisteredWorkerIsBlocklisted) {
   const std::string j = job();  // 4 tiles
-  const std::string a = s.register_worker("a"), b = s.register_worker("b"), c = s.register_worker("c");
+  const std::string a = s.register_worker("a").id, b = s.register_worker("b").id, c = s.register_worker("c").id;
   const Lease la = lease(a), lb = lease(b), lc = lease(c);  // tiles 0, 1, 2
   EXPECT_FALSE(s.fail(la.id, "err a").job_failed);
   EXPECT_FALSE(s.fail(lb.id, "err b").job_failed);
@@ -366,7 +366,7 @@ TEST_F(SchedulerTest, JobFailsWhenEveryRegisteredWorkerIsBlocklisted) {
 // still present is blocklisted, the job fails, whether the last failure report or a lease request notices it.
 TEST_F(SchedulerTest, WorkersNotSeenForAFewLeasesDoNotCountAgainstFailingTheJob) {
   const std::string j = job();  // 4 tiles, 10 s leases
-  const std::string a = s.register_worker("a"), gone = s.register_worker("gone");
+  const std::string a = s.register_worker("a").id, gone = s.register_worker("gone").id;
   EXPECT_FALSE(s.fail(lease(a).id, "err 1").job_failed);
   EXPECT_FALSE(s.fail(lease(a).id, "err 2").job_failed);  // a blocklisted; "gone" was seen just now
   now += 29'000;
@@ -382,7 +382,7 @@ TEST_F(SchedulerTest, WorkersNotSeenForAFewLeasesDoNotCountAgainstFailingTheJob)
 
   // The same through a failure report: b stays in touch by heartbeats while a and c stay silent for 36 s.
   const std::string j2 = job();
-  const std::string b = s.register_worker("b"), c = s.register_worker("c");
+  const std::string b = s.register_worker("b").id, c = s.register_worker("c").id;
   const Lease lb = lease(b);
   EXPECT_FALSE(s.fail(lease(b).id, "b 1").job_failed);
   for (int i = 0; i < 4; ++i) {
@@ -396,7 +396,7 @@ TEST_F(SchedulerTest, WorkersNotSeenForAFewLeasesDoNotCountAgainstFailingTheJob)
 
 TEST_F(SchedulerTest, SameWorkerFailingOneTileRepeatedlyDoesNotFailTheJob) {
   const std::string j = job(0, 64, 64, 64);
-  const std::string a = s.register_worker("a"), b = s.register_worker("b");
+  const std::string a = s.register_worker("a").id, b = s.register_worker("b").id;
   s.fail(lease(a).id, "x");
   s.fail(lease(a).id, "y");  // a is now blocklisted
   EXPECT_EQ(s.acquire(a).status, AcquireResult::no_work);
@@ -406,7 +406,7 @@ TEST_F(SchedulerTest, SameWorkerFailingOneTileRepeatedlyDoesNotFailTheJob) {
 
 TEST_F(SchedulerTest, FailureOnExpiredLeaseCountsButDoesNotDisturbTheNewHolder) {
   const std::string j = job(0, 64, 64, 64);
-  const std::string a = s.register_worker("a"), b = s.register_worker("b");
+  const std::string a = s.register_worker("a").id, b = s.register_worker("b").id;
   const Lease la = lease(a);
   now += 20'000;
   const Lease lb = lease(b);
@@ -417,7 +417,7 @@ TEST_F(SchedulerTest, FailureOnExpiredLeaseCountsButDoesNotDisturbTheNewHolder) 
 
 TEST_F(SchedulerTest, CancelRevokesLeasesAndDiscardsUploads) {
   const std::string j = job();
-  const std::string a = s.register_worker("a");
+  const std::string a = s.register_worker("a").id;
   const Lease l1 = lease(a), l2 = lease(a);
   const CancelResult c = s.cancel(j);
   EXPECT_EQ(c.status, CancelResult::cancelled);
@@ -437,7 +437,7 @@ TEST_F(SchedulerTest, CancelRevokesLeasesAndDiscardsUploads) {
 // Retry: a failed job goes back to the queue with its done tiles kept and its failures forgotten.
 TEST_F(SchedulerTest, RetryOfAFailedJobLeasesOnlyTheTilesNotDone) {
   const std::string j = job();  // 4 tiles
-  const std::string a = s.register_worker("a"), b = s.register_worker("b"), c = s.register_worker("c");
+  const std::string a = s.register_worker("a").id, b = s.register_worker("b").id, c = s.register_worker("c").id;
   EXPECT_EQ(upload(lease(a).id), ResultClaim::proceed);  // tile 0
   EXPECT_EQ(upload(lease(a).id), ResultClaim::proceed);  // tile 1
   EXPECT_FALSE(s.fail(lease(a).id, "boom a").job_failed);  // tile 2, a's first failure
@@ -472,7 +472,7 @@ TEST_F(SchedulerTest, RetryOfAFailedJobLeasesOnlyTheTilesNotDone) {
 
 TEST_F(SchedulerTest, RetryOfACancelledJobRequeuesItAndRefusesOtherStates) {
   const std::string j = job();
-  const std::string a = s.register_worker("a");
+  const std::string a = s.register_worker("a").id;
   const Lease l = lease(a);
   EXPECT_EQ(s.retry(j).status, RetryResult::not_ended);
   EXPECT_EQ(s.cancel(j).status, CancelResult::cancelled);
@@ -490,7 +490,7 @@ TEST_F(SchedulerTest, RetryOfACancelledJobRequeuesItAndRefusesOtherStates) {
   EXPECT_EQ(s.job(q)->state, JobState::queued);
 
   const std::string d = job(0, 64, 64, 64);
-  const std::string b = s.register_worker("b");
+  const std::string b = s.register_worker("b").id;
   Lease ld;
   do ld = lease(b); while (ld.job != d);
   bool last = false;
@@ -504,7 +504,7 @@ TEST_F(SchedulerTest, RetryOfACancelledJobRequeuesItAndRefusesOtherStates) {
 TEST_F(SchedulerTest, PausedJobGetsNoNewLeasesButItsRunningTilesFinish) {
   const std::string hi = job(5);  // 4 tiles, leased first
   const std::string lo = job(0);
-  const std::string a = s.register_worker("a");
+  const std::string a = s.register_worker("a").id;
   const Lease l0 = lease(a);
   ASSERT_EQ(l0.job, hi);
   const PauseResult p = s.pause(hi);
@@ -532,7 +532,7 @@ TEST_F(SchedulerTest, PausedJobGetsNoNewLeasesButItsRunningTilesFinish) {
 TEST_F(SchedulerTest, PauseOfAQueuedJobResumesQueuedAndEndedJobsCannotBePaused) {
   const std::string q = job();
   EXPECT_EQ(s.pause(q).status, PauseResult::changed);
-  const std::string a = s.register_worker("a");
+  const std::string a = s.register_worker("a").id;
   EXPECT_EQ(s.acquire(a).status, AcquireResult::no_work);
   EXPECT_EQ(s.counters().jobs.at(JobState::paused), 1);
   EXPECT_EQ(s.resume(q).status, PauseResult::changed);
@@ -547,7 +547,7 @@ TEST_F(SchedulerTest, PauseOfAQueuedJobResumesQueuedAndEndedJobsCannotBePaused) 
 
 TEST_F(SchedulerTest, APausedJobWhoseLastTileLandsIsDone) {
   const std::string j = job(0, 64, 64, 64);  // one tile
-  const std::string a = s.register_worker("a");
+  const std::string a = s.register_worker("a").id;
   const Lease l = lease(a);
   EXPECT_EQ(s.pause(j).status, PauseResult::changed);
   bool last = false;
@@ -561,7 +561,7 @@ TEST_F(SchedulerTest, APausedJobWhoseLastTileLandsIsDone) {
 // Priority change: the lease order follows the new priority at once; ended jobs keep theirs.
 TEST_F(SchedulerTest, PriorityChangeReordersLeasesAndEndedJobsRefuseIt) {
   const std::string older = job(1), newer = job(0);
-  const std::string a = s.register_worker("a");
+  const std::string a = s.register_worker("a").id;
   EXPECT_EQ(lease(a).job, older);
   const PriorityResult r = s.set_priority(newer, 5);
   EXPECT_EQ(r.status, PriorityResult::changed);
@@ -587,7 +587,7 @@ TEST_F(SchedulerTest, PriorityChangeReordersLeasesAndEndedJobsRefuseIt) {
 // leases are revoked and their late uploads discarded; failed, cancelled and merging jobs refuse.
 TEST_F(SchedulerTest, RaisingTheSppOfADoneJobLeasesEveryTileAgainAtTheNewSpp) {
   const std::string j = job();
-  const std::string a = s.register_worker("a");
+  const std::string a = s.register_worker("a").id;
   for (int i = 0; i < 4; ++i) upload(lease(a).id);
   s.complete_job(j);
   ASSERT_EQ(s.job(j)->state, JobState::done);
@@ -616,7 +616,7 @@ TEST_F(SchedulerTest, RaisingTheSppOfADoneJobLeasesEveryTileAgainAtTheNewSpp) {
 
 TEST_F(SchedulerTest, RaisingTheSppOfARunningJobRevokesItsLeasesAndDiscardsTheirUploads) {
   const std::string j = job();
-  const std::string a = s.register_worker("a");
+  const std::string a = s.register_worker("a").id;
   const Lease done = lease(a), held = lease(a);
   upload(done.id);
   const RaiseResult r = s.raise_spp(j, 8);
@@ -633,7 +633,7 @@ TEST_F(SchedulerTest, RaisingTheSppOfARunningJobRevokesItsLeasesAndDiscardsTheir
 
 TEST_F(SchedulerTest, RaisingTheSppIsRefusedForEndedOrMergingJobs) {
   const std::string j = job(), k = job();
-  const std::string a = s.register_worker("a");
+  const std::string a = s.register_worker("a").id;
   const Lease l = lease(a);
   ASSERT_EQ(s.claim_result(l.id).status, ResultClaim::proceed);
   const RaiseResult merging = s.raise_spp(j, 8);
@@ -656,7 +656,7 @@ TEST_F(SchedulerTest, RaisingTheSppIsRefusedForEndedOrMergingJobs) {
 // Workers: the list says what each one does; a drained worker finishes its tile and then gets no work.
 TEST_F(SchedulerTest, WorkerListShowsStateLeaseTilesAndBlocklists) {
   const std::string j = job();
-  const std::string a = s.register_worker("alpha", 8), b = s.register_worker("beta");
+  const std::string a = s.register_worker("alpha", 8).id, b = s.register_worker("beta").id;
   std::vector<protocol::WorkerInfo> ws = s.workers();
   ASSERT_EQ(ws.size(), 2u);
   EXPECT_EQ(ws[0].id, a);
@@ -695,7 +695,7 @@ TEST_F(SchedulerTest, WorkerListShowsStateLeaseTilesAndBlocklists) {
 
 TEST_F(SchedulerTest, ADrainedWorkerFinishesItsTileThenGetsNoWorkUntilUndrained) {
   const std::string j = job();
-  const std::string a = s.register_worker("a");
+  const std::string a = s.register_worker("a").id;
   const Lease l = lease(a);
   const std::optional<protocol::WorkerInfo> d = s.set_drained(a, true);
   ASSERT_TRUE(d);
@@ -717,7 +717,7 @@ TEST_F(SchedulerTest, ADrainedWorkerFinishesItsTileThenGetsNoWorkUntilUndrained)
 
 TEST_F(SchedulerTest, TileDetailsCountAttemptsTimeRaysAndFailuresWithTheirLogLines) {
   const std::string j = job();  // 2x2 tiles
-  const std::string a = s.register_worker("alpha"), b = s.register_worker("beta");
+  const std::string a = s.register_worker("alpha").id, b = s.register_worker("beta").id;
   const Lease first = lease(a);  // tile 0
   ASSERT_EQ(first.tile, 0);
   now += 500;
@@ -764,7 +764,7 @@ TEST_F(SchedulerTest, TileDetailsCountAttemptsTimeRaysAndFailuresWithTheirLogLin
 
 TEST_F(SchedulerTest, RequeueRendersADoneOrLeasedTileAgainAndRefusesOtherStates) {
   const std::string j = job();  // 4 tiles
-  const std::string w = s.register_worker("a");
+  const std::string w = s.register_worker("a").id;
   EXPECT_EQ(s.requeue(j, 0).status, RequeueResult::wrong_job_state);  // queued: nothing rendered yet
   const Lease l0 = lease(w);
   ASSERT_EQ(upload(l0.id), ResultClaim::proceed);
@@ -802,7 +802,7 @@ TEST_F(SchedulerTest, ALeaseOlderThanTheTileTimeoutIsRevokedAsAFailureEvenWithHe
   p.tile_size = 64;  // one tile
   p.tile_timeout_seconds = 25;
   const std::string j = s.add_job(p);
-  const std::string a = s.register_worker("a"), b = s.register_worker("b"), c = s.register_worker("c");
+  const std::string a = s.register_worker("a").id, b = s.register_worker("b").id, c = s.register_worker("c").id;
   for (const std::string& w : {a, b, c}) {
     EXPECT_FALSE(s.job(j)->finished());  // fewer than 3 workers failed the tile so far
     const Lease l = lease(w);
@@ -830,7 +830,7 @@ TEST_F(SchedulerTest, EachLeaseExpiresOrTimesOutOnTimeWhateverTheOtherLeasesDo) 
   p.height = 64;
   p.tile_size = 64;  // one tile per job
   const std::string slow = s.add_job(p);  // the default tile timeout (an hour)
-  const std::string w = s.register_worker("a"), v = s.register_worker("b");
+  const std::string w = s.register_worker("a").id, v = s.register_worker("b").id;
   const Lease a = lease(w);  // at t: lease until t + 10 s
   now += 5'000;
   EXPECT_EQ(s.heartbeat(a.id).status, HeartbeatResult::ok);  // until t + 15 s
@@ -854,14 +854,14 @@ TEST_F(SchedulerTest, EachLeaseExpiresOrTimesOutOnTimeWhateverTheOtherLeasesDo) 
 TEST_F(SchedulerTest, CancelQueuedJob) {
   const std::string j = job();
   EXPECT_EQ(s.cancel(j).status, CancelResult::cancelled);
-  const std::string a = s.register_worker("a");
+  const std::string a = s.register_worker("a").id;
   EXPECT_EQ(s.acquire(a).status, AcquireResult::no_work);
   EXPECT_FALSE(s.job(j)->started_ms);
 }
 
 TEST_F(SchedulerTest, CancelDuringMergeNeverCompletes) {
   const std::string j = job(0, 64, 64, 64);
-  const std::string a = s.register_worker("a");
+  const std::string a = s.register_worker("a").id;
   const Lease l = lease(a);
   ASSERT_EQ(s.claim_result(l.id).status, ResultClaim::proceed);
   s.cancel(j);
@@ -872,7 +872,7 @@ TEST_F(SchedulerTest, CancelDuringMergeNeverCompletes) {
 
 TEST_F(SchedulerTest, FailJobAfterWriteError) {
   const std::string j = job(0, 64, 64, 64);
-  const std::string a = s.register_worker("a");
+  const std::string a = s.register_worker("a").id;
   ASSERT_EQ(upload(lease(a).id), ResultClaim::proceed);
   s.fail_job(j, "writing result.exr: disk full");
   EXPECT_EQ(s.job(j)->state, JobState::failed);
@@ -896,7 +896,7 @@ TEST_F(SchedulerTest, RejectsBadJobs) {
 
 TEST(SchedulerIds, CarryTheTag) {
   Scheduler s{SchedulerConfig{1000, 3, 2, "x7"}, [] { return int64_t(0); }};
-  const std::string w = s.register_worker("a");
+  const std::string w = s.register_worker("a").id;
   EXPECT_EQ(w.rfind("w-x7-", 0), 0u) << w;
 }
 
@@ -928,7 +928,7 @@ TEST(SchedulerFlush, ADoneTileIsAcknowledgedAndCountedOnlyOnceItsFlushReturned) 
   DeferredFlushStore store;
   int64_t now = 1'000;
   Scheduler s(SchedulerConfig{10'000, 3, 2, "f"}, [&] { return now; }, store);
-  const std::string w = s.register_worker("w");
+  const std::string w = s.register_worker("w").id;
   const std::string j = s.add_job(two_tile_job());
   store.flush_all();
   const std::string pixels(4 * 4 * 3 * sizeof(float), '\0');
@@ -968,7 +968,7 @@ TEST(SchedulerFlush, ARequeuedUnflushedTileIsCountedOnce) {
   DeferredFlushStore store;
   int64_t now = 1'000;
   Scheduler s(SchedulerConfig{10'000, 3, 2, "r"}, [&] { return now; }, store);
-  const std::string w = s.register_worker("w");
+  const std::string w = s.register_worker("w").id;
   const std::string j = s.add_job(two_tile_job());
   const Lease l0 = s.acquire(w).lease;
   ASSERT_EQ(s.claim_result(l0.id).status, ResultClaim::proceed);

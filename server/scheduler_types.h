@@ -42,6 +42,24 @@ struct SchedulerConfig {
   int worker_failure_limit = 2;    ///< Failures after which a worker is blocklisted for a job.
   std::string id_tag;              ///< Inserted into generated ids ("j-<tag>-1") so ids differ between runs.
   int64_t worker_gone_ms = 0;      ///< A worker not seen for this long no longer counts as present (0: 3 leases).
+  int64_t max_workers = 10000;     ///< Registered workers at most; more registrations are refused (0: no bound).
+  /// A worker that is not present, holds no live lease and was not seen for this long is forgotten (0: never).
+  int64_t worker_retention_ms = 86'400'000;
+};
+
+/// Outcome of registering a worker.
+struct RegisterResult {
+  enum Status { registered, full } status = registered;  ///< full: max_workers are registered, none was added.
+  std::string id;      ///< The new worker's id.
+  std::string secret;  ///< Its secret, for the worker alone: the scheduler keeps only its hash (server/worker_secret.h).
+};
+
+/// Whether a request that acts as a worker comes from that worker.
+enum class WorkerCheck {
+  ok,              ///< The secret is the worker's.
+  unknown_lease,   ///< No such lease.
+  unknown_worker,  ///< No such worker (never registered, or forgotten): it registers again.
+  wrong_secret,    ///< The worker exists and the secret presented (maybe none) is not its own.
 };
 
 /// Outcome of asking for work.

@@ -21,6 +21,7 @@ struct WorkerRec {
   uint64_t rays = 0;         ///< Rays of those tiles.
   int64_t render_ms = 0;     ///< Their render times (lease grant to acceptance), summed.
   bool drained = false;      ///< No new leases.
+  std::string secret_hash{};  ///< SHA-256 of its secret (server/worker_secret.h); "" for none: it must register again.
 };
 
 /// Every registered worker by id. Not thread-safe: the scheduler uses it under its lock.
@@ -44,10 +45,15 @@ class WorkerRegistry {
   /// The worker's name, "" for an unknown id.
   std::string name_of(const std::string& id) const;
 
+  /// Forgets the worker `id` (its id is never handed out again).
+  void forget(const std::string& id) { workers_.erase(id); }
+
   /// Notes a request from the worker at `now` (unknown ids are ignored).
   void seen(const std::string& id, int64_t now);
   /// False once the worker has not been seen for the registry's gone_ms: it died or left.
   bool present(const WorkerRec& w, int64_t now) const { return now - w.last_seen_ms <= gone_ms_; }
+  /// How long a worker stays present after its last request.
+  int64_t gone_ms() const { return gone_ms_; }
 
   /// Adds an accepted tile to the worker's counts (unknown ids are ignored).
   void credit(const std::string& id, int64_t render_ms, uint64_t rays);

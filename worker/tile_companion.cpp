@@ -1,5 +1,6 @@
 #include "worker/tile_companion.h"
 
+#include "protocol/headers.h"
 #include "protocol/routes.h"
 
 #include <nlohmann/json.hpp>
@@ -12,11 +13,12 @@ namespace tessera::worker {
 using namespace std::chrono_literals;
 namespace routes = protocol::routes;
 
-TileCompanion::TileCompanion(client::HttpClient& http, std::string prefix, std::string lease, std::chrono::milliseconds period,
-                             std::chrono::milliseconds first_beat, RenderSignals& signals,
-                             const std::atomic<int>& stop_requests,
+TileCompanion::TileCompanion(client::HttpClient& http, std::string prefix, std::string lease, std::string worker_secret,
+                             std::chrono::milliseconds period, std::chrono::milliseconds first_beat,
+                             RenderSignals& signals, const std::atomic<int>& stop_requests,
                              std::function<std::optional<PrefetchedLease>()> ask_lease)
-    : http_(http), prefix_(std::move(prefix)), lease_(std::move(lease)), period_(period), first_beat_(first_beat),
+    : http_(http), prefix_(std::move(prefix)), lease_(std::move(lease)), secret_(std::move(worker_secret)), period_(period),
+      first_beat_(first_beat),
       cancel_(signals.cancel), reason_(signals.reason), rays_(signals.rays), stop_requests_(stop_requests),
       ask_lease_(std::move(ask_lease)), thread_([this] { run(); }) {}
 
@@ -112,7 +114,13 @@ void TileCompanion::run() noexcept {
 
 bool TileCompanion::beat(const std::string& lease, const std::string& body) {
   try {
-    const client::HttpResponse r = http_.send("POST", routes::lease_heartbeat(lease), body);
+    client::HttpRequest req;
+    req.method = "POST";
+    req.target = routes::lease_heartbeat(lease);
+    req.body = body;
+    req.content_type = "application/json";
+    req.headers[protocol::kWorkerSecretHeader] = secret_;
+    const client::HttpResponse r = http_.send(req);
     if (r.status == 200) {
       if (lease == lease_) {
         std::lock_guard lock(mutex_);
@@ -121,7 +129,7 @@ bool TileCompanion::beat(const std::string& lease, const std::string& body) {
       return true;
     }
     const std::string which = lease == lease_ ? "heartbeat" : "heartbeat of the next lease " + lease;
-    if (r.status == 410 || r.status == 404) {
+    if (r.status == 410 || r.status == 404 || r.status == 403) {
       spdlog::info("{}: {} answered {} ({}), {}", prefix_, which, r.status, r.error_text(),
                    lease == lease_ ? "cancelling the render" : "dropping that lease");
       return false;

@@ -17,16 +17,16 @@
 
 namespace tessera::worker {
 
-/// Heartbeats a tile's lease every `period` (the first beat after `first_beat`) on a thread of its own; on 410/404 it
-/// sets the render's cancel flag, and on a second stop request it cancels for shutdown. When asked (near the end of
+/// Heartbeats a tile's lease every `period` (the first beat after `first_beat`) on a thread of its own, as the worker
+/// whose secret is `worker_secret`; on 410/404/403 it sets the render's cancel flag, and on a second stop request it cancels for shutdown. When asked (near the end of
 /// the render) it also asks for the worker's next lease through `ask_lease`, so that the round trip overlaps the
 /// render, and heartbeats that lease too until the worker takes it up. Lives as long as the tile's render.
 class TileCompanion {
  public:
   /// Starts the thread; `prefix` begins its log lines, `lease` is the tile's lease id.
-  TileCompanion(client::HttpClient& http, std::string prefix, std::string lease, std::chrono::milliseconds period,
-                std::chrono::milliseconds first_beat, RenderSignals& signals, const std::atomic<int>& stop_requests,
-                std::function<std::optional<PrefetchedLease>()> ask_lease);
+  TileCompanion(client::HttpClient& http, std::string prefix, std::string lease, std::string worker_secret,
+                std::chrono::milliseconds period, std::chrono::milliseconds first_beat, RenderSignals& signals,
+                const std::atomic<int>& stop_requests, std::function<std::optional<PrefetchedLease>()> ask_lease);
   /// Stops the thread (after a request in flight).
   ~TileCompanion();
   TileCompanion(const TileCompanion&) = delete;
@@ -44,11 +44,11 @@ class TileCompanion {
  private:
   void stop();
   void run() noexcept;
-  // One heartbeat; false when the lease is gone (410/404).
+  // One heartbeat; false when the lease is gone (410/404) or not this worker's (403).
   bool beat(const std::string& lease, const std::string& body);
 
   client::HttpClient& http_;
-  const std::string prefix_, lease_;
+  const std::string prefix_, lease_, secret_;
   const std::chrono::milliseconds period_, first_beat_;
   std::atomic<bool>& cancel_;
   std::atomic<int>& reason_;

@@ -39,9 +39,9 @@ std::vector<uint8_t> corrupt_tile(const Image& image, ExrWriteOptions wo, const 
 
 }  // namespace
 
-DeliveryOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, const std::string& prefix, const RenderResult& res,
-                          int width, int height, std::chrono::milliseconds max_retry_wait,
-                          const std::function<std::string()>& give_up) {
+DeliveryOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, const std::string& worker_secret,
+                            const std::string& prefix, const RenderResult& res, int width, int height,
+                            std::chrono::milliseconds max_retry_wait, const std::function<std::string()>& give_up) {
   ExrWriteOptions wo;
   wo.compression = ExrCompression::kNone;  // noisy floats barely compress; the CPU is better spent rendering
   wo.data_window = l.window;
@@ -55,6 +55,7 @@ DeliveryOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, 
   req.body.assign(bytes.begin(), bytes.end());
   req.content_type = "image/x-exr";
   req.headers[protocol::kRaysHeader] = std::to_string(res.counters.rays);
+  req.headers[protocol::kWorkerSecretHeader] = worker_secret;
   TESSERA_FAIL_POINT("worker.upload");
   client::Backoff backoff(200ms, max_retry_wait);
   std::string why;  // the reason to give up, once there is one

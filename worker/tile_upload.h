@@ -19,13 +19,14 @@ enum class DeliveryOutcome {
   kFailed,    ///< The coordinator refused the result as invalid (422).
 };
 
-/// Uploads the render of lease `l`'s tile of a width x height image through `http`, logging under `prefix`. Transport
+/// Uploads the render of lease `l`'s tile of a width x height image through `http`, as the worker whose secret is
+/// `worker_secret`, logging under `prefix`. Transport
 /// errors and retryable answers are retried with backoff up to `max_retry_wait` apart, until `give_up` gives a reason
 /// (non-empty) to stop trying: asked between attempts and every 100 ms of a request under way, which it interrupts.
 /// The upload then ends kDropped, logged as "giving up the upload of tile N of job J: REASON". Throws only what
 /// encoding throws.
-DeliveryOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, const std::string& prefix, const RenderResult& res,
-                          int width, int height, std::chrono::milliseconds max_retry_wait,
-                          const std::function<std::string()>& give_up);
+DeliveryOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, const std::string& worker_secret,
+                            const std::string& prefix, const RenderResult& res, int width, int height,
+                            std::chrono::milliseconds max_retry_wait, const std::function<std::string()>& give_up);
 
 }  // namespace tessera::worker

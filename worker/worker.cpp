@@ -193,6 +193,7 @@ class Worker {
       if (r.status == 201 || r.status == 200) {
         const auto reg = protocol::parse_answer<Registration>(r.body, "registration");
         id_ = reg.id;
+        secret_ = reg.secret;
         heartbeat_period_ = std::chrono::milliseconds(std::max<int64_t>(100, int64_t(reg.heartbeat_seconds * 1000)));
         lease_length_ = std::chrono::milliseconds(int64_t(reg.lease_seconds * 1000));
         spdlog::info("worker {} registered as {} (lease {}s, heartbeat {}s)", name_, id_, reg.lease_seconds,
@@ -224,7 +225,7 @@ class Worker {
   std::optional<PrefetchedLease> prefetch_lease(client::HttpClient& http, const std::string& pfx) {
     try {
       const auto t0 = std::chrono::steady_clock::now();
-      const client::HttpResponse r = http.send("POST", routes::worker_lease(id_), lease_request_body());
+      const client::HttpResponse r = http.send(as_worker("POST", routes::worker_lease(id_), lease_request_body()));
       note_lease_round_trip(t0);
       if (r.status != 200) return std::nullopt;
       auto answer = protocol::parse_answer<protocol::LeaseAnswer>(r.body, "lease");
@@ -332,6 +333,14 @@ class Worker {
     next.head.reset();  // waits for the task
   }
 
+  // A request that acts as this worker: it carries the worker's secret. The secret and id change only in
+  // register_worker(), on the render loop's thread while no tile companion runs (the upload thread copies the secret).
+  client::HttpRequest as_worker(std::string method, std::string target, std::string body = {}) const {
+    client::HttpRequest req{std::move(method), std::move(target), std::move(body), "application/json", {}};
+    req.headers[protocol::kWorkerSecretHeader] = secret_;
+    return req;
+  }
+
   // A lease request's body: the jobs whose scenes are built here, so that a lease of any other job brings its spec,
   // and how long the coordinator may hold the request for work.
   std::string lease_request_body(std::chrono::milliseconds wait = 0ms) {
@@ -351,12 +360,8 @@ class Worker {
     const std::chrono::milliseconds wait = std::min(idle_.next(), opt_.timeouts.read / 2);
     const auto t0 = std::chrono::steady_clock::now();
     try {
-      client::HttpRequest req;
-      req.method = "POST";
-      req.target = routes::worker_lease(id_);
-      req.body = lease_request_body(wait);
-      req.content_type = "application/json";
-      r = http_.send(req, [this] { return stopping(); });  // a stop does not wait for the held request's end
+      // A stop does not wait for the held request's end.
+      r = http_.send(as_worker("POST", routes::worker_lease(id_), lease_request_body(wait)), [this] { return stopping(); });
     } catch (const client::RequestInterrupted&) {
       return std::nullopt;  // stopping: the coordinator forgets the request when the connection closes
     } catch (const client::TransportError& e) {
@@ -387,13 +392,14 @@ class Worker {
     return "worker=" + id_ + " job=" + l.job + " tile=" + std::to_string(l.tile) + " lease=" + l.id;
   }
 
-  // GETs target, retrying transport errors and 5xx until it succeeds or `interrupted` says to give up; 404 is Gone.
-  std::string fetch(const std::string& target, const std::function<bool()>& interrupted) {
+  // GETs target (as this worker when `acting`), retrying transport errors and 5xx until it succeeds or
+  // `interrupted` says to give up; 404 is Gone.
+  std::string fetch(const std::string& target, const std::function<bool()>& interrupted, bool acting = false) {
     client::Backoff backoff(200ms, opt_.max_retry_wait);
     while (true) {
       if (interrupted()) throw Interrupted("interrupted while fetching " + target);
       try {
-        const client::HttpResponse r = http_.send("GET", target);
+        const client::HttpResponse r = http_.send(acting ? as_worker("GET", target) : client::HttpRequest{"GET", target, {}, "application/json", {}});
         if (r.status == 200) return r.body;
         if (r.status == 404) throw Gone("GET " + target + ": not found (" + r.error_text() + ")");
         if (!r.retryable())
@@ -444,7 +450,7 @@ class Worker {
     std::string failure;  // error to report through /fail
     int width = 0, height = 0;
     const auto since_beat = std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - beaten);
-    TileCompanion companion(heartbeat_http_, pfx, l.id, heartbeat_period_,
+    TileCompanion companion(heartbeat_http_, pfx, l.id, secret_, heartbeat_period_,
                             std::max<std::chrono::milliseconds>(0ms, heartbeat_period_ - since_beat), signals, stop_,
                             [this, pfx] { return prefetch_lease(heartbeat_http_, pfx); });
     signals.attach([&companion] { companion.ask_next_lease(); });
@@ -518,10 +524,12 @@ class Worker {
     using LeaseEnd = std::atomic<std::chrono::steady_clock::time_point>;
     const auto lease_end = std::make_shared<LeaseEnd>(std::chrono::steady_clock::time_point::max());
     const auto rendered = std::chrono::steady_clock::now();
-    uploads_.post([this, l, pfx, res = std::make_shared<RenderResult>(std::move(*result)), width, height, lease_end, rendered] {
+    // The secret is copied: the worker may register again (with a new one) while this upload is under way.
+    uploads_.post([this, l, secret = secret_, pfx, res = std::make_shared<RenderResult>(std::move(*result)), width,
+                   height, lease_end, rendered] {
       try {
         const DeliveryOutcome outcome =
-            upload_tile(upload_http_, l, pfx, *res, width, height, opt_.max_retry_wait,
+            upload_tile(upload_http_, l, secret, pfx, *res, width, height, opt_.max_retry_wait,
                         [this, lease_end, rendered] { return upload_give_up(rendered, lease_end->load()); });
         count(outcome == DeliveryOutcome::kUploaded ? &WorkerStats::tiles_uploaded
               : outcome == DeliveryOutcome::kFailed ? &WorkerStats::tiles_failed
@@ -538,7 +546,7 @@ class Worker {
 
   // The lease's tile as the coordinator stored it (GET /v1/leases/{lease}/state): its pixels and exact sums.
   StoredRender stored_tile(const Lease& l, uint32_t replicates, const std::function<bool()>& interrupted) {
-    ExrImage exr = decode_exr(fetch(routes::lease_state(l.id), interrupted));
+    ExrImage exr = decode_exr(fetch(routes::lease_state(l.id), interrupted, /*acting=*/true));
     if (!(exr.data_window == l.window)) throw std::runtime_error("the stored state of the tile covers another window");
     StoredRender stored{std::move(exr.pixels), {}};
     stored.state = read_state_channels(stored.image, replicates);
@@ -552,7 +560,7 @@ class Worker {
     client::Backoff backoff(100ms, 1000ms);
     for (int i = 0; i < attempts; ++i) {
       try {
-        const client::HttpResponse r = http_.send("POST", target, body.dump());
+        const client::HttpResponse r = http_.send(as_worker("POST", target, body.dump()));
         if (r.status == 200) return true;
         if (!r.retryable()) {
           spdlog::warn("{}: {} answered {}: {}", pfx, action, r.status, r.error_text());
@@ -588,6 +596,7 @@ class Worker {
   JobScenes scenes_;  // looked up by the companion's thread too (head_start, lease_request_body)
   client::Backoff idle_, retry_;
   std::string name_, id_;
+  std::string secret_;  // from the registration: sent with every request that acts as this worker
   int threads_ = 1;
   tbb::task_arena arena_;  // every render runs in it, begun-ahead ones included (threads_ threads)
   std::optional<ArenaPinning> pinning_;  // with opt.cpus: each of arena_'s threads on its own CPU

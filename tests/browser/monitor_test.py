@@ -72,11 +72,14 @@ def wait_for(what, predicate, deadline=DEADLINE):
 class Http:
     def __init__(self, base, token):
         self.base, self.token = base, token
+        self.worker_secret = None  # sent once set: the scripted worker's requests act as it
 
     def call(self, method, path, body=None):
         data = None if body is None else json.dumps(body).encode()
         req = urllib.request.Request(self.base + path, data=data, method=method)
         req.add_header("Authorization", "Bearer " + self.token)
+        if self.worker_secret:
+            req.add_header("X-Tessera-Worker-Secret", self.worker_secret)
         if data is not None:
             req.add_header("Content-Type", "application/json")
         try:
@@ -214,6 +217,7 @@ def main():
     # The scripted worker leases the job's first tiles and keeps them.
     status, reg = workerside.call("POST", "/v1/workers", {"name": "holder", "threads": 1})
     holder = reg["id"]
+    workerside.worker_secret = reg["secret"]
     held = []
     for _ in range(HELD):
         status, lease = workerside.call("POST", f"/v1/workers/{holder}/lease")

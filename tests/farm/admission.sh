@@ -30,12 +30,14 @@ wait_for log_has "$WORK/serve.log" "waiting for a scene check \(1 submission\(s\
   || fail "the third submission did not wait for its turn"
 
 # While it is held: a worker's whole conversation with the coordinator is answered (the request handler is free).
-WID=$(curl -sS -f -X POST -d '{"name": "by-hand"}' "$URL/v1/workers" | grep -Eo '"id":"[^"]+"' | cut -d'"' -f4)
+REG=$(curl -sS -f -X POST -d '{"name": "by-hand"}' "$URL/v1/workers")
+WID=$(echo "$REG" | grep -Eo '"id":"[^"]+"' | cut -d'"' -f4)
 [ -n "$WID" ] || fail "no worker registration while a validation was held"
-LEASE_JSON=$(curl -sS -f -X POST "$URL/v1/workers/$WID/lease") || fail "no lease while a validation was held"
+AS_WORKER=(-H "X-Tessera-Worker-Secret: $(echo "$REG" | grep -Eo '"secret":"[^"]+"' | cut -d'"' -f4)")
+LEASE_JSON=$(curl -sS -f -X POST "${AS_WORKER[@]}" "$URL/v1/workers/$WID/lease") || fail "no lease while a validation was held"
 echo "$LEASE_JSON" | grep -q "\"job\":\"$JOB_A\"" || fail "the lease is not of the first job: $LEASE_JSON"
 LEASE=$(echo "$LEASE_JSON" | grep -Eo '"lease":"[^"]+"' | cut -d'"' -f4)
-curl -sS -f -X POST -d '{"rays": 1}' "$URL/v1/leases/$LEASE/heartbeat" | grep -q deadline_ms \
+curl -sS -f -X POST "${AS_WORKER[@]}" -d '{"rays": 1}' "$URL/v1/leases/$LEASE/heartbeat" | grep -q deadline_ms \
   || fail "no heartbeat answer while a validation was held"
 curl -sS -f "$URL/v1/jobs" | grep -q "$JOB_A" || fail "no job list while a validation was held"
 
@@ -57,7 +59,7 @@ wait "$POST_C" || fail "the waiting submission's request failed"
 JOB_C=$(grep -Eo '"id":"[^"]+"' "$WORK/c.json" | cut -d'"' -f4)
 [ -n "$JOB_C" ] || fail "no third job id"
 
-curl -sS -f -X POST "$URL/v1/leases/$LEASE/release" | grep -q released || fail "the hand-held lease was not released"
+curl -sS -f -X POST "${AS_WORKER[@]}" "$URL/v1/leases/$LEASE/release" | grep -q released || fail "the hand-held lease was not released"
 start_worker w --threads 1
 job_done() { curl -sS -f "$URL/v1/jobs/$1" | grep -q '"state":"done"'; }
 for job in "$JOB_A" "$JOB_B" "$JOB_C"; do

@@ -12,14 +12,17 @@ JOB=$("$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 8 --seed 3 --
   || fail "submit failed"
 
 # A worker by hand: register, lease two tiles, upload each as `render --crop` writes it.
-WID=$(curl -sS -f -X POST -d '{"name": "by-hand"}' "$URL/v1/workers" | grep -Eo '"id":"[^"]+"' | cut -d'"' -f4)
+REG=$(curl -sS -f -X POST -d '{"name": "by-hand"}' "$URL/v1/workers")
+WID=$(echo "$REG" | grep -Eo '"id":"[^"]+"' | cut -d'"' -f4)
 [ -n "$WID" ] || fail "no worker id"
+AS_WORKER=(-H "X-Tessera-Worker-Secret: $(echo "$REG" | grep -Eo '"secret":"[^"]+"' | cut -d'"' -f4)")
 for _ in 1 2; do
-  LEASE_JSON=$(curl -sS -f -X POST "$URL/v1/workers/$WID/lease") || fail "no lease"
+  LEASE_JSON=$(curl -sS -f -X POST "${AS_WORKER[@]}" "$URL/v1/workers/$WID/lease") || fail "no lease"
   LEASE=$(echo "$LEASE_JSON" | grep -Eo '"lease":"[^"]+"' | cut -d'"' -f4)
   read -r X0 Y0 X1 Y1 <<<"$(echo "$LEASE_JSON" | grep -Eo '"window":\[[0-9,]+\]' | grep -Eo '[0-9]+' | tr '\n' ' ')"
   "$TESSERA" render "$WORK/s.json" -o "$WORK/tile.exr" -q --seed 3 --crop "$X0" "$Y0" "$X1" "$Y1"
-  curl -sS -f -X PUT --data-binary @"$WORK/tile.exr" -H 'Content-Type: image/x-exr' "$URL/v1/leases/$LEASE/result" \
+  curl -sS -f -X PUT "${AS_WORKER[@]}" --data-binary @"$WORK/tile.exr" -H 'Content-Type: image/x-exr' \
+    "$URL/v1/leases/$LEASE/result" \
     | grep -q accepted || fail "the hand-rendered tile was not accepted"
 done
 

@@ -20,17 +20,21 @@ start_serve --lease-seconds 5 --heartbeat-seconds 1
 # the tile as `render --resumable --crop` writes it is accepted. (Two hand workers: two refusals would blocklist one.)
 HAND=$("$TESSERA" submit "$S" --coordinator "$URL" --spp "$N" --seed 5 --tile 7 --resumable --detach 2>"$WORK/submit-hand.log") \
   || fail "submit --resumable failed"
-hand_upload() {  # WORKER_ID RENDER_FLAGS... : leases a tile, renders it with the flags, uploads it; prints the answer
-  local wid=$1 lease_json lease
+hand_upload() {  # "WORKER_ID SECRET" RENDER_FLAGS... : leases a tile, renders it with the flags, uploads it; prints the answer
+  local wid secret lease_json lease
+  read -r wid secret <<<"$1"
   shift
-  lease_json=$(curl -sS -f -X POST "$URL/v1/workers/$wid/lease") || fail "no lease"
+  lease_json=$(curl -sS -f -X POST -H "X-Tessera-Worker-Secret: $secret" "$URL/v1/workers/$wid/lease") || fail "no lease"
   echo "$lease_json" | grep -q '"resumable":true' || fail "a resumable job's lease does not say so: $lease_json"
   lease=$(echo "$lease_json" | grep -Eo '"lease":"[^"]+"' | cut -d'"' -f4)
   read -r X0 Y0 X1 Y1 <<<"$(echo "$lease_json" | grep -Eo '"window":\[[0-9,]+\]' | grep -Eo '[0-9]+' | tr '\n' ' ')"
   "$TESSERA" render "$S" -o "$WORK/hand.exr" -q --seed 5 --crop "$X0" "$Y0" "$X1" "$Y1" "$@" || fail "hand render"
-  curl -sS -X PUT --data-binary @"$WORK/hand.exr" -H 'Content-Type: image/x-exr' "$URL/v1/leases/$lease/result"
+  curl -sS -X PUT -H "X-Tessera-Worker-Secret: $secret" --data-binary @"$WORK/hand.exr" -H 'Content-Type: image/x-exr' \
+    "$URL/v1/leases/$lease/result"
 }
-hand_worker() { curl -sS -f -X POST -d "{\"name\": \"$1\"}" "$URL/v1/workers" | grep -Eo '"id":"[^"]+"' | cut -d'"' -f4; }
+hand_worker() {  # NAME: registers a worker; prints its id and secret
+  curl -sS -f -X POST -d "{\"name\": \"$1\"}" "$URL/v1/workers" | grep -Eo '"(id|secret)":"[^"]+"' | cut -d'"' -f4 | tr '\n' ' '
+}
 HA=$(hand_worker hand-a) HB=$(hand_worker hand-b)
 hand_upload "$HA" --spp "$N" | grep -q "needs its exact sums" || fail "a tile without its sums was not refused"
 hand_upload "$HB" --spp "$M" --resumable | grep -q "$M samples at tile pixel (0, 0), the job has $N spp" \

@@ -408,14 +408,66 @@ class HostileFarm : public ::testing::Test {
   }
 
   // The good scene: the course's textured Cornell box (OBJ meshes and an EXR texture), small.
-  json good_scene() {
+  json good_scene(int spp) {
     json scene = json::parse(slurp(fs::path(TESSERA_COURSE_DIR) / "cbox_refract_textured.json"));
     scene["film"]["resolution"] = {128, 96};
-    scene["integrator"]["spp"] = 128;
+    scene["integrator"]["spp"] = spp;
     return scene;
   }
 
   void check_case(const json& c, const std::map<std::string, std::string>& vars, const json& bases);
+
+  // The good job's body (the good scene at `spp` with its assets uploaded, seed 11, tiles of `tile_size` pixels,
+  // priority 10), after rendering it on this machine into ref.exr, the reference it must match.
+  json good_job(int spp = 128, int tile_size = 8) {
+    const fs::path scene_dir = work_ / "good";
+    fs::create_directories(scene_dir);
+    fs::copy(fs::path(TESSERA_COURSE_DIR) / "assets", scene_dir / "assets", fs::copy_options::recursive);
+    const json scene = good_scene(spp);
+    spit(scene_dir / "scene.json", scene.dump());
+    EXPECT_EQ(run({TESSERA_BINARY, "render", (scene_dir / "scene.json").string(), "-o", (work_ / "ref.exr").string(),
+                   "-q", "--seed", "11"},
+                  work_ / "render.log"),
+              0)
+        << slurp(work_ / "render.log");
+    json good = {{"scene", scene}, {"assets", json::object()}, {"seed", 11}, {"tile_size", tile_size},
+                 {"priority", 10}, {"name", "good"}};
+    for (const auto& entry : fs::recursive_directory_iterator(scene_dir / "assets")) {
+      if (!entry.is_regular_file()) continue;
+      good["assets"][fs::relative(entry.path(), scene_dir).generic_string()] = put_blob(slurp(entry.path()));
+    }
+    return good;
+  }
+
+  // Waits (300 s at most) until the worker holds the job's second tile at its fail point, with the first one done
+  // (its upload may still be on its way when the hold begins); returns the job as it then is.
+  json wait_until_held(const std::string& job) {
+    json start;
+    const auto held_with_one_done = [&] {
+      start = json::parse(call("GET", "/v1/jobs/" + job).body, nullptr, false);
+      return slurp(work_ / "worker.log").find("fail point worker.render: hit") != std::string::npos &&
+             start.is_object() && start["tiles"].value("done", 0) >= 1 && start["tiles"].value("leased", 0) == 1;
+    };
+    for (int i = 0; i < 3000 && !held_with_one_done(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    EXPECT_NE(slurp(work_ / "worker.log").find("fail point worker.render: hit"), std::string::npos)
+        << "the worker never held its second tile:\n" << slurp(work_ / "worker.log");
+    return start;
+  }
+
+  // Waits for the job to end and checks that it is done with the reference's bits.
+  void expect_done_like_reference(const std::string& id) {
+    const ExrImage ref = read_exr(work_ / "ref.exr");
+    const json end = wait_job(id);
+    ASSERT_EQ(end.value("state", ""), "done") << end.dump() << "\n" << slurp(work_ / "worker.log");
+    const Reply res = call("GET", "/v1/jobs/" + id + "/result.exr");
+    ASSERT_EQ(res.status, 200u);
+    spit(work_ / (id + ".exr"), res.body);
+    const ExrImage got = read_exr(work_ / (id + ".exr"));
+    ASSERT_EQ(got.pixels.width, ref.pixels.width);
+    ASSERT_EQ(got.pixels.height, ref.pixels.height);
+    EXPECT_EQ(std::memcmp(got.pixels.rgb.data(), ref.pixels.rgb.data(), ref.pixels.rgb.size() * sizeof(float)), 0)
+        << id << " differs from the single-process render";
+  }
 
   fs::path work_;
   int port_ = 0;
@@ -621,21 +673,7 @@ void HostileFarm::check_case(const json& c, const std::map<std::string, std::str
 
 TEST_F(HostileFarm, EveryCaseGetsItsAnswerAndTheGoodJobStillRendersRight) {
   // The good job (and the reference it must match bit for bit).
-  const fs::path scene_dir = work_ / "good";
-  fs::create_directories(scene_dir);
-  fs::copy(fs::path(TESSERA_COURSE_DIR) / "assets", scene_dir / "assets", fs::copy_options::recursive);
-  const json scene = good_scene();
-  spit(scene_dir / "scene.json", scene.dump());
-  ASSERT_EQ(run({TESSERA_BINARY, "render", (scene_dir / "scene.json").string(), "-o", (work_ / "ref.exr").string(), "-q",
-                 "--seed", "11"},
-                work_ / "render.log"),
-            0)
-      << slurp(work_ / "render.log");
-  json good = {{"scene", scene}, {"assets", json::object()}, {"seed", 11}, {"tile_size", 8}, {"priority", 10}, {"name", "good"}};
-  for (const auto& entry : fs::recursive_directory_iterator(scene_dir / "assets")) {
-    if (!entry.is_regular_file()) continue;
-    good["assets"][fs::relative(entry.path(), scene_dir).generic_string()] = put_blob(slurp(entry.path()));
-  }
+  json good = good_job();
   Reply r = call("POST", "/v1/jobs", good.dump());
   ASSERT_EQ(r.status, 201u) << r.body;
   const std::string good_job = json::parse(r.body)["id"].get<std::string>();
@@ -691,17 +729,10 @@ TEST_F(HostileFarm, EveryCaseGetsItsAnswerAndTheGoodJobStillRendersRight) {
 
   // Every case, while the good job renders: its first tile done and the worker held on its second.
   const json cases = load_cases();
-  // The worker holds its second tile while the first one's upload may still be on its way: wait for both.
-  json start;
-  const auto held_with_one_done = [&] {
-    start = json::parse(call("GET", "/v1/jobs/" + good_job).body, nullptr, false);
-    return slurp(work_ / "worker.log").find("fail point worker.render: hit") != std::string::npos &&
-           start.is_object() && start["tiles"].value("done", 0) >= 1 && start["tiles"].value("leased", 0) == 1;
-  };
-  for (int i = 0; i < 3000 && !held_with_one_done(); ++i)  // 300 s at most
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  ASSERT_NE(slurp(work_ / "worker.log").find("fail point worker.render: hit"), std::string::npos)
-      << "the worker never held its second tile:\n" << slurp(work_ / "worker.log");
+  const json start = wait_until_held(good_job);
+  const json workers = json::parse(call("GET", "/v1/workers").body)["workers"];
+  ASSERT_EQ(workers.size(), 1u);
+  vars["GOOD_WORKER"] = workers[0]["id"].get<std::string>();
   ASSERT_EQ(start.value("state", ""), "running") << start.dump();
   ASSERT_GE(start["tiles"].value("done", 0), 1) << start.dump();
   ASSERT_EQ(start["tiles"].value("leased", 0), 1) << start.dump();
@@ -736,25 +767,73 @@ TEST_F(HostileFarm, EveryCaseGetsItsAnswerAndTheGoodJobStillRendersRight) {
               tiles.value("total", json(0)).dump().c_str());
 
   // The good job ends done, bitwise identical to the single-process render; so does a second one submitted now.
-  const ExrImage ref = read_exr(work_ / "ref.exr");
   good["priority"] = 0;
   r = call("POST", "/v1/jobs", good.dump());
   ASSERT_EQ(r.status, 201u) << r.body;
   const std::string second_job = json::parse(r.body)["id"].get<std::string>();
-  for (const std::string& id : {good_job, second_job}) {
-    const json end = wait_job(id);
-    ASSERT_EQ(end.value("state", ""), "done") << end.dump() << "\n" << slurp(work_ / "worker.log");
-    const Reply res = call("GET", "/v1/jobs/" + id + "/result.exr");
-    ASSERT_EQ(res.status, 200u);
-    spit(work_ / (id + ".exr"), res.body);
-    const ExrImage got = read_exr(work_ / (id + ".exr"));
-    ASSERT_EQ(got.pixels.width, ref.pixels.width);
-    ASSERT_EQ(got.pixels.height, ref.pixels.height);
-    EXPECT_EQ(std::memcmp(got.pixels.rgb.data(), ref.pixels.rgb.data(), ref.pixels.rgb.size() * sizeof(float)), 0)
-        << id << " differs from the single-process render";
-  }
+  for (const std::string& id : {good_job, second_job}) expect_done_like_reference(id);
   r = call("GET", "/healthz");
   EXPECT_EQ(r.status, 200u);
+  EXPECT_TRUE(serve_->alive());
+}
+
+// The attacker of a farm with one worker token: it registers sock puppets, each with its own secret, and tries every
+// lease id there can be so far (ids are sequential and a registration's id shows the sequence) to fail, heartbeat,
+// release and upload the tiles of the good worker, with a puppet's secret or none, and to ask for leases in the good
+// worker's name. Every request on a lease that exists is 403: the good job is not failed, no failure is counted
+// against anyone, the held tile keeps its lease, and the job ends bitwise identical to a single-process render.
+TEST_F(HostileFarm, SockPuppetsCannotFailAnotherWorkersTile) {
+  json good = good_job(16, 32);
+  Reply r = call("POST", "/v1/jobs", good.dump());
+  ASSERT_EQ(r.status, 201u) << r.body;
+  const std::string job = json::parse(r.body)["id"].get<std::string>();
+  const json start = wait_until_held(job);
+  ASSERT_EQ(start.value("state", ""), "running") << start.dump();
+  ASSERT_EQ(start["tiles"].value("leased", 0), 1) << start.dump();
+  const json workers = json::parse(call("GET", "/v1/workers").body)["workers"];
+  ASSERT_EQ(workers.size(), 1u);
+  const std::string victim = workers[0]["id"].get<std::string>();
+
+  std::vector<std::pair<std::string, std::string>> puppets;  // id, secret
+  for (int i = 0; i < 3; ++i) {
+    r = call("POST", "/v1/workers", json{{"name", "puppet-" + std::to_string(i)}}.dump());
+    ASSERT_EQ(r.status, 201u) << r.body;
+    const json reg = json::parse(r.body);
+    puppets.emplace_back(reg["id"].get<std::string>(), reg["secret"].get<std::string>());
+  }
+  // "w-<tag>-<n>": every lease so far is "l-<tag>-<k>" with k below n.
+  const std::string& last = puppets.back().first;
+  const size_t dash = last.rfind('-');
+  const std::string tag = last.substr(2, dash - 2);
+  const int seq = std::stoi(last.substr(dash + 1));
+  int refused = 0;
+  for (int k = 1; k < seq; ++k) {
+    const std::string lease = "l-" + tag + "-" + std::to_string(k);
+    for (const std::string& secret : {puppets[0].second, puppets[1].second, puppets[2].second, std::string()}) {
+      const std::map<std::string, std::string> as = {{"X-Tessera-Worker-Secret", secret}};
+      r = call("POST", "/v1/leases/" + lease + "/fail", R"({"error": "sabotage"})", as);
+      ASSERT_TRUE(r.status == 403 || r.status == 404) << lease << ": " << r.status << " " << r.body;
+      if (r.status == 404) break;  // no such lease
+      ++refused;
+      EXPECT_NE(r.error().find("is worker " + victim + "'s"), std::string::npos) << r.body;
+      EXPECT_EQ(call("POST", "/v1/leases/" + lease + "/heartbeat", "{}", as).status, 403u);
+      EXPECT_EQ(call("POST", "/v1/leases/" + lease + "/release", "", as).status, 403u);
+      EXPECT_EQ(call("PUT", "/v1/leases/" + lease + "/result", "not an exr", as).status, 403u);
+    }
+  }
+  EXPECT_GE(refused, 2 * 4) << "the done tile's lease and the held one, each tried with 4 secrets";
+  for (const auto& [id, secret] : puppets)
+    EXPECT_EQ(call("POST", "/v1/workers/" + victim + "/lease", "", {{"X-Tessera-Worker-Secret", secret}}).status, 403u);
+
+  const json mid = json::parse(call("GET", "/v1/jobs/" + job).body);
+  EXPECT_EQ(mid.value("state", ""), "running") << mid.dump();
+  EXPECT_EQ(mid["tiles"].value("leased", 0), 1) << "the held tile lost its lease: " << mid.dump();
+  for (const json& t : json::parse(call("GET", "/v1/jobs/" + job + "/tiles").body)["tiles"])
+    EXPECT_TRUE(t["failures"].empty()) << "a failure was counted: " << t.dump();
+  for (const json& w : json::parse(call("GET", "/v1/workers").body)["workers"])
+    EXPECT_TRUE(w["blocklisted_for"].empty()) << w.dump();
+  std::ofstream(release_) << "go";  // the good worker carries on
+  expect_done_like_reference(job);
   EXPECT_TRUE(serve_->alive());
 }
 

@@ -138,14 +138,31 @@ def template_of(path):
 class Coordinator:
     def __init__(self, address):
         self.host, self.port = address.rsplit(":", 1)
+        self.secrets = {}  # worker id -> the secret its registration returned
+        self.holders = {}  # lease id -> the worker it was granted to
 
-    def call(self, method, path, body=None, content_type="application/json", expect=None):
+    def acting_as(self, path):
+        """The worker a request to path acts as: the one it names, or the holder of the lease it names."""
+        parts = path.split("?")[0].split("/")
+        if len(parts) == 5 and parts[1:3] == ["v1", "workers"] and parts[4] == "lease":
+            return parts[3]
+        if len(parts) == 5 and parts[1:3] == ["v1", "leases"]:
+            return self.holders.get(parts[3])
+        return None
+
+    def call(self, method, path, body=None, content_type="application/json", expect=None, secret=None):
+        """Sends a request; one acting as a worker carries that worker's secret unless `secret` names another."""
         if isinstance(body, (dict, list)):
             body = json.dumps(body).encode()
         elif isinstance(body, str):
             body = body.encode()
         conn = http.client.HTTPConnection(self.host, int(self.port), timeout=30)
         headers = {"Content-Type": content_type} if body is not None else {}
+        worker = self.acting_as(path)
+        if secret is None and worker in self.secrets:
+            secret = self.secrets[worker]
+        if secret is not None:
+            headers["X-Tessera-Worker-Secret"] = secret
         conn.request(method, path, body=body, headers=headers)
         r = conn.getresponse()
         data = r.read()
@@ -154,7 +171,12 @@ class Coordinator:
         self.validate(method, path, r.status, ctype, data)
         if expect is not None and r.status != expect:
             failures.append(f"{method} {path}: expected {expect}, got {r.status} {data[:200]!r}")
-        return r.status, (json.loads(data) if ctype.startswith("application/json") and data else data)
+        answer = json.loads(data) if ctype.startswith("application/json") and data else data
+        if method == "POST" and path == "/v1/workers" and r.status == 201:
+            self.secrets[answer["id"]] = answer["secret"]
+        if method == "POST" and worker is not None and path.endswith("/lease") and r.status == 200:
+            self.holders[answer["lease"]] = worker
+        return r.status, answer
 
     def validate(self, method, path, status, ctype, data):
         where = f"{method} {path} -> {status}"
@@ -288,6 +310,13 @@ def exercise(c, tessera, workdir, address):
     c.call("POST", "/v1/workers/w-none/lease", expect=404)
     _, l1 = c.call("POST", f"/v1/workers/{w1['id']}/lease", expect=200)
     c.call("POST", f"/v1/leases/{l1['lease']}/heartbeat", {"rays": 10}, expect=200)
+    # Every request on a lease is its worker's alone: another worker's secret, or none, is 403.
+    for method, target, body in (("POST", "heartbeat", {"rays": 1}), ("POST", "fail", {"error": "not mine"}),
+                                 ("POST", "release", None), ("PUT", "result", b"x"), ("GET", "state", None)):
+        for secret in (w2["secret"], ""):
+            c.call(method, f"/v1/leases/{l1['lease']}/{target}", body,
+                   "image/x-exr" if target == "result" else "application/json", expect=403, secret=secret)
+    c.call("POST", f"/v1/workers/{w1['id']}/lease", expect=403, secret=w2["secret"])
     _, listed = c.call("GET", "/v1/workers", expect=200)
     mine = [w for w in listed["workers"] if w["id"] == w1["id"]]
     if not mine or mine[0]["state"] != "rendering" or mine[0]["tile"] != l1["tile"] or mine[0]["threads"] != 1:
@@ -409,6 +438,7 @@ def exercise(c, tessera, workdir, address):
     if status == 200 and state[:4] != b"\x76\x2f\x31\x01":
         failures.append("a lease's state is not an OpenEXR file")
     c.call("GET", "/v1/leases/l-none/state", expect=404)
+    c.call("POST", "/v1/workers", None, expect=503)  # --max-workers 4: w1, w2, the real worker and w3
     c.call("DELETE", f"/v1/jobs/{b}", expect=200)  # cancels the raised job
     # Listings filtered and paged, and purges: a + b are the jobs so far (both cancelled).
     _, page = c.call("GET", "/v1/jobs?state=done,cancelled&limit=1", expect=200)
@@ -441,7 +471,7 @@ def main():
     workdir = tempfile.mkdtemp(prefix="tessera-openapi-")
     ready = os.path.join(workdir, "ready")
     serve = subprocess.Popen([TESSERA, "serve", "--listen", "127.0.0.1:0", "--data", os.path.join(workdir, "data"),
-                              "--ready-file", ready, "--max-queued-jobs", "1"],
+                              "--ready-file", ready, "--max-queued-jobs", "1", "--max-workers", "4"],
                              stdout=subprocess.DEVNULL, stderr=open(os.path.join(workdir, "serve.log"), "w"))
     try:
         deadline = time.time() + 30
