@@ -114,13 +114,15 @@ int run_render_farm(const RenderArgs& a) {
     const std::string client_token = write_token_file(dir / "client.token");
     write_token_file(dir / "worker.token");
     // The private coordinator's folder is thrown away with this command, and a crash of the coordinator fails the
-    // render anyway: it keeps its jobs in memory and never waits for the disk.
+    // render anyway: it keeps its jobs in memory and never waits for the disk. Its one job is refused only by a full
+    // disk, not by a floor of free space.
     const auto [listen_fd, port] = listen_on_loopback();
     try {
       children.push_back(worker::spawn_child({self, "serve", "--listen", "fd:" + std::to_string(listen_fd), "--data",
                                             (dir / "data").string(), "--client-token-file",
                                             (dir / "client.token").string(), "--worker-token-file",
-                                            (dir / "worker.token").string(), "--durability", "none"},
+                                            (dir / "worker.token").string(), "--durability", "none",
+                                            "--min-free-disk", "0"},
                                            "coordinator", dir / "serve.log", listen_fd));
     } catch (...) {
       ::close(listen_fd);

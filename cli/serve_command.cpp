@@ -100,6 +100,10 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
   c->add_option("--validation-queue", o.admission.queue,
                 "Submissions waiting for a check; more get 503 with Retry-After")
       ->check(CLI::Range(0, 4096))->capture_default_str();
+  c->add_option("--min-free-disk", o.min_free_disk,
+                "Free bytes on the --data file system below which submissions and blob uploads get 507, so that "
+                "running jobs keep room to finish (0: only once the disk is full)")
+      ->check(CLI::Range(uint64_t(0), uint64_t(1) << 60))->capture_default_str();
   c->add_option("--max-event-streams", o.events.max_subscribers,
                 "Open GET /v1/events streams; more are answered 503 (0: none, clients poll)")
       ->check(CLI::Range(std::size_t(0), std::size_t(1) << 16))->capture_default_str();

@@ -406,8 +406,23 @@ void from_json(const json& j, FailAnswer& a) { a.status = answer_field<std::stri
 void to_json(json& j, const ReleaseAnswer& a) { j = {{"status", a.status}}; }
 void from_json(const json& j, ReleaseAnswer& a) { a.status = answer_field<std::string>(j, "status", "release answer"); }
 
-void to_json(json& j, const HealthAnswer& a) { j = {{"status", a.status}}; }
-void from_json(const json& j, HealthAnswer& a) { a.status = answer_field<std::string>(j, "status", "health answer"); }
+DiskState disk_state_from_string(const std::string& name) {
+  if (const auto s = enum_from_name<DiskState>(name, kDiskStateNames)) return *s;
+  throw ProtocolError("unknown disk state '" + name + "'");
+}
+
+void to_json(json& j, const HealthAnswer& a) {
+  j = {{"status", a.status}, {"disk", to_string(a.disk)}, {"disk_free_bytes", a.disk_free_bytes},
+       {"min_free_disk", a.min_free_disk}};
+}
+
+void from_json(const json& j, HealthAnswer& a) {
+  a.status = answer_field<std::string>(j, "status", "health answer");
+  // A coordinator without the disk keys says only "ok".
+  a.disk = disk_state_from_string(answer_field_or<std::string>(j, "disk", "health answer", "ok"));
+  a.disk_free_bytes = answer_field_or<uint64_t>(j, "disk_free_bytes", "health answer", 0);
+  a.min_free_disk = answer_field_or<uint64_t>(j, "min_free_disk", "health answer", 0);
+}
 
 void to_json(json& j, const BlobPutAnswer& a) { j = {{"sha256", a.sha256}, {"size", a.size}}; }
 

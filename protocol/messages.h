@@ -235,9 +235,25 @@ struct ReleaseAnswer {
 void to_json(nlohmann::json& j, const ReleaseAnswer& a);
 void from_json(const nlohmann::json& j, ReleaseAnswer& a);
 
-/// Answer 200 to GET /healthz.
+/// The free space of the coordinator's data folder (docs/operations.md, "Disk full").
+enum class DiskState {
+  ok,    ///< At least `serve --min-free-disk` free.
+  low,   ///< Less than that free: submissions and blob uploads are refused (507).
+  full,  ///< A write failed for want of space: leases and tile uploads are refused too (507) until writes succeed again.
+};
+/// The name of each disk state (the health answer's "disk"), in declaration order.
+inline constexpr std::string_view kDiskStateNames[] = {"ok", "low", "full"};
+/// The name of a disk state.
+inline const char* to_string(DiskState s) { return enum_c_name(s, kDiskStateNames); }
+/// Throws ProtocolError for a name that is none of the disk states.
+DiskState disk_state_from_string(const std::string& name);
+
+/// Answer 200 to GET /healthz (also while the disk is full: the coordinator still serves every read).
 struct HealthAnswer {
-  std::string status = "ok";  ///< Always "ok".
+  std::string status = "ok";       ///< "ok", or "degraded" while `disk` is not ok.
+  DiskState disk = DiskState::ok;  ///< The data folder's free space.
+  uint64_t disk_free_bytes = 0;    ///< Bytes free on the data folder's file system.
+  uint64_t min_free_disk = 0;      ///< `serve --min-free-disk` in bytes.
 };
 void to_json(nlohmann::json& j, const HealthAnswer& a);
 void from_json(const nlohmann::json& j, HealthAnswer& a);

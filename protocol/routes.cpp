@@ -27,14 +27,15 @@ bool is_param(std::string_view segment) { return segment.size() > 2 && segment.f
 const std::vector<RouteSpec>& route_table() {
   using A = Access;
   using R = Resource;
+  using S = Room;
   static const std::vector<RouteSpec> table = {
       {Endpoint::healthz, "healthz", "/healthz", R::health, {{"GET", A::open}}},
       {Endpoint::metrics, "metrics", "/metrics", R::health, {{"GET", A::either}}},
       // Which blobs a submission still has to upload.
       {Endpoint::blobs, "blobs", "/v1/blobs", R::blobs, {{"POST", A::client}}},
       // HEAD and PUT are a submission's; GET is a worker's too.
-      {Endpoint::blob, "blob", "/v1/blobs/{sha256}", R::blobs, {{"PUT", A::client}, {"HEAD", A::client}, {"GET", A::either}}},
-      {Endpoint::jobs, "jobs", "/v1/jobs", R::jobs, {{"GET", A::client}, {"POST", A::client, true}}},
+      {Endpoint::blob, "blob", "/v1/blobs/{sha256}", R::blobs, {{"PUT", A::client, false, "", S::above_floor}, {"HEAD", A::client}, {"GET", A::either}}},
+      {Endpoint::jobs, "jobs", "/v1/jobs", R::jobs, {{"GET", A::client}, {"POST", A::client, true, "", S::above_floor}}},
       {Endpoint::job, "job", "/v1/jobs/{id}", R::jobs,
        {{"GET", A::client}, {"PATCH", A::client, false, "priority"}, {"DELETE", A::client, false, "purge"}}},
       {Endpoint::job_result, "job_result", "/v1/jobs/{id}/result.exr", R::jobs, {{"GET", A::client}}},
@@ -50,9 +51,9 @@ const std::vector<RouteSpec>& route_table() {
       {Endpoint::workers, "workers", "/v1/workers", R::workers, {{"GET", A::client, false, "workers"}, {"POST", A::worker}}},
       {Endpoint::worker_drain, "worker_drain", "/v1/workers/{wid}/drain", R::workers, {{"POST", A::client, false, "drain"}}},
       {Endpoint::worker_undrain, "worker_undrain", "/v1/workers/{wid}/undrain", R::workers, {{"POST", A::client}}},
-      {Endpoint::worker_lease, "worker_lease", "/v1/workers/{wid}/lease", R::leases, {{"POST", A::worker}}},
+      {Endpoint::worker_lease, "worker_lease", "/v1/workers/{wid}/lease", R::leases, {{"POST", A::worker, false, "", S::not_full}}},
       {Endpoint::lease_heartbeat, "lease_heartbeat", "/v1/leases/{lease}/heartbeat", R::leases, {{"POST", A::worker}}},
-      {Endpoint::lease_result, "lease_result", "/v1/leases/{lease}/result", R::leases, {{"PUT", A::worker}}},
+      {Endpoint::lease_result, "lease_result", "/v1/leases/{lease}/result", R::leases, {{"PUT", A::worker, false, "", S::not_full}}},
       {Endpoint::lease_fail, "lease_fail", "/v1/leases/{lease}/fail", R::leases, {{"POST", A::worker}}},
       {Endpoint::lease_release, "lease_release", "/v1/leases/{lease}/release", R::leases, {{"POST", A::worker}}},
       {Endpoint::lease_state, "lease_state", "/v1/leases/{lease}/state", R::leases, {{"GET", A::worker}}},

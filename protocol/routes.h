@@ -25,6 +25,15 @@ enum class Access {
   either,  ///< Either token (read-only views both sides use: blob downloads, job specs, metrics).
 };
 
+/// What free space on the coordinator's data folder a method needs before it is tried (docs/operations.md, "Disk
+/// full"); without it the answer is 507 Insufficient Storage with a sentence.
+enum class Room {
+  any,          ///< Answered whatever the disk holds (reads; a small write that then fails for want of space is 507).
+  not_full,     ///< Refused while the disk is full: the writes that finish admitted work (leases, tile uploads).
+  above_floor,  ///< Refused while the free space is below `serve --min-free-disk` or the disk is full: new work
+                ///< (submissions, blob uploads).
+};
+
 /// The coordinator's resource handler that answers a route.
 enum class Resource { health, blobs, jobs, tiles, workers, leases, events };
 
@@ -35,9 +44,11 @@ struct MethodSpec {
   /// Answered after a turn in the submission queue (a scene load: server/admission_handler.h), not at once.
   bool admission;
   std::string_view capability;  ///< The web monitor's control it enables (capabilities.json), "" none.
+  Room room;                    ///< The free space it needs before it is tried.
 
-  MethodSpec(std::string_view name, Access access, bool admission = false, std::string_view capability = {})
-      : name(name), access(access), admission(admission), capability(capability) {}
+  MethodSpec(std::string_view name, Access access, bool admission = false, std::string_view capability = {},
+             Room room = Room::any)
+      : name(name), access(access), admission(admission), capability(capability), room(room) {}
 };
 
 /// One route: its path pattern ("{name}" segments are its path parameters, at most two) and the methods it accepts.

@@ -22,22 +22,23 @@ Access route_access(RouteId route, http::verb method) {
 }
 
 Api::Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock, ApiOptions options,
-         EventBus& bus, FarmEvents& events, Background background)
+         EventBus& bus, FarmEvents& events, DiskSpace& disk, Background background)
     : metrics_(metrics),
+      disk_(disk),
       opt_(options),
       token_check_(opt_.tokens),
       sched_(scheduler),
       lease_waiters_(std::make_unique<LeaseWaiters>()),
       jobs_(scheduler, blobs, jobs, metrics, clock,
             static_cast<const AdmissionLimits&>(opt_),
-            events, std::move(background)),
+            events, disk, std::move(background)),
       collector_(jobs_, scheduler, blobs, clock, opt_.retention),
       jobs_handler_(jobs_, collector_),
       tiles_handler_(jobs_),
       leases_handler_(scheduler, jobs_, metrics, clock, events, *lease_waiters_),
       workers_handler_(scheduler, opt_.heartbeat_seconds, opt_.registrations_per_minute, clock, events),
       blobs_handler_(blobs),
-      health_handler_(scheduler, metrics, clock, *lease_waiters_),
+      health_handler_(scheduler, metrics, clock, *lease_waiters_, disk),
       events_handler_(bus) {
   sched_.on_work([w = lease_waiters_.get()] { w->note_work(); });
 }
@@ -101,6 +102,14 @@ std::optional<HttpResponse> Api::routed_early_response(const http::request_heade
       return res;
     }
     std::optional<HttpResponse> res = check_access(route, h);
+    if (!res) {
+      // A request the disk has no room for is refused before its body is read.
+      try {
+        disk_.require(route.method->room);
+      } catch (const ApiError& e) {
+        res = json_error(http::status(e.status), e.what(), h.version());
+      }
+    }
     if (res) metrics_.observe_request(std::string(h.method_string()) + " " + std::string(route.match.route->pattern), 0.0);
     return res;
   } catch (...) {
@@ -119,6 +128,10 @@ HttpResponse Api::refusal(std::exception_ptr error, const HttpRequest& req) cons
     if (e.status == 429) res.set(http::field::retry_after, std::to_string(opt_.retry_after_seconds));
     return res;
   } catch (const std::exception& e) {
+    if (is_disk_full(e)) {
+      disk_.note_full(e.what());
+      return json_error(http::status::insufficient_storage, disk_.refusal(e.what()).what(), version);
+    }
     spdlog::error("{} {}: internal error: {}", std::string(req.method_string()), std::string(req.target()), e.what());
     return json_error(http::status::internal_server_error, std::string("internal error: ") + e.what(), version);
   } catch (...) {

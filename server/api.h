@@ -8,6 +8,7 @@
 #include "server/log_limit.h"
 #include "server/blobs_handler.h"
 #include "server/collector.h"
+#include "server/disk_space.h"
 #include "server/event_bus.h"
 #include "server/events_handler.h"
 #include "server/farm_events.h"
@@ -55,10 +56,11 @@ Access route_access(RouteId route, http::verb method);
 /// The HTTP handler implementing docs/protocol.md.
 class Api final : public RoutedHandler {
  public:
-  /// An API over the given state, publishing changes through `events` and streaming `bus` at GET /v1/events; all
-  /// references must outlive it.
+  /// An API over the given state, publishing changes through `events` and streaming `bus` at GET /v1/events, refusing
+  /// work by the free space `disk` holds (and noting there when a write found it full); all references must outlive
+  /// it.
   Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock, ApiOptions options,
-      EventBus& bus, FarmEvents& events, Background background = {});
+      EventBus& bus, FarmEvents& events, DiskSpace& disk, Background background = {});
   ~Api() override;
   Api(const Api&) = delete;
   Api& operator=(const Api&) = delete;
@@ -74,6 +76,8 @@ class Api final : public RoutedHandler {
   void recover() { jobs_.recover(); }
   /// Purges finished jobs past their retention time and collects unreferenced blobs (see Collector::sweep).
   SweepReport sweep() { return collector_.sweep(); }
+  /// Writes the results that waited for disk space; false when one still does not fit (JobService::write_waiting_results).
+  bool write_waiting_results() { return jobs_.write_waiting_results(); }
   /// Answers every lease request held for work with "no work", and later ones at once (at shutdown, so that the
   /// transport's in-flight requests end).
   void stop_holding_leases() { lease_waiters_->close(); }
@@ -85,11 +89,13 @@ class Api final : public RoutedHandler {
   static HttpResponse unrouted(const Route& route, const http::request_header<>& header);
   /// Checks the routed request and hands it to its resource handler; `send` gets the answer once (maybe later).
   void answer(HttpRequest&& request, const Route& route, std::function<void(HttpReply)> send) noexcept;
-  /// The answer to a refused request: 400, the ApiError's status, or 500 (logged).
+  /// The answer to a refused request: 400, the ApiError's status, 507 for a write the disk had no room for (noted in
+  /// disk_), or 500 (logged).
   HttpResponse refusal(std::exception_ptr error, const HttpRequest& request) const;
   ResourceHandler& handler_for(protocol::Resource resource);
 
   Metrics& metrics_;
+  DiskSpace& disk_;
   ApiOptions opt_;
   TokenCheck token_check_;  // opt_.tokens' digests
   LogLimit refusal_log_{10, std::chrono::minutes(1)};  // the 401 and 403 lines

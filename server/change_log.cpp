@@ -11,9 +11,13 @@
 namespace tessera::server {
 
 void ChangeLog::purge_job(const std::string& job) {
+  withdraw_job(job);
+  purged_jobs_.insert(job);
+}
+
+void ChangeLog::withdraw_job(const std::string& job) {
   jobs_.erase(job);
   for (auto t = tiles_.lower_bound({job, INT64_MIN}); t != tiles_.end() && t->first == job;) t = tiles_.erase(t);
-  purged_jobs_.insert(job);
 }
 
 void ChangeLog::clear() {

@@ -51,6 +51,8 @@ class ChangeLog {
   void forget_lease(const std::string& lease) { leases_.erase(lease); }
   /// The job is gone with every row of it: none is written, and the store deletes them.
   void purge_job(const std::string& job);
+  /// The job was never stored and is taken back: none of its rows is written.
+  void withdraw_job(const std::string& job);
   /// The changes include an acknowledgement: once they are stored, the operation syncs the store before it returns.
   void need_sync() { sync_needed_ = true; }
   /// The counters as the store held them when the state was loaded from it.

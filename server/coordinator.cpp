@@ -90,12 +90,13 @@ SchedulerConfig scheduler_config(const CoordinatorOptions& o) {
 struct Coordinator::Impl {
   explicit Impl(CoordinatorOptions o)
       : opt(std::move(o)),
+        disk(opt.data_dir, opt.min_free_disk),
         blobs(opt.data_dir / "blobs", opt.durability),
         store(open_coordinator_store(opt.data_dir, opt.durability)),
         sched(scheduler_config(opt), wall_ms, *store),
         bus(opt.events, random_hex(4)),
         farm_events(bus),
-        api(sched, blobs, *store, metrics, wall_ms, opt.limits, bus, farm_events,
+        api(sched, blobs, *store, metrics, wall_ms, opt.limits, bus, farm_events, disk,
             [this](std::function<void()> work) { asio::post(pool, std::move(work)); }),  // a finished job's result
         monitor(api, !opt.limits.tokens.client.empty()),
         pool(std::size_t(opt.handler_threads > 0 ? opt.handler_threads : std::max(2u, std::thread::hardware_concurrency()))),
@@ -115,8 +116,24 @@ struct Coordinator::Impl {
       last_expiries = expiries;
       farm_events.workers_checked(sched.workers());  // workers lost (offline) or back since the last tick
       if (++ticks % kSweepTicks == 0) asio::post(pool, [this] { sweep(); });  // deletes files: not on the network thread
+      if (disk.full() && !recovering.exchange(true)) asio::post(pool, [this] { recover_disk(); });
       arm_tick();
     });
+  }
+
+  // While the disk is full, once a second: the database's log is checkpointed and cut (the room it needs first),
+  // then the changes that waited are stored and the results that did not fit are written. The spell ends when these
+  // succeed with at least kResumeBytes free; a write that fails for want of space leaves it for the next second.
+  void recover_disk() {
+    try {
+      if (store->make_room() && disk.free_bytes() >= kResumeBytes) {
+        sched.store_pending();
+        if (api.write_waiting_results()) disk.note_room();
+      }
+    } catch (const std::exception& e) {
+      if (!is_disk_full(e)) spdlog::error("after the disk was full: {}", e.what());
+    }
+    recovering = false;
   }
 
   void sweep() {
@@ -128,7 +145,9 @@ struct Coordinator::Impl {
   }
 
   static constexpr uint64_t kSweepTicks = 60;  // retention and blob collection run once a minute
+  static constexpr uint64_t kResumeBytes = uint64_t(1) << 20;  // free space that ends a full disk's spell
   CoordinatorOptions opt;
+  DiskSpace disk;  // the data folder's free space; full from a write that found no room until one succeeds again
   DiskBlobStore blobs;
   std::unique_ptr<CoordinatorStore> store;  // jobs, tiles, leases, workers and job records (DIR/tessera.db or memory)
   Scheduler sched;
@@ -144,6 +163,7 @@ struct Coordinator::Impl {
   asio::steady_timer tick;
   asio::signal_set signals;
   std::atomic<bool> stopped{false};
+  std::atomic<bool> recovering{false};  // a recover_disk() is queued or running
   uint64_t last_expiries = 0;
   uint64_t ticks = 0;
 };

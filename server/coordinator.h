@@ -23,6 +23,9 @@ struct CoordinatorOptions {
   int listen_fd = -1;  ///< A listening TCP socket to serve on instead of binding host:port (inherited; same rules).
   std::filesystem::path data_dir;              ///< Holds tessera.db, blobs/, jobs/ and tmp/.
   Durability durability = Durability::machine;  ///< What acknowledged state survives (process: no disk flushes; none: kept in memory).
+  /// Free bytes on data_dir's file system below which submissions and blob uploads are refused with 507 (0: only
+  /// when the disk is full), so that admitted jobs keep room to finish.
+  uint64_t min_free_disk = uint64_t(64) << 20;
   double lease_seconds = protocol::kDefaultLeaseSeconds;  ///< Lease length.
   int worker_failure_limit = SchedulerConfig{}.worker_failure_limit;  ///< Failures blocklisting a worker for a job.
   int tile_failure_workers = SchedulerConfig{}.tile_failure_workers;  ///< Workers failing one tile that fail its job.

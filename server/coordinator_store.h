@@ -24,6 +24,10 @@ class CoordinatorStore : public SchedulerStore, public JobStore {
   virtual size_t leftovers_removed() const = 0;
   /// Where the state is kept, for log lines (a database file, or "memory").
   virtual std::string where() const = 0;
+  /// After a write failed for want of space (DiskFullError): makes what room the store can for the next writes (a
+  /// database copies its write-ahead log into its file and cuts the log to nothing). True when writes may be tried
+  /// again; false while the store could not do it (the disk is still too full).
+  virtual bool make_room() { return true; }
 
   std::filesystem::path result_path(const std::string& job) final;
   void write_result(const std::string& job, const std::function<void(const std::filesystem::path&)>& write) final;

@@ -30,8 +30,11 @@ std::string sql_head(const std::string& sql) {
   return s;
 }
 
-[[noreturn]] void fail(sqlite3* db, const std::string& what) {
-  throw StorageError(what + ": " + (db ? sqlite3_errmsg(db) : "out of memory"));
+// `rc` is the failed call's result: SQLITE_FULL (the disk has no room for the database or its log) is a DiskFullError.
+[[noreturn]] void fail(sqlite3* db, const std::string& what, int rc = SQLITE_ERROR) {
+  const std::string text = what + ": " + (db ? sqlite3_errmsg(db) : "out of memory");
+  if ((rc & 0xff) == SQLITE_FULL) throw DiskFullError(text);
+  throw StorageError(text);
 }
 
 json map_json(const std::map<std::string, std::string>& m) { return json(m); }
@@ -138,7 +141,7 @@ bool Statement::step() {
   what += sql_head(sql_);
   what += "'";
   sqlite3_reset(stmt_);
-  fail(db_, what);
+  fail(db_, what, rc);
 }
 
 void Statement::run() {
@@ -193,10 +196,12 @@ Database::~Database() {
 
 void Database::exec(const std::string& sql) {
   char* err = nullptr;
-  if (sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &err) != SQLITE_OK) {
+  if (const int rc = sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &err); rc != SQLITE_OK) {
     const std::string why = err ? err : sqlite3_errmsg(db_);
     sqlite3_free(err);
-    throw StorageError(file_.string() + ": '" + sql_head(sql) + "': " + why);
+    const std::string text = file_.string() + ": '" + sql_head(sql) + "': " + why;
+    if ((rc & 0xff) == SQLITE_FULL) throw DiskFullError(text);
+    throw StorageError(text);
   }
 }
 
@@ -336,8 +341,36 @@ void DurableStore::flush_log() {
   std::abort();
 }
 
+template <class F>
+void DurableStore::write_locked(F&& write) {
+  if (full_)
+    throw DiskFullError(db_.file().string() +
+                        ": the disk was full at an earlier write; no write until its log is checkpointed");
+  try {
+    write();
+  } catch (const DiskFullError&) {
+    full_ = true;
+    throw;
+  }
+}
+
+bool DurableStore::make_room() {
+  std::lock_guard lock(mu_);
+  if (!full_) return true;
+  // The failed transaction was rolled back, so this connection holds no snapshot: the checkpoint can copy the whole
+  // log, which needs room only for the pages the database file does not have yet, and then cuts the log to nothing.
+  std::string why;  // the disk is still full: said by the caller, which tries again
+  if (!checkpointer_->truncate(&why)) return false;
+  full_ = false;
+  return true;
+}
+
 void DurableStore::apply(const SchedulerChanges& c) {
   std::lock_guard lock(mu_);
+  write_locked([&] { apply_locked(c); });
+}
+
+void DurableStore::apply_locked(const SchedulerChanges& c) {
   Transaction tx(db_);
   for (const JobRow& r : c.jobs) {
     const JobStatus& s = r.status;
@@ -552,7 +585,9 @@ SchedulerSnapshot DurableStore::load() {
 
 void DurableStore::save_record(const std::string& job, const json& record) {
   std::lock_guard lock(mu_);
-  db_.statement("INSERT OR REPLACE INTO job_records(id, record) VALUES(?,?)").bind_text(1, job).bind_text(2, record.dump()).run();
+  write_locked([&] {
+    db_.statement("INSERT OR REPLACE INTO job_records(id, record) VALUES(?,?)").bind_text(1, job).bind_text(2, record.dump()).run();
+  });
 }
 
 std::optional<json> DurableStore::load_record(const std::string& job) {
@@ -583,12 +618,14 @@ std::vector<std::pair<int64_t, std::string>> DurableStore::tile_pixels(const std
 
 void DurableStore::save_tile_state(const std::string& job, int64_t tile, uint32_t spp, std::string_view exr) {
   std::lock_guard lock(mu_);
-  db_.statement("INSERT OR REPLACE INTO tile_states(job, idx, spp, exr) VALUES(?,?,?,?)")
-      .bind_text(1, job)
-      .bind(2, tile)
-      .bind(3, int64_t(spp))
-      .bind_blob(4, exr)
-      .run();
+  write_locked([&] {
+    db_.statement("INSERT OR REPLACE INTO tile_states(job, idx, spp, exr) VALUES(?,?,?,?)")
+        .bind_text(1, job)
+        .bind(2, tile)
+        .bind(3, int64_t(spp))
+        .bind_blob(4, exr)
+        .run();
+  });
 }
 
 std::optional<uint32_t> DurableStore::tile_state_spp(const std::string& job, int64_t tile) {

@@ -115,6 +115,9 @@ class Transaction {
 /// The coordinator's state under DIR: DIR/tessera.db holds jobs, tiles, leases, workers and job records, DIR/jobs/<id>/
 /// the merged results, DIR/tmp/ scratch files. Thread-safe (one connection behind a mutex). The database runs with
 /// auto_vacuum=INCREMENTAL: a change that purges jobs hands their pages back and truncates the write-ahead log.
+/// A write that fails for want of space (DiskFullError) stops every later write, which fails the same way at once,
+/// until make_room() has copied the write-ahead log into the database file and cut the log to nothing: the space
+/// freed on the disk then goes to the database, not to a log that grows into it again.
 class DurableStore final : public CoordinatorStore {
  public:
   /// The database's file name in the store's folder.
@@ -153,13 +156,18 @@ class DurableStore final : public CoordinatorStore {
   std::filesystem::path database_file() const { return db_.file(); }
   size_t leftovers_removed() const override { return leftovers_removed_; }
   std::string where() const override { return database_file().string(); }
+  bool make_room() override;
   /// Flushes of the write-ahead log and acknowledgements that waited for them, so far.
   GroupCommitStats flushes() { return group_.stats(); }
 
  private:
+  void apply_locked(const SchedulerChanges& changes);  // apply() with mu_ held
   void give_back_free_pages();  // after a purge: shrink the file and the log (mu_ held)
   void flush_log();             // fdatasync of the write-ahead log, on the group commit's thread
+  template <class F>
+  void write_locked(F&& write);  // runs a write (mu_ held) unless the disk was full, noting when it is (full_)
   std::mutex mu_;
+  bool full_ = false;  // a write failed for want of space and make_room() has not succeeded since (mu_)
   CounterRow written_counters_;  // as the meta table holds them, next_seq the reserved bound (mu_)
   struct LogFile {
     int fd = -1;

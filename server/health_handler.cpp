@@ -3,7 +3,15 @@
 namespace tessera::server {
 
 HttpResponse HealthHandler::handle(const protocol::RouteMatch& route, HttpRequest& req) {
-  if (route.endpoint() == protocol::Endpoint::healthz) return json_response(http::status::ok, protocol::HealthAnswer{}, req.version());
+  if (route.endpoint() == protocol::Endpoint::healthz) {
+    // 200 whatever the disk: the coordinator still serves, and restarting it would not free any space.
+    protocol::HealthAnswer a;
+    a.disk = disk_.state();
+    if (a.disk != protocol::DiskState::ok) a.status = "degraded";
+    a.disk_free_bytes = disk_.free_bytes();
+    a.min_free_disk = disk_.min_free();
+    return json_response(http::status::ok, a, req.version());
+  }
   return bytes_response(metrics_.prometheus(sched_.counters(), clock_(), waiters_.held()), "text/plain; version=0.0.4", req.version());
 }
 

@@ -1,6 +1,7 @@
 // What operators and their tools watch: liveness and Prometheus metrics.
 #pragma once
 
+#include "server/disk_space.h"
 #include "server/lease_waiters.h"
 #include "server/metrics.h"
 #include "server/resource_handler.h"
@@ -8,12 +9,12 @@
 
 namespace tessera::server {
 
-/// GET /healthz and GET /metrics.
+/// GET /healthz (with the data folder's free space) and GET /metrics.
 class HealthHandler final : public ResourceHandler {
  public:
   /// Endpoints over the given state (which must outlive it).
-  HealthHandler(Scheduler& scheduler, Metrics& metrics, ClockMs clock, LeaseWaiters& waiters)
-      : sched_(scheduler), metrics_(metrics), clock_(std::move(clock)), waiters_(waiters) {}
+  HealthHandler(Scheduler& scheduler, Metrics& metrics, ClockMs clock, LeaseWaiters& waiters, const DiskSpace& disk)
+      : sched_(scheduler), metrics_(metrics), clock_(std::move(clock)), waiters_(waiters), disk_(disk) {}
   HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& req) override;
 
  private:
@@ -21,6 +22,7 @@ class HealthHandler final : public ResourceHandler {
   Metrics& metrics_;
   ClockMs clock_;
   LeaseWaiters& waiters_;
+  const DiskSpace& disk_;
 };
 
 }  // namespace tessera::server

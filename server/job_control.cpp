@@ -51,6 +51,14 @@ std::string JobControl::add_job(const JobParams& p, const std::string& id_in, in
   const std::string id = rec->status.id;
   s_.jobs.emplace(id, std::move(rec));
   s_.enqueue(j);
+  try {
+    s_.changes.flush(s_);  // here rather than after: a job the store did not take (the disk is full) must not exist
+  } catch (...) {
+    s_.dequeue(j);
+    s_.changes.withdraw_job(id);
+    s_.jobs.erase(id);  // j is gone with it
+    throw;
+  }
   s_.work_appeared();
   return id;
 }

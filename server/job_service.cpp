@@ -45,9 +45,9 @@ void check_path(const std::string& rel, const std::string& where) {
 }  // namespace
 
 JobService::JobService(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock,
-                       AdmissionLimits limits, FarmEvents& events, Background background)
+                       AdmissionLimits limits, FarmEvents& events, DiskSpace& disk, Background background)
     : sched_(scheduler), blobs_(blobs), jobs_(jobs), metrics_(metrics), clock_(std::move(clock)), limits_(limits),
-      events_(events), background_(std::move(background)) {
+      events_(events), disk_(disk), background_(std::move(background)) {
   if (!background_) background_ = [](std::function<void()> work) { work(); };
 }
 
@@ -452,6 +452,22 @@ void JobService::recover() {
   }
 }
 
+bool JobService::write_waiting_results() {
+  std::set<std::string> jobs;
+  {
+    std::lock_guard lock(mu_);
+    jobs.swap(waiting_results_);
+  }
+  for (const std::string& job : jobs) {
+    const auto s = sched_.job(job);
+    if (!s || !started_and_open(*s) || s->tiles.done != s->tiles.total) continue;  // purged or changed meanwhile
+    spdlog::info("job {}: writing the result that waited for disk space", job);
+    finalize(job);
+  }
+  std::lock_guard lock(mu_);
+  return waiting_results_.empty();
+}
+
 protocol::JobState JobService::purge(const std::string& id) {
   const PurgeResult r = sched_.purge(id);
   switch (r.status) {
@@ -525,13 +541,30 @@ void JobService::finalize(const std::string& job) {
                                     sampling.spp, sampling.replicates);
     jobs_.write_result(job, [&](const fs::path& file) { img->write_exr(file, meta, state); });
   } catch (const std::exception& e) {
+    // The EXR writer does not say why a write failed: a disk with less room than the pixels take is taken to be it.
+    const uint64_t pixel_bytes = uint64_t(s->params.width) * uint64_t(s->params.height) * 12;
+    if (is_disk_full(e) || disk_.free_bytes() < pixel_bytes) {
+      disk_.note_full("writing the result of job " + job + ": " + e.what());
+      spdlog::warn("job {}: its result does not fit on the disk; its tiles are kept and the result is written once "
+                   "space is freed", job);
+      std::lock_guard lock(mu_);
+      waiting_results_.insert(job);
+      return;
+    }
     spdlog::error("job {}: writing the result failed: {}", job, e.what());
     sched_.fail_job(job, std::string("writing the result failed: ") + e.what());
     drop_image(job);
     announce(job);
     return;
   }
-  sched_.complete_job(job);
+  try {
+    sched_.complete_job(job);
+  } catch (const std::exception& e) {
+    // Done in the scheduler all the same; the change is stored with the next write that the disk takes (a restart
+    // before it finds the job with every tile done and writes the result again).
+    if (!is_disk_full(e)) throw;
+    disk_.note_full(e.what());
+  }
   drop_image(job);
   announce(job);
   spdlog::info("job {}: done, result written in {:.3f}s", job,

@@ -9,6 +9,7 @@
 #include "protocol/query.h"
 #include "protocol/tile.h"
 #include "server/assembly.h"
+#include "server/disk_space.h"
 #include "server/farm_events.h"
 #include "server/metrics.h"
 #include "server/scheduler.h"
@@ -52,9 +53,10 @@ using Background = std::function<void(std::function<void()>)>;
 /// to `events` after it happened.
 class JobService {
  public:
-  /// A service over the given state; all references must outlive it.
+  /// A service over the given state, noting in `disk` when a result finds the disk full; all references must
+  /// outlive it.
   JobService(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock,
-             AdmissionLimits limits, FarmEvents& events, Background background = {});
+             AdmissionLimits limits, FarmEvents& events, DiskSpace& disk, Background background = {});
 
   /// Checks the submission (asset paths, uploaded assets, the scene as `tessera render` loads it, size limits),
   /// stores its spec and queues it. Throws ApiError: 400 for bad input, 429 when the queue is full.
@@ -121,6 +123,10 @@ class JobService {
   /// After a restart: finishes jobs whose every tile was stored but whose result was not written yet, and deletes
   /// result files of jobs purged before a crash let them go.
   void recover();
+  /// Writes the results of jobs whose every tile is stored but whose result found the disk full (such a job stays
+  /// running, its tiles kept, instead of failing); those that still do not fit wait for the next call, and it then
+  /// returns false.
+  bool write_waiting_results();
   /// The limits it admits jobs under.
   const AdmissionLimits& limits() const { return limits_; }
 
@@ -144,6 +150,7 @@ class JobService {
   ClockMs clock_;
   AdmissionLimits limits_;
   FarmEvents& events_;
+  DiskSpace& disk_;
   Background background_;
   std::mutex mu_;
   std::mutex admit_mu_;                                      // makes the queued-jobs check and add_job one step
@@ -152,6 +159,7 @@ class JobService {
   std::map<std::string, protocol::JobSpec> specs_;           // a cache of the stored specs
   std::map<std::string, std::string> spec_json_;             // the same as JSON answers (set and erased with specs_)
   CheckedFiles checked_blobs_;  // image blobs earlier submissions decoded clean: the next check skips the decode
+  std::set<std::string> waiting_results_;  // jobs whose result found the disk full (mu_)
   void cache_spec_locked(const std::string& id, const protocol::JobSpec& spec, bool replace);
 };
 

@@ -38,6 +38,7 @@ struct PurgeTest : ::testing::Test {
   Metrics metrics;
   EventBus bus{EventBusOptions{}, "purge"};
   FarmEvents events{bus};
+  std::unique_ptr<DiskSpace> disk;
   std::unique_ptr<JobService> service;
   std::unique_ptr<Collector> collector;
   RetentionOptions retention{std::optional<int64_t>(3'600'000), 60'000};
@@ -55,7 +56,8 @@ struct PurgeTest : ::testing::Test {
     store = std::make_unique<DurableStore>(dir);
     blobs = std::make_unique<DiskBlobStore>(dir / "blobs");
     sched = std::make_unique<Scheduler>(SchedulerConfig{10'000, 3, 2, "p"}, clock, *store);
-    service = std::make_unique<JobService>(*sched, *blobs, *store, metrics, clock, AdmissionLimits{}, events);
+    disk = std::make_unique<DiskSpace>(dir, 0);
+    service = std::make_unique<JobService>(*sched, *blobs, *store, metrics, clock, AdmissionLimits{}, events, *disk);
     collector = std::make_unique<Collector>(*service, *sched, *blobs, clock, retention);
   }
   void reopen() {

@@ -40,10 +40,9 @@ Scheduler::Scheduler(SchedulerConfig config, ClockMs clock, SchedulerStore& stor
 Scheduler::~Scheduler() = default;
 
 // Runs one operation under the lock: expired leases are reclaimed first, and everything the operation (and the
-// reclaiming) changed goes to the store as one batch before the lock is released (with store_now false, the changes
-// wait for the next operation that stores: for changes a restart may safely forget).
+// reclaiming) changed goes to the store as one batch before the lock is released, as `store` says.
 template <class F>
-auto Scheduler::transact(F&& f, bool store_now, std::function<void()> durable) {
+auto Scheduler::transact(F&& f, Store store, std::function<void()> durable) {
   std::unique_lock lock(mu_);
   const int64_t now = clock_();
   using R = std::invoke_result_t<F&, int64_t>;
@@ -59,14 +58,22 @@ auto Scheduler::transact(F&& f, bool store_now, std::function<void()> durable) {
     }
     throw;
   }
-  if (store_now) state_.changes.flush(state_);
+  if (store == Store::now) {
+    state_.changes.flush(state_);
+  } else if (store == Store::if_it_can) {
+    try {
+      state_.changes.flush(state_);
+    } catch (const std::exception&) {
+      // Kept in the change log: the next operation that stores (or store_pending) writes them.
+    }
+  }
   const bool due = state_.changes.take_sync_due();
   lock.unlock();
   // Outside the lock: other operations go on while the disk catches up. With `durable`, the caller does not wait
   // either: the store runs it once the flush is done.
-  SchedulerStore* store = state_.changes.store();
-  if (due && durable) store->sync_async(std::move(durable));
-  else if (due) store->sync();
+  SchedulerStore* to = state_.changes.store();
+  if (due && durable) to->sync_async(std::move(durable));
+  else if (due) to->sync();
   else if (durable) durable();
   return std::move(*r);
 }
@@ -81,17 +88,17 @@ std::string Scheduler::add_job(const JobParams& params, const std::string& id) {
 }
 
 std::optional<JobStatus> Scheduler::job(const std::string& id) {
-  return transact([&](int64_t now) { return views_.job(id, now); });
+  return transact([&](int64_t now) { return views_.job(id, now); }, Store::if_it_can);
 }
 
 std::vector<JobStatus> Scheduler::jobs() { return jobs(JobQuery{}).jobs; }
 
 JobPage Scheduler::jobs(const JobQuery& query) {
-  return transact([&](int64_t now) { return views_.jobs(query, now); });
+  return transact([&](int64_t now) { return views_.jobs(query, now); }, Store::if_it_can);
 }
 
 std::optional<uint64_t> Scheduler::job_seq(const std::string& id) {
-  return transact([&](int64_t) { return views_.job_seq(id); });
+  return transact([&](int64_t) { return views_.job_seq(id); }, Store::if_it_can);
 }
 
 RegisterResult Scheduler::register_worker(const std::string& name, int64_t threads) {
@@ -121,7 +128,7 @@ std::optional<protocol::WorkerInfo> Scheduler::worker(const std::string& id) {
 }
 
 std::vector<protocol::WorkerInfo> Scheduler::workers() {
-  return transact([&](int64_t now) { return views_.workers(now); });
+  return transact([&](int64_t now) { return views_.workers(now); }, Store::if_it_can);
 }
 
 std::optional<protocol::WorkerInfo> Scheduler::set_drained(const std::string& worker, bool drained) {
@@ -145,16 +152,16 @@ int64_t Scheduler::leasable_tiles(const std::string& worker) {
 }
 
 HeartbeatResult Scheduler::heartbeat(const std::string& lease, uint64_t rays) {
-  return transact([&](int64_t now) { return leases_.heartbeat(lease, rays, now); });
+  return transact([&](int64_t now) { return leases_.heartbeat(lease, rays, now); }, Store::if_it_can);
 }
 
 ResultClaim Scheduler::check_result(const std::string& lease) {
-  return transact([&](int64_t) { return leases_.check_result(lease); });
+  return transact([&](int64_t) { return leases_.check_result(lease); }, Store::if_it_can);
 }
 
 ResultClaim Scheduler::claim_result(const std::string& lease) {
   // Stored with finish_result: a restart before it finds the tile as it was, which is the same.
-  return transact([&](int64_t now) { return leases_.claim_result(lease, now); }, /*store_now=*/false);
+  return transact([&](int64_t now) { return leases_.claim_result(lease, now); }, Store::later);
 }
 
 FinishResult Scheduler::finish_result(const std::string& lease, uint64_t rays, std::string_view pixels) {
@@ -170,7 +177,7 @@ void Scheduler::finish_result(const std::string& lease, uint64_t rays, std::stri
   // Set under the lock, before the store can run the continuation.
   auto result = std::make_shared<std::pair<FinishResult, std::pair<std::string, int64_t>>>();
   transact([&](int64_t now) { return result->first = leases_.finish_result(lease, rays, pixels, now, &result->second); },
-           /*store_now=*/true, [this, result, durable = std::move(durable)] {
+           Store::now, [this, result, durable = std::move(durable)] {
              {
                std::lock_guard lock(mu_);
                leases_.flushed(result->second.first, result->second.second);
@@ -185,10 +192,13 @@ void Scheduler::after_sync(std::function<void()> then) {
 }
 
 void Scheduler::abandon_result(const std::string& lease) {
-  transact([&](int64_t now) {
-    leases_.abandon_result(lease, now);
-    return 0;
-  });
+  // Called when storing the upload failed: the tile goes back to its lease whether or not the store takes it now.
+  transact(
+      [&](int64_t now) {
+        leases_.abandon_result(lease, now);
+        return 0;
+      },
+      Store::if_it_can);
 }
 
 FailResult Scheduler::fail(const std::string& lease, const std::string& error, const std::vector<std::string>& log) {
@@ -228,7 +238,7 @@ RaiseResult Scheduler::raise_spp(const std::string& job, uint32_t spp) {
 }
 
 PurgeResult Scheduler::purge(const std::string& job) {
-  return transact([&](int64_t) { return control_.purge(job); });
+  return transact([&](int64_t) { return control_.purge(job); }, Store::if_it_can);
 }
 
 void Scheduler::complete_job(const std::string& job) {
@@ -246,19 +256,23 @@ void Scheduler::fail_job(const std::string& job, const std::string& error) {
 }
 
 void Scheduler::expire() {
+  transact([](int64_t) { return 0; }, Store::if_it_can);
+}
+
+void Scheduler::store_pending() {
   transact([](int64_t) { return 0; });
 }
 
 SchedulerCounters Scheduler::counters() {
-  return transact([&](int64_t) { return views_.counters(); });
+  return transact([&](int64_t) { return views_.counters(); }, Store::if_it_can);
 }
 
 std::optional<protocol::TileList> Scheduler::tiles(const std::string& job) {
-  return transact([&](int64_t) { return views_.tiles(job); });
+  return transact([&](int64_t) { return views_.tiles(job); }, Store::if_it_can);
 }
 
 std::vector<std::string> Scheduler::unfinalized_jobs() {
-  return transact([&](int64_t) { return views_.unfinalized_jobs(); });
+  return transact([&](int64_t) { return views_.unfinalized_jobs(); }, Store::if_it_can);
 }
 
 }  // namespace tessera::server

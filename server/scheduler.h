@@ -51,7 +51,7 @@ class Scheduler {
   /// A fresh job id for add_job (so the caller can store the job's record before the job becomes leasable).
   std::string new_job_id();
   /// Adds a queued job under `id` (empty: a fresh one) and returns the id; throws std::invalid_argument for bad
-  /// sizes or an id already in use.
+  /// sizes or an id already in use, and what the store throws (the job is then not added).
   std::string add_job(const JobParams& params, const std::string& id = "");
   /// A job's snapshot, or nothing for an unknown id.
   std::optional<JobStatus> job(const std::string& id);
@@ -135,7 +135,8 @@ class Scheduler {
   /// tile is pending again; a done job is running again. Uploads of leases at the old spp are discarded from then on.
   RaiseResult raise_spp(const std::string& job, uint32_t spp);
   /// Forgets a done, failed or cancelled job: its job, tile and lease rows (and its stored record) go in one change;
-  /// later requests on its leases are answered as for unknown leases.
+  /// later requests on its leases are answered as for unknown leases. When the store cannot take the change (the disk
+  /// is full), the job is forgotten all the same and its rows go with the next change the store takes.
   PurgeResult purge(const std::string& job);
   /// Marks a job whose tiles are all merged done (after its image was written).
   void complete_job(const std::string& job);
@@ -152,11 +153,21 @@ class Scheduler {
   /// Ids of jobs that are running (or paused after starting) with every tile done (a restart came between the last
   /// tile and the result file).
   std::vector<std::string> unfinalized_jobs();
+  /// Stores the changes still waiting after a store failed (reads and heartbeats go on without storing theirs);
+  /// throws what the store throws, keeping them.
+  void store_pending();
 
  private:
+  // When an operation's changes go to the store.
+  enum class Store {
+    now,        // before the operation returns; a store failure fails the operation
+    later,      // with the next operation that stores (changes a restart may safely forget)
+    if_it_can,  // now, but a store failure leaves them for the next one and the operation still answers (views,
+                // heartbeats: the disk being full must not stop them)
+  };
   // Runs f(now) as one operation under the lock, then stores its changes (see scheduler.cpp).
   template <class F>
-  auto transact(F&& f, bool store_now = true, std::function<void()> durable = {});
+  auto transact(F&& f, Store store = Store::now, std::function<void()> durable = {});
 
   ClockMs clock_;                // the injected time
   std::mutex mu_;                // held by every operation

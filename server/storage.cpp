@@ -3,17 +3,24 @@
 #include "core/util/sha256.h"
 #include "core/util/file_io.h"
 
+#include <cerrno>
 #include <chrono>
 
 namespace fs = std::filesystem;
 
 namespace tessera::server {
 
+DiskFullError::DiskFullError(const std::string& what) : StorageError(what, ENOSPC) {}
+
+bool is_disk_full(const std::exception& e) {
+  const auto* f = dynamic_cast<const StorageError*>(&e);
+  return f && (f->error == ENOSPC || f->error == EDQUOT);
+}
 
 void make_dirs(const fs::path& dir) {
   std::error_code ec;
   fs::create_directories(dir, ec);
-  if (ec) throw StorageError("cannot create " + dir.string() + ": " + ec.message());
+  if (ec) throw StorageError("cannot create " + dir.string() + ": " + ec.message(), ec.value());
 }
 
 size_t remove_leftovers(const fs::path& dir, bool everything) {

@@ -20,6 +20,14 @@ namespace tessera::server {
 /// A storage operation that failed for a reason other than the caller's input (disk full, permissions).
 using StorageError = FileError;
 
+/// A write that failed because the file system holding the data folder has no room left (SQLite's SQLITE_FULL).
+struct DiskFullError : StorageError {
+  explicit DiskFullError(const std::string& what);
+};
+
+/// True when `e` says the disk is full: a DiskFullError, or a StorageError from ENOSPC or EDQUOT.
+bool is_disk_full(const std::exception& e);
+
 /// What a coordinator's stored state survives.
 enum class Durability {
   machine,  ///< A power cut: what is acknowledged was flushed to the disk first (fsync). `tessera serve`'s default.

@@ -6,12 +6,30 @@
 #include <sqlite3.h>
 #include <spdlog/spdlog.h>
 
+#include <sys/statvfs.h>
+
 #include <algorithm>
+#include <limits>
 
 namespace tessera::server {
 
+namespace {
+
+// Bytes free on the file system of `folder` for an unprivileged process; the largest value when it cannot be asked.
+uint64_t free_bytes(const std::filesystem::path& folder) {
+  struct statvfs st {};
+  if (::statvfs(folder.c_str(), &st) != 0) return std::numeric_limits<uint64_t>::max();
+  return uint64_t(st.f_bavail) * uint64_t(st.f_frsize);
+}
+
+constexpr uint64_t kFrameBytes = 4096 + 24;  // a log frame: a page and its header
+
+}  // namespace
+
 WalCheckpointer::WalCheckpointer(const std::filesystem::path& file, bool flush, int threshold, WithWritesHeld held)
-    : threshold_(threshold), held_(std::move(held)) {
+    : folder_(file.parent_path().empty() ? std::filesystem::path(".") : file.parent_path()),
+      threshold_(threshold),
+      held_(std::move(held)) {
   if (sqlite3_open_v2(file.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX, nullptr) != SQLITE_OK) {
     const std::string why = db_ ? sqlite3_errmsg(db_) : "out of memory";
     sqlite3_close(db_);
@@ -55,32 +73,41 @@ void WalCheckpointer::loop() {
     // The log starts over only after a checkpoint that copied all of it; while commits arrive during every checkpoint
     // it keeps growing, so once it is long, checkpoints catch up with it until little is left, and one copies the
     // rest with commits held off (as short as that is: a few frames and their flush).
-    const bool finish = frames_ >= kFinishFactor * threshold_;
+    // So too when the disk has less room left than the log holds: a log that kept growing would fill it, and then
+    // no checkpoint could copy it (the database file grows with it) until space were freed.
+    const bool finish = frames_ >= kFinishFactor * threshold_ || free_bytes(folder_) < uint64_t(frames_) * kFrameBytes;
     lock.unlock();
     int copied = checkpoint();
+    if (copied < 0) {  // failed (the disk is full, say): not again before another threshold of commits
+      lock.lock();
+      copied_ = frames_;
+      continue;
+    }
     if (finish) {
       for (int pass = 0; pass < kCatchUpPasses; ++pass) {
         lock.lock();
         const int left = frames_ - copied;
         lock.unlock();
         if (left <= threshold_ / 8) break;
-        copied = checkpoint();
+        copied = std::max(0, checkpoint());
       }
-      held_([&] { copied = checkpoint(); });
+      held_([&] { copied = std::max(0, checkpoint()); });
     }
     lock.lock();
     copied_ = frames_ >= copied ? copied : 0;  // a commit since may have seen the log start over
   }
 }
 
-bool WalCheckpointer::truncate() {
+bool WalCheckpointer::truncate(std::string* why) {
   std::lock_guard lock(checkpoint_mu_);
   int log = 0, copied = 0;
   const int rc = sqlite3_wal_checkpoint_v2(db_, nullptr, SQLITE_CHECKPOINT_TRUNCATE, &log, &copied);
   checkpoints_.fetch_add(1);
   if (rc == SQLITE_OK) return true;
-  spdlog::warn("checkpoint of the database to cut its log failed: {} (the log keeps its size until a later one)",
-               sqlite3_errmsg(db_));
+  if (why) *why = sqlite3_errmsg(db_);
+  else
+    spdlog::warn("checkpoint of the database to cut its log failed: {} (the log keeps its size until a later one)",
+                 sqlite3_errmsg(db_));
   return false;
 }
 
@@ -88,9 +115,11 @@ int WalCheckpointer::checkpoint() {
   std::lock_guard lock(checkpoint_mu_);
   int log = 0, copied = 0;
   const int rc = sqlite3_wal_checkpoint_v2(db_, nullptr, SQLITE_CHECKPOINT_PASSIVE, &log, &copied);
-  if (rc != SQLITE_OK && rc != SQLITE_BUSY)
-    spdlog::warn("checkpoint of the database failed: {} (tried again after later commits)", sqlite3_errmsg(db_));
   checkpoints_.fetch_add(1);
+  if (rc != SQLITE_OK && rc != SQLITE_BUSY) {
+    spdlog::warn("checkpoint of the database failed: {} (tried again after later commits)", sqlite3_errmsg(db_));
+    return -1;
+  }
   return std::max(0, copied);
 }
 

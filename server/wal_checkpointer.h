@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <functional>
 #include <mutex>
+#include <string>
 #include <thread>
 
 struct sqlite3;
@@ -24,9 +25,9 @@ class WalCheckpointer {
 
   /// Checkpoints `file` once the log has `threshold` frames (pages) after a commit; with `flush`, each completed
   /// checkpoint flushes the database file (SQLite's synchronous=NORMAL), else nothing is flushed. When the log has
-  /// grown past 32 x `threshold` because commits never paused long enough for a checkpoint to finish it, checkpoints
-  /// catch up until an eighth of `threshold` is left, and one checkpoint copies that inside `held`. Throws
-  /// StorageError when the file cannot be opened.
+  /// grown past 32 x `threshold` because commits never paused long enough for a checkpoint to finish it, or holds
+  /// more than the disk has free, checkpoints catch up until an eighth of `threshold` is left, and one checkpoint
+  /// copies that inside `held`. Throws StorageError when the file cannot be opened.
   WalCheckpointer(const std::filesystem::path& file, bool flush, int threshold, WithWritesHeld held);
   /// Waits for a checkpoint in progress, then closes its connection.
   ~WalCheckpointer();
@@ -36,9 +37,9 @@ class WalCheckpointer {
   /// After a commit (from the committing thread, quickly): the log now holds `frames` frames.
   void committed(int frames);
   /// Copies the whole log into the database file and cuts the log to zero bytes, after any checkpoint in progress;
-  /// the caller holds off commits (SQLite waits for a writer for up to 10 s). False, with a warning logged, when
-  /// SQLite could not finish it.
-  bool truncate();
+  /// the caller holds off commits (SQLite waits for a writer for up to 10 s). False when SQLite could not finish it,
+  /// with SQLite's reason in `why` when given, else logged as a warning.
+  bool truncate(std::string* why = nullptr);
   /// Checkpoints run so far.
   uint64_t checkpoints() const { return checkpoints_.load(); }
 
@@ -46,9 +47,10 @@ class WalCheckpointer {
   static constexpr int kFinishFactor = 32;  // log frames (x threshold) after which it is finished and starts over
   static constexpr int kCatchUpPasses = 4;   // checkpoints without holding commits before the held one
   void loop();
-  int checkpoint();        // one passive checkpoint; the frames of the log it has copied
+  int checkpoint();        // one passive checkpoint; the frames of the log it has copied, -1 when it failed
   bool due_locked() const;  // enough frames beyond those already copied
 
+  const std::filesystem::path folder_;  // where the database and its log are
   sqlite3* db_ = nullptr;
   std::mutex checkpoint_mu_;  // one checkpoint on db_ at a time (the thread's, or truncate()'s)
   const int threshold_;

@@ -171,10 +171,12 @@ class Worker {
     down_ = true;
     client::sleep_unless(retry_.next(), [&] { return stopping(); });
   }
-  void coordinator_up() {
+  // An answer came; `reset_backoff` false for one that says to come back later (5xx: busy, disk full), whose retries
+  // keep backing off.
+  void coordinator_up(bool reset_backoff = true) {
     if (down_) spdlog::info("worker {}: coordinator reachable again", name_);
     down_ = false;
-    retry_.reset();
+    if (reset_backoff) retry_.reset();
   }
 
   // Throws AccessDenied for 401/403: the token is missing or wrong, which no retry fixes.
@@ -189,7 +191,7 @@ class Worker {
     const json body = protocol::WorkerHello{name_, threads_, TESSERA_VERSION};
     try {
       const client::HttpResponse r = http_.send("POST", routes::workers(), body.dump());
-      coordinator_up();
+      coordinator_up(r.status < 500);
       if (r.status == 201 || r.status == 200) {
         const auto reg = protocol::parse_answer<Registration>(r.body, "registration");
         id_ = reg.id;
@@ -368,7 +370,7 @@ class Worker {
       coordinator_down("lease", e);
       return std::nullopt;
     }
-    coordinator_up();
+    coordinator_up(r.status < 500);
     if (r.status == 200) {
       idle_.reset();
       return protocol::parse_answer<protocol::LeaseAnswer>(r.body, "lease");

@@ -23,7 +23,7 @@ void move_into_place(const fs::path& tmp, const fs::path& path, Flush flush) {
   if (::rename(tmp.c_str(), path.c_str()) != 0) {
     const int err = errno;
     ::unlink(tmp.c_str());
-    throw FileError("cannot rename " + tmp.string() + " to " + path.string() + ": " + std::strerror(err));
+    throw FileError("cannot rename " + tmp.string() + " to " + path.string() + ": " + std::strerror(err), err);
   }
   if (flush == Flush::to_disk) sync_folder_of(path);
 }
@@ -32,9 +32,9 @@ void move_into_place(const fs::path& tmp, const fs::path& path, Flush flush) {
 void sync_file(const fs::path& file) {
   const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0 || ::fsync(fd) != 0) {
-    const std::string why = errno_text();
+    const int err = errno;
     if (fd >= 0) ::close(fd);
-    throw FileError("cannot sync " + file.string() + ": " + why);
+    throw FileError("cannot sync " + file.string() + ": " + std::strerror(err), err);
   }
   ::close(fd);
 }
@@ -58,10 +58,13 @@ fs::path temp_path_beside(const fs::path& path) { return path.string() + "." + r
 void write_file_atomic(const fs::path& path, std::string_view bytes, Flush flush) {
   const fs::path tmp = temp_path_beside(path);
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-  if (fd < 0) throw FileError("cannot create " + tmp.string() + ": " + errno_text());
+  if (fd < 0) {
+    const int err = errno;
+    throw FileError("cannot create " + tmp.string() + ": " + std::strerror(err), err);
+  }
   const auto fail = [&](const std::string& what, int err) {
     ::unlink(tmp.c_str());
-    throw FileError(what + tmp.string() + ": " + std::strerror(err));
+    throw FileError(what + tmp.string() + ": " + std::strerror(err), err);
   };
   size_t off = 0;
   while (off < bytes.size()) {

@@ -15,6 +15,9 @@ namespace tessera {
 /// A file operation that failed for a reason other than the caller's input (missing file, disk full, permissions).
 struct FileError : std::runtime_error {
   using std::runtime_error::runtime_error;
+  /// `what`, caused by the system error `error` (an errno value).
+  FileError(const std::string& what, int error) : std::runtime_error(what), error(error) {}
+  int error = 0;  ///< The errno of the call that failed (ENOSPC: the disk is full), 0 when none is known.
 };
 
 /// How much of a crash a replaced file survives: the machine's (the file and its folder flushed to the disk before the
