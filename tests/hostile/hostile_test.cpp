@@ -828,11 +828,89 @@ TEST_F(HostileFarm, SockPuppetsCannotFailAnotherWorkersTile) {
   const json mid = json::parse(call("GET", "/v1/jobs/" + job).body);
   EXPECT_EQ(mid.value("state", ""), "running") << mid.dump();
   EXPECT_EQ(mid["tiles"].value("leased", 0), 1) << "the held tile lost its lease: " << mid.dump();
-  for (const json& t : json::parse(call("GET", "/v1/jobs/" + job + "/tiles").body)["tiles"])
+  // (Each answer is held in a variable: a range-for over a member of a temporary would read freed memory.)
+  const json tiles = json::parse(call("GET", "/v1/jobs/" + job + "/tiles").body);
+  ASSERT_FALSE(tiles["tiles"].empty());
+  for (const json& t : tiles["tiles"])
     EXPECT_TRUE(t["failures"].empty()) << "a failure was counted: " << t.dump();
-  for (const json& w : json::parse(call("GET", "/v1/workers").body)["workers"])
+  const json workers_after = json::parse(call("GET", "/v1/workers").body);
+  ASSERT_EQ(workers_after["workers"].size(), 4u);
+  for (const json& w : workers_after["workers"])
     EXPECT_TRUE(w["blocklisted_for"].empty()) << w.dump();
   std::ofstream(release_) << "go";  // the good worker carries on
+  expect_done_like_reference(job);
+  EXPECT_TRUE(serve_->alive());
+}
+
+// A worker-token holder with a lease of its own tries to exhaust the coordinator: a 16 x 16 tile upload whose EXR
+// header claims 8192 x 8192 (decoded at the claimed size, 800 MB), and a failure report with a 60 kB error text. The
+// upload is refused from its header (422), the text is stored cut to 4096 bytes and marked, the coordinator's peak
+// memory rises by less than 64 MB over the whole attack, /healthz answers, and the job still ends bitwise identical to
+// a single-process render.
+TEST_F(HostileFarm, AWorkersUploadsAndReportsAreBoundedBeforeTheyAllocate) {
+  json good = good_job(16, 32);
+  Reply r = call("POST", "/v1/jobs", good.dump());
+  ASSERT_EQ(r.status, 201u) << r.body;
+  const std::string job = json::parse(r.body)["id"].get<std::string>();
+  const json start = wait_until_held(job);
+  ASSERT_EQ(start["tiles"].value("leased", 0), 1) << start.dump();
+
+  r = call("POST", "/v1/workers", json{{"name", "attacker"}}.dump());
+  ASSERT_EQ(r.status, 201u) << r.body;
+  const json reg = json::parse(r.body);
+  const std::map<std::string, std::string> as = {{"X-Tessera-Worker-Secret", reg["secret"].get<std::string>()}};
+  const uint64_t base_kb = status_kb(serve_->pid(), "VmRSS");
+  ASSERT_TRUE(reset_peak_rss(serve_->pid())) << "the kernel refused to reset the peak memory";
+
+  const auto take_lease = [&] {
+    const Reply l = call("POST", "/v1/workers/" + reg["id"].get<std::string>() + "/lease", "{}", as);
+    EXPECT_EQ(l.status, 200u) << l.body;
+    return l.status == 200 ? json::parse(l.body) : json();
+  };
+  json lease = take_lease();
+  ASSERT_TRUE(lease.is_object());
+  const json w = lease["window"];
+  const int x0 = w[0], y0 = w[1], x1 = w[2], y1 = w[3];
+  ExrWriteOptions opt;
+  opt.data_window = PixelWindow{x0, y0, x1, y1};
+  opt.display_window = PixelWindow{0, 0, good["scene"]["film"]["resolution"][0].get<int>(),
+                                   good["scene"]["film"]["resolution"][1].get<int>()};
+  write_exr(work_ / "bomb.exr", Image::make(x1 - x0, y1 - y0), opt);
+  std::string bomb = slurp(work_ / "bomb.exr");
+  const std::string key("dataWindow\0box2i\0", 17);
+  const size_t at = bomb.find(key);
+  ASSERT_NE(at, std::string::npos);
+  const int32_t claim[4] = {0, 0, 8191, 8191};  // xMin, yMin, xMax, yMax (inclusive), little-endian
+  std::memcpy(bomb.data() + at + key.size() + 4, claim, sizeof claim);
+  const std::string lease_id = lease["lease"].get<std::string>();
+  r = call("PUT", "/v1/leases/" + lease_id + "/result", bomb, as);
+  EXPECT_EQ(r.status, 422u) << r.body;
+  EXPECT_NE(r.error().find("data window is [0, 0, 8192, 8192)"), std::string::npos) << r.body;
+  EXPECT_EQ(call("GET", "/healthz").status, 200u);
+
+  // The refused upload blocklists nothing yet (one failure); the next lease gets a long failure text.
+  lease = take_lease();
+  ASSERT_TRUE(lease.is_object());
+  const std::string long_error(60'000, 'e');
+  r = call("POST", "/v1/leases/" + lease["lease"].get<std::string>() + "/fail", json{{"error", long_error}}.dump(), as);
+  EXPECT_EQ(r.status, 200u) << r.body;
+  const uint64_t peak_kb = status_kb(serve_->pid(), "VmHWM");
+  EXPECT_LT(peak_kb, base_kb + kCaseMemoryBoundKb) << "the attack raised the coordinator's peak memory from "
+                                                    << base_kb / 1024 << " to " << peak_kb / 1024 << " MB";
+  std::printf("coordinator memory: %llu MB before the attacker's upload and report, peak %llu MB during them\n",
+              (unsigned long long)(base_kb / 1024), (unsigned long long)(peak_kb / 1024));
+  bool cut_found = false;
+  const json tiles = json::parse(call("GET", "/v1/jobs/" + job + "/tiles").body);  // held: see the test above
+  for (const json& t : tiles["tiles"])
+    for (const json& f : t["failures"]) {
+      const std::string text = f.dump();
+      EXPECT_LT(text.size(), 8192u) << "a stored failure text is not bounded";
+      if (text.find("[cut from 60000 bytes]") != std::string::npos) cut_found = true;
+    }
+  EXPECT_TRUE(cut_found) << "the long failure text was not stored cut and marked";
+  EXPECT_EQ(call("GET", "/healthz").status, 200u);
+
+  std::ofstream(release_) << "go";  // the good worker carries on and renders the attacker's tiles again
   expect_done_like_reference(job);
   EXPECT_TRUE(serve_->alive());
 }
