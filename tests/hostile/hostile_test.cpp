@@ -439,6 +439,19 @@ class HostileFarm : public ::testing::Test {
     return good;
   }
 
+  // Submits `job` and waits until the good worker has rendered a tile of it and holds its second; returns the job's
+  // id, or "" (with a failure recorded) when it did not get there.
+  std::string submit_and_hold(const json& job) {
+    const Reply r = call("POST", "/v1/jobs", job.dump());
+    EXPECT_EQ(r.status, 201u) << r.body;
+    if (r.status != 201) return {};
+    const std::string id = json::parse(r.body)["id"].get<std::string>();
+    const json start = wait_until_held(id);
+    EXPECT_EQ(start.value("state", ""), "running") << start.dump();
+    EXPECT_EQ(start["tiles"].value("leased", 0), 1) << start.dump();
+    return start.value("state", "") == "running" && start["tiles"].value("leased", 0) == 1 ? id : std::string();
+  }
+
   // Waits (300 s at most) until the worker holds the job's second tile at its fail point, with the first one done
   // (its upload may still be on its way when the hold begins); returns the job as it then is.
   json wait_until_held(const std::string& job) {
@@ -783,13 +796,10 @@ TEST_F(HostileFarm, EveryCaseGetsItsAnswerAndTheGoodJobStillRendersRight) {
 // worker's name. Every request on a lease that exists is 403: the good job is not failed, no failure is counted
 // against anyone, the held tile keeps its lease, and the job ends bitwise identical to a single-process render.
 TEST_F(HostileFarm, SockPuppetsCannotFailAnotherWorkersTile) {
-  json good = good_job(16, 32);
-  Reply r = call("POST", "/v1/jobs", good.dump());
-  ASSERT_EQ(r.status, 201u) << r.body;
-  const std::string job = json::parse(r.body)["id"].get<std::string>();
-  const json start = wait_until_held(job);
-  ASSERT_EQ(start.value("state", ""), "running") << start.dump();
-  ASSERT_EQ(start["tiles"].value("leased", 0), 1) << start.dump();
+  const json good = good_job(16, 32);
+  const std::string job = submit_and_hold(good);
+  ASSERT_FALSE(job.empty());
+  Reply r;
   const json workers = json::parse(call("GET", "/v1/workers").body)["workers"];
   ASSERT_EQ(workers.size(), 1u);
   const std::string victim = workers[0]["id"].get<std::string>();
@@ -842,18 +852,16 @@ TEST_F(HostileFarm, SockPuppetsCannotFailAnotherWorkersTile) {
   EXPECT_TRUE(serve_->alive());
 }
 
-// A worker-token holder with a lease of its own tries to exhaust the coordinator: a 16 x 16 tile upload whose EXR
+// A worker-token holder with a lease of its own tries to exhaust the coordinator: a 32 x 32 tile upload whose EXR
 // header claims 8192 x 8192 (decoded at the claimed size, 800 MB), and a failure report with a 60 kB error text. The
 // upload is refused from its header (422), the text is stored cut to 4096 bytes and marked, the coordinator's peak
 // memory rises by less than 64 MB over the whole attack, /healthz answers, and the job still ends bitwise identical to
 // a single-process render.
 TEST_F(HostileFarm, AWorkersUploadsAndReportsAreBoundedBeforeTheyAllocate) {
-  json good = good_job(16, 32);
-  Reply r = call("POST", "/v1/jobs", good.dump());
-  ASSERT_EQ(r.status, 201u) << r.body;
-  const std::string job = json::parse(r.body)["id"].get<std::string>();
-  const json start = wait_until_held(job);
-  ASSERT_EQ(start["tiles"].value("leased", 0), 1) << start.dump();
+  const json good = good_job(16, 32);
+  const std::string job = submit_and_hold(good);
+  ASSERT_FALSE(job.empty());
+  Reply r;
 
   r = call("POST", "/v1/workers", json{{"name", "attacker"}}.dump());
   ASSERT_EQ(r.status, 201u) << r.body;
