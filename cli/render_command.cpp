@@ -1,5 +1,6 @@
 #include "cli/render_command.h"
 
+#include "cli/asset_limit_flags.h"
 #include "cli/exit_status.h"
 #include "cli/interrupt_guard.h"
 #include "cli/output_check.h"
@@ -35,6 +36,7 @@ CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
   c->add_option("--preview", a.preview, "Also write an sRGB tone-mapped PNG");
   c->add_flag("--strict", a.strict, "Treat unknown scene keys as errors");
   c->add_option("--asset-root", a.asset_root, "Allow asset paths anywhere below this folder");
+  add_asset_limit_flags(c, a.asset_limits);
   c->add_option("--tile", a.tile_size, "Tile edge in pixels for the thread scheduler")->check(CLI::Range(1, 4096));
   c->add_flag("-q,--quiet", a.quiet, "No progress bar");
   c->add_flag("--timing", a.timing,
@@ -125,6 +127,7 @@ int run_render(const RenderArgs& given) {
     lo.strict = a.strict;
     lo.force_direct = !a.integrator.empty();
     if (!a.asset_root.empty()) lo.asset_root = a.asset_root;
+    lo.asset_limits = a.asset_limits;
     lo.spp = a.spp;
     // Empty when not given; otherwise CLI11 has checked the name against the same table.
     lo.area_sampling = enum_from_name<AreaSampling>(a.area_sampling, kAreaSamplingNames);

@@ -2,6 +2,7 @@
 #pragma once
 
 #include "cli/sampling_flags.h"
+#include "core/scene/load_options.h"
 
 #include <CLI/CLI.hpp>
 
@@ -30,6 +31,7 @@ struct RenderArgs : SamplingArgs {
   bool resumable = false;               ///< Also write each pixel's exact accumulator (for a later refinement).
   int tile_budget = 0;                  ///< Render at most this many tiles, then write a partial EXR (0: all).
   std::string resume;                   ///< Finish or refine this earlier render's EXR.
+  AssetLimits asset_limits;             ///< How large each image texture and mesh may be (also told to --workers).
 };
 
 /// Registers the subcommand's options on `app`.

@@ -117,13 +117,13 @@ int run_render_farm(const RenderArgs& a) {
     // render anyway: it keeps its jobs in memory and never waits for the disk. Its one job is refused only by a full
     // disk, not by a floor of free space.
     const auto [listen_fd, port] = listen_on_loopback();
+    const std::vector<std::string> limits = asset_limit_args(a.asset_limits);  // the coordinator's and the workers'
     try {
-      children.push_back(worker::spawn_child({self, "serve", "--listen", "fd:" + std::to_string(listen_fd), "--data",
-                                            (dir / "data").string(), "--client-token-file",
-                                            (dir / "client.token").string(), "--worker-token-file",
-                                            (dir / "worker.token").string(), "--durability", "none",
-                                            "--min-free-disk", "0"},
-                                           "coordinator", dir / "serve.log", listen_fd));
+      std::vector<std::string> argv{self, "serve", "--listen", "fd:" + std::to_string(listen_fd), "--data",
+                                    (dir / "data").string(), "--client-token-file", (dir / "client.token").string(),
+                                    "--worker-token-file", (dir / "worker.token").string(), "--durability", "none", "--min-free-disk", "0"};
+      argv.insert(argv.end(), limits.begin(), limits.end());
+      children.push_back(worker::spawn_child(argv, "coordinator", dir / "serve.log", listen_fd));
     } catch (...) {
       ::close(listen_fd);
       throw;
@@ -167,6 +167,7 @@ int run_render_farm(const RenderArgs& a) {
                                     "--cache", (dir / "cache").string(), "--name", "local-" + std::to_string(i),
                                     "--token-file", (dir / "worker.token").string(), "--max-idle-wait-ms",
                                     std::to_string(kPrivateIdleWaitMs), "--preload", expected_job.string()};
+      argv.insert(argv.end(), limits.begin(), limits.end());
       if (pin) {
         std::string list;
         for (int t = 0; t < threads; ++t) list += (t ? "," : "") + std::to_string(cpus[size_t(i * threads + t)]);

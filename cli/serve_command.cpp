@@ -1,5 +1,6 @@
 #include "cli/serve_command.h"
 
+#include "cli/asset_limit_flags.h"
 #include "cli/exit_status.h"
 #include "cli/token.h"
 
@@ -58,6 +59,7 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 28))->capture_default_str();
   c->add_option("--max-job-samples", o.limits.max_job_samples, "Largest width x height x spp of one job (400 above it)")
       ->check(CLI::Range(1.0, 1e18))->capture_default_str();
+  add_asset_limit_flags(c, o.limits.assets);
   c->add_option("--max-json-bytes", o.limits.json_limit, "Largest JSON request body (413 above it)")
       ->check(CLI::Range(std::size_t(1024), std::size_t(1) << 32))->capture_default_str();
   c->add_option("--max-blob-bytes", o.limits.blob_limit, "Largest asset upload (413 above it)")

@@ -1,5 +1,6 @@
 #include "cli/worker_command.h"
 
+#include "cli/asset_limit_flags.h"
 #include "cli/exit_status.h"
 #include "cli/tls_flags.h"
 #include "cli/token.h"
@@ -51,6 +52,7 @@ CLI::App* add_worker_command(CLI::App& app, WorkerArgs& a) {
                 "Decoded texture pixels kept in memory for later jobs that use the same image files (0: decode them "
                 "for every job)")
       ->check(CLI::Range(0, 1'048'576))->capture_default_str();
+  add_asset_limit_flags(c, a.asset_limits);
   c->add_option("--preload", a.preload,
                 "A job submission (the JSON body of POST /v1/jobs) about to be leased, its assets already in --cache: "
                 "its scene is loaded while the worker registers, and a leased job with the same scene, assets and "
@@ -100,6 +102,7 @@ int run_worker_command(const WorkerArgs& a) {
     o.tls = a.tls;
     o.max_idle_wait = std::chrono::milliseconds(a.max_idle_wait_ms);
     o.image_cache_bytes = size_t(a.image_cache_mb) << 20;
+    o.asset_limits = a.asset_limits;
     o.stop_timeout = std::chrono::milliseconds(int64_t(a.stop_timeout_seconds * 1000));
     if (!a.preload.empty()) {
       try {

@@ -2,6 +2,7 @@
 #pragma once
 
 #include "client/tls_client_context.h"
+#include "core/scene/load_options.h"
 
 #include <CLI/CLI.hpp>
 
@@ -24,6 +25,7 @@ struct WorkerArgs {
   int image_cache_mb = 1024;            ///< Decoded texture pixels kept across jobs, in MiB.
   double stop_timeout_seconds = 60;     ///< How long a stopping worker keeps trying to deliver its last upload.
   std::string preload;      ///< A job submission (JSON) whose scene is loaded at start (empty: none).
+  AssetLimits asset_limits; ///< How large each image texture and mesh of a job may be.
   bool verbose = false;     ///< Debug logging.
 };
 

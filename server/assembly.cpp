@@ -13,6 +13,7 @@
 #include <spdlog/fmt/fmt.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -220,8 +221,20 @@ Image tile_from_bytes(std::string_view bytes, int width, int height) {
   return img;
 }
 
-JobImage::JobImage(int width, int height) : width_(width), height_(height) {
+namespace {
+
+// Generations of every JobImage in the process, so that no two images' generations coincide.
+std::atomic<uint64_t> g_generations{0};
+
+}  // namespace
+
+JobImage::JobImage(int width, int height) : width_(width), height_(height), generation_(++g_generations) {
   if (width <= 0 || height <= 0) throw std::invalid_argument("job image needs a positive size");
+}
+
+uint64_t JobImage::generation() {
+  std::lock_guard lock(mu_);
+  return generation_;
 }
 
 void JobImage::allocate_locked() {
@@ -235,33 +248,11 @@ void JobImage::paste(const Image& tile, const PixelWindow& w) {
   TESSERA_FAIL_POINT("assembly.paste");
   std::lock_guard lock(mu_);
   allocate_locked();
+  generation_ = ++g_generations;
   const size_t row_floats = 3 * size_t(w.width());
   for (int y = 0; y < w.height(); ++y)
     std::memcpy(&image_.rgb[3 * (size_t(w.y0 + y) * size_t(width_) + size_t(w.x0))], &tile.rgb[size_t(y) * row_floats],
                 row_floats * sizeof(float));
-}
-
-Image preview_image(const Image* image, int width, int height) {
-  // At most kMaxPreviewSide pixels on the long side: an integer factor f of box-filtered blocks, the edge blocks
-  // averaged over what they cover. Without an image nothing is allocated at the frame's size.
-  const int f = (std::max(width, height) + kMaxPreviewSide - 1) / kMaxPreviewSide;
-  Image small = Image::make((width + f - 1) / f, (height + f - 1) / f);
-  if (image) {
-    for (int sy = 0; sy < small.height; ++sy)
-      for (int sx = 0; sx < small.width; ++sx) {
-        Vec3 sum(0.f);
-        int n = 0;
-        for (int y = sy * f; y < std::min(height, (sy + 1) * f); ++y)
-          for (int x = sx * f; x < std::min(width, (sx + 1) * f); ++x, ++n) sum = sum + image->at(x, y);
-        small.set(sx, sy, sum * (1.f / float(n)));
-      }
-  }
-  return small;
-}
-
-std::vector<uint8_t> preview_png(const Image* image, int width, int height) {
-  if (image && std::max(width, height) <= kMaxPreviewSide) return encode_png_srgb(*image);
-  return encode_png_srgb(preview_image(image, width, height));
 }
 
 std::vector<uint8_t> JobImage::preview_png() {

@@ -2,6 +2,7 @@
 #pragma once
 
 #include "core/image/image.h"
+#include "server/preview.h"
 
 #include <cstdint>
 #include <filesystem>
@@ -33,21 +34,15 @@ std::string_view tile_bytes(const Image& tile);
 Image tile_from_bytes(std::string_view bytes, int width, int height);
 
 /// One job's float image, filled tile by tile. Thread-safe.
-/// The longest side of a job's preview PNG, in pixels.
-inline constexpr int kMaxPreviewSide = 1024;
-
-/// A width x height frame (`image`, nullptr: black) scaled down by a whole factor to at most kMaxPreviewSide pixels on
-/// its long side, each pixel the mean of the block it covers.
-Image preview_image(const Image* image, int width, int height);
-/// preview_image as an sRGB PNG (a frame within the bound is encoded as it is).
-std::vector<uint8_t> preview_png(const Image* image, int width, int height);
-
 class JobImage {
  public:
   /// A black width x height image; its memory is allocated on the first paste.
   JobImage(int width, int height);
   /// Copies a window-sized tile into the image; throws std::invalid_argument when it does not fit.
   void paste(const Image& tile, const PixelWindow& window);
+  /// Names the image's pixels as they are now: it changes with every paste, and no two images (of any job) ever share
+  /// a value, so a preview made after reading it shows at least the tiles pasted before.
+  uint64_t generation();
   /// An sRGB PNG of the image as far as it is filled (black elsewhere), scaled down by a whole factor to at most
   /// kMaxPreviewSide pixels on its long side; a job with no tile yet costs only the PNG's pixels.
   std::vector<uint8_t> preview_png();
@@ -64,6 +59,7 @@ class JobImage {
   int width_, height_;
   std::mutex mu_;
   Image image_;
+  uint64_t generation_;
 };
 
 }  // namespace tessera::server

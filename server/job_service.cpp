@@ -100,6 +100,7 @@ protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
   LoadOptions check = sub.sampling.load_options();
   check.build = false;
   check.checked_files = &checked_blobs_;  // a blob's file only ever holds the bytes its name hashes to
+  check.asset_limits = limits_.assets;
   LoadedScene loaded;
   try {
     loaded = load_scene_json(sub.scene, "scene", [&](const std::string& rel, const std::string& jp) -> fs::path {
@@ -279,12 +280,24 @@ std::filesystem::path JobService::result_exr(const std::string& id) {
 
 std::vector<uint8_t> JobService::preview_png(const std::string& id) {
   const protocol::JobStatus s = status(id);
-  if (!is_final(s.state)) return image_for(id, s.params.width, s.params.height)->preview_png();
-  if (s.state == JobState::done) {
-    const Image result = read_exr(jobs_.result_path(id)).pixels;
-    return server::preview_png(&result, s.params.width, s.params.height);
+  const int width = s.params.width, height = s.params.height;
+  // The version of the pixels a preview shows: a job's image in memory changes its generation with every tile pasted;
+  // a done job's result changes only when a raised spp is done (failed and cancelled jobs show black).
+  std::shared_ptr<JobImage> image;
+  std::string version;
+  if (!is_final(s.state)) {
+    image = image_for(id, width, height);
+    version = "tiles " + std::to_string(image->generation());  // read before the preview is made from the image
+  } else {
+    version = s.state == JobState::done ? "done " + std::to_string(s.params.spp) : "black";
   }
-  return server::preview_png(nullptr, s.params.width, s.params.height);  // failed or cancelled: black
+  if (const Png kept = previews_.find(id, version)) return *kept;
+  Png png = std::make_shared<const std::vector<uint8_t>>(
+      image                          ? image->preview_png()
+      : s.state == JobState::done ? preview_png_of_exr(jobs_.result_path(id), width, height)  // a few rows at a time
+                                  : server::preview_png(nullptr, width, height));
+  previews_.put(id, version, png);
+  return *png;
 }
 
 std::shared_ptr<JobImage> JobService::image_for(const std::string& job, int width, int height) {
@@ -310,6 +323,7 @@ std::shared_ptr<JobImage> JobService::image_for(const std::string& job, int widt
 void JobService::drop_image(const std::string& job) {
   std::lock_guard lock(mu_);
   images_.erase(job);
+  previews_.erase(job);
 }
 
 void JobService::after_failure(const ResultClaim& tile, const std::string& error, const FailResult& f) {
@@ -486,6 +500,7 @@ protocol::JobState JobService::purge(const std::string& id) {
     specs_.erase(id);
     spec_json_.erase(id);
   }
+  previews_.erase(id);
   // The rows are gone (a restart deletes the file if this fails: see recover).
   jobs_.remove_outputs(id);
   spdlog::info("job {}: purged (was {})", id, to_string(r.was));

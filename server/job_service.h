@@ -12,6 +12,7 @@
 #include "server/disk_space.h"
 #include "server/farm_events.h"
 #include "server/metrics.h"
+#include "server/preview_cache.h"
 #include "server/scheduler.h"
 #include "server/storage.h"
 
@@ -37,6 +38,7 @@ struct AdmissionLimits {
   int retry_after_seconds = 30;                  ///< Retry-After announced with 429.
   uint64_t max_job_pixels = uint64_t(1) << 26;   ///< width x height of one job (the merged image lives in memory).
   double max_job_samples = 4e10;                 ///< width x height x spp (x max_spp when adaptive) of one job.
+  AssetLimits assets;  ///< Each image texture's and mesh's size, checked from its header (or count) at submission.
 };
 
 /// How an upload was settled (its name is the result answer's "status").
@@ -92,7 +94,8 @@ class JobService {
   std::string lease_state(const std::string& lease);
   /// Where the merged EXR of a done job is stored; ApiError 404 unknown, 409 not done.
   std::filesystem::path result_exr(const std::string& id);
-  /// The image as far as it has rendered, as PNG; ApiError 404.
+  /// The image as far as it has rendered, as PNG (server/preview.h), made again only once the job's pixels have
+  /// changed (server/preview_cache.h); ApiError 404.
   std::vector<uint8_t> preview_png(const std::string& id);
 
   /// Validates and merges an uploaded tile (rays add to the job's count) and calls `done` once: `accepted` only after
@@ -160,6 +163,7 @@ class JobService {
   std::map<std::string, std::string> spec_json_;             // the same as JSON answers (set and erased with specs_)
   CheckedFiles checked_blobs_;  // image blobs earlier submissions decoded clean: the next check skips the decode
   std::set<std::string> waiting_results_;  // jobs whose result found the disk full (mu_)
+  PreviewCache previews_;       // each job's latest preview PNG, by the version of the pixels it shows
   void cache_spec_locked(const std::string& id, const protocol::JobSpec& spec, bool replace);
 };
 

@@ -18,8 +18,8 @@ LoadOptions loading(const protocol::SamplingSettings& sampling) {
 
 }  // namespace
 
-JobScenes::JobScenes(std::filesystem::path cache_dir, size_t jobs, size_t image_bytes)
-    : assets_(std::move(cache_dir)), scenes_(jobs), images_(4096, image_bytes) {}
+JobScenes::JobScenes(std::filesystem::path cache_dir, size_t jobs, size_t image_bytes, AssetLimits limits)
+    : assets_(std::move(cache_dir)), scenes_(jobs), limits_(limits), images_(4096, image_bytes) {}
 
 std::shared_ptr<const PreparedJob> JobScenes::find(const std::string& job) {
   std::lock_guard lock(mutex_);
@@ -50,6 +50,7 @@ LoadedScene JobScenes::load(const std::string& label, const nlohmann::json& scen
   // The spec's spp is already the job's (the scene's unless overridden): the loader is not told again.
   LoadOptions lo = loading(sampling);
   lo.checked_files = &images_;  // the cache's files are named by their content and never rewritten
+  lo.asset_limits = limits_;
   return load_scene_json(scene, label, resolve, lo);
 }
 

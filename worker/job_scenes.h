@@ -29,8 +29,9 @@ struct Gone : std::runtime_error {
 class JobScenes {
  public:
   /// Assets cached in `cache_dir`; the scenes of the `jobs` most recently used jobs kept, decoded images up to
-  /// `image_bytes`. Throws AssetError when the cache folder cannot be created.
-  JobScenes(std::filesystem::path cache_dir, size_t jobs, size_t image_bytes);
+  /// `image_bytes`; every scene loaded with `limits` on its assets. Throws AssetError when the cache folder cannot be
+  /// created.
+  JobScenes(std::filesystem::path cache_dir, size_t jobs, size_t image_bytes, AssetLimits limits = {});
 
   /// The asset cache's folder.
   const std::filesystem::path& cache_dir() const { return assets_.dir(); }
@@ -69,6 +70,7 @@ class JobScenes {
   AssetCache assets_;
   std::mutex mutex_;  // guards scenes_ (looked up by the companion's thread too)
   LruCache<PreparedJob> scenes_;
+  AssetLimits limits_;
   CheckedFiles images_;  // decoded textures of earlier jobs, by cache file (thread-safe: a preload uses it too)
   std::optional<Preload> preload_;  // until a build takes it
   int preloads_used_ = 0;

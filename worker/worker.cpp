@@ -74,7 +74,8 @@ class Worker {
       : opt_(opt), stop_(stop), url_(client::parse_http_url(opt.coordinator)), http_(url_, opt.timeouts, kMaxResponse, opt.tls),
         heartbeat_http_(url_, heartbeat_timeouts(opt.timeouts), kMaxResponse, opt.tls),
         upload_http_(url_, opt.timeouts, kMaxResponse, opt.tls),
-        scenes_(opt.cache_dir.empty() ? default_cache_dir() : opt.cache_dir, opt.scene_cache_jobs, opt.image_cache_bytes),
+        scenes_(opt.cache_dir.empty() ? default_cache_dir() : opt.cache_dir, opt.scene_cache_jobs, opt.image_cache_bytes,
+                opt.asset_limits),
         idle_(std::min<std::chrono::milliseconds>(100ms, opt.max_idle_wait), opt.max_idle_wait),
         retry_(200ms, opt.max_retry_wait) {
     name_ = opt.name.empty() ? default_name() : opt.name;

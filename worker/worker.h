@@ -24,6 +24,7 @@ struct WorkerOptions {
   std::string token;                   ///< Worker token sent as "Authorization: Bearer" (empty: none).
   size_t scene_cache_jobs = 3;         ///< Built scenes kept, one per job.
   size_t image_cache_bytes = size_t(1) << 30;  ///< Decoded texture pixels kept across jobs (0: decode for every job).
+  AssetLimits asset_limits;            ///< How large each image texture and mesh of a job may be.
   std::chrono::milliseconds max_idle_wait{2000};   ///< Longest wait for work per lease request (held by the coordinator up to 10 s).
   std::chrono::milliseconds max_retry_wait{5000};  ///< Longest wait between retries when the coordinator is down.
   client::HttpTimeouts timeouts{};             ///< Timeouts of lease, spec, blob and upload requests.

@@ -41,8 +41,7 @@
 namespace tessera {
 namespace {
 
-constexpr int64_t kMaxSide = 65536;              // Largest data window width or height read_exr accepts.
-constexpr int64_t kMaxPixels = int64_t(1) << 28;  // Largest data window area read_exr accepts.
+constexpr int64_t kMaxSide = 65536;  // Largest data window width or height read_exr accepts.
 
 // Header attributes that lay out the file rather than describe the picture: never metadata.
 constexpr std::array<std::string_view, 14> kLayoutAttributes = {
@@ -63,13 +62,26 @@ bool is_one_of(std::string_view name, std::span<const std::string_view> names) {
 
 std::string errno_text(int err) { return std::error_code(err, std::generic_category()).message(); }
 
+// A data window over the caller's bound (ExrReadOptions::max_pixels), before with_context names the file.
+struct DataWindowTooLarge : std::runtime_error {
+  DataWindowTooLarge(int64_t width, int64_t height, uint64_t limit)
+      : std::runtime_error("data window " + std::to_string(width) + "x" + std::to_string(height) + " = " +
+                           std::to_string(width * height) + " pixels is over the limit of " + std::to_string(limit)),
+        width(width), height(height), limit(limit) {}
+  int64_t width, height;
+  uint64_t limit;
+};
+
 // Runs f, turning any exception into an ImageError whose message starts with context. The *_impl functions below
 // throw whatever they meet (their own std::runtime_error reasons, OpenEXR errors, bad_alloc); the public functions
-// wrap them with this, so every error leaves as an ImageError naming the file (where there is one).
+// wrap them with this, so every error leaves as an ImageError naming the file (where there is one), or as an
+// ExrTooLarge.
 template <class F>
 auto with_context(const std::string& context, F&& f) -> decltype(f()) {
   try {
     return f();
+  } catch (const DataWindowTooLarge& e) {
+    throw ExrTooLarge(context + ": " + e.what(), e.width, e.height, e.limit);
   } catch (const std::exception& e) {
     throw ImageError(context + ": " + e.what());
   }
@@ -198,13 +210,13 @@ struct ExrDecodeCost {
 };
 
 // Reads the first header from is (positioned just after the magic number and version field) of a file of `size`
-// bytes and rejects what read_exr cannot or should not load, before OpenEXR sizes any table or buffer from the header;
-// tells what decoding will cost.
+// bytes and rejects what read_exr cannot or should not load (a data window over max_pixels among it), before OpenEXR
+// sizes any table or buffer from the header; tells what decoding will cost.
 struct ExrHeaderCheck {
   ExrDecodeCost cost;
   Imf::Header header;  // as read (sanity-checked)
 };
-ExrHeaderCheck check_exr_header(Imf::IStream& is, int version, uint64_t size) {
+ExrHeaderCheck check_exr_header(Imf::IStream& is, int version, uint64_t size, uint64_t max_pixels) {
   if (Imf::getVersion(version) != Imf::EXR_VERSION || !Imf::supportsFlags(Imf::getFlags(version)))
     throw std::runtime_error("unsupported OpenEXR version field " + std::to_string(version));
   if (Imf::isNonImage(version)) throw std::runtime_error("deep OpenEXR files are not supported");
@@ -221,13 +233,14 @@ ExrHeaderCheck check_exr_header(Imf::IStream& is, int version, uint64_t size) {
   const Imath::Box2i& dw = header.dataWindow();
   const int64_t w = int64_t(dw.max.x) - dw.min.x + 1;
   const int64_t h = int64_t(dw.max.y) - dw.min.y + 1;
-  if (w > kMaxSide || h > kMaxSide || w * h > kMaxPixels)
+  const uint64_t limit = std::min(max_pixels, kMaxExrPixels);
+  if (uint64_t(w) * uint64_t(h) > limit) throw DataWindowTooLarge(w, h, limit);
+  if (w > kMaxSide || h > kMaxSide)
     throw std::runtime_error("data window " + std::to_string(w) + "x" + std::to_string(h) +
-                             " is outside the supported size (at most " + std::to_string(kMaxSide) +
-                             " per side and " + std::to_string(kMaxPixels) + " pixels)");
+                             " is outside the supported size (at most " + std::to_string(kMaxSide) + " per side)");
   if (header.hasTileDescription()) {
     const Imf::TileDescription& t = header.tileDescription();
-    if (t.xSize > kMaxSide || t.ySize > kMaxSide || int64_t(t.xSize) * t.ySize > kMaxPixels)
+    if (t.xSize > kMaxSide || t.ySize > kMaxSide || uint64_t(t.xSize) * t.ySize > kMaxExrPixels)
       throw std::runtime_error("tile size " + std::to_string(t.xSize) + "x" + std::to_string(t.ySize) +
                                " is outside the supported size");
   }
@@ -300,8 +313,9 @@ struct DecodePlan {
   bool plain = true;
 };
 
-// Lays out `plan` for a file with this header (plan.out's buffers stay where they are while plan lives).
-void plan_decode(const Imf::Header& header, DecodePlan& plan) {
+// Lays out `plan` for a file with this header (plan.out's buffers stay where they are while plan lives); extra
+// channels are left out when colour_only.
+void plan_decode(const Imf::Header& header, DecodePlan& plan, bool colour_only) {
   const Imath::Box2i dw = header.dataWindow();
   ExrImage& out = plan.out;
   out.data_window = to_window(dw);
@@ -345,7 +359,7 @@ void plan_decode(const Imf::Header& header, DecodePlan& plan) {
                               kPixelStride, kPixelStride * row_pixels});
     }
   }
-  for (auto c = channels.begin(); c != channels.end(); ++c) {
+  for (auto c = channels.begin(); c != channels.end() && !colour_only; ++c) {
     if (is_one_of(c.name(), colour_channels) || c.channel().xSampling != 1 || c.channel().ySampling != 1) continue;
     plan.plain = plan.plain && (is_float(c.channel().type) || c.channel().type == Imf::UINT);
     std::byte* first = nullptr;
@@ -375,13 +389,13 @@ void finish_colour(DecodePlan& plan, Imf::IStream& stream) {
 }
 
 // Reads the EXR from stream, whose header passed `check`, with OpenEXR's C++ library.
-ExrImage read_exr_stream(Imf::IStream& stream, const ExrHeaderCheck& check) {
+ExrImage read_exr_stream(Imf::IStream& stream, const ExrHeaderCheck& check, bool colour_only) {
   stream.seekg(0);
 
   Imf::InputFile in(stream, decode_threads(check.cost));
   if (!in.isComplete()) throw std::runtime_error("file is incomplete (truncated or damaged)");
   DecodePlan plan;
-  plan_decode(in.header(), plan);
+  plan_decode(in.header(), plan, colour_only);
   const Imath::Box2i dw = in.header().dataWindow();
   Imf::FrameBuffer fb;
   for (const exr_core::ChannelTarget& t : plan.targets) {
@@ -399,14 +413,14 @@ ExrImage read_exr_stream(Imf::IStream& stream, const ExrHeaderCheck& check) {
 // Reads an EXR held in memory: OpenEXRCore decodes the common files (single-part scanline, none/ZIPS/ZIP, R,G,B or
 // Y and extra channels at full resolution, exr_core_decode.h), OpenEXR's C++ library the rest and whatever OpenEXRCore
 // declines, so its verdict and messages stand for damaged files. Both give the same values (ExrCoreDecode tests).
-ExrImage decode_exr_impl(std::string_view bytes) {
+ExrImage decode_exr_impl(std::string_view bytes, const ExrReadOptions& options) {
   char start[8] = {};
   const size_t got = std::min<size_t>(8, bytes.size());
   std::memcpy(start, bytes.data(), got);
   const int version = exr_version(start, std::streamsize(got));
   MemoryIStream stream(bytes, "(memory)");
   stream.seekg(8);
-  const ExrHeaderCheck check = check_exr_header(stream, version, bytes.size());
+  const ExrHeaderCheck check = check_exr_header(stream, version, bytes.size(), options.max_pixels);
   // The pixels are allocated only once OpenEXRCore has found every block in the file.
   const std::unique_ptr<exr_core::ScanlineDecoder> core =
       check.cost.tiled || Imf::isMultiPart(version)
@@ -414,24 +428,24 @@ ExrImage decode_exr_impl(std::string_view bytes) {
           : exr_core::ScanlineDecoder::open(bytes, to_window(check.header.dataWindow()));
   if (core) {
     DecodePlan plan;
-    plan_decode(check.header, plan);
+    plan_decode(check.header, plan, options.colour_only);
     if (plan.plain && core->decode(plan.targets)) {
       finish_colour(plan, stream);
       return std::move(plan.out);
     }
   }
-  return read_exr_stream(stream, check);
+  return read_exr_stream(stream, check, options.colour_only);
 }
 
 // Files up to this size are read into memory and decoded as decode_exr_impl does; larger ones are streamed through
 // OpenEXR's C++ library, so that a huge file is not held twice.
 constexpr std::uintmax_t kInMemoryFileBytes = std::uintmax_t(256) << 20;
 
-ExrImage read_exr_impl(const std::filesystem::path& path) {
+ExrImage read_exr_impl(const std::filesystem::path& path, const ExrReadOptions& options) {
   std::error_code size_error;
   const std::uintmax_t size = std::filesystem::file_size(path, size_error);
   // A file whose size cannot be told (missing, unreadable, not a regular file) is read to find out why.
-  if (size_error || size <= kInMemoryFileBytes) return decode_exr_impl(read_file_bytes(path));
+  if (size_error || size <= kInMemoryFileBytes) return decode_exr_impl(read_file_bytes(path), options);
   errno = 0;
   std::ifstream file(path, std::ios::binary);
   if (!file) throw std::runtime_error(errno != 0 ? errno_text(errno) : "cannot open file");
@@ -440,7 +454,8 @@ ExrImage read_exr_impl(const std::filesystem::path& path) {
   if (file.bad()) throw std::runtime_error(errno != 0 ? errno_text(errno) : "read error");
   const int version = exr_version(start, file.gcount());
   Imf::StdIFStream stream(file, path.c_str());
-  return read_exr_stream(stream, check_exr_header(stream, version, uint64_t(size)));
+  return read_exr_stream(stream, check_exr_header(stream, version, uint64_t(size), options.max_pixels),
+                         options.colour_only);
 }
 
 std::vector<uint8_t> encode_exr_impl(const char* name, const Image& img, const ExrWriteOptions& opt) {
@@ -528,12 +543,12 @@ Image image_rows(const Image& img, int y0, int y1) {
   return rows;
 }
 
-ExrImage read_exr(const std::filesystem::path& path) {
-  return with_context("cannot read EXR " + quoted(path), [&] { return read_exr_impl(path); });
+ExrImage read_exr(const std::filesystem::path& path, const ExrReadOptions& options) {
+  return with_context("cannot read EXR " + quoted(path), [&] { return read_exr_impl(path, options); });
 }
 
-ExrImage decode_exr(std::string_view bytes) {
-  return with_context("cannot read EXR data", [&] { return decode_exr_impl(bytes); });
+ExrImage decode_exr(std::string_view bytes, const ExrReadOptions& options) {
+  return with_context("cannot read EXR data", [&] { return decode_exr_impl(bytes, options); });
 }
 
 void write_exr(const std::filesystem::path& path, const Image& img, const ExrWriteOptions& opt) {

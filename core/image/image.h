@@ -66,16 +66,35 @@ struct ExrImage {
   std::map<std::string, std::string> metadata;  ///< Header attributes of type string, int or double, as text.
 };
 
+/// The most pixels read_exr decodes (and the default of ExrReadOptions::max_pixels).
+inline constexpr uint64_t kMaxExrPixels = uint64_t(1) << 28;
+
+/// What read_exr may decode; the bounds are checked from the header, before any pixel is allocated.
+struct ExrReadOptions {
+  uint64_t max_pixels = kMaxExrPixels;  ///< Largest data window area; kMaxExrPixels bounds it in any case.
+  bool colour_only = false;             ///< Decode only the colour: extra channels are neither allocated nor read.
+};
+
+/// What read_exr throws for a data window over ExrReadOptions::max_pixels: the message names the file, the window's
+/// size and the bound, which are also given as numbers.
+struct ExrTooLarge : ImageError {
+  ExrTooLarge(const std::string& what, int64_t width, int64_t height, uint64_t limit)
+      : ImageError(what), width(width), height(height), limit(limit) {}
+  int64_t width;   ///< The data window's width, as the header declares it.
+  int64_t height;  ///< Its height.
+  uint64_t limit;  ///< The bound on width x height it exceeds.
+};
+
 /// Reads the first part of an EXR (scanline or tiled, half/float/uint) with R,G,B channels, or Y (grey; with RY,BY
 /// as luminance/chroma). Other full-resolution channels go to pixels.extra (half and float ones) or pixels.uint_extra
-/// (UINT ones, exactly); subsampled extra channels are skipped.
-/// Pixel values are returned as stored, non-finite ones included. Throws ImageError (naming the file) for a missing,
-/// unreadable, truncated or non-EXR file, deep data, no colour channels, or a data window over 65536 pixels per side
-/// or 2^28 pixels in all.
-ExrImage read_exr(const std::filesystem::path& path);
+/// (UINT ones, exactly), unless options.colour_only; subsampled extra channels are skipped.
+/// Pixel values are returned as stored, non-finite ones included. Throws ExrTooLarge for a data window over
+/// options.max_pixels, and ImageError (naming the file) for a missing, unreadable, truncated or non-EXR file, deep data,
+/// no colour channels, or a data window over 65536 pixels per side.
+ExrImage read_exr(const std::filesystem::path& path, const ExrReadOptions& options = {});
 
-/// read_exr for a file's bytes held in memory (e.g. received over HTTP); throws ImageError as read_exr does.
-ExrImage decode_exr(std::string_view bytes);
+/// read_exr for a file's bytes held in memory (e.g. received over HTTP); throws as read_exr does.
+ExrImage decode_exr(std::string_view bytes, const ExrReadOptions& options = {});
 
 /// Lossless compression of an EXR's pixels. Rendered float data is noisy and barely compresses (measured on a 3840x2160
 /// float frame: ZIP 7.4 s for 5% smaller, PIZ 5.0 s for 23% smaller, none 0.19 s), so the farm's hot paths use kNone.

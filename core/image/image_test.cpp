@@ -387,7 +387,8 @@ TEST_F(ImageExr, AbsurdSizesAreRejected) {
   const fs::path good = file("good.exr");
   write_exr(good, test_image(8, 8));
   const fs::path p = file("huge.exr");
-  // Over 65536 wide, over 65536 high, and 65536 x 65536 = 2^32 pixels; then a height OpenEXR itself refuses.
+  // Over 65536 wide, over 65536 high, and 65536 x 65536 = 2^32 pixels (over 2^28); then a height OpenEXR itself
+  // refuses.
   for (auto [max_x, max_y] :
        {std::pair{65536, 0}, std::pair{0, 1 << 20}, std::pair{65535, 65535}, std::pair{0, 1 << 30}}) {
     std::vector<uint8_t> bytes = read_bytes(good);
@@ -395,10 +396,60 @@ TEST_F(ImageExr, AbsurdSizesAreRejected) {
     write_bytes(p, bytes);
     const std::string msg = image_error_message([&] { read_exr(p); });
     EXPECT_NE(msg.find(p.string()), std::string::npos) << msg;
-    if (max_y != 1 << 30) {
+    if (max_y == 65535) {
+      EXPECT_NE(msg.find("65536x65536 = 4294967296 pixels is over the limit of 268435456"), std::string::npos) << msg;
+    } else if (max_y != 1 << 30) {
       EXPECT_NE(msg.find("supported size"), std::string::npos) << msg;
     }
   }
+}
+
+// A caller's bound on the data window is checked from the header: a 16384 x 16384 claim in a file of a few hundred
+// bytes is refused as ExrTooLarge (with the numbers) before a pixel is allocated, and an image exactly at the bound
+// reads.
+TEST_F(ImageExr, ACallersPixelBoundIsCheckedFromTheHeader) {
+  const fs::path good = file("good.exr");
+  write_exr(good, test_image(8, 8));
+  EXPECT_EQ(read_exr(good, {.max_pixels = 64}).pixels.width, 8);
+  const std::string small = image_error_message([&] { read_exr(good, {.max_pixels = 63}); });
+  EXPECT_NE(small.find("data window 8x8 = 64 pixels is over the limit of 63"), std::string::npos) << small;
+
+  std::vector<uint8_t> bytes = read_bytes(good);
+  patch_data_window(bytes, 16383, 16383);
+  const fs::path p = file("claims.exr");
+  write_bytes(p, bytes);
+  try {
+    read_exr(p, {.max_pixels = 1 << 20});
+    ADD_FAILURE() << "did not throw";
+  } catch (const ExrTooLarge& e) {
+    EXPECT_EQ(e.width, 16384);
+    EXPECT_EQ(e.height, 16384);
+    EXPECT_EQ(e.limit, 1u << 20);
+    EXPECT_NE(std::string(e.what()).find(p.string()), std::string::npos) << e.what();
+  }
+  // A bound above the most read_exr decodes is that most.
+  try {
+    decode_exr(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), {.max_pixels = 1 << 27});
+    ADD_FAILURE() << "did not throw";
+  } catch (const ExrTooLarge& e) {
+    EXPECT_EQ(e.limit, 1u << 27);
+  }
+}
+
+// colour_only reads the colour and neither allocates nor reads the other channels.
+TEST_F(ImageExr, ColourOnlyLeavesExtraChannelsOut) {
+  Image img = test_image(6, 4);
+  img.extra["variance.R"] = std::vector<float>(24, 0.5f);
+  img.uint_extra["samples"] = std::vector<uint32_t>(24, 7u);
+  const fs::path p = file("extra.exr");
+  write_exr(p, img);
+  const ExrImage all = read_exr(p);
+  EXPECT_EQ(all.pixels.extra.size(), 1u);
+  EXPECT_EQ(all.pixels.uint_extra.size(), 1u);
+  const ExrImage colour = read_exr(p, {.colour_only = true});
+  EXPECT_TRUE(colour.pixels.extra.empty());
+  EXPECT_TRUE(colour.pixels.uint_extra.empty());
+  EXPECT_TRUE(same_bits(colour.pixels.rgb, all.pixels.rgb));
 }
 
 // OpenEXR's C++ library allocates what a string attribute or a preview image claims before it reads the value: such

@@ -12,6 +12,21 @@ namespace tessera {
 
 class CheckedFiles;
 
+/// Bounds on what one asset file may make the loader allocate, checked before it is decoded: an image texture's size
+/// from its header, an OBJ mesh's size from its byte count and a count of its lines (docs/scene-format.md, Asset
+/// limits). The defaults are the most the loader reads at all.
+struct AssetLimits {
+  /// Largest width x height of an image texture's data window (at most 2^28, the most read_exr decodes).
+  uint64_t max_pixels = uint64_t(1) << 28;
+  /// Most triangles of an OBJ mesh once its faces are split into triangles; it also bounds the file's size
+  /// (kObjBytesPerTriangle per triangle) and its vertex positions, normals and texture coordinates (each
+  /// kObjVerticesPerTriangle per triangle).
+  uint64_t max_triangles = uint64_t(1) << 26;
+
+  /// Field by field.
+  bool operator==(const AssetLimits&) const = default;
+};
+
 /// How strictly and from where to load.
 struct LoadOptions {
   bool strict = false;                           ///< Unknown keys are errors instead of warnings.
@@ -22,9 +37,11 @@ struct LoadOptions {
   std::optional<EnvSampling> env_sampling;       ///< Overrides integrator.env_sampling.
   std::optional<SplitMethod> bvh;                ///< Overrides integrator.bvh (sah or median).
   bool build = true;  ///< Build the BVH and the lights' tables; false stops after validation (a scene to check, not render).
+  AssetLimits asset_limits;  ///< Bounds on each image texture and mesh, checked before it is decoded.
   /// Image textures recorded here as clean are not decoded again (their recorded SHA-256 enters the scene's hash; a
   /// build takes their recorded pixels and decodes those it has no pixels for), and images that decode clean are
-  /// recorded, with their pixels when building. Only for asset files never rewritten in place.
+  /// recorded, with their pixels when building. Only for asset files never rewritten in place, and always with the same
+  /// asset_limits (a recorded image is not measured again).
   CheckedFiles* checked_files = nullptr;
 
   /// Field by field.

@@ -1,13 +1,37 @@
 #include "core/scene/obj_mesh.h"
 
+#include "core/scene/obj_limits.h"
 #include "core/util/file_io.h"
 
 #include <tiny_obj_loader.h>
 
+#include <limits>
+
 namespace tessera {
+
+namespace {
+
+uint64_t saturating_product(uint64_t a, uint64_t b) {
+  return b != 0 && a > std::numeric_limits<uint64_t>::max() / b ? std::numeric_limits<uint64_t>::max() : a * b;
+}
+
+}  // namespace
 
 ObjMesh load_obj(const std::filesystem::path& file, const std::string& label, const glm::dmat4& xf, const glm::dvec3& translate,
                  const CameraFrame& frame, SceneJson& ctx, const std::string& path) {
+  // Bounded before tinyobjloader allocates for what the file declares: its size before it is read, then what its
+  // lines declare (core/scene/obj_limits.h).
+  const uint64_t max_triangles = ctx.opt.asset_limits.max_triangles;
+  const auto too_large = [&](uint64_t n, const char* what, uint64_t limit, const std::string& rule) {
+    if (n > limit)
+      ctx.fail(path, label + ": mesh too large: " + std::to_string(n) + " " + what + " is over the limit of " +
+                         std::to_string(limit) + " (" + rule + ")");
+  };
+  std::error_code size_error;
+  const uintmax_t bytes = std::filesystem::file_size(file, size_error);
+  if (!size_error)
+    too_large(bytes, "bytes", saturating_product(max_triangles, kObjBytesPerTriangle),
+              std::to_string(kObjBytesPerTriangle) + " bytes per triangle of --max-mesh-triangles");
   std::string text;
   try {
     text = read_file_bytes(file);
@@ -18,6 +42,13 @@ ObjMesh load_obj(const std::filesystem::path& file, const std::string& label, co
   // as an empty mesh with only a warning.
   if (const size_t nul = text.find('\0'); nul != std::string::npos)
     ctx.fail(path, label + ": not a valid OBJ: binary data (a NUL byte at offset " + std::to_string(nul) + ")");
+  const ObjCounts counts = count_obj(text);
+  const uint64_t max_vertices = saturating_product(max_triangles, kObjVerticesPerTriangle);
+  const std::string per_triangle = std::to_string(kObjVerticesPerTriangle) + " per triangle of --max-mesh-triangles";
+  too_large(counts.triangles, "triangles", max_triangles, "--max-mesh-triangles");
+  too_large(counts.positions, "vertex positions", max_vertices, per_triangle);
+  too_large(counts.normals, "normals", max_vertices, per_triangle);
+  too_large(counts.texcoords, "texture coordinates", max_vertices, per_triangle);
   tinyobj::ObjReaderConfig cfg;
   cfg.triangulate = true;
   cfg.vertex_color = false;

@@ -22,7 +22,8 @@ struct ObjMesh {
 
 /// Reads `file` (named `label` in messages, at JSON path `path`). Vertices are transformed by xf, translated and
 /// re-expressed in the camera frame in double precision (see core/render/camera_frame.h), then rounded once to float.
-/// Malformed files are SceneErrors; degenerate input is a warning through `json`.
+/// Malformed files, and files over the options' AssetLimits (checked before the file is parsed), are SceneErrors;
+/// degenerate input is a warning through `json`.
 ObjMesh load_obj(const std::filesystem::path& file, const std::string& label, const glm::dmat4& xf,
                  const glm::dvec3& translate, const CameraFrame& frame, SceneJson& json, const std::string& path);
 

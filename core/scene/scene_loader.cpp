@@ -269,10 +269,15 @@ uint32_t Loader::texture(const std::string& tname, const std::string& from) {
       ++out_.images_reused;
     } else {
       try {
-        ExrImage img = read_exr(file);
+        // Only the colour is decoded, and only once the header's size is within the asset limit.
+        ExrImage img = read_exr(file, {.max_pixels = options_.asset_limits.max_pixels, .colour_only = true});
         for (float v : img.pixels.rgb)
           if (!std::isfinite(v)) ctx_.fail(tp + ".path", rel + ": contains non-finite pixel values");
         tex.image = std::make_shared<const Image>(std::move(img.pixels));
+      } catch (const ExrTooLarge& e) {
+        ctx_.fail(tp + ".path", rel + ": image too large: " + std::to_string(e.width) + "x" + std::to_string(e.height) +
+                                    " = " + std::to_string(uint64_t(e.width) * uint64_t(e.height)) +
+                                    " pixels is over the limit of " + std::to_string(e.limit) + " (--max-asset-pixels)");
       } catch (const ImageError& e) {
         ctx_.fail(tp + ".path", e.what());
       }

@@ -63,7 +63,7 @@ const std::vector<std::string> kServeLimits = {
     "--read-timeout-seconds", std::to_string(kReadTimeoutSeconds), "--max-connections", "16", "--max-queued-jobs", "4",
     "--max-json-bytes",       "65536",  "--max-blob-bytes",  "1048576",  "--max-result-bytes", "4194304",
     "--max-header-bytes",     "8192",   "--max-job-pixels",  "1048576",  "--max-job-samples",  "1e8",
-    "--max-event-streams",    "4"};
+    "--max-event-streams",    "4",      "--max-asset-pixels", "262144",   "--max-mesh-triangles", "1000"};
 
 std::string slurp(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
@@ -722,6 +722,18 @@ TEST_F(HostileFarm, EveryCaseGetsItsAnswerAndTheGoodJobStillRendersRight) {
   std::mt19937 rng(5);
   for (char& ch : garbage) ch = char(rng() & 0xff);
   vars["GARBAGE_EXR_SHA"] = put_blob(garbage);
+  // A 16x16 texture whose header claims a 16384 x 16384 data window (3 GiB of float RGB), over --max-asset-pixels.
+  std::string huge_window = slurp(work_ / "tex.exr");
+  const std::string window_key("dataWindow\0box2i\0", 17);
+  const size_t window_at = huge_window.find(window_key);
+  EXPECT_NE(window_at, std::string::npos);
+  const int32_t window[4] = {0, 0, 16383, 16383};  // little-endian on the test machines
+  if (window_at != std::string::npos) std::memcpy(huge_window.data() + window_at + window_key.size() + 4, window, 16);
+  vars["HUGE_WINDOW_EXR_SHA"] = put_blob(huge_window);
+  // An OBJ of 1001 triangles, over --max-mesh-triangles.
+  std::string many_faces = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+  for (int i = 0; i < 1001; ++i) many_faces += "f 1 2 3\n";
+  vars["MANY_FACES_OBJ_SHA"] = put_blob(many_faces);
   vars["MISSING_SHA"] = sha256_hex("never uploaded");
   vars["A_SHA"] = sha256_hex("a");
   vars["A_SHA_UPPER"] = vars["A_SHA"];
