@@ -5,6 +5,7 @@
 // error response (>= 400) whose body is not `{"error": "..."}`.
 #include "server/api.h"
 #include "server/database.h"
+#include "server/disk_space.h"
 
 #include <boost/beast/core/flat_buffer.hpp>
 #include <boost/beast/http.hpp>
@@ -33,7 +34,8 @@ struct State {
   Metrics metrics;
   EventBus bus{EventBusOptions{}, "fz"};
   FarmEvents events{bus};
-  Api api{sched, blobs, store, metrics, [this] { return now; }, options(), bus, events};
+  DiskSpace disk{dir, 0};  // no free-space floor: the fuzzer's inputs, not the machine's disk, decide the answers
+  Api api{sched, blobs, store, metrics, [this] { return now; }, options(), bus, events, disk};
 
   static ApiOptions options() {
     ApiOptions o;
