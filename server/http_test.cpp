@@ -592,9 +592,14 @@ TEST_F(HttpTest, OnlyTheWorkerHoldingALeaseCanActOnIt) {
   EXPECT_EQ(job["state"], "running");
   EXPECT_EQ(job["tiles"]["leased"], 1);
   EXPECT_EQ(job["rays"], 0);
-  for (const json& t : call(http::verb::get, "/v1/jobs/" + id + "/tiles").js()["tiles"])
+  // Each answer held in a variable: a range-for over a member of a temporary would read freed memory.
+  const json before = call(http::verb::get, "/v1/jobs/" + id + "/tiles").js();
+  ASSERT_FALSE(before["tiles"].empty());
+  for (const json& t : before["tiles"])
     EXPECT_TRUE(t["failures"].empty()) << t.dump();
-  for (const json& w : call(http::verb::get, "/v1/workers").js()["workers"])
+  const json workers = call(http::verb::get, "/v1/workers").js();
+  ASSERT_FALSE(workers["workers"].empty());
+  for (const json& w : workers["workers"])
     EXPECT_EQ(w["state"], w["id"] == a ? "rendering" : "idle") << w.dump();
   r = call(http::verb::post, "/v1/leases/" + lease + "/heartbeat");  // a, with its own secret
   EXPECT_EQ(r.status, 200u) << r.body;
