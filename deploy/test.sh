@@ -75,7 +75,7 @@ ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:ha
 echo "== thread sanitizer build"
 finish_background_build build-tsan/build.log
 echo "== thread sanitizer tests"
-TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1 run_tests tsan build-tsan 177 -L 'server|worker|client|net'
+TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1 run_tests tsan build-tsan 196 -L 'server|worker|client|net'
 
 echo "== fuzzing (scene loader, OBJ reader, EXR reader, HTTP handler: 60 s each, all four at once)"
 FUZZ_PARALLEL=4 bash tests/fuzz/run.sh build-san 60
