@@ -57,6 +57,8 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
       ->check(CLI::Range(int64_t(1), int64_t(1) << 40))->capture_default_str();
   c->add_option("--max-job-pixels", o.limits.max_job_pixels, "Largest width x height of one job (400 above it)")
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 28))->capture_default_str();
+  c->add_option("--max-job-frames", o.limits.max_job_frames, "Most frames of one sequence (400 above it)")
+      ->check(CLI::Range(int64_t(1), int64_t(1) << 30))->capture_default_str();
   c->add_option("--max-job-samples", o.limits.max_job_samples, "Largest width x height x spp of one job (400 above it)")
       ->check(CLI::Range(1.0, 1e18))->capture_default_str();
   add_asset_limit_flags(c, o.limits.assets);

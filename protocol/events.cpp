@@ -24,6 +24,15 @@ void from_json(const json& j, TileEvent& e) {
   if (j.contains("error") && !j["error"].is_null()) e.error = answer_field<std::string>(j, "error", kMsg);
 }
 
+void to_json(json& j, const FrameEvent& e) { j = {{"job", e.job}, {"frame", e.frame}, {"frame_job", e.frame_job}}; }
+
+void from_json(const json& j, FrameEvent& e) {
+  constexpr const char* kMsg = "frame event";
+  e.job = answer_field<std::string>(j, "job", kMsg);
+  e.frame = answer_field<int64_t>(j, "frame", kMsg);
+  e.frame_job = answer_field<std::string>(j, "frame_job", kMsg);
+}
+
 void to_json(json& j, const WorkerEvent& e) { j = {{"reason", e.reason}, {"worker", e.worker}}; }
 
 void from_json(const json& j, WorkerEvent& e) {

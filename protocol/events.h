@@ -23,10 +23,11 @@ inline constexpr const char* kWorkerLost = "worker_lost";   ///< data: WorkerEve
 inline constexpr const char* kTileRequeued = "tile_requeued";    ///< An operator requeued a tile; data: TileEvent.
 inline constexpr const char* kJobRemoved = "job_removed";        ///< A job was purged; data: PurgeAnswer.
 inline constexpr const char* kWorkerChanged = "worker_changed";  ///< data: WorkerEvent (reason draining or undrained).
+inline constexpr const char* kFrameDone = "frame_done";          ///< A sequence's frame was written; data: FrameEvent.
 inline constexpr const char* kResync = "resync";            ///< Events were missed: reload the state; data: {}.
 /// Every event a stream can be limited to (`GET /v1/events?only=...`); resync is always sent.
 inline constexpr const char* kFilterable[] = {kJob, kTileLeased, kTileDone, kTileFailed, kWorkerSeen,
-                                              kWorkerLost, kTileRequeued, kJobRemoved, kWorkerChanged};
+                                              kWorkerLost, kTileRequeued, kJobRemoved, kWorkerChanged, kFrameDone};
 }  // namespace events
 
 /// What happened to one tile.
@@ -39,6 +40,15 @@ struct TileEvent {
 };
 void to_json(nlohmann::json& j, const TileEvent& e);
 void from_json(const nlohmann::json& j, TileEvent& e);
+
+/// A frame of a sequence whose result was written.
+struct FrameEvent {
+  std::string job;        ///< The sequence's id.
+  int64_t frame = 0;      ///< The frame's number.
+  std::string frame_job;  ///< The frame's own job id.
+};
+void to_json(nlohmann::json& j, const FrameEvent& e);
+void from_json(const nlohmann::json& j, FrameEvent& e);
 
 /// A worker that came or went.
 struct WorkerEvent {

@@ -30,6 +30,12 @@ void to_json(json& j, const JobStatus& s) {
        {"rays", s.rays},
        {"workers", s.workers},
        {"error", optional_json(s.error)}};
+  if (s.frames) {
+    j["frames"] = *s.frames;
+    j["frame_order"] = to_string(s.params.frame_order);
+  }
+  if (s.sequence) j["sequence"] = *s.sequence;
+  if (s.frame) j["frame"] = *s.frame;
 }
 
 void from_json(const json& j, JobStatus& s) {
@@ -67,6 +73,14 @@ void from_json(const json& j, JobStatus& s) {
   s.rays = answer_field_or<uint64_t>(j, "rays", kMsg, 0);
   s.workers = answer_field_or<std::vector<std::string>>(j, "workers", kMsg, {});
   s.render_seconds = answer_field_or<double>(j, "render_seconds", kMsg, 0);
+  if (j.contains("frames") && j["frames"].is_object()) s.frames = j["frames"].get<FrameCounts>();
+  try {
+    p.frame_order = frame_order_from_string(answer_field_or<std::string>(j, "frame_order", kMsg, "in_order"));
+  } catch (const std::invalid_argument& e) {
+    throw ProtocolError(std::string(kMsg) + ": " + e.what());
+  }
+  if (j.contains("sequence") && !j["sequence"].is_null()) s.sequence = answer_field<std::string>(j, "sequence", kMsg);
+  if (j.contains("frame") && !j["frame"].is_null()) s.frame = answer_field<int64_t>(j, "frame", kMsg);
 }
 
 }  // namespace tessera::protocol

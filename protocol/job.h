@@ -3,6 +3,7 @@
 
 #include "core/util/enum_names.h"
 #include "protocol/defaults.h"
+#include "protocol/sequence.h"
 
 #include <nlohmann/json_fwd.hpp>
 
@@ -43,6 +44,7 @@ struct JobParams {
   uint64_t seed = 0;                    ///< Sample seed.
   std::string scene_hash;               ///< The loader's content hash of scene and assets.
   int64_t tile_timeout_seconds = kDefaultTileTimeoutSeconds;  ///< A lease older than this (since grant) is revoked.
+  FrameOrder frame_order = FrameOrder::in_order;  ///< A sequence: the order its frames are leased in.
 };
 
 /// Tile counts of a job.
@@ -66,6 +68,11 @@ struct JobStatus {
   uint64_t rays = 0;                    ///< Rays reported by workers.
   std::vector<std::string> workers;     ///< Workers whose tiles were merged, in order of first merge.
   double render_seconds = 0;            ///< From the first lease to the end (or to the snapshot's time).
+  /// A sequence: its frames by state. Its tiles, rays and workers are its frames' together; its size is its first
+  /// frame's and it has no scene hash (each frame has its own).
+  std::optional<FrameCounts> frames;
+  std::optional<std::string> sequence;  ///< A frame of a sequence: the sequence's id.
+  std::optional<int64_t> frame;         ///< A frame of a sequence: its number.
   /// True for done, failed and cancelled.
   bool finished() const { return is_final(state); }
 };

@@ -2,6 +2,7 @@
 
 #include "protocol/tile.h"
 
+#include <algorithm>
 #include <charconv>
 
 #include "core/geometry/split_method.h"
@@ -102,16 +103,50 @@ SamplingSettings answer_sampling(const json& j, const char* msg) {
   return s;
 }
 
-std::map<std::string, std::string> request_assets(const json& j) {
+// The "assets" of a submission or of one of its frames (`where` prefixes the sentence: "" or "frames[3].").
+std::map<std::string, std::string> request_assets(const json& j, const std::string& where = "") {
   std::map<std::string, std::string> assets;
   if (!j.contains("assets")) return assets;
-  if (!j["assets"].is_object()) throw ProtocolError("'assets' must be an object mapping scene paths to SHA-256 hashes");
+  if (!j["assets"].is_object())
+    throw ProtocolError("'" + where + "assets' must be an object mapping scene paths to SHA-256 hashes");
   for (auto it = j["assets"].begin(); it != j["assets"].end(); ++it) {
     if (!it.value().is_string() || !is_sha256_hex(it.value().get<std::string>()))
-      throw ProtocolError("assets[\"" + it.key() + "\"] must be a lowercase hex SHA-256 (got " + it.value().dump() + ")");
+      throw ProtocolError(where + "assets[\"" + it.key() + "\"] must be a lowercase hex SHA-256 (got " +
+                          it.value().dump() + ")");
     assets.emplace(it.key(), it.value().get<std::string>());
   }
   return assets;
+}
+
+// The "frames" of a sequence's submission: objects {number, scene, assets?} with unique numbers, sorted by number.
+std::vector<FrameSubmission> request_frames(const json& f) {
+  if (!f.is_array() || f.empty())
+    throw ProtocolError("'frames' must be a non-empty array of {\"number\", \"scene\"} objects");
+  std::vector<FrameSubmission> frames;
+  frames.reserve(f.size());
+  for (size_t i = 0; i < f.size(); ++i) {
+    const std::string where = "frames[" + std::to_string(i) + "]";
+    const json& o = f[i];
+    if (!o.is_object()) throw ProtocolError("'" + where + "' must be an object {\"number\", \"scene\"}");
+    for (auto it = o.begin(); it != o.end(); ++it)
+      if (it.key() != "number" && it.key() != "scene" && it.key() != "assets")
+        throw ProtocolError("'" + where + "' has an unknown key '" + it.key() + "' (known: number, scene, assets)");
+    FrameSubmission fr;
+    if (!o.contains("number") || !o["number"].is_number_integer() || o["number"].get<int64_t>() < 0 ||
+        o["number"].get<int64_t>() > kMaxFrameNumber)
+      throw ProtocolError("'" + where + ".number' must be a frame number from 0 to " + std::to_string(kMaxFrameNumber));
+    fr.number = o["number"].get<int64_t>();
+    if (!o.contains("scene") || !o["scene"].is_object())
+      throw ProtocolError("'" + where + ".scene' (frame " + std::to_string(fr.number) + ") must be a JSON object");
+    fr.scene = o["scene"];
+    fr.assets = request_assets(o, where + ".");
+    frames.push_back(std::move(fr));
+  }
+  std::sort(frames.begin(), frames.end(), [](const auto& a, const auto& b) { return a.number < b.number; });
+  for (size_t i = 1; i < frames.size(); ++i)
+    if (frames[i].number == frames[i - 1].number)
+      throw ProtocolError("frame " + std::to_string(frames[i].number) + " appears twice in 'frames'");
+  return frames;
 }
 
 }  // namespace
@@ -169,7 +204,19 @@ void SamplingSettings::apply_to(RenderOptions& o) const {
 }
 
 void to_json(json& j, const JobSubmission& s) {
-  j = {{"scene", s.scene}, {"assets", s.assets}, {"tile_size", s.tile_size}, {"priority", s.priority}, {"name", s.name}};
+  j = {{"assets", s.assets}, {"tile_size", s.tile_size}, {"priority", s.priority}, {"name", s.name}};
+  if (s.frames.empty()) {
+    j["scene"] = s.scene;
+  } else {
+    json frames = json::array();
+    for (const FrameSubmission& f : s.frames) {
+      json o = {{"number", f.number}, {"scene", f.scene}};
+      if (!f.assets.empty()) o["assets"] = f.assets;
+      frames.push_back(std::move(o));
+    }
+    j["frames"] = std::move(frames);
+    if (s.frame_order != FrameOrder::in_order) j["frame_order"] = to_string(s.frame_order);
+  }
   if (s.tile_timeout_seconds != kDefaultTileTimeoutSeconds) j["tile_timeout_seconds"] = s.tile_timeout_seconds;
   put_sampling(j, s.sampling);
   if (s.resumable) j["resumable"] = true;
@@ -185,14 +232,28 @@ int request_priority(const json& j) {
 
 JobSubmission parse_job_submission(const std::string& body) {
   const json j = parse_request_object(
-      body, {"scene", "assets", "spp", "seed", "tile_size", "priority", "name", "integrator", "target_error", "min_spp",
-             "max_spp", "error_floor", "replicates", "area_sampling", "env_sampling", "bvh", "resumable",
-             "tile_timeout_seconds"},
+      body, {"scene", "assets", "frames", "frame_order", "spp", "seed", "tile_size", "priority", "name", "integrator",
+             "target_error", "min_spp", "max_spp", "error_floor", "replicates", "area_sampling", "env_sampling", "bvh",
+             "resumable", "tile_timeout_seconds"},
       false);
   JobSubmission s;
-  if (!j.contains("scene")) throw ProtocolError("'scene' is missing");
-  s.scene = j["scene"];
-  if (!s.scene.is_object()) throw ProtocolError(std::string("'scene' must be a JSON object, got ") + s.scene.type_name());
+  if (j.contains("frames")) {
+    if (j.contains("scene")) throw ProtocolError("a submission has either 'scene' (one image) or 'frames' (a sequence)");
+    s.frames = request_frames(j["frames"]);
+    if (j.contains("frame_order")) {
+      try {
+        s.frame_order = frame_order_from_string(request_string(j, "frame_order", ""));
+      } catch (const std::invalid_argument&) {
+        throw ProtocolError("'frame_order' must be \"in_order\" or \"any\" (got " + j["frame_order"].dump() + ")");
+      }
+    }
+  } else {
+    if (!j.contains("scene")) throw ProtocolError("'scene' is missing (or 'frames', for a sequence)");
+    if (j.contains("frame_order")) throw ProtocolError("'frame_order' applies only to a sequence ('frames')");
+    s.scene = j["scene"];
+    if (!s.scene.is_object())
+      throw ProtocolError(std::string("'scene' must be a JSON object, got ") + s.scene.type_name());
+  }
   s.assets = request_assets(j);
   s.tile_size = int(request_int(j, "tile_size", kDefaultTileSize, 1, 4096));
   s.priority = request_priority(j);
@@ -462,6 +523,16 @@ void from_json(const json& j, JobList& l) {
   l.jobs = answer_field<std::vector<JobStatus>>(j, "jobs", "job list");
   const std::string next = answer_field_or<std::string>(j, "next", "job list", "");
   if (!next.empty()) l.next = next;
+}
+
+void to_json(json& j, const FrameList& l) {
+  j = {{"frames", l.frames}, {"next", nullptr}};
+  if (l.next) j["next"] = *l.next;
+}
+
+void from_json(const json& j, FrameList& l) {
+  l.frames = answer_field<std::vector<JobStatus>>(j, "frames", "frame list");
+  if (j.contains("next") && !j["next"].is_null()) l.next = answer_field<int64_t>(j, "next", "frame list");
 }
 
 void to_json(json& j, const PurgeAnswer& a) { j = {{"id", a.id}, {"purged", true}, {"was", to_string(a.was)}}; }

@@ -48,10 +48,20 @@ struct SamplingSettings {
 /// The settings as the keys a submission and a spec carry them with (those at their defaults left out).
 void to_json(nlohmann::json& j, const SamplingSettings& s);
 
-/// Body of POST /v1/jobs.
+/// One frame of a sequence's submission: a full scene file of its own.
+struct FrameSubmission {
+  int64_t number = 0;                               ///< The frame's number (0 to kMaxFrameNumber, unique).
+  nlohmann::json scene = nlohmann::json::object();  ///< The frame's scene file's JSON.
+  /// Its asset paths -> SHA-256, when a path means another file than in the submission's "assets" (empty: those).
+  std::map<std::string, std::string> assets;
+};
+
+/// Body of POST /v1/jobs: one image (`scene`) or a sequence (`frames`, one scene each, sharing everything else).
 struct JobSubmission {
-  nlohmann::json scene = nlohmann::json::object();  ///< The scene file's JSON.
+  nlohmann::json scene = nlohmann::json::object();  ///< The scene file's JSON (empty for a sequence).
   std::map<std::string, std::string> assets;        ///< Asset path as written in the scene -> SHA-256.
+  std::vector<FrameSubmission> frames;              ///< A sequence's frames in number order; empty: one image.
+  FrameOrder frame_order = FrameOrder::in_order;    ///< The order a sequence's frames are leased in.
   SamplingSettings sampling;                        ///< How to sample.
   int tile_size = kDefaultTileSize;                 ///< Tile edge in pixels.
   int priority = kDefaultPriority;                  ///< Higher runs first.
@@ -295,6 +305,14 @@ struct JobList {
 };
 void to_json(nlohmann::json& j, const JobList& l);
 void from_json(const nlohmann::json& j, JobList& l);
+
+/// Answer of GET /v1/jobs/{id}/frames: one page of a sequence's frames, each a job of its own, in frame order.
+struct FrameList {
+  std::vector<JobStatus> frames;    ///< The frames' jobs (JobStatus::frame is the number), lowest number first.
+  std::optional<int64_t> next;      ///< The `after` of the next page (the last number here); null on the last page.
+};
+void to_json(nlohmann::json& j, const FrameList& l);
+void from_json(const nlohmann::json& j, FrameList& l);
 
 /// Answer of DELETE /v1/jobs/{id}?purge=true.
 struct PurgeAnswer {

@@ -210,7 +210,7 @@ TEST(Messages, SubmissionRefusesUnknownKeysAndBadSettings) {
     }
     return std::string("(accepted)");
   };
-  EXPECT_EQ(error_of(R"({"scene": {}, "spps": 4})").rfind("unknown key 'spps' (known keys: scene, assets, spp", 0), 0u);
+  EXPECT_EQ(error_of(R"({"scene": {}, "spps": 4})").rfind("unknown key 'spps' (known keys: scene, assets, frames, frame_order, spp", 0), 0u);
   EXPECT_EQ(error_of(R"({"scene": {}, "min_spp": 4})"), "'min_spp' and 'max_spp' apply only with 'target_error'");
   EXPECT_EQ(error_of(R"({"scene": {}, "bvh": "octree"})"), "'bvh' must be one of sah, median (got \"octree\")");
   EXPECT_EQ(error_of(R"({"scene": {}, "replicates": 99})"), "'replicates' must be an integer in 1..16 (got 99)");

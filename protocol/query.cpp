@@ -134,6 +134,31 @@ JobListQuery parse_job_list_query(std::string_view target) {
   return q;
 }
 
+FrameListQuery parse_frame_list_query(std::string_view target) {
+  const auto params = query_params(target, {"limit", "after"});
+  FrameListQuery q;
+  const auto number = [](const std::string& key, const std::string& v, int64_t lo, int64_t hi) {
+    int64_t n = 0;
+    const auto [ptr, ec] = std::from_chars(v.data(), v.data() + v.size(), n);
+    if (v.empty() || ec != std::errc() || ptr != v.data() + v.size() || n < lo || n > hi)
+      throw ProtocolError(key + ": '" + v + "' is not a whole number from " + std::to_string(lo) + " to " +
+                          std::to_string(hi));
+    return n;
+  };
+  if (const auto it = params.find("limit"); it != params.end())
+    q.limit = size_t(number("limit", it->second, 1, int64_t(kMaxJobListLimit)));
+  if (const auto it = params.find("after"); it != params.end())
+    q.after = number("after", it->second, -1, kMaxFrameNumber);
+  return q;
+}
+
+std::string FrameListQuery::to_query() const {
+  std::string q;
+  if (after) q += "?after=" + std::to_string(*after);
+  if (limit > 0) q += (q.empty() ? "?limit=" : "&limit=") + std::to_string(limit);
+  return q;
+}
+
 bool parse_purge_query(std::string_view target) {
   const auto params = query_params(target, {"purge"});
   const auto it = params.find("purge");

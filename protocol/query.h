@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <initializer_list>
 #include <map>
+#include <optional>
 #include <set>
 #include <string>
 #include <string_view>
@@ -27,11 +28,21 @@ struct JobListQuery {
   std::string to_query() const;
 };
 
+/// What a page of a sequence's frames asks for: GET /v1/jobs/{id}/frames?after=N&limit=M.
+struct FrameListQuery {
+  std::optional<int64_t> after;  ///< Only frames numbered above this.
+  size_t limit = 0;              ///< Most frames in one answer; 0: all.
+  /// The query string for a request target ("" when everything is at its default, else "?...").
+  std::string to_query() const;
+};
+
 /// The decoded key=value pairs of the target's query string (after '?'); throws ProtocolError for keys outside
 /// `known`, repeated keys and bad percent-escapes.
 std::map<std::string, std::string> query_params(std::string_view target, std::initializer_list<const char*> known);
 /// Parses the query of GET /v1/jobs; throws ProtocolError with the sentence answered (400).
 JobListQuery parse_job_list_query(std::string_view target);
+/// Parses the query of GET /v1/jobs/{id}/frames; throws ProtocolError with the sentence answered (400).
+FrameListQuery parse_frame_list_query(std::string_view target);
 /// Parses the query of DELETE /v1/jobs/{id}: true for purge=true; false for none or purge=false.
 bool parse_purge_query(std::string_view target);
 /// Parses the query of GET /v1/events (only=NAME[,NAME]: just those events, and resync); empty: every event.

@@ -47,6 +47,9 @@ const std::vector<RouteSpec>& route_table() {
       {Endpoint::job_tiles, "job_tiles", "/v1/jobs/{id}/tiles", R::tiles, {{"GET", A::client}}},
       {Endpoint::job_tile_requeue, "job_tile_requeue", "/v1/jobs/{id}/tiles/{n}/requeue", R::tiles,
        {{"POST", A::client, false, "requeue"}}},
+      // A sequence's frames (each a job of its own), a page at a time, and a frame's result by its number.
+      {Endpoint::job_frames, "job_frames", "/v1/jobs/{id}/frames", R::jobs, {{"GET", A::client}}},
+      {Endpoint::job_frame_result, "job_frame_result", "/v1/jobs/{id}/frames/{n}/result.exr", R::jobs, {{"GET", A::client}}},
       // GET lists the workers (a client's view); POST registers one.
       {Endpoint::workers, "workers", "/v1/workers", R::workers, {{"GET", A::client, false, "workers"}, {"POST", A::worker}}},
       {Endpoint::worker_drain, "worker_drain", "/v1/workers/{wid}/drain", R::workers, {{"POST", A::client, false, "drain"}}},

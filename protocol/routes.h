@@ -13,7 +13,7 @@ namespace tessera::protocol {
 /// The endpoints a request target can name.
 enum class Endpoint {
   none, healthz, metrics, blobs, blob, jobs, job, job_result, job_preview, job_spec, job_retry, job_pause, job_resume, job_tiles,
-  job_tile_requeue, workers, worker_drain, worker_undrain, worker_lease, lease_heartbeat, lease_result, lease_fail,
+  job_tile_requeue, job_frames, job_frame_result, workers, worker_drain, worker_undrain, worker_lease, lease_heartbeat, lease_result, lease_fail,
   lease_release, lease_state, events
 };
 
@@ -102,6 +102,10 @@ inline std::string job_resume(std::string_view id) { return path(Endpoint::job_r
 inline std::string job_tiles(std::string_view id) { return path(Endpoint::job_tiles, id); }
 inline std::string job_tile_requeue(std::string_view id, int64_t tile) {
   return path(Endpoint::job_tile_requeue, id, std::to_string(tile));
+}
+inline std::string job_frames(std::string_view id) { return path(Endpoint::job_frames, id); }
+inline std::string job_frame_result(std::string_view id, int64_t frame) {
+  return path(Endpoint::job_frame_result, id, std::to_string(frame));
 }
 inline std::string workers() { return path(Endpoint::workers); }
 inline std::string worker_drain(std::string_view worker) { return path(Endpoint::worker_drain, worker); }

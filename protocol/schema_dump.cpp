@@ -34,8 +34,18 @@ SamplingSettings full_sampling() {
 json sample_scene() { return {{"film", {{"resolution", {16, 16}}}}}; }
 
 JobSubmission full_submission() {
-  return {.scene = sample_scene(), .assets = {{"assets/floor.obj", kSha}}, .sampling = full_sampling(), .tile_size = 8,
+  return {.scene = sample_scene(), .assets = {{"assets/floor.obj", kSha}},
+          .frames = {}, .frame_order = FrameOrder::in_order, .sampling = full_sampling(), .tile_size = 8,
           .priority = 3, .name = "sample", .resumable = true, .tile_timeout_seconds = 60};
+}
+
+// A sequence's submission: "frames" (with a frame's own assets) and "frame_order" instead of "scene".
+JobSubmission full_sequence_submission() {
+  JobSubmission s = full_submission();
+  s.resumable = false;
+  s.frames = {{.number = 1, .scene = sample_scene(), .assets = {{"assets/floor.obj", kSha}}}};
+  s.frame_order = FrameOrder::any;
+  return s;
 }
 
 JobSpec full_spec() {
@@ -46,7 +56,7 @@ JobSpec full_spec() {
 JobStatus full_job() {
   return {.id = "j-1",
           .params = {.name = "sample", .priority = 3, .width = 16, .height = 16, .tile_size = 8, .spp = 4, .seed = 7,
-                     .scene_hash = "hash", .tile_timeout_seconds = 60},
+                     .scene_hash = "hash", .tile_timeout_seconds = 60, .frame_order = FrameOrder::any},
           .state = JobState::failed,
           .tiles = {.total = 4, .done = 1, .leased = 1, .pending = 2},
           .created_ms = 1000,
@@ -55,7 +65,11 @@ JobStatus full_job() {
           .error = "a tile failed on 3 workers",
           .rays = 123,
           .workers = {"w-1"},
-          .render_seconds = 1.5};
+          .render_seconds = 1.5,
+          .frames = FrameCounts{.total = 3, .queued = 1, .running = 1, .paused = 0, .done = 1, .failed = 0,
+                                .cancelled = 0, .first = 1, .last = 3},
+          .sequence = "j-0",
+          .frame = 2};
 }
 
 Lease full_lease() {
@@ -88,11 +102,14 @@ json dump() {
   json out = json::object();
   add(out, "Sampling", "SamplingSettings", kRequest, full_sampling(), SamplingSettings{});
   add(out, "JobSubmission", "JobSubmission", kRequest, full_submission(), JobSubmission{});
+  add(out, "JobSubmission", "JobSubmission (sequence)", kRequest, full_sequence_submission(), JobSubmission{});
+  add(out, "RetryRequest", "RetryRequest", kRequest, RetryRequest{{1, 2}}, RetryRequest{});
   add(out, "JobPatch", "JobPatch", kRequest, JobPatch{3, 8}, JobPatch{});
   add(out, "SubmitAnswer", "SubmitAnswer", kAnswer, SubmitAnswer{"j-1", {"a warning"}}, SubmitAnswer{});
   add(out, "JobSpec", "JobSpec", kAnswer, full_spec(), JobSpec{});
   add(out, "Job", "JobStatus", kAnswer, full_job(), JobStatus{});
   add(out, "JobList", "JobList", kAnswer, JobList{{full_job()}, "c1"}, JobList{});
+  add(out, "FrameList", "FrameList", kAnswer, FrameList{{full_job()}, 2}, FrameList{});
   add(out, "PurgeAnswer", "PurgeAnswer", kAnswer, PurgeAnswer{"j-1", JobState::cancelled}, PurgeAnswer{});
   add(out, "BlobQuery", "BlobQuery", kRequest, BlobQuery{{kSha}}, BlobQuery{});
   add(out, "BlobQueryAnswer", "BlobQueryAnswer", kAnswer, BlobQueryAnswer{{kSha}}, BlobQueryAnswer{});
@@ -119,6 +136,7 @@ json dump() {
   add(out, "Tile", "TileInfo", kAnswer, full_tile(), TileInfo{});
   add(out, "TileList", "TileList", kAnswer, TileList{"j-1", {full_tile()}}, TileList{});
   add(out, "TileEvent", "TileEvent", kAnswer, TileEvent{"j-1", 2, "w-1", "l-1", "it broke"}, TileEvent{});
+  add(out, "FrameEvent", "FrameEvent", kAnswer, FrameEvent{"j-1", 2, "j-1.f2"}, FrameEvent{});
   add(out, "WorkerEvent", "WorkerEvent", kAnswer, WorkerEvent{"registered", full_worker()}, WorkerEvent{});
   return out;
 }

@@ -95,17 +95,30 @@ void restore(FarmState& s, SchedulerSnapshot snap, int64_t now) {
   for (JobRow& row : snap.jobs) {
     auto rec = std::make_unique<JobRec>();
     const JobParams& p = row.status.params;
-    const TileGrid grid(p.width, p.height, p.tile_size);
+    // A sequence has no tiles of its own (its frames are jobs).
+    const int64_t tiles = row.status.frames ? 0 : TileGrid(p.width, p.height, p.tile_size).count();
     rec->status = std::move(row.status);
     rec->worker_set.insert(rec->status.workers.begin(), rec->status.workers.end());
-    rec->status.tiles = TileCounts{grid.count(), 0, 0, 0};
+    rec->status.tiles = TileCounts{tiles, 0, 0, 0};
     rec->seq = row.seq;
     rec->worker_failures = std::move(row.worker_failures);
     rec->worker_last_error = std::move(row.worker_last_error);
-    rec->tiles.resize(size_t(grid.count()));
+    rec->tiles.resize(size_t(tiles));
     const std::string id = rec->status.id;
     s.jobs.emplace(id, std::move(rec));
   }
+  // Each frame joins its sequence, in frame order (rows come in submission order, which is frame order).
+  for (auto& [id, j] : s.jobs) {
+    if (!j->status.sequence) continue;
+    JobRec* seq = s.find_job(*j->status.sequence);
+    if (!seq || !seq->is_sequence())
+      throw std::invalid_argument("stored job " + id + " is a frame of " + *j->status.sequence + ", which is no stored sequence");
+    j->sequence = seq;
+    seq->frames.push_back(j.get());
+  }
+  for (auto& [id, j] : s.jobs)
+    std::sort(j->frames.begin(), j->frames.end(),
+              [](const JobRec* a, const JobRec* b) { return *a->status.frame < *b->status.frame; });
   for (TileRow& row : snap.tiles) {
     JobRec* j = s.find_job(row.job);
     if (!j || row.index < 0 || row.index >= j->status.tiles.total)
@@ -159,7 +172,7 @@ void restore(FarmState& s, SchedulerSnapshot snap, int64_t now) {
       if (t.state == TileState::done) ++j->status.tiles.done;
       if (t.state == TileState::pending) j->pending.insert(j->pending.end(), i);
     }
-    if (!is_final(j->status.state)) s.enqueue(*j);
+    if (!is_final(j->status.state) && !j->is_sequence()) s.enqueue(*j);
   }
 }
 

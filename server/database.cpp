@@ -92,6 +92,11 @@ constexpr AddedColumn kAddedColumns[] = {
     {"jobs", "tile_timeout_s", "INTEGER NOT NULL DEFAULT 3600"},
     {"workers", "drained", "INTEGER NOT NULL DEFAULT 0"},
     {"workers", "secret_sha256", "TEXT NOT NULL DEFAULT ''"},
+    // Sequences: a sequence's row counts its frames; each frame's row names its sequence and number.
+    {"jobs", "frame_total", "INTEGER NOT NULL DEFAULT 0"},
+    {"jobs", "frame_order", "TEXT NOT NULL DEFAULT 'in_order'"},
+    {"jobs", "sequence", "TEXT NOT NULL DEFAULT ''"},
+    {"jobs", "frame", "INTEGER NOT NULL DEFAULT 0"},
 };
 
 }  // namespace
@@ -378,8 +383,9 @@ void DurableStore::apply_locked(const SchedulerChanges& c) {
     // The job's workers are rows of job_workers; the column keeps the list a database of an older build holds.
     Statement& st = db_.statement(
         "INSERT INTO jobs(id, seq, name, priority, width, height, tile_size, spp, seed, scene_hash, state, created_ms,"
-        " started_ms, finished_ms, error, rays, workers, worker_failures, worker_last_error, tile_timeout_s)"
-        " VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)"
+        " started_ms, finished_ms, error, rays, workers, worker_failures, worker_last_error, tile_timeout_s,"
+        " frame_total, frame_order, sequence, frame)"
+        " VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)"
         " ON CONFLICT(id) DO UPDATE SET priority = excluded.priority, spp = excluded.spp, state = excluded.state,"
         " started_ms = excluded.started_ms,"
         " finished_ms = excluded.finished_ms, error = excluded.error, rays = excluded.rays,"
@@ -391,6 +397,8 @@ void DurableStore::apply_locked(const SchedulerChanges& c) {
     if (s.error) st.bind_text(15, *s.error);
     st.bind(16, int64_t(s.rays)).bind_text(17, "[]").bind_text(18, json(r.worker_failures).dump());
     st.bind_text(19, map_json(r.worker_last_error).dump()).bind(20, p.tile_timeout_seconds);
+    st.bind(21, s.frames ? s.frames->total : 0).bind_text(22, to_string(p.frame_order));
+    st.bind_text(23, s.sequence.value_or("")).bind(24, s.frame.value_or(0));
     st.run();
   }
   for (const JobWorkerRow& r : c.job_workers)
@@ -490,7 +498,8 @@ SchedulerSnapshot DurableStore::load() {
   {
     Statement& st = db_.statement(
         "SELECT id, seq, name, priority, width, height, tile_size, spp, seed, scene_hash, state, created_ms, started_ms,"
-        " finished_ms, error, rays, workers, worker_failures, worker_last_error, tile_timeout_s FROM jobs ORDER BY seq");
+        " finished_ms, error, rays, workers, worker_failures, worker_last_error, tile_timeout_s, frame_total,"
+        " frame_order, sequence, frame FROM jobs ORDER BY seq");
     while (st.step()) {
       JobRow r;
       JobStatus& s = r.status;
@@ -522,6 +531,16 @@ SchedulerSnapshot DurableStore::load() {
       r.worker_failures = json_map<int>(st.text(17), "worker failures");
       r.worker_last_error = json_map<std::string>(st.text(18), "worker errors");
       s.params.tile_timeout_seconds = st.integer(19);
+      if (st.integer(20) > 0) s.frames = protocol::FrameCounts{.total = st.integer(20)};
+      try {
+        s.params.frame_order = protocol::frame_order_from_string(st.text(21));
+      } catch (const std::invalid_argument& e) {
+        throw StorageError("job " + s.id + ": " + e.what());
+      }
+      if (!st.text(22).empty()) {
+        s.sequence = st.text(22);
+        s.frame = st.integer(23);
+      }
       snap.jobs.push_back(std::move(r));
     }
   }
@@ -587,6 +606,16 @@ void DurableStore::save_record(const std::string& job, const json& record) {
   std::lock_guard lock(mu_);
   write_locked([&] {
     db_.statement("INSERT OR REPLACE INTO job_records(id, record) VALUES(?,?)").bind_text(1, job).bind_text(2, record.dump()).run();
+  });
+}
+
+void DurableStore::save_records(const std::vector<std::pair<std::string, json>>& records) {
+  std::lock_guard lock(mu_);
+  write_locked([&] {
+    Transaction tx(db_);
+    for (const auto& [job, record] : records)
+      db_.statement("INSERT OR REPLACE INTO job_records(id, record) VALUES(?,?)").bind_text(1, job).bind_text(2, record.dump()).run();
+    tx.commit();
   });
 }
 

@@ -20,6 +20,8 @@ void FarmEvents::job(const protocol::JobStatus& status) {
   bus_.publish(ev::kJob, dump(json(status)));
 }
 
+void FarmEvents::frame_done(const protocol::FrameEvent& event) { bus_.publish(ev::kFrameDone, dump(json(event))); }
+
 void FarmEvents::job_if_state_changed(const protocol::JobStatus& status) {
   std::lock_guard lock(mu_);
   const auto it = job_states_.find(status.id);

@@ -31,6 +31,8 @@ class FarmEvents {
   bool published(const std::string& job, protocol::JobState state);
   /// A tile event (protocol::events::kTileLeased, kTileDone or kTileFailed).
   void tile(const char* name, const protocol::TileEvent& event);
+  /// A sequence's frame was written (published after the frame's own job event).
+  void frame_done(const protocol::FrameEvent& event);
   /// An ended job's rows were deleted (purged on request or by the retention sweep).
   void job_removed(const protocol::PurgeAnswer& purged);
   /// A worker was drained or undrained by an operator.

@@ -14,10 +14,31 @@ std::optional<JobStatus> FarmQueries::job(const std::string& id, int64_t now) co
   return s_.snapshot(*it->second, now);
 }
 
+std::optional<FramePage> FarmQueries::frames(const std::string& id, std::optional<int64_t> after, size_t limit,
+                                             int64_t now) const {
+  const auto it = s_.jobs.find(id);
+  if (it == s_.jobs.end() || !it->second->is_sequence()) return std::nullopt;
+  const std::vector<JobRec*>& all = it->second->frames;
+  auto from = all.begin();
+  if (after)
+    from = std::upper_bound(all.begin(), all.end(), *after,
+                            [](int64_t v, const JobRec* f) { return v < *f->status.frame; });
+  FramePage page;
+  for (auto f = from; f != all.end(); ++f) {
+    if (limit > 0 && page.frames.size() == limit) {
+      page.more = true;
+      break;
+    }
+    page.frames.push_back(s_.snapshot(**f, now));
+  }
+  return page;
+}
+
 JobPage FarmQueries::jobs(const JobQuery& q, int64_t now) const {
   std::vector<const JobRec*> recs;
   for (const auto& [id, j] : s_.jobs)
-    if ((q.states.empty() || q.states.count(j->status.state)) && (!q.after || j->seq < *q.after)) recs.push_back(j.get());
+    if (!j->sequence && (!q.after || j->seq < *q.after) && (q.states.empty() || q.states.count(s_.state_of(*j))))
+      recs.push_back(j.get());
   std::sort(recs.begin(), recs.end(), [](const JobRec* a, const JobRec* b) { return a->seq > b->seq; });
   JobPage page;
   if (q.limit > 0 && recs.size() > q.limit) {
@@ -115,7 +136,8 @@ std::optional<protocol::WorkerInfo> FarmQueries::worker(const std::string& id, i
 SchedulerCounters FarmQueries::counters() const {
   SchedulerCounters c;
   for (JobState st : protocol::kAllJobStates) c.jobs[st] = 0;
-  for (const auto& [id, j] : s_.jobs) ++c.jobs[j->status.state];
+  for (const auto& [id, j] : s_.jobs)
+    if (!j->sequence) ++c.jobs[s_.state_of(*j)];  // a sequence counts as one job
   c.tiles_rendered = s_.tiles_rendered;
   c.lease_expiries = s_.lease_expiries;
   c.rays = s_.rays;

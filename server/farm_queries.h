@@ -23,7 +23,9 @@ class FarmQueries {
 
   /// A job's snapshot, or nothing for an unknown id.
   std::optional<JobStatus> job(const std::string& id, int64_t now) const;
-  /// The jobs a query asks for, newest first.
+  /// A page of a sequence's frames, or nothing for an unknown id or a job that is not a sequence.
+  std::optional<FramePage> frames(const std::string& id, std::optional<int64_t> after, size_t limit, int64_t now) const;
+  /// The jobs a query asks for, newest first (frames of sequences are not listed).
   JobPage jobs(const JobQuery& query, int64_t now) const;
   /// The submission number of a job, or nothing for an unknown id.
   std::optional<uint64_t> job_seq(const std::string& id) const;

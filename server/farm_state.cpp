@@ -29,7 +29,81 @@ JobRec* FarmState::find_job(const std::string& id) {
   return it == jobs.end() ? nullptr : it->second.get();
 }
 
+namespace {
+
+// A sequence's frame counts (with `total`, `first` and `last`) from its frames' states.
+protocol::FrameCounts count_frames(const JobRec& seq) {
+  protocol::FrameCounts c;
+  c.total = int64_t(seq.frames.size());
+  if (!seq.frames.empty()) {
+    c.first = *seq.frames.front()->status.frame;
+    c.last = *seq.frames.back()->status.frame;
+  }
+  for (const JobRec* f : seq.frames) {
+    switch (f->status.state) {
+      case JobState::queued: ++c.queued; break;
+      case JobState::running: ++c.running; break;
+      case JobState::paused: ++c.paused; break;
+      case JobState::done: ++c.done; break;
+      case JobState::failed: ++c.failed; break;
+      case JobState::cancelled: ++c.cancelled; break;
+    }
+  }
+  return c;
+}
+
+// A sequence's state from its frames': ended when every frame has (done if all are, else failed if one failed, else
+// cancelled); otherwise running once a frame started or ended, paused when its unended frames are all paused, or
+// queued.
+JobState sequence_state(const protocol::FrameCounts& c, bool started) {
+  const int64_t open = c.queued + c.running + c.paused;
+  if (open == 0) return c.done == c.total ? JobState::done : c.failed > 0 ? JobState::failed : JobState::cancelled;
+  if (c.paused == open) return JobState::paused;
+  return started ? JobState::running : JobState::queued;
+}
+
+}  // namespace
+
+JobState FarmState::state_of(const JobRec& j) const {
+  if (!j.is_sequence()) return j.status.state;
+  bool started = false;
+  for (const JobRec* f : j.frames) started = started || f->status.started_ms;
+  return sequence_state(count_frames(j), started);
+}
+
 JobStatus FarmState::snapshot(const JobRec& j, int64_t now) const {
+  if (j.is_sequence()) {
+    JobStatus s = j.status;
+    s.frames = count_frames(j);
+    s.tiles = {};
+    s.rays = 0;
+    s.workers.clear();
+    std::set<std::string> seen;
+    const JobRec* failed = nullptr;
+    bool ended = true;
+    for (const JobRec* f : j.frames) {
+      const JobStatus fs = snapshot(*f, now);
+      s.tiles.total += fs.tiles.total;
+      s.tiles.done += fs.tiles.done;
+      s.tiles.leased += fs.tiles.leased;
+      s.tiles.pending += fs.tiles.pending;
+      s.rays += fs.rays;
+      for (const std::string& w : fs.workers)
+        if (seen.insert(w).second) s.workers.push_back(w);
+      if (fs.started_ms && (!s.started_ms || *fs.started_ms < *s.started_ms)) s.started_ms = fs.started_ms;
+      ended = ended && fs.finished_ms;
+      if (fs.finished_ms && (!s.finished_ms || *fs.finished_ms > *s.finished_ms)) s.finished_ms = fs.finished_ms;
+      if (!failed && fs.state == JobState::failed) failed = f;
+    }
+    s.state = sequence_state(*s.frames, s.started_ms.has_value());
+    if (!ended || !is_final(s.state)) s.finished_ms.reset();
+    s.error.reset();
+    if (s.state == JobState::failed && failed)
+      s.error = std::to_string(s.frames->failed) + " of " + std::to_string(s.frames->total) + " frames failed; frame " +
+                std::to_string(*failed->status.frame) + ": " + failed->status.error.value_or("(no error)");
+    if (s.started_ms) s.render_seconds = double(s.finished_ms.value_or(now) - *s.started_ms) / 1000.0;
+    return s;
+  }
   JobStatus s = j.status;
   s.tiles.done -= j.unflushed;  // not durable yet: counted with the tiles in progress
   s.tiles.pending = int64_t(j.pending.size());

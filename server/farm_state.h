@@ -42,6 +42,12 @@ struct JobRec {
   std::map<std::string, std::string> worker_last_error;  ///< Worker -> the latest error it reported on this job.
   std::set<std::string> worker_set;                      ///< status.workers, for lookups.
   int64_t unflushed = 0;                                 ///< Tiles done but not yet flushed (TileRec::unflushed).
+  /// A sequence: its frames' jobs by frame number. A sequence has no tiles of its own and is never in the queue; its
+  /// state is derived from its frames' (FarmState::snapshot).
+  std::vector<JobRec*> frames;
+  JobRec* sequence = nullptr;                            ///< A frame of a sequence: the sequence.
+  /// True for a sequence.
+  bool is_sequence() const { return status.frames.has_value(); }
 };
 
 /// One lease as the scheduler keeps it.
@@ -85,8 +91,12 @@ struct FarmState {
   CounterRow counter_row() const { return CounterRow{next_seq, tiles_rendered, lease_expiries, rays}; }
   /// The job, or nullptr for an unknown id.
   JobRec* find_job(const std::string& id);
-  /// The job's snapshot at `now` (its tile counts derived from its tiles).
+  /// The job's snapshot at `now` (its tile counts derived from its tiles; a sequence's from its frames').
   JobStatus snapshot(const JobRec& j, int64_t now) const;
+  /// The state of a job: its own, or a sequence's as derived from its frames (see snapshot).
+  JobState state_of(const JobRec& j) const;
+  /// The job an operation on `j` ends at: a frame's sequence, or `j` itself.
+  static JobRec& top(JobRec& j) { return j.sequence ? *j.sequence : j; }
 
   /// Puts the job in the scheduling queue.
   void enqueue(JobRec& j) { queue.emplace(queue_key(j), &j); }

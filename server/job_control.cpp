@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <memory>
+#include <set>
 #include <stdexcept>
 
 namespace tessera::server {
@@ -63,24 +64,132 @@ std::string JobControl::add_job(const JobParams& p, const std::string& id_in, in
   return id;
 }
 
+std::string JobControl::add_sequence(const JobParams& p, const std::vector<FrameParams>& frames,
+                                     const std::string& id_in, int64_t now) {
+  if (frames.empty()) throw std::invalid_argument("a sequence needs at least one frame");
+  for (const FrameParams& f : frames) {
+    JobParams fp = p;
+    fp.width = f.width;
+    fp.height = f.height;
+    check_params(fp);
+  }
+  auto seq = std::make_unique<JobRec>();
+  seq->seq = s_.next_seq++;
+  seq->status.id = id_in.empty() ? s_.next_id('j') : id_in;
+  const std::string id = seq->status.id;
+  if (s_.jobs.count(id)) throw std::invalid_argument("job id " + id + " is already in use");
+  seq->status.params = p;
+  seq->status.params.width = frames.front().width;
+  seq->status.params.height = frames.front().height;
+  seq->status.params.scene_hash.clear();
+  seq->status.created_ms = now;
+  seq->status.frames = protocol::FrameCounts{};
+  JobRec& sq = *seq;
+  std::vector<std::string> added{id};
+  s_.jobs.emplace(id, std::move(seq));
+  try {
+    for (const FrameParams& f : frames) {
+      auto rec = std::make_unique<JobRec>();
+      rec->seq = s_.next_seq++;
+      rec->status.id = frame_job_id(id, f.number);
+      if (s_.jobs.count(rec->status.id)) throw std::invalid_argument("job id " + rec->status.id + " is already in use");
+      rec->status.params = p;
+      rec->status.params.width = f.width;
+      rec->status.params.height = f.height;
+      rec->status.params.scene_hash = f.scene_hash;
+      rec->status.created_ms = now;
+      rec->status.sequence = id;
+      rec->status.frame = f.number;
+      rec->sequence = &sq;
+      const int64_t tiles = TileGrid(f.width, f.height, p.tile_size).count();
+      rec->status.tiles.total = tiles;
+      rec->tiles.resize(size_t(tiles));
+      for (int64_t i = 0; i < tiles; ++i) {
+        rec->pending.insert(rec->pending.end(), i);
+        s_.touch(*rec, i);
+      }
+      s_.touch(*rec);
+      JobRec& j = *rec;
+      added.push_back(rec->status.id);
+      s_.jobs.emplace(rec->status.id, std::move(rec));
+      sq.frames.push_back(&j);
+      s_.enqueue(j);
+    }
+    s_.touch(sq);  // after its frames: its stored row counts them
+    s_.changes.need_sync();  // the client is told the job exists
+    s_.changes.flush(s_);  // as add_job: a sequence the store did not take must not exist
+  } catch (...) {
+    for (auto it = added.rbegin(); it != added.rend(); ++it) {
+      if (JobRec* j = s_.find_job(*it); j && j->sequence) s_.dequeue(*j);
+      s_.changes.withdraw_job(*it);
+      s_.jobs.erase(*it);
+    }
+    throw;
+  }
+  s_.work_appeared();
+  return id;
+}
+
 CancelResult JobControl::cancel(const std::string& job, int64_t now) {
   return with_job<CancelResult>(job, [&](JobRec& j, CancelResult& r) {
-    if (is_final(j.status.state)) {
+    if (is_final(s_.state_of(j))) {
       r.status = CancelResult::already_ended;
       return;
     }
-    r.revoked_leases = s_.finish_job(j, JobState::cancelled, now, std::nullopt);
+    if (j.is_sequence()) {
+      for (JobRec* f : j.frames)
+        if (!is_final(f->status.state)) r.revoked_leases += s_.finish_job(*f, JobState::cancelled, now, std::nullopt);
+      s_.touch(j);
+    } else {
+      r.revoked_leases = s_.finish_job(j, JobState::cancelled, now, std::nullopt);
+    }
     r.status = CancelResult::cancelled;
   });
 }
 
-RetryResult JobControl::retry(const std::string& job) {
+RetryResult JobControl::retry(const std::string& job, const std::vector<int64_t>& frames) {
   return with_job<RetryResult>(job, [&](JobRec& j, RetryResult& r) {
-    if (!require_ended(j, r)) return;
-    if (j.status.state == JobState::done) {
-      r.status = RetryResult::done;
+    if (!j.is_sequence()) {
+      if (!require_ended(j, r)) return;
+      if (j.status.state == JobState::done) {
+        r.status = RetryResult::done;
+        return;
+      }
+      retry_ended(j, r);
       return;
     }
+    r.was = s_.state_of(j);
+    std::vector<JobRec*> chosen;
+    if (frames.empty()) {
+      chosen = j.frames;
+    } else {
+      for (const int64_t n : frames) {
+        const auto it = std::lower_bound(j.frames.begin(), j.frames.end(), n,
+                                         [](const JobRec* f, int64_t v) { return *f->status.frame < v; });
+        if (it == j.frames.end() || *(*it)->status.frame != n) {
+          r.status = RetryResult::no_frame;
+          r.frame = n;
+          return;
+        }
+        chosen.push_back(*it);
+      }
+    }
+    bool all_done = true;
+    for (JobRec* f : chosen) {
+      all_done = all_done && f->status.state == JobState::done;
+      if (f->status.state == JobState::failed || f->status.state == JobState::cancelled) retry_ended(*f, r);
+    }
+    if (!r.jobs.empty()) {
+      s_.touch(j);
+      r.status = RetryResult::retried;
+    } else {
+      r.status = all_done ? RetryResult::done : RetryResult::not_ended;
+    }
+  });
+}
+
+void JobControl::retry_ended(JobRec& j, RetryResult& r) {
+  {
     // Leases were revoked when it ended, so its unfinished tiles are pending; only the bookkeeping of its failures
     // goes. It keeps its place in the queue (created_ms and seq).
     j.worker_failures.clear();
@@ -101,8 +210,9 @@ RetryResult JobControl::retry(const std::string& job) {
     s_.changes.need_sync();
     s_.touch(j);
     r.status = RetryResult::retried;
-    r.pending = int64_t(j.pending.size());
-  });
+    r.pending += int64_t(j.pending.size());
+    r.jobs.push_back(j.status.id);
+  }
 }
 
 RequeueResult JobControl::requeue(const std::string& job, int64_t tile) {
@@ -149,36 +259,49 @@ RequeueResult JobControl::requeue(const std::string& job, int64_t tile) {
   });
 }
 
+bool JobControl::pause_one(JobRec& j, bool paused) {
+  JobStatus& st = j.status;
+  const bool allowed =
+      paused ? st.state == JobState::queued || st.state == JobState::running : st.state == JobState::paused;
+  if (!allowed) return false;
+  // A paused job stays in the queue: acquire skips it while its live leases and uploads go on.
+  st.state = paused ? JobState::paused : st.started_ms ? JobState::running : JobState::queued;
+  if (!paused) s_.work_appeared();
+  s_.changes.need_sync();
+  s_.touch(j);
+  return true;
+}
+
 PauseResult JobControl::set_paused(const std::string& job, bool paused) {
   return with_job<PauseResult>(job, [&](JobRec& j, PauseResult& r) {
-    JobStatus& st = j.status;
-    r.was = st.state;
-    const bool allowed =
-        paused ? st.state == JobState::queued || st.state == JobState::running : st.state == JobState::paused;
-    if (!allowed) {
-      r.status = PauseResult::wrong_state;
-      return;
+    r.was = s_.state_of(j);
+    bool changed = false;
+    if (j.is_sequence()) {
+      for (JobRec* f : j.frames) changed = pause_one(*f, paused) || changed;
+      if (changed) s_.touch(j);
+    } else {
+      changed = pause_one(j, paused);
     }
-    // A paused job stays in the queue: acquire skips it while its live leases and uploads go on.
-    st.state = paused ? JobState::paused : st.started_ms ? JobState::running : JobState::queued;
-    if (!paused) s_.work_appeared();
-    s_.changes.need_sync();
-    s_.touch(j);
-    r.status = PauseResult::changed;
+    r.status = changed ? PauseResult::changed : PauseResult::wrong_state;
   });
 }
 
 PriorityResult JobControl::set_priority(const std::string& job, int priority) {
   return with_job<PriorityResult>(job, [&](JobRec& j, PriorityResult& r) {
-    r.was = j.status.state;
-    if (is_final(j.status.state)) {
+    r.was = s_.state_of(j);
+    if (is_final(r.was)) {
       r.status = PriorityResult::ended;
       return;
     }
-    // The queue is ordered by priority first: re-key the job.
-    s_.dequeue(j);
+    // The queue is ordered by priority first: re-key the job (a sequence's frames that have not ended).
+    for (JobRec* f : j.is_sequence() ? j.frames : std::vector<JobRec*>{&j}) {
+      if (is_final(f->status.state)) continue;
+      s_.dequeue(*f);
+      f->status.params.priority = priority;
+      s_.enqueue(*f);
+      s_.touch(*f);
+    }
     j.status.params.priority = priority;
-    s_.enqueue(j);
     s_.touch(j);
     r.status = PriorityResult::changed;
   });
@@ -218,23 +341,33 @@ RaiseResult JobControl::raise_spp(const std::string& job, uint32_t spp, int64_t 
 
 PurgeResult JobControl::purge(const std::string& job) {
   return with_job<PurgeResult>(job, [&](JobRec& j, PurgeResult& r) {
-    if (!require_ended(j, r)) return;
-    // An upload claimed before the job ended is still being stored (finish_result or abandon_result follow).
-    if (has_merging_tile(j)) {
-      r.status = PurgeResult::busy;
+    r.was = s_.state_of(j);
+    if (!is_final(r.was)) {
+      r.status = PurgeResult::not_ended;
       return;
     }
+    // The jobs that go: the job, or a sequence with its frames.
+    std::set<std::string> gone{job};
+    for (const JobRec* f : j.frames) gone.insert(f->status.id);
+    // An upload claimed before the job ended is still being stored (finish_result or abandon_result follow).
+    for (const std::string& id : gone)
+      if (has_merging_tile(*s_.jobs.at(id))) {
+        r.status = PurgeResult::busy;
+        return;
+      }
     // An ended job has no live lease (they were revoked when it ended) and is not in the queue.
     for (auto l = s_.leases.begin(); l != s_.leases.end();) {
-      if (l->second.lease.job == job) {
+      if (gone.count(l->second.lease.job)) {
         s_.changes.forget_lease(l->first);
         l = s_.leases.erase(l);
       } else {
         ++l;
       }
     }
-    s_.changes.purge_job(job);
-    s_.jobs.erase(job);  // j is gone with it
+    for (const std::string& id : gone) {
+      s_.changes.purge_job(id);
+      s_.jobs.erase(id);  // j is gone with the last of them
+    }
     s_.changes.need_sync();  // the client is told the job is gone
     r.status = PurgeResult::purged;
   });

@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace tessera::server {
 
@@ -21,11 +22,16 @@ class JobControl {
   static void check_params(const JobParams& params);
   /// Adds a queued job under `id` (empty: a fresh one) and returns the id.
   std::string add_job(const JobParams& params, const std::string& id, int64_t now);
-  /// Cancels a queued or running job.
+  /// Adds a queued sequence under `id` (empty: a fresh one) with one queued job per frame (frame_job_id), in frame
+  /// order, all in one change; returns the id.
+  std::string add_sequence(const JobParams& params, const std::vector<FrameParams>& frames, const std::string& id,
+                           int64_t now);
+  /// Cancels a queued or running job (a sequence: its frames that have not ended).
   CancelResult cancel(const std::string& job, int64_t now);
-  /// Puts a failed or cancelled job back in the queue.
-  RetryResult retry(const std::string& job);
-  /// Pauses (true) or resumes (false) a job.
+  /// Puts a failed or cancelled job back in the queue (a sequence: its failed or cancelled frames, those numbered in
+  /// `frames` when it is not empty).
+  RetryResult retry(const std::string& job, const std::vector<int64_t>& frames = {});
+  /// Pauses (true) or resumes (false) a job (a sequence: every frame that can be).
   PauseResult set_paused(const std::string& job, bool paused);
   /// Renders a tile of a job again.
   RequeueResult requeue(const std::string& job, int64_t tile);
@@ -33,7 +39,7 @@ class JobControl {
   PriorityResult set_priority(const std::string& job, int priority);
   /// Raises a job's spp.
   RaiseResult raise_spp(const std::string& job, uint32_t spp, int64_t now);
-  /// Forgets an ended job.
+  /// Forgets an ended job (a sequence: with its frames).
   PurgeResult purge(const std::string& job);
   /// Marks a job whose tiles are all merged done.
   void complete_job(const std::string& job, int64_t now);
@@ -51,6 +57,11 @@ class JobControl {
     if (JobRec* j = s_.find_job(job)) f(*j, r);
     return r;
   }
+
+  // Puts one failed or cancelled job back in the queue (it has ended and is not done).
+  void retry_ended(JobRec& j, RetryResult& r);
+  // One job's pause or resume; false when its state does not allow it.
+  bool pause_one(JobRec& j, bool paused);
 
   FarmState& s_;
 };

@@ -32,7 +32,10 @@ std::optional<std::string> refine_refusal(const protocol::JobStatus& status, con
 
 protocol::JobStatus JobService::raise_spp(const std::string& id, uint32_t spp) {
   std::lock_guard one_at_a_time(raise_mu_);
+  refuse_frame(id, "raise the spp of");
   const protocol::JobStatus before = status(id);
+  if (before.frames)
+    throw ApiError(409, "job " + id + " is a sequence: its spp cannot be raised (submit the frames again at the new spp)");
   protocol::JobSpec sp = spec(id);
   if (const auto why = refine_refusal(before, sp, spp)) throw ApiError(409, *why);
   check_samples(before.params.width, before.params.height, spp, false);

@@ -59,20 +59,22 @@ int64_t JobService::unfinished_jobs() {
   return n;
 }
 
-void JobService::check_assets(const protocol::JobSubmission& sub) {
-  for (const auto& [path, sha] : sub.assets) check_path(path, "assets[\"" + path + "\"]");
-  for (const std::string& path : scene_asset_paths(sub.scene)) check_path(path, "scene");
+void JobService::check_assets(const json& scene, const std::map<std::string, std::string>& assets,
+                              const std::string& where) {
+  for (const auto& [path, sha] : assets) check_path(path, where + "assets[\"" + path + "\"]");
+  const std::vector<std::string> used = scene_asset_paths(scene);
+  for (const std::string& path : used) check_path(path, where + "scene");
   // Every asset the scene uses must be named and uploaded; say which are not, all at once.
   std::string missing;
-  for (const std::string& path : scene_asset_paths(sub.scene)) {
-    const auto it = sub.assets.find(path);
+  for (const std::string& path : used) {
+    const auto it = assets.find(path);
     std::string why;
-    if (it == sub.assets.end()) why = "not in \"assets\"";
+    if (it == assets.end()) why = "not in \"assets\"";
     else if (!blobs_.has(it->second)) why = "not uploaded";
     else continue;
     missing += (missing.empty() ? "" : ", ") + path + " (" + why + ")";
   }
-  if (!missing.empty()) throw ApiError(400, "missing assets: " + missing);
+  if (!missing.empty()) throw ApiError(400, where + "missing assets: " + missing);
 }
 
 void JobService::check_samples(int width, int height, uint32_t per_pixel, bool adaptive) const {
@@ -85,6 +87,44 @@ void JobService::check_samples(int width, int height, uint32_t per_pixel, bool a
   throw ApiError(400, text);
 }
 
+JobService::CheckedScene JobService::check_scene(const json& scene, const std::map<std::string, std::string>& assets,
+                                                 const protocol::SamplingSettings& sampling, const std::string& where) {
+  check_assets(scene, assets, where);
+  TESSERA_FAIL_POINT("submit.validate");
+  // The scene is checked as `tessera render` loads it, but not built: workers build their own BVH, and on a 2M-triangle
+  // mesh the BVH was a quarter to a third of a whole load.
+  LoadOptions check = sampling.load_options();
+  check.build = false;
+  check.checked_files = &checked_blobs_;  // a blob's file only ever holds the bytes its name hashes to
+  check.asset_limits = limits_.assets;
+  LoadedScene loaded;
+  try {
+    loaded = load_scene_json(scene, "scene", [&](const std::string& rel, const std::string& jp) -> fs::path {
+      const auto it = assets.find(rel);
+      if (it == assets.end()) throw SceneError("scene: " + jp + ": asset '" + rel + "' is not in \"assets\"");
+      std::optional<fs::path> f = blobs_.file(it->second);
+      if (!f) throw SceneError("scene: " + jp + ": asset '" + rel + "' (" + it->second + ") is not uploaded");
+      return *f;
+    }, check);
+  } catch (const SceneError& e) {
+    throw ApiError(400, where + e.what());
+  }
+  const Scene& s = loaded.scene;
+  // Size limits: the merged image is held in memory, and width x height x spp bounds the work one job may ask for.
+  const uint64_t pixels = uint64_t(s.width) * uint64_t(s.height);
+  if (pixels > limits_.max_job_pixels)
+    throw ApiError(400, where + "job too large: " + std::to_string(s.width) + "x" + std::to_string(s.height) + " = " +
+                            std::to_string(pixels) + " pixels is over the limit of " +
+                            std::to_string(limits_.max_job_pixels) + " (--max-job-pixels)");
+  const bool adaptive = sampling.target_error > 0.0;
+  try {
+    check_samples(s.width, s.height, adaptive ? sampling.max_spp : s.settings.spp, adaptive);
+  } catch (const ApiError& e) {
+    throw ApiError(400, where + e.what());
+  }
+  return {s.width, s.height, s.settings.spp, s.hash, std::move(loaded.warnings)};
+}
+
 protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
   const auto queue_full = [&] {
     return ApiError(429, "too many unfinished jobs: " + std::to_string(limits_.max_queued_jobs) +
@@ -92,36 +132,8 @@ protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
   };
   // Admission: queued plus running jobs are bounded (checked again, atomically with add_job, below).
   if (unfinished_jobs() >= limits_.max_queued_jobs) throw queue_full();
-  check_assets(sub);
-
-  TESSERA_FAIL_POINT("submit.validate");
-  // The scene is checked as `tessera render` loads it, but not built: workers build their own BVH, and on a 2M-triangle
-  // mesh the BVH was a quarter to a third of a whole load.
-  LoadOptions check = sub.sampling.load_options();
-  check.build = false;
-  check.checked_files = &checked_blobs_;  // a blob's file only ever holds the bytes its name hashes to
-  check.asset_limits = limits_.assets;
-  LoadedScene loaded;
-  try {
-    loaded = load_scene_json(sub.scene, "scene", [&](const std::string& rel, const std::string& jp) -> fs::path {
-      const auto it = sub.assets.find(rel);
-      if (it == sub.assets.end()) throw SceneError("scene: " + jp + ": asset '" + rel + "' is not in \"assets\"");
-      std::optional<fs::path> f = blobs_.file(it->second);
-      if (!f) throw SceneError("scene: " + jp + ": asset '" + rel + "' (" + it->second + ") is not uploaded");
-      return *f;
-    }, check);
-  } catch (const SceneError& e) {
-    throw ApiError(400, e.what());
-  }
-  const Scene& s = loaded.scene;
-  // Size limits: the merged image is held in memory, and width x height x spp bounds the work one job may ask for.
-  const uint64_t pixels = uint64_t(s.width) * uint64_t(s.height);
-  if (pixels > limits_.max_job_pixels)
-    throw ApiError(400, "job too large: " + std::to_string(s.width) + "x" + std::to_string(s.height) + " = " +
-                            std::to_string(pixels) + " pixels is over the limit of " +
-                            std::to_string(limits_.max_job_pixels) + " (--max-job-pixels)");
-  const bool adaptive = sub.sampling.target_error > 0.0;
-  check_samples(s.width, s.height, adaptive ? sub.sampling.max_spp : s.settings.spp, adaptive);
+  if (!sub.frames.empty()) return submit_sequence(sub);
+  const CheckedScene s = check_scene(sub.scene, sub.assets, sub.sampling, "");
   JobParams p;
   p.name = sub.name;
   p.priority = sub.priority;
@@ -129,7 +141,7 @@ protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
   p.width = s.width;
   p.height = s.height;
   p.tile_size = sub.tile_size;
-  p.spp = s.settings.spp;
+  p.spp = s.spp;
   p.seed = sub.sampling.seed;
   p.scene_hash = s.hash;
 
@@ -137,7 +149,7 @@ protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
   spec.sampling.spp = p.spp;
   std::unique_lock admit(admit_mu_);
   if (unfinished_jobs() >= limits_.max_queued_jobs) throw queue_full();
-  check_assets(sub);  // again, now that no blob collection can run before the job is stored: none went meanwhile
+  check_assets(sub.scene, sub.assets, "");  // again, now that no blob collection can run before the job is stored
   const std::string id = sched_.new_job_id();
   // The record is the spec only: name, priority, size and times are the scheduler's (stored with the job's row).
   jobs_.save_record(id, spec);
@@ -149,9 +161,105 @@ protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
   admit.unlock();
   spdlog::info("job {}: submitted '{}' {}x{} spp {} seed {} tile {} priority {} ({} tiles)", id, p.name, p.width,
                p.height, p.spp, p.seed, p.tile_size, p.priority, TileGrid(p.width, p.height, p.tile_size).count());
-  for (const auto& w : loaded.warnings) spdlog::warn("job {}: {}", id, w);
+  for (const auto& w : s.warnings) spdlog::warn("job {}: {}", id, w);
   announce(id);
-  return {id, loaded.warnings};
+  return {id, s.warnings};
+}
+
+protocol::SubmitAnswer JobService::submit_sequence(const protocol::JobSubmission& sub) {
+  if (int64_t(sub.frames.size()) > limits_.max_job_frames)
+    throw ApiError(400, "sequence too long: " + std::to_string(sub.frames.size()) + " frames is over the limit of " +
+                            std::to_string(limits_.max_job_frames) + " (--max-job-frames)");
+  if (sub.resumable)
+    throw ApiError(400, "'resumable' applies to one-image jobs: a sequence's spp cannot be raised later");
+  const auto assets_of = [&](const protocol::FrameSubmission& f) -> const std::map<std::string, std::string>& {
+    return f.assets.empty() ? sub.assets : f.assets;
+  };
+  // Every frame is checked before anything is stored: a submission is all its frames or none.
+  std::vector<FrameParams> frames;
+  std::vector<std::pair<std::string, json>> records;  // filled once the id is known
+  std::vector<protocol::JobSpec> specs;
+  std::vector<std::string> warnings;
+  frames.reserve(sub.frames.size());
+  specs.reserve(sub.frames.size());
+  for (const protocol::FrameSubmission& f : sub.frames) {
+    const std::string where = "frame " + std::to_string(f.number) + ": ";
+    CheckedScene s = check_scene(f.scene, assets_of(f), sub.sampling, where);
+    frames.push_back({f.number, s.width, s.height, s.hash});
+    protocol::JobSpec spec{f.scene, assets_of(f), sub.sampling, s.width, s.height, sub.tile_size, false};
+    spec.sampling.spp = s.spp;
+    specs.push_back(std::move(spec));
+    for (std::string& w : s.warnings) warnings.push_back(where + w);
+  }
+  JobParams p;
+  p.name = sub.name;
+  p.priority = sub.priority;
+  p.tile_timeout_seconds = sub.tile_timeout_seconds;
+  p.tile_size = sub.tile_size;
+  p.spp = specs.front().sampling.spp;
+  p.seed = sub.sampling.seed;
+  p.frame_order = sub.frame_order;
+  const auto queue_full = [&] {
+    return ApiError(429, "too many unfinished jobs: " + std::to_string(limits_.max_queued_jobs) +
+                             " are queued, running or paused (--max-queued-jobs); retry later");
+  };
+  std::unique_lock admit(admit_mu_);
+  if (unfinished_jobs() >= limits_.max_queued_jobs) throw queue_full();
+  for (const protocol::FrameSubmission& f : sub.frames)  // again: no blob collection can run before it is stored
+    check_assets(f.scene, assets_of(f), "frame " + std::to_string(f.number) + ": ");
+  const std::string id = sched_.new_job_id();
+  records.reserve(frames.size());
+  for (size_t i = 0; i < frames.size(); ++i) records.emplace_back(frame_job_id(id, frames[i].number), json(specs[i]));
+  jobs_.save_records(records);
+  {
+    std::lock_guard lock(mu_);
+    for (size_t i = 0; i < frames.size(); ++i) cache_spec_locked(records[i].first, specs[i], true);
+  }
+  // The frames' spp: each frame's (its scene's, unless the submission set one).
+  try {
+    sched_.add_sequence(p, frames, id);
+  } catch (const std::invalid_argument& e) {
+    throw ApiError(400, e.what());
+  }
+  admit.unlock();
+  int64_t tiles = 0;
+  for (const FrameParams& f : frames) tiles += TileGrid(f.width, f.height, p.tile_size).count();
+  spdlog::info("job {}: submitted sequence '{}' of {} frames ({} to {}), {} tiles, spp {} seed {} tile {} priority {} "
+               "frame order {}", id, p.name, frames.size(), frames.front().number, frames.back().number, tiles, p.spp,
+               p.seed, p.tile_size, p.priority, to_string(p.frame_order));
+  for (const auto& w : warnings) spdlog::warn("job {}: {}", id, w);
+  announce(id);
+  return {id, warnings};
+}
+
+void JobService::refuse_frame(const std::string& id, const char* what) {
+  const protocol::JobStatus s = status(id);
+  if (!s.sequence) return;
+  throw ApiError(409, "job " + id + " is frame " + std::to_string(*s.frame) + " of sequence " + *s.sequence +
+                          ": " + what + " the sequence (a retry can name frames: {\"frames\": [" +
+                          std::to_string(*s.frame) + "]})");
+}
+
+protocol::FrameList JobService::frames(const std::string& id, const protocol::FrameListQuery& q) {
+  auto page = sched_.frames(id, q.after, q.limit);
+  if (!page) {
+    status(id);  // 404 for an unknown job
+    throw ApiError(409, "job " + id + " is not a sequence: it has no frames");
+  }
+  protocol::FrameList out{std::move(page->frames), std::nullopt};
+  if (page->more) out.next = *out.frames.back().frame;
+  return out;
+}
+
+std::string JobService::frame_job(const std::string& id, const std::string& frame) {
+  int64_t n = -1;
+  const auto [end, ec] = std::from_chars(frame.data(), frame.data() + frame.size(), n);
+  const protocol::JobStatus s = status(id);
+  if (!s.frames) throw ApiError(409, "job " + id + " is not a sequence: it has no frames");
+  if (ec != std::errc() || end != frame.data() + frame.size() || n < 0 || !sched_.job(frame_job_id(id, n)))
+    throw ApiError(404, "job " + id + " has no frame '" + frame + "' (its frames are numbered " +
+                            std::to_string(s.frames->first) + " to " + std::to_string(s.frames->last) + ")");
+  return frame_job_id(id, n);
 }
 
 protocol::JobStatus JobService::status(const std::string& id) {
@@ -184,34 +292,54 @@ protocol::JobList JobService::list(const protocol::JobListQuery& q) {
 }
 
 protocol::JobStatus JobService::cancel(const std::string& id) {
+  refuse_frame(id, "cancel");
   const CancelResult c = sched_.cancel(id);
   if (c.status == CancelResult::unknown) throw ApiError(404, "no job " + id);
   auto s = sched_.job(id);
   if (c.status == CancelResult::already_ended)
     throw ApiError(409, "job " + id + " already ended (" + to_string(s->state) + ")");
   drop_image(id);
+  if (const auto page = sched_.frames(id, std::nullopt, 0))
+    for (const protocol::JobStatus& f : page->frames) {
+      drop_image(f.id);
+      events_.job(f);
+    }
   spdlog::info("job {}: cancelled, {} lease(s) revoked", id, c.revoked_leases);
   events_.job(*s);
   return std::move(*s);
 }
 
-protocol::JobStatus JobService::retry(const std::string& id) {
-  const RetryResult r = sched_.retry(id);
+protocol::JobStatus JobService::retry(const std::string& id, const std::vector<int64_t>& frames) {
+  refuse_frame(id, "retry");
+  if (!frames.empty() && !status(id).frames)
+    throw ApiError(400, "job " + id + " is not a sequence: a retry of it names no frames");
+  const RetryResult r = sched_.retry(id, frames);
   switch (r.status) {
     case RetryResult::unknown: throw ApiError(404, "no job " + id);
+    case RetryResult::no_frame:
+      throw ApiError(404, "job " + id + " has no frame " + std::to_string(r.frame));
     case RetryResult::not_ended:
+      if (status(id).frames)
+        throw ApiError(409, "job " + id + " is " + to_string(r.was) + ": none of " +
+                                (frames.empty() ? std::string("its frames") : "the chosen frames") +
+                                " failed or was cancelled");
       throw ApiError(409, "job " + id + " is " + to_string(r.was) + ": only failed or cancelled jobs can be retried");
     case RetryResult::done: throw ApiError(409, "job " + id + " is done: only failed or cancelled jobs can be retried");
     case RetryResult::retried: break;
   }
-  spdlog::info("job {}: retried after it was {}; {} tile(s) to render, done tiles kept", id, to_string(r.was),
-               r.pending);
+  spdlog::info("job {}: retried after it was {}; {} tile(s) to render, done tiles kept{}", id, to_string(r.was),
+               r.pending, r.jobs.size() > 1 || r.jobs.front() != id ? " (" + std::to_string(r.jobs.size()) + " frames)" : "");
+  for (const std::string& job : r.jobs) {
+    if (job != id) announce(job);
+    const auto j = sched_.job(job);
+    if (j && j->tiles.pending == 0 && !j->tiles.leased) finalize(job);  // every tile was done: only the result is missing
+  }
   announce(id);
-  if (r.pending == 0 && !sched_.job(id)->tiles.leased) finalize(id);  // every tile was done: only the result is missing
   return status(id);
 }
 
 protocol::JobStatus JobService::pause(const std::string& id) {
+  refuse_frame(id, "pause");
   const PauseResult r = sched_.pause(id);
   if (r.status == PauseResult::unknown) throw ApiError(404, "no job " + id);
   if (r.status == PauseResult::wrong_state)
@@ -221,6 +349,7 @@ protocol::JobStatus JobService::pause(const std::string& id) {
 }
 
 protocol::JobStatus JobService::resume(const std::string& id) {
+  refuse_frame(id, "resume");
   const PauseResult r = sched_.resume(id);
   if (r.status == PauseResult::unknown) throw ApiError(404, "no job " + id);
   if (r.status == PauseResult::wrong_state)
@@ -230,6 +359,7 @@ protocol::JobStatus JobService::resume(const std::string& id) {
 }
 
 protocol::JobStatus JobService::set_priority(const std::string& id, int priority) {
+  refuse_frame(id, "change the priority of");
   const PriorityResult r = sched_.set_priority(id, priority);
   if (r.status == PriorityResult::unknown) throw ApiError(404, "no job " + id);
   if (r.status == PriorityResult::ended)
@@ -274,12 +404,24 @@ void JobService::cache_spec_locked(const std::string& id, const protocol::JobSpe
 
 std::filesystem::path JobService::result_exr(const std::string& id) {
   const protocol::JobStatus s = status(id);
+  if (s.frames)
+    throw ApiError(409, "job " + id + " is a sequence: each frame has its own result (GET " +
+                            protocol::routes::job_frame_result(id, s.frames->first) + ")");
   if (s.state != JobState::done) throw ApiError(409, "job " + id + " is " + to_string(s.state) + ", not done");
   return jobs_.result_path(id);
 }
 
 std::vector<uint8_t> JobService::preview_png(const std::string& id) {
-  const protocol::JobStatus s = status(id);
+  protocol::JobStatus s = status(id);
+  if (s.frames) {
+    // A sequence shows its latest frame with pixels: the last done one, else the first started, else the first.
+    const FramePage page = *sched_.frames(id, std::nullopt, 0);
+    const protocol::JobStatus* shown = &page.frames.front();
+    for (const protocol::JobStatus& f : page.frames)
+      if (f.state == JobState::done || (shown->state != JobState::done && f.started_ms && !shown->started_ms))
+        shown = &f;
+    return preview_png(shown->id);
+  }
   const int width = s.params.width, height = s.params.height;
   // The version of the pixels a preview shows: a job's image in memory changes its generation with every tile pasted;
   // a done job's result changes only when a raised spp is done (failed and cancelled jobs show black).
@@ -336,6 +478,8 @@ void JobService::after_failure(const ResultClaim& tile, const std::string& error
 protocol::JobStatus JobService::announce(const std::string& job) {
   protocol::JobStatus s = status(job);
   events_.job(s);
+  if (s.sequence)  // a frame's change is its sequence's too
+    if (const auto seq = sched_.job(*s.sequence)) events_.job(*seq);
   return s;
 }
 
@@ -426,10 +570,16 @@ void JobService::record_failure(const std::string& lease, const protocol::FailRe
 protocol::TileList JobService::tiles(const std::string& id) {
   auto t = sched_.tiles(id);
   if (!t) throw ApiError(404, "no job " + id);
+  if (const auto s = sched_.job(id); s && s->frames)
+    throw ApiError(409, "job " + id + " is a sequence: its tiles are its frames' (GET " + protocol::routes::job_frames(id) +
+                            " lists the frames' jobs)");
   return std::move(*t);
 }
 
 protocol::TileInfo JobService::requeue_tile(const std::string& id, const std::string& tile) {
+  if (const auto s = sched_.job(id); s && s->frames)
+    throw ApiError(409, "job " + id + " is a sequence: its tiles are its frames' (requeue a tile of a frame's job, e.g. " +
+                            frame_job_id(id, s->frames->first) + ")");
   int64_t n = -1;
   const auto [end, ec] = std::from_chars(tile.data(), tile.data() + tile.size(), n);
   if (ec != std::errc() || end != tile.data() + tile.size()) n = -1;
@@ -483,6 +633,11 @@ bool JobService::write_waiting_results() {
 }
 
 protocol::JobState JobService::purge(const std::string& id) {
+  refuse_frame(id, "purge");
+  // A sequence's frames go with it (their ids, gathered before the scheduler forgets them).
+  std::vector<std::string> gone{id};
+  if (const auto page = sched_.frames(id, std::nullopt, 0))
+    for (const protocol::JobStatus& f : page->frames) gone.push_back(f.id);
   const PurgeResult r = sched_.purge(id);
   switch (r.status) {
     case PurgeResult::unknown: throw ApiError(404, "no job " + id);
@@ -494,15 +649,17 @@ protocol::JobState JobService::purge(const std::string& id) {
                               "purge it again in a moment");
     case PurgeResult::purged: break;
   }
-  {
-    std::lock_guard lock(mu_);
-    images_.erase(id);
-    specs_.erase(id);
-    spec_json_.erase(id);
+  for (const std::string& job : gone) {
+    {
+      std::lock_guard lock(mu_);
+      images_.erase(job);
+      specs_.erase(job);
+      spec_json_.erase(job);
+    }
+    previews_.erase(job);
+    // The rows are gone (a restart deletes the file if this fails: see recover).
+    jobs_.remove_outputs(job);
   }
-  previews_.erase(id);
-  // The rows are gone (a restart deletes the file if this fails: see recover).
-  jobs_.remove_outputs(id);
   spdlog::info("job {}: purged (was {})", id, to_string(r.was));
   events_.job_removed({id, r.was});
   return r.was;
@@ -510,11 +667,19 @@ protocol::JobState JobService::purge(const std::string& id) {
 
 std::set<std::string> JobService::referenced_blobs() {
   std::set<std::string> out;
-  for (const protocol::JobStatus& s : sched_.jobs()) {
-    try {
-      for (const auto& [path, sha] : spec(s.id).assets) out.insert(sha);
-    } catch (const ApiError&) {
-      if (sched_.job(s.id)) throw;  // a job without a readable spec: collect nothing rather than its blobs
+  for (const protocol::JobStatus& top : sched_.jobs()) {
+    std::vector<std::string> ids{top.id};  // a sequence's specs are its frames'
+    if (top.frames)
+      if (const auto page = sched_.frames(top.id, std::nullopt, 0)) {
+        ids.clear();
+        for (const protocol::JobStatus& f : page->frames) ids.push_back(f.id);
+      }
+    for (const std::string& id : ids) {
+      try {
+        for (const auto& [path, sha] : spec(id).assets) out.insert(sha);
+      } catch (const ApiError&) {
+        if (sched_.job(id)) throw;  // a job without a readable spec: collect nothing rather than its blobs
+      }
     }
   }
   return out;
@@ -549,6 +714,10 @@ void JobService::finalize(const std::string& job) {
       {"tessera:startedMs", std::to_string(s->started_ms.value_or(0))},
       {"tessera:finishedMs", std::to_string(now)},
       {"tessera:renderSeconds", std::to_string(double(now - s->started_ms.value_or(now)) / 1000.0)}});
+  if (s->sequence) {
+    meta["tessera:sequence"] = *s->sequence;
+    meta["tessera:frame"] = std::to_string(*s->frame);
+  }
   try {
     std::map<std::string, std::vector<uint32_t>> state;  // a resumable job's result can be refined like its tiles
     if (resumable)
@@ -581,7 +750,8 @@ void JobService::finalize(const std::string& job) {
     disk_.note_full(e.what());
   }
   drop_image(job);
-  announce(job);
+  const protocol::JobStatus done = announce(job);
+  if (done.sequence) events_.frame_done({*done.sequence, *done.frame, job});
   spdlog::info("job {}: done, result written in {:.3f}s", job,
                std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
 }

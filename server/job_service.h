@@ -39,6 +39,7 @@ struct AdmissionLimits {
   uint64_t max_job_pixels = uint64_t(1) << 26;   ///< width x height of one job (the merged image lives in memory).
   double max_job_samples = 4e10;                 ///< width x height x spp (x max_spp when adaptive) of one job.
   AssetLimits assets;  ///< Each image texture's and mesh's size, checked from its header (or count) at submission.
+  int64_t max_job_frames = protocol::kDefaultMaxJobFrames;  ///< Frames of one sequence.
 };
 
 /// How an upload was settled (its name is the result answer's "status").
@@ -60,9 +61,15 @@ class JobService {
   JobService(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock,
              AdmissionLimits limits, FarmEvents& events, DiskSpace& disk, Background background = {});
 
-  /// Checks the submission (asset paths, uploaded assets, the scene as `tessera render` loads it, size limits),
-  /// stores its spec and queues it. Throws ApiError: 400 for bad input, 429 when the queue is full.
+  /// Checks the submission (asset paths, uploaded assets, the scene as `tessera render` loads it, size limits; every
+  /// frame of a sequence, whose sentence then names the frame), stores its spec (each frame's) and queues it, all or
+  /// nothing. Throws ApiError: 400 for bad input, 429 when the queue is full.
   protocol::SubmitAnswer submit(const protocol::JobSubmission& submission);
+  /// A page of a sequence's frames (docs/protocol.md, "Sequences"); ApiError 404 unknown, 409 not a sequence.
+  protocol::FrameList frames(const std::string& id, const protocol::FrameListQuery& query);
+  /// The job of frame `frame` (its number as in the URL) of a sequence; ApiError 404 unknown job or frame, 409 not a
+  /// sequence.
+  std::string frame_job(const std::string& id, const std::string& frame);
   /// A job's snapshot; ApiError 404 for unknown ids.
   protocol::JobStatus status(const std::string& id);
   /// Every job, newest first.
@@ -72,9 +79,11 @@ class JobService {
   protocol::JobList list(const protocol::JobListQuery& query);
   /// Cancels a queued or running job; ApiError 404 unknown, 409 already ended.
   protocol::JobStatus cancel(const std::string& id);
-  /// Puts a failed or cancelled job back in the queue; only its tiles that are not done are rendered again. ApiError
-  /// 404 unknown, 409 for queued, running and done jobs.
-  protocol::JobStatus retry(const std::string& id);
+  /// Puts a failed or cancelled job back in the queue; only its tiles that are not done are rendered again. A
+  /// sequence retries its failed and cancelled frames (those numbered in `frames`, when given). ApiError 404 unknown
+  /// job or frame, 409 for queued, running and done jobs (a sequence: when no chosen frame failed or was cancelled),
+  /// 400 frames given for a job that is not a sequence.
+  protocol::JobStatus retry(const std::string& id, const std::vector<int64_t>& frames = {});
   /// Pauses a queued or running job (no new leases; running tiles finish). ApiError 404 unknown, 409 other states.
   protocol::JobStatus pause(const std::string& id);
   /// Resumes a paused job. ApiError 404 unknown, 409 a job that is not paused.
@@ -134,8 +143,24 @@ class JobService {
   const AdmissionLimits& limits() const { return limits_; }
 
  private:
+  // What checking one scene found: the image it makes, its spp and hash, and what the loader had to say.
+  struct CheckedScene {
+    int width = 0;
+    int height = 0;
+    uint32_t spp = 0;
+    std::string hash;
+    std::vector<std::string> warnings;
+  };
   int64_t unfinished_jobs();
-  void check_assets(const protocol::JobSubmission& submission);
+  // Throws ApiError 400 (its sentence starting with `where`: "" or "frame N: ") for bad or missing assets.
+  void check_assets(const nlohmann::json& scene, const std::map<std::string, std::string>& assets,
+                    const std::string& where);
+  // Checks a scene as `tessera render` loads it (not built) and the job's size limits for it.
+  CheckedScene check_scene(const nlohmann::json& scene, const std::map<std::string, std::string>& assets,
+                           const protocol::SamplingSettings& sampling, const std::string& where);
+  protocol::SubmitAnswer submit_sequence(const protocol::JobSubmission& submission);
+  // ApiError 409 when `id` is a frame of a sequence: `what` (pause, cancel...) acts on the whole sequence.
+  void refuse_frame(const std::string& id, const char* what);
   /// The sampling settings of a resumable job; nothing for other jobs.
   std::optional<protocol::SamplingSettings> resumable_sampling(const std::string& job);
   /// ApiError 400 when width x height x per_pixel samples are over the limit.

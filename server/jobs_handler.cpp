@@ -38,8 +38,9 @@ HttpResponse JobsHandler::handle(const protocol::RouteMatch& route, HttpRequest&
     }
     case Endpoint::job_spec: return bytes_response(jobs_.spec_json(id), "application/json", v);
     case Endpoint::job_retry:
-      protocol::parse_empty_request(req.body());
-      return json_response(http::status::ok, jobs_.retry(id), v);
+      return json_response(http::status::ok, jobs_.retry(id, protocol::parse_retry_request(req.body()).frames), v);
+    case Endpoint::job_frames:
+      return json_response(http::status::ok, jobs_.frames(id, protocol::parse_frame_list_query(req.target())), v);
     case Endpoint::job_pause:
       protocol::parse_empty_request(req.body());
       return json_response(http::status::ok, jobs_.pause(id), v);
@@ -52,9 +53,12 @@ HttpResponse JobsHandler::handle(const protocol::RouteMatch& route, HttpRequest&
 }
 
 std::optional<HttpReply> JobsHandler::stream(const protocol::RouteMatch& route, HttpRequest& req) {
-  if (route.endpoint() != Endpoint::job_result) return std::nullopt;
-  std::optional<HttpReply> r = file_reply(jobs_.result_exr(route.param), "image/x-exr", req.version());
-  if (!r) throw protocol::ApiError(404, "job " + route.param + " has no stored result");
+  if (route.endpoint() != Endpoint::job_result && route.endpoint() != Endpoint::job_frame_result) return std::nullopt;
+  // A frame's result is its own job's.
+  const std::string job =
+      route.endpoint() == Endpoint::job_result ? route.param : jobs_.frame_job(route.param, route.param2);
+  std::optional<HttpReply> r = file_reply(jobs_.result_exr(job), "image/x-exr", req.version());
+  if (!r) throw protocol::ApiError(404, "job " + job + " has no stored result");
   return r;
 }
 

@@ -51,12 +51,26 @@ AcquireResult LeaseFlow::acquire(const std::string& worker, int64_t now) {
     return r;
   }
   std::vector<JobRec*> stuck;  // jobs this worker may not take: fail them if no present worker may
+  JobRec* chosen = nullptr;
+  JobRec* shared = nullptr;  // the first frame, leased in any order, that another worker is on
   for (auto& [key, j] : s_.queue) {
     if (j->pending.empty() || j->status.state == JobState::paused) continue;
     if (s_.blocklisted(*j, worker)) {
       stuck.push_back(j);
       continue;
     }
+    // A sequence leased in any order keeps each worker on a frame of its own (each scene is loaded by one worker),
+    // and shares a frame only when no other is left.
+    if (j->sequence && j->status.params.frame_order == protocol::FrameOrder::any &&
+        j->pending.size() != j->tiles.size() && w->last_job != j->status.id) {
+      if (!shared) shared = j;
+      continue;
+    }
+    chosen = j;
+    break;
+  }
+  if (!chosen) chosen = shared;
+  if (JobRec* j = chosen) {
     const int64_t tile = *j->pending.begin();
     j->pending.erase(j->pending.begin());
     const JobParams& p = j->status.params;
@@ -88,7 +102,7 @@ AcquireResult LeaseFlow::acquire(const std::string& worker, int64_t now) {
     r.lease = rec.lease;
     r.job_state = j->status.state;
     s_.leases.emplace(rec.lease.id, std::move(rec));
-    break;
+    s_.workers.find(worker)->last_job = j->status.id;
   }
   for (JobRec* j : stuck) s_.fail_if_all_blocklisted(*j, now);  // after the loop: this erases from the queue
   if (r.status != AcquireResult::granted) r.status = AcquireResult::no_work;

@@ -84,7 +84,11 @@ std::optional<HttpResponse> LeasesHandler::try_lease(const std::string& worker, 
   spdlog::debug("job {} tile {} worker {}: leased as {}", l.job, l.tile, l.worker, l.id);
   // queued -> running at the first lease (the snapshot, which lists the job's workers, only then)
   if (!events_.published(l.job, r.job_state))
-    if (const auto s = sched_.job(l.job)) events_.job_if_state_changed(*s);
+    if (const auto s = sched_.job(l.job)) {
+      events_.job_if_state_changed(*s);
+      if (s->sequence)  // a frame's first lease may start its sequence
+        if (const auto seq = sched_.job(*s->sequence)) events_.job_if_state_changed(*seq);
+    }
   events_.tile(protocol::events::kTileLeased, {l.job, l.tile, l.worker, l.id, std::nullopt});
   // The spec of a job the worker does not hold comes with the lease, saving it a GET of the spec per job.
   std::optional<std::string> spec;

@@ -87,6 +87,25 @@ std::string Scheduler::add_job(const JobParams& params, const std::string& id) {
   return transact([&](int64_t now) { return control_.add_job(params, id, now); });
 }
 
+std::string Scheduler::add_sequence(const JobParams& params, const std::vector<FrameParams>& frames,
+                                    const std::string& id) {
+  for (const FrameParams& f : frames) {
+    JobParams p = params;
+    p.width = f.width;
+    p.height = f.height;
+    try {
+      JobControl::check_params(p);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument("frame " + std::to_string(f.number) + ": " + e.what());
+    }
+  }
+  return transact([&](int64_t now) { return control_.add_sequence(params, frames, id, now); });
+}
+
+std::optional<FramePage> Scheduler::frames(const std::string& id, std::optional<int64_t> after, size_t limit) {
+  return transact([&](int64_t now) { return views_.frames(id, after, limit, now); }, Store::if_it_can);
+}
+
 std::optional<JobStatus> Scheduler::job(const std::string& id) {
   return transact([&](int64_t now) { return views_.job(id, now); }, Store::if_it_can);
 }
@@ -213,8 +232,8 @@ CancelResult Scheduler::cancel(const std::string& job) {
   return transact([&](int64_t now) { return control_.cancel(job, now); });
 }
 
-RetryResult Scheduler::retry(const std::string& job) {
-  return transact([&](int64_t) { return control_.retry(job); });
+RetryResult Scheduler::retry(const std::string& job, const std::vector<int64_t>& frames) {
+  return transact([&](int64_t) { return control_.retry(job, frames); });
 }
 
 PauseResult Scheduler::pause(const std::string& job) {

@@ -53,9 +53,15 @@ class Scheduler {
   /// Adds a queued job under `id` (empty: a fresh one) and returns the id; throws std::invalid_argument for bad
   /// sizes or an id already in use, and what the store throws (the job is then not added).
   std::string add_job(const JobParams& params, const std::string& id = "");
+  /// Adds a queued sequence under `id` (empty: a fresh one) with a job per frame (frame_job_id), in frame order, in
+  /// one change, and returns the id; throws as add_job (a frame's bad size names the frame).
+  std::string add_sequence(const JobParams& params, const std::vector<FrameParams>& frames, const std::string& id = "");
+  /// A page of a sequence's frames numbered above `after` (all: nothing), at most `limit` (0: all); nothing for an
+  /// unknown id or a job that is not a sequence.
+  std::optional<FramePage> frames(const std::string& id, std::optional<int64_t> after, size_t limit);
   /// A job's snapshot, or nothing for an unknown id.
   std::optional<JobStatus> job(const std::string& id);
-  /// All jobs, newest first.
+  /// All jobs, newest first (a sequence as one job: its frames are not listed).
   std::vector<JobStatus> jobs();
   /// The jobs a query asks for, newest first.
   JobPage jobs(const JobQuery& query);
@@ -119,7 +125,7 @@ class Scheduler {
   CancelResult cancel(const std::string& job);
   /// Puts a failed or cancelled job back in the queue keeping its done tiles; its failure counts, blocklists and
   /// error are cleared. A job whose every tile is done becomes running with nothing to lease (see unfinalized_jobs).
-  RetryResult retry(const std::string& job);
+  RetryResult retry(const std::string& job, const std::vector<int64_t>& frames = {});
   /// Pauses a queued or running job: it gets no new leases; its live leases go on and their uploads are accepted (a
   /// paused job whose last tile lands is done, see ResultClaim::last).
   PauseResult pause(const std::string& job);

@@ -106,12 +106,15 @@ struct CancelResult {
   int revoked_leases = 0;  ///< Leases revoked.
 };
 
-/// Outcome of retrying a job.
+/// Outcome of retrying a job (or chosen frames of a sequence).
 struct RetryResult {
-  /// retried: queued again; not_ended: still queued or running; done: nothing to retry; unknown: no such job.
-  enum Status { retried, not_ended, done, unknown } status = unknown;
+  /// retried: queued again; not_ended: still queued or running (a sequence: no chosen frame failed or was
+  /// cancelled); done: nothing to retry; no_frame: the sequence has no frame `frame`; unknown: no such job.
+  enum Status { retried, not_ended, done, no_frame, unknown } status = unknown;
   JobState was = JobState::queued;  ///< The state it had.
   int64_t pending = 0;              ///< Tiles to render again (done tiles are kept).
+  int64_t frame = 0;                ///< no_frame: the number asked for.
+  std::vector<std::string> jobs;    ///< The jobs put back in the queue (the job, or the sequence's frames).
 };
 
 /// Outcome of pausing or resuming a job.
@@ -155,6 +158,25 @@ struct RequeueResult {
   TileState was = TileState::pending;        ///< The tile's state before.
   int64_t tiles = 0;                         ///< Tiles in the job.
   bool revoked = false;                      ///< A live lease on it was revoked.
+};
+
+/// One frame of a sequence as add_sequence takes it: its number and what its image is.
+struct FrameParams {
+  int64_t number = 0;      ///< Frame number.
+  int width = 0;           ///< Image columns.
+  int height = 0;          ///< Image rows.
+  std::string scene_hash;  ///< The loader's content hash of the frame's scene and assets.
+};
+
+/// The id of frame `number` of the sequence `sequence` (the frame's own job).
+inline std::string frame_job_id(const std::string& sequence, int64_t number) {
+  return sequence + ".f" + std::to_string(number);
+}
+
+/// One page of a sequence's frames, in frame order.
+struct FramePage {
+  std::vector<JobStatus> frames;  ///< The frames' snapshots.
+  bool more = false;              ///< More frames follow the last one.
 };
 
 /// Which jobs a listing wants: states (empty: all), at most `limit` (0: no limit), older than the job with `after_seq`.

@@ -22,6 +22,7 @@ struct WorkerRec {
   int64_t render_ms = 0;     ///< Their render times (lease grant to acceptance), summed.
   bool drained = false;      ///< No new leases.
   std::string secret_hash{};  ///< SHA-256 of its secret (server/worker_secret.h); "" for none: it must register again.
+  std::string last_job{};     ///< The job of its latest lease (a sequence leased in any order keeps it there).
 };
 
 /// Every registered worker by id. Not thread-safe: the scheduler uses it under its lock.
