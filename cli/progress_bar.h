@@ -34,6 +34,8 @@ class ProgressBar {
  public:
   /// A bar that prints nothing unless enabled.
   explicit ProgressBar(bool enabled) : enabled_(enabled), tty_(isatty(STDERR_FILENO)) {}
+  /// Text shown before the tile counts from the next update on (a sequence's "3/24 frames, ").
+  void set_prefix(std::string prefix) { prefix_ = std::move(prefix); }
   /// Shows p (tiles done of total, rays and elapsed time).
   void update(const RenderProgress& p) {
     if (!enabled_ || p.tiles_total == 0) return;
@@ -46,14 +48,15 @@ class ProgressBar {
     if (tty_) {
       constexpr int kWidth = 30;
       const int filled = int(frac * kWidth);
-      std::fprintf(stderr, "\r[%.*s%*s] %d/%d tiles%s  %s   ", filled, "##############################",
-                   kWidth - filled, "", p.tiles_done, p.tiles_total, rate.c_str(), time.c_str());
+      std::fprintf(stderr, "\r[%.*s%*s] %s%d/%d tiles%s  %s   ", filled, "##############################",
+                   kWidth - filled, "", prefix_.c_str(), p.tiles_done, p.tiles_total, rate.c_str(), time.c_str());
       if (done) std::fputc('\n', stderr);
       return;
     }
     // On a pipe: a line per decile, and the last one again only if it has news (the rate, known at the end).
     char line[160];
-    std::snprintf(line, sizeof line, "%3d%%  %d/%d tiles%s", int(frac * 100), p.tiles_done, p.tiles_total, rate.c_str());
+    std::snprintf(line, sizeof line, "%3d%%  %s%d/%d tiles%s", int(frac * 100), prefix_.c_str(), p.tiles_done,
+                  p.tiles_total, rate.c_str());
     if (int(frac * 10) > last_decile_ || (done && line != last_line_)) {
       last_decile_ = int(frac * 10);
       last_line_ = line;
@@ -65,6 +68,7 @@ class ProgressBar {
   bool enabled_, tty_;
   int last_decile_ = -1;
   std::string last_line_;  // the last line printed on a pipe, without its time
+  std::string prefix_;     // set_prefix
 };
 
 }  // namespace tessera::cli

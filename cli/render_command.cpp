@@ -1,5 +1,8 @@
 #include "cli/render_command.h"
 
+#include "cli/frame_list.h"
+#include "cli/render_sequence.h"
+
 #include "cli/asset_limit_flags.h"
 #include "cli/exit_status.h"
 #include "cli/interrupt_guard.h"
@@ -25,9 +28,19 @@
 namespace tessera::cli {
 
 CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
-  auto* c = app.add_subcommand("render", "Render a scene to an OpenEXR file on this machine");
-  c->add_option("scene", a.scene, "Scene file (course JSON format)")->required()->check(CLI::ExistingFile);
-  c->add_option("-o,--output", a.output, "Output EXR file")->required();
+  auto* c = app.add_subcommand("render", "Render a scene (or a sequence of frames) to OpenEXR files on this machine");
+  c->add_option("scene", a.scenes,
+                "Scene file (course JSON format); several files, or one pattern with a run of '#' and --frames, make "
+                "a sequence")
+      ->required();
+  c->add_option("-o,--output", a.output, "Output EXR file (a sequence: a pattern with a run of '#')")->required();
+  c->add_option("--frames", a.frames, "Frame numbers for a '#' scene pattern: 1-240, 1-240x2 (every 2nd), 1,5,10-20");
+  c->add_option("--frame-order", a.frame_order,
+                "With --workers: in_order (frames finish one after another) or any (each worker keeps to a frame)")
+      ->check(CLI::IsMember({"in_order", "any"}))->capture_default_str();
+  c->add_flag("--skip-existing", a.skip_existing,
+              "A sequence: skip frames whose output is a complete render of the same scene and settings (read from "
+              "its metadata); continue partial ones");
   add_sampling_flags(c, a);
   c->add_option("--threads", a.threads, "Worker threads (default: all cores)")->check(CLI::Range(0, 4096));
   c->add_option("--crop", a.crop, "Render only pixels [X0,X1) x [Y0,Y1) (row 0 = top)")->expected(4);
@@ -96,11 +109,29 @@ size_t rendered_pixels(const RenderState& state) {
 
 }  // namespace
 
-int run_render(const RenderArgs& given) {
+int run_render(const RenderArgs& args) {
   // Warnings and errors go to stderr with the progress bar and the summary; stdout stays free for data.
   auto logger = spdlog::get("render");
   if (!logger) logger = spdlog::stderr_color_mt("render");
   spdlog::set_default_logger(logger);
+  std::vector<FrameFile> frames;
+  try {
+    frames = expand_frames(args.scenes, args.frames);
+  } catch (const std::invalid_argument& e) {
+    spdlog::error("{}", e.what());
+    return kExitRefused;
+  }
+  if (!frames.empty()) return render_sequence(args, frames);
+  RenderArgs given = args;
+  given.scene = args.scenes.empty() ? args.scene : args.scenes.front();
+  if (std::error_code ec; !std::filesystem::is_regular_file(given.scene, ec)) {
+    spdlog::error("scene {} does not exist", given.scene);
+    return kExitRefused;
+  }
+  if (given.skip_existing) {
+    spdlog::error("--skip-existing applies to a sequence (several frames)");
+    return kExitRefused;
+  }
   // Before anything long: an output that cannot be written is reported now, not after the render.
   if (!output_writable(given.output) || (!given.preview.empty() && !output_writable(given.preview, "preview")))
     return kExitRefused;

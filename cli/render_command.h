@@ -14,8 +14,12 @@ namespace tessera::cli {
 
 /// Options of `tessera render` (the sampling ones are those `submit` has too).
 struct RenderArgs : SamplingArgs {
-  std::string scene;                    ///< Scene file.
-  std::string output;                   ///< EXR to write.
+  std::vector<std::string> scenes;      ///< The command line's scene file(s) or '#' pattern.
+  std::string frames;                   ///< --frames: the range a '#' pattern is expanded over.
+  std::string frame_order = "in_order"; ///< --frame-order of a sequence rendered with --workers.
+  bool skip_existing = false;           ///< A sequence: skip frames whose output is complete, continue partial ones.
+  std::string scene;                    ///< The scene file of one image (the only entry of `scenes`).
+  std::string output;                   ///< EXR to write (a sequence: a '#' pattern).
   int threads = 0;                      ///< Threads (0: all cores).
   std::vector<int> crop;                ///< X0 Y0 X1 Y1 (half-open, row 0 = top).
   bool half = false;                    ///< Write half floats.

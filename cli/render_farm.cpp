@@ -1,6 +1,7 @@
 #include "cli/render_farm.h"
 
 #include "cli/exit_status.h"
+#include "cli/frame_list.h"
 #include "cli/interrupt_guard.h"
 #include "cli/submit_command.h"
 #include "core/image/image.h"
@@ -90,9 +91,24 @@ uint64_t take_result(const fs::path& data_dir, const std::string& job, const fs:
   return size;
 }
 
+// Writes the --half copy and the --preview PNG of a finished image, as a render in one process would have.
+void finish_output(const RenderArgs& a, const std::string& output, const std::string& preview) {
+  if (!a.half && preview.empty()) return;
+  const ExrImage img = read_exr(output);
+  if (a.half) {
+    ExrWriteOptions wo;
+    wo.half = true;
+    wo.data_window = img.data_window;
+    wo.display_window = img.display_window;
+    wo.metadata = img.metadata;
+    write_exr(output, img.pixels, wo);
+  }
+  if (!preview.empty()) write_png_srgb(preview, img.pixels);
+}
+
 }  // namespace
 
-int run_render_farm(const RenderArgs& a) {
+int run_render_farm(const RenderArgs& a, const std::vector<client::FrameScene>& frames) {
   if (!a.crop.empty() || a.variance) {
     spdlog::error("--workers renders whole images without variance channels: drop --crop/--variance");
     return kExitRefused;
@@ -131,6 +147,8 @@ int run_render_farm(const RenderArgs& a) {
     ::close(listen_fd);  // the coordinator's now: should it die, connecting fails instead of waiting
     const std::string url = "http://127.0.0.1:" + std::to_string(port);
     client::SubmitOptions o = shared_job_options(a);
+    o.frames = frames;
+    o.frame_order = protocol::frame_order_from_string(a.frame_order);
     o.tile_size = a.farm_tile;
     o.resumable = a.resumable;  // the result then carries the state channels, as `render --resumable` writes them
     // While the coordinator starts: the scene's assets are hashed and put in the workers' cache, where they would
@@ -141,6 +159,9 @@ int run_render_farm(const RenderArgs& a) {
       worker::AssetCache cache(dir / "cache");
       for (const client::LocalAsset& asset : files->assets)
         cache.get(asset.sha256, [&](const std::string&) { return read_file_bytes(asset.file); });
+      for (const client::FrameFiles& frame : files->frames)
+        for (const client::LocalAsset& asset : frame.assets)
+          cache.get(asset.sha256, [&](const std::string&) { return read_file_bytes(asset.file); });
     } catch (const SceneError& e) {
       spdlog::error("{}", e.what());
       rc = kExitRefused;
@@ -150,8 +171,10 @@ int run_render_farm(const RenderArgs& a) {
     }
     if (rc == kExitRefused) throw Refused();
     // The workers load the job's scene from their cache while the coordinator starts and checks the submission.
+    // (A sequence's frames are loaded as they are leased.)
     const fs::path expected_job = dir / "job.json";
-    write_file_atomic(expected_job, nlohmann::json(client::job_submission(o, *files)).dump(), Flush::none);
+    if (frames.empty())
+      write_file_atomic(expected_job, nlohmann::json(client::job_submission(o, *files)).dump(), Flush::none);
     client::HttpClient http(client::parse_http_url(url));
     http.set_bearer_token(client_token);
     // The workers start while the coordinator starts and the job is submitted: until it is in they ask for work every
@@ -166,7 +189,8 @@ int run_render_farm(const RenderArgs& a) {
       std::vector<std::string> argv{self, "worker", "--coordinator", url, "--threads", std::to_string(threads),
                                     "--cache", (dir / "cache").string(), "--name", "local-" + std::to_string(i),
                                     "--token-file", (dir / "worker.token").string(), "--max-idle-wait-ms",
-                                    std::to_string(kPrivateIdleWaitMs), "--preload", expected_job.string()};
+                                    std::to_string(kPrivateIdleWaitMs)};
+      if (frames.empty()) argv.insert(argv.end(), {"--preload", expected_job.string()});
       argv.insert(argv.end(), limits.begin(), limits.end());
       if (pin) {
         std::string list;
@@ -187,19 +211,16 @@ int run_render_farm(const RenderArgs& a) {
           return all_workers_gone || worker::child_exited(children[0]);
         },
         std::move(files),
-        [&](const std::string& job, const std::string& output) { return take_result(dir / "data", job, output); });
-    if (rc == 0 && (a.half || !a.preview.empty())) {
-      const ExrImage img = read_exr(a.output);
-      if (a.half) {
-        ExrWriteOptions wo;
-        wo.half = true;
-        wo.data_window = img.data_window;
-        wo.display_window = img.display_window;
-        wo.metadata = img.metadata;
-        write_exr(a.output, img.pixels, wo);
-      }
-      if (!a.preview.empty()) write_png_srgb(a.preview, img.pixels);
-    }
+        [&](const std::string& job, const std::string& output) {
+          const uint64_t size = take_result(dir / "data", job, output);
+          if (!frames.empty()) {  // a frame: its preview goes to the frame's file of the --preview pattern
+            const size_t dot = job.rfind(".f");
+            const int64_t n = std::stoll(job.substr(dot + 2));
+            finish_output(a, output, a.preview.empty() ? "" : frame_output(a.preview, n, frames.size()).string());
+          }
+          return size;
+        });
+    if (rc == 0 && frames.empty()) finish_output(a, a.output, a.preview);
     if (InterruptGuard::interrupted()) {
       spdlog::warn("interrupted");
       rc = kExitInterrupted;

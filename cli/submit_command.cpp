@@ -1,6 +1,7 @@
 #include "cli/submit_command.h"
 
 #include "cli/exit_status.h"
+#include "cli/frame_list.h"
 #include "cli/interrupt_guard.h"
 #include "cli/output_check.h"
 #include "cli/progress_bar.h"
@@ -14,10 +15,19 @@
 namespace tessera::cli {
 
 CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
-  auto* c = app.add_subcommand("submit", "Submit a scene to a coordinator and fetch the result");
-  c->add_option("scene", a.scene, "Scene file (course JSON format)")->required()->check(CLI::ExistingFile);
+  auto* c = app.add_subcommand("submit", "Submit a scene (or a sequence of frames) to a coordinator and fetch the result");
+  c->add_option("scene", a.scenes,
+                "Scene file (course JSON format); several files, or one pattern with a run of '#' and --frames, make "
+                "a sequence")
+      ->required();
+  c->add_option("--frames", a.frames, "Frame numbers for a '#' scene pattern: 1-240, 1-240x2 (every 2nd), 1,5,10-20");
+  c->add_option("--frame-order", a.frame_order,
+                "in_order: frames finish one after another; any: each worker keeps to a frame of its own")
+      ->check(CLI::IsMember({"in_order", "any"}))->capture_default_str();
   add_coordinator_access_flags(c, a.access);
-  c->add_option("-o,--output", a.output, "Download the finished image to this EXR file");
+  c->add_option("-o,--output", a.output,
+                "Download the finished image to this EXR file (a sequence: a pattern with a run of '#', each frame "
+                "written as it finishes)");
   add_sampling_flags(c, a);
   c->add_option("--tile", a.tile_size, "Tile edge in pixels")->check(CLI::Range(1, 4096));
   c->add_option("--priority", a.priority, "Job priority (higher first)");
@@ -35,18 +45,39 @@ CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
   return c;
 }
 
+std::vector<client::FrameScene> sequence_frames(const std::vector<std::string>& scenes, const std::string& range,
+                                                const std::string& output) {
+  std::vector<client::FrameScene> out;
+  const std::vector<FrameFile> frames = expand_frames(scenes, range);
+  if (frames.empty()) {
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(scenes.front(), ec))
+      throw std::invalid_argument("scene " + scenes.front() + " does not exist");
+    return out;
+  }
+  if (!output.empty()) frame_output(output, frames.front().number, frames.size());  // throws without a '#'
+  for (const FrameFile& f : frames) out.push_back({f.number, f.scene});
+  return out;
+}
+
 int follow_job(client::HttpClient& http, const std::string& job, const std::string& output, bool quiet,
                const std::function<bool()>& stop, bool cancel_on_stop, std::chrono::steady_clock::time_point t0,
                const ResultFetch& fetch) {
   try {
     ProgressBar bar(!quiet);
+    FrameSaver frames(http, job, output, fetch, quiet);
     const client::JobStatus end = client::wait_for_job(
         http, job,
         [&](const client::JobStatus& s) {
           const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+          if (s.frames) {
+            bar.set_prefix(std::to_string(s.frames->done) + "/" + std::to_string(s.frames->total) + " frames, ");
+            if (!output.empty()) frames.update(s);
+          }
           bar.update(RenderProgress{int(s.tiles.done), int(s.tiles.total), s.rays, secs});
         },
-        stop, std::chrono::milliseconds(200), std::chrono::seconds(120), !quiet);  // quiet: no tile events
+        stop, std::chrono::milliseconds(200), std::chrono::seconds(120), !quiet || !output.empty());
+    if (end.frames && !output.empty()) frames.update(end);  // the frames done since the last event
     if (!end.finished()) {
       if (!cancel_on_stop) {
         std::fprintf(stderr, "stopped waiting: %s is still %s on the coordinator (tessera jobs wait %s -o FILE to fetch "
@@ -62,16 +93,23 @@ int follow_job(client::HttpClient& http, const std::string& job, const std::stri
       }
       return kExitFailed;
     }
+    const std::string saved =
+        end.frames && !output.empty() ? " (" + std::to_string(frames.saved()) + " done frames saved)" : "";
     if (end.state == protocol::JobState::failed) {
-      spdlog::error("job {} failed: {}", job, end.error.value_or("(no reason given)"));
+      spdlog::error("job {} failed: {}{}", job, end.error.value_or("(no reason given)"), saved);
       return kExitFailed;
     }
     if (end.state == protocol::JobState::cancelled) {
-      spdlog::error("job {} was cancelled", job);
+      spdlog::error("job {} was cancelled{}", job, saved);
       return kExitFailed;
     }
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    if (!output.empty()) {
+    if (end.frames) {
+      if (!quiet)
+        std::fprintf(stderr, "%s: %lld frames, %lld tiles, %.2fs (%.2fs from the first lease)\n", job.c_str(),
+                     static_cast<long long>(end.frames->total), static_cast<long long>(end.tiles.total), secs,
+                     end.render_seconds);
+    } else if (!output.empty()) {
       const uint64_t bytes = fetch ? fetch(job, output) : client::download_result(http, job, output);
       if (!quiet)
         std::fprintf(stderr, "%s: %dx%d px, %lld tiles, %.2fs (%.2fs from the first lease), %llu bytes\n",
@@ -93,9 +131,13 @@ int submit_reporting(client::HttpClient& http, const client::SubmitOptions& o, b
     const client::SubmitResult sub =
         files ? client::submit_job(http, o, std::move(*files)) : client::submit_job(http, o);
     job = sub.job_id;
-    if (!quiet)
+    if (!quiet && o.frames.empty())
       std::fprintf(stderr, "submitted %s as %s (%d assets, %d uploaded)\n", o.scene.c_str(), job.c_str(),
                    sub.assets_total, sub.assets_uploaded);
+    else if (!quiet)
+      std::fprintf(stderr, "submitted %zu frames (%lld to %lld) as %s (%d distinct assets, %d uploaded)\n",
+                   o.frames.size(), static_cast<long long>(o.frames.front().number),
+                   static_cast<long long>(o.frames.back().number), job.c_str(), sub.assets_total, sub.assets_uploaded);
     return kExitOk;
   } catch (const client::SubmitError& e) {
     spdlog::error("{}", e.what());
@@ -118,10 +160,22 @@ int submit_and_wait(client::HttpClient& http, const client::SubmitOptions& o, co
 }
 
 int run_submit(const SubmitArgs& a) {
+  // A sequence's frames, all found before anything is sent.
+  std::vector<client::FrameScene> frames;
+  try {
+    frames = sequence_frames(a.scenes, a.frames, a.output);
+  } catch (const std::invalid_argument& e) {
+    spdlog::error("{}", e.what());
+    return kExitRefused;
+  }
   // Before submitting: a result that could not be saved would waste the farm's work.
-  if (!a.output.empty() && !output_writable(a.output)) return kExitRefused;
+  const std::string first_output =
+      a.output.empty() || frames.empty() ? a.output : frame_output(a.output, frames.front().number, frames.size()).string();
+  if (!first_output.empty() && !output_writable(first_output)) return kExitRefused;
   return run_with_coordinator(a.access, "submit", [&](client::HttpClient& http) {
     client::SubmitOptions o = shared_job_options(a);
+    o.frames = frames;
+    o.frame_order = protocol::frame_order_from_string(a.frame_order);
     o.tile_size = a.tile_size;
     o.priority = a.priority;
     o.tile_timeout_seconds = a.tile_timeout_seconds;

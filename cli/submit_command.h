@@ -2,6 +2,7 @@
 #pragma once
 
 #include "cli/coordinator_access.h"
+#include "cli/frame_saver.h"
 #include "cli/sampling_flags.h"
 #include "client/http_client.h"
 #include "client/job_client.h"
@@ -13,13 +14,16 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace tessera::cli {
 
 /// Options of `tessera submit` (the sampling ones are those `render` has too).
 struct SubmitArgs : SamplingArgs {
-  std::string scene;                ///< Scene file.
-  std::string output;               ///< Where to write result.exr (empty: do not download).
+  std::vector<std::string> scenes;  ///< Scene file, or a sequence's frame files or '#' pattern.
+  std::string frames;               ///< --frames: the range a '#' pattern is expanded over.
+  std::string frame_order = "in_order";  ///< --frame-order of a sequence.
+  std::string output;               ///< Where to write result.exr (a sequence: a '#' pattern; empty: do not download).
   int tile_size = protocol::kDefaultTileSize;  ///< Tile edge.
   int priority = protocol::kDefaultPriority;   ///< Job priority.
   int64_t tile_timeout_seconds = protocol::kDefaultTileTimeoutSeconds;  ///< --tile-timeout.
@@ -36,7 +40,7 @@ struct SubmitArgs : SamplingArgs {
 template <class Args>
 client::SubmitOptions shared_job_options(const Args& a) {
   client::SubmitOptions o;
-  o.scene = a.scene;
+  o.scene = a.scenes.front();
   if (!a.asset_root.empty()) o.asset_root = a.asset_root;
   o.sampling = sampling_settings(a, a.spp.value_or(0));  // 0: the scene's spp
   return o;
@@ -49,11 +53,15 @@ CLI::App* add_submit_command(CLI::App& app, SubmitArgs& args);
 /// 130 stopped waiting by Ctrl-C or SIGTERM (the job goes on; `jobs wait` fetches it later).
 int run_submit(const SubmitArgs& args);
 
-/// Puts a done job's result at `output` and returns its size in bytes; throws on failure.
-using ResultFetch = std::function<uint64_t(const std::string& job, const std::string& output)>;
+/// The frames of a sequence named by `scenes` and `range` (cli/frame_list.h) as submit options take them, and checks
+/// that `output` (when not empty) names a file per frame; nothing for one scene. Throws std::invalid_argument with
+/// the sentence to report (exit status 2).
+std::vector<client::FrameScene> sequence_frames(const std::vector<std::string>& scenes, const std::string& range,
+                                                const std::string& output);
 
 /// Follows a submitted job until it ends, with a progress bar (timed from t0) unless `quiet`, and saves its result to
-/// `output` (when not empty); the shared core of `submit`, `render --workers` and `jobs wait`. stop() ends the wait
+/// `output` (when not empty; a sequence saves each frame as it finishes, `output` being a '#' pattern); the shared
+/// core of `submit`, `render --workers` and `jobs wait`. stop() ends the wait
 /// early: the job is then cancelled when `cancel_on_stop` (exit code 1), else left as it is, which it says (130).
 /// Returns the exit code as run_submit does; reports errors itself. `fetch`, when given, takes the result instead
 /// of the download.

@@ -13,6 +13,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <map>
 #include <optional>
 #include <set>
 #include <thread>
@@ -49,18 +50,48 @@ T get_answer(HttpClient& http, const std::string& target, const std::string& wha
 
 }  // namespace
 
+namespace {
+
+// Reads one scene file and hashes its assets (each file once: `hashed` holds the files hashed so far).
+void read_scene_file(const SubmitOptions& o, const fs::path& scene, const std::string& where, json& out_scene,
+                     std::vector<LocalAsset>& out_assets, std::map<fs::path, std::string>& hashed) {
+  try {
+    out_scene = json::parse(read_file(scene));
+  } catch (const json::parse_error& e) {
+    throw SceneError(where + scene.string() + ": not valid JSON: " + e.what());
+  } catch (const SubmitError& e) {
+    throw SubmitError(where + e.what());
+  }
+  const fs::path base = scene.has_parent_path() ? scene.parent_path() : fs::path(".");
+  const fs::path root = o.asset_root ? *o.asset_root : base;
+  for (const std::string& rel : scene_asset_paths(out_scene)) {
+    fs::path file;
+    try {
+      file = resolve_inside(base, root, rel, "asset '" + rel + "'");
+    } catch (const SceneError& e) {
+      throw SceneError(where + e.what());
+    }
+    auto it = hashed.find(file);
+    if (it == hashed.end()) it = hashed.emplace(file, sha256_file(file)).first;
+    out_assets.push_back(LocalAsset{rel, file, it->second});
+  }
+}
+
+}  // namespace
+
 SceneFiles read_scene_files(const SubmitOptions& o) {
   SceneFiles out;
-  try {
-    out.scene = json::parse(read_file(o.scene));
-  } catch (const json::parse_error& e) {
-    throw SceneError(o.scene.string() + ": not valid JSON: " + e.what());
+  std::map<fs::path, std::string> hashed;
+  if (o.frames.empty()) {
+    read_scene_file(o, o.scene, "", out.scene, out.assets, hashed);
+    return out;
   }
-  const fs::path base = o.scene.has_parent_path() ? o.scene.parent_path() : fs::path(".");
-  const fs::path root = o.asset_root ? *o.asset_root : base;
-  for (const std::string& rel : scene_asset_paths(out.scene)) {
-    const fs::path file = resolve_inside(base, root, rel, "asset '" + rel + "'");
-    out.assets.push_back(LocalAsset{rel, file, sha256_file(file)});
+  out.frames.reserve(o.frames.size());
+  for (const FrameScene& f : o.frames) {
+    FrameFiles ff;
+    ff.number = f.number;
+    read_scene_file(o, f.scene, "frame " + std::to_string(f.number) + ": ", ff.scene, ff.assets, hashed);
+    out.frames.push_back(std::move(ff));
   }
   return out;
 }
@@ -91,25 +122,51 @@ protocol::JobSubmission job_submission(const SubmitOptions& o, SceneFiles files)
   protocol::JobSubmission job;
   for (const LocalAsset& a : files.assets) job.assets[a.path] = a.sha256;
   job.scene = std::move(files.scene);
+  if (!files.frames.empty()) {
+    // The frames' assets go once, in "assets", unless one path names different files in different frames: then
+    // every frame carries its own.
+    bool shared = true;
+    for (const FrameFiles& f : files.frames)
+      for (const LocalAsset& a : f.assets) shared = job.assets.emplace(a.path, a.sha256).first->second == a.sha256 && shared;
+    if (!shared) job.assets.clear();
+    for (FrameFiles& f : files.frames) {
+      protocol::FrameSubmission fs{f.number, std::move(f.scene), {}};
+      if (!shared)
+        for (const LocalAsset& a : f.assets) fs.assets[a.path] = a.sha256;
+      job.frames.push_back(std::move(fs));
+    }
+    job.frame_order = o.frame_order;
+  }
   job.sampling = o.sampling;
   job.tile_size = o.tile_size;
   job.priority = o.priority;
   job.tile_timeout_seconds = o.tile_timeout_seconds;
-  job.name = o.name.empty() ? o.scene.filename().string() : o.name;
+  job.name = !o.name.empty()       ? o.name
+             : o.frames.empty() ? o.scene.filename().string()
+                                : o.frames.front().scene.filename().string() + " .. " +
+                                      o.frames.back().scene.filename().string();
   job.resumable = o.resumable;
   return job;
 }
 
 SubmitResult submit_job(HttpClient& http, const SubmitOptions& o, SceneFiles files) {
   SubmitResult out;
-  std::vector<std::string> hashes;
-  for (const LocalAsset& a : files.assets) hashes.push_back(a.sha256);
-  out.assets_total = int(files.assets.size());
+  // Every distinct asset, once (a sequence's frames share most of theirs).
+  std::vector<const LocalAsset*> assets;
+  std::set<std::string> distinct;
+  for (const LocalAsset& a : files.assets)
+    if (distinct.insert(a.sha256).second) assets.push_back(&a);
+  for (const FrameFiles& f : files.frames)
+    for (const LocalAsset& a : f.assets)
+      if (distinct.insert(a.sha256).second) assets.push_back(&a);
+  std::vector<std::string> hashes(distinct.begin(), distinct.end());
+  out.assets_total = int(assets.size());
   // One question for every asset, then only the missing ones are sent (a coordinator without the question: one HEAD
   // per asset, as before).
   const std::optional<std::set<std::string>> missing = missing_blobs(http, hashes);
   std::set<std::string> sent;
-  for (const LocalAsset& a : files.assets) {
+  for (const LocalAsset* ap : assets) {
+    const LocalAsset& a = *ap;
     const std::string& hash = a.sha256;
     if (sent.count(hash)) continue;  // the same file named twice
     if (missing) {
@@ -140,7 +197,8 @@ SubmitResult submit_job(HttpClient& http, const SubmitOptions& o, SceneFiles fil
     std::this_thread::sleep_for(Backoff(std::chrono::seconds(2 * seconds), std::chrono::seconds(2 * seconds)).next());
     r = http.send("POST", routes::jobs(), body);
   }
-  if (r.status != 201 && r.status != 200) refuse("submitting " + o.scene.string(), r);
+  if (r.status != 201 && r.status != 200)
+    refuse("submitting " + (o.frames.empty() ? o.scene.string() : job.name), r);
   out.job_id = protocol::parse_answer<protocol::SubmitAnswer>(r.body, "job submission").id;
   return out;
 }
@@ -192,8 +250,13 @@ protocol::WorkerInfo drain_worker(HttpClient& http, const std::string& id, bool 
                                        drain ? "draining" : "undraining");
 }
 
-JobStatus retry_job(HttpClient& http, const std::string& id) {
-  return control(http, id, "POST", routes::job_retry(id), "retrying");
+protocol::FrameList list_frames(HttpClient& http, const std::string& id, const protocol::FrameListQuery& query) {
+  return get_answer<protocol::FrameList>(http, routes::job_frames(id) + query.to_query(), "frames of job " + id);
+}
+
+JobStatus retry_job(HttpClient& http, const std::string& id, const std::vector<int64_t>& frames) {
+  return control(http, id, "POST", routes::job_retry(id), "retrying",
+                 frames.empty() ? std::string() : json(protocol::RetryRequest{frames}).dump());
 }
 
 JobStatus pause_job(HttpClient& http, const std::string& id) {
@@ -302,6 +365,17 @@ JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::funct
 uint64_t download_result(HttpClient& http, const std::string& id, const fs::path& path) {
   const HttpResponse r = http.send("GET", routes::job_result(id));
   if (r.status != 200) refuse("downloading the result of " + id, r);
+  try {
+    write_file_atomic(path, r.body);
+  } catch (const FileError& e) {
+    throw SubmitError(e.what());
+  }
+  return r.body.size();
+}
+
+uint64_t download_frame(HttpClient& http, const std::string& id, int64_t frame, const fs::path& path) {
+  const HttpResponse r = http.send("GET", routes::job_frame_result(id, frame));
+  if (r.status != 200) refuse("downloading frame " + std::to_string(frame) + " of " + id, r);
   try {
     write_file_atomic(path, r.body);
   } catch (const FileError& e) {

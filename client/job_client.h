@@ -29,9 +29,17 @@ struct SubmitError : std::runtime_error {
 using protocol::JobStatus;
 using protocol::ProtocolError;
 
-/// What to submit.
+/// One frame of a sequence to submit: its number and its scene file.
+struct FrameScene {
+  int64_t number = 0;            ///< Frame number.
+  std::filesystem::path scene;   ///< Its scene file (course JSON format).
+};
+
+/// What to submit: one scene, or a sequence of frames.
 struct SubmitOptions {
-  std::filesystem::path scene;         ///< Scene file (course JSON format).
+  std::filesystem::path scene;         ///< Scene file (course JSON format); unused for a sequence.
+  std::vector<FrameScene> frames;      ///< A sequence's frames in number order; empty: one image (`scene`).
+  protocol::FrameOrder frame_order = protocol::FrameOrder::in_order;  ///< A sequence's lease order.
   protocol::SamplingSettings sampling; ///< How to sample (spp 0: the scene's).
   int tile_size = protocol::kDefaultTileSize;  ///< Tile edge in pixels.
   int priority = protocol::kDefaultPriority;   ///< Higher runs first.
@@ -55,14 +63,23 @@ struct LocalAsset {
   std::string sha256;          ///< Hash of its bytes (lowercase hex).
 };
 
-/// A scene file read for submission: its JSON and its assets, hashed.
-struct SceneFiles {
-  nlohmann::json scene;            ///< The scene file's JSON.
+/// One frame of a sequence read for submission.
+struct FrameFiles {
+  int64_t number = 0;              ///< Frame number.
+  nlohmann::json scene;            ///< The frame's scene file's JSON.
   std::vector<LocalAsset> assets;  ///< Every asset it uses.
 };
 
-/// Reads the options' scene and hashes its assets; throws SceneError (unreadable scene, asset outside the allowed
-/// folder) or SubmitError (unreadable asset).
+/// A scene file read for submission: its JSON and its assets, hashed; or a sequence's frames.
+struct SceneFiles {
+  nlohmann::json scene;            ///< The scene file's JSON (one image).
+  std::vector<LocalAsset> assets;  ///< Every asset it uses (one image).
+  std::vector<FrameFiles> frames;  ///< A sequence's frames (scene and assets above are then empty).
+};
+
+/// Reads the options' scene (or every frame's) and hashes its assets, each file once however many frames use it;
+/// throws SceneError (unreadable scene, asset outside the allowed folder; a frame's names the frame) or SubmitError
+/// (unreadable asset).
 SceneFiles read_scene_files(const SubmitOptions& options);
 
 /// What submit_job POSTs for a scene already read (read_scene_files with the same options).
@@ -89,6 +106,13 @@ JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::funct
                        const std::function<bool()>& stop, std::chrono::milliseconds poll = std::chrono::milliseconds(200),
                        std::chrono::seconds give_up = std::chrono::seconds(120), bool tile_progress = true);
 
+/// GET /v1/jobs/{id}/frames?after=&limit=: one page of a sequence's frames (their jobs), lowest number first.
+protocol::FrameList list_frames(HttpClient& http, const std::string& id, const protocol::FrameListQuery& query);
+
+/// Downloads frame `frame` of a sequence (GET /v1/jobs/{id}/frames/{n}/result.exr) to path atomically, as
+/// download_result does; returns the number of bytes.
+uint64_t download_frame(HttpClient& http, const std::string& id, int64_t frame, const std::filesystem::path& path);
+
 /// Downloads the finished job's result.exr to path atomically (temporary file, fsync, rename); throws SubmitError
 /// or TransportError. Returns the number of bytes.
 uint64_t download_result(HttpClient& http, const std::string& id, const std::filesystem::path& path);
@@ -98,8 +122,9 @@ std::vector<JobStatus> list_jobs(HttpClient& http);
 /// GET /v1/jobs?state=&limit=&after=: one page of the jobs a query asks for, with the next page's cursor.
 protocol::JobList list_jobs(HttpClient& http, const protocol::JobListQuery& query);
 
-/// POST /v1/jobs/{id}/retry: the job queued again; throws SubmitError (404, 409 with the coordinator's sentence).
-JobStatus retry_job(HttpClient& http, const std::string& id);
+/// POST /v1/jobs/{id}/retry: the job queued again (a sequence: its failed and cancelled frames, those in `frames` when
+/// given); throws SubmitError (404, 409 with the coordinator's sentence).
+JobStatus retry_job(HttpClient& http, const std::string& id, const std::vector<int64_t>& frames = {});
 
 /// PATCH /v1/jobs/{id} {"priority": N}: the job with its new priority; throws SubmitError (404, 409 ended).
 JobStatus set_job_priority(HttpClient& http, const std::string& id, int priority);

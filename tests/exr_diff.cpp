@@ -19,7 +19,7 @@ const std::set<std::string>& attributes_allowed_to_differ() {
       "compression", "lineOrder", "tiles", "chunkCount", "type", "name", "version",
       // provenance
       "tessera:renderSeconds", "tessera:createdMs", "tessera:startedMs", "tessera:finishedMs", "tessera:job",
-      "tessera:name", "tessera:workers", "tessera:scene", "tessera:tileSize"};
+      "tessera:name", "tessera:workers", "tessera:scene", "tessera:tileSize", "tessera:sequence", "tessera:frame"};
   return names;
 }
 
