@@ -29,7 +29,7 @@ int64_t FrameSaver::update(const protocol::JobStatus& status) {
       const int64_t n = f.frame.value_or(0);
       if (f.state == protocol::JobState::done && !saved_.count(n)) {
         const std::string out = frame_output(pattern_, n, size_t(status.frames->total)).string();
-        const uint64_t bytes = fetch_ ? fetch_(f.id, out) : client::download_frame(http_, sequence_, n, out);
+        const uint64_t bytes = fetch_ ? fetch_(f.id, out, n) : client::download_frame(http_, sequence_, n, out);
         saved_.insert(n);
         ++saved_now;
         if (!quiet_)

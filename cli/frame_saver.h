@@ -11,9 +11,9 @@
 
 namespace tessera::cli {
 
-/// Puts a done job's result (or a frame's: `job` is then the frame's job) at `output` and returns its size in bytes;
-/// throws on failure.
-using ResultFetch = std::function<uint64_t(const std::string& job, const std::string& output)>;
+/// Puts a done job's result (or a frame's: `job` is then the frame's job, `frame` its number) at `output` and
+/// returns its size in bytes; throws on failure.
+using ResultFetch = std::function<uint64_t(const std::string& job, const std::string& output, int64_t frame)>;
 
 /// Saves the done frames of one sequence to `pattern` (cli/frame_list.h frame_output), each once, as they finish.
 class FrameSaver {

@@ -1,6 +1,7 @@
 #include "cli/jobs_command.h"
 
 #include "cli/exit_status.h"
+#include "cli/frame_list.h"
 #include "cli/interrupt_guard.h"
 #include "cli/output_check.h"
 #include "cli/progress_bar.h"
@@ -25,8 +26,31 @@ void print_table(const std::vector<protocol::JobStatus>& jobs) {
   for (const protocol::JobStatus& j : jobs) {
     const std::string tiles = std::to_string(j.tiles.done) + "/" + std::to_string(j.tiles.total);
     const std::string time = j.render_seconds > 0 ? format_duration(j.render_seconds) : "-";
+    // A sequence's frames follow its name: "[3/24 frames, 1 failed]".
+    std::string name = j.params.name;
+    if (j.frames)
+      name += " [" + std::to_string(j.frames->done) + "/" + std::to_string(j.frames->total) + " frames" +
+              (j.frames->failed ? ", " + std::to_string(j.frames->failed) + " failed" : "") + "]";
     std::printf("%-20s %-10s %8d %13s %8s %8s  %s\n", j.id.c_str(), protocol::to_string(j.state), j.params.priority,
-                tiles.c_str(), time.c_str(), format_mrays(j.rays, j.render_seconds).c_str(), j.params.name.c_str());
+                tiles.c_str(), time.c_str(), format_mrays(j.rays, j.render_seconds).c_str(), name.c_str());
+  }
+}
+
+// One line per frame of a sequence: number, its job, state, tiles done/total, render time, error.
+void print_frames(client::HttpClient& http, const std::string& id) {
+  std::printf("%8s %-26s %-10s %13s %8s  %s\n", "FRAME", "JOB", "STATE", "TILES", "TIME", "ERROR");
+  protocol::FrameListQuery q;
+  q.limit = 1000;
+  while (true) {
+    const protocol::FrameList page = client::list_frames(http, id, q);
+    for (const protocol::JobStatus& f : page.frames) {
+      const std::string tiles = std::to_string(f.tiles.done) + "/" + std::to_string(f.tiles.total);
+      const std::string time = f.render_seconds > 0 ? format_duration(f.render_seconds) : "-";
+      std::printf("%8lld %-26s %-10s %13s %8s  %s\n", static_cast<long long>(f.frame.value_or(0)), f.id.c_str(),
+                  protocol::to_string(f.state), tiles.c_str(), time.c_str(), f.error.value_or("").c_str());
+    }
+    if (!page.next) break;
+    q.after = page.next;
   }
 }
 
@@ -62,16 +86,17 @@ CLI::App* add_jobs_command(CLI::App& app, JobsArgs& a) {
   auto* c = app.add_subcommand("jobs", "List and control a coordinator's jobs");
   c->add_option("action", a.action, "ls: list; show ID: the job as JSON, with its sampling settings; pause ID: no new leases (running tiles "
                                     "finish); resume ID; tiles ID: one line per tile, then failures with their log "
-                                    "lines; requeue ID N: render tile N again; priority ID N: lease its tiles in a new order; spp ID M: raise a --resumable job to M samples per pixel, continuing its stored tiles; retry ID: render a failed or cancelled job's missing tiles; "
+                                    "lines; requeue ID N: render tile N again; priority ID N: lease its tiles in a new order; spp ID M: raise a --resumable job to M samples per pixel, continuing its stored tiles; retry ID: render a failed or cancelled job's missing tiles (a sequence: its failed and cancelled frames, or those of --frames); frames ID: one line per frame of a sequence; "
                                     "cancel ID; rm ID: cancel it, or with --purge delete an ended job, its tiles and result; "
                                     "wait ID: follow the job until it ends and, with -o, save its result (Ctrl-C stops "
                                     "waiting and leaves the job as it is)")
       ->required()
-      ->check(CLI::IsMember({"ls", "show", "tiles", "requeue", "pause", "resume", "priority", "spp", "retry", "cancel", "rm",
+      ->check(CLI::IsMember({"ls", "show", "tiles", "requeue", "pause", "resume", "priority", "spp", "retry", "frames", "cancel", "rm",
                              "wait"}));
   c->add_option("job", a.job, "Job id (all but ls)");
   c->add_option("value", a.priority, "New priority, higher runs first (priority); new samples per pixel (spp); the tile number (requeue)");
   c->add_flag("--tiles", a.tiles, "show: print the tile table after the job");
+  c->add_option("--frames", a.frames, "retry: only these frames of a sequence (1-240, 1-240x2, 1,5,10-20)");
   c->add_flag("--purge", a.purge, "rm: delete a done, failed or cancelled job entirely (rows, tile pixels, result)");
   c->add_option("--state", a.states, "ls: only jobs in these states (queued, running, paused, done, failed, cancelled)")
       ->delimiter(',');
@@ -101,6 +126,16 @@ int run_jobs(const JobsArgs& a) {
     spdlog::error("jobs requeue needs a job id and a tile number");
     return kExitRefused;
   }
+  if (!a.frames.empty() && a.action != "retry") {
+    spdlog::error("--frames goes with jobs retry");
+    return kExitRefused;
+  }
+  if (!a.frames.empty()) try {
+      parse_frame_range(a.frames);
+    } catch (const std::invalid_argument& e) {
+      spdlog::error("{}", e.what());
+      return kExitRefused;
+    }
   if (!a.output.empty() && a.action != "wait") {
     spdlog::error("-o goes with jobs wait");
     return kExitRefused;
@@ -134,10 +169,14 @@ int run_jobs(const JobsArgs& a) {
       std::printf("%s: purged (was %s)\n", p.id.c_str(), protocol::to_string(p.was));
     } else if (a.action == "show") {
       // The job's status, and how it samples (all of its settings, from its spec).
-      nlohmann::json job = client::get_job(http, a.job);
-      job["sampling"] = client::get_job_spec(http, a.job).sampling;
+      // A sequence samples as its first frame does (every frame has the submission's settings, its spp its own).
+      const protocol::JobStatus status = client::get_job(http, a.job);
+      const std::string spec_of = status.frames ? protocol::frame_job_id(a.job, status.frames->first) : a.job;
+      nlohmann::json job = status;
+      job["sampling"] = client::get_job_spec(http, spec_of).sampling;
       std::printf("%s\n", job.dump(2).c_str());
-      if (a.tiles) print_tiles(client::get_job_tiles(http, a.job));
+      if (a.tiles && status.frames) print_frames(http, a.job);
+      else if (a.tiles) print_tiles(client::get_job_tiles(http, a.job));
     } else if (a.action == "tiles") {
       print_tiles(client::get_job_tiles(http, a.job));
     } else if (a.action == "requeue") {
@@ -154,10 +193,19 @@ int run_jobs(const JobsArgs& a) {
       std::printf("%s: %s at %u spp, %lld of %lld tiles to continue\n", s.id.c_str(), protocol::to_string(s.state),
                   s.params.spp, static_cast<long long>(s.tiles.total - s.tiles.done),
                   static_cast<long long>(s.tiles.total));
+    } else if (a.action == "frames") {
+      print_frames(http, a.job);
     } else if (a.action == "retry") {
-      const protocol::JobStatus s = client::retry_job(http, a.job);
-      std::printf("%s: %s again, %lld of %lld tiles to render\n", s.id.c_str(), protocol::to_string(s.state),
-                  static_cast<long long>(s.tiles.total - s.tiles.done), static_cast<long long>(s.tiles.total));
+      std::vector<int64_t> frames;
+      if (!a.frames.empty()) frames = parse_frame_range(a.frames);
+      const protocol::JobStatus s = client::retry_job(http, a.job, frames);
+      if (s.frames)
+        std::printf("%s: %s again, %lld of %lld frames to render\n", s.id.c_str(), protocol::to_string(s.state),
+                    static_cast<long long>(s.frames->queued + s.frames->running + s.frames->paused),
+                    static_cast<long long>(s.frames->total));
+      else
+        std::printf("%s: %s again, %lld of %lld tiles to render\n", s.id.c_str(), protocol::to_string(s.state),
+                    static_cast<long long>(s.tiles.total - s.tiles.done), static_cast<long long>(s.tiles.total));
     } else if (!client::cancel_job(http, a.job)) {
       spdlog::error("job {} had already ended", a.job);
       return kExitRefused;

@@ -15,10 +15,11 @@ namespace tessera::cli {
 
 /// Options of `tessera jobs`.
 struct JobsArgs {
-  std::string action;       ///< ls, show, tiles, requeue, pause, resume, priority, spp, retry, cancel, rm or wait.
+  std::string action;       ///< ls, show, tiles, requeue, pause, resume, priority, spp, retry, frames, cancel, rm or wait.
   std::string job;          ///< The job id (all but ls).
   std::optional<int> priority;  ///< The new priority (priority), samples per pixel (spp) or tile number (requeue).
   bool tiles = false;       ///< show: print the tile table too.
+  std::string frames;       ///< retry: only these frames of a sequence (a range, cli/frame_list.h).
   bool purge = false;       ///< rm: delete an ended job entirely (else rm cancels).
   std::vector<std::string> states;  ///< ls: only jobs in these states.
   size_t limit = 0;         ///< ls: at most this many (0: all).

@@ -211,13 +211,10 @@ int run_render_farm(const RenderArgs& a, const std::vector<client::FrameScene>& 
           return all_workers_gone || worker::child_exited(children[0]);
         },
         std::move(files),
-        [&](const std::string& job, const std::string& output) {
+        [&](const std::string& job, const std::string& output, int64_t frame) {
           const uint64_t size = take_result(dir / "data", job, output);
-          if (!frames.empty()) {  // a frame: its preview goes to the frame's file of the --preview pattern
-            const size_t dot = job.rfind(".f");
-            const int64_t n = std::stoll(job.substr(dot + 2));
-            finish_output(a, output, a.preview.empty() ? "" : frame_output(a.preview, n, frames.size()).string());
-          }
+          if (!frames.empty())  // a frame: its preview goes to the frame's file of the --preview pattern
+            finish_output(a, output, a.preview.empty() ? "" : frame_output(a.preview, frame, frames.size()).string());
           return size;
         });
     if (rc == 0 && frames.empty()) finish_output(a, a.output, a.preview);

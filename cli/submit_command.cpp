@@ -110,7 +110,7 @@ int follow_job(client::HttpClient& http, const std::string& job, const std::stri
                      static_cast<long long>(end.frames->total), static_cast<long long>(end.tiles.total), secs,
                      end.render_seconds);
     } else if (!output.empty()) {
-      const uint64_t bytes = fetch ? fetch(job, output) : client::download_result(http, job, output);
+      const uint64_t bytes = fetch ? fetch(job, output, 0) : client::download_result(http, job, output);
       if (!quiet)
         std::fprintf(stderr, "%s: %dx%d px, %lld tiles, %.2fs (%.2fs from the first lease), %llu bytes\n",
                      output.c_str(), end.params.width, end.params.height, static_cast<long long>(end.tiles.total), secs,

@@ -8,6 +8,7 @@
 #include <nlohmann/json_fwd.hpp>
 
 #include <cstdint>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -31,6 +32,11 @@ inline FrameOrder frame_order_from_string(std::string_view s) {
 inline constexpr int64_t kDefaultMaxJobFrames = 100'000;
 /// The largest frame number a sequence may use.
 inline constexpr int64_t kMaxFrameNumber = 999'999'999;
+
+/// The id of frame `number`'s own job in the sequence `sequence` ("j-7.f12").
+inline std::string frame_job_id(std::string_view sequence, int64_t number) {
+  return std::string(sequence) + ".f" + std::to_string(number);
+}
 
 /// A sequence's frames by the state of each frame (a frame is a job of its own; see JobStatus::sequence).
 struct FrameCounts {

@@ -168,10 +168,7 @@ struct FrameParams {
   std::string scene_hash;  ///< The loader's content hash of the frame's scene and assets.
 };
 
-/// The id of frame `number` of the sequence `sequence` (the frame's own job).
-inline std::string frame_job_id(const std::string& sequence, int64_t number) {
-  return sequence + ".f" + std::to_string(number);
-}
+using protocol::frame_job_id;
 
 /// One page of a sequence's frames, in frame order.
 struct FramePage {
