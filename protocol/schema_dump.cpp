@@ -102,7 +102,9 @@ json dump() {
   json out = json::object();
   add(out, "Sampling", "SamplingSettings", kRequest, full_sampling(), SamplingSettings{});
   add(out, "JobSubmission", "JobSubmission", kRequest, full_submission(), JobSubmission{});
-  add(out, "JobSubmission", "JobSubmission (sequence)", kRequest, full_sequence_submission(), JobSubmission{});
+  JobSubmission minimal_sequence;
+  minimal_sequence.frames = {FrameSubmission{}};
+  add(out, "JobSubmission", "JobSubmission (sequence)", kRequest, full_sequence_submission(), minimal_sequence);
   add(out, "RetryRequest", "RetryRequest", kRequest, RetryRequest{{1, 2}}, RetryRequest{});
   add(out, "JobPatch", "JobPatch", kRequest, JobPatch{3, 8}, JobPatch{});
   add(out, "SubmitAnswer", "SubmitAnswer", kAnswer, SubmitAnswer{"j-1", {"a warning"}}, SubmitAnswer{});

@@ -398,6 +398,22 @@ def exercise(c, tessera, workdir, address):
             time.sleep(0.1)
         if state != "done":
             failures.append(f"job {b} ended {state}, not done")
+        # A sequence of two frames, once b is done (the test's coordinator queues one job at a time).
+        frames = [{"number": n, "scene": sphere_scene(16)} for n in (3, 1)]
+        c.call("POST", "/v1/jobs", {"frames": frames, "scene": sphere_scene(16)}, expect=400)
+        c.call("POST", "/v1/jobs", {"frames": frames + [frames[0]]}, expect=400)  # frame 3 twice
+        _, sq = c.call("POST", "/v1/jobs", {"frames": frames, "tile_size": 8, "seed": 1, "frame_order": "any"},
+                       expect=201)
+        if "id" not in sq:
+            raise SystemExit(f"the sequence was refused: {sq}; failures so far: {failures}")
+        sq = sq["id"]
+        while time.time() < deadline:
+            _, j = c.call("GET", f"/v1/jobs/{sq}", expect=200)
+            if j["state"] in ("done", "failed", "cancelled"):
+                break
+            time.sleep(0.1)
+        if j["state"] != "done" or j["frames"]["done"] != 2:
+            failures.append(f"sequence {sq} ended {j['state']} with {j.get('frames')}, not done")
     finally:
         worker.send_signal(signal.SIGTERM)
         worker.wait(timeout=30)
@@ -406,6 +422,27 @@ def exercise(c, tessera, workdir, address):
         failures.append("result.exr is not an OpenEXR file")
     c.call("GET", f"/v1/jobs/{b}/preview.png", expect=200)
     c.call("GET", "/v1/jobs", expect=200)
+    _, page = c.call("GET", f"/v1/jobs/{sq}/frames?limit=1", expect=200)
+    if [f["frame"] for f in page["frames"]] != [1] or page["next"] != 1:
+        failures.append(f"GET /v1/jobs/{{id}}/frames?limit=1: {page}")
+    _, page = c.call("GET", f"/v1/jobs/{sq}/frames?after=1", expect=200)
+    if [f["frame"] for f in page["frames"]] != [3] or page["next"] is not None:
+        failures.append(f"GET /v1/jobs/{{id}}/frames?after=1: {page}")
+    c.call("GET", f"/v1/jobs/{sq}/frames?limit=0", expect=400)
+    c.call("GET", f"/v1/jobs/{b}/frames", expect=409)  # not a sequence
+    c.call("GET", "/v1/jobs/j-none/frames", expect=404)
+    status, exr = c.call("GET", f"/v1/jobs/{sq}/frames/3/result.exr", expect=200)
+    if status == 200 and exr[:4] != b"\x76\x2f\x31\x01":
+        failures.append("a frame's result.exr is not an OpenEXR file")
+    c.call("GET", f"/v1/jobs/{sq}/frames/2/result.exr", expect=404)
+    c.call("GET", f"/v1/jobs/{sq}/result.exr", expect=409)  # each frame has its own
+    c.call("POST", f"/v1/jobs/{sq}/retry", {"frames": [1]}, expect=409)  # done: nothing to retry
+    c.call("POST", f"/v1/jobs/{sq}/retry", {"frames": [2]}, expect=404)
+    c.call("POST", f"/v1/jobs/{sq}/retry", {"frames": "1-2"}, expect=400)
+    c.call("POST", f"/v1/jobs/{sq}.f1/retry", expect=409)  # a frame's job is controlled through its sequence
+    c.call("DELETE", f"/v1/jobs/{sq}.f1?purge=true", expect=409)
+    c.call("DELETE", f"/v1/jobs/{sq}?purge=true", expect=200)  # with its frames
+    c.call("GET", f"/v1/jobs/{sq}.f1", expect=404)
 
     # The stream saw all of it, in order, ending with job b done.
     seen, ids = [], []
