@@ -15,6 +15,21 @@ for k in 1 2 3 4 5 6; do
   "$TESSERA" render "$WORK/shot/frame_0$k.json" -o "$WORK/ref_$k.exr" -q --threads 1
 done
 TILES=24  # 6 frames of 32x32 in 16-pixel tiles
+# Bad command lines are refused before anything is sent or rendered (exit 2), each with a sentence.
+refused() {  # refused PATTERN COMMAND...: exit 2 and a log line matching PATTERN
+  local pattern=$1
+  shift
+  expect_exit 2 "$WORK/refused.log" -- "$@"
+  log_has "$WORK/refused.log" "$pattern" || fail "'$*' did not say: $pattern ($(cat "$WORK/refused.log"))"
+}
+refused "frame 7: .*frame_07.json does not exist" "$TESSERA" render "$WORK/shot/frame_##.json" --frames 1-7 -o "$WORK/x_##.exr"
+refused "needs --frames" "$TESSERA" render "$WORK/shot/frame_##.json" -o "$WORK/x_##.exr"
+refused "has no run of '#'" "$TESSERA" render "$WORK"/shot/frame_0*.json -o "$WORK/x.exr"
+refused "runs backwards" "$TESSERA" submit "$WORK/shot/frame_##.json" --frames 6-1 --coordinator http://127.0.0.1:9
+printf '{"camera": ' >"$WORK/broken_03.json"
+cp "$WORK/shot/frame_01.json" "$WORK/broken_01.json"
+refused "frame 3: " "$TESSERA" render "$WORK/broken_01.json" "$WORK/broken_03.json" -o "$WORK/x_##.exr"
+[ ! -e "$WORK/x_01.exr" ] || fail "a refused sequence wrote frame 1"
 start_serve --lease-seconds 4 --heartbeat-seconds 1
 ADDRESS=$(head -n1 "$WORK/ready")
 start_submit "$WORK/submit.log" "$WORK/shot/frame_##.json" --frames 1-6 --tile 16 -o "$WORK/out/f_##.exr"
