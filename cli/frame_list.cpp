@@ -39,6 +39,19 @@ bool is_digit(char c) { return c >= '0' && c <= '9'; }
 
 }  // namespace
 
+void add_sequence_flags(CLI::App* c, std::vector<std::string>& scenes, std::string& frames, std::string& frame_order,
+                        const std::string& what) {
+  c->add_option("scene", scenes,
+                "Scene file (course JSON format); several files, or one pattern with a run of '#' and --frames, make "
+                "a sequence")
+      ->required();
+  c->add_option("--frames", frames, "Frame numbers for a '#' scene pattern: 1-240, 1-240x2 (every 2nd), 1,5,10-20");
+  std::vector<std::string> orders(std::begin(protocol::kFrameOrderNames), std::end(protocol::kFrameOrderNames));
+  c->add_option("--frame-order", frame_order,
+                what + "in_order: frames finish one after another; any: each worker keeps to a frame of its own")
+      ->check(CLI::IsMember(orders))->capture_default_str();
+}
+
 std::vector<int64_t> parse_frame_range(const std::string& range) {
   const std::string what = "--frames '" + range + "'";
   std::vector<int64_t> out;

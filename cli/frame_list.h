@@ -1,6 +1,8 @@
 // Which frames a command line names (scene files, or a '#' pattern with a range) and where each frame's output goes.
 #pragma once
 
+#include <CLI/CLI.hpp>
+
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
@@ -8,6 +10,11 @@
 #include <vector>
 
 namespace tessera::cli {
+
+/// Registers the scene argument (a file, several files, or a '#' pattern), --frames and --frame-order (the
+/// protocol's frame order names) on `command`; `what` says where --frame-order applies.
+void add_sequence_flags(CLI::App* command, std::vector<std::string>& scenes, std::string& frames,
+                        std::string& frame_order, const std::string& what);
 
 /// One frame of a sequence: its number and its scene file.
 struct FrameFile {

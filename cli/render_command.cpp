@@ -29,15 +29,8 @@ namespace tessera::cli {
 
 CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
   auto* c = app.add_subcommand("render", "Render a scene (or a sequence of frames) to OpenEXR files on this machine");
-  c->add_option("scene", a.scenes,
-                "Scene file (course JSON format); several files, or one pattern with a run of '#' and --frames, make "
-                "a sequence")
-      ->required();
+  add_sequence_flags(c, a.scenes, a.frames, a.frame_order, "With --workers: ");
   c->add_option("-o,--output", a.output, "Output EXR file (a sequence: a pattern with a run of '#')")->required();
-  c->add_option("--frames", a.frames, "Frame numbers for a '#' scene pattern: 1-240, 1-240x2 (every 2nd), 1,5,10-20");
-  c->add_option("--frame-order", a.frame_order,
-                "With --workers: in_order (frames finish one after another) or any (each worker keeps to a frame)")
-      ->check(CLI::IsMember({"in_order", "any"}))->capture_default_str();
   c->add_flag("--skip-existing", a.skip_existing,
               "A sequence: skip frames whose output is a complete render of the same scene and settings (read from "
               "its metadata); continue partial ones");

@@ -3,6 +3,7 @@
 
 #include "cli/sampling_flags.h"
 #include "core/scene/load_options.h"
+#include "protocol/sequence.h"
 
 #include <CLI/CLI.hpp>
 
@@ -16,7 +17,7 @@ namespace tessera::cli {
 struct RenderArgs : SamplingArgs {
   std::vector<std::string> scenes;      ///< The command line's scene file(s) or '#' pattern.
   std::string frames;                   ///< --frames: the range a '#' pattern is expanded over.
-  std::string frame_order = "in_order"; ///< --frame-order of a sequence rendered with --workers.
+  std::string frame_order = protocol::to_string(protocol::FrameOrder::in_order);  ///< --frame-order with --workers.
   bool skip_existing = false;           ///< A sequence: skip frames whose output is complete, continue partial ones.
   std::string scene;                    ///< The scene file of one image (the only entry of `scenes`).
   std::string output;                   ///< EXR to write (a sequence: a '#' pattern).

@@ -16,14 +16,7 @@ namespace tessera::cli {
 
 CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
   auto* c = app.add_subcommand("submit", "Submit a scene (or a sequence of frames) to a coordinator and fetch the result");
-  c->add_option("scene", a.scenes,
-                "Scene file (course JSON format); several files, or one pattern with a run of '#' and --frames, make "
-                "a sequence")
-      ->required();
-  c->add_option("--frames", a.frames, "Frame numbers for a '#' scene pattern: 1-240, 1-240x2 (every 2nd), 1,5,10-20");
-  c->add_option("--frame-order", a.frame_order,
-                "in_order: frames finish one after another; any: each worker keeps to a frame of its own")
-      ->check(CLI::IsMember({"in_order", "any"}))->capture_default_str();
+  add_sequence_flags(c, a.scenes, a.frames, a.frame_order, "");
   add_coordinator_access_flags(c, a.access);
   c->add_option("-o,--output", a.output,
                 "Download the finished image to this EXR file (a sequence: a pattern with a run of '#', each frame "

@@ -22,7 +22,7 @@ namespace tessera::cli {
 struct SubmitArgs : SamplingArgs {
   std::vector<std::string> scenes;  ///< Scene file, or a sequence's frame files or '#' pattern.
   std::string frames;               ///< --frames: the range a '#' pattern is expanded over.
-  std::string frame_order = "in_order";  ///< --frame-order of a sequence.
+  std::string frame_order = protocol::to_string(protocol::FrameOrder::in_order);  ///< --frame-order of a sequence.
   std::string output;               ///< Where to write result.exr (a sequence: a '#' pattern; empty: do not download).
   int tile_size = protocol::kDefaultTileSize;  ///< Tile edge.
   int priority = protocol::kDefaultPriority;   ///< Job priority.
