@@ -101,7 +101,8 @@ export function jobFigures(job) {
   return { frac, eta, mrays, secs };
 }
 
-export function progressBar(job) {
+/** A job's tiles done as a bar; a sequence's frames done under it unless `withFrames` is false. */
+export function progressBar(job, withFrames = true) {
   const t = job.tiles || { total: 0, done: 0, leased: 0 };
   const pct = t.total ? 100 * t.done / t.total : 0;
   const leasedPct = t.total ? 100 * (t.leased || 0) / t.total : 0;
@@ -110,9 +111,15 @@ export function progressBar(job) {
     el('div', { class: 'progress-leased' }));
   bar.children[0].style.width = pct.toFixed(2) + '%';
   bar.children[1].style.width = leasedPct.toFixed(2) + '%';
-  return el('div', { class: 'progress-cell' }, bar, el('span', { class: 'progress-text', text: `${t.done}/${t.total}` }),
-    job.frames ? el('span', { class: 'progress-frames', text: framesDone(job), title: 'Frames done of the sequence\'s frames' }) : null);
+  const cell = el('div', { class: 'progress-cell' }, bar, el('span', { class: 'progress-text', text: `${t.done}/${t.total}` }));
+  // A sequence's frames done, under its tiles' bar.
+  return job.frames && withFrames
+    ? el('div', {}, cell, el('div', { class: 'progress-frames', text: framesDone(job), title: 'Frames done of the sequence\'s frames' }))
+    : cell;
 }
+
+/** "1 tile", "3 tiles". */
+export function plural(n, word) { return `${n.toLocaleString('en-US')} ${word}${n === 1 ? '' : 's'}`; }
 
 export function mrays(v) { return v === null || v === undefined ? '–' : v >= 100 ? v.toFixed(0) : v.toFixed(1); }
 

@@ -4,6 +4,7 @@
 import * as api from './api.js';
 import { el, shownState } from './format.js';
 
+const THUMB_H = 66;       // the height of a thumbnail on the page (CSS pixels)
 const THUMB_PX = 256;     // the long side of a kept thumbnail (shown at about half that, sharp on a 2x screen)
 const CACHE_LIMIT = 600;  // thumbnails kept, least recently used forgotten first (a few tens of kB each)
 const LOADS_AT_ONCE = 3;  // preview requests in flight
@@ -64,7 +65,9 @@ export class FrameStrip {
 
   /** Shows `frames` (a window of the sequence's frames, in number order), keeping the cells of frames shown before. */
   show(frames, width, height) {
-    const aspect = width && height ? `${width} / ${height}` : '16 / 9';
+    // Thumbnails are THUMB_H CSS pixels high and as wide as the sequence's (first frame's) shape, within bounds.
+    const aspect = width && height ? width / height : 16 / 9;
+    this.element.style.setProperty('--thumb-w', Math.round(Math.min(2.4, Math.max(1, aspect)) * THUMB_H) + 'px');
     const next = new Map();
     for (const f of frames) {
       let c = this.cells.get(f.frame);
@@ -77,7 +80,6 @@ export class FrameStrip {
         c.inSight = false;
         this.observer.observe(c);
       }
-      c.querySelector('.frame-thumb').style.aspectRatio = aspect;
       next.set(f.frame, c);
       this.draw(c, f);
     }
@@ -94,13 +96,14 @@ export class FrameStrip {
     if (c && c.job.id === frameJob.id) this.draw(c, frameJob);
   }
 
-  /** A frame's result was written (frame_done): its thumbnail is fetched again. */
+  /** A frame's result was written (frame_done): its cell shows it done, with its thumbnail (fetched once). */
   refreshThumb(frame) {
     const c = this.cells.get(frame);
     if (!c) return;
-    forget(c.job.id);
-    c.querySelector('img')?.remove();
-    delete c.dataset.thumb;
+    if (c.dataset.state !== 'done') {
+      const t = c.job.tiles || {};
+      this.draw(c, { ...c.job, state: 'done', tiles: { ...t, done: t.total, leased: 0, pending: 0 } });
+    }
     this.want(c);
   }
 
@@ -133,9 +136,12 @@ export class FrameStrip {
     c.querySelector('.frame-progress i').style.width = pct.toFixed(1) + '%';
     if (state === 'done') {
       this.want(c);
-    } else if (c.dataset.thumb) {  // retried after it was done: no longer its image
-      c.querySelector('img')?.remove();
-      delete c.dataset.thumb;
+    } else {  // not done (again): a thumbnail shown or kept is not of its image
+      forget(f.id);
+      if (c.dataset.thumb) {
+        c.querySelector('img')?.remove();
+        delete c.dataset.thumb;
+      }
     }
   }
 

@@ -2,7 +2,7 @@
 // shows its selected frame's job with this view too (ctx.embedded: no crumbs, the frame's number as its title).
 import * as api from './api.js';
 import { el, badge, duration, clock, jobFigures, progressBar, mrays, shownState, samplingText, arrived,
-  clockRuns, jobHref } from './format.js';
+  clockRuns, jobHref, plural } from './format.js';
 import { TileMap, shownTileState, workerColor } from './tilemap.js';
 import { JobControls, actor } from './controls.js';
 
@@ -33,6 +33,8 @@ export function mount(host, ctx) {
 
   const title = el(ctx.embedded ? 'h2' : 'h1', { id: 'job-title', text: id });
   const stateBadge = el('span', { id: 'job-state' });
+  // A frame's view names the frame's own job (for the command line).
+  const idNote = ctx.embedded ? el('span', { class: 'sub mono', id: 'frame-job', text: id }) : null;
   const actionMsg = el('p', { class: 'action-msg', id: 'action-msg', role: 'status' });
   const figures = el('dl', { class: 'figures', id: 'job-figures' });
   const errorBox = el('div', { class: 'errorbox', id: 'job-error', hidden: true });
@@ -71,7 +73,7 @@ export function mount(host, ctx) {
   if (!ctx.embedded) host.append(el('div', { class: 'crumbs' }, el('a', { href: '#/jobs', text: 'Jobs' }), ' / ', el('span', { text: id })));
   host.append(
     el('div', { class: ctx.embedded ? 'page-head frame-head' : 'page-head' },
-      el('div', { class: 'title' }, title, stateBadge), controls.element),
+      el('div', { class: 'title' }, title, stateBadge, idNote), controls.element),
     actionMsg, errorBox,
     el('div', { class: 'card figures-card' }, figures),
     el('div', { class: 'split' },
@@ -96,8 +98,8 @@ export function mount(host, ctx) {
     figures.replaceChildren(
       el('div', { class: 'fig wide' }, el('dt', { text: 'Progress' }), el('dd', {}, progressBar(job))),
       ...[
-        item('Done', `${t.done} / ${t.total} tiles (${(100 * f.frac).toFixed(0)}%)`, 'fig-done'),
-        item('Rendering', `${t.leased} tiles`, 'fig-leased'),
+        item('Done', `${t.done} / ${t.total} tiles (${Math.floor(100 * f.frac)}%)`, 'fig-done'),
+        item('Rendering', plural(t.leased, 'tile'), 'fig-leased'),
         item('Elapsed', duration(f.secs)),
         item('ETA', f.eta === null ? '–' : duration(f.eta)),
         item('Mrays/s', mrays(f.mrays)),

@@ -2,7 +2,7 @@
 // through GET /v1/jobs/{id}/frames), and the chosen frame's job in the job view (its tile map, image and tiles).
 import * as api from './api.js';
 import { el, badge, duration, clock, jobFigures, progressBar, mrays, shownState, arrived, clockRuns, jobHref,
-  countTileEvent } from './format.js';
+  countTileEvent, plural } from './format.js';
 import { JobControls, actor } from './controls.js';
 import { FrameStrip } from './framestrip.js';
 import * as jobView from './job.js';
@@ -63,18 +63,18 @@ export function mount(host, ctx) {
     title.textContent = seq.name || seq.id;
     stateBadge.replaceChildren(badge(shownState(seq)));
     const fc = seq.frames;
-    kind.textContent = `sequence of ${count(fc.total)} frame${fc.total === 1 ? '' : 's'}`;
+    kind.textContent = `sequence of ${plural(fc.total, 'frame')}`;
     const f = jobFigures(seq);
     const t = seq.tiles;
     // Besides those done, the frames that are neither done nor waiting their turn.
     const others = api.JOB_STATES.filter((s) => s !== 'done' && s !== 'queued' && fc[s]).map((s) => `${count(fc[s])} ${s}`);
     const item = (k, v, idAttr) => [el('dt', { text: k }), el('dd', { text: v, id: idAttr })];
     figures.replaceChildren(
-      el('div', { class: 'fig wide' }, el('dt', { text: 'Progress' }), el('dd', {}, progressBar(seq))),
+      el('div', { class: 'fig wide' }, el('dt', { text: 'Progress' }), el('dd', {}, progressBar(seq, false))),  // frames: the next figure
       ...[
         item('Frames', [`${count(fc.done)} / ${count(fc.total)} done`, ...others].join(' · '), 'fig-frames'),
         item('Tiles done', `${count(t.done)} / ${count(t.total)} (${Math.floor(100 * f.frac)}%)`, 'fig-done'),
-        item('Rendering', `${count(t.leased)} tiles`, 'fig-leased'),
+        item('Rendering', plural(t.leased, 'tile'), 'fig-leased'),
         item('Elapsed', duration(f.secs)),
         item('ETA', f.eta === null ? '–' : duration(f.eta)),
         item('Mrays/s', mrays(f.mrays)),
