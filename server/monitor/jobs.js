@@ -1,5 +1,5 @@
 // The job list: state, progress, priority, elapsed time, ETA and Mrays/s of every job, filtered by state. A sequence is
-// one row (its frames done beside its tiles); its frames' own jobs are not listed.
+// one row (its frames done under its tiles' bar); its frames' own jobs are not listed.
 import * as api from './api.js';
 import { el, badge, duration, clock, jobFigures, progressBar, mrays, shownState, arrived, clockRuns, jobHref,
   countTileEvent } from './format.js';
