@@ -73,11 +73,16 @@ export async function call(method, path, body) {
   return text ? JSON.parse(text) : null;
 }
 
-/** The preview PNG as an object URL (the caller revokes it). */
-export async function previewUrl(jobId) {
+/** The preview PNG as a Blob. */
+export async function previewBlob(jobId) {
   const res = await fetch(route('job_preview', jobId), { headers: headers(), cache: 'no-store' });
   if (!res.ok) throw await errorOf(res);
-  return URL.createObjectURL(await res.blob());
+  return res.blob();
+}
+
+/** The preview PNG as an object URL (the caller revokes it). */
+export async function previewUrl(jobId) {
+  return URL.createObjectURL(await previewBlob(jobId));
 }
 
 /**

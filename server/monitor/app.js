@@ -3,6 +3,7 @@
 import * as api from './api.js';
 import * as jobsPage from './jobs.js';
 import * as jobPage from './job.js';
+import * as sequencePage from './sequence.js';
 import * as workersPage from './workers.js';
 
 const POLL_MS = 1000;         // without events
@@ -65,9 +66,12 @@ $('token-form').addEventListener('submit', async (ev) => {
 $('token-button').addEventListener('click', () => askToken(''));
 
 // ---- pages ----
+// The addresses are those format.js's jobHref makes: #/jobs/ID, #/jobs/ID/frames[/N] (a sequence, a frame chosen).
 function route() {
   const h = location.hash.replace(/^#\/?/, '');
   const parts = h.split('/').filter(Boolean).map(decodeURIComponent);
+  if (parts[0] === 'jobs' && parts[1] && parts[2] === 'frames')
+    return { key: 'sequence/' + parts[1], page: sequencePage, arg: parts[1], frame: parts[3], nav: 'jobs' };
   if (parts[0] === 'jobs' && parts[1]) return { key: 'job/' + parts[1], page: jobPage, arg: parts[1], nav: 'jobs' };
   if (parts[0] === 'workers') return { key: 'workers', page: workersPage, nav: 'workers' };
   return { key: 'jobs', page: jobsPage, nav: 'jobs' };
@@ -75,13 +79,16 @@ function route() {
 
 function mountRoute() {
   const r = route();
-  if (state.view && state.routeKey === r.key) return;
+  if (state.view && state.routeKey === r.key) {
+    if (state.view.route) state.view.route(r);  // the same page at another place (a sequence's chosen frame)
+    return;
+  }
   if (state.view && state.view.unmount) state.view.unmount();
   state.routeKey = r.key;
   for (const a of document.querySelectorAll('[data-nav]')) a.classList.toggle('active', a.dataset.nav === r.nav);
   const host = $('view');
   host.replaceChildren();
-  state.view = r.page.mount(host, { caps: state.caps, arg: r.arg, refresh, banner: showBanner });
+  state.view = r.page.mount(host, { caps: state.caps, arg: r.arg, frame: r.frame, refresh, banner: showBanner });
   refresh();
 }
 

@@ -43,6 +43,28 @@ export function shownState(job) { return isPaused(job) && job.state !== 'paused'
 
 export function badge(state) { return el('span', { class: 'badge state-' + state, text: state }); }
 
+/**
+ * The page of a job as the monitor's address names it: a sequence's frame strip (#/jobs/ID/frames), a frame's place
+ * in its sequence's strip (#/jobs/SEQ/frames/N), or a one-image job's page (#/jobs/ID). app.js reads these back.
+ */
+export function jobHref(job) {
+  const id = (s) => encodeURIComponent(s);
+  if (job.frames) return `#/jobs/${id(job.id)}/frames`;
+  if (job.sequence) return `#/jobs/${id(job.sequence)}/frames/${job.frame}`;
+  return `#/jobs/${id(job.id)}`;
+}
+
+/** A sequence's frames done of its total ("12/24 frames"), or null for a job that is not a sequence. */
+export function framesDone(job) {
+  return job.frames ? `${job.frames.done}/${job.frames.total} frames` : null;
+}
+
+/** Applies a tile_leased or tile_done event to a job's tile counts (GET /v1/jobs/{id}'s `tiles`). */
+export function countTileEvent(tiles, type) {
+  if (type === 'tile_leased') { tiles.pending = Math.max(0, tiles.pending - 1); tiles.leased += 1; }
+  else if (type === 'tile_done') { tiles.leased = Math.max(0, tiles.leased - 1); tiles.done = Math.min(tiles.total, tiles.done + 1); }
+}
+
 // When each job status arrived (performance.now()), so that the figures of a job that has started go on counting
 // between the coordinator's answers: its render_seconds is the wall time since its first lease as of the answer.
 const received = new WeakMap();
@@ -79,7 +101,8 @@ export function jobFigures(job) {
   return { frac, eta, mrays, secs };
 }
 
-export function progressBar(job) {
+/** A job's tiles done as a bar; a sequence's frames done under it unless `withFrames` is false. */
+export function progressBar(job, withFrames = true) {
   const t = job.tiles || { total: 0, done: 0, leased: 0 };
   const pct = t.total ? 100 * t.done / t.total : 0;
   const leasedPct = t.total ? 100 * (t.leased || 0) / t.total : 0;
@@ -88,8 +111,15 @@ export function progressBar(job) {
     el('div', { class: 'progress-leased' }));
   bar.children[0].style.width = pct.toFixed(2) + '%';
   bar.children[1].style.width = leasedPct.toFixed(2) + '%';
-  return el('div', { class: 'progress-cell' }, bar, el('span', { class: 'progress-text', text: `${t.done}/${t.total}` }));
+  const cell = el('div', { class: 'progress-cell' }, bar, el('span', { class: 'progress-text', text: `${t.done}/${t.total}` }));
+  // A sequence's frames done, under its tiles' bar.
+  return job.frames && withFrames
+    ? el('div', {}, cell, el('div', { class: 'progress-frames', text: framesDone(job), title: 'Frames done of the sequence\'s frames' }))
+    : cell;
 }
+
+/** "1 tile", "3 tiles". */
+export function plural(n, word) { return `${n.toLocaleString('en-US')} ${word}${n === 1 ? '' : 's'}`; }
 
 export function mrays(v) { return v === null || v === undefined ? '–' : v >= 100 ? v.toFixed(0) : v.toFixed(1); }
 

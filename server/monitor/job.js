@@ -1,36 +1,20 @@
-// One job: its figures, the live tile map, the partial image, tile details, and the job's controls.
+// One job: its figures, the live tile map, the partial image, tile details, and the job's controls. The sequence page
+// shows its selected frame's job with this view too (ctx.embedded: no crumbs, the frame's number as its title).
 import * as api from './api.js';
-import { el, badge, duration, clock, jobFigures, progressBar, mrays, isPaused, shownState, samplingText, arrived,
-  clockRuns, FINAL } from './format.js';
+import { el, badge, duration, clock, jobFigures, progressBar, mrays, shownState, samplingText, arrived,
+  clockRuns, jobHref, plural } from './format.js';
 import { TileMap, shownTileState, workerColor } from './tilemap.js';
+import { JobControls, actor } from './controls.js';
 
-/** A button that needs a second click within 4 s (for cancel and delete). */
-function confirmButton(label, confirmLabel, action, cls) {
-  let armed = null;
-  const b = el('button', { type: 'button', class: cls || '', text: label });
-  b.addEventListener('click', () => {
-    if (!armed) {
-      b.textContent = confirmLabel;
-      b.classList.add('armed');
-      armed = setTimeout(() => { armed = null; b.textContent = label; b.classList.remove('armed'); }, 4000);
-      return;
-    }
-    clearTimeout(armed);
-    armed = null;
-    b.textContent = label;
-    b.classList.remove('armed');
-    action();
-  });
-  return b;
-}
-
-/** The file name a job's result is saved under: its name (or id), reduced to safe characters, with .exr. */
 // A worker as the page names it: "name (id)", or the id when it has no name.
 function workerText(id, name) { return name ? `${name} (${id})` : id; }
 
+/** The file name a job's result is saved under: its name (or id), reduced to safe characters, with .exr; a frame's
+ *  has its number too (name.0042.exr). */
 function exrName(job) {
   const base = String(job.name || job.id).replace(/[^A-Za-z0-9._-]+/g, '_').replace(/^[._]+/, '').slice(0, 100);
-  return (base || 'tessera-' + job.id) + '.exr';
+  const frame = job.sequence ? '.' + String(job.frame).padStart(4, '0') : '';
+  return (base || 'tessera-' + job.id) + frame + '.exr';
 }
 
 // The tile states the map shows, most advanced first: the coordinator's, a merging tile shown as leased
@@ -47,8 +31,10 @@ export function mount(host, ctx) {
   let mounted = true, deleted = false;  // a refresh finishing after the page left or the job was deleted draws nothing
   let spec = null, specAsked = false;  // the job's spec, read once for its sampling settings (they do not change)
 
-  const title = el('h1', { id: 'job-title', text: id });
+  const title = el(ctx.embedded ? 'h2' : 'h1', { id: 'job-title', text: id });
   const stateBadge = el('span', { id: 'job-state' });
+  // A frame's view names the frame's own job (for the command line).
+  const idNote = ctx.embedded ? el('span', { class: 'sub mono', id: 'frame-job', text: id }) : null;
   const actionMsg = el('p', { class: 'action-msg', id: 'action-msg', role: 'status' });
   const figures = el('dl', { class: 'figures', id: 'job-figures' });
   const errorBox = el('div', { class: 'errorbox', id: 'job-error', hidden: true });
@@ -67,32 +53,8 @@ export function mount(host, ctx) {
   const imgNote = el('p', { class: 'sub', id: 'preview-note', text: 'The image appears as tiles are done.' });
 
   // ---- controls ----
-  const missing = (what) => `This coordinator has no ${what} endpoint yet.`;
-  async function act(label, method, url, body, after) {
-    actionMsg.textContent = label + '…';
-    actionMsg.className = 'action-msg';
-    try {
-      await api.call(method, url, body);
-      actionMsg.textContent = label + ': done.';
-      if (after) after();
-    } catch (e) {
-      actionMsg.textContent = label + ' failed: ' + e.message;
-      actionMsg.className = 'action-msg error';
-    }
-    ctx.refresh();
-  }
-  const btn = (label, name, enabledBy, onClick, cls) => {
-    const b = el('button', { type: 'button', text: label, 'data-action': name, class: cls || '', onclick: onClick });
-    b.dataset.supported = enabledBy ? 'yes' : 'no';
-    if (!enabledBy) { b.disabled = true; b.title = missing(label.toLowerCase()); }
-    return b;
-  };
-  const pauseB = btn('Pause', 'pause', ep.pause, () => act('Pause', 'POST', api.route('job_pause', id)));
-  const resumeB = btn('Resume', 'resume', ep.resume, () => act('Resume', 'POST', api.route('job_resume', id)));
-  const retryB = btn('Retry', 'retry', ep.retry, () => act('Retry', 'POST', api.route('job_retry', id)), 'primary');
-  const cancelB = confirmButton('Cancel', 'Click to confirm', () => act('Cancel', 'DELETE', path), 'danger');
-  cancelB.dataset.action = 'cancel';
-  cancelB.dataset.supported = 'yes';
+  const act = actor(actionMsg, ctx.refresh);
+  const controls = new JobControls(ctx, id, act, () => { deleted = true; location.hash = '#/jobs'; });
   // The result as a file, named after the job (a plain link could not carry the token).
   const downloadB = el('button', { type: 'button', class: 'primary', text: 'Download EXR', 'data-action': 'download',
     onclick: async () => {
@@ -107,22 +69,11 @@ export function mount(host, ctx) {
         actionMsg.className = 'action-msg error';
       }
     } });
-  const deleteB = confirmButton('Delete', 'Click to delete for good',
-    () => act('Delete', 'DELETE', path + '?purge=true', undefined, () => { deleted = true; location.hash = '#/jobs'; }), 'danger');
-  deleteB.dataset.action = 'delete';
-  deleteB.dataset.supported = ep.purge ? 'yes' : 'no';
-  if (!ep.purge) { deleteB.disabled = true; deleteB.title = missing('purge (DELETE ?purge=true)'); }
-  const prioInput = el('input', { type: 'number', id: 'priority-input', step: '1', 'aria-label': 'Priority' });
-  const prioB = btn('Set priority', 'priority', ep.priority,
-    () => act('Priority', 'PATCH', path, { priority: Number(prioInput.value) }));
-  if (!ep.priority) { prioInput.disabled = true; prioInput.title = missing('priority (PATCH)'); }
-
+  controls.element.prepend(downloadB);
+  if (!ctx.embedded) host.append(el('div', { class: 'crumbs' }, el('a', { href: '#/jobs', text: 'Jobs' }), ' / ', el('span', { text: id })));
   host.append(
-    el('div', { class: 'crumbs' }, el('a', { href: '#/jobs', text: 'Jobs' }), ' / ', el('span', { text: id })),
-    el('div', { class: 'page-head' },
-      el('div', { class: 'title' }, title, stateBadge),
-      el('div', { class: 'actions' }, downloadB, pauseB, resumeB, retryB, cancelB,
-        el('span', { class: 'prio' }, prioInput, prioB), deleteB)),
+    el('div', { class: ctx.embedded ? 'page-head frame-head' : 'page-head' },
+      el('div', { class: 'title' }, title, stateBadge, idNote), controls.element),
     actionMsg, errorBox,
     el('div', { class: 'card figures-card' }, figures),
     el('div', { class: 'split' },
@@ -139,7 +90,7 @@ export function mount(host, ctx) {
   const ticker = setInterval(() => { if (job && clockRuns(job)) drawHead(); }, 1000);
 
   function drawHead() {
-    title.textContent = job.name || job.id;
+    title.textContent = job.sequence ? `Frame ${job.frame}` : job.name || job.id;
     stateBadge.replaceChildren(badge(shownState(job)));
     const f = jobFigures(job);
     const t = job.tiles;
@@ -147,27 +98,23 @@ export function mount(host, ctx) {
     figures.replaceChildren(
       el('div', { class: 'fig wide' }, el('dt', { text: 'Progress' }), el('dd', {}, progressBar(job))),
       ...[
-        item('Done', `${t.done} / ${t.total} tiles (${(100 * f.frac).toFixed(0)}%)`, 'fig-done'),
-        item('Rendering', `${t.leased} tiles`, 'fig-leased'),
+        item('Done', `${t.done} / ${t.total} tiles (${Math.floor(100 * f.frac)}%)`, 'fig-done'),
+        item('Rendering', plural(t.leased, 'tile'), 'fig-leased'),
         item('Elapsed', duration(f.secs)),
         item('ETA', f.eta === null ? '–' : duration(f.eta)),
         item('Mrays/s', mrays(f.mrays)),
         item('Image', `${job.width}×${job.height} · ${job.spp} spp · seed ${job.seed}`),
         item('Sampling', samplingText(spec), 'fig-sampling'),
-        item('Tiles', `${job.tile_size} px`),
-        item('Priority', String(job.priority ?? 0), 'fig-priority'),
-        item('Submitted', clock(job.created_ms)),
+        // A frame's are its sequence's, shown above it.
+        ...(ctx.embedded ? [] : [
+          item('Tiles', `${job.tile_size} px`),
+          item('Priority', String(job.priority ?? 0), 'fig-priority'),
+          item('Submitted', clock(job.created_ms))]),
       ].map((pair) => el('div', { class: 'fig' }, pair)));
     errorBox.hidden = !job.error;
     errorBox.textContent = job.error ? 'Failed: ' + job.error : '';
-    const paused = isPaused(job), final = FINAL.includes(job.state);
-    pauseB.hidden = paused || final;
-    resumeB.hidden = !paused;
-    retryB.hidden = !(job.state === 'failed' || job.state === 'cancelled');
-    cancelB.hidden = final;
-    deleteB.hidden = !final;
+    controls.update(job);
     downloadB.hidden = job.state !== 'done';
-    if (document.activeElement !== prioInput) prioInput.value = String(job.priority ?? 0);
   }
 
   function drawTiles() {
@@ -267,6 +214,8 @@ export function mount(host, ctx) {
         }
         throw e;
       }
+      // A sequence has a page of its own, and a frame's job is shown in its sequence's.
+      if (!ctx.embedded && (j.frames || j.sequence)) { location.replace(jobHref(j)); return; }
       job = arrived(j);
       if (!specAsked) {
         specAsked = true;

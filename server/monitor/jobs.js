@@ -1,6 +1,8 @@
-// The job list: state, progress, priority, elapsed time, ETA and Mrays/s of every job, filtered by state.
+// The job list: state, progress, priority, elapsed time, ETA and Mrays/s of every job, filtered by state. A sequence is
+// one row (its frames done under its tiles' bar); its frames' own jobs are not listed.
 import * as api from './api.js';
-import { el, badge, duration, clock, jobFigures, progressBar, mrays, shownState, arrived, clockRuns } from './format.js';
+import { el, badge, duration, clock, jobFigures, progressBar, mrays, shownState, arrived, clockRuns, jobHref,
+  countTileEvent } from './format.js';
 
 const STATES = ['all', ...api.JOB_STATES];
 
@@ -20,6 +22,8 @@ export function mount(host) {
       empty));
 
   let jobs = [];
+  // Frame jobs (their `job` events name their sequence) -> their sequence, so that their tile events move its row.
+  const sequenceOf = new Map();
   // Elapsed times and ETAs of running jobs go on between answers and events.
   const ticker = setInterval(() => { if (jobs.some(clockRuns)) draw(); }, 1000);
   function draw() {
@@ -38,10 +42,11 @@ export function mount(host) {
 
   function row(j) {
     const f = jobFigures(j);
-    const open = () => { location.hash = '#/jobs/' + encodeURIComponent(j.id); };
-    return el('tr', { class: 'clickable', 'data-job': j.id, onclick: open },
-      el('td', {}, el('a', { href: '#/jobs/' + encodeURIComponent(j.id), class: 'job-name', text: j.name || j.id }),
-        el('div', { class: 'sub', text: j.id })),
+    const href = jobHref(j);
+    const open = () => { location.hash = href; };
+    return el('tr', { class: 'clickable', 'data-job': j.id, 'data-sequence': j.frames ? 'true' : undefined, onclick: open },
+      el('td', {}, el('a', { href, class: 'job-name', text: j.name || j.id }),
+        el('div', { class: 'sub', text: j.frames ? `${j.id} · sequence, frames ${j.frames.first}–${j.frames.last}` : j.id })),
       el('td', {}, badge(shownState(j))),
       el('td', {}, progressBar(j)),
       el('td', { class: 'num', text: String(j.priority ?? 0) }),
@@ -61,6 +66,8 @@ export function mount(host) {
     /** Applies an event of the stream (true: applied, no refresh needed). */
     onEvent(type, d) {
       if (type === 'job') {
+        // A frame's job is no row of its own: its sequence's row changes with the sequence's own event, which follows.
+        if (d.sequence) { sequenceOf.set(d.id, d.sequence); return true; }
         const i = jobs.findIndex((j) => j.id === d.id);
         if (i >= 0) jobs[i] = arrived(d);
         else jobs.unshift(arrived(d));
@@ -68,14 +75,14 @@ export function mount(host) {
         return true;
       }
       if (type === 'tile_leased' || type === 'tile_done') {
-        const j = jobs.find((x) => x.id === d.job);
+        const owner = sequenceOf.get(d.job) || d.job;
+        const j = jobs.find((x) => x.id === owner);
         if (!j) return false;
-        const c = j.tiles;
-        if (type === 'tile_leased') { c.pending = Math.max(0, c.pending - 1); c.leased += 1; }
-        else { c.leased = Math.max(0, c.leased - 1); c.done = Math.min(c.total, c.done + 1); }
+        countTileEvent(j.tiles, type);
         draw();
         return true;
       }
+      if (type === 'frame_done') return true;  // the sequence's job event carries its frame counts
       return type !== 'tile_failed';  // a failure may change the job: refresh; worker events are not shown here
     },
     unmount() { clearInterval(ticker); },

@@ -9,7 +9,9 @@ machine is; the holder then hands its tiles back and the job finishes. Every wai
 overall deadline. Exits 77 (ctest SKIP_RETURN_CODE) when Chromium, chromedriver or Selenium is missing.
 """
 import json
+import math
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -28,7 +30,7 @@ try:
     from selenium import webdriver
     from selenium.webdriver.chrome.service import Service
     from selenium.webdriver.common.by import By
-    from selenium.common.exceptions import StaleElementReferenceException
+    from selenium.common.exceptions import NoSuchElementException, StaleElementReferenceException
 except ImportError:
     print("SKIP: python3-selenium is not installed (apt-get install python3-selenium)")
     sys.exit(SKIP)
@@ -55,12 +57,13 @@ def fail(msg):
 
 def wait_for(what, predicate, deadline=DEADLINE):
     """Polls predicate until it is truthy. The page re-renders while it polls the coordinator, so an element found a
-    moment ago may be gone: a stale element counts as "not yet" and the predicate runs again on a fresh look-up."""
+    moment ago may be gone, and one looked for may not be drawn yet: a stale or missing element counts as "not yet"
+    and the predicate runs again on a fresh look-up."""
     end = time.monotonic() + deadline
     while True:
         try:
             value = predicate()
-        except StaleElementReferenceException:
+        except (StaleElementReferenceException, NoSuchElementException):
             value = None
         if value:
             return value
@@ -176,12 +179,229 @@ def tiles_in(d, state):
     return len(d.find_elements(By.CSS_SELECTOR, f'#tilemap .tile[data-state="{state}"]'))
 
 
-def sphere_scene():
+def sphere_scene(width=WIDTH, height=HEIGHT):
     """The farm tests' small analytic scene (tests/farm/common.sh, write_sphere_scene)."""
     path = os.path.join(WORK, "scene.json")
     subprocess.run(["bash", "-c", 'source "$1" - - -; write_sphere_scene "$2" "$3" "$4" 4', "bash", FARM_COMMON, path,
-                    str(WIDTH), str(HEIGHT)], check=True)
+                    str(width), str(height)], check=True)
     return json.load(open(path))
+
+
+def sequence_frames(count, width=WIDTH, height=HEIGHT):
+    """A sequence's frames (numbered from 1): the sphere scene with its camera circling the spheres."""
+    scene = sphere_scene(width, height)
+    frames = []
+    for i in range(count):
+        s = json.loads(json.dumps(scene))
+        a = 0.3 * i
+        s["camera"]["position"] = [4 * math.sin(a), 0.6, 4 * math.cos(a)]
+        frames.append({"number": i + 1, "scene": s})
+    return frames
+
+
+def selected_frame(d):
+    """The number of the frame the strip shows chosen (None when none is)."""
+    return d.execute_script(
+        "const c = document.querySelector('#frame-strip .frame-cell.selected'); return c ? Number(c.dataset.frame) : null;")
+
+
+def cell_states(d):
+    """The strip's frame number -> state, as the page shows them."""
+    return {int(c.get_attribute("data-frame")): c.get_attribute("data-state")
+            for c in d.find_elements(By.CSS_SELECTOR, "#frame-strip .frame-cell")}
+
+
+def thumbnails_shown(d):
+    """The frames whose thumbnail the strip shows, loaded."""
+    return d.execute_script("""
+        return [...document.querySelectorAll('#frame-strip .frame-cell[data-thumb="shown"]')]
+          .filter((c) => { const i = c.querySelector('img'); return i && i.complete && i.naturalWidth > 0; })
+          .map((c) => Number(c.dataset.frame));""")
+
+
+def frame_states(client, seq):
+    """Frame number -> state of every frame of a sequence, from the API (one page holds them all here)."""
+    status, body = client.call("GET", f"/v1/jobs/{seq}/frames")
+    if status != 200:
+        fail(f"GET /v1/jobs/{seq}/frames answered {status}: {body}")
+    return {f["frame"]: f["state"] for f in body["frames"]}
+
+
+SEQ_FRAMES = 6
+
+
+def start_worker(base, worker_path, name):
+    return start([TESSERA, "worker", "--coordinator", base, "--token-file", worker_path, "--threads", "1",
+                  "--name", name, "--cache", os.path.join(WORK, "cache-" + name)], name + ".log")
+
+
+def check_sequences(d, base, client, workerside, holder, worker_path):
+    """Sequences in the monitor: one row in the list with its frames done, the sequence page's frame strip (thumbnails
+    of done frames, states of the others), a chosen frame's tile map and image, a frame's download, paging, and frames
+    retried from the page. No worker runs when this starts; the scripted worker `holder` keeps a tile where a state
+    must hold still."""
+    # A 6-frame sequence; the holder takes a tile of frame 1 (frames are leased in order) before any worker runs.
+    status, body = client.call("POST", "/v1/jobs", {"frames": sequence_frames(SEQ_FRAMES), "frame_order": "in_order",
+                                                     "tile_size": TILE, "seed": 5, "name": "browser-test sequence"})
+    if status != 201:
+        fail(f"submit of the sequence answered {status}: {body}")
+    seq = body["id"]
+    status, lease = workerside.call("POST", f"/v1/workers/{holder}/lease")
+    frame_jobs = {f["frame"]: f["id"] for f in client.call("GET", f"/v1/jobs/{seq}/frames")[1]["frames"]}
+    if status != 200 or lease["job"] != frame_jobs[1]:
+        fail(f"the holder did not get a tile of frame 1: {status} {lease}")
+
+    d.get(base + "/#/jobs")
+    row = f'tr[data-job="{seq}"]'
+    wait_for("the sequence's row, running, no frame done", lambda: any(
+        "running" in r.text and "0/6 frames" in r.text for r in visible(d, row)))
+    worker = start_worker(base, worker_path, "render-2")
+    # Frames 2 to 6 are rendered; frame 1 waits for the held tile.
+    wait_for("frames 2-6 done (API)", lambda: client.call("GET", f"/v1/jobs/{seq}")[1]["frames"]["done"] == SEQ_FRAMES - 1)
+    row_text = wait_for("5/6 frames in the sequence's row", lambda: next(
+        (r.text for r in visible(d, row) if "5/6 frames" in r.text), None))
+    # The frames' own job events (they name their sequence) added no rows.
+    rows = d.execute_script("return [...document.querySelectorAll('#jobs-table tbody tr')].map((r) => r.dataset.job);")
+    if any(r in frame_jobs.values() for r in rows) or rows.count(seq) != 1:
+        fail(f"the job list shows a sequence's frames as rows: {rows}")
+    d.save_screenshot(os.path.join(ARTEFACTS, "monitor-sequence-list.png"))
+    print(f"sequence in the list: one row, {row_text.splitlines()}")
+
+    click(d, row, "the sequence's row")
+    wait_for("the sequence page", lambda: d.current_url.split("#")[1].startswith(f"/jobs/{seq}/frames"))
+    wait_for("6 frames in the strip, 5 done with their thumbnails and frame 1 running", lambda:
+             cell_states(d) == {1: "running", **{n: "done" for n in range(2, SEQ_FRAMES + 1)}}
+             and sorted(thumbnails_shown(d)) == list(range(2, SEQ_FRAMES + 1)))
+    # The running frame is the one chosen: its tile map shows the held tile.
+    wait_for("frame 1's tile map with the held tile", lambda: d.find_element(By.ID, "job-title").text == "Frame 1"
+             and len(d.find_elements(By.CSS_SELECTOR, "#frame-view #tilemap .tile")) == TOTAL_TILES
+             and tiles_in(d, "leased") == 1 and tiles_in(d, "done") == TOTAL_TILES - 1)
+    figures = d.find_element(By.ID, "seq-figures").text
+    if "5 / 6 done" not in figures or "1 running" not in figures:
+        fail(f"the sequence's figures do not count its frames: {figures!r}")
+    # The page at a taller window, for the whole of the chosen frame (docs/images/monitor-sequence.png).
+    d.execute_cdp_cmd("Emulation.setDeviceMetricsOverride", {"width": 1366, "height": 1100, "deviceScaleFactor": 1, "mobile": False})
+    d.save_screenshot(os.path.join(ARTEFACTS, "monitor-sequence.png"))
+    d.execute_cdp_cmd("Emulation.setDeviceMetricsOverride", {"width": 1366, "height": 768, "deviceScaleFactor": 1, "mobile": False})
+
+    # The held tile handed back: frame 1 is rendered, and its cell turns into its thumbnail.
+    workerside.call("POST", f"/v1/leases/{lease['lease']}/release")
+    wait_for("every frame done with its thumbnail", lambda: set(cell_states(d).values()) == {"done"}
+             and sorted(thumbnails_shown(d)) == list(range(1, SEQ_FRAMES + 1)))
+    wait_for("the sequence done on its page", lambda: "done" in d.find_element(By.ID, "seq-state").text)
+    fetched = int(d.find_element(By.ID, "frame-strip").get_attribute("data-thumbs-fetched") or 0)
+    if fetched != SEQ_FRAMES:
+        fail(f"the strip fetched {fetched} thumbnails for {SEQ_FRAMES} done frames (each once, then from its cache)")
+    print(f"sequence page: {SEQ_FRAMES} frames done in the strip, {fetched} thumbnails fetched")
+
+    # Another frame chosen from the strip: its own tile map, image and result.
+    click(d, '#frame-strip .frame-cell[data-frame="3"]', "frame 3's cell")
+    wait_for("frame 3 chosen", lambda: d.current_url.endswith(f"/jobs/{seq}/frames/3")
+             and d.find_element(By.ID, "job-title").text == "Frame 3"
+             and selected_frame(d) == 3)
+    wait_for("frame 3's tile map, every tile done", lambda: tiles_in(d, "done") == TOTAL_TILES)
+    wait_for("frame 3's image", lambda: d.execute_script(
+        "const i = document.getElementById('preview'); return !i.hidden && i.complete && i.naturalWidth === arguments[0] "
+        "&& i.dataset.tilesDone === String(arguments[1]);", WIDTH, TOTAL_TILES))
+    if preview_is_the_coordinators(d, frame_jobs[3]) is not True:
+        fail("frame 3's image is not its job's preview")
+    click(d, '#frame-view [data-action="download"]', "frame 3's download button")
+    saved = os.path.join(DOWNLOADS, "browser-test_sequence.0003.exr")
+    wait_for("frame 3's EXR", lambda: os.path.exists(saved) and "Download: " in d.find_element(By.ID, "action-msg").text)
+    status, exr = client.call("GET", f"/v1/jobs/{seq}/frames/3/result.exr")
+    if status != 200 or open(saved, "rb").read() != exr:
+        fail(f"the frame's download is not its result ({status})")
+    # A frame's job has no controls of its own besides its download (the sequence's act on it).
+    shown = [b.get_attribute("data-action") for b in visible(d, "#frame-view [data-action]")]
+    if shown != ["download"]:
+        fail(f"a done frame offers {shown}")
+    print(f"frame chosen: frame 3's tile map, image and {os.path.basename(saved)} ({len(exr)} bytes)")
+    # A frame's job page is its place in its sequence's strip.
+    d.get(base + "/#/jobs/" + frame_jobs[5])
+    wait_for("frame 5 of the sequence page", lambda: d.current_url.endswith(f"/jobs/{seq}/frames/5")
+             and d.find_element(By.ID, "job-title").text == "Frame 5")
+    d.get(base + "/#/jobs")
+    wait_for("6/6 frames, done, in the list", lambda: any(
+        "done" in r.text and "6/6 frames" in r.text for r in visible(d, row)))
+    stop(worker)
+
+    # Frames retried from the page. A second sequence; no worker runs: the holder fails frame 1's tile (one worker's
+    # failure fails a tile's job here), the sequence is paused and cancelled from its page; frame 4 is retried from
+    # its frame's view and is the only one rendered; then the sequence's Retry renders the rest.
+    status, body = client.call("POST", "/v1/jobs", {"frames": sequence_frames(SEQ_FRAMES, 64, 64), "tile_size": TILE,
+                                                     "seed": 6, "name": "browser-test retry"})
+    if status != 201:
+        fail(f"submit of the second sequence answered {status}: {body}")
+    retried = body["id"]
+    status, lease = workerside.call("POST", f"/v1/workers/{holder}/lease")
+    if status != 200 or not lease["job"].startswith(retried):
+        fail(f"the holder did not get a tile of the second sequence: {status} {lease}")
+    workerside.call("POST", f"/v1/leases/{lease['lease']}/fail", {"error": "scene too heavy (scripted)", "log": []})
+    d.get(base + f"/#/jobs/{retried}/frames")
+    wait_for("frame 1 failed, the others queued", lambda: cell_states(d) == {1: "failed", **{n: "queued" for n in range(2, 7)}})
+    click(d, '#seq-actions [data-action="pause"]', "the sequence's pause button")
+    wait_for("the frames paused on the page", lambda: cell_states(d) == {1: "failed", **{n: "paused" for n in range(2, 7)}})
+    click(d, '#seq-actions [data-action="cancel"]', "the sequence's cancel button")
+    click(d, '#seq-actions [data-action="cancel"]', "the cancel confirmation")
+    want = {1: "failed", **{n: "cancelled" for n in range(2, 7)}}
+    wait_for("the frames cancelled (API)", lambda: frame_states(client, retried) == want)
+    wait_for("the frames cancelled on the page", lambda: cell_states(d) == want)
+    wait_for("the sequence's retry button for its 6 frames", lambda: any(
+        "6 frames" in b.text for b in visible(d, '#seq-actions [data-action="retry"]')))
+    click(d, '#frame-strip .frame-cell[data-frame="4"]', "frame 4's cell")
+    wait_for("frame 4's view", lambda: d.find_element(By.ID, "job-title").text == "Frame 4")
+    d.save_screenshot(os.path.join(ARTEFACTS, "monitor-sequence-cancelled.png"))
+    click(d, '#frame-view [data-action="retry"]', "frame 4's retry button")
+    want[4] = "queued"
+    wait_for("frame 4 queued again, and only it (API)", lambda: frame_states(client, retried) == want)
+    worker = start_worker(base, worker_path, "render-3")
+    want[4] = "done"
+    wait_for("frame 4 done with its thumbnail, the others as they were", lambda: cell_states(d) == want
+             and thumbnails_shown(d) == [4])
+    if frame_states(client, retried) != want:
+        fail(f"a retry of frame 4 changed other frames: {frame_states(client, retried)}")
+    print("retry of one frame from the page: frame 4 rendered, frame 1 failed and the others cancelled as they were")
+    click(d, '#seq-actions [data-action="retry"]', "the sequence's retry button")
+    wait_for("every frame done", lambda: set(cell_states(d).values()) == {"done"} and len(thumbnails_shown(d)) == 6)
+    wait_for("the sequence done", lambda: "done" in d.find_element(By.ID, "seq-state").text)
+    # Deleted from its page, like a job: gone from the list and the API.
+    click(d, '#seq-actions [data-action="delete"]', "the sequence's delete button")
+    click(d, '#seq-actions [data-action="delete"]', "the delete confirmation")
+    wait_for("the job list without the deleted sequence", lambda: d.current_url.endswith("#/jobs")
+             and visible(d, row) and not d.find_elements(By.CSS_SELECTOR, f'tr[data-job="{retried}"]'))
+    if client.call("GET", f"/v1/jobs/{retried}")[0] != 404:
+        fail("the deleted sequence still answers")
+    print("retry of the sequence's other frames, then its deletion, from its page")
+
+    # A long sequence pages through its frames: 150 frames, no worker: the strip shows a window of 60.
+    stop(worker)
+    status, body = client.call("POST", "/v1/jobs", {"frames": sequence_frames(150, 16, 16), "tile_size": 16,
+                                                     "name": "browser-test long"})
+    if status != 201:
+        fail(f"submit of the long sequence answered {status}: {body}")
+    long = body["id"]
+    d.get(base + f"/#/jobs/{long}/frames")
+
+    def window_is(a, b):
+        states = cell_states(d)
+        return sorted(states) == list(range(a, b + 1)) and d.find_element(By.ID, "frame-range").text == f"{a}–{b} of 150"
+    wait_for("frames 1-60", lambda: window_is(1, 60))
+    click(d, '[data-page="next"]', "the next page")
+    wait_for("frames 61-120", lambda: window_is(61, 120))
+    click(d, '[data-page="next"]', "the next page")
+    wait_for("frames 121-150", lambda: window_is(121, 150))
+    if d.find_element(By.CSS_SELECTOR, '[data-page="next"]').is_enabled():
+        fail("the last page offers a next one")
+    click(d, '[data-page="prev"]', "the previous page")
+    wait_for("frames 61-120 again", lambda: window_is(61, 120))
+    d.find_element(By.ID, "frame-goto").send_keys("140\n")
+    wait_for("frame 140 chosen, its window around it", lambda: d.current_url.endswith(f"/jobs/{long}/frames/140")
+             and window_is(91, 150) and selected_frame(d) == 140
+             and d.find_element(By.ID, "job-title").text == "Frame 140")
+    d.save_screenshot(os.path.join(ARTEFACTS, "monitor-sequence-paged.png"))
+    client.call("DELETE", f"/v1/jobs/{long}")
+    print("paging: 150 frames shown 60 at a time, frame 140 found by its number")
+    return [retried]
 
 
 def main():
@@ -430,10 +650,16 @@ def main():
         if sorted(attempts) != [1] * (TOTAL_TILES - 1) + [2]:
             fail(f"retry leased tiles more than once besides the failed one: attempts {attempts}")
         print("retry from the page: the failed tile leased twice, every other tile once")
+        # Every job ended before the sequences come (the scripted worker's leases must get their tiles).
+        wait_for("every job done", lambda: all(j["state"] == "done" for j in client.call("GET", "/v1/jobs")[1]["jobs"]))
         stop(worker)
 
-        # A poll of the job page that was in flight when the job was deleted may have logged its 404; nothing else.
-        errors = [e for e in console_errors(d) if not (f"/v1/jobs/{job} " in e["message"] and "404" in e["message"])]
+        deleted = [job] + check_sequences(d, base, client, workerside, holder, worker_path)
+
+        # A poll of a job's page that was in flight when the job was deleted may have logged its 404 (of the job, its
+        # frames or a frame's job); nothing else.
+        gone = re.compile("/v1/jobs/(" + "|".join(map(re.escape, deleted)) + r")([ /?]|\.f\d)")
+        errors = [e for e in console_errors(d) if not (gone.search(e["message"]) and "404" in e["message"])]
         if errors:
             fail(f"console errors: {errors}")
     except BaseException:
@@ -443,8 +669,8 @@ def main():
         raise
     finally:
         d.quit()
-    print("PASS: job listed, tiles done on the map, preview shown, result downloaded, tokens checked, job deleted; screenshots in",
-          ARTEFACTS)
+    print("PASS: job listed, tiles done on the map, preview shown, result downloaded, tokens checked, job deleted; "
+          "sequence listed, its frames shown, chosen, retried and paged; screenshots in", ARTEFACTS)
 
 
 try:
