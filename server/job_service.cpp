@@ -345,6 +345,7 @@ protocol::JobStatus JobService::pause(const std::string& id) {
   if (r.status == PauseResult::wrong_state)
     throw ApiError(409, "job " + id + " is " + to_string(r.was) + ": only queued or running jobs can be paused");
   spdlog::info("job {}: paused (was {})", id, to_string(r.was));
+  announce_frames(id);
   return announce(id);
 }
 
@@ -355,6 +356,7 @@ protocol::JobStatus JobService::resume(const std::string& id) {
   if (r.status == PauseResult::wrong_state)
     throw ApiError(409, "job " + id + " is " + to_string(r.was) + ": only paused jobs can be resumed");
   spdlog::info("job {}: resumed", id);
+  announce_frames(id);
   return announce(id);
 }
 
@@ -365,6 +367,7 @@ protocol::JobStatus JobService::set_priority(const std::string& id, int priority
   if (r.status == PriorityResult::ended)
     throw ApiError(409, "job " + id + " is " + to_string(r.was) + ": only a job that has not ended can change priority");
   spdlog::info("job {}: priority {}", id, priority);
+  announce_frames(id);
   return announce(id);
 }
 
@@ -473,6 +476,11 @@ void JobService::after_failure(const ResultClaim& tile, const std::string& error
   if (!f.job_failed) return;
   drop_image(tile.job);
   announce(tile.job);
+}
+
+void JobService::announce_frames(const std::string& job) {
+  if (const auto page = sched_.frames(job, std::nullopt, 0))
+    for (const protocol::JobStatus& f : page->frames) events_.job(f);
 }
 
 protocol::JobStatus JobService::announce(const std::string& job) {

@@ -170,6 +170,7 @@ class JobService {
   void finalize(const std::string& job);
   void after_failure(const ResultClaim& tile, const std::string& error, const FailResult& f);
   protocol::JobStatus announce(const std::string& job);  // the job's snapshot, published as a job event
+  void announce_frames(const std::string& job);  // a sequence's frames' snapshots, each published as a job event
 
   Scheduler& sched_;
   BlobStore& blobs_;
