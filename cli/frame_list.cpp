@@ -174,8 +174,8 @@ std::vector<FrameFile> expand_frames(const std::vector<std::string>& inputs, con
       std::error_code ec;
       std::string what = fs::exists(m.scene, ec) ? " is not a scene file (it is a folder or a device)" : " does not exist";
       if (missing.size() > 1)
-        what += " (nor do " + std::to_string(missing.size() - 1) + " more of the " + std::to_string(numbers.size()) +
-                " frames)";
+        what += " (" + std::to_string(missing.size()) + " of the " + std::to_string(numbers.size()) +
+                " frames are missing)";
       throw invalid_argument("frame " + std::to_string(m.number) + ": " + m.scene.string() + what);
     }
     return frames;

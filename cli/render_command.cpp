@@ -7,6 +7,7 @@
 #include "cli/progress_bar.h"
 #include "cli/render_farm.h"
 #include "cli/render_resume.h"
+#include "cli/render_sequence.h"
 
 #include "core/util/enum_names.h"
 #include "core/image/exr_stream.h"
@@ -18,22 +19,44 @@
 #include <tbb/global_control.h>
 
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <optional>
+#include <system_error>
 #include <unistd.h>
 
 namespace tessera::cli {
 
+namespace {
+
+// A file the command reads: one that exists, or, checked when the command runs, a frame pattern with '#' or a shell
+// glob that matched nothing (cli/frame_list.h).
+const CLI::Validator kFileOrPattern(
+    [](std::string& s) { return s.find_first_of("#*?[") != std::string::npos ? std::string() : CLI::ExistingFile(s); },
+    "FILE");
+
+}  // namespace
+
 CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
-  auto* c = app.add_subcommand("render", "Render a scene to an OpenEXR file on this machine");
-  c->add_option("scene", a.scene, "Scene file (course JSON format)")->required()->check(CLI::ExistingFile);
-  c->add_option("-o,--output", a.output, "Output EXR file")->required();
+  auto* c = app.add_subcommand("render", "Render a scene, or a sequence of frames, to OpenEXR files on this machine");
+  c->add_option("scene", a.inputs,
+                "Scene file (course JSON format); several make a sequence, one frame each, numbered by the last run of "
+                "digits in their names (e.g. shot/frame_*.json); or one pattern with a run of '#' and --frames")
+      ->required()
+      ->check(kFileOrPattern);
+  c->add_option("-o,--output", a.output,
+                "Output EXR file; with several frames a pattern whose last run of '#' becomes the frame number "
+                "(e.g. out/frame_####.exr)")
+      ->required();
+  c->add_option("--frames", a.frames,
+                "The frames of a scene pattern with a run of '#': N, N-M, N-MxSTEP, or a comma-separated list of those "
+                "(e.g. 1-240, 1-240x2, 1,5,10-20)");
   add_sampling_flags(c, a);
   c->add_option("--threads", a.threads, "Worker threads (default: all cores)")->check(CLI::Range(0, 4096));
   c->add_option("--crop", a.crop, "Render only pixels [X0,X1) x [Y0,Y1) (row 0 = top)")->expected(4);
   c->add_flag("--half", a.half, "Write half floats instead of float32");
   c->add_flag("--variance", a.variance, "Also write per-pixel variance-of-the-mean and sample-count channels");
-  c->add_option("--preview", a.preview, "Also write an sRGB tone-mapped PNG");
+  c->add_option("--preview", a.preview, "Also write an sRGB tone-mapped PNG (with several frames, a '#' pattern like -o)");
   c->add_flag("--strict", a.strict, "Treat unknown scene keys as errors");
   c->add_option("--asset-root", a.asset_root, "Allow asset paths anywhere below this folder");
   add_asset_limit_flags(c, a.asset_limits);
@@ -53,8 +76,13 @@ CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
       ->check(CLI::Range(1, 1 << 30));
   auto* resume = c->add_option("--resume", a.resume,
                                "Finish the partial EXR FILE (written by an interrupted render or --tile-budget), or "
-                               "refine a --resumable one to --spp; the sampling settings are taken from FILE")
-                     ->check(CLI::ExistingFile);
+                               "refine a --resumable one to --spp; the sampling settings are taken from FILE. With "
+                               "several frames, a '#' pattern (usually -o's): partial frames are finished, complete "
+                               "ones skipped, the others rendered, all with the settings their files record")
+                     ->check(kFileOrPattern);
+  c->add_flag("--skip-existing", a.skip_existing,
+              "Skip each frame whose output is already a complete render of its scene with these settings (as the "
+              "EXR's metadata records them); render the others again");
   // The sampling settings come from the file: giving them again could only contradict it.
   for (const char* name : {"--seed", "--crop", "--variance", "--target-error", "--min-spp", "--max-spp",
                            "--error-floor", "--replicates", "--area-sampling", "--env-sampling", "--bvh", "--workers"})
@@ -87,6 +115,13 @@ StoredRender load_previous(const ExrImage& file, const RenderArgs& a, const Scen
   return prev;
 }
 
+// Errors go to stderr with the progress bar and the summary; stdout stays free for data.
+void use_render_logger() {
+  auto logger = spdlog::get("render");
+  if (!logger) logger = spdlog::stderr_color_mt("render");
+  spdlog::set_default_logger(logger);
+}
+
 // Pixels that have samples.
 size_t rendered_pixels(const RenderState& state) {
   size_t n = 0;
@@ -96,11 +131,36 @@ size_t rendered_pixels(const RenderState& state) {
 
 }  // namespace
 
+LoadOptions scene_load_options(const RenderArgs& a) {
+  LoadOptions lo;
+  lo.strict = a.strict;
+  lo.force_direct = !a.integrator.empty();
+  if (!a.asset_root.empty()) lo.asset_root = a.asset_root;
+  lo.asset_limits = a.asset_limits;
+  lo.spp = a.spp;
+  // Empty when not given; otherwise CLI11 has checked the name against the same table.
+  lo.area_sampling = enum_from_name<AreaSampling>(a.area_sampling, kAreaSamplingNames);
+  lo.env_sampling = enum_from_name<EnvSampling>(a.env_sampling, kEnvSamplingNames);
+  lo.bvh = enum_from_name<SplitMethod>(a.bvh, kSplitMethodNames);
+  return lo;
+}
+
 int run_render(const RenderArgs& given) {
-  // Warnings and errors go to stderr with the progress bar and the summary; stdout stays free for data.
-  auto logger = spdlog::get("render");
-  if (!logger) logger = spdlog::stderr_color_mt("render");
-  spdlog::set_default_logger(logger);
+  use_render_logger();
+  if (given.inputs.empty()) return render_scene(given);
+  // One scene file: one render. A pattern or glob that names no file goes to the sequence, which says so.
+  std::error_code ec;
+  if (given.inputs.size() == 1 && given.frames.empty() && !given.skip_existing &&
+      std::filesystem::exists(given.inputs.front(), ec)) {
+    RenderArgs a = given;
+    a.scene = given.inputs.front();
+    return render_scene(a);
+  }
+  return run_render_sequence(given);
+}
+
+int render_scene(const RenderArgs& given) {
+  use_render_logger();
   // Before anything long: an output that cannot be written is reported now, not after the render.
   if (!output_writable(given.output) || (!given.preview.empty() && !output_writable(given.preview, "preview")))
     return kExitRefused;
@@ -123,16 +183,7 @@ int run_render(const RenderArgs& given) {
     const RenderArgs a = resume_file ? resumed_args(given, *resume_file) : given;
     std::unique_ptr<tbb::global_control> limit;
     if (a.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(a.threads));
-    LoadOptions lo;
-    lo.strict = a.strict;
-    lo.force_direct = !a.integrator.empty();
-    if (!a.asset_root.empty()) lo.asset_root = a.asset_root;
-    lo.asset_limits = a.asset_limits;
-    lo.spp = a.spp;
-    // Empty when not given; otherwise CLI11 has checked the name against the same table.
-    lo.area_sampling = enum_from_name<AreaSampling>(a.area_sampling, kAreaSamplingNames);
-    lo.env_sampling = enum_from_name<EnvSampling>(a.env_sampling, kEnvSamplingNames);
-    lo.bvh = enum_from_name<SplitMethod>(a.bvh, kSplitMethodNames);
+    const LoadOptions lo = scene_load_options(a);
     if (a.target_error > 0.f && a.min_spp > a.max_spp) {
       spdlog::error("--min-spp {} is larger than --max-spp {}", a.min_spp, a.max_spp);
       return kExitRefused;

@@ -243,4 +243,9 @@ int run_render_farm(const RenderArgs& a) {
   return rc;
 }
 
+int render_farm_sequence(const RenderArgs&, const std::vector<FrameFile>&) {
+  spdlog::error("render --workers does not take several frames yet");
+  return kExitRefused;
+}
+
 }  // namespace tessera::cli

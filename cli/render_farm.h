@@ -1,7 +1,10 @@
 // `tessera render --workers N`: the same render through a private coordinator and N local worker processes.
 #pragma once
 
+#include "cli/frame_list.h"
 #include "cli/render_command.h"
+
+#include <vector>
 
 namespace tessera::cli {
 
@@ -9,5 +12,9 @@ namespace tessera::cli {
 /// shows progress, writes the EXR, and stops the children (SIGTERM, then SIGKILL after a grace period) whatever
 /// happens, Ctrl-C included. Returns the process exit code.
 int run_render_farm(const RenderArgs& args);
+
+/// `tessera render --workers N` of several frames (cli/render_sequence.h hands them over with their scene files,
+/// `args.output` and `args.preview` being '#' patterns). Refused for now: logs so and returns 2.
+int render_farm_sequence(const RenderArgs& args, const std::vector<FrameFile>& frames);
 
 }  // namespace tessera::cli
