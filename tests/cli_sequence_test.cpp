@@ -250,6 +250,45 @@ TEST_F(CliSequence, ResumeContinuesTheSequenceWithItsFilesSettings) {
   EXPECT_EQ(identity(file("out/f_0002.exr")), partial_file);
 }
 
+// A file's layout counts too (half colours, variance channels, exact sums); and --resume --spp raises frames rendered
+// with --resumable to more samples, bitwise as if rendered at those from the start.
+TEST_F(CliSequence, LayoutCountsAndResumableFramesAreRaised) {
+  write_frames(2);
+  fs::create_directories(file("out"));
+  fs::create_directories(file("ref"));
+  const std::vector<std::string> seq = {"shot/frame_0001.json", "shot/frame_0002.json", "-o", "out/f_####.exr", "-q"};
+  const auto with = [&](const std::vector<std::string>& more) {
+    std::vector<std::string> a = seq;
+    a.insert(a.end(), more.begin(), more.end());
+    return a;
+  };
+  ASSERT_EQ(render(with({"--half"})).exit_code, 0);
+  CliRun r = render(with({"--skip-existing", "--half"}));
+  EXPECT_NE(r.err.find("0 rendered, 2 skipped"), std::string::npos) << r.err;
+  r = render(with({"--skip-existing"}));
+  EXPECT_NE(r.err.find("frame 1: out/f_0001.exr holds half-float colours (--half), rendering it again"),
+            std::string::npos) << r.err;
+  r = render(with({"--skip-existing", "--variance"}));
+  EXPECT_NE(r.err.find("frame 2: out/f_0002.exr has no variance channels (--variance), rendering it again"),
+            std::string::npos) << r.err;
+  r = render(with({"--skip-existing", "--variance", "--resumable"}));
+  EXPECT_NE(r.err.find("frame 2: out/f_0002.exr holds no exact sample sums (--resumable), rendering it again"),
+            std::string::npos) << r.err;
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+
+  // Rendered at 2 spp with exact sums, raised to 4.
+  ASSERT_EQ(render(with({"--spp", "2", "--resumable"})).exit_code, 0);
+  for (int k = 1; k <= 2; ++k) render_alone(k, frame("ref/f_", k, ".exr"), {"--spp", "4", "--resumable"});
+  r = render(with({"--resume", "out/f_####.exr", "--spp", "4"}));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("frame 1: continuing out/f_0001.exr, which was rendered with tessera:spp 2, not 4"),
+            std::string::npos) << r.err;
+  for (int k = 1; k <= 2; ++k) expect_same_exr(frame("out/f_", k, ".exr"), frame("ref/f_", k, ".exr"));
+  // Complete at 4 spp: files with exact sums count as complete without --resumable too.
+  r = render(with({"--skip-existing", "--spp", "4"}));
+  EXPECT_NE(r.err.find("0 rendered, 2 skipped"), std::string::npos) << r.err;
+}
+
 // Ctrl-C during a frame: that frame's partial EXR is written, no later frame is started, exit status 130.
 TEST_F(CliSequence, InterruptStopsAfterThePartialFrame) {
   write_scene("shot/frame_0001.json", frame_scene(1));
