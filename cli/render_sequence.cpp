@@ -219,13 +219,17 @@ int run_render_sequence(const RenderArgs& given) {
     }
   }
 
+  // What takes an interrupted sequence up again: the same command with --resume in place of the sampling options
+  // (which --resume takes from the files).
+  const std::string again = "--resume " + given.output + " (in place of the sampling options) continues the sequence";
   size_t rendered = 0, skipped = 0;
   for (size_t k = 0; k < n; ++k) {
     const FrameFile& f = frames[k];
     const FramePaths& p = paths[k];
     const std::string name = "frame " + std::to_string(f.number);
     if (InterruptGuard::interrupted()) {
-      std::fprintf(stderr, "interrupted: %s and the frames after it were not started\n", name.c_str());
+      std::fprintf(stderr, "interrupted: %s and the frames after it were not started; %s\n", name.c_str(),
+                   again.c_str());
       return kExitInterrupted;
     }
     RenderArgs a = base;
@@ -265,7 +269,8 @@ int run_render_sequence(const RenderArgs& given) {
       continue;
     }
     if (rc == kExitInterrupted) {
-      if (k + 1 < n) std::fprintf(stderr, "interrupted: the frames after %s were not started\n", name.c_str());
+      if (k + 1 < n)
+        std::fprintf(stderr, "interrupted: the frames after %s were not started; %s\n", name.c_str(), again.c_str());
       return rc;
     }
     if (rc == kExitBudget) return rc;  // a one-frame sequence (--tile-budget is refused with several)
