@@ -13,8 +13,10 @@ namespace tessera::cli {
 /// happens, Ctrl-C included. Returns the process exit code.
 int run_render_farm(const RenderArgs& args);
 
-/// `tessera render --workers N` of several frames (cli/render_sequence.h hands them over with their scene files,
-/// `args.output` and `args.preview` being '#' patterns). Refused for now: logs so and returns 2.
+/// `tessera render --workers N` of several frames, sorted by number. run_render_sequence (cli/render_sequence.h) hands
+/// them over once the frame list and the sequence's options are accepted (`args.output`, and `args.preview` and
+/// `args.resume` when given, are '#' patterns), before checking outputs and scenes. Refused for now: logs so and
+/// returns 2.
 int render_farm_sequence(const RenderArgs& args, const std::vector<FrameFile>& frames);
 
 }  // namespace tessera::cli
