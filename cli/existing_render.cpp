@@ -112,12 +112,14 @@ ExistingRender examine_render(const fs::path& path, const ExpectedRender& expect
   const bool variance = h.channels.count("variance.R") > 0;
   const std::string settings = sampling_difference(m, expected.sampling);
   const std::string settings_but_spp = sampling_difference(m, expected.sampling, "tessera:spp");
-  const std::string variance_why =
-      variance == expected.variance ? "" : variance ? "has variance channels (--variance)" : "has no variance channels (--variance)";
+  const std::string variance_why = variance == expected.variance ? ""
+                                   : variance ? "has variance channels (--variance)"
+                                              : "has no variance channels (--variance)";
 
   if (!settings.empty()) r.why_incomplete = "was rendered with " + settings;
   else if (partial) r.why_incomplete = "is partial (" + m.at("tessera:partial") + ")";
-  else if (half != expected.half) r.why_incomplete = half ? "holds half-float colours (--half)" : "holds float32 colours, not half floats (--half)";
+  else if (half != expected.half)
+    r.why_incomplete = half ? "holds half-float colours (--half)" : "holds float32 colours, not half floats (--half)";
   else if (!variance_why.empty()) r.why_incomplete = variance_why;
   else if (expected.resumable && !exact) r.why_incomplete = "holds no exact sample sums (--resumable)";
   r.complete = r.why_incomplete.empty();

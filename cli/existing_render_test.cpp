@@ -35,7 +35,8 @@ class ExistingRenderTest : public ::testing::Test {
     return m;
   }
   // Writes a 4x3 render with this metadata (and window, half colours, extra channels) and judges it.
-  ExistingRender judge(const std::map<std::string, std::string>& m, ExrWriteOptions o = {}, Image img = Image::make(4, 3)) {
+  ExistingRender judge(const std::map<std::string, std::string>& m, ExrWriteOptions o = {},
+                       const Image& img = Image::make(4, 3)) {
     const fs::path p = dir_ / "f.exr";
     o.metadata = m;
     if (o.display_window.empty()) o.display_window = {0, 0, 4, 3};
@@ -125,7 +126,8 @@ TEST_F(ExistingRenderTest, WhatResumeCanContinue) {
   m["tessera:spp"] = "2";
   r = judge(m);
   EXPECT_EQ(r.why_incomplete, "was rendered with tessera:spp 2, not 8");
-  EXPECT_EQ(r.why_not_continuable, "holds no exact sample sums (--resumable), so it can only be finished at its own 2 spp");
+  EXPECT_EQ(r.why_not_continuable,
+            "holds no exact sample sums (--resumable), so it can only be finished at its own 2 spp");
   r = judge(m, {}, with_channel("tessera.state.sum.R.hi", true));
   EXPECT_TRUE(r.continuable) << r.why_not_continuable;
   m["tessera:partial"] = "5 of 12 pixels";

@@ -172,7 +172,8 @@ std::vector<FrameFile> expand_frames(const std::vector<std::string>& inputs, con
     if (!missing.empty()) {
       const FrameFile& m = missing.front();
       std::error_code ec;
-      std::string what = fs::exists(m.scene, ec) ? " is not a scene file (it is a folder or a device)" : " does not exist";
+      std::string what =
+          fs::exists(m.scene, ec) ? " is not a scene file (it is a folder or a device)" : " does not exist";
       if (missing.size() > 1)
         what += " (" + std::to_string(missing.size()) + " of the " + std::to_string(numbers.size()) +
                 " frames are missing)";

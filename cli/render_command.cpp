@@ -56,7 +56,8 @@ CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
   c->add_option("--crop", a.crop, "Render only pixels [X0,X1) x [Y0,Y1) (row 0 = top)")->expected(4);
   c->add_flag("--half", a.half, "Write half floats instead of float32");
   c->add_flag("--variance", a.variance, "Also write per-pixel variance-of-the-mean and sample-count channels");
-  c->add_option("--preview", a.preview, "Also write an sRGB tone-mapped PNG (with several frames, a '#' pattern like -o)");
+  c->add_option("--preview", a.preview,
+                "Also write an sRGB tone-mapped PNG (with several frames, a '#' pattern like -o)");
   c->add_flag("--strict", a.strict, "Treat unknown scene keys as errors");
   c->add_option("--asset-root", a.asset_root, "Allow asset paths anywhere below this folder");
   add_asset_limit_flags(c, a.asset_limits);

@@ -94,7 +94,8 @@ class CliSequence : public testing::TempDirTest {
     s["objects"] = json::array(
         {{{"type", "sphere"}, {"center", {0, -1000, 0}}, {"radius", 1000}, {"material_name", "white"}},
          {{"type", "sphere"}, {"center", {0, 0.6, 0}}, {"radius", 0.6}, {"material_name", "white"}},
-         {{"type", "sphere"}, {"center", {0.5, 2.5, 0.5}}, {"radius", 0.4}, {"light", {{"type", "area"}, {"radiance", {5, 5, 5}}}}}});
+         {{"type", "sphere"}, {"center", {0.5, 2.5, 0.5}}, {"radius", 0.4},
+          {"light", {{"type", "area"}, {"radiance", {5, 5, 5}}}}}});
     s["environment_map"] = {{"texture_name", "sky"}};
     return s;
   }
@@ -188,7 +189,8 @@ TEST_F(CliSequence, SkipExistingRendersAgainOnlyWhatIsNotComplete) {
   for (const char* line : {"frame 1: out/f_0001.exr is complete, skipped",
                            "frame 2: out/f_0002.exr is partial (128 of 576 pixels), rendering it again",
                            "frame 3: out/f_0003.exr was rendered with tessera:seed 5, not 0, rendering it again",
-                           "frame 4: out/f_0004.exr was rendered from another scene (or other assets), rendering it again",
+                           "frame 4: out/f_0004.exr was rendered from another scene (or other assets), rendering it "
+                           "again",
                            "frame 5: out/f_0005.exr does not read (not an OpenEXR file", "4 rendered, 1 skipped"})
     EXPECT_NE(r.err.find(line), std::string::npos) << line << "\n" << r.err;
   EXPECT_EQ(r.err.find("frame 1 (1 of 5)"), std::string::npos) << r.err;
@@ -200,7 +202,8 @@ TEST_F(CliSequence, SkipExistingRendersAgainOnlyWhatIsNotComplete) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.err.find("0 rendered, 5 skipped"), std::string::npos) << r.err;
   for (int k = 1; k <= 5; ++k) EXPECT_EQ(identity(file(frame("out/f_", k, ".exr"))), before[size_t(k - 1)]) << k;
-  r = render({"shot/frame_####.json", "--frames", "1-5", "-o", "out/f_####.exr", "-q", "--skip-existing", "--spp", "2"});
+  r = render(
+      {"shot/frame_####.json", "--frames", "1-5", "-o", "out/f_####.exr", "-q", "--skip-existing", "--spp", "2"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.err.find("frame 1: out/f_0001.exr was rendered with tessera:spp 4, not 2"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("5 rendered, 0 skipped"), std::string::npos) << r.err;
@@ -343,14 +346,16 @@ TEST_F(CliSequence, BadInputsAreRefusedBeforeAnythingIsWritten) {
     std::string says;
   };
   const std::vector<Case> cases = {
-      {{"shot/frame_####.json", "--frames", "1-4", "-o", "out/f_####.exr"}, "frame 4: shot/frame_0004.json does not exist"},
+      {{"shot/frame_####.json", "--frames", "1-4", "-o", "out/f_####.exr"},
+       "frame 4: shot/frame_0004.json does not exist"},
       {{"none/frame_*.json", "-o", "out/f_####.exr"}, "\"none/frame_*.json\" matches no file"},
       {{"shot/frame_####.json", "-o", "out/f_####.exr"}, "needs a frame range (--frames)"},
       {{"broken/frame_0001.json", "broken/frame_0002.json", "broken/frame_0003.json", "-o", "out/f_####.exr"},
        "frame 3: broken/frame_0003.json: invalid JSON"},
       {{"broken/frame_0001.json", "broken/frame_0002.json", "-o", "out/f_####.exr"},
        "frame 2: broken/frame_0002.json: objects[3].path"},
-      {with(three, {"-o", "out/f.exr"}), "-o \"out/f.exr\" has no run of '#' for the frame number, and there are 3 frames"},
+      {with(three, {"-o", "out/f.exr"}),
+       "-o \"out/f.exr\" has no run of '#' for the frame number, and there are 3 frames"},
       {with(three, {"-o", "out/f_####.exr", "--preview", "out/p.png"}), "--preview \"out/p.png\" has no run of '#'"},
       {with(three, {"-o", "out/f_####.exr", "--crop", "0", "0", "4", "4"}), "--crop renders a part of one picture"},
       {with(three, {"-o", "out/f_####.exr", "--tile-budget", "2"}), "--tile-budget stops one render after N tiles"},
