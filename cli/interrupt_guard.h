@@ -7,7 +7,8 @@
 namespace tessera::cli {
 
 /// Installs SIGINT and SIGTERM handlers that set interrupted() for the lifetime of the object, and restores the
-/// previous handlers after. The flag is cleared when the guard is made.
+/// previous handlers after. The flag is cleared when the outermost guard is made: a guard made inside another (a
+/// sequence's frame inside the sequence) keeps a signal that arrived before it. Made and dropped on one thread.
 class InterruptGuard {
  public:
   InterruptGuard();

@@ -10,6 +10,7 @@
 #include "cli/progress_bar.h"
 #include "cli/render_farm.h"
 #include "cli/render_resume.h"
+#include "cli/render_sequence.h"
 
 #include "core/util/enum_names.h"
 #include "core/image/exr_stream.h"
@@ -21,25 +22,28 @@
 #include <tbb/global_control.h>
 
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <optional>
+#include <system_error>
 #include <unistd.h>
 
 namespace tessera::cli {
 
 CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
-  auto* c = app.add_subcommand("render", "Render a scene (or a sequence of frames) to OpenEXR files on this machine");
+  auto* c = app.add_subcommand("render", "Render a scene, or a sequence of frames, to OpenEXR files on this machine");
   add_sequence_flags(c, a.scenes, a.frames, a.frame_order, "With --workers: ");
-  c->add_option("-o,--output", a.output, "Output EXR file (a sequence: a pattern with a run of '#')")->required();
-  c->add_flag("--skip-existing", a.skip_existing,
-              "A sequence: skip frames whose output is a complete render of the same scene and settings (read from "
-              "its metadata); continue partial ones");
+  c->add_option("-o,--output", a.output,
+                "Output EXR file; with several frames a pattern whose last run of '#' becomes the frame number "
+                "(e.g. out/frame_####.exr)")
+      ->required();
   add_sampling_flags(c, a);
   c->add_option("--threads", a.threads, "Worker threads (default: all cores)")->check(CLI::Range(0, 4096));
   c->add_option("--crop", a.crop, "Render only pixels [X0,X1) x [Y0,Y1) (row 0 = top)")->expected(4);
   c->add_flag("--half", a.half, "Write half floats instead of float32");
   c->add_flag("--variance", a.variance, "Also write per-pixel variance-of-the-mean and sample-count channels");
-  c->add_option("--preview", a.preview, "Also write an sRGB tone-mapped PNG");
+  c->add_option("--preview", a.preview,
+                "Also write an sRGB tone-mapped PNG (with several frames, a '#' pattern like -o)");
   c->add_flag("--strict", a.strict, "Treat unknown scene keys as errors");
   c->add_option("--asset-root", a.asset_root, "Allow asset paths anywhere below this folder");
   add_asset_limit_flags(c, a.asset_limits);
@@ -59,8 +63,13 @@ CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
       ->check(CLI::Range(1, 1 << 30));
   auto* resume = c->add_option("--resume", a.resume,
                                "Finish the partial EXR FILE (written by an interrupted render or --tile-budget), or "
-                               "refine a --resumable one to --spp; the sampling settings are taken from FILE")
-                     ->check(CLI::ExistingFile);
+                               "refine a --resumable one to --spp; the sampling settings are taken from FILE. With "
+                               "several frames, a '#' pattern (usually -o's): partial frames are finished, complete "
+                               "ones skipped, the others rendered, all with the settings their files record")
+                     ->check(file_or_pattern());
+  c->add_flag("--skip-existing", a.skip_existing,
+              "Skip each frame whose output is already a complete render of its scene with these settings (as the "
+              "EXR's metadata records them); render the others again");
   // The sampling settings come from the file: giving them again could only contradict it.
   for (const char* name : {"--seed", "--crop", "--variance", "--target-error", "--min-spp", "--max-spp",
                            "--error-floor", "--replicates", "--area-sampling", "--env-sampling", "--bvh", "--workers"})
@@ -93,6 +102,13 @@ StoredRender load_previous(const ExrImage& file, const RenderArgs& a, const Scen
   return prev;
 }
 
+// Errors go to stderr with the progress bar and the summary; stdout stays free for data.
+void use_render_logger() {
+  auto logger = spdlog::get("render");
+  if (!logger) logger = spdlog::stderr_color_mt("render");
+  spdlog::set_default_logger(logger);
+}
+
 // Pixels that have samples.
 size_t rendered_pixels(const RenderState& state) {
   size_t n = 0;
@@ -102,29 +118,36 @@ size_t rendered_pixels(const RenderState& state) {
 
 }  // namespace
 
-int run_render(const RenderArgs& args) {
-  // Warnings and errors go to stderr with the progress bar and the summary; stdout stays free for data.
-  auto logger = spdlog::get("render");
-  if (!logger) logger = spdlog::stderr_color_mt("render");
-  spdlog::set_default_logger(logger);
-  std::vector<FrameFile> frames;
-  try {
-    frames = expand_frames(args.scenes, args.frames);
-  } catch (const std::invalid_argument& e) {
-    spdlog::error("{}", e.what());
-    return kExitRefused;
+LoadOptions scene_load_options(const RenderArgs& a) {
+  LoadOptions lo;
+  lo.strict = a.strict;
+  lo.force_direct = !a.integrator.empty();
+  if (!a.asset_root.empty()) lo.asset_root = a.asset_root;
+  lo.asset_limits = a.asset_limits;
+  lo.spp = a.spp;
+  // Empty when not given; otherwise CLI11 has checked the name against the same table.
+  lo.area_sampling = enum_from_name<AreaSampling>(a.area_sampling, kAreaSamplingNames);
+  lo.env_sampling = enum_from_name<EnvSampling>(a.env_sampling, kEnvSamplingNames);
+  lo.bvh = enum_from_name<SplitMethod>(a.bvh, kSplitMethodNames);
+  return lo;
+}
+
+int run_render(const RenderArgs& given) {
+  use_render_logger();
+  if (given.scenes.empty()) return render_scene(given);
+  // One scene file: one render. A pattern or glob that names no file goes to the sequence, which says so.
+  std::error_code ec;
+  if (given.scenes.size() == 1 && given.frames.empty() && !given.skip_existing &&
+      std::filesystem::exists(given.scenes.front(), ec)) {
+    RenderArgs a = given;
+    a.scene = given.scenes.front();
+    return render_scene(a);
   }
-  if (!frames.empty()) return render_sequence(args, frames);
-  RenderArgs given = args;
-  given.scene = args.scenes.empty() ? args.scene : args.scenes.front();
-  if (std::error_code ec; !std::filesystem::is_regular_file(given.scene, ec)) {
-    spdlog::error("scene {} does not exist", given.scene);
-    return kExitRefused;
-  }
-  if (given.skip_existing) {
-    spdlog::error("--skip-existing applies to a sequence (several frames)");
-    return kExitRefused;
-  }
+  return run_render_sequence(given);
+}
+
+int render_scene(const RenderArgs& given) {
+  use_render_logger();
   // Before anything long: an output that cannot be written is reported now, not after the render.
   if (!output_writable(given.output) || (!given.preview.empty() && !output_writable(given.preview, "preview")))
     return kExitRefused;
@@ -147,16 +170,7 @@ int run_render(const RenderArgs& args) {
     const RenderArgs a = resume_file ? resumed_args(given, *resume_file) : given;
     std::unique_ptr<tbb::global_control> limit;
     if (a.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(a.threads));
-    LoadOptions lo;
-    lo.strict = a.strict;
-    lo.force_direct = !a.integrator.empty();
-    if (!a.asset_root.empty()) lo.asset_root = a.asset_root;
-    lo.asset_limits = a.asset_limits;
-    lo.spp = a.spp;
-    // Empty when not given; otherwise CLI11 has checked the name against the same table.
-    lo.area_sampling = enum_from_name<AreaSampling>(a.area_sampling, kAreaSamplingNames);
-    lo.env_sampling = enum_from_name<EnvSampling>(a.env_sampling, kEnvSamplingNames);
-    lo.bvh = enum_from_name<SplitMethod>(a.bvh, kSplitMethodNames);
+    const LoadOptions lo = scene_load_options(a);
     if (a.target_error > 0.f && a.min_spp > a.max_spp) {
       spdlog::error("--min-spp {} is larger than --max-spp {}", a.min_spp, a.max_spp);
       return kExitRefused;

@@ -2,6 +2,7 @@
 
 #include "cli/exit_status.h"
 #include "cli/frame_list.h"
+#include "cli/output_check.h"
 #include "cli/interrupt_guard.h"
 #include "cli/submit_command.h"
 #include "core/image/image.h"
@@ -259,6 +260,22 @@ int run_render_farm(const RenderArgs& a, const std::vector<client::FrameScene>& 
     fs::remove_all(dir, ec);
   }
   return rc;
+}
+
+int render_farm_sequence(const RenderArgs& a, const std::vector<FrameFile>& frames) {
+  if (a.skip_existing || !a.resume.empty()) {
+    spdlog::error("--skip-existing and --resume render frames in this process: drop --workers, or give --frames "
+                  "for the frames still missing");
+    return kExitRefused;
+  }
+  const fs::path first = frame_output(a.output, frames.front().number, frames.size());
+  if (!output_writable(first) ||
+      (!a.preview.empty() && !output_writable(frame_output(a.preview, frames.front().number, frames.size()), "preview")))
+    return kExitRefused;
+  std::vector<client::FrameScene> scenes;
+  scenes.reserve(frames.size());
+  for (const FrameFile& f : frames) scenes.push_back({f.number, f.scene});
+  return run_render_farm(a, scenes);
 }
 
 }  // namespace tessera::cli

@@ -41,13 +41,9 @@ CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
 std::vector<client::FrameScene> sequence_frames(const std::vector<std::string>& scenes, const std::string& range,
                                                 const std::string& output) {
   std::vector<client::FrameScene> out;
-  const std::vector<FrameFile> frames = expand_frames(scenes, range);
-  if (frames.empty()) {
-    std::error_code ec;
-    if (!std::filesystem::is_regular_file(scenes.front(), ec))
-      throw std::invalid_argument("scene " + scenes.front() + " does not exist");
-    return out;
-  }
+  std::error_code ec;
+  if (scenes.size() == 1 && range.empty() && std::filesystem::is_regular_file(scenes.front(), ec)) return out;
+  const std::vector<FrameFile> frames = expand_frames(scenes, range);  // throws for a missing file too
   if (!output.empty()) frame_output(output, frames.front().number, frames.size());  // throws without a '#'
   for (const FrameFile& f : frames) out.push_back({f.number, f.scene});
   return out;

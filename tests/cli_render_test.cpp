@@ -461,5 +461,22 @@ TEST(InterruptGuard, SignalsSetTheFlagOnlyWhileInstalled) {
   EXPECT_EQ(after.sa_handler, before.sa_handler);
 }
 
+// A guard made inside another (a sequence's frame inside the sequence) keeps a signal that arrived before it, so a
+// Ctrl-C between two frames still stops the sequence; the outermost guard starts cleared.
+TEST(InterruptGuard, NestedGuardKeepsTheOuterSignal) {
+  using cli::InterruptGuard;
+  {
+    InterruptGuard sequence;
+    std::raise(SIGINT);
+    {
+      InterruptGuard frame;
+      EXPECT_TRUE(InterruptGuard::interrupted());
+    }
+    EXPECT_TRUE(InterruptGuard::interrupted());
+  }
+  InterruptGuard next;
+  EXPECT_FALSE(InterruptGuard::interrupted());
+}
+
 }  // namespace
 }  // namespace tessera

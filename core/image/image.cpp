@@ -458,6 +458,28 @@ ExrImage read_exr_impl(const std::filesystem::path& path, const ExrReadOptions& 
                          options.colour_only);
 }
 
+ExrHeader read_exr_header_impl(const std::filesystem::path& path) {
+  errno = 0;
+  std::ifstream file(path, std::ios::binary);
+  if (!file) throw std::runtime_error(errno != 0 ? errno_text(errno) : "cannot open file");
+  const std::uintmax_t size = std::filesystem::file_size(path);
+  char start[8] = {};
+  file.read(start, 8);
+  if (file.bad()) throw std::runtime_error(errno != 0 ? errno_text(errno) : "read error");
+  const int version = exr_version(start, file.gcount());
+  Imf::StdIFStream stream(file, path.c_str());
+  const ExrHeaderCheck check = check_exr_header(stream, version, uint64_t(size), kMaxExrPixels);
+  ExrHeader out;
+  out.data_window = to_window(check.header.dataWindow());
+  out.display_window = to_window(check.header.displayWindow());
+  out.metadata = read_metadata(check.header);
+  for (auto it = check.header.channels().begin(); it != check.header.channels().end(); ++it)
+    out.channels[it.name()] = it.channel().type == Imf::HALF    ? ExrPixelType::kHalf
+                              : it.channel().type == Imf::UINT ? ExrPixelType::kUint
+                                                               : ExrPixelType::kFloat;
+  return out;
+}
+
 std::vector<uint8_t> encode_exr_impl(const char* name, const Image& img, const ExrWriteOptions& opt) {
   const PixelWindow data = exr_layout::data_window(img, opt);
   const Imf::Header header = exr_layout::header(img, opt, data);
@@ -545,6 +567,10 @@ Image image_rows(const Image& img, int y0, int y1) {
 
 ExrImage read_exr(const std::filesystem::path& path, const ExrReadOptions& options) {
   return with_context("cannot read EXR " + quoted(path), [&] { return read_exr_impl(path, options); });
+}
+
+ExrHeader read_exr_header(const std::filesystem::path& path) {
+  return with_context("cannot read EXR " + quoted(path), [&] { return read_exr_header_impl(path); });
 }
 
 ExrImage decode_exr(std::string_view bytes, const ExrReadOptions& options) {

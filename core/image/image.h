@@ -93,6 +93,22 @@ struct ExrTooLarge : ImageError {
 /// no colour channels, or a data window over 65536 pixels per side.
 ExrImage read_exr(const std::filesystem::path& path, const ExrReadOptions& options = {});
 
+/// How an EXR channel's values are stored.
+enum class ExrPixelType { kHalf, kFloat, kUint };
+
+/// An EXR's first header, read without decoding a pixel.
+struct ExrHeader {
+  PixelWindow data_window;                            ///< Where the pixels lie in EXR pixel space.
+  PixelWindow display_window;                         ///< The picture's frame.
+  std::map<std::string, std::string> metadata;        ///< As ExrImage::metadata.
+  std::map<std::string, ExrPixelType> channels;       ///< Every channel's name and pixel type.
+};
+
+/// Reads the first header of the EXR at `path`, checked as read_exr checks it before decoding (the bounds on its
+/// attributes, the data window within kMaxExrPixels), and decodes no pixel; whether the pixels read is not told.
+/// Throws ImageError naming the file.
+ExrHeader read_exr_header(const std::filesystem::path& path);
+
 /// read_exr for a file's bytes held in memory (e.g. received over HTTP); throws as read_exr does.
 ExrImage decode_exr(std::string_view bytes, const ExrReadOptions& options = {});
 

@@ -226,6 +226,38 @@ TEST_F(ImageExr, ExtraChannelsRoundTrip) {
   EXPECT_TRUE(read_exr(p).pixels.extra.empty());
 }
 
+TEST_F(ImageExr, HeaderReadsWindowsMetadataAndChannelTypesWithoutPixels) {
+  Image img = test_image(64, 48);
+  img.extra["variance.R"].assign(64 * 48, 0.5f);
+  img.uint_extra["tessera.samples"].assign(64 * 48, 3u);
+  const fs::path p = file("header.exr");
+  write_exr(p, img, {.half = true, .display_window = {0, 0, 80, 50}, .data_window = {3, 2, 67, 50},
+                     .metadata = {{"tessera:seed", "7"}}});
+  const ExrHeader h = read_exr_header(p);
+  EXPECT_EQ(h.data_window, (PixelWindow{3, 2, 67, 50}));
+  EXPECT_EQ(h.display_window, (PixelWindow{0, 0, 80, 50}));
+  EXPECT_EQ(h.metadata.at("tessera:seed"), "7");
+  EXPECT_EQ(h.metadata, read_exr(p).metadata);
+  const std::map<std::string, ExrPixelType> channels = {{"R", ExrPixelType::kHalf},
+                                                        {"G", ExrPixelType::kHalf},
+                                                        {"B", ExrPixelType::kHalf},
+                                                        {"variance.R", ExrPixelType::kFloat},
+                                                        {"tessera.samples", ExrPixelType::kUint}};
+  EXPECT_EQ(h.channels, channels);
+  // The pixels are not read: a file cut after its header still gives the header, and read_exr refuses it.
+  const std::vector<uint8_t> bytes = read_bytes(p);
+  const fs::path cut = file("cut.exr");
+  write_bytes(cut, std::vector<uint8_t>(bytes.begin(), bytes.end() - 100));
+  EXPECT_EQ(read_exr_header(cut).metadata.at("tessera:seed"), "7");
+  EXPECT_THROW(read_exr(cut), ImageError);
+  // Not an EXR, or no file: an ImageError naming the path.
+  std::ofstream(file("text.exr")) << "hello";
+  for (const fs::path& bad : {file("text.exr"), file("missing.exr")}) {
+    const std::string msg = image_error_message([&] { read_exr_header(bad); });
+    EXPECT_NE(msg.find(bad.string()), std::string::npos) << msg;
+  }
+}
+
 TEST_F(ImageExr, MetadataRoundTrips) {
   const std::map<std::string, std::string> metadata = {
       {"tessera/scene", "cbox.json"},

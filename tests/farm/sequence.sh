@@ -23,9 +23,9 @@ refused() {  # refused PATTERN COMMAND...: exit 2 and a log line matching PATTER
   log_has "$WORK/refused.log" "$pattern" || fail "'$*' did not say: $pattern ($(cat "$WORK/refused.log"))"
 }
 refused "frame 7: .*frame_07.json does not exist" "$TESSERA" render "$WORK/shot/frame_##.json" --frames 1-7 -o "$WORK/x_##.exr"
-refused "needs --frames" "$TESSERA" render "$WORK/shot/frame_##.json" -o "$WORK/x_##.exr"
+refused "needs a frame range \(--frames\)" "$TESSERA" render "$WORK/shot/frame_##.json" -o "$WORK/x_##.exr"
 refused "has no run of '#'" "$TESSERA" render "$WORK"/shot/frame_0*.json -o "$WORK/x.exr"
-refused "runs backwards" "$TESSERA" submit "$WORK/shot/frame_##.json" --frames 6-1 --coordinator http://127.0.0.1:9
+refused "ends before it starts" "$TESSERA" submit "$WORK/shot/frame_##.json" --frames 6-1 --coordinator http://127.0.0.1:9
 printf '{"camera": ' >"$WORK/broken_03.json"
 cp "$WORK/shot/frame_01.json" "$WORK/broken_01.json"
 refused "frame 3: " "$TESSERA" render "$WORK/broken_01.json" "$WORK/broken_03.json" -o "$WORK/x_##.exr"
