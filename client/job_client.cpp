@@ -52,9 +52,15 @@ T get_answer(HttpClient& http, const std::string& target, const std::string& wha
 
 namespace {
 
-// Reads one scene file and hashes its assets (each file once: `hashed` holds the files hashed so far).
+// What reading a sequence's frames learns once for all of them: each (folder, asset path)'s file, each file's hash.
+struct AssetMemo {
+  std::map<std::pair<fs::path, std::string>, fs::path> files;
+  std::map<fs::path, std::string> hashes;
+};
+
+// Reads one scene file and hashes its assets (each file resolved and hashed once, through `memo`).
 void read_scene_file(const SubmitOptions& o, const fs::path& scene, const std::string& where, json& out_scene,
-                     std::vector<LocalAsset>& out_assets, std::map<fs::path, std::string>& hashed) {
+                     std::vector<LocalAsset>& out_assets, AssetMemo& memo) {
   try {
     out_scene = json::parse(read_file(scene));
   } catch (const json::parse_error& e) {
@@ -65,14 +71,17 @@ void read_scene_file(const SubmitOptions& o, const fs::path& scene, const std::s
   const fs::path base = scene.has_parent_path() ? scene.parent_path() : fs::path(".");
   const fs::path root = o.asset_root ? *o.asset_root : base;
   for (const std::string& rel : scene_asset_paths(out_scene)) {
-    fs::path file;
-    try {
-      file = resolve_inside(base, root, rel, "asset '" + rel + "'");
-    } catch (const SceneError& e) {
-      throw SceneError(where + e.what());
+    auto known = memo.files.find({base, rel});
+    if (known == memo.files.end()) {
+      try {
+        known = memo.files.emplace(std::pair{base, rel}, resolve_inside(base, root, rel, "asset '" + rel + "'")).first;
+      } catch (const SceneError& e) {
+        throw SceneError(where + e.what());
+      }
     }
-    auto it = hashed.find(file);
-    if (it == hashed.end()) it = hashed.emplace(file, sha256_file(file)).first;
+    const fs::path& file = known->second;
+    auto it = memo.hashes.find(file);
+    if (it == memo.hashes.end()) it = memo.hashes.emplace(file, sha256_file(file)).first;
     out_assets.push_back(LocalAsset{rel, file, it->second});
   }
 }
@@ -81,7 +90,7 @@ void read_scene_file(const SubmitOptions& o, const fs::path& scene, const std::s
 
 SceneFiles read_scene_files(const SubmitOptions& o) {
   SceneFiles out;
-  std::map<fs::path, std::string> hashed;
+  AssetMemo hashed;
   if (o.frames.empty()) {
     read_scene_file(o, o.scene, "", out.scene, out.assets, hashed);
     return out;

@@ -609,12 +609,12 @@ void DurableStore::save_record(const std::string& job, const json& record) {
   });
 }
 
-void DurableStore::save_records(const std::vector<std::pair<std::string, json>>& records) {
+void DurableStore::save_record_texts(const std::vector<std::pair<std::string, std::string>>& records) {
   std::lock_guard lock(mu_);
   write_locked([&] {
     Transaction tx(db_);
-    for (const auto& [job, record] : records)
-      db_.statement("INSERT OR REPLACE INTO job_records(id, record) VALUES(?,?)").bind_text(1, job).bind_text(2, record.dump()).run();
+    for (const auto& [job, text] : records)
+      db_.statement("INSERT OR REPLACE INTO job_records(id, record) VALUES(?,?)").bind_text(1, job).bind_text(2, text).run();
     tx.commit();
   });
 }

@@ -146,7 +146,7 @@ class DurableStore final : public CoordinatorStore {
   void sync_async(std::function<void()> then) override;
 
   void save_record(const std::string& job, const nlohmann::json& record) override;
-  void save_records(const std::vector<std::pair<std::string, nlohmann::json>>& records) override;
+  void save_record_texts(const std::vector<std::pair<std::string, std::string>>& records) override;
   std::optional<nlohmann::json> load_record(const std::string& job) override;
   std::vector<std::pair<int64_t, std::string>> tile_pixels(const std::string& job) override;
   void save_tile_state(const std::string& job, int64_t tile, uint32_t spp, std::string_view exr) override;

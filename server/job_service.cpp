@@ -7,7 +7,10 @@
 #include "server/tile_state.h"
 
 #include <spdlog/spdlog.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <charconv>
 #include <chrono>
 #include <cstdio>
@@ -176,27 +179,39 @@ protocol::SubmitAnswer JobService::submit_sequence(const protocol::JobSubmission
     return f.assets.empty() ? sub.assets : f.assets;
   };
   // Every frame is checked before anything is stored: a submission is all its frames or none.
-  std::vector<FrameParams> frames;
-  std::vector<std::pair<std::string, json>> records;  // filled once the id is known
-  std::vector<protocol::JobSpec> specs;
+  const auto t0 = std::chrono::steady_clock::now();
+  const size_t n = sub.frames.size();
+  std::vector<FrameParams> frames(n);
+  std::vector<std::string> records(n);  // each frame's spec as stored, JSON text
+  std::vector<std::vector<std::string>> frame_warnings(n);
+  std::vector<std::exception_ptr> refused(n);
+  // The frames are checked on every core; the refusal answered is the lowest-numbered frame's, whatever the order.
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i != r.end(); ++i) {
+      const protocol::FrameSubmission& f = sub.frames[i];
+      const std::string where = "frame " + std::to_string(f.number) + ": ";
+      try {
+        CheckedScene s = check_scene(f.scene, assets_of(f), sub.sampling, where);
+        frames[i] = {f.number, s.width, s.height, s.hash};
+        protocol::JobSpec spec{f.scene, assets_of(f), sub.sampling, s.width, s.height, sub.tile_size, false};
+        spec.sampling.spp = s.spp;
+        records[i] = json(spec).dump();
+        for (std::string& w : s.warnings) frame_warnings[i].push_back(where + w);
+      } catch (...) {
+        refused[i] = std::current_exception();
+      }
+    }
+  });
+  for (const std::exception_ptr& e : refused)
+    if (e) std::rethrow_exception(e);
   std::vector<std::string> warnings;
-  frames.reserve(sub.frames.size());
-  specs.reserve(sub.frames.size());
-  for (const protocol::FrameSubmission& f : sub.frames) {
-    const std::string where = "frame " + std::to_string(f.number) + ": ";
-    CheckedScene s = check_scene(f.scene, assets_of(f), sub.sampling, where);
-    frames.push_back({f.number, s.width, s.height, s.hash});
-    protocol::JobSpec spec{f.scene, assets_of(f), sub.sampling, s.width, s.height, sub.tile_size, false};
-    spec.sampling.spp = s.spp;
-    specs.push_back(std::move(spec));
-    for (std::string& w : s.warnings) warnings.push_back(where + w);
-  }
+  for (auto& w : frame_warnings) warnings.insert(warnings.end(), w.begin(), w.end());
   JobParams p;
   p.name = sub.name;
   p.priority = sub.priority;
   p.tile_timeout_seconds = sub.tile_timeout_seconds;
   p.tile_size = sub.tile_size;
-  p.spp = specs.front().sampling.spp;
+  p.spp = json::parse(records.front())["spp"].get<uint32_t>();
   p.seed = sub.sampling.seed;
   p.frame_order = sub.frame_order;
   const auto queue_full = [&] {
@@ -205,16 +220,22 @@ protocol::SubmitAnswer JobService::submit_sequence(const protocol::JobSubmission
   };
   std::unique_lock admit(admit_mu_);
   if (unfinished_jobs() >= limits_.max_queued_jobs) throw queue_full();
-  for (const protocol::FrameSubmission& f : sub.frames)  // again: no blob collection can run before it is stored
-    check_assets(f.scene, assets_of(f), "frame " + std::to_string(f.number) + ": ");
+  // Again, now that no blob collection can run before the job is stored: each distinct blob once, and the frames'
+  // own sentence only when one went meanwhile.
+  std::set<std::string> blobs;
+  for (const auto& [path, sha] : sub.assets) blobs.insert(sha);
+  for (const protocol::FrameSubmission& f : sub.frames)
+    for (const auto& [path, sha] : f.assets) blobs.insert(sha);
+  if (!std::all_of(blobs.begin(), blobs.end(), [&](const std::string& b) { return blobs_.has(b); }))
+    for (const protocol::FrameSubmission& f : sub.frames)
+      check_assets(f.scene, assets_of(f), "frame " + std::to_string(f.number) + ": ");
+  const auto t_checked = std::chrono::steady_clock::now();
   const std::string id = sched_.new_job_id();
-  records.reserve(frames.size());
-  for (size_t i = 0; i < frames.size(); ++i) records.emplace_back(frame_job_id(id, frames[i].number), json(specs[i]));
-  jobs_.save_records(records);
-  {
-    std::lock_guard lock(mu_);
-    for (size_t i = 0; i < frames.size(); ++i) cache_spec_locked(records[i].first, specs[i], true);
-  }
+  // The frames' specs are stored, not cached: a frame's is read (and cached) when a worker first needs it.
+  std::vector<std::pair<std::string, std::string>> rows;
+  rows.reserve(n);
+  for (size_t i = 0; i < n; ++i) rows.emplace_back(frame_job_id(id, frames[i].number), std::move(records[i]));
+  jobs_.save_record_texts(rows);
   // The frames' spp: each frame's (its scene's, unless the submission set one).
   try {
     sched_.add_sequence(p, frames, id);
@@ -224,9 +245,11 @@ protocol::SubmitAnswer JobService::submit_sequence(const protocol::JobSubmission
   admit.unlock();
   int64_t tiles = 0;
   for (const FrameParams& f : frames) tiles += TileGrid(f.width, f.height, p.tile_size).count();
+  const auto seconds = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
   spdlog::info("job {}: submitted sequence '{}' of {} frames ({} to {}), {} tiles, spp {} seed {} tile {} priority {} "
-               "frame order {}", id, p.name, frames.size(), frames.front().number, frames.back().number, tiles, p.spp,
-               p.seed, p.tile_size, p.priority, to_string(p.frame_order));
+               "frame order {} (checked in {:.3f} s, stored in {:.3f} s)", id, p.name, frames.size(),
+               frames.front().number, frames.back().number, tiles, p.spp, p.seed, p.tile_size, p.priority,
+               to_string(p.frame_order), seconds(t0, t_checked), seconds(t_checked, std::chrono::steady_clock::now()));
   for (const auto& w : warnings) spdlog::warn("job {}: {}", id, w);
   announce(id);
   return {id, warnings};

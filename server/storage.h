@@ -96,9 +96,10 @@ class JobStore {
   virtual ~JobStore() = default;
   /// Durably stores a job's record, replacing an older one; throws StorageError.
   virtual void save_record(const std::string& job, const nlohmann::json& record) = 0;
-  /// Durably stores several jobs' records at once (a sequence's frames), all or none; throws StorageError.
-  virtual void save_records(const std::vector<std::pair<std::string, nlohmann::json>>& records) {
-    for (const auto& [job, record] : records) save_record(job, record);
+  /// Durably stores several jobs' records at once (a sequence's frames), each given as its JSON text, all or none;
+  /// throws StorageError.
+  virtual void save_record_texts(const std::vector<std::pair<std::string, std::string>>& records) {
+    for (const auto& [job, text] : records) save_record(job, nlohmann::json::parse(text));
   }
   /// The job's record, or nothing when there is none; throws StorageError on unreadable records.
   virtual std::optional<nlohmann::json> load_record(const std::string& job) = 0;
