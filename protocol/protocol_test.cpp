@@ -1,9 +1,15 @@
+#include "protocol/events.h"
 #include "protocol/messages.h"
 #include "protocol/routes.h"
+#include "protocol/sequence.h"
 #include "protocol/tile.h"
 #include "protocol/worker.h"
 
 #include <gtest/gtest.h>
+
+#include <algorithm>
+#include <iterator>
+#include <string_view>
 
 namespace tessera::protocol {
 namespace {
@@ -339,6 +345,321 @@ TEST(Messages, StoredTextsAreCutAndMarkedBeyondTheirBound) {
   const std::string cut = bounded_text(accented, kMaxNameBytes - 1);
   EXPECT_EQ(cut.substr(0, cut.find(' ')).size(), 254u);
   EXPECT_EQ(cut.substr(cut.find(' ')), " [cut from 400 bytes]");
+}
+
+
+// ---- Sequences: a submission of frames, a retry of chosen frames, and the answers that carry frames.
+
+// The sentence a submission is refused with, or "(accepted)".
+std::string submission_refusal(const std::string& body) {
+  try {
+    parse_job_submission(body);
+  } catch (const ProtocolError& e) {
+    return e.what();
+  }
+  return "(accepted)";
+}
+
+TEST(Sequences, ASubmissionOfFramesIsSortedByNumber) {
+  const std::string sha(64, 'a'), other(64, 'b');
+  const JobSubmission s = parse_job_submission(
+      R"({"frames": [{"number": 12, "scene": {"f": 12}},
+                     {"number": 3, "scene": {"f": 3}, "assets": {"tex.exr": ")" + other + R"("}},
+                     {"number": 7, "scene": {"f": 7}}],
+          "assets": {"tex.exr": ")" + sha + R"("}, "frame_order": "any", "spp": 4, "name": "shot"})");
+  ASSERT_EQ(s.frames.size(), 3u);
+  EXPECT_EQ(s.frames[0].number, 3);
+  EXPECT_EQ(s.frames[1].number, 7);
+  EXPECT_EQ(s.frames[2].number, 12);
+  EXPECT_EQ(s.frames[0].scene, json({{"f", 3}}));
+  EXPECT_EQ(s.frames[2].scene, json({{"f", 12}}));
+  EXPECT_EQ(s.frames[0].assets, (std::map<std::string, std::string>{{"tex.exr", other}}));
+  EXPECT_TRUE(s.frames[1].assets.empty());  // the submission's assets apply to it
+  EXPECT_EQ(s.assets, (std::map<std::string, std::string>{{"tex.exr", sha}}));
+  EXPECT_EQ(s.frame_order, FrameOrder::any);
+  EXPECT_EQ(s.scene, json::object());  // a sequence has no scene of its own
+  EXPECT_EQ(s.sampling.spp, 4u);
+  EXPECT_EQ(s.name, "shot");
+  // The default order, frame numbers at both ends of their range, and one frame is a sequence too.
+  EXPECT_EQ(parse_job_submission(R"({"frames": [{"number": 0, "scene": {}}]})").frame_order, FrameOrder::in_order);
+  EXPECT_EQ(parse_job_submission(R"({"frames": [{"number": 999999999, "scene": {}}], "frame_order": "in_order"})")
+                .frames[0].number, kMaxFrameNumber);
+  // A one-image submission has no frames.
+  EXPECT_TRUE(parse_job_submission(R"({"scene": {}})").frames.empty());
+}
+
+TEST(Sequences, ASubmissionOfFramesRoundTrips) {
+  const std::string sha(64, 'c');
+  const JobSubmission s = parse_job_submission(
+      R"({"frames": [{"number": 2, "scene": {"b": 1}}, {"number": 1, "scene": {"a": 1}, "assets": {"m.obj": ")" + sha +
+      R"("}}], "frame_order": "any", "tile_size": 16, "priority": 2, "seed": 9, "tile_timeout_seconds": 60})");
+  const json j = json(s);
+  EXPECT_FALSE(j.contains("scene"));
+  EXPECT_EQ(j["frame_order"], "any");
+  EXPECT_EQ(j["frames"], json::parse(R"([{"number": 1, "scene": {"a": 1}, "assets": {"m.obj": ")" + sha +
+                                     R"("}}, {"number": 2, "scene": {"b": 1}}])"));
+  const JobSubmission back = parse_job_submission(j.dump());
+  EXPECT_EQ(json(back), j);
+  EXPECT_EQ(back.tile_size, 16);
+  EXPECT_EQ(back.priority, 2);
+  EXPECT_EQ(back.sampling.seed, 9u);
+  EXPECT_EQ(back.tile_timeout_seconds, 60);
+  // In order is the default, and left out; a one-image submission writes neither key.
+  JobSubmission in_order = s;
+  in_order.frame_order = FrameOrder::in_order;
+  EXPECT_FALSE(json(in_order).contains("frame_order"));
+  EXPECT_EQ(parse_job_submission(json(in_order).dump()).frame_order, FrameOrder::in_order);
+  const json image = json(parse_job_submission(R"({"scene": {"a": 1}})"));
+  EXPECT_EQ(image["scene"], json({{"a", 1}}));
+  EXPECT_FALSE(image.contains("frames"));
+  EXPECT_FALSE(image.contains("frame_order"));
+}
+
+TEST(Sequences, ABadSubmissionOfFramesIsRefusedWithASentence) {
+  const auto refused = submission_refusal;
+  // Scene or frames, never both, never neither; frame_order only with frames.
+  EXPECT_EQ(refused(R"({"scene": {}, "frames": [{"number": 1, "scene": {}}]})"),
+            "a submission has either 'scene' (one image) or 'frames' (a sequence)");
+  EXPECT_EQ(refused(R"({"name": "x"})"), "'scene' is missing (or 'frames', for a sequence)");
+  EXPECT_EQ(refused(R"({"scene": {}, "frame_order": "any"})"), "'frame_order' applies only to a sequence ('frames')");
+  EXPECT_EQ(refused(R"({"frame_order": "any"})"), "'scene' is missing (or 'frames', for a sequence)");
+  // The list itself.
+  const std::string not_a_list = "'frames' must be a non-empty array of {\"number\", \"scene\"} objects";
+  EXPECT_EQ(refused(R"({"frames": []})"), not_a_list);
+  EXPECT_EQ(refused(R"({"frames": {}})"), not_a_list);
+  EXPECT_EQ(refused(R"({"frames": null})"), not_a_list);
+  EXPECT_EQ(refused(R"({"frames": "1-10"})"), not_a_list);
+  EXPECT_EQ(refused(R"({"frames": [3]})"), "'frames[0]' must be an object {\"number\", \"scene\"}");
+  // Numbers: present, whole, unique, within 0..999999999 (a refusal names the frame's place in the list).
+  EXPECT_EQ(refused(R"({"frames": [{"number": 1, "scene": {}}, {"number": 1, "scene": {"x": 1}}]})"),
+            "frame 1 appears twice in 'frames'");
+  EXPECT_EQ(refused(R"({"frames": [{"number": 5, "scene": {}}, {"number": 2, "scene": {}}, {"number": 5,
+                       "scene": {}}]})"),
+            "frame 5 appears twice in 'frames'");
+  const std::string range = ".number' must be a frame number from 0 to 999999999";
+  EXPECT_EQ(refused(R"({"frames": [{"number": 1, "scene": {}}, {"number": -1, "scene": {}}]})"), "'frames[1]" + range);
+  EXPECT_EQ(refused(R"({"frames": [{"number": 1000000000, "scene": {}}]})"), "'frames[0]" + range);
+  EXPECT_EQ(refused(R"({"frames": [{"number": 18446744073709551615, "scene": {}}]})"), "'frames[0]" + range);
+  EXPECT_EQ(refused(R"({"frames": [{"number": 9223372036854775808, "scene": {}}]})"), "'frames[0]" + range);
+  EXPECT_EQ(refused(R"({"frames": [{"number": 1.5, "scene": {}}]})"), "'frames[0]" + range);
+  EXPECT_EQ(refused(R"({"frames": [{"number": "1", "scene": {}}]})"), "'frames[0]" + range);
+  EXPECT_EQ(refused(R"({"frames": [{"number": true, "scene": {}}]})"), "'frames[0]" + range);
+  EXPECT_EQ(refused(R"({"frames": [{"scene": {}}]})"), "'frames[0]" + range);
+  // Each frame's keys: number, scene and assets only; its scene an object.
+  EXPECT_EQ(refused(R"({"frames": [{"number": 1, "scene": {}, "spp": 4}]})"),
+            "'frames[0]' has an unknown key 'spp' (known: number, scene, assets)");
+  EXPECT_EQ(refused(R"({"frames": [{"number": 4}]})"), "'frames[0].scene' (frame 4) must be a JSON object");
+  EXPECT_EQ(refused(R"({"frames": [{"number": 4, "scene": "shot.json"}]})"),
+            "'frames[0].scene' (frame 4) must be a JSON object");
+  // A frame's assets are checked as the submission's are, and the refusal says where.
+  EXPECT_EQ(refused(R"({"frames": [{"number": 1, "scene": {}}, {"number": 2, "scene": {}, "assets": ["a.obj"]}]})"),
+            "'frames[1].assets' must be an object mapping scene paths to SHA-256 hashes");
+  EXPECT_EQ(refused(R"({"frames": [{"number": 1, "scene": {}, "assets": {"a.obj": "ABC"}}]})"),
+            "frames[0].assets[\"a.obj\"] must be a lowercase hex SHA-256 (got \"ABC\")");
+  EXPECT_EQ(refused(R"({"frames": [{"number": 1, "scene": {}, "assets": {"a.obj": ")" + std::string(64, 'A') +
+                    R"("}}]})"),
+            "frames[0].assets[\"a.obj\"] must be a lowercase hex SHA-256 (got \"" + std::string(64, 'A') + "\")");
+  EXPECT_EQ(refused(R"({"frames": [{"number": 1, "scene": {}}], "assets": {"a.obj": 1}})"),
+            "assets[\"a.obj\"] must be a lowercase hex SHA-256 (got 1)");
+  // The order's name.
+  EXPECT_EQ(refused(R"({"frames": [{"number": 1, "scene": {}}], "frame_order": "random"})"),
+            "'frame_order' must be \"in_order\" or \"any\" (got \"random\")");
+  EXPECT_EQ(refused(R"({"frames": [{"number": 1, "scene": {}}], "frame_order": ""})"),
+            "'frame_order' must be \"in_order\" or \"any\" (got \"\")");
+  EXPECT_EQ(refused(R"({"frames": [{"number": 1, "scene": {}}], "frame_order": 1})"),
+            "'frame_order' must be a string (got 1)");
+  // The shared settings are checked as for one image.
+  EXPECT_EQ(refused(R"({"frames": [{"number": 1, "scene": {}}], "replicates": 99})"),
+            "'replicates' must be an integer in 1..16 (got 99)");
+}
+
+TEST(Sequences, ARetryNamesFramesOrNothing) {
+  EXPECT_TRUE(parse_retry_request("").frames.empty());  // the whole job (or every failed and cancelled frame)
+  EXPECT_TRUE(parse_retry_request(" \n").frames.empty());
+  EXPECT_TRUE(parse_retry_request("{}").frames.empty());
+  EXPECT_EQ(parse_retry_request(R"({"frames": [7, 2, 999999999, 0]})").frames,
+            (std::vector<int64_t>{7, 2, 999999999, 0}));  // as given: the coordinator looks each one up
+  EXPECT_EQ(json(RetryRequest{{1, 2}}), json::parse(R"({"frames": [1, 2]})"));
+  EXPECT_EQ(json(RetryRequest{}), json::object());
+  EXPECT_EQ(parse_retry_request(json(RetryRequest{{4, 5}}).dump()).frames, (std::vector<int64_t>{4, 5}));
+  EXPECT_TRUE(parse_retry_request(json(RetryRequest{}).dump()).frames.empty());
+}
+
+TEST(Sequences, ABadRetryIsRefusedWithASentence) {
+  const auto refusal = [](const std::string& body) {
+    try {
+      parse_retry_request(body);
+    } catch (const ProtocolError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(accepted)");
+  };
+  const std::string list = "'frames' must be a non-empty array of at most 100000 frame numbers";
+  EXPECT_EQ(refusal(R"({"frames": []})"), list);
+  EXPECT_EQ(refusal(R"({"frames": "1-3"})"), list);
+  EXPECT_EQ(refusal(R"({"frames": 3})"), list);
+  EXPECT_EQ(refusal(R"({"frames": null})"), list);
+  EXPECT_EQ(refusal(json{{"frames", std::vector<int64_t>(size_t(kDefaultMaxJobFrames) + 1, 1)}}.dump()), list);
+  EXPECT_EQ(refusal(json{{"frames", std::vector<int64_t>(size_t(kDefaultMaxJobFrames), 1)}}.dump()), "(accepted)");
+  EXPECT_EQ(refusal(R"({"frames": [1, -1]})"), "frames[1] must be a frame number from 0 to 999999999 (got -1)");
+  EXPECT_EQ(refusal(R"({"frames": [1000000000]})"),
+            "frames[0] must be a frame number from 0 to 999999999 (got 1000000000)");
+  EXPECT_EQ(refusal(R"({"frames": [18446744073709551615]})"),
+            "frames[0] must be a frame number from 0 to 999999999 (got 18446744073709551615)");
+  EXPECT_EQ(refusal(R"({"frames": [2.5]})"), "frames[0] must be a frame number from 0 to 999999999 (got 2.5)");
+  EXPECT_EQ(refusal(R"({"frames": ["3"]})"), "frames[0] must be a frame number from 0 to 999999999 (got \"3\")");
+  EXPECT_EQ(refusal(R"({"frames": [[3]]})"), "frames[0] must be a frame number from 0 to 999999999 (got [3])");
+  EXPECT_EQ(refusal(R"({"frame": [3]})"), "unknown key 'frame' (known keys: frames)");
+  EXPECT_EQ(refusal("[3]"), "expected a JSON object, got array");
+  EXPECT_EQ(refusal("null"), "expected a JSON object, got null");
+  EXPECT_EQ(refusal(R"({"frames": [1)").rfind("malformed JSON: ", 0), 0u);
+}
+
+TEST(Sequences, FrameOrdersHaveTheProtocolsNames) {
+  EXPECT_STREQ(to_string(FrameOrder::in_order), "in_order");
+  EXPECT_STREQ(to_string(FrameOrder::any), "any");
+  EXPECT_EQ(frame_order_from_string("any"), FrameOrder::any);
+  EXPECT_EQ(frame_order_from_string("in_order"), FrameOrder::in_order);
+  EXPECT_THROW(frame_order_from_string("In_Order"), std::invalid_argument);
+  EXPECT_EQ(frame_job_id("j-4", 17), "j-4.f17");
+  EXPECT_EQ(frame_job_id("j-4", 0), "j-4.f0");
+}
+
+TEST(Sequences, TheFrameRoutesAreBuiltAndMatched) {
+  EXPECT_EQ(routes::job_frames("j-2"), "/v1/jobs/j-2/frames");
+  EXPECT_EQ(routes::job_frame_result("j-2", 7), "/v1/jobs/j-2/frames/7/result.exr");
+  const RouteMatch list = match_route("/v1/jobs/j-2/frames?after=3&limit=10");
+  ASSERT_NE(list.route, nullptr);
+  EXPECT_EQ(list.route->endpoint, Endpoint::job_frames);
+  EXPECT_EQ(list.param, "j-2");
+  const RouteMatch result = match_route("/v1/jobs/j-2/frames/7/result.exr");
+  ASSERT_NE(result.route, nullptr);
+  EXPECT_EQ(result.route->endpoint, Endpoint::job_frame_result);
+  EXPECT_EQ(result.param, "j-2");
+  EXPECT_EQ(result.param2, "7");
+  EXPECT_EQ(match_route("/v1/jobs/j-2/frames/7").route, nullptr);
+  // A frame's own job is an ordinary job id.
+  const RouteMatch frame_job = match_route("/v1/jobs/j-2.f7/result.exr");
+  ASSERT_NE(frame_job.route, nullptr);
+  EXPECT_EQ(frame_job.route->endpoint, Endpoint::job_result);
+  EXPECT_EQ(frame_job.param, "j-2.f7");
+}
+
+TEST(Sequences, ASequencesJobCarriesItsFrameCountsAndOrder) {
+  JobStatus s;
+  s.id = "j-4";
+  s.state = JobState::failed;
+  s.params.width = 16;
+  s.params.height = 8;
+  s.params.frame_order = FrameOrder::any;
+  s.tiles = {8, 6, 0, 2};
+  s.error = "1 of 4 frames failed; frame 2: boom";
+  s.frames = FrameCounts{.total = 4, .queued = 0, .running = 0, .paused = 0, .done = 3, .failed = 1, .cancelled = 0,
+                         .first = 1, .last = 4};
+  const json j = json(s);
+  EXPECT_EQ(j["frames"], json::parse(R"({"total": 4, "queued": 0, "running": 0, "paused": 0, "done": 3, "failed": 1,
+                                         "cancelled": 0, "first": 1, "last": 4})"));
+  EXPECT_EQ(j["frame_order"], "any");
+  EXPECT_EQ(j["scene_hash"], "");
+  EXPECT_FALSE(j.contains("sequence"));
+  EXPECT_FALSE(j.contains("frame"));
+  const JobStatus back = parse_answer<JobStatus>(j.dump(), "job");
+  ASSERT_TRUE(back.frames);
+  EXPECT_EQ(back.frames->total, 4);
+  EXPECT_EQ(back.frames->done, 3);
+  EXPECT_EQ(back.frames->failed, 1);
+  EXPECT_EQ(back.frames->first, 1);
+  EXPECT_EQ(back.frames->last, 4);
+  EXPECT_EQ(back.params.frame_order, FrameOrder::any);
+  EXPECT_FALSE(back.sequence);
+  EXPECT_FALSE(back.frame);
+  EXPECT_EQ(json(back), j);
+  // Missing counts are 0, a missing total is refused, and so is an order with another name.
+  const JobStatus sparse = parse_answer<JobStatus>(
+      R"({"id": "j-4", "state": "queued", "frames": {"total": 2, "queued": 2}, "frame_order": "in_order"})", "job");
+  EXPECT_EQ(sparse.frames->queued, 2);
+  EXPECT_EQ(sparse.frames->done, 0);
+  EXPECT_EQ(sparse.frames->last, 0);
+  EXPECT_THROW(parse_answer<JobStatus>(R"({"id": "j-4", "state": "queued", "frames": {"queued": 2}})", "job"),
+               ProtocolError);
+  EXPECT_THROW(parse_answer<JobStatus>(R"({"id": "j-4", "state": "queued", "frames": {"total": "2"}})", "job"),
+               ProtocolError);
+  EXPECT_THROW(parse_answer<JobStatus>(R"({"id": "j-4", "state": "queued", "frame_order": "sideways"})", "job"),
+               ProtocolError);
+}
+
+TEST(Sequences, AFramesJobNamesItsSequenceAndNumber) {
+  JobStatus f;
+  f.id = frame_job_id("j-4", 2);
+  f.state = JobState::done;
+  f.params.scene_hash = "h2";
+  f.sequence = "j-4";
+  f.frame = 2;
+  const json j = json(f);
+  EXPECT_EQ(j["sequence"], "j-4");
+  EXPECT_EQ(j["frame"], 2);
+  EXPECT_FALSE(j.contains("frames"));  // a frame's job has no frames, and no order of its own
+  EXPECT_FALSE(j.contains("frame_order"));
+  const JobStatus back = parse_answer<JobStatus>(j.dump(), "job");
+  EXPECT_EQ(back.id, "j-4.f2");
+  EXPECT_EQ(back.sequence, "j-4");
+  EXPECT_EQ(back.frame, 2);
+  EXPECT_FALSE(back.frames);
+  EXPECT_EQ(json(back), j);
+  // A one-image job writes none of the sequence keys, and null ones read as absent.
+  const json image = json(JobStatus{});
+  for (const char* key : {"frames", "frame_order", "sequence", "frame"}) EXPECT_FALSE(image.contains(key)) << key;
+  const JobStatus nulls =
+      parse_answer<JobStatus>(R"({"id": "j-1", "state": "queued", "sequence": null, "frame": null})", "job");
+  EXPECT_FALSE(nulls.sequence);
+  EXPECT_FALSE(nulls.frame);
+  EXPECT_THROW(parse_answer<JobStatus>(R"({"id": "j-1", "state": "queued", "frame": "2"})", "job"), ProtocolError);
+}
+
+TEST(Sequences, AFrameListPagesFramesJobs) {
+  JobStatus f1, f3;
+  f1.id = "j-4.f1";
+  f1.sequence = "j-4";
+  f1.frame = 1;
+  f1.state = JobState::done;
+  f3 = f1;
+  f3.id = "j-4.f3";
+  f3.frame = 3;
+  f3.state = JobState::running;
+  const json page = json(FrameList{{f1, f3}, 3});
+  EXPECT_EQ(page["next"], 3);
+  ASSERT_EQ(page["frames"].size(), 2u);
+  EXPECT_EQ(page["frames"][1]["frame"], 3);
+  const FrameList back = parse_answer<FrameList>(page.dump(), "frame list");
+  ASSERT_EQ(back.frames.size(), 2u);
+  EXPECT_EQ(back.frames[0].id, "j-4.f1");
+  EXPECT_EQ(back.frames[1].frame, 3);
+  EXPECT_EQ(back.frames[1].state, JobState::running);
+  EXPECT_EQ(back.next, 3);
+  EXPECT_EQ(json(back), page);
+  // The last page: next is null, and is written so.
+  const json last = json(FrameList{{f3}, std::nullopt});
+  EXPECT_TRUE(last.contains("next"));
+  EXPECT_TRUE(last["next"].is_null());
+  EXPECT_FALSE(parse_answer<FrameList>(last.dump(), "frame list").next);
+  EXPECT_EQ(json(FrameList{}), json::parse(R"({"frames": [], "next": null})"));
+  EXPECT_THROW(parse_answer<FrameList>(R"({"next": 2})", "frame list"), ProtocolError);
+  EXPECT_THROW(parse_answer<FrameList>(R"({"frames": [], "next": "c2"})", "frame list"), ProtocolError);
+}
+
+TEST(Sequences, AFrameEventNamesTheSequenceTheFrameAndItsJob) {
+  const json j = json(FrameEvent{"j-4", 17, "j-4.f17"});
+  EXPECT_EQ(j, json::parse(R"({"job": "j-4", "frame": 17, "frame_job": "j-4.f17"})"));
+  const FrameEvent back = j.get<FrameEvent>();
+  EXPECT_EQ(back.job, "j-4");
+  EXPECT_EQ(back.frame, 17);
+  EXPECT_EQ(back.frame_job, "j-4.f17");
+  EXPECT_THROW((void)json::parse(R"({"job": "j-4", "frame": 17})").get<FrameEvent>(), ProtocolError);
+  EXPECT_THROW((void)json::parse(R"({"job": "j-4", "frame": "17", "frame_job": "j-4.f17"})").get<FrameEvent>(),
+               ProtocolError);
+  EXPECT_STREQ(events::kFrameDone, "frame_done");
+  EXPECT_NE(std::find(std::begin(events::kFilterable), std::end(events::kFilterable), std::string_view("frame_done")),
+            std::end(events::kFilterable));
 }
 
 }  // namespace

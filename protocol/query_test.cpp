@@ -1,8 +1,9 @@
-// The query strings of job listings and purges: what they accept, the sentences they refuse with, and the round trip
-// of the clients' builder.
+// The query strings of job listings, frame listings and purges: what they accept, the sentences they refuse with, and
+// the round trip of the clients' builder.
 #include "protocol/query.h"
 
 #include "protocol/errors.h"
+#include "protocol/sequence.h"
 
 #include <gtest/gtest.h>
 
@@ -52,6 +53,69 @@ TEST(PurgeQuery, OnlyTrueOrFalse) {
   EXPECT_THROW(parse_purge_query("/v1/jobs/j-1?purge=yes"), ProtocolError);
   EXPECT_THROW(parse_purge_query("/v1/jobs/j-1?purge"), ProtocolError);
   EXPECT_THROW(parse_purge_query("/v1/jobs/j-1?force=true"), ProtocolError);
+}
+
+
+std::string frame_list_refusal(const std::string& target) {
+  try {
+    parse_frame_list_query(target);
+  } catch (const ProtocolError& e) {
+    return e.what();
+  }
+  return "accepted";
+}
+
+TEST(FrameListQuery, ParsesAfterAndLimit) {
+  const FrameListQuery all = parse_frame_list_query("/v1/jobs/j-4/frames");
+  EXPECT_FALSE(all.after);
+  EXPECT_EQ(all.limit, 0u);  // every frame
+  const FrameListQuery q = parse_frame_list_query("/v1/jobs/j-4/frames?after=12&limit=50");
+  EXPECT_EQ(q.after, 12);
+  EXPECT_EQ(q.limit, 50u);
+  EXPECT_EQ(parse_frame_list_query("/v1/jobs/j-4/frames?limit=3").after, std::nullopt);
+  EXPECT_EQ(parse_frame_list_query("/v1/jobs/j-4/frames?after=-1").after, -1);  // before frame 0: from the first
+  EXPECT_EQ(parse_frame_list_query("/v1/jobs/j-4/frames?after=0").after, 0);
+  EXPECT_EQ(parse_frame_list_query("/v1/jobs/j-4/frames?after=999999999").after, kMaxFrameNumber);
+  EXPECT_EQ(parse_frame_list_query("/v1/jobs/j-4/frames?limit=1").limit, 1u);
+  EXPECT_EQ(parse_frame_list_query("/v1/jobs/j-4/frames?limit=10000").limit, 10000u);
+  EXPECT_EQ(parse_frame_list_query("/v1/jobs/j-4/frames?").limit, 0u);
+  // The clients' builder: "" at the defaults, and what it builds parses back.
+  EXPECT_EQ(FrameListQuery{}.to_query(), "");
+  EXPECT_EQ(q.to_query(), "?after=12&limit=50");
+  EXPECT_EQ((FrameListQuery{.after = std::nullopt, .limit = 7}).to_query(), "?limit=7");
+  EXPECT_EQ((FrameListQuery{.after = -1, .limit = 0}).to_query(), "?after=-1");
+  for (const FrameListQuery& built : {q, FrameListQuery{.after = std::nullopt, .limit = 7},
+                                      FrameListQuery{.after = 0, .limit = 0}, FrameListQuery{}}) {
+    const FrameListQuery back = parse_frame_list_query("/v1/jobs/j-4/frames" + built.to_query());
+    EXPECT_EQ(back.after, built.after);
+    EXPECT_EQ(back.limit, built.limit);
+  }
+}
+
+TEST(FrameListQuery, BadValuesAreRefusedWithASentence) {
+  EXPECT_EQ(frame_list_refusal("/v1/jobs/j-4/frames?limit=0"), "limit: '0' is not a whole number from 1 to 10000");
+  EXPECT_EQ(frame_list_refusal("/v1/jobs/j-4/frames?limit=10001"),
+            "limit: '10001' is not a whole number from 1 to 10000");
+  EXPECT_EQ(frame_list_refusal("/v1/jobs/j-4/frames?limit=-1"), "limit: '-1' is not a whole number from 1 to 10000");
+  EXPECT_EQ(frame_list_refusal("/v1/jobs/j-4/frames?limit="), "limit: '' is not a whole number from 1 to 10000");
+  EXPECT_EQ(frame_list_refusal("/v1/jobs/j-4/frames?limit=2.5"), "limit: '2.5' is not a whole number from 1 to 10000");
+  EXPECT_EQ(frame_list_refusal("/v1/jobs/j-4/frames?after=-2"),
+            "after: '-2' is not a whole number from -1 to 999999999");
+  EXPECT_EQ(frame_list_refusal("/v1/jobs/j-4/frames?after=1000000000"),
+            "after: '1000000000' is not a whole number from -1 to 999999999");
+  EXPECT_EQ(frame_list_refusal("/v1/jobs/j-4/frames?after=99999999999999999999"),
+            "after: '99999999999999999999' is not a whole number from -1 to 999999999");
+  EXPECT_EQ(frame_list_refusal("/v1/jobs/j-4/frames?after=c12"),
+            "after: 'c12' is not a whole number from -1 to 999999999");
+  EXPECT_EQ(frame_list_refusal("/v1/jobs/j-4/frames?after=%2B3"),  // '+' alone decodes as a space
+            "after: '+3' is not a whole number from -1 to 999999999");
+  EXPECT_EQ(frame_list_refusal("/v1/jobs/j-4/frames?after=3%20"),
+            "after: '3 ' is not a whole number from -1 to 999999999");
+  EXPECT_EQ(frame_list_refusal("/v1/jobs/j-4/frames?after="), "after: '' is not a whole number from -1 to 999999999");
+  EXPECT_NE(frame_list_refusal("/v1/jobs/j-4/frames?state=done").find("unknown query parameter 'state'"),
+            std::string::npos);
+  EXPECT_NE(frame_list_refusal("/v1/jobs/j-4/frames?after=1&after=2").find("more than once"), std::string::npos);
+  EXPECT_NE(frame_list_refusal("/v1/jobs/j-4/frames?after=%zz").find("bad percent-escape"), std::string::npos);
 }
 
 }  // namespace

@@ -402,6 +402,9 @@ def exercise(c, tessera, workdir, address):
         frames = [{"number": n, "scene": sphere_scene(16)} for n in (3, 1)]
         c.call("POST", "/v1/jobs", {"frames": frames, "scene": sphere_scene(16)}, expect=400)
         c.call("POST", "/v1/jobs", {"frames": frames + [frames[0]]}, expect=400)  # frame 3 twice
+        c.call("POST", "/v1/jobs", {"frames": frames, "resumable": True}, expect=400)  # one-image jobs only
+        c.call("POST", "/v1/jobs", {"frames": frames, "frame_order": "random"}, expect=400)
+        c.call("POST", "/v1/jobs", {"scene": sphere_scene(16), "frame_order": "any"}, expect=400)
         _, sq = c.call("POST", "/v1/jobs", {"frames": frames, "tile_size": 8, "seed": 1, "frame_order": "any"},
                        expect=201)
         if "id" not in sq:
@@ -412,7 +415,8 @@ def exercise(c, tessera, workdir, address):
             if j["state"] in ("done", "failed", "cancelled"):
                 break
             time.sleep(0.1)
-        if j["state"] != "done" or j["frames"]["done"] != 2:
+        sequence_done = j["state"] == "done" and j["frames"]["done"] == 2
+        if not sequence_done:
             failures.append(f"sequence {sq} ended {j['state']} with {j.get('frames')}, not done")
     finally:
         worker.send_signal(signal.SIGTERM)
@@ -421,7 +425,19 @@ def exercise(c, tessera, workdir, address):
     if status == 200 and exr[:4] != b"\x76\x2f\x31\x01":
         failures.append("result.exr is not an OpenEXR file")
     c.call("GET", f"/v1/jobs/{b}/preview.png", expect=200)
-    c.call("GET", "/v1/jobs", expect=200)
+    _, listed = c.call("GET", "/v1/jobs", expect=200)
+    listed = [j["id"] for j in listed["jobs"]]
+    if sq not in listed or any(i.startswith(f"{sq}.") for i in listed):
+        failures.append(f"GET /v1/jobs: the sequence {sq} is not listed as one job without its frames: {listed}")
+    _, f3 = c.call("GET", f"/v1/jobs/{sq}.f3", expect=200)
+    if f3.get("sequence") != sq or f3.get("frame") != 3 or "frames" in f3:
+        failures.append(f"GET /v1/jobs/{sq}.f3: not frame 3 of {sq}: {f3}")
+    c.call("GET", f"/v1/jobs/{sq}/preview.png", expect=200)  # its latest done frame's
+    c.call("GET", f"/v1/jobs/{sq}/tiles", expect=409)  # its tiles are its frames'
+    c.call("POST", f"/v1/jobs/{sq}/tiles/0/requeue", expect=409)
+    c.call("PATCH", f"/v1/jobs/{sq}.f1", {"priority": 2}, expect=409)  # a frame's job: controlled by its sequence
+    c.call("POST", f"/v1/jobs/{sq}.f1/pause", expect=409)
+    c.call("POST", f"/v1/jobs/{b}/retry", {"frames": [1]}, expect=400)  # not a sequence
     _, page = c.call("GET", f"/v1/jobs/{sq}/frames?limit=1", expect=200)
     if [f["frame"] for f in page["frames"]] != [1] or page["next"] != 1:
         failures.append(f"GET /v1/jobs/{{id}}/frames?limit=1: {page}")
@@ -444,19 +460,30 @@ def exercise(c, tessera, workdir, address):
     c.call("DELETE", f"/v1/jobs/{sq}?purge=true", expect=200)  # with its frames
     c.call("GET", f"/v1/jobs/{sq}.f1", expect=404)
 
-    # The stream saw all of it, in order, ending with job b done.
-    seen, ids = [], []
+    # The stream saw all of it, in order, ending with job b done and then the sequence's two frames done (each
+    # frame_done after the job event of its frame's job done).
+    seen, ids, b_done, frames_done, frame_jobs_done = [], [], False, set(), set()
+    frames_wanted = {1, 3} if sequence_done else set()
     while True:
         e = events.next()
         if e is None:
-            failures.append(f"GET /v1/events ended before job {b} was done; saw {seen}")
+            failures.append(f"GET /v1/events ended before job {b} and the frames of {sq} were done; saw {seen}")
             break
         seen.append(e[0])
         ids.append(int(e[1].rsplit("-", 1)[1]))
         if e[0] == "job" and e[2]["id"] == b and e[2]["state"] == "done":
+            b_done = True
+        if e[0] == "job" and e[2].get("sequence") == sq and e[2]["state"] == "done":
+            frame_jobs_done.add(e[2]["id"])
+        if e[0] == "frame_done" and e[2]["job"] == sq:
+            frames_done.add(e[2]["frame"])
+            if e[2]["frame_job"] != f"{sq}.f{e[2]['frame']}" or e[2]["frame_job"] not in frame_jobs_done:
+                failures.append(f"frame_done {e[2]}: not frame {e[2]['frame']}'s job, or before its job event done")
+        if b_done and frames_done >= frames_wanted:
             break
     events.close()
-    for name in ("job", "tile_leased", "tile_done", "tile_failed", "worker_seen"):
+    expected = ["job", "tile_leased", "tile_done", "tile_failed", "worker_seen"] + (["frame_done"] if frames_wanted else [])
+    for name in expected:
         if name not in seen:
             failures.append(f"GET /v1/events: no {name} event in {seen}")
     if ids != list(range(1, len(ids) + 1)):
