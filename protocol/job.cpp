@@ -73,7 +73,10 @@ void from_json(const json& j, JobStatus& s) {
   s.rays = answer_field_or<uint64_t>(j, "rays", kMsg, 0);
   s.workers = answer_field_or<std::vector<std::string>>(j, "workers", kMsg, {});
   s.render_seconds = answer_field_or<double>(j, "render_seconds", kMsg, 0);
-  if (j.contains("frames") && j["frames"].is_object()) s.frames = j["frames"].get<FrameCounts>();
+  if (j.contains("frames") && !j["frames"].is_null()) {
+    if (!j["frames"].is_object()) throw ProtocolError(std::string(kMsg) + ": \"frames\" is not an object");
+    s.frames = j["frames"].get<FrameCounts>();
+  }
   try {
     p.frame_order = frame_order_from_string(answer_field_or<std::string>(j, "frame_order", kMsg, "in_order"));
   } catch (const std::invalid_argument& e) {

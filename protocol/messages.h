@@ -52,7 +52,8 @@ void to_json(nlohmann::json& j, const SamplingSettings& s);
 struct FrameSubmission {
   int64_t number = 0;                               ///< The frame's number (0 to kMaxFrameNumber, unique).
   nlohmann::json scene = nlohmann::json::object();  ///< The frame's scene file's JSON.
-  /// Its asset paths -> SHA-256, when a path means another file than in the submission's "assets" (empty: those).
+  /// Its own asset paths -> SHA-256, for paths that mean another file than in the submission's "assets" (those it does
+  /// not name are the submission's).
   std::map<std::string, std::string> assets;
 };
 

@@ -63,7 +63,7 @@ int64_t JobService::unfinished_jobs() {
 }
 
 void JobService::check_assets(const json& scene, const std::map<std::string, std::string>& assets,
-                              const std::string& where) {
+                              const std::string& where, const BlobFiles* known) {
   for (const auto& [path, sha] : assets) check_path(path, where + "assets[\"" + path + "\"]");
   const std::vector<std::string> used = scene_asset_paths(scene);
   for (const std::string& path : used) check_path(path, where + "scene");
@@ -73,7 +73,7 @@ void JobService::check_assets(const json& scene, const std::map<std::string, std
     const auto it = assets.find(path);
     std::string why;
     if (it == assets.end()) why = "not in \"assets\"";
-    else if (!blobs_.has(it->second)) why = "not uploaded";
+    else if (known ? !known->count(it->second) : !blobs_.has(it->second)) why = "not uploaded";
     else continue;
     missing += (missing.empty() ? "" : ", ") + path + " (" + why + ")";
   }
@@ -91,21 +91,25 @@ void JobService::check_samples(int width, int height, uint32_t per_pixel, bool a
 }
 
 JobService::CheckedScene JobService::check_scene(const json& scene, const std::map<std::string, std::string>& assets,
-                                                 const protocol::SamplingSettings& sampling, const std::string& where) {
-  check_assets(scene, assets, where);
+                                                 const protocol::SamplingSettings& sampling, const std::string& where,
+                                                 const BlobFiles* known) {
+  check_assets(scene, assets, where, known);
   TESSERA_FAIL_POINT("submit.validate");
   // The scene is checked as `tessera render` loads it, but not built: workers build their own BVH, and on a 2M-triangle
   // mesh the BVH was a quarter to a third of a whole load.
   LoadOptions check = sampling.load_options();
   check.build = false;
   check.checked_files = &checked_blobs_;  // a blob's file only ever holds the bytes its name hashes to
+  check.mesh_digests = &mesh_digests_;
   check.asset_limits = limits_.assets;
   LoadedScene loaded;
   try {
     loaded = load_scene_json(scene, "scene", [&](const std::string& rel, const std::string& jp) -> fs::path {
       const auto it = assets.find(rel);
       if (it == assets.end()) throw SceneError("scene: " + jp + ": asset '" + rel + "' is not in \"assets\"");
-      std::optional<fs::path> f = blobs_.file(it->second);
+      std::optional<fs::path> f;
+      if (!known) f = blobs_.file(it->second);
+      else if (const auto k = known->find(it->second); k != known->end()) f = k->second;
       if (!f) throw SceneError("scene: " + jp + ": asset '" + rel + "' (" + it->second + ") is not uploaded");
       return *f;
     }, check);
@@ -175,8 +179,12 @@ protocol::SubmitAnswer JobService::submit_sequence(const protocol::JobSubmission
                             std::to_string(limits_.max_job_frames) + " (--max-job-frames)");
   if (sub.resumable)
     throw ApiError(400, "'resumable' applies to one-image jobs: a sequence's spp cannot be raised later");
-  const auto assets_of = [&](const protocol::FrameSubmission& f) -> const std::map<std::string, std::string>& {
-    return f.assets.empty() ? sub.assets : f.assets;
+  // A frame's assets: the submission's, with the paths the frame names itself replaced by its own.
+  const auto assets_of = [&](const protocol::FrameSubmission& f) {
+    if (f.assets.empty()) return sub.assets;
+    std::map<std::string, std::string> a = f.assets;
+    a.insert(sub.assets.begin(), sub.assets.end());  // keeps the frame's where both name a path
+    return a;
   };
   // Every frame is checked before anything is stored: a submission is all its frames or none.
   const auto t0 = std::chrono::steady_clock::now();
@@ -185,15 +193,26 @@ protocol::SubmitAnswer JobService::submit_sequence(const protocol::JobSubmission
   std::vector<std::string> records(n);  // each frame's spec as stored, JSON text
   std::vector<std::vector<std::string>> frame_warnings(n);
   std::vector<std::exception_ptr> refused(n);
-  // The frames are checked on every core; the refusal answered is the lowest-numbered frame's, whatever the order.
+  // Each distinct blob is looked up once, then the frames are checked on every core; the refusal answered is the
+  // lowest-numbered frame's, whatever the order.
+  BlobFiles known;
+  {
+    std::set<std::string> named;
+    for (const auto& [path, sha] : sub.assets) named.insert(sha);
+    for (const protocol::FrameSubmission& f : sub.frames)
+      for (const auto& [path, sha] : f.assets) named.insert(sha);
+    for (const std::string& sha : named)
+      if (std::optional<fs::path> file = blobs_.file(sha)) known.emplace(sha, std::move(*file));
+  }
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i != r.end(); ++i) {
       const protocol::FrameSubmission& f = sub.frames[i];
       const std::string where = "frame " + std::to_string(f.number) + ": ";
       try {
-        CheckedScene s = check_scene(f.scene, assets_of(f), sub.sampling, where);
+        const std::map<std::string, std::string> assets = assets_of(f);
+        CheckedScene s = check_scene(f.scene, assets, sub.sampling, where, &known);
         frames[i] = {f.number, s.width, s.height, s.hash};
-        protocol::JobSpec spec{f.scene, assets_of(f), sub.sampling, s.width, s.height, sub.tile_size, false};
+        protocol::JobSpec spec{f.scene, assets, sub.sampling, s.width, s.height, sub.tile_size, false};
         spec.sampling.spp = s.spp;
         records[i] = json(spec).dump();
         for (std::string& w : s.warnings) frame_warnings[i].push_back(where + w);
@@ -400,7 +419,11 @@ protocol::JobSpec JobService::spec(const std::string& id) {
     const auto it = specs_.find(id);
     if (it != specs_.end()) return it->second;
   }
-  if (!sched_.job(id)) throw ApiError(404, "no job " + id);
+  const auto job = sched_.job(id);
+  if (!job) throw ApiError(404, "no job " + id);
+  if (job->frames)
+    throw ApiError(409, "job " + id + " is a sequence: each frame has its own spec (GET " +
+                            protocol::routes::job_spec(frame_job_id(id, job->frames->first)) + ")");
   std::optional<json> rec = jobs_.load_record(id);
   if (!rec) throw ApiError(404, "no record for job " + id);
   const auto spec = rec->get<protocol::JobSpec>();  // records of older versions also carry the job's facts: ignored

@@ -152,12 +152,16 @@ class JobService {
     std::vector<std::string> warnings;
   };
   int64_t unfinished_jobs();
-  // Throws ApiError 400 (its sentence starting with `where`: "" or "frame N: ") for bad or missing assets.
+  // Stored blobs' files by SHA-256, looked up once for all the frames of a sequence (absent: not stored).
+  using BlobFiles = std::map<std::string, std::filesystem::path>;
+  // Throws ApiError 400 (its sentence starting with `where`: "" or "frame N: ") for bad or missing assets; `known`,
+  // when given, answers which blobs are stored instead of the blob store.
   void check_assets(const nlohmann::json& scene, const std::map<std::string, std::string>& assets,
-                    const std::string& where);
-  // Checks a scene as `tessera render` loads it (not built) and the job's size limits for it.
+                    const std::string& where, const BlobFiles* known = nullptr);
+  // Checks a scene as `tessera render` loads it (not built) and the job's size limits for it (`known` as above).
   CheckedScene check_scene(const nlohmann::json& scene, const std::map<std::string, std::string>& assets,
-                           const protocol::SamplingSettings& sampling, const std::string& where);
+                           const protocol::SamplingSettings& sampling, const std::string& where,
+                           const BlobFiles* known = nullptr);
   protocol::SubmitAnswer submit_sequence(const protocol::JobSubmission& submission);
   // ApiError 409 when `id` is a frame of a sequence: `what` (pause, cancel...) acts on the whole sequence.
   void refuse_frame(const std::string& id, const char* what);
@@ -187,6 +191,7 @@ class JobService {
   std::map<std::string, std::shared_ptr<JobImage>> images_;  // running jobs' images (a cache of the stored tiles)
   std::map<std::string, protocol::JobSpec> specs_;           // a cache of the stored specs
   std::map<std::string, std::string> spec_json_;             // the same as JSON answers (set and erased with specs_)
+  CheckedFiles mesh_digests_;   // mesh blobs' digests, read once
   CheckedFiles checked_blobs_;  // image blobs earlier submissions decoded clean: the next check skips the decode
   std::set<std::string> waiting_results_;  // jobs whose result found the disk full (mu_)
   PreviewCache previews_;       // each job's latest preview PNG, by the version of the pixels it shows

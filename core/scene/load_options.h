@@ -43,6 +43,10 @@ struct LoadOptions {
   /// recorded, with their pixels when building. Only for asset files never rewritten in place, and always with the same
   /// asset_limits (a recorded image is not measured again).
   CheckedFiles* checked_files = nullptr;
+  /// Mesh files recorded here are not read again for their SHA-256 (the recorded one enters the scene's hash), and
+  /// meshes read are recorded; a record of its own (a file in checked_files is a clean image). Only for asset files
+  /// never rewritten in place.
+  CheckedFiles* mesh_digests = nullptr;
 
   /// Field by field.
   bool operator==(const LoadOptions&) const = default;

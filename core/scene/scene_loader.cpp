@@ -430,7 +430,12 @@ void Loader::mesh(const json& o, const std::string& op, uint32_t mat, int32_t li
   const glm::dvec3 tr = ctx_.dvec3(o, "translate", op, glm::dvec3(0.0));
   const glm::dmat4 xf = o.contains("transform") ? ctx_.matrix(o["transform"], op + ".transform") : glm::dmat4(1.0);
   ObjMesh obj = load_obj(file, rel, xf, tr, frame_, ctx_, op + ".path");
-  hash_.update(sha256_file(file));
+  // A file an earlier load recorded (unchanged since) is not read again for its digest.
+  CheckedFiles* const known = options_.mesh_digests;
+  std::optional<CheckedFiles::Record> record = known ? known->find(file) : std::nullopt;
+  const std::string digest = record ? std::move(record->sha256) : sha256_file(file);
+  if (known && !record) known->remember(file, digest);
+  hash_.update(digest);
   if (std::find(out_.assets.begin(), out_.assets.end(), rel) == out_.assets.end()) out_.assets.push_back(rel);
   std::vector<Vec3> normals;
   for (size_t t = 0; t < obj.tris.size(); ++t) {

@@ -456,6 +456,8 @@ def exercise(c, tessera, workdir, address):
     c.call("POST", f"/v1/jobs/{sq}/retry", {"frames": [2]}, expect=404)
     c.call("POST", f"/v1/jobs/{sq}/retry", {"frames": "1-2"}, expect=400)
     c.call("POST", f"/v1/jobs/{sq}.f1/retry", expect=409)  # a frame's job is controlled through its sequence
+    c.call("GET", f"/v1/jobs/{sq}/spec", expect=409)  # each frame has its own
+    c.call("GET", f"/v1/jobs/{sq}.f1/spec", expect=200)
     c.call("DELETE", f"/v1/jobs/{sq}.f1?purge=true", expect=409)
     c.call("DELETE", f"/v1/jobs/{sq}?purge=true", expect=200)  # with its frames
     c.call("GET", f"/v1/jobs/{sq}.f1", expect=404)
