@@ -1,6 +1,7 @@
 // The single `tessera` executable: one subcommand per way of using the farm, one rule for exit statuses
 // (cli/exit_status.h).
 #include "cli/build_commit.h"
+#include "cli/contact_sheet_command.h"
 #include "cli/exit_status.h"
 #include "cli/jobs_command.h"
 #include "cli/merge_command.h"
@@ -50,7 +51,8 @@ int main(int argc, char** argv) {
                                            command(app, c::add_submit_command, c::run_submit),
                                            command(app, c::add_jobs_command, c::run_jobs),
                                            command(app, c::add_workers_command, c::run_workers),
-                                           command(app, c::add_merge_command, c::run_merge)};
+                                           command(app, c::add_merge_command, c::run_merge),
+                                           command(app, c::add_contact_sheet_command, c::run_contact_sheet)};
 
     try {
       app.parse(argc, argv);

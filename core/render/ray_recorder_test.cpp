@@ -15,7 +15,7 @@
 namespace tessera {
 namespace {
 
-const std::filesystem::path kScenes = std::filesystem::path(TESSERA_SOURCE_DIR) / "scenes";
+const std::filesystem::path kRecorderScenes = std::filesystem::path(TESSERA_SOURCE_DIR) / "scenes";
 
 // Counts the rays it sees by kind (from any thread) and keeps the shadow rays' extents.
 class CountingRecorder final : public RayRecorder {
@@ -32,7 +32,7 @@ class CountingRecorder final : public RayRecorder {
   std::mutex mu_;
 };
 
-struct Case {
+struct RecorderCase {
   std::string scene;
   bool specular, bounce;  // whether the scene must produce rays of these kinds
 };
@@ -40,9 +40,9 @@ struct Case {
 TEST(RayRecorder, SeesEveryCountedRayWithItsKindAndChangesNoPixel) {
   // The direct integrator through a glass sphere (camera, specular, shadow rays); the path tracer with glass and
   // metal (camera, specular, bounce, shadow rays).
-  for (const Case& c : {Case{"cbox_no_light_refraction", true, false}, Case{"cbox_glass", true, true}}) {
+  for (const RecorderCase& c : {RecorderCase{"cbox_no_light_refraction", true, false}, RecorderCase{"cbox_glass", true, true}}) {
     SCOPED_TRACE(c.scene);
-    const Scene scene = load_scene_file(kScenes / (c.scene + ".json")).scene;
+    const Scene scene = load_scene_file(kRecorderScenes / (c.scene + ".json")).scene;
     RenderOptions o;
     o.spp = 4;
     o.seed = 3;

@@ -19,7 +19,7 @@ def main():
     binary, page = sys.argv[1], sys.argv[2]
     update = "--update" in sys.argv[3:]
     text = open(page, encoding="utf-8").read()
-    block = re.compile(r"```text\n((?:[^\n]*\n)?Usage: \S*tessera (\w+)[^\n]*\n.*?)```", re.S)
+    block = re.compile(r"```text\n((?:[^\n]*\n)?Usage: \S*tessera ([\w-]+)[^\n]*\n.*?)```", re.S)
     stale = []
 
     def fix(m):

@@ -61,6 +61,13 @@ RENDERED=$(cat "$WORK/w1.log" "$WORK/w2.log" "$WORK/w3.log" | grep -c ": rendere
 echo "tiles rendered in total: $RENDERED for $TILES tiles ($BEFORE stored before the kills)"
 [ "$RENDERED" -ge "$TILES" ] || fail "only $RENDERED renders for $TILES tiles"
 [ "$RENDERED" -le $((TILES + 2)) ] || fail "$RENDERED renders for $TILES tiles: stored tiles were rendered again"
+# The frames as one contact sheet: 3 columns of 16-px copies, 2-px gaps: 2 + 3 x 18 = 56 by 2 + 2 x 18 = 38 pixels.
+"$TESSERA" contact-sheet "$WORK"/out/f_0*.exr -o "$WORK/sheet.png" --thumb-width 16 --columns 3 2>"$WORK/sheet.log" ||
+  fail "contact-sheet failed: $(cat "$WORK/sheet.log")"
+[ "$(python3 -c 'import struct,sys; d=open(sys.argv[1],"rb").read(24); print(*struct.unpack(">II", d[16:24]))' \
+  "$WORK/sheet.png")" = "56 38" ] || fail "the contact sheet is not 56x38"
+refused "$WORK/shot/frame_01.json" "$TESSERA" contact-sheet "$WORK/out/f_01.exr" "$WORK/shot/frame_01.json" -o "$WORK/bad.png"
+[ ! -e "$WORK/bad.png" ] || fail "a refused contact sheet was written"
 SEQ=$(grep -Eo "as j-[^ ]+" "$WORK/submit.log" | head -n1 | cut -c4-)
 "$TESSERA" jobs ls --coordinator "$URL" >"$WORK/ls.log" 2>&1 || fail "jobs ls failed"
 log_has "$WORK/ls.log" "^$SEQ +done .* 24/24 .*\[6/6 frames\]" || fail "jobs ls does not show the sequence as one done job"
