@@ -909,10 +909,32 @@ class LimitsTest : public HttpTest {
     o.limits.max_queued_jobs = 2;
     o.limits.max_job_pixels = 100 * 100;
     o.limits.max_job_samples = 40 * 30 * 64;
+    o.limits.max_job_frames = 2;
     o.header_limit = 4096;
     o.max_connections = 3;
   }
 };
+
+TEST_F(LimitsTest, ASequenceOverTheFrameLimitIsRefusedAndNothingIsStored) {
+  const json body = small_cbox(job_for("cbox_no_light.json"));
+  json seq = body;
+  seq.erase("scene");
+  seq["frames"] = json::array();
+  for (int n = 1; n <= 3; ++n) seq["frames"].push_back({{"number", n}, {"scene", body["scene"]}});
+  const Reply r = call(http::verb::post, "/v1/jobs", seq.dump());
+  ASSERT_EQ(r.status, 400u) << r.body;
+  EXPECT_NE(r.js()["error"].get<std::string>().find("3 frames is over the limit of 2 (--max-job-frames)"),
+            std::string::npos) << r.body;
+  const json jobs = call(http::verb::get, "/v1/jobs").js();
+  EXPECT_TRUE(jobs["jobs"].empty()) << jobs.dump();
+  // Each frame's pixels are bounded as a one-image job's: the refusal names the frame.
+  seq["frames"].erase(2);
+  seq["frames"][1]["scene"]["film"]["resolution"] = {101, 100};
+  const Reply big = call(http::verb::post, "/v1/jobs", seq.dump());
+  ASSERT_EQ(big.status, 400u) << big.body;
+  EXPECT_EQ(big.js()["error"].get<std::string>().rfind("frame 2: job too large: 101x100", 0), 0u) << big.body;
+  EXPECT_TRUE(call(http::verb::get, "/v1/jobs").js()["jobs"].empty());
+}
 
 TEST_F(LimitsTest, QueuedJobsPixelsAndSamples) {
   const json body = small_cbox(job_for("cbox_no_light.json"));  // 40x30 at 2 spp
