@@ -11,9 +11,12 @@
 
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <map>
+#include <mutex>
 #include <optional>
 #include <set>
 #include <thread>
@@ -54,6 +57,7 @@ namespace {
 
 // What reading a sequence's frames learns once for all of them: each (folder, asset path)'s file, each file's hash.
 struct AssetMemo {
+  std::mutex mu;  // frames are read on several threads
   std::map<std::pair<fs::path, std::string>, fs::path> files;
   std::map<fs::path, std::string> hashes;
 };
@@ -70,7 +74,9 @@ void read_scene_file(const SubmitOptions& o, const fs::path& scene, const std::s
   }
   const fs::path base = scene.has_parent_path() ? scene.parent_path() : fs::path(".");
   const fs::path root = o.asset_root ? *o.asset_root : base;
-  for (const std::string& rel : scene_asset_paths(out_scene)) {
+  const std::vector<std::string> paths = scene_asset_paths(out_scene);
+  std::lock_guard lock(memo.mu);
+  for (const std::string& rel : paths) {
     auto known = memo.files.find({base, rel});
     if (known == memo.files.end()) {
       try {
@@ -95,13 +101,23 @@ SceneFiles read_scene_files(const SubmitOptions& o) {
     read_scene_file(o, o.scene, "", out.scene, out.assets, hashed);
     return out;
   }
-  out.frames.reserve(o.frames.size());
-  for (const FrameScene& f : o.frames) {
-    FrameFiles ff;
-    ff.number = f.number;
-    read_scene_file(o, f.scene, "frame " + std::to_string(f.number) + ": ", ff.scene, ff.assets, hashed);
-    out.frames.push_back(std::move(ff));
-  }
+  // Read and parsed on every core; the error reported is the lowest-numbered frame's, whatever the order.
+  out.frames.resize(o.frames.size());
+  std::vector<std::exception_ptr> failed(o.frames.size());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, o.frames.size()), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i != r.end(); ++i) {
+      const FrameScene& f = o.frames[i];
+      FrameFiles& ff = out.frames[i];
+      ff.number = f.number;
+      try {
+        read_scene_file(o, f.scene, "frame " + std::to_string(f.number) + ": ", ff.scene, ff.assets, hashed);
+      } catch (...) {
+        failed[i] = std::current_exception();
+      }
+    }
+  });
+  for (const std::exception_ptr& e : failed)
+    if (e) std::rethrow_exception(e);
   return out;
 }
 

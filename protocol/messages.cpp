@@ -119,14 +119,14 @@ std::map<std::string, std::string> request_assets(const json& j, const std::stri
 }
 
 // The "frames" of a sequence's submission: objects {number, scene, assets?} with unique numbers, sorted by number.
-std::vector<FrameSubmission> request_frames(const json& f) {
+std::vector<FrameSubmission> request_frames(json& f) {
   if (!f.is_array() || f.empty())
     throw ProtocolError("'frames' must be a non-empty array of {\"number\", \"scene\"} objects");
   std::vector<FrameSubmission> frames;
   frames.reserve(f.size());
   for (size_t i = 0; i < f.size(); ++i) {
     const std::string where = "frames[" + std::to_string(i) + "]";
-    const json& o = f[i];
+    json& o = f[i];
     if (!o.is_object()) throw ProtocolError("'" + where + "' must be an object {\"number\", \"scene\"}");
     for (auto it = o.begin(); it != o.end(); ++it)
       if (it.key() != "number" && it.key() != "scene" && it.key() != "assets")
@@ -138,8 +138,8 @@ std::vector<FrameSubmission> request_frames(const json& f) {
     fr.number = o["number"].get<int64_t>();
     if (!o.contains("scene") || !o["scene"].is_object())
       throw ProtocolError("'" + where + ".scene' (frame " + std::to_string(fr.number) + ") must be a JSON object");
-    fr.scene = o["scene"];
     fr.assets = request_assets(o, where + ".");
+    fr.scene = std::move(o["scene"]);
     frames.push_back(std::move(fr));
   }
   std::sort(frames.begin(), frames.end(), [](const auto& a, const auto& b) { return a.number < b.number; });
@@ -231,7 +231,7 @@ int request_priority(const json& j) {
 }  // namespace
 
 JobSubmission parse_job_submission(const std::string& body) {
-  const json j = parse_request_object(
+  json j = parse_request_object(
       body, {"scene", "assets", "frames", "frame_order", "spp", "seed", "tile_size", "priority", "name", "integrator",
              "target_error", "min_spp", "max_spp", "error_floor", "replicates", "area_sampling", "env_sampling", "bvh",
              "resumable", "tile_timeout_seconds"},

@@ -92,7 +92,7 @@ void JobService::check_samples(int width, int height, uint32_t per_pixel, bool a
 
 JobService::CheckedScene JobService::check_scene(const json& scene, const std::map<std::string, std::string>& assets,
                                                  const protocol::SamplingSettings& sampling, const std::string& where,
-                                                 const BlobFiles* known) {
+                                                 const BlobFiles* known, ObjParseCache* objs) {
   check_assets(scene, assets, where, known);
   TESSERA_FAIL_POINT("submit.validate");
   // The scene is checked as `tessera render` loads it, but not built: workers build their own BVH, and on a 2M-triangle
@@ -101,6 +101,7 @@ JobService::CheckedScene JobService::check_scene(const json& scene, const std::m
   check.build = false;
   check.checked_files = &checked_blobs_;  // a blob's file only ever holds the bytes its name hashes to
   check.mesh_digests = &mesh_digests_;
+  check.obj_cache = objs;
   check.asset_limits = limits_.assets;
   LoadedScene loaded;
   try {
@@ -196,6 +197,7 @@ protocol::SubmitAnswer JobService::submit_sequence(const protocol::JobSubmission
   // Each distinct blob is looked up once, then the frames are checked on every core; the refusal answered is the
   // lowest-numbered frame's, whatever the order.
   BlobFiles known;
+  ObjParseCache objs;  // the submission's meshes, each parsed once for all its frames
   {
     std::set<std::string> named;
     for (const auto& [path, sha] : sub.assets) named.insert(sha);
@@ -210,7 +212,7 @@ protocol::SubmitAnswer JobService::submit_sequence(const protocol::JobSubmission
       const std::string where = "frame " + std::to_string(f.number) + ": ";
       try {
         const std::map<std::string, std::string> assets = assets_of(f);
-        CheckedScene s = check_scene(f.scene, assets, sub.sampling, where, &known);
+        CheckedScene s = check_scene(f.scene, assets, sub.sampling, where, &known, &objs);
         frames[i] = {f.number, s.width, s.height, s.hash};
         protocol::JobSpec spec{f.scene, assets, sub.sampling, s.width, s.height, sub.tile_size, false};
         spec.sampling.spp = s.spp;

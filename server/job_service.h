@@ -4,6 +4,7 @@
 #pragma once
 
 #include "core/scene/checked_files.h"
+#include "core/scene/obj_mesh.h"
 #include "core/util/enum_names.h"
 #include "protocol/messages.h"
 #include "protocol/query.h"
@@ -158,10 +159,11 @@ class JobService {
   // when given, answers which blobs are stored instead of the blob store.
   void check_assets(const nlohmann::json& scene, const std::map<std::string, std::string>& assets,
                     const std::string& where, const BlobFiles* known = nullptr);
-  // Checks a scene as `tessera render` loads it (not built) and the job's size limits for it (`known` as above).
+  // Checks a scene as `tessera render` loads it (not built) and the job's size limits for it (`known` as above;
+  // `objs`, when given, keeps the meshes parsed for the next scene of the same submission).
   CheckedScene check_scene(const nlohmann::json& scene, const std::map<std::string, std::string>& assets,
                            const protocol::SamplingSettings& sampling, const std::string& where,
-                           const BlobFiles* known = nullptr);
+                           const BlobFiles* known = nullptr, ObjParseCache* objs = nullptr);
   protocol::SubmitAnswer submit_sequence(const protocol::JobSubmission& submission);
   // ApiError 409 when `id` is a frame of a sequence: `what` (pause, cancel...) acts on the whole sequence.
   void refuse_frame(const std::string& id, const char* what);

@@ -11,6 +11,7 @@
 namespace tessera {
 
 class CheckedFiles;
+class ObjParseCache;
 
 /// Bounds on what one asset file may make the loader allocate, checked before it is decoded: an image texture's size
 /// from its header, an OBJ mesh's size from its byte count and a count of its lines (docs/scene-format.md, Asset
@@ -47,6 +48,9 @@ struct LoadOptions {
   /// meshes read are recorded; a record of its own (a file in checked_files is a clean image). Only for asset files
   /// never rewritten in place.
   CheckedFiles* mesh_digests = nullptr;
+  /// OBJ files parsed here are not parsed again (core/scene/obj_mesh.h); for files never rewritten in place, checked
+  /// with the same asset_limits.
+  ObjParseCache* obj_cache = nullptr;
 
   /// Field by field.
   bool operator==(const LoadOptions&) const = default;

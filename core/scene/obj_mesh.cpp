@@ -17,8 +17,27 @@ uint64_t saturating_product(uint64_t a, uint64_t b) {
 
 }  // namespace
 
-ObjMesh load_obj(const std::filesystem::path& file, const std::string& label, const glm::dmat4& xf, const glm::dvec3& translate,
-                 const CameraFrame& frame, SceneJson& ctx, const std::string& path) {
+struct ParsedObj {
+  tinyobj::attrib_t attrib;
+  std::vector<tinyobj::shape_t> shapes;
+};
+
+std::shared_ptr<const ParsedObj> ObjParseCache::find(const std::filesystem::path& file) const {
+  std::lock_guard lock(mu_);
+  const auto it = parsed_.find(file);
+  return it == parsed_.end() ? nullptr : it->second;
+}
+
+void ObjParseCache::keep(const std::filesystem::path& file, std::shared_ptr<const ParsedObj> parsed) {
+  std::lock_guard lock(mu_);
+  parsed_[file] = std::move(parsed);
+}
+
+namespace {
+
+// Reads and parses `file` within the options' asset limits.
+std::shared_ptr<const ParsedObj> parse_obj(const std::filesystem::path& file, const std::string& label,
+                                           SceneJson& ctx, const std::string& path) {
   // Bounded before tinyobjloader allocates for what the file declares: its size before it is read, then what its
   // lines declare (core/scene/obj_limits.h).
   const uint64_t max_triangles = ctx.opt.asset_limits.max_triangles;
@@ -55,12 +74,28 @@ ObjMesh load_obj(const std::filesystem::path& file, const std::string& label, co
   tinyobj::ObjReader reader;
   // Parsed from memory with an empty material library: an OBJ's mtllib can never make us read other files.
   if (!reader.ParseFromString(text, "", cfg)) ctx.fail(path, label + ": not a valid OBJ: " + reader.Error());
-  const auto& attrib = reader.GetAttrib();
+  auto parsed = std::make_shared<ParsedObj>();
+  parsed->attrib = reader.GetAttrib();
+  parsed->shapes = reader.GetShapes();
+  return parsed;
+}
+
+}  // namespace
+
+ObjMesh load_obj(const std::filesystem::path& file, const std::string& label, const glm::dmat4& xf, const glm::dvec3& translate,
+                 const CameraFrame& frame, SceneJson& ctx, const std::string& path) {
+  ObjParseCache* const cache = ctx.opt.obj_cache;
+  std::shared_ptr<const ParsedObj> parsed = cache ? cache->find(file) : nullptr;
+  if (!parsed) {
+    parsed = parse_obj(file, label, ctx, path);
+    if (cache) cache->keep(file, parsed);
+  }
+  const auto& attrib = parsed->attrib;
   const size_t nv = attrib.vertices.size() / 3, nn = attrib.normals.size() / 3, nt = attrib.texcoords.size() / 2;
   const glm::mat3 nxf = glm::transpose(glm::inverse(glm::mat3(glm::mat4(xf))));
   ObjMesh m;
   size_t degenerate = 0, face_no = 0;
-  for (const auto& shape : reader.GetShapes()) {
+  for (const auto& shape : parsed->shapes) {
     const auto& idx = shape.mesh.indices;
     if (idx.size() % 3 != 0) ctx.fail(path, label + ": face data is not triangulated");
     for (size_t f = 0; f + 2 < idx.size(); f += 3, ++face_no) {

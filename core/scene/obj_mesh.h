@@ -7,6 +7,9 @@
 #include "core/geometry/triangle.h"
 
 #include <filesystem>
+#include <map>
+#include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -18,6 +21,23 @@ struct ObjMesh {
   std::vector<TriangleShading> shading;  ///< One per triangle when the OBJ has normals or uvs.
   std::vector<bool> flip;                ///< The shading normals point against the winding's normal.
   bool has_shading = false;
+};
+
+/// An OBJ file as parsed, before any transform (defined in obj_mesh.cpp).
+struct ParsedObj;
+
+/// OBJ files parsed by earlier loads, by path, for files that do not change while it lives (a content-addressed
+/// store's): checking many scenes that share meshes (a sequence's frames) parses each once. Thread-safe.
+class ObjParseCache {
+ public:
+  /// The parse of `file`, if one was kept.
+  std::shared_ptr<const ParsedObj> find(const std::filesystem::path& file) const;
+  /// Keeps the parse of `file`.
+  void keep(const std::filesystem::path& file, std::shared_ptr<const ParsedObj> parsed);
+
+ private:
+  mutable std::mutex mu_;
+  std::map<std::filesystem::path, std::shared_ptr<const ParsedObj>> parsed_;
 };
 
 /// Reads `file` (named `label` in messages, at JSON path `path`). Vertices are transformed by xf, translated and
