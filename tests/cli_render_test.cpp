@@ -4,6 +4,7 @@
 #include "core/render/render.h"
 #include "core/scene/scene_loader.h"
 #include "tests/support/test_files.h"
+#include "tests/support/cli_run.h"
 #include "tests/spp_scale.h"
 
 #include <OpenEXR/ImfChannelList.h>
@@ -30,10 +31,7 @@ namespace {
 using json = nlohmann::json;
 namespace fs = std::filesystem;
 
-struct CliRun {
-  int exit_code;    // the process's exit status (-1 when it did not exit normally)
-  std::string err;  // what it wrote to stderr (and stdout)
-};
+using testing::CliRun;
 
 class CliRender : public testing::TempDirTest {
  protected:

@@ -4,6 +4,7 @@
 #include "core/image/image.h"
 #include "tests/exr_diff.h"
 #include "tests/support/test_files.h"
+#include "tests/support/cli_run.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -27,10 +28,7 @@ namespace {
 using json = nlohmann::json;
 namespace fs = std::filesystem;
 
-struct CliRun {
-  int exit_code;    // the process's exit status (-1 when it did not exit normally)
-  std::string err;  // what it wrote to stderr
-};
+using testing::CliRun;
 
 // Which file a path names and when it was last written: a file written again (always through a rename) differs.
 struct FileIdentity {

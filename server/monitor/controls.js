@@ -6,6 +6,24 @@ import * as api from './api.js';
 import { el, isPaused, FINAL } from './format.js';
 
 /** A button that needs a second click within 4 s (for cancel and delete). */
+/**
+ * The job at `path`, or null once `host` says there is no such job (404) or the page was left meanwhile
+ * (`isMounted()` false); other errors are thrown.
+ */
+export async function fetchJob(path, id, host, isMounted) {
+  try {
+    return await api.call('GET', path);
+  } catch (e) {
+    if (!isMounted()) return null;
+    if (e.status === 404) {
+      host.replaceChildren(el('div', { class: 'card empty' }, `No job ${id} on this coordinator. `,
+        el('a', { href: '#/jobs', text: 'Back to the jobs' })));
+      return null;
+    }
+    throw e;
+  }
+}
+
 export function confirmButton(label, confirmLabel, action, cls) {
   let armed = null;
   const b = el('button', { type: 'button', class: cls || '', text: label });

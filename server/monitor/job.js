@@ -4,7 +4,7 @@ import * as api from './api.js';
 import { el, badge, duration, clock, jobFigures, progressBar, mrays, shownState, samplingText, arrived,
   clockRuns, jobHref, plural } from './format.js';
 import { TileMap, shownTileState, workerColor } from './tilemap.js';
-import { JobControls, actor } from './controls.js';
+import { JobControls, actor, fetchJob } from './controls.js';
 
 // A worker as the page names it: "name (id)", or the id when it has no name.
 function workerText(id, name) { return name ? `${name} (${id})` : id; }
@@ -202,18 +202,8 @@ export function mount(host, ctx) {
   return {
     async refresh() {
       if (deleted) return;
-      let j;
-      try {
-        j = await api.call('GET', path);
-      } catch (e) {
-        if (!mounted) return;
-        if (e.status === 404) {
-          host.replaceChildren(el('div', { class: 'card empty' }, `No job ${id} on this coordinator. `,
-            el('a', { href: '#/jobs', text: 'Back to the jobs' })));
-          return;
-        }
-        throw e;
-      }
+      const j = await fetchJob(path, id, host, () => mounted);
+      if (!j) return;
       // A sequence has a page of its own, and a frame's job is shown in its sequence's.
       if (!ctx.embedded && (j.frames || j.sequence)) { location.replace(jobHref(j)); return; }
       job = arrived(j);

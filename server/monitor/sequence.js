@@ -3,7 +3,7 @@
 import * as api from './api.js';
 import { el, badge, duration, clock, jobFigures, progressBar, mrays, shownState, arrived, clockRuns, jobHref,
   countTileEvent, plural } from './format.js';
-import { JobControls, actor } from './controls.js';
+import { JobControls, actor, fetchJob } from './controls.js';
 import { FrameStrip } from './framestrip.js';
 import * as jobView from './job.js';
 
@@ -219,18 +219,8 @@ export function mount(host, ctx) {
   return {
     async refresh() {
       if (deleted) return;
-      let j;
-      try {
-        j = await api.call('GET', path);
-      } catch (e) {
-        if (!mounted) return;
-        if (e.status === 404) {
-          host.replaceChildren(el('div', { class: 'card empty' }, `No job ${id} on this coordinator. `,
-            el('a', { href: '#/jobs', text: 'Back to the jobs' })));
-          return;
-        }
-        throw e;
-      }
+      const j = await fetchJob(path, id, host, () => mounted);
+      if (!j) return;
       if (!mounted) return;
       if (!j.frames) { location.replace(jobHref(j)); return; }  // not a sequence: the job page
       const firstTime = seq === null;
