@@ -67,12 +67,6 @@ std::string JobControl::add_job(const JobParams& p, const std::string& id_in, in
 std::string JobControl::add_sequence(const JobParams& p, const std::vector<FrameParams>& frames,
                                      const std::string& id_in, int64_t now) {
   if (frames.empty()) throw std::invalid_argument("a sequence needs at least one frame");
-  for (const FrameParams& f : frames) {
-    JobParams fp = p;
-    fp.width = f.width;
-    fp.height = f.height;
-    check_params(fp);
-  }
   auto seq = std::make_unique<JobRec>();
   seq->seq = s_.next_seq++;
   seq->status.id = id_in.empty() ? s_.next_id('j') : id_in;
@@ -81,6 +75,7 @@ std::string JobControl::add_sequence(const JobParams& p, const std::vector<Frame
   seq->status.params = p;
   seq->status.params.width = frames.front().width;
   seq->status.params.height = frames.front().height;
+  seq->status.params.spp = frames.front().spp;
   seq->status.params.scene_hash.clear();
   seq->status.created_ms = now;
   seq->status.frames = protocol::FrameCounts{};
@@ -96,6 +91,7 @@ std::string JobControl::add_sequence(const JobParams& p, const std::vector<Frame
       rec->status.params = p;
       rec->status.params.width = f.width;
       rec->status.params.height = f.height;
+      rec->status.params.spp = f.spp;
       rec->status.params.scene_hash = f.scene_hash;
       rec->status.created_ms = now;
       rec->status.sequence = id;

@@ -23,7 +23,8 @@ class JobControl {
   /// Adds a queued job under `id` (empty: a fresh one) and returns the id.
   std::string add_job(const JobParams& params, const std::string& id, int64_t now);
   /// Adds a queued sequence under `id` (empty: a fresh one) with one queued job per frame (frame_job_id), in frame
-  /// order, all in one change; returns the id.
+  /// order, all in one change; returns the id. Each frame's size and spp are its own (checked before, by the
+  /// scheduler), the rest `params`'; the sequence's size and spp are its first frame's.
   std::string add_sequence(const JobParams& params, const std::vector<FrameParams>& frames, const std::string& id,
                            int64_t now);
   /// Cancels a queued or running job (a sequence: its frames that have not ended).

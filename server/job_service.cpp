@@ -133,11 +133,12 @@ JobService::CheckedScene JobService::check_scene(const json& scene, const std::m
   return {s.width, s.height, s.settings.spp, s.hash, std::move(loaded.warnings)};
 }
 
+ApiError JobService::queue_full() const {
+  return ApiError(429, "too many unfinished jobs: " + std::to_string(limits_.max_queued_jobs) +
+                           " are queued, running or paused (--max-queued-jobs); retry later");
+}
+
 protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
-  const auto queue_full = [&] {
-    return ApiError(429, "too many unfinished jobs: " + std::to_string(limits_.max_queued_jobs) +
-                             " are queued, running or paused (--max-queued-jobs); retry later");
-  };
   // Admission: queued plus running jobs are bounded (checked again, atomically with add_job, below).
   if (unfinished_jobs() >= limits_.max_queued_jobs) throw queue_full();
   if (!sub.frames.empty()) return submit_sequence(sub);
@@ -196,16 +197,14 @@ protocol::SubmitAnswer JobService::submit_sequence(const protocol::JobSubmission
   std::vector<std::exception_ptr> refused(n);
   // Each distinct blob is looked up once, then the frames are checked on every core; the refusal answered is the
   // lowest-numbered frame's, whatever the order.
+  std::set<std::string> named;  // every blob the submission names
+  for (const auto& [path, sha] : sub.assets) named.insert(sha);
+  for (const protocol::FrameSubmission& f : sub.frames)
+    for (const auto& [path, sha] : f.assets) named.insert(sha);
   BlobFiles known;
+  for (const std::string& sha : named)
+    if (std::optional<fs::path> file = blobs_.file(sha)) known.emplace(sha, std::move(*file));
   ObjParseCache objs;  // the submission's meshes, each parsed once for all its frames
-  {
-    std::set<std::string> named;
-    for (const auto& [path, sha] : sub.assets) named.insert(sha);
-    for (const protocol::FrameSubmission& f : sub.frames)
-      for (const auto& [path, sha] : f.assets) named.insert(sha);
-    for (const std::string& sha : named)
-      if (std::optional<fs::path> file = blobs_.file(sha)) known.emplace(sha, std::move(*file));
-  }
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i != r.end(); ++i) {
       const protocol::FrameSubmission& f = sub.frames[i];
@@ -213,7 +212,7 @@ protocol::SubmitAnswer JobService::submit_sequence(const protocol::JobSubmission
       try {
         const std::map<std::string, std::string> assets = assets_of(f);
         CheckedScene s = check_scene(f.scene, assets, sub.sampling, where, &known, &objs);
-        frames[i] = {f.number, s.width, s.height, s.hash};
+        frames[i] = {f.number, s.width, s.height, s.spp, s.hash};
         protocol::JobSpec spec{f.scene, assets, sub.sampling, s.width, s.height, sub.tile_size, false};
         spec.sampling.spp = s.spp;
         records[i] = json(spec).dump();
@@ -232,22 +231,14 @@ protocol::SubmitAnswer JobService::submit_sequence(const protocol::JobSubmission
   p.priority = sub.priority;
   p.tile_timeout_seconds = sub.tile_timeout_seconds;
   p.tile_size = sub.tile_size;
-  p.spp = json::parse(records.front())["spp"].get<uint32_t>();
+  p.spp = frames.front().spp;
   p.seed = sub.sampling.seed;
   p.frame_order = sub.frame_order;
-  const auto queue_full = [&] {
-    return ApiError(429, "too many unfinished jobs: " + std::to_string(limits_.max_queued_jobs) +
-                             " are queued, running or paused (--max-queued-jobs); retry later");
-  };
   std::unique_lock admit(admit_mu_);
   if (unfinished_jobs() >= limits_.max_queued_jobs) throw queue_full();
   // Again, now that no blob collection can run before the job is stored: each distinct blob once, and the frames'
   // own sentence only when one went meanwhile.
-  std::set<std::string> blobs;
-  for (const auto& [path, sha] : sub.assets) blobs.insert(sha);
-  for (const protocol::FrameSubmission& f : sub.frames)
-    for (const auto& [path, sha] : f.assets) blobs.insert(sha);
-  if (!std::all_of(blobs.begin(), blobs.end(), [&](const std::string& b) { return blobs_.has(b); }))
+  if (!std::all_of(named.begin(), named.end(), [&](const std::string& b) { return blobs_.has(b); }))
     for (const protocol::FrameSubmission& f : sub.frames)
       check_assets(f.scene, assets_of(f), "frame " + std::to_string(f.number) + ": ");
   const auto t_checked = std::chrono::steady_clock::now();
@@ -257,7 +248,6 @@ protocol::SubmitAnswer JobService::submit_sequence(const protocol::JobSubmission
   rows.reserve(n);
   for (size_t i = 0; i < n; ++i) rows.emplace_back(frame_job_id(id, frames[i].number), std::move(records[i]));
   jobs_.save_record_texts(rows);
-  // The frames' spp: each frame's (its scene's, unless the submission set one).
   try {
     sched_.add_sequence(p, frames, id);
   } catch (const std::invalid_argument& e) {
@@ -721,6 +711,16 @@ protocol::JobState JobService::purge(const std::string& id) {
   return r.was;
 }
 
+std::map<std::string, std::string> JobService::spec_assets(const std::string& id) {
+  {
+    std::lock_guard lock(mu_);
+    if (const auto it = specs_.find(id); it != specs_.end()) return it->second.assets;
+  }
+  const std::optional<json> rec = jobs_.load_record(id);
+  if (!rec) throw ApiError(404, "no record for job " + id);
+  return rec->get<protocol::JobSpec>().assets;
+}
+
 std::set<std::string> JobService::referenced_blobs() {
   std::set<std::string> out;
   for (const protocol::JobStatus& top : sched_.jobs()) {
@@ -732,7 +732,7 @@ std::set<std::string> JobService::referenced_blobs() {
       }
     for (const std::string& id : ids) {
       try {
-        for (const auto& [path, sha] : spec(id).assets) out.insert(sha);
+        for (const auto& [path, sha] : spec_assets(id)) out.insert(sha);
       } catch (const ApiError&) {
         if (sched_.job(id)) throw;  // a job without a readable spec: collect nothing rather than its blobs
       }

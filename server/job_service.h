@@ -153,6 +153,7 @@ class JobService {
     std::vector<std::string> warnings;
   };
   int64_t unfinished_jobs();
+  protocol::ApiError queue_full() const;  // the 429 of a submission beyond --max-queued-jobs
   // Stored blobs' files by SHA-256, looked up once for all the frames of a sequence (absent: not stored).
   using BlobFiles = std::map<std::string, std::filesystem::path>;
   // Throws ApiError 400 (its sentence starting with `where`: "" or "frame N: ") for bad or missing assets; `known`,
@@ -165,6 +166,9 @@ class JobService {
                            const protocol::SamplingSettings& sampling, const std::string& where,
                            const BlobFiles* known = nullptr, ObjParseCache* objs = nullptr);
   protocol::SubmitAnswer submit_sequence(const protocol::JobSubmission& submission);
+  // The assets the job's spec names: from the cached spec, else read from its record without caching it (a blob
+  // collection reads every frame's). ApiError 404 when there is neither; what the store throws.
+  std::map<std::string, std::string> spec_assets(const std::string& id);
   // ApiError 409 when `id` is a frame of a sequence: `what` (pause, cancel...) acts on the whole sequence.
   void refuse_frame(const std::string& id, const char* what);
   /// The sampling settings of a resumable job; nothing for other jobs.

@@ -89,10 +89,15 @@ std::string Scheduler::add_job(const JobParams& params, const std::string& id) {
 
 std::string Scheduler::add_sequence(const JobParams& params, const std::vector<FrameParams>& frames,
                                     const std::string& id) {
+  for (size_t i = 1; i < frames.size(); ++i)
+    if (frames[i].number <= frames[i - 1].number)
+      throw std::invalid_argument("frame " + std::to_string(frames[i].number) + " comes after frame " +
+                                  std::to_string(frames[i - 1].number) + ": frames go in increasing number order");
   for (const FrameParams& f : frames) {
     JobParams p = params;
     p.width = f.width;
     p.height = f.height;
+    p.spp = f.spp;
     try {
       JobControl::check_params(p);
     } catch (const std::invalid_argument& e) {

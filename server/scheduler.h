@@ -54,7 +54,8 @@ class Scheduler {
   /// sizes or an id already in use, and what the store throws (the job is then not added).
   std::string add_job(const JobParams& params, const std::string& id = "");
   /// Adds a queued sequence under `id` (empty: a fresh one) with a job per frame (frame_job_id), in frame order, in
-  /// one change, and returns the id; throws as add_job (a frame's bad size names the frame).
+  /// one change, and returns the id; throws as add_job (a frame's bad size names the frame), and
+  /// std::invalid_argument when the frames are not in increasing number order.
   std::string add_sequence(const JobParams& params, const std::vector<FrameParams>& frames, const std::string& id = "");
   /// A page of a sequence's frames numbered above `after` (all: nothing), at most `limit` (0: all); nothing for an
   /// unknown id or a job that is not a sequence.

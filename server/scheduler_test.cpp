@@ -984,3 +984,80 @@ TEST(SchedulerFlush, ARequeuedUnflushedTileIsCountedOnce) {
 
 }  // namespace
 }  // namespace tessera::server
+
+namespace tessera::server {
+namespace {
+
+// A sequence of 64x64 frames (one 64-pixel tile each) numbered `numbers`, frame k at spp k.
+std::string sequence(Scheduler& s, const std::vector<int64_t>& numbers,
+                     protocol::FrameOrder order = protocol::FrameOrder::in_order) {
+  JobParams p;
+  p.tile_size = 32;  // 4 tiles a frame
+  p.frame_order = order;
+  std::vector<FrameParams> frames;
+  for (const int64_t n : numbers) frames.push_back({n, 64, 64, uint32_t(n), "hash-" + std::to_string(n)});
+  return s.add_sequence(p, frames);
+}
+
+TEST_F(SchedulerTest, ASequencesFramesAreLeasedInOrderEachWithItsOwnSppAndScene) {
+  EXPECT_THROW(sequence(s, {1, 3, 2}), std::invalid_argument);  // frames come in number order
+  EXPECT_THROW(sequence(s, {1, 1}), std::invalid_argument);
+  EXPECT_TRUE(s.jobs().empty());
+  const std::string seq = sequence(s, {1, 2, 3});
+  const std::string w = s.register_worker("a").id;
+  for (const int64_t frame : {1, 2, 3})
+    for (int tile = 0; tile < 4; ++tile) {
+      const Lease l = lease(w);
+      EXPECT_EQ(l.job, frame_job_id(seq, frame));
+      EXPECT_EQ(l.spp, uint32_t(frame));
+      EXPECT_EQ(l.scene_hash, "hash-" + std::to_string(frame));
+      EXPECT_EQ(l.tile, tile);
+    }
+  const JobStatus st = *s.job(seq);
+  EXPECT_EQ(st.state, JobState::running);
+  EXPECT_EQ(st.tiles.total, 12);
+  EXPECT_EQ(st.tiles.leased, 12);
+  EXPECT_EQ(st.frames->total, 3);
+  EXPECT_EQ(st.frames->first, 1);
+  EXPECT_EQ(st.frames->last, 3);
+  EXPECT_EQ(s.jobs().size(), 1u);  // frames are not listed
+}
+
+TEST_F(SchedulerTest, ASequencesStateFollowsItsFramesAndRetryTakesChosenFrames) {
+  const std::string seq = sequence(s, {1, 2, 3});
+  const std::string w = s.register_worker("a").id;
+  EXPECT_EQ(s.job(seq)->state, JobState::queued);
+  for (int tile = 0; tile < 4; ++tile) upload(lease(w).id);  // frame 1 rendered
+  s.complete_job(frame_job_id(seq, 1));
+  s.fail_job(frame_job_id(seq, 2), "broken");
+  EXPECT_EQ(s.job(seq)->state, JobState::running);  // frame 3 is still to render
+  EXPECT_EQ(s.cancel(seq).status, CancelResult::cancelled);
+  JobStatus st = *s.job(seq);
+  EXPECT_EQ(st.state, JobState::failed);  // every frame ended, one failed
+  EXPECT_EQ(st.frames->done, 1);
+  EXPECT_EQ(st.frames->failed, 1);
+  EXPECT_EQ(st.frames->cancelled, 1);
+  EXPECT_NE(st.error->find("frame 2: broken"), std::string::npos) << *st.error;
+  EXPECT_EQ(s.retry(seq, {7}).status, RetryResult::no_frame);
+  EXPECT_EQ(s.retry(seq, {1}).status, RetryResult::done);
+  const RetryResult r = s.retry(seq, {3});
+  ASSERT_EQ(r.status, RetryResult::retried);
+  EXPECT_EQ(r.jobs, std::vector<std::string>{frame_job_id(seq, 3)});
+  EXPECT_EQ(r.pending, 4);
+  for (int tile = 0; tile < 4; ++tile) EXPECT_EQ(lease(w).job, frame_job_id(seq, 3));  // only frame 3's tiles
+  EXPECT_EQ(s.acquire(w).status, AcquireResult::no_work);
+}
+
+TEST_F(SchedulerTest, FramesInAnyOrderKeepEachWorkerOnAFrameOfItsOwn) {
+  const std::string seq = sequence(s, {1, 2, 3}, protocol::FrameOrder::any);
+  const std::string a = s.register_worker("a").id, b = s.register_worker("b").id;
+  EXPECT_EQ(lease(a).job, frame_job_id(seq, 1));
+  EXPECT_EQ(lease(b).job, frame_job_id(seq, 2));  // not a's frame
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(lease(a).job, frame_job_id(seq, 1));
+  EXPECT_EQ(lease(a).job, frame_job_id(seq, 3));  // its frame has no tile left: an untouched one
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(lease(b).job, frame_job_id(seq, 2));
+  EXPECT_EQ(lease(b).job, frame_job_id(seq, 3));  // nothing untouched left: shares a's
+}
+
+}  // namespace
+}  // namespace tessera::server

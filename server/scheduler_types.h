@@ -165,6 +165,7 @@ struct FrameParams {
   int64_t number = 0;      ///< Frame number.
   int width = 0;           ///< Image columns.
   int height = 0;          ///< Image rows.
+  uint32_t spp = 1;        ///< Samples per pixel (the frame's scene's, unless the submission set one).
   std::string scene_hash;  ///< The loader's content hash of the frame's scene and assets.
 };
 

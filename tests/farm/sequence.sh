@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# A sequence of 6 frames through 2 workers, with a worker killed (SIGKILL, holding a leased tile) and the coordinator
-# killed and restarted mid-sequence: every frame is written by `submit -o` as it finishes, bitwise equal to its own
-# single-process render, and no stored tile is rendered again (every tile once, plus at most the tiles held at the
+# A sequence of 6 frames (each at an spp of its own) through 2 workers, with a worker killed (SIGKILL, holding a
+# leased tile) and the coordinator killed and restarted mid-sequence: every frame is written by `submit -o` as it
+# finishes, bitwise equal to its own single-process render, and no stored tile is rendered again (every tile once, plus at most the tiles held at the
 # kills). The hold is by construction: each worker renders one tile, then holds its next (fail point worker.render)
 # until the restart. Then a second sequence, cancelled before any worker runs, is retried for frames 2-3 only: the
 # worker leases exactly those frames' tiles, `jobs frames` shows them done and the rest cancelled, and frame 2's
@@ -10,7 +10,7 @@ source "$(dirname "$0")/common.sh"
 
 mkdir -p "$WORK/shot" "$WORK/out"
 for k in 1 2 3 4 5 6; do
-  write_sphere_scene "$WORK/s.json" 32 32 8
+  write_sphere_scene "$WORK/s.json" 32 32 $((2 * k))  # each frame its own spp
   sed "s/\"position\": \[0, 0.3, 4\]/\"position\": [0.$k, 0.3, 4]/" "$WORK/s.json" >"$WORK/shot/frame_0$k.json"
   "$TESSERA" render "$WORK/shot/frame_0$k.json" -o "$WORK/ref_$k.exr" -q --threads 1
 done
