@@ -1,5 +1,7 @@
 #include "server/farm_state.h"
 
+#include <set>
+#include <string_view>
 #include <utility>
 
 namespace tessera::server {
@@ -71,22 +73,34 @@ JobState FarmState::state_of(const JobRec& j) const {
   return sequence_state(count_frames(j), started);
 }
 
+TileCounts FarmState::tile_counts(const JobRec& j) {
+  TileCounts t = j.status.tiles;
+  t.done -= j.unflushed;  // not durable yet: counted with the tiles in progress
+  t.pending = int64_t(j.pending.size());
+  t.leased = t.total - t.done - t.pending;
+  return t;
+}
+
 JobStatus FarmState::snapshot(const JobRec& j, int64_t now) const {
-  if (j.is_sequence()) {
-    JobStatus s = j.status;
+  JobStatus s = j.status;
+  if (!j.is_sequence()) {
+    s.tiles = tile_counts(j);
+  } else {
+    // Summed from the frames' records as they are (a snapshot of each frame would copy it whole).
     s.frames = count_frames(j);
     s.tiles = {};
     s.rays = 0;
     s.workers.clear();
-    std::set<std::string> seen;
+    std::set<std::string_view> seen;
     const JobRec* failed = nullptr;
     bool ended = true;
     for (const JobRec* f : j.frames) {
-      const JobStatus fs = snapshot(*f, now);
-      s.tiles.total += fs.tiles.total;
-      s.tiles.done += fs.tiles.done;
-      s.tiles.leased += fs.tiles.leased;
-      s.tiles.pending += fs.tiles.pending;
+      const JobStatus& fs = f->status;
+      const TileCounts t = tile_counts(*f);
+      s.tiles.total += t.total;
+      s.tiles.done += t.done;
+      s.tiles.leased += t.leased;
+      s.tiles.pending += t.pending;
       s.rays += fs.rays;
       for (const std::string& w : fs.workers)
         if (seen.insert(w).second) s.workers.push_back(w);
@@ -101,13 +115,7 @@ JobStatus FarmState::snapshot(const JobRec& j, int64_t now) const {
     if (s.state == JobState::failed && failed)
       s.error = std::to_string(s.frames->failed) + " of " + std::to_string(s.frames->total) + " frames failed; frame " +
                 std::to_string(*failed->status.frame) + ": " + failed->status.error.value_or("(no error)");
-    if (s.started_ms) s.render_seconds = double(s.finished_ms.value_or(now) - *s.started_ms) / 1000.0;
-    return s;
   }
-  JobStatus s = j.status;
-  s.tiles.done -= j.unflushed;  // not durable yet: counted with the tiles in progress
-  s.tiles.pending = int64_t(j.pending.size());
-  s.tiles.leased = s.tiles.total - s.tiles.done - s.tiles.pending;
   if (s.started_ms) s.render_seconds = double(s.finished_ms.value_or(now) - *s.started_ms) / 1000.0;
   return s;
 }

@@ -93,6 +93,8 @@ struct FarmState {
   JobRec* find_job(const std::string& id);
   /// The job's snapshot at `now` (its tile counts derived from its tiles; a sequence's from its frames').
   JobStatus snapshot(const JobRec& j, int64_t now) const;
+  /// A job's tile counts as a snapshot gives them (done only once flushed; pending and leased from its tiles).
+  static TileCounts tile_counts(const JobRec& j);
   /// The state of a job: its own, or a sequence's as derived from its frames (see snapshot).
   JobState state_of(const JobRec& j) const;
   /// The job an operation on `j` ends at: a frame's sequence, or `j` itself.

@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
 # A sequence of 6 frames (each at an spp of its own) through 2 workers, with a worker killed (SIGKILL, holding a
 # leased tile) and the coordinator killed and restarted mid-sequence: every frame is written by `submit -o` as it
-# finishes, bitwise equal to its own single-process render, and no stored tile is rendered again (every tile once, plus at most the tiles held at the
-# kills). The hold is by construction: each worker renders one tile, then holds its next (fail point worker.render)
-# until the restart. Then a second sequence, cancelled before any worker runs, is retried for frames 2-3 only: the
-# worker leases exactly those frames' tiles, `jobs frames` shows them done and the rest cancelled, and frame 2's
-# result (GET /v1/jobs/{id}/frames/2/result.exr) equals its single render.
+# finishes, bitwise equal to its own single-process render, and no stored tile is rendered again (every tile once,
+# plus at most the tiles held at the kills). The hold is by construction: each worker renders one tile, then holds its
+# next (fail point worker.render) until the restart. Then a second sequence, cancelled before any worker runs, is
+# retried for frames 2-3 only: the worker leases exactly those frames' tiles, `jobs frames` shows them done and the
+# rest cancelled, and frame 2's result (GET /v1/jobs/{id}/frames/2/result.exr) equals its single render.
 source "$(dirname "$0")/common.sh"
 
 mkdir -p "$WORK/shot" "$WORK/out"
