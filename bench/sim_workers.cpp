@@ -210,7 +210,7 @@ void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
   while (!farm.stop.load()) {
     try {
       if (id.empty()) {
-        const json reg = protocol::WorkerHello{"sim-" + std::to_string(index), 1, "sim"};
+        const json reg = protocol::WorkerHello{"sim-" + std::to_string(index), 1, "sim", {}};
         const HttpResponse r = timed(kRegister, [&] { return http.send("POST", routes::workers(), reg.dump()); });
         if (r.status != 201) { error("register answered " + r.error_text()); nap(farm, 1s); continue; }
         const auto registration = protocol::parse_answer<protocol::Registration>(r.body, "registration");

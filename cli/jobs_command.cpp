@@ -19,10 +19,11 @@ namespace tessera::cli {
 
 namespace {
 
-// One line per job: id, state, priority, tiles done/total, render time (first lease to the end, or to now) and the
-// rays per second over it, name.
+// One line per job: id, state, owner, priority, tiles done/total, render time (first lease to the end, or to now)
+// and the rays per second over it, name (and what it waits for, if no worker may take it).
 void print_table(const std::vector<protocol::JobStatus>& jobs) {
-  std::printf("%-20s %-10s %8s %13s %8s %8s  %s\n", "ID", "STATE", "PRIORITY", "TILES", "TIME", "MRAYS/S", "NAME");
+  std::printf("%-20s %-10s %-12s %8s %13s %8s %8s  %s\n", "ID", "STATE", "OWNER", "PRIORITY", "TILES", "TIME",
+              "MRAYS/S", "NAME");
   for (const protocol::JobStatus& j : jobs) {
     const std::string tiles = std::to_string(j.tiles.done) + "/" + std::to_string(j.tiles.total);
     const std::string time = j.render_seconds > 0 ? format_duration(j.render_seconds) : "-";
@@ -31,8 +32,11 @@ void print_table(const std::vector<protocol::JobStatus>& jobs) {
     if (j.frames)
       name += " [" + std::to_string(j.frames->done) + "/" + std::to_string(j.frames->total) + " frames" +
               (j.frames->failed ? ", " + std::to_string(j.frames->failed) + " failed" : "") + "]";
-    std::printf("%-20s %-10s %8d %13s %8s %8s  %s\n", j.id.c_str(), protocol::to_string(j.state), j.params.priority,
-                tiles.c_str(), time.c_str(), format_mrays(j.rays, j.render_seconds).c_str(), name.c_str());
+    if (j.waiting_for) name += " (waiting for " + *j.waiting_for + ")";
+    const std::string owner = j.params.owner.empty() ? "-" : j.params.owner;
+    std::printf("%-20s %-10s %-12s %8d %13s %8s %8s  %s\n", j.id.c_str(), protocol::to_string(j.state), owner.c_str(),
+                j.params.priority, tiles.c_str(), time.c_str(), format_mrays(j.rays, j.render_seconds).c_str(),
+                name.c_str());
   }
 }
 
@@ -103,6 +107,8 @@ CLI::App* add_jobs_command(CLI::App& app, JobsArgs& a) {
   c->add_option("--limit", a.limit, "ls: at most this many jobs, newest first")
       ->check(CLI::Range(size_t(1), protocol::kMaxJobListLimit));
   c->add_option("--after", a.after, "ls: the page after this cursor (printed by a listing with --limit) or job id");
+  c->add_flag("--mine", a.mine, "ls: only the jobs of the user this credential stands for");
+  c->add_option("--owner", a.owner, "ls: only this user's jobs");
   c->add_option("-o,--output", a.output, "wait: save the finished job's EXR to this file");
   c->add_flag("-q,--quiet", a.quiet, "wait: no progress bar");
   add_coordinator_access_flags(c, a.access);
@@ -136,6 +142,14 @@ int run_jobs(const JobsArgs& a) {
       spdlog::error("{}", e.what());
       return kExitRefused;
     }
+  if ((a.mine || !a.owner.empty()) && a.action != "ls") {
+    spdlog::error("--mine and --owner go with jobs ls");
+    return kExitRefused;
+  }
+  if (a.mine && !a.owner.empty()) {
+    spdlog::error("give --mine or --owner, not both");
+    return kExitRefused;
+  }
   if (!a.output.empty() && a.action != "wait") {
     spdlog::error("-o goes with jobs wait");
     return kExitRefused;
@@ -161,6 +175,7 @@ int run_jobs(const JobsArgs& a) {
       }
       q.limit = a.limit;
       q.after = a.after;
+      q.owner = a.mine ? client::whoami(http).user : a.owner;
       const protocol::JobList page = client::list_jobs(http, q);
       print_table(page.jobs);
       if (page.next) std::printf("more: --after %s\n", page.next->c_str());

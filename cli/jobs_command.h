@@ -24,6 +24,8 @@ struct JobsArgs {
   std::vector<std::string> states;  ///< ls: only jobs in these states.
   size_t limit = 0;         ///< ls: at most this many (0: all).
   std::string after;        ///< ls: the page after this cursor or job id.
+  bool mine = false;        ///< ls: only the caller's jobs.
+  std::string owner;        ///< ls: only this user's jobs.
   std::string output;       ///< wait: where to save the finished job's EXR (empty: not saved).
   bool quiet = false;       ///< wait: no progress bar.
   CoordinatorAccess access;     ///< Coordinator URL, token and TLS files.

@@ -1,5 +1,6 @@
 // The single `tessera` executable: one subcommand per way of using the farm, one rule for exit statuses
 // (cli/exit_status.h).
+#include "cli/audit_command.h"
 #include "cli/build_commit.h"
 #include "cli/contact_sheet_command.h"
 #include "cli/exit_status.h"
@@ -8,6 +9,7 @@
 #include "cli/render_command.h"
 #include "cli/serve_command.h"
 #include "cli/submit_command.h"
+#include "cli/users_command.h"
 #include "cli/worker_command.h"
 #include "cli/workers_command.h"
 
@@ -52,7 +54,9 @@ int main(int argc, char** argv) {
                                            command(app, c::add_jobs_command, c::run_jobs),
                                            command(app, c::add_workers_command, c::run_workers),
                                            command(app, c::add_merge_command, c::run_merge),
-                                           command(app, c::add_contact_sheet_command, c::run_contact_sheet)};
+                                           command(app, c::add_contact_sheet_command, c::run_contact_sheet),
+                                           command(app, c::add_users_command, c::run_users),
+                                           command(app, c::add_audit_command, c::run_audit)};
 
     try {
       app.parse(argc, argv);

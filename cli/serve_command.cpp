@@ -49,6 +49,9 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
                 "File holding the bearer token clients must send (default: $TESSERA_CLIENT_TOKEN)");
   c->add_option("--worker-token-file", a.worker_token_file,
                 "File holding the bearer token workers must send (default: $TESSERA_WORKER_TOKEN)");
+  c->add_option("--users", a.users_file,
+                "Users file (made with `tessera users add`): named tokens with roles, shares and caps (re-read on SIGHUP)")
+      ->check(CLI::ExistingFile);
   c->add_option("--tls-cert", o.tls.cert_file, "Serve HTTPS with this PEM certificate chain (re-read on SIGHUP)");
   c->add_option("--tls-key", o.tls.key_file, "Private key (PEM) of --tls-cert (re-read on SIGHUP)");
   c->add_option("--tls-client-ca", o.tls.client_ca_file,
@@ -115,6 +118,17 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
   return c;
 }
 
+namespace {
+// The credentials a coordinator takes, for its start-up line: "client token, worker token, users file F" or "none".
+std::string credentials_text(const server::AccessTokens& t) {
+  std::string out;
+  if (!t.client.empty()) out = "client token";
+  if (!t.worker.empty()) out += (out.empty() ? "" : ", ") + std::string("worker token");
+  if (!t.users_file.empty()) out += (out.empty() ? "" : ", ") + ("users file " + t.users_file.string());
+  return out.empty() ? "none" : out;
+}
+}  // namespace
+
 int run_serve(const ServeArgs& a) {
   bool started = false;  // before coordinator.run(), an error means the coordinator did not start: refused
   try {
@@ -129,6 +143,7 @@ int run_serve(const ServeArgs& a) {
     o.handle_signals = true;
     o.limits.tokens.client = load_token(a.client_token_file, "TESSERA_CLIENT_TOKEN");
     o.limits.tokens.worker = load_token(a.worker_token_file, "TESSERA_WORKER_TOKEN");
+    o.limits.tokens.users_file = a.users_file;
     server::Coordinator coordinator(o);
     const auto ep = coordinator.endpoint();
     const std::string bound = ep.address().to_string() + ":" + std::to_string(ep.port());
@@ -136,14 +151,14 @@ int run_serve(const ServeArgs& a) {
       spdlog::warn("serving plain HTTP on {}: access tokens and job data travel in clear text; use --tls-cert and "
                    "--tls-key unless this network is private to you (see README, Access and TLS)", bound);
     const auto& t = o.limits.tokens;
-    spdlog::info("coordinator listening on {}://{} (data in {}{}, leases {}s, heartbeats {}s, tokens: {}{})",
+    spdlog::info("coordinator listening on {}://{} (data in {}{}, leases {}s, heartbeats {}s, credentials: {}{})",
                  o.tls.enabled() ? "https" : "http", bound, a.data,
                  o.durability == server::Durability::process ? " never flushed to the disk"
                  : o.durability == server::Durability::none  ? ", jobs kept in memory only"
                                                              : "",
                  o.lease_seconds,
                  o.limits.heartbeat_seconds,
-                 t.complete() ? "client and worker" : t.client.empty() ? (t.worker.empty() ? "none" : "worker only") : "client only",
+                 credentials_text(t),
                  o.tls.client_ca_file.empty() ? "" : ", client certificates required");
     if (!a.ready_file.empty()) write_file_atomic(a.ready_file, bound + "\n", server::flush_for(o.durability));  // after the log lines above
     started = true;

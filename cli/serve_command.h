@@ -31,6 +31,7 @@ struct ServeArgs {
   /// Keep unreferenced blobs this long after their last upload or check.
   double blob_grace_minutes = double(options.limits.retention.blob_grace_ms) / 60'000.0;
   std::string client_token_file;          ///< File holding the client token (else $TESSERA_CLIENT_TOKEN).
+  std::string users_file;                 ///< The users file (`tessera users`), re-read on SIGHUP.
   std::string worker_token_file;          ///< File holding the worker token (else $TESSERA_WORKER_TOKEN).
   bool verbose = false;                   ///< Debug logging.
 };

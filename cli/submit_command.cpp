@@ -1,11 +1,14 @@
 #include "cli/submit_command.h"
 
+#include "protocol/tags.h"
+
 #include "cli/exit_status.h"
 #include "cli/frame_list.h"
 #include "cli/interrupt_guard.h"
 #include "cli/output_check.h"
 #include "cli/progress_bar.h"
 #include "core/scene/scene_loader.h"
+#include "protocol/tags.h"
 
 #include <spdlog/spdlog.h>
 
@@ -29,6 +32,11 @@ CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
                 "their worker")
       ->check(CLI::Range(int64_t(1), protocol::kMaxTileTimeoutSeconds))->capture_default_str();
   c->add_option("--name", a.name, "Job label (default: the scene's file name)");
+  c->add_option("--require", a.require,
+                "Tags a worker must have to render this job, e.g. bigmem,site-a (workers announce theirs with "
+                "`worker --tags`)");
+  c->add_option("--max-workers", a.max_workers, "Tiles of this job leased at once at most (default: no cap)")
+      ->check(CLI::Range(int64_t(0), int64_t(1) << 30));
   c->add_option("--asset-root", a.asset_root, "Allow asset paths anywhere below this folder");
   c->add_flag("--resumable", a.resumable,
               "Keep each tile's exact per-pixel sums, so that `tessera jobs spp ID M` can raise the job's spp later "
@@ -161,6 +169,13 @@ int run_submit(const SubmitArgs& a) {
   const std::string first_output =
       a.output.empty() || frames.empty() ? a.output : frame_output(a.output, frames.front().number, frames.size()).string();
   if (!first_output.empty() && !output_writable(first_output)) return kExitRefused;
+  std::vector<std::string> require;
+  try {
+    require = protocol::parse_tag_list(a.require, "--require");
+  } catch (const std::exception& e) {
+    spdlog::error("submit: {}", e.what());
+    return kExitRefused;
+  }
   return run_with_coordinator(a.access, "submit", [&](client::HttpClient& http) {
     client::SubmitOptions o = shared_job_options(a);
     o.frames = frames;
@@ -170,6 +185,8 @@ int run_submit(const SubmitArgs& a) {
     o.tile_timeout_seconds = a.tile_timeout_seconds;
     o.name = a.name;
     o.resumable = a.resumable;
+    o.require = require;
+    o.max_workers = a.max_workers;
     if (a.detach) {
       const client::SubmitResult sub = client::submit_job(http, o);
       std::printf("%s\n", sub.job_id.c_str());

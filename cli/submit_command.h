@@ -31,6 +31,8 @@ struct SubmitArgs : SamplingArgs {
   std::string asset_root;           ///< Allow assets anywhere below this folder.
   CoordinatorAccess access;         ///< Coordinator URL, token and TLS files.
   bool resumable = false;           ///< Keep each tile's exact sums so `jobs spp` can raise the job's spp later.
+  std::string require;              ///< --require: tags a worker must have, comma-separated.
+  int64_t max_workers = 0;          ///< --max-workers: tiles leased at once at most (0: no cap).
   bool detach = false;              ///< Print the job id and return without waiting.
   bool quiet = false;               ///< No progress bar.
 };

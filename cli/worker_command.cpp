@@ -5,6 +5,7 @@
 #include "cli/tls_flags.h"
 #include "cli/token.h"
 #include "core/util/file_io.h"
+#include "protocol/tags.h"
 
 #include "worker/arena_pinning.h"
 #include "worker/worker.h"
@@ -35,6 +36,9 @@ CLI::App* add_worker_command(CLI::App& app, WorkerArgs& a) {
                 "so that its threads, which sleep between tiles, never share one core while another is idle");
   c->add_option("--cache", a.cache, "Asset cache folder (default: $XDG_CACHE_HOME/tessera or ~/.cache/tessera)");
   c->add_option("--name", a.name, "Name reported to the coordinator (default: host name and process id)");
+  c->add_option("--tags", a.tags,
+                "What this worker offers, e.g. gpu,bigmem,site-a: jobs submitted with --require go only to workers "
+                "with every tag they require (a-z, 0-9, '-', '_', '.'; changing them needs a restart)");
   c->add_option("--token-file", a.token_file, "File holding the worker token (default: $TESSERA_WORKER_TOKEN)");
   add_client_tls_flags(c, a.tls);
   c->add_option("--connect-timeout-seconds", a.connect_timeout_seconds,
@@ -98,6 +102,11 @@ int run_worker_command(const WorkerArgs& a) {
     }
     o.cache_dir = a.cache;
     o.name = a.name;
+    try {
+      o.tags = protocol::parse_tag_list(a.tags, "--tags");
+    } catch (const std::exception& e) {
+      throw std::invalid_argument(std::string("--tags ") + a.tags + ": " + e.what());
+    }
     o.token = load_token(a.token_file, "TESSERA_WORKER_TOKEN");
     o.tls = a.tls;
     o.max_idle_wait = std::chrono::milliseconds(a.max_idle_wait_ms);

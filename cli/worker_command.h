@@ -17,6 +17,7 @@ struct WorkerArgs {
   std::string cpus;         ///< CPU list the render threads are pinned to (empty: not pinned).
   std::string cache;        ///< Asset cache folder (empty: the default).
   std::string name;         ///< Worker name (empty: host-pid).
+  std::string tags;         ///< Comma-separated tags offered to jobs' requirements.
   std::string token_file;   ///< File holding the worker token (else $TESSERA_WORKER_TOKEN).
   client::ClientTlsFiles tls; ///< CA and client certificate files for https:// coordinators.
   double connect_timeout_seconds = 3;   ///< Connecting and the TLS handshake.

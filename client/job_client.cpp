@@ -171,6 +171,8 @@ protocol::JobSubmission job_submission(const SubmitOptions& o, SceneFiles files)
                                 : o.frames.front().scene.filename().string() + " .. " +
                                       o.frames.back().scene.filename().string();
   job.resumable = o.resumable;
+  job.require = o.require;
+  job.max_workers = o.max_workers;
   return job;
 }
 
@@ -242,6 +244,12 @@ std::vector<JobStatus> list_jobs(HttpClient& http) {
 
 protocol::JobList list_jobs(HttpClient& http, const protocol::JobListQuery& query) {
   return get_answer<protocol::JobList>(http, routes::jobs() + query.to_query(), "job list");
+}
+
+protocol::Me whoami(HttpClient& http) { return get_answer<protocol::Me>(http, routes::me(), "who am I"); }
+
+protocol::AuditList list_audit(HttpClient& http, const protocol::AuditQuery& query) {
+  return get_answer<protocol::AuditList>(http, routes::audit() + query.to_query(), "audit trail");
 }
 
 protocol::TileList get_job_tiles(HttpClient& http, const std::string& id) {

@@ -3,6 +3,8 @@
 #pragma once
 
 #include "client/http_client.h"
+#include "protocol/access.h"
+#include "protocol/audit.h"
 #include "protocol/messages.h"
 #include "protocol/query.h"
 #include "protocol/tile.h"
@@ -47,6 +49,8 @@ struct SubmitOptions {
   std::string name;                    ///< Job label (default: the scene's file name).
   std::optional<std::filesystem::path> asset_root;  ///< Assets may lie anywhere below this folder.
   bool resumable = false;              ///< Tiles keep their exact sums, so the spp can be raised later.
+  std::vector<std::string> require;    ///< Tags a worker must have to take its tiles.
+  int64_t max_workers = 0;             ///< Its tiles leased at once at most; 0: no cap.
 };
 
 /// Counts of a submission's asset uploads.
@@ -135,6 +139,10 @@ JobStatus raise_job_spp(HttpClient& http, const std::string& id, uint32_t spp);
 
 /// GET /v1/workers: every registered worker; throws SubmitError or TransportError.
 std::vector<protocol::WorkerInfo> list_workers(HttpClient& http);
+/// GET /v1/me: the user and role the coordinator takes this client's credential for.
+protocol::Me whoami(HttpClient& http);
+/// GET /v1/audit: a page of the audit trail, newest first (admins only: 403 otherwise).
+protocol::AuditList list_audit(HttpClient& http, const protocol::AuditQuery& query);
 
 /// POST /v1/workers/{id}/drain (drain true) or /undrain: the worker as it is now; throws SubmitError (404 unknown).
 protocol::WorkerInfo drain_worker(HttpClient& http, const std::string& id, bool drain);

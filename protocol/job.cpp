@@ -36,6 +36,10 @@ void to_json(json& j, const JobStatus& s) {
   }
   if (s.sequence) j["sequence"] = *s.sequence;
   if (s.frame) j["frame"] = *s.frame;
+  j["owner"] = s.params.owner;
+  j["require"] = s.params.require;
+  j["max_workers"] = s.params.max_workers;
+  j["waiting_for"] = optional_json(s.waiting_for);
 }
 
 void from_json(const json& j, JobStatus& s) {
@@ -84,6 +88,11 @@ void from_json(const json& j, JobStatus& s) {
   }
   if (j.contains("sequence") && !j["sequence"].is_null()) s.sequence = answer_field<std::string>(j, "sequence", kMsg);
   if (j.contains("frame") && !j["frame"].is_null()) s.frame = answer_field<int64_t>(j, "frame", kMsg);
+  p.owner = answer_field_or<std::string>(j, "owner", kMsg, "");
+  p.require = answer_field_or<std::vector<std::string>>(j, "require", kMsg, {});
+  p.max_workers = answer_field_or<int64_t>(j, "max_workers", kMsg, 0);
+  if (j.contains("waiting_for") && !j["waiting_for"].is_null())
+    s.waiting_for = answer_field<std::string>(j, "waiting_for", kMsg);
 }
 
 }  // namespace tessera::protocol

@@ -45,6 +45,9 @@ struct JobParams {
   std::string scene_hash;               ///< The loader's content hash of scene and assets.
   int64_t tile_timeout_seconds = kDefaultTileTimeoutSeconds;  ///< A lease older than this (since grant) is revoked.
   FrameOrder frame_order = FrameOrder::in_order;  ///< A sequence: the order its frames are leased in.
+  std::string owner;                    ///< The user who submitted it ("" for jobs from before users were recorded).
+  std::vector<std::string> require;     ///< Tags a worker must have to be leased its tiles (sorted).
+  int64_t max_workers = 0;              ///< Its tiles leased at once at most (a sequence: over all frames); 0: no cap.
 };
 
 /// Tile counts of a job.
@@ -73,6 +76,9 @@ struct JobStatus {
   std::optional<FrameCounts> frames;
   std::optional<std::string> sequence;  ///< A frame of a sequence: the sequence's id.
   std::optional<int64_t> frame;         ///< A frame of a sequence: its number.
+  /// Why a job with pending tiles gets none leased, when it is for want of a worker that may take them (e.g.
+  /// "a worker with tags bigmem"); derived when the snapshot is taken.
+  std::optional<std::string> waiting_for;
   /// True for done, failed and cancelled.
   bool finished() const { return is_final(state); }
 };

@@ -1,5 +1,6 @@
 #include "protocol/messages.h"
 
+#include "protocol/tags.h"
 #include "protocol/tile.h"
 
 #include <algorithm>
@@ -218,6 +219,8 @@ void to_json(json& j, const JobSubmission& s) {
     if (s.frame_order != FrameOrder::in_order) j["frame_order"] = to_string(s.frame_order);
   }
   if (s.tile_timeout_seconds != kDefaultTileTimeoutSeconds) j["tile_timeout_seconds"] = s.tile_timeout_seconds;
+  if (!s.require.empty()) j["require"] = s.require;
+  if (s.max_workers) j["max_workers"] = s.max_workers;
   put_sampling(j, s.sampling);
   if (s.resumable) j["resumable"] = true;
 }
@@ -234,7 +237,7 @@ JobSubmission parse_job_submission(const std::string& body) {
   json j = parse_request_object(
       body, {"scene", "assets", "frames", "frame_order", "spp", "seed", "tile_size", "priority", "name", "integrator",
              "target_error", "min_spp", "max_spp", "error_floor", "replicates", "area_sampling", "env_sampling", "bvh",
-             "resumable", "tile_timeout_seconds"},
+             "resumable", "tile_timeout_seconds", "require", "max_workers"},
       false);
   JobSubmission s;
   if (j.contains("frames")) {
@@ -259,6 +262,8 @@ JobSubmission parse_job_submission(const std::string& body) {
   s.priority = request_priority(j);
   s.name = request_bounded_string(j, "name", "", kMaxNameBytes);
   s.tile_timeout_seconds = request_int(j, "tile_timeout_seconds", kDefaultTileTimeoutSeconds, 1, kMaxTileTimeoutSeconds);
+  if (auto tags = request_strings(j, "require", kMaxTags)) s.require = checked_tags(std::move(*tags), "require");
+  s.max_workers = request_int(j, "max_workers", 0, 0, 1 << 30);
   s.sampling = request_sampling(j);
   if (j.contains("resumable")) {
     if (!j["resumable"].is_boolean()) throw ProtocolError("'resumable' must be true or false (got " + j["resumable"].dump() + ")");
@@ -331,14 +336,18 @@ void from_json(const json& j, BlobQueryAnswer& a) {
   a.missing = answer_field<std::vector<std::string>>(j, "missing", "blob query answer");
 }
 
-void to_json(json& j, const WorkerHello& h) { j = {{"name", h.name}, {"threads", h.threads}, {"version", h.version}}; }
+void to_json(json& j, const WorkerHello& h) {
+  j = {{"name", h.name}, {"threads", h.threads}, {"version", h.version}};
+  if (!h.tags.empty()) j["tags"] = h.tags;
+}
 
 WorkerHello parse_worker_hello(const std::string& body) {
-  const json j = parse_request_object(body, {"name", "threads", "version"}, true);
+  const json j = parse_request_object(body, {"name", "threads", "version", "tags"}, true);
   WorkerHello h;
   h.name = request_bounded_string(j, "name", "", kMaxNameBytes);
   h.threads = request_int(j, "threads", 0, 0, 1 << 20);
   h.version = request_string(j, "version", "");
+  if (auto tags = request_strings(j, "tags", kMaxTags)) h.tags = checked_tags(std::move(*tags), "tags");
   return h;
 }
 

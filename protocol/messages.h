@@ -70,6 +70,8 @@ struct JobSubmission {
   /// Keep each pixel's exact sums with its tile, so the job's spp can be raised later (docs/resume.md).
   bool resumable = false;
   int64_t tile_timeout_seconds = kDefaultTileTimeoutSeconds;  ///< A lease older than this is revoked (a failure).
+  std::vector<std::string> require;  ///< Tags a worker must have to take its tiles (protocol/tags.h).
+  int64_t max_workers = 0;           ///< Its tiles leased at once at most; 0: no cap.
 };
 /// The submission's JSON (sampling settings at their defaults are left out).
 void to_json(nlohmann::json& j, const JobSubmission& s);
@@ -130,6 +132,7 @@ struct WorkerHello {
   std::string name;     ///< Self-reported name.
   int64_t threads = 0;  ///< Render threads.
   std::string version;  ///< Tessera version.
+  std::vector<std::string> tags;  ///< What it offers (protocol/tags.h): jobs requiring tags go to workers having them.
 };
 void to_json(nlohmann::json& j, const WorkerHello& h);
 /// Parses a registration request; throws ProtocolError (400).

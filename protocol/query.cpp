@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cctype>
 #include <charconv>
+#include <limits>
 #include <span>
 #include <stdexcept>
 #include <vector>
@@ -102,7 +103,7 @@ std::map<std::string, std::string> query_params(std::string_view target, std::in
 }
 
 JobListQuery parse_job_list_query(std::string_view target) {
-  const auto params = query_params(target, {"state", "limit", "after"});
+  const auto params = query_params(target, {"state", "limit", "after", "owner"});
   JobListQuery q;
   if (const auto it = params.find("state"); it != params.end()) {
     for (const std::string& name : comma_items(it->second)) {
@@ -131,20 +132,29 @@ JobListQuery parse_job_list_query(std::string_view target) {
     if (it->second.empty()) throw ProtocolError("after: empty (give the \"next\" of the previous page or a job id)");
     q.after = it->second;
   }
+  if (const auto it = params.find("owner"); it != params.end()) {
+    if (it->second.empty()) throw ProtocolError("owner: empty (give a user name)");
+    q.owner = it->second;
+  }
   return q;
 }
+
+namespace {
+// A whole-number query value from lo to hi; throws ProtocolError naming the key.
+int64_t query_number(const std::string& key, const std::string& v, int64_t lo, int64_t hi) {
+  int64_t n = 0;
+  const auto [ptr, ec] = std::from_chars(v.data(), v.data() + v.size(), n);
+  if (v.empty() || ec != std::errc() || ptr != v.data() + v.size() || n < lo || n > hi)
+    throw ProtocolError(key + ": '" + v + "' is not a whole number from " + std::to_string(lo) + " to " +
+                        std::to_string(hi));
+  return n;
+}
+}  // namespace
 
 FrameListQuery parse_frame_list_query(std::string_view target) {
   const auto params = query_params(target, {"limit", "after"});
   FrameListQuery q;
-  const auto number = [](const std::string& key, const std::string& v, int64_t lo, int64_t hi) {
-    int64_t n = 0;
-    const auto [ptr, ec] = std::from_chars(v.data(), v.data() + v.size(), n);
-    if (v.empty() || ec != std::errc() || ptr != v.data() + v.size() || n < lo || n > hi)
-      throw ProtocolError(key + ": '" + v + "' is not a whole number from " + std::to_string(lo) + " to " +
-                          std::to_string(hi));
-    return n;
-  };
+  const auto number = query_number;
   if (const auto it = params.find("limit"); it != params.end())
     q.limit = size_t(number("limit", it->second, 1, int64_t(kMaxJobListLimit)));
   if (const auto it = params.find("after"); it != params.end())
@@ -156,6 +166,29 @@ std::string FrameListQuery::to_query() const {
   std::string q;
   if (after) q += "?after=" + std::to_string(*after);
   if (limit > 0) q += (q.empty() ? "?limit=" : "&limit=") + std::to_string(limit);
+  return q;
+}
+
+AuditQuery parse_audit_query(std::string_view target) {
+  const auto params = query_params(target, {"before", "limit", "user"});
+  AuditQuery q;
+  if (const auto it = params.find("before"); it != params.end())
+    q.before = query_number("before", it->second, 1, std::numeric_limits<int64_t>::max());
+  if (const auto it = params.find("limit"); it != params.end())
+    q.limit = size_t(query_number("limit", it->second, 1, int64_t(kMaxJobListLimit)));
+  if (const auto it = params.find("user"); it != params.end()) {
+    if (it->second.empty()) throw ProtocolError("user: empty (give a user name)");
+    q.user = it->second;
+  }
+  return q;
+}
+
+std::string AuditQuery::to_query() const {
+  std::string q;
+  const auto add = [&](const char* key, const std::string& value) { q += (q.empty() ? "?" : "&") + std::string(key) + "=" + encode(value); };
+  if (before) add("before", std::to_string(*before));
+  if (limit != AuditQuery{}.limit) add("limit", std::to_string(limit));
+  if (!user.empty()) add("user", user);
   return q;
 }
 
@@ -185,6 +218,7 @@ std::string JobListQuery::to_query() const {
   }
   if (limit > 0) add("limit", std::to_string(limit));
   if (!after.empty()) add("after", after);
+  if (!owner.empty()) add("owner", owner);
   return q;
 }
 

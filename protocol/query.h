@@ -24,6 +24,7 @@ struct JobListQuery {
   std::vector<JobState> states;  ///< Wanted states; empty: every state.
   size_t limit = 0;              ///< Most jobs in one answer; 0: all.
   std::string after;             ///< The `next` cursor of the previous page, or the last job id seen; "": newest.
+  std::string owner;             ///< Only this user's jobs; "": everyone's.
   /// The query string for a request target ("" when everything is at its default, else "?...").
   std::string to_query() const;
 };
@@ -41,6 +42,16 @@ struct FrameListQuery {
 std::map<std::string, std::string> query_params(std::string_view target, std::initializer_list<const char*> known);
 /// Parses the query of GET /v1/jobs; throws ProtocolError with the sentence answered (400).
 JobListQuery parse_job_list_query(std::string_view target);
+/// What GET /v1/audit asks for: ?before=ID&limit=N&user=NAME.
+struct AuditQuery {
+  std::optional<int64_t> before;  ///< Only entries numbered below this.
+  size_t limit = 100;             ///< Most entries in one answer (1 to kMaxJobListLimit).
+  std::string user;               ///< Only this user's actions ("" every user's).
+  /// The query string for a request target ("" when everything is at its default, else "?...").
+  std::string to_query() const;
+};
+/// Parses the query of GET /v1/audit; throws ProtocolError with the sentence answered (400).
+AuditQuery parse_audit_query(std::string_view target);
 /// Parses the query of GET /v1/jobs/{id}/frames; throws ProtocolError with the sentence answered (400).
 FrameListQuery parse_frame_list_query(std::string_view target);
 /// Parses the query of DELETE /v1/jobs/{id}: true for purge=true; false for none or purge=false.

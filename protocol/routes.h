@@ -14,15 +14,19 @@ namespace tessera::protocol {
 enum class Endpoint {
   none, healthz, metrics, blobs, blob, jobs, job, job_result, job_preview, job_spec, job_retry, job_pause, job_resume, job_tiles,
   job_tile_requeue, job_frames, job_frame_result, workers, worker_drain, worker_undrain, worker_lease, lease_heartbeat, lease_result, lease_fail,
-  lease_release, lease_state, events
+  lease_release, lease_state, events, me, audit
 };
 
-/// The token a request must carry (docs/protocol.md, "Access").
+/// The credential a request must carry (docs/protocol.md, "Access"); protocol/access.h says which roles each admits.
+/// The client token admits every client-side access (read, submit, owner, admin); the worker token, worker.
 enum class Access {
-  open,    ///< No token (health probes).
-  client,  ///< The client token (submit, cancel, results, blob uploads).
-  worker,  ///< The worker token (register, lease, heartbeat, upload tiles, fail, release).
-  either,  ///< Either token (read-only views both sides use: blob downloads, job specs, metrics).
+  open,    ///< No credential (health probes).
+  read,    ///< A client's view (jobs, results, workers, events): viewer, user, admin.
+  submit,  ///< New work (jobs, blob uploads): user, admin.
+  owner,   ///< A control of one job (pause, cancel, purge...): its owner with the user role, or an admin.
+  admin,   ///< The farm's controls (drain a worker, the audit trail): admin.
+  worker,  ///< A worker's own requests (register, lease, heartbeat, upload tiles, fail, release): worker.
+  either,  ///< Any credential (read-only views both sides use: blob downloads, job specs, metrics).
 };
 
 /// What free space on the coordinator's data folder a method needs before it is tried (docs/operations.md, "Disk
@@ -35,7 +39,7 @@ enum class Room {
 };
 
 /// The coordinator's resource handler that answers a route.
-enum class Resource { health, blobs, jobs, tiles, workers, leases, events };
+enum class Resource { health, blobs, jobs, tiles, workers, leases, events, users };
 
 /// One method a route accepts.
 struct MethodSpec {
@@ -117,6 +121,8 @@ inline std::string lease_fail(std::string_view lease) { return path(Endpoint::le
 inline std::string lease_release(std::string_view lease) { return path(Endpoint::lease_release, lease); }
 inline std::string lease_state(std::string_view lease) { return path(Endpoint::lease_state, lease); }
 inline std::string events() { return path(Endpoint::events); }
+inline std::string me() { return path(Endpoint::me); }
+inline std::string audit() { return path(Endpoint::audit); }
 }  // namespace routes
 
 }  // namespace tessera::protocol

@@ -6,6 +6,8 @@
 // request bodies and parts of them (whose required keys are what the coordinator insists on).
 #include "protocol/events.h"
 #include "protocol/job.h"
+#include "protocol/access.h"
+#include "protocol/audit.h"
 #include "protocol/messages.h"
 #include "protocol/tile.h"
 #include "protocol/worker.h"
@@ -36,7 +38,8 @@ json sample_scene() { return {{"film", {{"resolution", {16, 16}}}}}; }
 JobSubmission full_submission() {
   return {.scene = sample_scene(), .assets = {{"assets/floor.obj", kSha}},
           .frames = {}, .frame_order = FrameOrder::in_order, .sampling = full_sampling(), .tile_size = 8,
-          .priority = 3, .name = "sample", .resumable = true, .tile_timeout_seconds = 60};
+          .priority = 3, .name = "sample", .resumable = true, .tile_timeout_seconds = 60, .require = {"bigmem"},
+          .max_workers = 4};
 }
 
 // A sequence's submission: "frames" (with a frame's own assets) and "frame_order" instead of "scene".
@@ -56,7 +59,8 @@ JobSpec full_spec() {
 JobStatus full_job() {
   return {.id = "j-1",
           .params = {.name = "sample", .priority = 3, .width = 16, .height = 16, .tile_size = 8, .spp = 4, .seed = 7,
-                     .scene_hash = "hash", .tile_timeout_seconds = 60, .frame_order = FrameOrder::any},
+                     .scene_hash = "hash", .tile_timeout_seconds = 60, .frame_order = FrameOrder::any,
+                     .owner = "ana", .require = {"bigmem"}, .max_workers = 4},
           .state = JobState::failed,
           .tiles = {.total = 4, .done = 1, .leased = 1, .pending = 2},
           .created_ms = 1000,
@@ -69,7 +73,8 @@ JobStatus full_job() {
           .frames = FrameCounts{.total = 3, .queued = 1, .running = 1, .paused = 0, .done = 1, .failed = 0,
                                 .cancelled = 0, .first = 1, .last = 3},
           .sequence = "j-0",
-          .frame = 2};
+          .frame = 2,
+          .waiting_for = "a worker with tags bigmem"};
 }
 
 Lease full_lease() {
@@ -79,7 +84,8 @@ Lease full_lease() {
 
 WorkerInfo full_worker() {
   return {.id = "w-1", .name = "host-1", .state = WorkerState::rendering, .job = "j-1", .tile = 2, .threads = 8,
-          .tiles_done = 5, .rays = 456, .render_seconds = 2.5, .last_seen_ms = 4000, .blocklisted_for = {"j-2"}};
+          .tiles_done = 5, .rays = 456, .render_seconds = 2.5, .last_seen_ms = 4000, .blocklisted_for = {"j-2"},
+          .tags = {"bigmem", "gpu"}};
 }
 
 TileFailure full_failure() {
@@ -116,7 +122,7 @@ json dump() {
   add(out, "BlobQuery", "BlobQuery", kRequest, BlobQuery{{kSha}}, BlobQuery{});
   add(out, "BlobQueryAnswer", "BlobQueryAnswer", kAnswer, BlobQueryAnswer{{kSha}}, BlobQueryAnswer{});
   add(out, "BlobStored", "BlobPutAnswer", kAnswer, BlobPutAnswer{kSha, 42}, BlobPutAnswer{});
-  add(out, "WorkerHello", "WorkerHello", kRequest, WorkerHello{"host-1", 8, "0.1.0"}, WorkerHello{});
+  add(out, "WorkerHello", "WorkerHello", kRequest, WorkerHello{"host-1", 8, "0.1.0", {"gpu"}}, WorkerHello{});
   add(out, "Registration", "Registration", kAnswer, Registration{"w-1", 0.5, 5, "9f86d081884c7d65"}, Registration{});
   add(out, "Worker", "WorkerInfo", kAnswer, full_worker(), WorkerInfo{});
   add(out, "WorkerList", "WorkerList", kAnswer, WorkerList{{full_worker()}}, WorkerList{});
@@ -134,6 +140,11 @@ json dump() {
   add(out, "Health", "HealthAnswer", kAnswer, HealthAnswer{}, HealthAnswer{});
   add(out, "Error", "ErrorAnswer", kAnswer, ErrorAnswer{"what was wrong"}, ErrorAnswer{});
   add(out, "Capabilities", "Capabilities", kAnswer, capabilities(true), Capabilities{});
+  add(out, "Tags", "tags", kRequest, json(std::vector<std::string>{"bigmem", "gpu"}), json::array());
+  add(out, "Me", "Me", kAnswer, me_for("ana", Role::user), Me{});
+  const AuditEntry entry{7, 5000, "ana", "user", "POST /v1/jobs/{id}/pause", "j-1", "127.0.0.1", 200};
+  add(out, "AuditEntry", "AuditEntry", kAnswer, entry, AuditEntry{});
+  add(out, "AuditList", "AuditList", kAnswer, AuditList{{entry}, 6}, AuditList{});
   add(out, "TileFailure", "TileFailure", kAnswer, full_failure(), TileFailure{});
   add(out, "Tile", "TileInfo", kAnswer, full_tile(), TileInfo{});
   add(out, "TileList", "TileList", kAnswer, TileList{"j-1", {full_tile()}}, TileList{});

@@ -21,7 +21,8 @@ void to_json(json& j, const WorkerInfo& w) {
        {"rays", w.rays},
        {"render_seconds", w.render_seconds},
        {"last_seen_ms", w.last_seen_ms},
-       {"blocklisted_for", w.blocklisted_for}};
+       {"blocklisted_for", w.blocklisted_for},
+       {"tags", w.tags}};
 }
 
 void from_json(const json& j, WorkerInfo& w) {
@@ -42,6 +43,7 @@ void from_json(const json& j, WorkerInfo& w) {
   w.render_seconds = answer_field_or<double>(j, "render_seconds", kMsg, 0.0);
   w.last_seen_ms = answer_field_or<int64_t>(j, "last_seen_ms", kMsg, 0);
   w.blocklisted_for = answer_field_or<std::vector<std::string>>(j, "blocklisted_for", kMsg, {});
+  w.tags = answer_field_or<std::vector<std::string>>(j, "tags", kMsg, {});
 }
 
 void to_json(json& j, const WorkerList& l) { j = {{"workers", l.workers}}; }

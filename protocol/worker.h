@@ -43,6 +43,7 @@ struct WorkerInfo {
   double render_seconds = 0;                 ///< Their render times (lease grant to acceptance), summed.
   int64_t last_seen_ms = 0;                  ///< Last request from it (Unix ms).
   std::vector<std::string> blocklisted_for;  ///< Unfinished jobs it failed too often to be given tiles of.
+  std::vector<std::string> tags;             ///< What it offers (protocol/tags.h), as it registered.
 };
 void to_json(nlohmann::json& j, const WorkerInfo& w);
 void from_json(const nlohmann::json& j, WorkerInfo& w);

@@ -18,29 +18,53 @@ Access route_access(RouteId route, http::verb method) {
     const protocol::MethodSpec* m = r.method(http::to_string(method));
     return (m ? *m : r.methods.front()).access;  // a method the route does not take: its first method's token
   }
-  return Access::client;  // no such route: the strictest answer
+  return Access::admin;  // no such route: the strictest answer
 }
 
-Api::Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock, ApiOptions options,
-         EventBus& bus, FarmEvents& events, DiskSpace& disk, Background background)
+Api::Api(Scheduler& scheduler, BlobStore& blobs, CoordinatorStore& jobs, Metrics& metrics, ClockMs clock,
+         ApiOptions options, EventBus& bus, FarmEvents& events, DiskSpace& disk, Background background)
     : metrics_(metrics),
       disk_(disk),
       opt_(options),
-      token_check_(opt_.tokens),
+      credentials_(opt_.tokens),
       sched_(scheduler),
       lease_waiters_(std::make_unique<LeaseWaiters>()),
       jobs_(scheduler, blobs, jobs, metrics, clock,
             static_cast<const AdmissionLimits&>(opt_),
             events, disk, std::move(background)),
       collector_(jobs_, scheduler, blobs, clock, opt_.retention),
+      audit_(jobs, clock, opt_.retention.retain_finished_ms),
       jobs_handler_(jobs_, collector_),
       tiles_handler_(jobs_),
       leases_handler_(scheduler, jobs_, metrics, clock, events, *lease_waiters_),
       workers_handler_(scheduler, opt_.heartbeat_seconds, opt_.registrations_per_minute, clock, events),
       blobs_handler_(blobs),
       health_handler_(scheduler, metrics, clock, *lease_waiters_, disk),
-      events_handler_(bus) {
+      events_handler_(bus),
+      users_handler_(audit_) {
   sched_.on_work([w = lease_waiters_.get()] { w->note_work(); });
+  share_farm();
+}
+
+void Api::share_farm() {
+  std::map<std::string, OwnerShare, std::less<>> shares;
+  for (const User& u : credentials_.users()) shares[u.name] = OwnerShare{u.weight, u.max_workers};
+  sched_.set_shares(std::move(shares));
+}
+
+size_t Api::reload_users() {
+  const size_t n = credentials_.reload();
+  share_farm();
+  const size_t ended = events_handler_.end_unless(
+      [this](const std::string& credential) { return credentials_.admits(credential, Access::read); });
+  if (ended) spdlog::info("users file: ended {} event stream(s) whose credential it no longer admits", ended);
+  return n;
+}
+
+SweepReport Api::sweep() {
+  SweepReport r = collector_.sweep();
+  audit_.sweep();
+  return r;
 }
 
 Api::~Api() {
@@ -50,9 +74,8 @@ Api::~Api() {
 
 bool Api::authenticated(const http::request_header<>& h) noexcept {
   try {
-    const std::string_view authorization = h[http::field::authorization];
-    return token_check_.authorize(Access::client, authorization).status == AuthDecision::allowed ||
-           token_check_.authorize(Access::worker, authorization).status == AuthDecision::allowed;
+    return credentials_.authorize(Access::either, h[http::field::authorization], h[kClientCertNameField]).status ==
+           AuthDecision::allowed;
   } catch (...) {
     return false;
   }
@@ -64,10 +87,18 @@ std::size_t Api::routed_body_limit(const http::request_header<>&, const Route& r
   return opt_.json_limit;
 }
 
-std::optional<HttpResponse> Api::check_access(const Route& route, const http::request_header<>& h) {
-  const AuthDecision d = token_check_.authorize(route.method->access, h[http::field::authorization]);
-  if (d.status == AuthDecision::allowed) return std::nullopt;
+std::optional<HttpResponse> Api::check_access(const Route& route, const http::request_header<>& h, Caller* caller,
+                                              std::string* credential) {
+  const AuthDecision d =
+      credentials_.authorize(route.method->access, h[http::field::authorization], h[kClientCertNameField]);
+  if (d.status == AuthDecision::allowed) {
+    if (caller) *caller = d.caller;
+    if (credential) *credential = d.credential;
+    return std::nullopt;
+  }
   const bool forbidden = d.status == AuthDecision::wrong_role;
+  if (forbidden && AuditTrail::records(*route.match.route, *route.method))
+    audit_.record(d.caller, *route.match.route, *route.method, route.match.param, std::string(h[kPeerAddressField]), 403);
   HttpResponse res = json_error(forbidden ? http::status::forbidden : http::status::unauthorized, d.reason, h.version());
   if (!forbidden)
     res.set(http::field::www_authenticate,
@@ -78,6 +109,17 @@ std::optional<HttpResponse> Api::check_access(const Route& route, const http::re
     spdlog::warn("{} {}: {} {}{}", std::string(h.method_string()), route.match.route->pattern, forbidden ? 403 : 401,
                  d.reason, LogLimit::left_out_note(left_out, "refusals"));
   return res;
+}
+
+std::optional<HttpResponse> Api::check_owner(const Route& route, const HttpRequest& req, const Caller& caller) {
+  if (route.method->access != Access::owner || protocol::acts_on_any_job(caller.role)) return std::nullopt;
+  const std::optional<std::string> owner = sched_.job_owner(route.match.param);
+  if (!owner || *owner == caller.user) return std::nullopt;  // an unknown job is its handler's 404
+  return json_error(http::status::forbidden,
+                    "job " + route.match.param + " belongs to " + (owner->empty() ? "no recorded user" : *owner) +
+                        "; only its owner or an admin may " + std::string(req.method_string()) + " " +
+                        std::string(route.match.route->pattern),
+                    req.version());
 }
 
 HttpResponse Api::unrouted(const Route& route, const http::request_header<>& h) {
@@ -150,9 +192,21 @@ void Api::answer(HttpRequest&& req, const Route& route, std::function<void(HttpR
     std::string label = "unmatched";
     bool head = false;
     std::function<void(HttpReply)> send;
+    std::optional<Caller> audited{};                // the caller of a request the audit trail records
+    const protocol::RouteSpec* spec = nullptr;      // (with audited) its route, from the static table
+    const protocol::MethodSpec* method = nullptr;   // (with audited) its method
+    std::string target{};                           // (with audited) the job or worker it names
+    std::string address{};                          // (with audited) the peer's address
     void operator()(HttpReply reply) const noexcept {
       HttpResponse& res = reply.response;
       try {
+        if (audited) {
+          // A submission's target is the job it made (its Location), a control's the job or worker it named.
+          std::string made = target;
+          if (const auto loc = res.find(http::field::location); loc != res.end())
+            made = std::string(loc->value().substr(loc->value().rfind('/') + 1));
+          api->audit_.record(*audited, *spec, *method, made, address, int(res.result_int()));
+        }
         if (head && !res.body().empty()) {
           const size_t n = res.body().size();
           res.body().clear();
@@ -183,13 +237,24 @@ void Api::answer(HttpRequest&& req, const Route& route, std::function<void(HttpR
     }
     const std::string pattern(spec->pattern);
     finish->label = std::string(req.method_string()) + " " + pattern;
-    if (auto denied = check_access(route, req.base())) return (*finish)(std::move(*denied));
-    if (spec->resource == protocol::Resource::events) return (*finish)(events_handler_.open(req).response);  // the header only
+    Caller caller;
+    std::string credential;
+    if (auto denied = check_access(route, req.base(), &caller, &credential)) return (*finish)(std::move(*denied));
+    if (AuditTrail::records(*spec, *route.method)) {
+      finish->audited = caller;
+      finish->spec = spec;
+      finish->method = route.method;
+      finish->target = route.match.param;
+      finish->address = std::string(req[kPeerAddressField]);
+    }
+    if (auto denied = check_owner(route, req, caller)) return (*finish)(std::move(*denied));
+    if (spec->resource == protocol::Resource::events)
+      return (*finish)(events_handler_.open(req, credential).response);  // the header only
     // The request's method and target, for a refusal's log line, once the handler has let go of the request.
     ResourceHandler& handler = handler_for(spec->resource);
-    if (std::optional<HttpReply> streamed = handler.stream(route.match, req)) return (*finish)(std::move(*streamed));
+    if (std::optional<HttpReply> streamed = handler.stream(route.match, req, caller)) return (*finish)(std::move(*streamed));
     auto head = std::make_shared<HttpRequest>(req.method(), std::string(req.target()), version);
-    handler.handle_async(route.match, req, [this, finish, head](HttpResponse res, std::exception_ptr e) {
+    handler.handle_async(route.match, req, caller, [this, finish, head](HttpResponse res, std::exception_ptr e) {
       (*finish)(e ? refusal(e, *head) : std::move(res));
     });
   } catch (...) {
@@ -199,9 +264,10 @@ void Api::answer(HttpRequest&& req, const Route& route, std::function<void(HttpR
 
 void Api::handle_routed(HttpRequest&& req, const Route& route, Reply done) noexcept {
   try {
-    if (route.match.endpoint() == RouteId::events && route.method && !check_access(route, req.base())) {
+    std::string credential;
+    if (route.match.endpoint() == RouteId::events && route.method && !check_access(route, req.base(), nullptr, &credential)) {
       metrics_.observe_request("GET " + std::string(route.match.route->pattern), 0.0);
-      return done(events_handler_.open(req));
+      return done(events_handler_.open(req, credential));
     }
   } catch (...) {
     return done({refusal(std::current_exception(), req), nullptr});  // a bad ?only= is a 400
@@ -213,6 +279,7 @@ ResourceHandler& Api::handler_for(protocol::Resource resource) {
   switch (resource) {
     case protocol::Resource::health: return health_handler_;
     case protocol::Resource::blobs: return blobs_handler_;
+    case protocol::Resource::users: return users_handler_;
     case protocol::Resource::jobs: return jobs_handler_;
     case protocol::Resource::tiles: return tiles_handler_;
     case protocol::Resource::workers: return workers_handler_;

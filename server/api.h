@@ -4,7 +4,9 @@
 
 #include "protocol/messages.h"
 #include "protocol/routes.h"
+#include "server/audit_trail.h"
 #include "server/auth.h"
+#include "server/coordinator_store.h"
 #include "server/log_limit.h"
 #include "server/blobs_handler.h"
 #include "server/collector.h"
@@ -23,6 +25,7 @@
 #include "server/scheduler.h"
 #include "server/storage.h"
 #include "server/tiles_handler.h"
+#include "server/users_handler.h"
 #include "server/workers_handler.h"
 
 #include <cstddef>
@@ -41,7 +44,7 @@ struct ApiOptions : AdmissionLimits {
   std::size_t blob_limit = std::size_t(256) << 20;   ///< Blob uploads.
   std::size_t result_limit = std::size_t(64) << 20;  ///< Tile result uploads.
   int heartbeat_seconds = protocol::kDefaultHeartbeatSeconds;  ///< Heartbeat interval announced to workers.
-  AccessTokens tokens;                               ///< Bearer tokens (empty: that side's endpoints are open).
+  AccessTokens tokens;  ///< Bearer tokens and the users file (none on a side: that side's endpoints are open).
   RetentionOptions retention;                        ///< How long finished jobs and unreferenced blobs are kept.
   double registrations_per_minute = 600;  ///< Worker registrations taken a minute; more get 429 (0: no limit).
 };
@@ -58,13 +61,13 @@ class Api final : public RoutedHandler {
  public:
   /// An API over the given state, publishing changes through `events` and streaming `bus` at GET /v1/events, refusing
   /// work by the free space `disk` holds (and noting there when a write found it full); all references must outlive
-  /// it.
-  Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock, ApiOptions options,
-      EventBus& bus, FarmEvents& events, DiskSpace& disk, Background background = {});
+  /// it. Throws std::runtime_error for a users file it cannot read.
+  Api(Scheduler& scheduler, BlobStore& blobs, CoordinatorStore& store, Metrics& metrics, ClockMs clock,
+      ApiOptions options, EventBus& bus, FarmEvents& events, DiskSpace& disk, Background background = {});
   ~Api() override;
   Api(const Api&) = delete;
   Api& operator=(const Api&) = delete;
-  /// True when the header's token is the client's or the worker's (or no token is required).
+  /// True when the header's credential is one the coordinator knows (or none is required).
   bool authenticated(const http::request_header<>& header) noexcept override;
   std::size_t routed_body_limit(const http::request_header<>& header, const Route& route) override;
   /// The refusal of a token that does not let the request's method on its route (401/403), before the body is read.
@@ -74,8 +77,14 @@ class Api final : public RoutedHandler {
   void handle_routed(HttpRequest&& request, const Route& route, Reply done) noexcept override;
   /// After a restart: finishes jobs whose every tile was stored but whose result was not written yet.
   void recover() { jobs_.recover(); }
-  /// Purges finished jobs past their retention time and collects unreferenced blobs (see Collector::sweep).
-  SweepReport sweep() { return collector_.sweep(); }
+  /// Purges finished jobs and audit entries past their retention time and collects unreferenced blobs (see
+  /// Collector::sweep).
+  SweepReport sweep();
+  /// Re-reads the users file: the scheduler takes the new shares, and open event streams of removed users end.
+  /// Returns how many users it holds; throws std::runtime_error keeping the users it had.
+  size_t reload_users();
+  /// True when both the client and the worker side need a credential.
+  bool credentials_complete() const { return credentials_.complete(); }
   /// Writes the results that waited for disk space; false when one still does not fit (JobService::write_waiting_results).
   bool write_waiting_results() { return jobs_.write_waiting_results(); }
   /// Answers every lease request held for work with "no work", and later ones at once (at shutdown, so that the
@@ -83,8 +92,14 @@ class Api final : public RoutedHandler {
   void stop_holding_leases() { lease_waiters_->close(); }
 
  private:
-  /// The refusal of the request's token on its route and method (both matched), or nothing when it may pass.
-  std::optional<HttpResponse> check_access(const Route& route, const http::request_header<>& header);
+  /// The refusal of the request's credential on its route and method (both matched), or nothing when it may pass
+  /// (then sets `caller` and `credential`, when given, to whom it stands for).
+  std::optional<HttpResponse> check_access(const Route& route, const http::request_header<>& header,
+                                           Caller* caller = nullptr, std::string* credential = nullptr);
+  /// The 403 of a job control on a job of another user by a caller that may act only on its own, or nothing.
+  std::optional<HttpResponse> check_owner(const Route& route, const HttpRequest& request, const Caller& caller);
+  /// Passes the users' weights and caps to the scheduler.
+  void share_farm();
   /// The 404 (no route) or 405 (no such method on the route, with Allow) for a request without a method entry.
   static HttpResponse unrouted(const Route& route, const http::request_header<>& header);
   /// Checks the routed request and hands it to its resource handler; `send` gets the answer once (maybe later).
@@ -97,12 +112,13 @@ class Api final : public RoutedHandler {
   Metrics& metrics_;
   DiskSpace& disk_;
   ApiOptions opt_;
-  TokenCheck token_check_;  // opt_.tokens' digests
+  Credentials credentials_;  // opt_.tokens' digests and the users file
   LogLimit refusal_log_{10, std::chrono::minutes(1)};  // the 401 and 403 lines
   Scheduler& sched_;                              // notes new work to lease_waiters_ while this lives
   std::unique_ptr<LeaseWaiters> lease_waiters_;  // ended first in ~Api, while what its requests answer through lives
   JobService jobs_;
   Collector collector_;
+  AuditTrail audit_;
   JobsHandler jobs_handler_;
   TilesHandler tiles_handler_;
   LeasesHandler leases_handler_;
@@ -110,6 +126,7 @@ class Api final : public RoutedHandler {
   BlobsHandler blobs_handler_;
   HealthHandler health_handler_;
   EventsHandler events_handler_;
+  UsersHandler users_handler_;
 };
 
 }  // namespace tessera::server

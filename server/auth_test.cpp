@@ -6,6 +6,9 @@
 #include "server/storage.h"
 #include "server/test_coordinator.h"
 #include "server/test_http_client.h"
+#include "server/user_file.h"
+#include "core/util/file_io.h"
+#include "core/util/sha256.h"
 
 #include <gtest/gtest.h>
 #include <spdlog/sinks/ostream_sink.h>
@@ -24,7 +27,7 @@ using testing::Client;
 using testing::Reply;
 using V = http::verb;
 
-const AccessTokens kTokens{"client-token-0123456789abcdef", "worker-token-0123456789abcdef"};
+const AccessTokens kTokens{"client-token-0123456789abcdef", "worker-token-0123456789abcdef", {}};
 
 TEST(ConstantTimeEqual, ComparesWholeStrings) {
   EXPECT_TRUE(constant_time_equal("secret-secret-secret", "secret-secret-secret"));
@@ -50,35 +53,35 @@ TEST(GenerateToken, IsUsableAndFresh) {
 }
 
 TEST(Authorize, NoTokensConfiguredLeavesEverythingOpen) {
-  for (Access a : {Access::open, Access::client, Access::worker, Access::either})
+  for (Access a : {Access::open, Access::read, Access::submit, Access::owner, Access::admin, Access::worker, Access::either})
     EXPECT_EQ(authorize(a, "", AccessTokens{}).status, AuthDecision::allowed);
 }
 
 TEST(Authorize, ChecksSchemeTokenAndRole) {
   const std::string client = "Bearer " + kTokens.client, worker = "Bearer " + kTokens.worker;
   EXPECT_EQ(authorize(Access::open, "", kTokens).status, AuthDecision::allowed);
-  EXPECT_EQ(authorize(Access::client, "", kTokens).status, AuthDecision::missing);
-  EXPECT_EQ(authorize(Access::client, client, kTokens).status, AuthDecision::allowed);
-  EXPECT_EQ(authorize(Access::client, worker, kTokens).status, AuthDecision::wrong_role);
+  EXPECT_EQ(authorize(Access::read, "", kTokens).status, AuthDecision::missing);
+  EXPECT_EQ(authorize(Access::read, client, kTokens).status, AuthDecision::allowed);
+  EXPECT_EQ(authorize(Access::read, worker, kTokens).status, AuthDecision::wrong_role);
   EXPECT_EQ(authorize(Access::worker, worker, kTokens).status, AuthDecision::allowed);
   EXPECT_EQ(authorize(Access::worker, client, kTokens).status, AuthDecision::wrong_role);
   EXPECT_EQ(authorize(Access::either, client, kTokens).status, AuthDecision::allowed);
   EXPECT_EQ(authorize(Access::either, worker, kTokens).status, AuthDecision::allowed);
   EXPECT_EQ(authorize(Access::either, "Bearer nope-nope-nope-nope", kTokens).status, AuthDecision::invalid);
-  EXPECT_EQ(authorize(Access::client, "Basic " + kTokens.client, kTokens).status, AuthDecision::invalid);
-  EXPECT_EQ(authorize(Access::client, "Bearer", kTokens).status, AuthDecision::invalid);
-  EXPECT_EQ(authorize(Access::client, "Bearer   ", kTokens).status, AuthDecision::invalid);
-  EXPECT_EQ(authorize(Access::client, "Bearer" + kTokens.client, kTokens).status, AuthDecision::invalid);
+  EXPECT_EQ(authorize(Access::read, "Basic " + kTokens.client, kTokens).status, AuthDecision::invalid);
+  EXPECT_EQ(authorize(Access::read, "Bearer", kTokens).status, AuthDecision::invalid);
+  EXPECT_EQ(authorize(Access::read, "Bearer   ", kTokens).status, AuthDecision::invalid);
+  EXPECT_EQ(authorize(Access::read, "Bearer" + kTokens.client, kTokens).status, AuthDecision::invalid);
   // The scheme is case-insensitive and may be followed by several spaces (RFC 9110).
-  EXPECT_EQ(authorize(Access::client, "bearer " + kTokens.client, kTokens).status, AuthDecision::allowed);
-  EXPECT_EQ(authorize(Access::client, "BEARER  " + kTokens.client, kTokens).status, AuthDecision::allowed);
-  EXPECT_EQ(authorize(Access::client, "bEaReR " + kTokens.worker, kTokens).status, AuthDecision::wrong_role);
-  EXPECT_EQ(authorize(Access::client, client + "x", kTokens).status, AuthDecision::invalid);
+  EXPECT_EQ(authorize(Access::read, "bearer " + kTokens.client, kTokens).status, AuthDecision::allowed);
+  EXPECT_EQ(authorize(Access::read, "BEARER  " + kTokens.client, kTokens).status, AuthDecision::allowed);
+  EXPECT_EQ(authorize(Access::read, "bEaReR " + kTokens.worker, kTokens).status, AuthDecision::wrong_role);
+  EXPECT_EQ(authorize(Access::read, client + "x", kTokens).status, AuthDecision::invalid);
   // A token that is a prefix of the real one is not the real one.
-  EXPECT_EQ(authorize(Access::client, client.substr(0, client.size() - 1), kTokens).status, AuthDecision::invalid);
+  EXPECT_EQ(authorize(Access::read, client.substr(0, client.size() - 1), kTokens).status, AuthDecision::invalid);
   // Reasons never repeat a token.
   for (const std::string& h : {client, worker, std::string("Bearer wrong-wrong-wrong-wrong")})
-    for (Access a : {Access::client, Access::worker}) {
+    for (Access a : {Access::read, Access::worker}) {
       const AuthDecision d = authorize(a, h, kTokens);
       EXPECT_EQ(d.reason.find(kTokens.client), std::string::npos);
       EXPECT_EQ(d.reason.find(kTokens.worker), std::string::npos);
@@ -86,24 +89,27 @@ TEST(Authorize, ChecksSchemeTokenAndRole) {
 }
 
 TEST(Authorize, OnlyTheConfiguredSideIsProtected) {
-  const AccessTokens only_client{kTokens.client, ""};
+  const AccessTokens only_client{kTokens.client, "", {}};
   EXPECT_EQ(authorize(Access::worker, "", only_client).status, AuthDecision::allowed);
-  EXPECT_EQ(authorize(Access::client, "", only_client).status, AuthDecision::missing);
+  EXPECT_EQ(authorize(Access::read, "", only_client).status, AuthDecision::missing);
   EXPECT_EQ(authorize(Access::either, "", only_client).status, AuthDecision::missing);
 }
 
 TEST(RouteAccess, EveryEndpointNeedsTheRightToken) {
   EXPECT_EQ(route_access(RouteId::healthz, V::get), Access::open);
   EXPECT_EQ(route_access(RouteId::metrics, V::get), Access::either);
-  EXPECT_EQ(route_access(RouteId::blobs, V::post), Access::client);
-  EXPECT_EQ(route_access(RouteId::blob, V::put), Access::client);
-  EXPECT_EQ(route_access(RouteId::blob, V::head), Access::client);
+  EXPECT_EQ(route_access(RouteId::blobs, V::post), Access::submit);
+  EXPECT_EQ(route_access(RouteId::blob, V::put), Access::submit);
+  EXPECT_EQ(route_access(RouteId::blob, V::head), Access::submit);
   EXPECT_EQ(route_access(RouteId::blob, V::get), Access::either);
   EXPECT_EQ(route_access(RouteId::job_spec, V::get), Access::either);
   for (RouteId r : {RouteId::jobs, RouteId::job, RouteId::job_result, RouteId::job_preview})
-    EXPECT_EQ(route_access(r, V::get), Access::client);
-  EXPECT_EQ(route_access(RouteId::jobs, V::post), Access::client);
-  EXPECT_EQ(route_access(RouteId::job, V::delete_), Access::client);
+    EXPECT_EQ(route_access(r, V::get), Access::read);
+  EXPECT_EQ(route_access(RouteId::jobs, V::post), Access::submit);
+  EXPECT_EQ(route_access(RouteId::job, V::delete_), Access::owner);
+  EXPECT_EQ(route_access(RouteId::worker_drain, V::post), Access::admin);
+  EXPECT_EQ(route_access(RouteId::audit, V::get), Access::admin);
+  EXPECT_EQ(route_access(RouteId::me, V::get), Access::either);
   for (RouteId r : {RouteId::workers, RouteId::worker_lease, RouteId::lease_heartbeat, RouteId::lease_result,
                     RouteId::lease_fail, RouteId::lease_release})
     EXPECT_EQ(route_access(r, V::post), Access::worker);
@@ -149,7 +155,7 @@ TEST_F(TokenServerTest, EndpointsAnswer401Or403WithoutTheRightToken) {
   const Reply none = call(V::get, "/v1/jobs", "");
   EXPECT_EQ(none.status, 401u);
   EXPECT_NE(std::string(none.msg[http::field::www_authenticate]).find("Bearer"), std::string::npos);
-  EXPECT_NE(none.js()["error"].get<std::string>().find("client token"), std::string::npos);
+  EXPECT_NE(none.js()["error"].get<std::string>().find("the viewer, user or admin role"), std::string::npos);
   EXPECT_EQ(call(V::get, "/v1/jobs", "not-the-token-at-all").status, 401u);
   EXPECT_EQ(call(V::get, "/v1/jobs", kTokens.worker).status, 403u);
   EXPECT_EQ(call(V::get, "/v1/jobs", kTokens.client).status, 200u);
@@ -232,6 +238,114 @@ TEST(CoordinatorAccess, ListensBeyondLoopbackOnlyWithBothTokens) {
   EXPECT_NO_THROW(Coordinator c(o));
   std::error_code ec;
   fs::remove_all(dir, ec);
+}
+
+// A users file with one user of each role, in a fresh folder.
+struct UsersFile {
+  fs::path dir = fs::temp_directory_path() / ("tessera-users-" + random_hex(6));
+  fs::path file = dir / "users.json";
+  std::map<std::string, std::string> tokens;  // name -> token
+  UsersFile() {
+    fs::create_directories(dir);
+    std::vector<User> users;
+    for (const auto& [name, role] : {std::pair{"ana", protocol::Role::admin}, std::pair{"ben", protocol::Role::user},
+                                     std::pair{"cy", protocol::Role::viewer}, std::pair{"wk", protocol::Role::worker}}) {
+      tokens[name] = generate_token();
+      users.push_back({name, role, sha256_hex(tokens[name]), 1, 0});
+    }
+    write_user_file(file, users);
+  }
+  ~UsersFile() {
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+  }
+  std::string bearer(const std::string& name) { return "Bearer " + tokens.at(name); }
+};
+
+TEST(Users, EachRoleMayWhatItsAccessAdmits) {
+  UsersFile u;
+  const Credentials c(AccessTokens{"", "", u.file});
+  using R = protocol::Role;
+  const std::map<std::string, R> roles = {{"ana", R::admin}, {"ben", R::user}, {"cy", R::viewer}, {"wk", R::worker}};
+  for (const auto& [name, role] : roles)
+    for (Access a : {Access::read, Access::submit, Access::owner, Access::admin, Access::worker, Access::either}) {
+      const AuthDecision d = c.authorize(a, u.bearer(name));
+      EXPECT_EQ(d.status == AuthDecision::allowed, protocol::role_allows(role, a)) << name << " " << int(a);
+      if (d.status != AuthDecision::allowed) {
+        EXPECT_EQ(d.status, AuthDecision::wrong_role);
+        EXPECT_NE(d.reason.find(name + " has the " + protocol::to_string(role) + " role"), std::string::npos) << d.reason;
+      }
+      EXPECT_EQ(d.caller.user, name);
+      EXPECT_EQ(d.reason.find(u.tokens[name]), std::string::npos);
+    }
+  EXPECT_TRUE(protocol::role_allows(R::user, Access::owner));
+  EXPECT_FALSE(protocol::acts_on_any_job(R::user));
+  EXPECT_TRUE(protocol::acts_on_any_job(R::admin));
+  EXPECT_EQ(c.authorize(Access::read, "Bearer " + generate_token()).status, AuthDecision::invalid);
+  EXPECT_EQ(c.authorize(Access::read, "").status, AuthDecision::missing);
+  // Both sides need credentials: the users file has a worker.
+  EXPECT_TRUE(c.complete());
+}
+
+TEST(Users, AVerifiedCertificateNamingAUserStandsForIt) {
+  UsersFile u;
+  const Credentials c(AccessTokens{"", "", u.file});
+  const AuthDecision d = c.authorize(Access::submit, "", "ben");
+  EXPECT_EQ(d.status, AuthDecision::allowed);
+  EXPECT_EQ(d.caller.user, "ben");
+  EXPECT_EQ(c.authorize(Access::submit, "", "nobody").status, AuthDecision::missing);
+  EXPECT_EQ(c.authorize(Access::submit, "", "cy").status, AuthDecision::wrong_role);
+}
+
+TEST(Users, AReloadRevokesARemovedUserAndKeepsTheOthers) {
+  UsersFile u;
+  Credentials c(AccessTokens{kTokens.client, "", u.file});
+  const AuthDecision ben = c.authorize(Access::read, u.bearer("ben"));
+  const AuthDecision client = c.authorize(Access::read, "Bearer " + kTokens.client);
+  ASSERT_EQ(ben.status, AuthDecision::allowed);
+  EXPECT_EQ(client.caller.user, "client");
+  EXPECT_TRUE(c.admits(ben.credential, Access::read));
+  std::vector<User> users = read_user_file(u.file);
+  std::erase_if(users, [](const User& x) { return x.name == "ben"; });
+  write_user_file(u.file, users);
+  EXPECT_EQ(c.reload(), 3u);
+  EXPECT_FALSE(c.admits(ben.credential, Access::read));
+  EXPECT_EQ(c.authorize(Access::read, u.bearer("ben")).status, AuthDecision::invalid);
+  EXPECT_TRUE(c.admits(client.credential, Access::read));
+  EXPECT_EQ(c.authorize(Access::read, u.bearer("cy")).status, AuthDecision::allowed);
+  // A broken file is refused and the users stay as they were.
+  write_file_atomic(u.file, "{\"users\": [{\"name\": \"x\"}]}");
+  EXPECT_THROW(c.reload(), std::runtime_error);
+  EXPECT_EQ(c.authorize(Access::read, u.bearer("cy")).status, AuthDecision::allowed);
+}
+
+TEST(Users, BadFilesAreRefusedWithASentence) {
+  UsersFile u;
+  const auto refusal = [&](const std::string& text) {
+    write_file_atomic(u.file, text);
+    try {
+      read_user_file(u.file);
+    } catch (const std::runtime_error& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  const std::string h = sha256_hex("t");
+  EXPECT_NE(refusal("[]").find("expected {\"users\""), std::string::npos);
+  EXPECT_NE(refusal(R"({"users": [{"name": "a", "role": "boss", "token_sha256": ")" + h + R"("}]})").find("unknown role 'boss'"),
+            std::string::npos);
+  EXPECT_NE(refusal(R"({"users": [{"name": "client", "role": "user", "token_sha256": ")" + h + R"("}]})").find("reserved"),
+            std::string::npos);
+  EXPECT_NE(refusal(R"({"users": [{"name": "a", "role": "user", "token_sha256": "abc"}]})").find("64 lowercase hex"),
+            std::string::npos);
+  EXPECT_NE(refusal(R"({"users": [{"name": "a", "role": "user", "token_sha256": ")" + h + R"(", "weight": 0}]})")
+                .find("weight must be a positive number"),
+            std::string::npos);
+  EXPECT_NE(refusal(R"({"users": [{"name": "a", "role": "user", "token_sha256": ")" + h + R"("}, {"name": "a", "role": "user", "token_sha256": ")" +
+                    sha256_hex("u") + R"("}]})").find("listed twice"),
+            std::string::npos);
+  EXPECT_NE(refusal(R"({"users": [{"name": "a", "role": "user", "token_sha256": ")" + h + R"(", "colour": 1}]})").find("unknown key 'colour'"),
+            std::string::npos);
 }
 
 }  // namespace

@@ -13,7 +13,7 @@ namespace tessera::server {
 
 using protocol::ApiError;
 
-HttpResponse BlobsHandler::handle(const protocol::RouteMatch& route, HttpRequest& req) {
+HttpResponse BlobsHandler::handle(const protocol::RouteMatch& route, HttpRequest& req, const Caller& /*caller*/) {
   const protocol::Endpoint endpoint = route.endpoint();
   const std::string& sha = route.param;
   if (endpoint == protocol::Endpoint::blobs) {
@@ -46,7 +46,7 @@ HttpResponse BlobsHandler::handle(const protocol::RouteMatch& route, HttpRequest
   throw ApiError(404, "blob " + sha + " is not stored");  // GET is answered by stream()
 }
 
-std::optional<HttpReply> BlobsHandler::stream(const protocol::RouteMatch& route, HttpRequest& req) {
+std::optional<HttpReply> BlobsHandler::stream(const protocol::RouteMatch& route, HttpRequest& req, const Caller& /*caller*/) {
   if (route.endpoint() != protocol::Endpoint::blob || req.method() != http::verb::get) return std::nullopt;
   const std::optional<fs::path> f = blobs_.file(route.param);
   std::optional<HttpReply> r = f ? file_reply(*f, "application/octet-stream", req.version()) : std::nullopt;

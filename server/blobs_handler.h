@@ -11,9 +11,9 @@ class BlobsHandler final : public ResourceHandler {
  public:
   /// Endpoints over `blobs` (which must outlive it).
   explicit BlobsHandler(BlobStore& blobs) : blobs_(blobs) {}
-  HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& req) override;
+  HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& req, const Caller& caller) override;
   /// GET of a blob, streamed from its file.
-  std::optional<HttpReply> stream(const protocol::RouteMatch& route, HttpRequest& req) override;
+  std::optional<HttpReply> stream(const protocol::RouteMatch& route, HttpRequest& req, const Caller& caller) override;
 
  private:
   BlobStore& blobs_;

@@ -70,7 +70,7 @@ void ChangeLog::flush(FarmState& s) {
     if (it != s.leases.end()) c.leases.push_back(LeaseRow{it->second.lease, it->second.state, it->second.granted_ms});
   }
   for (const std::string& id : workers_)
-    if (const WorkerRec* w = s.workers.find(id)) c.workers.push_back(WorkerRow{id, w->name, w->drained, w->secret_hash});
+    if (const WorkerRec* w = s.workers.find(id)) c.workers.push_back(WorkerRow{id, w->name, w->drained, w->secret_hash, w->tags});
   c.forgotten_workers.assign(forgotten_workers_.begin(), forgotten_workers_.end());
   c.purged_jobs.assign(purged_jobs_.begin(), purged_jobs_.end());
   // On failure the sets stay, so the next flush writes these rows again.
@@ -90,6 +90,7 @@ void restore(FarmState& s, SchedulerSnapshot snap, int64_t now) {
     WorkerRec rec{w.name, now};  // downtime counts against nobody
     rec.drained = w.drained;
     rec.secret_hash = w.secret_hash;
+    rec.tags = w.tags;
     s.workers.add(w.id, std::move(rec));
   }
   for (JobRow& row : snap.jobs) {
@@ -155,7 +156,7 @@ void restore(FarmState& s, SchedulerSnapshot snap, int64_t now) {
         s.changes.touch_lease(rec.lease.id);
       } else {
         rec.lease.deadline_ms = now + s.config.lease_ms;  // the worker gets a whole lease to come back
-        s.live_leases.insert(rec.lease.id);
+        s.go_live(rec);
       }
     }
     s.leases.emplace(rec.lease.id, std::move(rec));

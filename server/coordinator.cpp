@@ -67,10 +67,11 @@ void check_access_setup(const std::string& host, const AccessTokens& tokens) {
   boost::system::error_code ec;
   const auto addr = asio::ip::make_address(host, ec);
   if (ec) throw std::runtime_error("cannot listen on '" + host + "': not an IP address");
-  if (!addr.is_loopback() && !tokens.complete())
+  if (!addr.is_loopback() && !Credentials(tokens).complete())
     throw std::runtime_error("refusing to listen on " + host +
-                             " without access tokens: set both --client-token-file and --worker-token-file (or "
-                             "TESSERA_CLIENT_TOKEN and TESSERA_WORKER_TOKEN), or listen on 127.0.0.1");
+                             " without access tokens for clients and workers: set --client-token-file (or --users) and "
+                             "--worker-token-file (or a user with the worker role), or TESSERA_CLIENT_TOKEN and "
+                             "TESSERA_WORKER_TOKEN, or listen on 127.0.0.1");
 }
 
 // The scheduler's tunables from the coordinator's options.
@@ -98,7 +99,7 @@ struct Coordinator::Impl {
         farm_events(bus),
         api(sched, blobs, *store, metrics, wall_ms, opt.limits, bus, farm_events, disk,
             [this](std::function<void()> work) { asio::post(pool, std::move(work)); }),  // a finished job's result
-        monitor(api, !opt.limits.tokens.client.empty()),
+        monitor(api, !opt.limits.tokens.client.empty() || !opt.limits.tokens.users_file.empty()),
         pool(std::size_t(opt.handler_threads > 0 ? opt.handler_threads : std::max(2u, std::thread::hardware_concurrency()))),
         admission(monitor, opt.admission),
         server(ioc, pool, admission,
@@ -190,7 +191,7 @@ Coordinator::Coordinator(CoordinatorOptions options) {
     // signal set and acted on once run() starts, instead of killing the process with the default action.
     impl_->signals.add(SIGINT);
     impl_->signals.add(SIGTERM);
-    if (impl_->server.tls()) impl_->signals.add(SIGHUP);
+    if (impl_->server.tls() || !impl_->opt.limits.tokens.users_file.empty()) impl_->signals.add(SIGHUP);
     wait_for_signal();
   }
 }
@@ -244,11 +245,21 @@ void Coordinator::wait_for_signal() {
   impl_->signals.async_wait([this](boost::system::error_code ec, int sig) {
     if (ec) return;
     if (sig == SIGHUP) {
-      try {
-        impl_->server.reload_tls();
-        spdlog::info("received SIGHUP: TLS certificate and key re-read; new connections use them");
-      } catch (const std::exception& e) {
-        spdlog::error("received SIGHUP: {}; still serving with the previous certificate", e.what());
+      if (impl_->server.tls()) {
+        try {
+          impl_->server.reload_tls();
+          spdlog::info("received SIGHUP: TLS certificate and key re-read; new connections use them");
+        } catch (const std::exception& e) {
+          spdlog::error("received SIGHUP: {}; still serving with the previous certificate", e.what());
+        }
+      }
+      if (!impl_->opt.limits.tokens.users_file.empty()) {
+        try {
+          const size_t n = impl_->api.reload_users();
+          spdlog::info("received SIGHUP: users file {} re-read: {} user(s)", impl_->opt.limits.tokens.users_file.string(), n);
+        } catch (const std::exception& e) {
+          spdlog::error("received SIGHUP: {}; still serving with the users it had", e.what());
+        }
       }
       return wait_for_signal();
     }

@@ -2,6 +2,7 @@
 // (DurableStore) or, for a coordinator that dies with the command that started it, in memory (MemoryStore).
 #pragma once
 
+#include "server/audit_store.h"
 #include "server/scheduler_store.h"
 #include "server/storage.h"
 
@@ -13,9 +14,9 @@
 
 namespace tessera::server {
 
-/// The scheduler's store and the job store of one coordinator. The job outputs are files either way: merged results
+/// The scheduler's store, the job store and the audit trail of one coordinator. The job outputs are files either way: merged results
 /// in DIR/jobs/<id>/result.exr, written as the durability asks, and scratch files in DIR/tmp/.
-class CoordinatorStore : public SchedulerStore, public JobStore {
+class CoordinatorStore : public SchedulerStore, public JobStore, public AuditStore {
  public:
   /// Outputs under `dir` (DIR/jobs/ and DIR/tmp/ are made here), results written with `durability`'s flush.
   CoordinatorStore(const std::filesystem::path& dir, Durability durability);

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <limits>
 #include <tuple>
 #include <cerrno>
 #include <cstdlib>
@@ -73,6 +74,10 @@ CREATE TABLE IF NOT EXISTS tile_states(job TEXT NOT NULL, idx INTEGER NOT NULL, 
 -- every change of the job; such a list comes first, and a build of that kind reading this file sees only it).
 CREATE TABLE IF NOT EXISTS job_workers(job TEXT NOT NULL, idx INTEGER NOT NULL, worker TEXT NOT NULL,
   PRIMARY KEY(job, idx));
+-- The audit trail: every control action, who took it and from where.
+CREATE TABLE IF NOT EXISTS audit(id INTEGER PRIMARY KEY AUTOINCREMENT, at_ms INTEGER NOT NULL, user TEXT NOT NULL,
+  role TEXT NOT NULL, action TEXT NOT NULL, target TEXT NOT NULL, address TEXT NOT NULL, status INTEGER NOT NULL);
+CREATE INDEX IF NOT EXISTS audit_at ON audit(at_ms);
 )sql";
 
 // Columns added after version 1 was released: older files gain them with these defaults (the schema version stays,
@@ -97,6 +102,11 @@ constexpr AddedColumn kAddedColumns[] = {
     {"jobs", "frame_order", "TEXT NOT NULL DEFAULT 'in_order'"},
     {"jobs", "sequence", "TEXT NOT NULL DEFAULT ''"},
     {"jobs", "frame", "INTEGER NOT NULL DEFAULT 0"},
+    // A shared farm: who submitted a job, the worker tags it needs and its cap; the tags each worker offers.
+    {"jobs", "owner", "TEXT NOT NULL DEFAULT ''"},
+    {"jobs", "require", "TEXT NOT NULL DEFAULT '[]'"},
+    {"jobs", "max_workers", "INTEGER NOT NULL DEFAULT 0"},
+    {"workers", "tags", "TEXT NOT NULL DEFAULT '[]'"},
 };
 
 }  // namespace
@@ -384,8 +394,8 @@ void DurableStore::apply_locked(const SchedulerChanges& c) {
     Statement& st = db_.statement(
         "INSERT INTO jobs(id, seq, name, priority, width, height, tile_size, spp, seed, scene_hash, state, created_ms,"
         " started_ms, finished_ms, error, rays, workers, worker_failures, worker_last_error, tile_timeout_s,"
-        " frame_total, frame_order, sequence, frame)"
-        " VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)"
+        " frame_total, frame_order, sequence, frame, owner, require, max_workers)"
+        " VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)"
         " ON CONFLICT(id) DO UPDATE SET priority = excluded.priority, spp = excluded.spp, state = excluded.state,"
         " started_ms = excluded.started_ms,"
         " finished_ms = excluded.finished_ms, error = excluded.error, rays = excluded.rays,"
@@ -399,6 +409,7 @@ void DurableStore::apply_locked(const SchedulerChanges& c) {
     st.bind_text(19, map_json(r.worker_last_error).dump()).bind(20, p.tile_timeout_seconds);
     st.bind(21, s.frames ? s.frames->total : 0).bind_text(22, to_string(p.frame_order));
     st.bind_text(23, s.sequence.value_or("")).bind(24, s.frame.value_or(0));
+    st.bind_text(25, p.owner).bind_text(26, json(p.require).dump()).bind(27, p.max_workers);
     st.run();
   }
   for (const JobWorkerRow& r : c.job_workers)
@@ -437,11 +448,12 @@ void DurableStore::apply_locked(const SchedulerChanges& c) {
     st.run();
   }
   for (const WorkerRow& r : c.workers)
-    db_.statement("INSERT OR REPLACE INTO workers(id, name, drained, secret_sha256) VALUES(?,?,?,?)")
+    db_.statement("INSERT OR REPLACE INTO workers(id, name, drained, secret_sha256, tags) VALUES(?,?,?,?,?)")
         .bind_text(1, r.id)
         .bind_text(2, r.name)
         .bind(3, int64_t(r.drained))
         .bind_text(4, r.secret_hash)
+        .bind_text(5, json(r.tags).dump())
         .run();
   for (const std::string& id : c.forgotten_workers) db_.statement("DELETE FROM workers WHERE id = ?").bind_text(1, id).run();
   // Only the counters that changed since the last commit. The id sequence is stored a block ahead (the next ids to
@@ -499,7 +511,7 @@ SchedulerSnapshot DurableStore::load() {
     Statement& st = db_.statement(
         "SELECT id, seq, name, priority, width, height, tile_size, spp, seed, scene_hash, state, created_ms, started_ms,"
         " finished_ms, error, rays, workers, worker_failures, worker_last_error, tile_timeout_s, frame_total,"
-        " frame_order, sequence, frame FROM jobs ORDER BY seq");
+        " frame_order, sequence, frame, owner, require, max_workers FROM jobs ORDER BY seq");
     while (st.step()) {
       JobRow r;
       JobStatus& s = r.status;
@@ -541,6 +553,13 @@ SchedulerSnapshot DurableStore::load() {
         s.sequence = st.text(22);
         s.frame = st.integer(23);
       }
+      s.params.owner = st.text(24);
+      try {
+        s.params.require = json::parse(st.text(25)).get<std::vector<std::string>>();
+      } catch (const json::exception& e) {
+        throw StorageError("job " + s.id + ": stored requirements are not a JSON list: " + e.what());
+      }
+      s.params.max_workers = st.integer(26);
       snap.jobs.push_back(std::move(r));
     }
   }
@@ -595,8 +614,16 @@ SchedulerSnapshot DurableStore::load() {
     }
   }
   {
-    Statement& st = db_.statement("SELECT id, name, drained, secret_sha256 FROM workers");
-    while (st.step()) snap.workers.push_back(WorkerRow{st.text(0), st.text(1), st.integer(2) != 0, st.text(3)});
+    Statement& st = db_.statement("SELECT id, name, drained, secret_sha256, tags FROM workers");
+    while (st.step()) {
+      WorkerRow w{st.text(0), st.text(1), st.integer(2) != 0, st.text(3)};
+      try {
+        w.tags = json::parse(st.text(4)).get<std::vector<std::string>>();
+      } catch (const json::exception& e) {
+        throw StorageError("worker " + w.id + ": stored tags are not a JSON list: " + e.what());
+      }
+      snap.workers.push_back(std::move(w));
+    }
   }
   tx.commit();
   return snap;
@@ -675,6 +702,55 @@ std::optional<std::pair<uint32_t, std::string>> DurableStore::tile_state(const s
   std::pair<uint32_t, std::string> out{uint32_t(st.integer(0)), st.blob(1)};
   st.reset();
   return out;
+}
+
+}  // namespace tessera::server
+
+namespace tessera::server {
+
+void DurableStore::append_audit(const protocol::AuditEntry& e) {
+  std::lock_guard lock(mu_);
+  write_locked([&] {
+    db_.statement("INSERT INTO audit(at_ms, user, role, action, target, address, status) VALUES(?,?,?,?,?,?,?)")
+        .bind(1, e.at_ms)
+        .bind_text(2, e.user)
+        .bind_text(3, e.role)
+        .bind_text(4, e.action)
+        .bind_text(5, e.target)
+        .bind_text(6, e.address)
+        .bind(7, int64_t(e.status))
+        .run();
+  });
+}
+
+protocol::AuditList DurableStore::audit(const protocol::AuditQuery& q) {
+  std::lock_guard lock(mu_);
+  Statement& st = db_.statement(
+      "SELECT id, at_ms, user, role, action, target, address, status FROM audit"
+      " WHERE id < ? AND (? = '' OR user = ?) ORDER BY id DESC LIMIT ?");
+  st.bind(1, q.before.value_or(std::numeric_limits<int64_t>::max())).bind_text(2, q.user).bind_text(3, q.user);
+  st.bind(4, int64_t(q.limit) + 1);
+  protocol::AuditList out;
+  while (st.step()) {
+    if (out.entries.size() == q.limit) {
+      out.next = out.entries.back().id;
+      st.reset();
+      break;
+    }
+    out.entries.push_back({st.integer(0), st.integer(1), st.text(2), st.text(3), st.text(4), st.text(5), st.text(6),
+                           int(st.integer(7))});
+  }
+  return out;
+}
+
+int64_t DurableStore::forget_audit(int64_t before_ms) {
+  std::lock_guard lock(mu_);
+  int64_t n = 0;
+  write_locked([&] {
+    db_.statement("DELETE FROM audit WHERE at_ms < ?").bind(1, before_ms).run();
+    n = db_.changes();
+  });
+  return n;
 }
 
 }  // namespace tessera::server

@@ -155,6 +155,9 @@ class DurableStore final : public CoordinatorStore {
 
   /// The database file.
   std::filesystem::path database_file() const { return db_.file(); }
+  void append_audit(const protocol::AuditEntry& entry) override;
+  protocol::AuditList audit(const protocol::AuditQuery& query) override;
+  int64_t forget_audit(int64_t before_ms) override;
   size_t leftovers_removed() const override { return leftovers_removed_; }
   std::string where() const override { return database_file().string(); }
   bool make_room() override;

@@ -136,6 +136,18 @@ Subscription::Batch Subscription::take() {
   return b;
 }
 
+void Subscription::end() {
+  std::function<void()> wake;
+  {
+    std::lock_guard lock(core_->mu);
+    if (status_ == Status::open) status_ = Status::closed;
+    wake = std::move(wake_);
+    wake_ = nullptr;
+    std::erase(core_->subs, this);
+  }
+  if (wake) wake();
+}
+
 void Subscription::cancel() {
   std::lock_guard lock(core_->mu);
   if (status_ == Status::open) status_ = Status::closed;

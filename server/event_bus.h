@@ -86,6 +86,8 @@ class Subscription {
   Batch take();
   /// Leaves the bus (status closed); idempotent.
   void cancel();
+  /// Leaves the bus and wakes the reader, whose next take() says closed (its stream ends); idempotent.
+  void end();
 
  private:
   friend class EventBus;

@@ -2,6 +2,7 @@
 
 #include "protocol/events.h"
 #include "protocol/query.h"
+#include "protocol/routes.h"
 
 #include <spdlog/spdlog.h>
 
@@ -55,7 +56,23 @@ class SseStream final : public BodyStream {
 
 std::string sse_message(const Event& e) { return "id: " + e.id + "\nevent: " + e.name + "\ndata: " + e.data + "\n\n"; }
 
-HttpReply EventsHandler::open(const HttpRequest& req) {
+size_t EventsHandler::end_unless(const std::function<bool(const std::string&)>& admitted) {
+  std::vector<std::shared_ptr<Subscription>> ending;
+  {
+    std::lock_guard lock(mu_);
+    std::erase_if(open_, [&](const auto& entry) {
+      std::shared_ptr<Subscription> sub = entry.second.lock();
+      if (!sub) return true;
+      if (admitted(entry.first)) return false;
+      ending.push_back(std::move(sub));
+      return true;
+    });
+  }
+  for (const auto& sub : ending) sub->end();  // outside the lock: ending wakes the stream's writer
+  return ending.size();
+}
+
+HttpReply EventsHandler::open(const HttpRequest& req, const std::string& credential) {
   std::optional<std::string> last;
   if (const auto h = req["Last-Event-ID"]; !h.empty()) last = std::string(h);
   std::shared_ptr<Subscription> sub = bus_.subscribe(last, protocol::parse_event_filter(req.target()));
@@ -67,6 +84,11 @@ HttpReply EventsHandler::open(const HttpRequest& req) {
                                   req.version());
     res.set(http::field::retry_after, "5");
     return {std::move(res), nullptr};
+  }
+  {
+    std::lock_guard lock(mu_);
+    std::erase_if(open_, [](const auto& entry) { return entry.second.expired(); });
+    open_.emplace_back(credential, sub);
   }
   auto stream = std::make_shared<SseStream>(std::move(sub), bus_.options().queue_limit);
   HttpResponse head{http::status::ok, req.version()};

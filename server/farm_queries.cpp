@@ -37,7 +37,8 @@ std::optional<FramePage> FarmQueries::frames(const std::string& id, std::optiona
 JobPage FarmQueries::jobs(const JobQuery& q, int64_t now) const {
   std::vector<const JobRec*> recs;
   for (const auto& [id, j] : s_.jobs)
-    if (!j->sequence && (!q.after || j->seq < *q.after) && (q.states.empty() || q.states.count(s_.state_of(*j))))
+    if (!j->sequence && (!q.after || j->seq < *q.after) && (q.owner.empty() || j->status.params.owner == q.owner) &&
+        (q.states.empty() || q.states.count(s_.state_of(*j))))
       recs.push_back(j.get());
   std::sort(recs.begin(), recs.end(), [](const JobRec* a, const JobRec* b) { return a->seq > b->seq; });
   JobPage page;

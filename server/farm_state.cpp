@@ -1,5 +1,7 @@
 #include "server/farm_state.h"
 
+#include "protocol/tags.h"
+
 #include <set>
 #include <string_view>
 #include <utility>
@@ -117,6 +119,7 @@ JobStatus FarmState::snapshot(const JobRec& j, int64_t now) const {
                 std::to_string(*failed->status.frame) + ": " + failed->status.error.value_or("(no error)");
   }
   if (s.started_ms) s.render_seconds = double(s.finished_ms.value_or(now) - *s.started_ms) / 1000.0;
+  s.waiting_for = waiting_for(j, now);
   return s;
 }
 
@@ -184,9 +187,47 @@ void FarmState::return_to_pending(JobRec& j, int64_t tile) {
   work_appeared();
 }
 
+void FarmState::enqueue(JobRec& j) {
+  if (queue.emplace(queue_key(j), &j).second) ++queued_by_owner[j.status.params.owner];
+}
+
+void FarmState::dequeue(const JobRec& j) {
+  if (queue.erase(queue_key(j)) == 0) return;
+  const auto it = queued_by_owner.find(j.status.params.owner);
+  if (it != queued_by_owner.end() && --it->second <= 0) queued_by_owner.erase(it);
+}
+
+const OwnerShare& FarmState::share_of(std::string_view owner) const {
+  static const OwnerShare kDefault;
+  const auto it = shares.find(owner);
+  return it == shares.end() ? kDefault : it->second;
+}
+
+std::optional<std::string> FarmState::waiting_for(const JobRec& j, int64_t now) const {
+  const std::vector<std::string>& need = j.status.params.require;
+  if (need.empty() || is_final(state_of(j))) return std::nullopt;
+  for (const auto& [id, w] : workers.all())
+    if (workers.present(w, now) && !w.drained && protocol::has_tags(w.tags, need)) return std::nullopt;
+  return "a worker with tags " + protocol::tag_text(need);
+}
+
+void FarmState::count_live(const std::string& job, int64_t delta) {
+  JobRec* j = find_job(job);
+  if (!j) return;
+  JobRec& t = top(*j);
+  t.live += delta;
+  if (&t != j) j->live += delta;
+  const auto [it, added] = live_by_owner.try_emplace(t.status.params.owner, 0);
+  if ((it->second += delta) <= 0) live_by_owner.erase(it);
+}
+
+void FarmState::go_live(const LeaseRec& l) {
+  if (live_leases.insert(l.lease.id).second) count_live(l.lease.job, +1);
+}
+
 void FarmState::end_lease(LeaseRec& l, LeaseState to) {
   l.state = to;
-  live_leases.erase(l.lease.id);
+  if (live_leases.erase(l.lease.id)) count_live(l.lease.job, -1);
   changes.touch_lease(l.lease.id);
 }
 

@@ -42,6 +42,7 @@ struct JobRec {
   std::map<std::string, std::string> worker_last_error;  ///< Worker -> the latest error it reported on this job.
   std::set<std::string> worker_set;                      ///< status.workers, for lookups.
   int64_t unflushed = 0;                                 ///< Tiles done but not yet flushed (TileRec::unflushed).
+  int64_t live = 0;  ///< Live leases on its tiles (a sequence: on its frames'), against params.max_workers.
   /// A sequence: its frames' jobs by frame number. A sequence has no tiles of its own and is never in the queue; its
   /// state is derived from its frames' (FarmState::snapshot).
   std::vector<JobRec*> frames;
@@ -57,6 +58,12 @@ struct LeaseRec {
   int64_t granted_ms = 0;               ///< When it was granted (the tile timeout counts from here).
   uint64_t rays = 0;                    ///< Reported by heartbeats (not stored: a restarted lease counts from zero).
   bool live_at_claim = false;           ///< It was live when its upload claimed the tile (abandon_result gives it back).
+};
+
+/// A user's part in sharing the farm (server/user_directory.h): its weight and its cap on tiles leased at once.
+struct OwnerShare {
+  double weight = 1;        ///< Its share of the rendering workers, relative to the other users with work.
+  int64_t max_workers = 0;  ///< Its tiles leased at once at most; 0: no cap.
 };
 
 /// A job that has started and not ended: its last upload completes it.
@@ -80,6 +87,9 @@ struct FarmState {
   std::map<std::string, LeaseRec> leases;            ///< Every lease ever granted (answers 410 vs 404).
   std::set<std::string> live_leases;                 ///< Ids of the live leases.
   WorkerRegistry workers;                            ///< Every registered worker.
+  std::map<std::string, OwnerShare, std::less<>> shares;       ///< Users' weights and caps (others: 1, no cap).
+  std::map<std::string, int64_t, std::less<>> live_by_owner;   ///< Live leases by their job's owner (none: absent).
+  std::map<std::string, int64_t, std::less<>> queued_by_owner; ///< Jobs in the queue by owner (none: absent).
   ChangeLog changes;                                 ///< What changed since the last write to the store.
   uint64_t tiles_rendered = 0;                       ///< Tiles merged.
   uint64_t lease_expiries = 0;                       ///< Leases that expired.
@@ -101,9 +111,13 @@ struct FarmState {
   static JobRec& top(JobRec& j) { return j.sequence ? *j.sequence : j; }
 
   /// Puts the job in the scheduling queue.
-  void enqueue(JobRec& j) { queue.emplace(queue_key(j), &j); }
+  void enqueue(JobRec& j);
   /// Takes the job out of the scheduling queue.
-  void dequeue(const JobRec& j) { queue.erase(queue_key(j)); }
+  void dequeue(const JobRec& j);
+  /// The share of a user (weight 1 and no cap for one the shares do not name).
+  const OwnerShare& share_of(std::string_view owner) const;
+  /// Why a job with pending tiles is leased none for want of a worker with its tags, or nothing.
+  std::optional<std::string> waiting_for(const JobRec& j, int64_t now) const;
   /// Tells whoever watches (on_work) that tiles may have become leasable.
   void work_appeared() const {
     if (work_noted) work_noted();
@@ -123,15 +137,20 @@ struct FarmState {
                             int64_t now);
   /// Hands a tile back to the queue: pending, no lease, leasable again.
   void return_to_pending(JobRec& j, int64_t tile);
+  /// Makes a lease live (it counts against its job's and its owner's caps and shares).
+  void go_live(const LeaseRec& l);
   /// Ends a lease in state `to` (no longer live).
   void end_lease(LeaseRec& l, LeaseState to);
   /// Revokes every live lease of the job, handing their tiles back to the queue; returns how many.
   int revoke_leases(JobRec& j);
   /// Ends the job in state `to` (done, failed, cancelled) with an error, revoking its live leases; returns how many.
   int finish_job(JobRec& j, JobState to, int64_t now, std::optional<std::string> error);
+  /// A job's place in the queue.
+  static QueueKey queue_key(const JobRec& j) { return {-j.status.params.priority, j.status.created_ms, j.seq}; }
 
  private:
-  static QueueKey queue_key(const JobRec& j) { return {-j.status.params.priority, j.status.created_ms, j.seq}; }
+  // Adds `delta` to the live leases counted for the job `job` and its owner.
+  void count_live(const std::string& job, int64_t delta);
 };
 
 }  // namespace tessera::server

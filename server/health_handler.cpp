@@ -2,7 +2,7 @@
 
 namespace tessera::server {
 
-HttpResponse HealthHandler::handle(const protocol::RouteMatch& route, HttpRequest& req) {
+HttpResponse HealthHandler::handle(const protocol::RouteMatch& route, HttpRequest& req, const Caller& /*caller*/) {
   if (route.endpoint() == protocol::Endpoint::healthz) {
     // 200 whatever the disk: the coordinator still serves, and restarting it would not free any space.
     protocol::HealthAnswer a;

@@ -15,7 +15,7 @@ class HealthHandler final : public ResourceHandler {
   /// Endpoints over the given state (which must outlive it).
   HealthHandler(Scheduler& scheduler, Metrics& metrics, ClockMs clock, LeaseWaiters& waiters, const DiskSpace& disk)
       : sched_(scheduler), metrics_(metrics), clock_(std::move(clock)), waiters_(waiters), disk_(disk) {}
-  HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& req) override;
+  HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& req, const Caller& caller) override;
 
  private:
   Scheduler& sched_;

@@ -127,6 +127,21 @@ class Refusal : public std::enable_shared_from_this<Refusal> {
 
 }  // namespace
 
+// The subject common name of the verified certificate the TLS peer presented, or "" (none, not verified, or plain TCP).
+std::string verified_client_name(SSL* ssl) {
+  if (!ssl) return "";
+  X509* cert = SSL_get_peer_certificate(ssl);
+  if (!cert) return "";
+  std::string name;
+  if (SSL_get_verify_result(ssl) == X509_V_OK) {
+    char buf[256];
+    const int n = X509_NAME_get_text_by_NID(X509_get_subject_name(cert), NID_commonName, buf, sizeof buf);
+    if (n > 0) name.assign(buf, size_t(n));
+  }
+  X509_free(cert);
+  return name;
+}
+
 // One connection: (with TLS, a server handshake first, within the read timeout,) then reads a request header, picks
 // the body limit, reads the body, hands the request to the handler pool and writes the answer, all on the
 // connection's strand; keep-alive loops back to the next header. One class for both: the stream hides whether the
@@ -198,6 +213,7 @@ class Session : public std::enable_shared_from_this<Session> {
         self->lowest().socket().close(ignored);
         return;
       }
+      self->cert_name_ = verified_client_name(self->stream_->tls_handle());
       self->read_header();
     });
   }
@@ -227,7 +243,12 @@ class Session : public std::enable_shared_from_this<Session> {
   void on_header(beast::error_code ec, std::size_t) {
     waiting_ = false;
     if (ec) return on_read_error(ec);
-    const auto& req = parser_->get();
+    auto& req = parser_->get();
+    // Who the peer is, as the transport knows it; fields of these names a client sent are not believed.
+    req.erase(kPeerAddressField);
+    req.erase(kClientCertNameField);
+    req.set(kPeerAddressField, peer_.to_string());
+    if (!cert_name_.empty()) req.set(kClientCertNameField, cert_name_);
     if (!trusted_ && st_->handler.authenticated(req.base())) trusted_ = true;
     if (auto early = st_->handler.early_response(req.base())) {
       if (early->result() == http::status::unauthorized || early->result() == http::status::forbidden)
@@ -468,6 +489,7 @@ class Session : public std::enable_shared_from_this<Session> {
   std::shared_ptr<HttpServer::State> st_;
   uint64_t id_;
   asio::ip::address peer_;
+  std::string cert_name_;  // the common name of the peer's verified client certificate, if it showed one
   std::atomic<bool> trusted_{false};  // written on the strand, read by the acceptor
   bool waiting_ = false;
   bool closing_ = false;

@@ -63,6 +63,13 @@ struct HttpReply {
   std::shared_ptr<BodyStream> stream;  ///< The body, when streamed.
 };
 
+/// A request header field the transport sets on every request (one a client sent is removed first): the peer's
+/// network address.
+inline constexpr std::string_view kPeerAddressField = "Tessera-Peer-Address";
+/// A request header field the transport sets on every request of a TLS connection whose client presented a verified
+/// certificate (one a client sent is removed first): the certificate's subject common name.
+inline constexpr std::string_view kClientCertNameField = "Tessera-Client-Cert-CN";
+
 /// The application behind the transport.
 class HttpHandler {
  public:

@@ -1147,7 +1147,7 @@ TEST_F(HttpTest, ShutdownEndsEveryEventStream) {
 class EventsTest : public HttpTest {
  protected:
   void configure(CoordinatorOptions& o) override {
-    o.limits.tokens = AccessTokens{"client-token-0123456789abcdef", "worker-token-0123456789abcdef"};
+    o.limits.tokens = AccessTokens{"client-token-0123456789abcdef", "worker-token-0123456789abcdef", {}};
     o.events.max_subscribers = 2;
     o.stream_idle = std::chrono::milliseconds(20);
   }

@@ -138,15 +138,26 @@ ApiError JobService::queue_full() const {
                            " are queued, running or paused (--max-queued-jobs); retry later");
 }
 
-protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
-  // Admission: queued plus running jobs are bounded (checked again, atomically with add_job, below).
-  if (unfinished_jobs() >= limits_.max_queued_jobs) throw queue_full();
-  if (!sub.frames.empty()) return submit_sequence(sub);
-  const CheckedScene s = check_scene(sub.scene, sub.assets, sub.sampling, "");
+namespace {
+// What a submission fixes for its job (a sequence's, and each of its frames'), whatever its scenes hold.
+JobParams submitted_params(const protocol::JobSubmission& sub, const std::string& owner) {
   JobParams p;
   p.name = sub.name;
   p.priority = sub.priority;
   p.tile_timeout_seconds = sub.tile_timeout_seconds;
+  p.owner = owner;
+  p.require = sub.require;
+  p.max_workers = sub.max_workers;
+  return p;
+}
+}  // namespace
+
+protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub, const std::string& owner) {
+  // Admission: queued plus running jobs are bounded (checked again, atomically with add_job, below).
+  if (unfinished_jobs() >= limits_.max_queued_jobs) throw queue_full();
+  if (!sub.frames.empty()) return submit_sequence(sub, owner);
+  const CheckedScene s = check_scene(sub.scene, sub.assets, sub.sampling, "");
+  JobParams p = submitted_params(sub, owner);
   p.width = s.width;
   p.height = s.height;
   p.tile_size = sub.tile_size;
@@ -175,7 +186,7 @@ protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
   return {id, s.warnings};
 }
 
-protocol::SubmitAnswer JobService::submit_sequence(const protocol::JobSubmission& sub) {
+protocol::SubmitAnswer JobService::submit_sequence(const protocol::JobSubmission& sub, const std::string& owner) {
   if (int64_t(sub.frames.size()) > limits_.max_job_frames)
     throw ApiError(400, "sequence too long: " + std::to_string(sub.frames.size()) + " frames is over the limit of " +
                             std::to_string(limits_.max_job_frames) + " (--max-job-frames)");
@@ -226,10 +237,7 @@ protocol::SubmitAnswer JobService::submit_sequence(const protocol::JobSubmission
     if (e) std::rethrow_exception(e);
   std::vector<std::string> warnings;
   for (auto& w : frame_warnings) warnings.insert(warnings.end(), w.begin(), w.end());
-  JobParams p;
-  p.name = sub.name;
-  p.priority = sub.priority;
-  p.tile_timeout_seconds = sub.tile_timeout_seconds;
+  JobParams p = submitted_params(sub, owner);
   p.tile_size = sub.tile_size;
   p.spp = frames.front().spp;
   p.seed = sub.sampling.seed;
@@ -308,6 +316,7 @@ protocol::JobList JobService::list(const protocol::JobListQuery& q) {
   JobQuery query;
   query.states.insert(q.states.begin(), q.states.end());
   query.limit = q.limit;
+  query.owner = q.owner;
   if (!q.after.empty()) {
     query.after = sched_.job_seq(q.after);
     uint64_t seq = 0;

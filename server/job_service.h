@@ -64,8 +64,8 @@ class JobService {
 
   /// Checks the submission (asset paths, uploaded assets, the scene as `tessera render` loads it, size limits; every
   /// frame of a sequence, whose sentence then names the frame), stores its spec (each frame's) and queues it, all or
-  /// nothing. Throws ApiError: 400 for bad input, 429 when the queue is full.
-  protocol::SubmitAnswer submit(const protocol::JobSubmission& submission);
+  /// nothing, as the job of user `owner`. Throws ApiError: 400 for bad input, 429 when the queue is full.
+  protocol::SubmitAnswer submit(const protocol::JobSubmission& submission, const std::string& owner = "");
   /// A page of a sequence's frames (docs/protocol.md, "Sequences"); ApiError 404 unknown, 409 not a sequence.
   protocol::FrameList frames(const std::string& id, const protocol::FrameListQuery& query);
   /// The job of frame `frame` (its number as in the URL) of a sequence; ApiError 404 unknown job or frame, 409 not a
@@ -165,7 +165,7 @@ class JobService {
   CheckedScene check_scene(const nlohmann::json& scene, const std::map<std::string, std::string>& assets,
                            const protocol::SamplingSettings& sampling, const std::string& where,
                            const BlobFiles* known = nullptr, ObjParseCache* objs = nullptr);
-  protocol::SubmitAnswer submit_sequence(const protocol::JobSubmission& submission);
+  protocol::SubmitAnswer submit_sequence(const protocol::JobSubmission& submission, const std::string& owner);
   // The assets the job's spec names: from the cached spec, else read from its record without caching it (a blob
   // collection reads every frame's). ApiError 404 when there is neither; what the store throws.
   std::map<std::string, std::string> spec_assets(const std::string& id);

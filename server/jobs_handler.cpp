@@ -8,7 +8,7 @@ namespace tessera::server {
 
 using protocol::Endpoint;
 
-HttpResponse JobsHandler::handle(const protocol::RouteMatch& route, HttpRequest& req) {
+HttpResponse JobsHandler::handle(const protocol::RouteMatch& route, HttpRequest& req, const Caller& caller) {
   const Endpoint endpoint = route.endpoint();
   const std::string& id = route.param;
   const unsigned v = req.version();
@@ -16,7 +16,7 @@ HttpResponse JobsHandler::handle(const protocol::RouteMatch& route, HttpRequest&
   switch (endpoint) {
     case Endpoint::jobs: {
       if (get) return json_response(http::status::ok, jobs_.list(protocol::parse_job_list_query(req.target())), v);
-      const protocol::SubmitAnswer a = jobs_.submit(protocol::parse_job_submission(req.body()));
+      const protocol::SubmitAnswer a = jobs_.submit(protocol::parse_job_submission(req.body()), caller.user);
       HttpResponse res = json_response(http::status::created, a, v);
       res.set(http::field::location, protocol::routes::job(a.id));
       return res;
@@ -52,7 +52,7 @@ HttpResponse JobsHandler::handle(const protocol::RouteMatch& route, HttpRequest&
   throw protocol::ApiError(404, "no such endpoint");
 }
 
-std::optional<HttpReply> JobsHandler::stream(const protocol::RouteMatch& route, HttpRequest& req) {
+std::optional<HttpReply> JobsHandler::stream(const protocol::RouteMatch& route, HttpRequest& req, const Caller& /*caller*/) {
   if (route.endpoint() != Endpoint::job_result && route.endpoint() != Endpoint::job_frame_result) return std::nullopt;
   // A frame's result is its own job's.
   const std::string job =

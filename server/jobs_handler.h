@@ -12,9 +12,9 @@ class JobsHandler final : public ResourceHandler {
  public:
   /// Endpoints over `jobs`, purging through `collector` (both must outlive it).
   JobsHandler(JobService& jobs, Collector& collector) : jobs_(jobs), collector_(collector) {}
-  HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& req) override;
+  HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& req, const Caller& caller) override;
   /// The result EXR, streamed from its file.
-  std::optional<HttpReply> stream(const protocol::RouteMatch& route, HttpRequest& req) override;
+  std::optional<HttpReply> stream(const protocol::RouteMatch& route, HttpRequest& req, const Caller& caller) override;
 
  private:
   JobService& jobs_;

@@ -1,6 +1,7 @@
 #include "server/lease_flow.h"
 
 #include "core/image/tiles.h"
+#include "protocol/tags.h"
 #include "server/worker_secret.h"
 
 #include <spdlog/spdlog.h>
@@ -10,12 +11,13 @@
 
 namespace tessera::server {
 
-std::string LeaseFlow::register_worker(const std::string& name, int64_t threads, const std::string& secret_hash,
-                                       int64_t now) {
+std::string LeaseFlow::register_worker(const std::string& name, int64_t threads, const std::vector<std::string>& tags,
+                                       const std::string& secret_hash, int64_t now) {
   if (s_.config.max_workers > 0 && int64_t(s_.workers.size()) >= s_.config.max_workers) return {};
   const std::string id = s_.next_id('w');
   WorkerRec rec{name, now, threads};
   rec.secret_hash = secret_hash;
+  rec.tags = tags;
   s_.workers.add(id, std::move(rec));
   s_.changes.touch_worker(id);
   if (s_.config.worker_retention_ms > 0)  // the first moment forget_workers() may forget it
@@ -51,25 +53,7 @@ AcquireResult LeaseFlow::acquire(const std::string& worker, int64_t now) {
     return r;
   }
   std::vector<JobRec*> stuck;  // jobs this worker may not take: fail them if no present worker may
-  JobRec* chosen = nullptr;
-  JobRec* shared = nullptr;  // the first frame, leased in any order, that another worker is on
-  for (auto& [key, j] : s_.queue) {
-    if (j->pending.empty() || j->status.state == JobState::paused) continue;
-    if (s_.blocklisted(*j, worker)) {
-      stuck.push_back(j);
-      continue;
-    }
-    // A sequence leased in any order keeps each worker on a frame of its own (each scene is loaded by one worker),
-    // and shares a frame only when no other is left.
-    if (j->sequence && j->status.params.frame_order == protocol::FrameOrder::any &&
-        j->pending.size() != j->tiles.size() && w->last_job != j->status.id) {
-      if (!shared) shared = j;
-      continue;
-    }
-    chosen = j;
-    break;
-  }
-  if (!chosen) chosen = shared;
+  JobRec* const chosen = pick_job(worker, *w, stuck);
   if (JobRec* j = chosen) {
     const int64_t tile = *j->pending.begin();
     j->pending.erase(j->pending.begin());
@@ -95,7 +79,7 @@ AcquireResult LeaseFlow::acquire(const std::string& worker, int64_t now) {
       j->status.started_ms = now;
       s_.touch(*j);
     }
-    s_.live_leases.insert(rec.lease.id);
+    s_.go_live(rec);
     s_.changes.touch_lease(rec.lease.id);
     watch(rec);
     r.status = AcquireResult::granted;
@@ -109,12 +93,81 @@ AcquireResult LeaseFlow::acquire(const std::string& worker, int64_t now) {
   return r;
 }
 
+JobRec* LeaseFlow::pick_job(const std::string& worker, const WorkerRec& w, std::vector<JobRec*>& stuck) const {
+  // Each owner's first job (in priority, then submission order) this worker may take now.
+  struct Candidate {
+    JobRec* job = nullptr;
+    JobRec* shared = nullptr;  // the first frame, leased in any order, that another worker is on
+    bool settled = false;      // found, or the owner is at its cap
+  };
+  std::map<std::string_view, Candidate> candidates;
+  size_t settled = 0;  // owners whose candidate is found (or who are at their cap)
+  for (auto& [key, j] : s_.queue) {
+    if (settled == s_.queued_by_owner.size()) break;  // every owner with queued jobs has its candidate
+    const std::string& owner = j->status.params.owner;
+    const auto [it, fresh] = candidates.try_emplace(owner);
+    Candidate& c = it->second;
+    if (fresh) {
+      const OwnerShare& share = s_.share_of(owner);
+      const auto live = s_.live_by_owner.find(owner);
+      if (share.max_workers > 0 && live != s_.live_by_owner.end() && live->second >= share.max_workers) {
+        c.settled = true;  // at the owner's cap: none of its jobs now
+        ++settled;
+      }
+    }
+    if (c.settled) continue;
+    if (j->pending.empty() || j->status.state == JobState::paused) continue;
+    if (!protocol::has_tags(w.tags, j->status.params.require)) continue;
+    const JobRec& top = FarmState::top(*j);
+    if (top.status.params.max_workers > 0 && top.live >= top.status.params.max_workers) continue;
+    if (s_.blocklisted(*j, worker)) {
+      stuck.push_back(j);
+      continue;
+    }
+    // A sequence leased in any order keeps each worker on a frame of its own (each scene is loaded by one worker),
+    // and shares a frame only when no other is left.
+    if (j->sequence && j->status.params.frame_order == protocol::FrameOrder::any &&
+        j->pending.size() != j->tiles.size() && w.last_job != j->status.id) {
+      if (!c.shared) c.shared = j;
+      continue;
+    }
+    c.job = j;
+    c.settled = true;
+    ++settled;
+  }
+  // The owner furthest below its share of the rendering workers (this grant included) gets the lease; ties go to the
+  // job first in the queue.
+  double weights = 0;
+  for (const auto& [owner, c] : candidates)
+    if (c.job || c.shared) weights += s_.share_of(owner).weight;
+  for (const auto& [owner, live] : s_.live_by_owner)
+    if (!candidates.count(owner)) weights += s_.share_of(owner).weight;
+  const double rendering = double(s_.live_leases.size() + 1);
+  JobRec* best = nullptr;
+  double best_deficit = 0;
+  for (const auto& [owner, c] : candidates) {
+    JobRec* j = c.job ? c.job : c.shared;
+    if (!j) continue;
+    const auto live = s_.live_by_owner.find(owner);
+    const double deficit = rendering * s_.share_of(owner).weight / weights -
+                           double(live == s_.live_by_owner.end() ? 0 : live->second);
+    if (!best || deficit > best_deficit ||
+        (deficit == best_deficit && FarmState::queue_key(*j) < FarmState::queue_key(*best))) {
+      best = j;
+      best_deficit = deficit;
+    }
+  }
+  return best;
+}
+
 int64_t LeaseFlow::leasable_tiles(const std::string& worker) const {
   const WorkerRec* w = s_.workers.find(worker);
   if (!w || w->drained) return 0;
   int64_t n = 0;
   for (const auto& [key, j] : s_.queue)
-    if (j->status.state != JobState::paused && !s_.blocklisted(*j, worker)) n += int64_t(j->pending.size());
+    if (j->status.state != JobState::paused && protocol::has_tags(w->tags, j->status.params.require) &&
+        !s_.blocklisted(*j, worker))
+      n += int64_t(j->pending.size());
   return n;
 }
 
@@ -275,7 +328,7 @@ void LeaseFlow::abandon_result(const std::string& lease, int64_t now) {
   t.state = TileState::leased;
   l.state = LeaseState::live;
   l.lease.deadline_ms = now + s_.config.lease_ms;
-  s_.live_leases.insert(lease);
+  s_.go_live(l);
   watch(l);
   s_.changes.touch_lease(lease);
   s_.touch(j, l.lease.tile);

@@ -21,8 +21,10 @@ class LeaseFlow {
   /// Operations on `s`, which must outlive it.
   explicit LeaseFlow(FarmState& s) : s_(s) {}
 
-  /// Registers a worker whose secret hashes to `secret_hash` and returns its id; "" when max_workers are registered.
-  std::string register_worker(const std::string& name, int64_t threads, const std::string& secret_hash, int64_t now);
+  /// Registers a worker offering `tags` whose secret hashes to `secret_hash` and returns its id; "" when max_workers
+  /// are registered.
+  std::string register_worker(const std::string& name, int64_t threads, const std::vector<std::string>& tags,
+                              const std::string& secret_hash, int64_t now);
   /// Whether `secret` is the secret of the worker `worker`.
   WorkerCheck check_worker(const std::string& worker, std::string_view secret) const;
   /// Whether `secret` is the secret of the worker the lease was granted to; sets `holder` to that worker's id.
@@ -56,6 +58,10 @@ class LeaseFlow {
   void forget_workers(int64_t now);
 
  private:
+  // The job whose tile the worker gets next (docs/protocol.md, "Sharing the farm"): each owner's first job in queue
+  // order that the worker may take (its tags, the job's and the owner's caps, its blocklist), then the owner furthest
+  // below its weighted share of the leases; nullptr when none. Jobs the worker is blocklisted for go to `stuck`.
+  JobRec* pick_job(const std::string& worker, const WorkerRec& w, std::vector<JobRec*>& stuck) const;
   // The result claim's view of the lease, with its job and lease records (unset for an unknown lease).
   ResultClaim claim_view(const std::string& lease, JobRec** job_out, LeaseRec** lease_out);
   // When lease l next needs a look: the first moment it has expired or timed out.

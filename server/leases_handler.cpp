@@ -11,7 +11,7 @@ namespace tessera::server {
 using protocol::ApiError;
 using protocol::Endpoint;
 
-HttpResponse LeasesHandler::handle(const protocol::RouteMatch& route, HttpRequest& req) {
+HttpResponse LeasesHandler::handle(const protocol::RouteMatch& route, HttpRequest& req, const Caller& /*caller*/) {
   const Endpoint endpoint = route.endpoint();
   const std::string& id = route.param;
   const unsigned v = req.version();
@@ -150,11 +150,11 @@ void LeasesHandler::refuse_identity(const std::string& why) {
   throw ApiError(403, why);
 }
 
-void LeasesHandler::handle_async(const protocol::RouteMatch& route, HttpRequest& req, Answer answer) {
+void LeasesHandler::handle_async(const protocol::RouteMatch& route, HttpRequest& req, const Caller& caller, Answer answer) {
   const Endpoint endpoint = route.endpoint();
   const std::string& id = route.param;
   if (endpoint != Endpoint::lease_result && endpoint != Endpoint::worker_lease)
-    return ResourceHandler::handle_async(route, req, std::move(answer));
+    return ResourceHandler::handle_async(route, req, caller, std::move(answer));
   try {
     if (endpoint == Endpoint::worker_lease) lease(id, req, answer);
     else result(id, req, answer);

@@ -20,10 +20,10 @@ class LeasesHandler final : public ResourceHandler {
   LeasesHandler(Scheduler& scheduler, JobService& jobs, Metrics& metrics, ClockMs clock, FarmEvents& events,
                 LeaseWaiters& waiters)
       : sched_(scheduler), jobs_(jobs), metrics_(metrics), clock_(std::move(clock)), events_(events), waiters_(waiters) {}
-  HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& req) override;
+  HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& req, const Caller& caller) override;
   /// Result uploads are answered once their tile is durable (JobService::accept_tile), lease requests with a wait
   /// once there is a tile or the wait is over; the rest as handle().
-  void handle_async(const protocol::RouteMatch& route, HttpRequest& req, Answer answer) override;
+  void handle_async(const protocol::RouteMatch& route, HttpRequest& req, const Caller& caller, Answer answer) override;
 
  private:
   void lease(const std::string& worker, HttpRequest& req, Answer answer);

@@ -69,3 +69,43 @@ std::optional<std::pair<uint32_t, std::string>> MemoryStore::tile_state(const st
 }
 
 }  // namespace tessera::server
+
+namespace tessera::server {
+
+void MemoryStore::append_audit(const protocol::AuditEntry& entry) {
+  std::lock_guard lock(mu_);
+  protocol::AuditEntry e = entry;
+  e.id = audit_.empty() ? 1 : audit_.rbegin()->first + 1;
+  audit_.emplace(e.id, std::move(e));
+}
+
+protocol::AuditList MemoryStore::audit(const protocol::AuditQuery& q) {
+  std::lock_guard lock(mu_);
+  protocol::AuditList out;
+  auto it = q.before ? audit_.lower_bound(*q.before) : audit_.end();
+  while (it != audit_.begin()) {
+    --it;
+    if (!q.user.empty() && it->second.user != q.user) continue;
+    if (out.entries.size() == q.limit) {
+      out.next = out.entries.back().id;
+      break;
+    }
+    out.entries.push_back(it->second);
+  }
+  return out;
+}
+
+int64_t MemoryStore::forget_audit(int64_t before_ms) {
+  std::lock_guard lock(mu_);
+  int64_t n = 0;
+  for (auto it = audit_.begin(); it != audit_.end();)
+    if (it->second.at_ms < before_ms) {
+      it = audit_.erase(it);
+      ++n;
+    } else {
+      ++it;
+    }
+  return n;
+}
+
+}  // namespace tessera::server

@@ -30,6 +30,9 @@ class MemoryStore final : public CoordinatorStore {
   std::optional<uint32_t> tile_state_spp(const std::string& job, int64_t tile) override;
   std::optional<std::pair<uint32_t, std::string>> tile_state(const std::string& job, int64_t tile) override;
 
+  void append_audit(const protocol::AuditEntry& entry) override;
+  protocol::AuditList audit(const protocol::AuditQuery& query) override;
+  int64_t forget_audit(int64_t before_ms) override;
   size_t leftovers_removed() const override { return leftovers_removed_; }
   std::string where() const override { return "memory"; }
 
@@ -39,6 +42,7 @@ class MemoryStore final : public CoordinatorStore {
   std::map<std::string, std::map<int64_t, std::string>> pixels_;  // job -> done tile -> float32 RGB rows (mu_)
   std::map<std::string, nlohmann::json> records_;                  // (mu_)
   std::map<std::pair<std::string, int64_t>, std::pair<uint32_t, std::string>> tile_states_;  // (mu_)
+  std::map<int64_t, protocol::AuditEntry> audit_;  // by id (mu_)
 };
 
 }  // namespace tessera::server

@@ -2,10 +2,11 @@
 
 namespace tessera::server {
 
-void ResourceHandler::handle_async(const protocol::RouteMatch& route, HttpRequest& request, Answer answer) {
+void ResourceHandler::handle_async(const protocol::RouteMatch& route, HttpRequest& request, const Caller& caller,
+                                   Answer answer) {
   HttpResponse res;
   try {
-    res = handle(route, request);
+    res = handle(route, request, caller);
   } catch (...) {
     return answer(HttpResponse{}, std::current_exception());
   }

@@ -1,9 +1,11 @@
 // One resource's endpoints behind the router (server/api.h): requests arrive matched, authorised and within their
-// size limit; refusals are thrown as protocol::ApiError or protocol::ProtocolError.
+// size limit, with the caller their credential stands for; refusals are thrown as protocol::ApiError or
+// protocol::ProtocolError.
 #pragma once
 
 #include "protocol/errors.h"
 #include "protocol/routes.h"
+#include "server/auth.h"
 #include "server/http_server.h"
 
 #include <nlohmann/json.hpp>
@@ -22,14 +24,17 @@ using Answer = std::function<void(HttpResponse response, std::exception_ptr refu
 class ResourceHandler {
  public:
   virtual ~ResourceHandler() = default;
-  /// Answers a request for the matched `route` (one of this handler's endpoints, with its path parameters).
-  virtual HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& request) = 0;
+  /// Answers a request of `caller` for the matched `route` (one of this handler's endpoints, with its path
+  /// parameters).
+  virtual HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& request, const Caller& caller) = 0;
   /// As handle(), but the answer may come later, from another thread (the request is read only before this returns).
   /// By default handle() answers at once.
-  virtual void handle_async(const protocol::RouteMatch& route, HttpRequest& request, Answer answer);
+  virtual void handle_async(const protocol::RouteMatch& route, HttpRequest& request, const Caller& caller,
+                            Answer answer);
   /// An answer whose body is streamed (a stored file), or nothing for handle_async() to answer instead. Throws
   /// refusals as handle() does.
-  virtual std::optional<HttpReply> stream(const protocol::RouteMatch& /*route*/, HttpRequest& /*request*/) {
+  virtual std::optional<HttpReply> stream(const protocol::RouteMatch& /*route*/, HttpRequest& /*request*/,
+                                          const Caller& /*caller*/) {
     return std::nullopt;
   }
 };

@@ -121,15 +121,33 @@ JobPage Scheduler::jobs(const JobQuery& query) {
   return transact([&](int64_t now) { return views_.jobs(query, now); }, Store::if_it_can);
 }
 
+std::optional<std::string> Scheduler::job_owner(const std::string& id) {
+  return transact([&](int64_t) -> std::optional<std::string> {
+    JobRec* j = state_.find_job(id);
+    if (!j) return std::nullopt;
+    return FarmState::top(*j).status.params.owner;
+  }, Store::if_it_can);
+}
+
 std::optional<uint64_t> Scheduler::job_seq(const std::string& id) {
   return transact([&](int64_t) { return views_.job_seq(id); }, Store::if_it_can);
 }
 
-RegisterResult Scheduler::register_worker(const std::string& name, int64_t threads) {
+void Scheduler::set_shares(std::map<std::string, OwnerShare, std::less<>> shares) {
+  transact(
+      [&](int64_t) {
+        state_.shares = std::move(shares);
+        state_.work_appeared();  // a cap raised may let tiles be leased
+        return true;
+      },
+      Store::later);
+}
+
+RegisterResult Scheduler::register_worker(const std::string& name, int64_t threads, const std::vector<std::string>& tags) {
   RegisterResult r;
   r.secret = new_worker_secret();
   const std::string hash = worker_secret_hash(r.secret);
-  r.id = transact([&](int64_t now) { return leases_.register_worker(name, threads, hash, now); });
+  r.id = transact([&](int64_t now) { return leases_.register_worker(name, threads, tags, hash, now); });
   if (r.id.empty()) {
     r.status = RegisterResult::full;
     r.secret.clear();

@@ -66,12 +66,16 @@ class Scheduler {
   std::vector<JobStatus> jobs();
   /// The jobs a query asks for, newest first.
   JobPage jobs(const JobQuery& query);
+  /// The user who owns a job (a frame: its sequence's), or nothing for an unknown id.
+  std::optional<std::string> job_owner(const std::string& id);
   /// The submission number of a job (what a listing cursor holds), or nothing for an unknown id.
   std::optional<uint64_t> job_seq(const std::string& id);
 
-  /// Registers a worker (announcing `threads` render threads, 0 unknown) with a fresh secret; refused (full) when
-  /// max_workers are registered.
-  RegisterResult register_worker(const std::string& name, int64_t threads = 0);
+  /// Registers a worker (announcing `threads` render threads, 0 unknown, and offering `tags`, sorted) with a fresh
+  /// secret; refused (full) when max_workers are registered.
+  RegisterResult register_worker(const std::string& name, int64_t threads = 0, const std::vector<std::string>& tags = {});
+  /// Sets each user's weight and cap (users not named weigh 1 with no cap); the next lease follows them.
+  void set_shares(std::map<std::string, OwnerShare, std::less<>> shares);
   /// Whether `secret` is the secret of the worker `worker` (a lease request's check).
   WorkerCheck check_worker(const std::string& worker, std::string_view secret);
   /// Whether `secret` is the secret of the worker the lease was granted to (the check of every request on a lease);
@@ -88,8 +92,10 @@ class Scheduler {
   /// True when the worker id is registered.
   bool has_worker(const std::string& id);
 
-  /// Leases the lowest pending tile of the highest-priority (then oldest) job that is not paused and the worker is not
-  /// blocklisted for; a drained worker gets no work.
+  /// Leases the lowest pending tile of a job the worker may take (its tags include the job's requirements, the job
+  /// and its owner are under their caps, the worker is not blocklisted for it, it is not paused): the job of the owner
+  /// furthest below its weighted share of the leases, and within an owner the highest-priority (then oldest) job. A
+  /// drained worker gets no work.
   AcquireResult acquire(const std::string& worker);
   /// How many tiles acquire() could lease to the worker now (0 for an unknown or drained worker); changes nothing.
   int64_t leasable_tiles(const std::string& worker);

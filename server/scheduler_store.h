@@ -58,6 +58,7 @@ struct WorkerRow {
   std::string name;      ///< Its self-reported name.
   bool drained = false;  ///< An operator drained it (no new leases until undrained).
   std::string secret_hash{};  ///< SHA-256 of its secret, hex ("": registered by a build without secrets).
+  std::vector<std::string> tags{};  ///< What it offers, as it registered.
 };
 
 /// Counters and the id sequence, kept so a restarted coordinator continues them.

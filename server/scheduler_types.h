@@ -177,11 +177,13 @@ struct FramePage {
   bool more = false;              ///< More frames follow the last one.
 };
 
-/// Which jobs a listing wants: states (empty: all), at most `limit` (0: no limit), older than the job with `after_seq`.
+/// Which jobs a listing wants: states (empty: all), an owner, at most `limit` (0: no limit), older than the job with
+/// `after_seq`.
 struct JobQuery {
   std::set<JobState> states;      ///< Wanted states; empty means every state.
   size_t limit = 0;               ///< Most jobs in the answer; 0: all.
   std::optional<uint64_t> after;  ///< Only jobs submitted before the one with this seq (a cursor).
+  std::string owner;              ///< Only this user's jobs ("": everyone's).
 };
 
 /// One page of a listing, newest first.

@@ -4,7 +4,7 @@ namespace tessera::server {
 
 using protocol::Endpoint;
 
-HttpResponse TilesHandler::handle(const protocol::RouteMatch& route, HttpRequest& req) {
+HttpResponse TilesHandler::handle(const protocol::RouteMatch& route, HttpRequest& req, const Caller& /*caller*/) {
   const Endpoint endpoint = route.endpoint();
   const std::string& id = route.param;
   const unsigned v = req.version();

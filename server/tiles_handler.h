@@ -11,7 +11,7 @@ class TilesHandler final : public ResourceHandler {
  public:
   /// Endpoints over `jobs` (which must outlive it).
   explicit TilesHandler(JobService& jobs) : jobs_(jobs) {}
-  HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& req) override;
+  HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& req, const Caller& caller) override;
 
  private:
   JobService& jobs_;

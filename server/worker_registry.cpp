@@ -56,6 +56,7 @@ protocol::WorkerInfo WorkerRegistry::info(const std::string& id, const WorkerRec
     info.tile = holding->tile;
   }
   info.blocklisted_for = std::move(blocklisted_for);
+  info.tags = w.tags;
   using protocol::WorkerState;
   info.state = !present(w, now) ? WorkerState::offline
                : w.drained      ? WorkerState::draining

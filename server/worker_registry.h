@@ -23,6 +23,7 @@ struct WorkerRec {
   bool drained = false;      ///< No new leases.
   std::string secret_hash{};  ///< SHA-256 of its secret (server/worker_secret.h); "" for none: it must register again.
   std::string last_job{};     ///< The job of its latest lease (a sequence leased in any order keeps it there).
+  std::vector<std::string> tags{};  ///< What it offers (sorted), as it registered; jobs requiring tags need them.
 };
 
 /// Every registered worker by id. Not thread-safe: the scheduler uses it under its lock.

@@ -11,7 +11,7 @@ namespace {
 constexpr int kFullRetryAfterSeconds = 60;
 }  // namespace
 
-HttpResponse WorkersHandler::handle(const protocol::RouteMatch& route, HttpRequest& req) {
+HttpResponse WorkersHandler::handle(const protocol::RouteMatch& route, HttpRequest& req, const Caller& /*caller*/) {
   const Endpoint endpoint = route.endpoint();
   const std::string& id = route.param;
   const unsigned v = req.version();
@@ -40,7 +40,7 @@ HttpResponse WorkersHandler::register_worker(HttpRequest& req) {
     res.set(http::field::retry_after, std::to_string((wait_ms + 999) / 1000));
     return res;
   }
-  const RegisterResult r = sched_.register_worker(hello.name, hello.threads);
+  const RegisterResult r = sched_.register_worker(hello.name, hello.threads, hello.tags);
   if (r.status == RegisterResult::full) {
     HttpResponse res = json_error(http::status::service_unavailable,
                                   "the coordinator has " + std::to_string(sched_.config().max_workers) +

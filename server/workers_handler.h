@@ -22,7 +22,7 @@ class WorkersHandler final : public ResourceHandler {
         registrations_(registrations_per_minute),
         clock_(std::move(clock)),
         events_(events) {}
-  HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& req) override;
+  HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& req, const Caller& caller) override;
 
  private:
   // POST /v1/workers: 201 with the new worker's id and secret, 429 past the rate, 503 past the bound.

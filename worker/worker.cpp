@@ -189,7 +189,7 @@ class Worker {
   }
 
   bool register_worker() {
-    const json body = protocol::WorkerHello{name_, threads_, TESSERA_VERSION};
+    const json body = protocol::WorkerHello{name_, threads_, TESSERA_VERSION, opt_.tags};
     try {
       const client::HttpResponse r = http_.send("POST", routes::workers(), body.dump());
       coordinator_up(r.status < 500);

@@ -21,6 +21,7 @@ struct WorkerOptions {
   std::vector<int> cpus;               ///< CPUs the render threads are pinned to, one per thread (empty: not pinned).
   std::filesystem::path cache_dir;     ///< Asset cache folder (empty: default_cache_dir()).
   std::string name;                    ///< Name sent at registration (empty: host name and pid).
+  std::vector<std::string> tags;       ///< Tags sent at registration (protocol/tags.h): what the worker offers.
   std::string token;                   ///< Worker token sent as "Authorization: Bearer" (empty: none).
   size_t scene_cache_jobs = 3;         ///< Built scenes kept, one per job.
   size_t image_cache_bytes = size_t(1) << 30;  ///< Decoded texture pixels kept across jobs (0: decode for every job).

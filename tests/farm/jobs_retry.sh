@@ -44,6 +44,6 @@ curl -sS -f -o "$WORK/out.exr" "$URL/v1/jobs/$JOB/result.exr" || fail "no result
 "$EXR_COMPARE" "$WORK/ref.exr" "$WORK/out.exr" || fail "the retried job's result differs from a single-process render"
 # The listing gives the finished job's render time and its rays per second over it.
 "$TESSERA" jobs ls --coordinator "$URL" >"$WORK/ls-done.log" 2>&1 || fail "jobs ls failed"
-log_has "$WORK/ls-done.log" "^$JOB +done +-?[0-9]+ +8/8 +[0-9.]+s +[0-9]+\.[0-9] " \
+log_has "$WORK/ls-done.log" "^$JOB +done +local +-?[0-9]+ +8/8 +[0-9.]+s +[0-9]+\.[0-9] " \
   || fail "jobs ls does not show the done job's time and Mrays/s: $(cat "$WORK/ls-done.log")"
 echo "PASS"

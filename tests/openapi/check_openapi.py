@@ -285,6 +285,17 @@ def exercise(c, tessera, workdir, address):
     _, a = c.call("POST", "/v1/jobs", job, expect=201)
     a = a["id"]
     c.call("GET", "/v1/jobs", expect=200)
+    _, mine = c.call("GET", "/v1/jobs?owner=local", expect=200)
+    if [j["id"] for j in mine["jobs"]] != [a] or mine["jobs"][0]["owner"] != "local":
+        failures.append(f"GET /v1/jobs?owner=local: not the job just submitted by the open coordinator's caller: {mine}")
+    c.call("GET", "/v1/jobs?owner=", expect=400)
+    _, me = c.call("GET", "/v1/me", expect=200)
+    if me["user"] != "local" or me["role"] != "admin" or me["controls"].get("pause") != "any":
+        failures.append(f"GET /v1/me on an open coordinator: {me}")
+    _, trail = c.call("GET", "/v1/audit?limit=5", expect=200)
+    if not trail["entries"] or trail["entries"][0]["action"] != "POST /v1/jobs" or trail["entries"][0]["target"] != a:
+        failures.append(f"GET /v1/audit: the submission of {a} is not the newest entry: {trail}")
+    c.call("GET", "/v1/audit?limit=0", expect=400)
     c.call("GET", f"/v1/jobs/{a}", expect=200)
     c.call("GET", "/v1/jobs/j-none", expect=404)
     c.call("GET", f"/v1/jobs/{a}/spec", expect=200)
