@@ -104,6 +104,9 @@ export async function downloadResult(jobId, filename) {
   return blob.size;
 }
 
+/** Who the coordinator takes this page's token for: {user, role, controls: {pause: any|own|none, ...}}. */
+export async function whoami() { return call('GET', route('me')); }
+
 /** What this coordinator offers: {tokens_required, endpoints: {pause, resume, retry, ...}}. */
 export async function capabilities() {
   const res = await fetch('/monitor/capabilities.json', { cache: 'no-store' });

@@ -9,7 +9,7 @@ import * as workersPage from './workers.js';
 const POLL_MS = 1000;         // without events
 const POLL_WITH_EVENTS_MS = 5000;
 
-const state = { caps: null, view: null, timer: null, busy: false, again: false, eventsLive: false, routeKey: '' };
+const state = { caps: null, me: null, view: null, timer: null, busy: false, again: false, eventsLive: false, routeKey: '' };
 
 const $ = (id) => document.getElementById(id);
 
@@ -37,8 +37,15 @@ function askToken(message) {
 
 function authMessage(e) {
   return e.status === 403
-    ? 'The coordinator refused this token (403: ' + e.message + '). Enter the client token, not the worker token.'
-    : 'The coordinator refused this token (401: ' + e.message + '). Check the client token and try again.';
+    ? 'The coordinator refused this token (403: ' + e.message + '). Enter the client token or a user\'s token, not a worker\'s.'
+    : 'The coordinator refused this token (401: ' + e.message + '). Check the token and try again.';
+}
+
+// Who the token stands for: shown in the top bar, and what decides which controls the pages enable.
+async function learnWho() {
+  state.me = await api.whoami();
+  $('whoami').textContent = `${state.me.user} · ${state.me.role}`;
+  $('whoami').hidden = false;
 }
 
 api.onAuthError((e) => {
@@ -54,12 +61,14 @@ $('token-form').addEventListener('submit', async (ev) => {
   api.setToken(t);
   try {
     await api.call('GET', api.route('jobs') + '?limit=1');
+    await learnWho();
   } catch (e) {
     if (!e.isAuth) askToken(e.message);
     return;  // onAuthError already reopened the dialog with the reason
   }
   $('token-dialog').hidden = true;
-  refresh();
+  state.routeKey = '';  // the page again, with the controls this user may use
+  mountRoute();
   wakeEvents();
 });
 
@@ -88,7 +97,7 @@ function mountRoute() {
   for (const a of document.querySelectorAll('[data-nav]')) a.classList.toggle('active', a.dataset.nav === r.nav);
   const host = $('view');
   host.replaceChildren();
-  state.view = r.page.mount(host, { caps: state.caps, arg: r.arg, frame: r.frame, refresh, banner: showBanner });
+  state.view = r.page.mount(host, { caps: state.caps, me: state.me, arg: r.arg, frame: r.frame, refresh, banner: showBanner });
   refresh();
 }
 
@@ -163,6 +172,13 @@ async function start() {
   }
   $('token-button').hidden = !state.caps.tokens_required;
   if (state.caps.tokens_required && !api.token()) askToken('');
+  else {
+    try {
+      await learnWho();
+    } catch (e) {
+      if (!e.isAuth) showBanner(e.message);
+    }
+  }
   window.addEventListener('hashchange', mountRoute);
   mountRoute();
   schedulePolling();

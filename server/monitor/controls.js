@@ -1,9 +1,9 @@
 // A job's controls, as the job page and the sequence page show them: pause, resume, retry, cancel, priority and
 // delete, each shown in the states it applies to and enabled when the coordinator has its endpoint
-// (capabilities.json). A sequence's act on all its frames; a frame's job has only retry, which retries that frame of
+// (capabilities.json) and the user may use it on this job (GET /v1/me: its role, and whether the job is its own). A sequence's act on all its frames; a frame's job has only retry, which retries that frame of
 // its sequence (the coordinator refuses the others on a frame: they belong to the sequence).
 import * as api from './api.js';
-import { el, isPaused, FINAL } from './format.js';
+import { el, isPaused, FINAL, refusedControl } from './format.js';
 
 /** A button that needs a second click within 4 s (for cancel and delete). */
 /**
@@ -72,6 +72,8 @@ export class JobControls {
     const ep = ctx.caps.endpoints;
     const path = api.route('job', id);
     this.job = null;
+    this.me = ctx.me;
+    this.ep = ep;
     const btn = (label, name, enabledBy, onClick, cls) => {
       const b = el('button', { type: 'button', text: label, 'data-action': name, class: cls || '', onclick: onClick });
       b.dataset.supported = enabledBy ? 'yes' : 'no';
@@ -105,6 +107,14 @@ export class JobControls {
 
   update(job) {
     this.job = job;
+    // What the user may do to this job: a control its role or the job's owner rules out is shown disabled, saying why.
+    for (const [b, cap] of [[this.pauseB, 'pause'], [this.resumeB, 'resume'], [this.retryB, 'retry'],
+      [this.cancelB, 'purge'], [this.deleteB, 'purge'], [this.prioInput, 'priority'], [this.prio.lastChild, 'priority']]) {
+      if (!this.ep[cap]) continue;  // disabled already: the coordinator has no such endpoint
+      const why = refusedControl(this.me, cap, job.sequence ? { owner: job.owner } : job);
+      b.disabled = Boolean(why);
+      b.title = why;
+    }
     const paused = isPaused(job), final = FINAL.includes(job.state), frame = Boolean(job.sequence);
     const f = job.frames;
     this.pauseB.hidden = paused || final || frame;

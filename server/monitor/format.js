@@ -136,3 +136,15 @@ export function samplingText(spec) {
     if (spec[key]) parts.push(`${name}: ${spec[key]}`);
   return parts.join(' · ');
 }
+
+/**
+ * Whether the caller (`me`, GET /v1/me) may use monitor control `cap` on `job` (or on any job when none is given):
+ * its role allows it on every job, or on its own and the job is its. Returns '' when it may, else why not.
+ */
+export function refusedControl(me, cap, job) {
+  const scope = me && me.controls ? me.controls[cap] : 'any';
+  if (scope === 'any' || scope === undefined) return '';
+  if (scope === 'own' && (!job || job.owner === me.user)) return '';
+  if (scope === 'own') return `Only its owner (${job.owner || 'unknown'}) or an admin may do this; you are ${me.user}.`;
+  return `Your role (${me.role}) may not do this.`;
+}

@@ -2,7 +2,7 @@
 // shows its selected frame's job with this view too (ctx.embedded: no crumbs, the frame's number as its title).
 import * as api from './api.js';
 import { el, badge, duration, clock, jobFigures, progressBar, mrays, shownState, samplingText, arrived,
-  clockRuns, jobHref, plural } from './format.js';
+  clockRuns, jobHref, plural, refusedControl } from './format.js';
 import { TileMap, shownTileState, workerColor } from './tilemap.js';
 import { JobControls, actor, fetchJob } from './controls.js';
 
@@ -109,10 +109,12 @@ export function mount(host, ctx) {
         ...(ctx.embedded ? [] : [
           item('Tiles', `${job.tile_size} px`),
           item('Priority', String(job.priority ?? 0), 'fig-priority'),
+          item('Owner', job.owner || '–', 'fig-owner'),
+          ...(job.require && job.require.length ? [item('Requires', job.require.join(', '), 'fig-require')] : []),
           item('Submitted', clock(job.created_ms))]),
       ].map((pair) => el('div', { class: 'fig' }, pair)));
-    errorBox.hidden = !job.error;
-    errorBox.textContent = job.error ? 'Failed: ' + job.error : '';
+    errorBox.hidden = !job.error && !job.waiting_for;
+    errorBox.textContent = job.error ? 'Failed: ' + job.error : job.waiting_for ? 'Waiting for ' + job.waiting_for + '.' : '';
     controls.update(job);
     downloadB.hidden = job.state !== 'done';
   }
@@ -155,7 +157,8 @@ export function mount(host, ctx) {
     ];
     const failures = t.failures || [];
     // A requeue renders a done tile again, or hands back a failed one; the coordinator answers 409 otherwise.
-    const requeue = ep.requeue && (t.state === 'done' || failures.length) && !['done', 'cancelled'].includes(job.state)
+    const requeue = ep.requeue && !refusedControl(ctx.me, 'requeue', job) && (t.state === 'done' || failures.length) &&
+      !['done', 'cancelled'].includes(job.state)
       ? el('button', { type: 'button', id: 'tile-requeue', text: 'Requeue tile', onclick: () => act('Requeue', 'POST', api.route('job_tile_requeue', id, selected)) })
       : null;
     detail.replaceChildren(...[

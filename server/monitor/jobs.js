@@ -1,23 +1,30 @@
-// The job list: state, progress, priority, elapsed time, ETA and Mrays/s of every job, filtered by state. A sequence is
-// one row (its frames done under its tiles' bar); its frames' own jobs are not listed.
+// The job list: state (and what a job waits for), owner, progress, priority, elapsed time, ETA and Mrays/s of every
+// job, filtered by state and, with "my jobs", by owner. A sequence is one row (its frames done under its tiles' bar);
+// its frames' own jobs are not listed.
 import * as api from './api.js';
 import { el, badge, duration, clock, jobFigures, progressBar, mrays, shownState, arrived, clockRuns, jobHref,
   countTileEvent } from './format.js';
 
 const STATES = ['all', ...api.JOB_STATES];
 
-export function mount(host) {
+export function mount(host, ctx) {
   let filter = sessionStorage.getItem('tessera.jobFilter') || 'all';
+  let mineOnly = sessionStorage.getItem('tessera.mine') === 'true';
   const chips = el('div', { class: 'chips', role: 'tablist', 'aria-label': 'Filter by state' });
+  const mine = el('label', { class: 'mine' }, el('input', {
+    type: 'checkbox', id: 'my-jobs', checked: mineOnly || undefined,
+    onchange: (ev) => { mineOnly = ev.target.checked; sessionStorage.setItem('tessera.mine', String(mineOnly)); draw(); },
+  }), ' my jobs');
+  const me = ctx && ctx.me;
   const tbody = el('tbody');
   const empty = el('p', { class: 'empty', hidden: true });
   host.append(
-    el('div', { class: 'page-head' }, el('h1', { text: 'Jobs' }), chips),
+    el('div', { class: 'page-head' }, el('h1', { text: 'Jobs' }), chips, me ? mine : ''),
     el('div', { class: 'card' },
       el('table', { class: 'jobs', id: 'jobs-table' },
         el('thead', {}, el('tr', {},
-          ['Job', 'State', 'Progress', 'Priority', 'Elapsed', 'ETA', 'Mrays/s', 'Size', 'Submitted']
-            .map((h, i) => el('th', { text: h, class: i >= 3 && i <= 6 ? 'num' : undefined })))),
+          ['Job', 'State', 'Owner', 'Progress', 'Priority', 'Elapsed', 'ETA', 'Mrays/s', 'Size', 'Submitted']
+            .map((h, i) => el('th', { text: h, class: i >= 4 && i <= 7 ? 'num' : undefined })))),
         tbody),
       empty));
 
@@ -28,13 +35,14 @@ export function mount(host) {
   const ticker = setInterval(() => { if (jobs.some(clockRuns)) draw(); }, 1000);
   function draw() {
     const counts = Object.fromEntries(STATES.map((s) => [s, 0]));
-    for (const j of jobs) { counts.all++; counts[shownState(j)] = (counts[shownState(j)] || 0) + 1; }
+    const listed = jobs.filter((j) => !mineOnly || !me || j.owner === me.user);
+    for (const j of listed) { counts.all++; counts[shownState(j)] = (counts[shownState(j)] || 0) + 1; }
     chips.replaceChildren(...STATES.map((s) => el('button', {
       type: 'button', class: 'chip' + (s === filter ? ' active' : ''), 'data-state': s, role: 'tab',
       'aria-selected': s === filter ? 'true' : 'false',
       onclick: () => { filter = s; sessionStorage.setItem('tessera.jobFilter', s); draw(); },
     }, s, el('span', { class: 'count', text: String(counts[s] || 0) }))));
-    const shown = jobs.filter((j) => filter === 'all' || shownState(j) === filter);
+    const shown = listed.filter((j) => filter === 'all' || shownState(j) === filter);
     tbody.replaceChildren(...shown.map(row));
     empty.hidden = shown.length > 0;
     empty.textContent = jobs.length ? 'No ' + filter + ' jobs.' : 'No jobs yet. Submit one with tessera submit SCENE --coordinator URL.';
@@ -47,7 +55,9 @@ export function mount(host) {
     return el('tr', { class: 'clickable', 'data-job': j.id, 'data-sequence': j.frames ? 'true' : undefined, onclick: open },
       el('td', {}, el('a', { href, class: 'job-name', text: j.name || j.id }),
         el('div', { class: 'sub', text: j.frames ? `${j.id} · sequence, frames ${j.frames.first}–${j.frames.last}` : j.id })),
-      el('td', {}, badge(shownState(j))),
+      el('td', {}, badge(shownState(j)),
+        j.waiting_for ? el('div', { class: 'sub waiting', text: 'waiting for ' + j.waiting_for }) : ''),
+      el('td', { class: 'owner', text: j.owner || '–' }),
       el('td', {}, progressBar(j)),
       el('td', { class: 'num', text: String(j.priority ?? 0) }),
       el('td', { class: 'num', text: duration(f.secs) }),

@@ -82,6 +82,7 @@ export function mount(host, ctx) {
         item('Numbers', `${fc.first}–${fc.last}`),
         item('Order', String(seq.frame_order || '–').replace(/_/g, ' '), 'fig-order'),
         item('Priority', String(seq.priority ?? 0), 'fig-priority'),
+        item('Owner', seq.owner || '–', 'fig-owner'),
         item('Submitted', clock(seq.created_ms)),
       ].map((pair) => el('div', { class: 'fig' }, pair)));
     errorBox.hidden = !seq.error;

@@ -669,8 +669,86 @@ def main():
         raise
     finally:
         d.quit()
+    check_shared_farm()
     print("PASS: job listed, tiles done on the map, preview shown, result downloaded, tokens checked, job deleted; "
-          "sequence listed, its frames shown, chosen, retried and paged; screenshots in", ARTEFACTS)
+          "sequence listed, its frames shown, chosen, retried and paged; a shared farm's owners, tags and controls by "
+          "role; screenshots in", ARTEFACTS)
+
+
+def check_shared_farm():
+    """A coordinator with a users file, seen by the user ben: who the page is signed in as, owners, "my jobs", a job
+    waiting for a worker with tags, worker tags, and the controls ben's role allows (his own job's, not bea's, no
+    drain)."""
+    users = os.path.join(WORK, "users.json")
+    tokens = {}
+    for name, role in [("ben", "user"), ("bea", "user"), ("wk", "worker")]:
+        out = subprocess.run([TESSERA, "users", "add", name, "--role", role, "--users", users],
+                             capture_output=True, text=True, check=True)
+        tokens[name] = out.stdout.strip().splitlines()[-1]
+    ready = os.path.join(WORK, "ready-shared")
+    start([TESSERA, "serve", "--data", os.path.join(WORK, "data-shared"), "--listen", "127.0.0.1:0",
+           "--ready-file", ready, "--users", users], "serve-shared.log")
+    wait_for("the shared coordinator", lambda: os.path.exists(ready) and open(ready).read().strip())
+    base = "http://" + open(ready).read().strip()
+    ben, bea, wk = Http(base, tokens["ben"]), Http(base, tokens["bea"]), Http(base, tokens["wk"])
+    job = {"scene": sphere_scene(), "assets": {}, "tile_size": TILE}
+    status, mine = ben.call("POST", "/v1/jobs", {**job, "name": "ben's lookdev"})
+    status2, theirs = bea.call("POST", "/v1/jobs", {**job, "name": "bea's hero shot", "require": ["bigmem"]})
+    if status != 201 or status2 != 201:
+        fail(f"submissions to the shared farm answered {status} and {status2}")
+    for name, tags in [("render-07", ["gpu", "site-a"]), ("render-12", ["site-a"])]:
+        status, _ = wk.call("POST", "/v1/workers", {"name": name, "threads": 8, "tags": tags})
+        if status != 201:
+            fail(f"registering {name} answered {status}")
+    d = browser()
+    try:
+        d.get(base + "/")
+        wait_for("the token dialog", lambda: visible(d, "#token-dialog"))
+        d.find_element(By.ID, "token-input").send_keys(tokens["ben"])
+        d.find_element(By.ID, "token-submit").click()
+        wait_for("the token dialog to close", lambda: not visible(d, "#token-dialog"))
+        who = wait_for("who the page is signed in as", lambda: visible(d, "#whoami") and d.find_element(By.ID, "whoami").text)
+        if who != "ben · user":
+            fail("the top bar says " + who)
+        row = lambda j: d.find_element(By.CSS_SELECTOR, f'tr[data-job="{j}"]')
+        wait_for("both jobs listed", lambda: row(mine["id"]) and row(theirs["id"]))
+        if row(theirs["id"]).find_element(By.CSS_SELECTOR, "td.owner").text != "bea":
+            fail("bea's job does not show its owner")
+        waiting = wait_for("the waiting reason", lambda: row(theirs["id"]).find_element(By.CSS_SELECTOR, ".waiting").text)
+        if waiting != "waiting for a worker with tags bigmem":
+            fail("bea's job says " + waiting)
+        d.save_screenshot(os.path.join(ARTEFACTS, "monitor-shared-farm.png"))
+        d.find_element(By.ID, "my-jobs").click()
+        wait_for("only ben's job under my jobs",
+                 lambda: len(d.find_elements(By.CSS_SELECTOR, "tr[data-job]")) == 1 and row(mine["id"]))
+        d.find_element(By.ID, "my-jobs").click()
+        # bea's job: ben may look, not pause; his own: he may.
+        d.get(base + "/#/jobs/" + theirs["id"])
+        pause = wait_for("the pause button", lambda: visible(d, '[data-action="pause"]'))[0]
+        wait_for("pause disabled on bea's job", lambda: pause.get_attribute("disabled") is not None)
+        if "Only its owner (bea)" not in pause.get_attribute("title"):
+            fail("the disabled pause does not say why: " + pause.get_attribute("title"))
+        d.get(base + "/#/jobs/" + mine["id"])
+        wait_for("ben's job page", lambda: d.find_element(By.ID, "fig-owner").text == "ben")
+        click(d, '[data-action="pause"]:not([disabled])', "pause on ben's own job")
+        wait_for("ben's job paused", lambda: ben.call("GET", "/v1/jobs/" + mine["id"])[1]["state"] == "paused")
+        # Workers: their tags; no drain for a user.
+        d.get(base + "/#/workers")
+        wait_for("the workers' tags", lambda: len(d.find_elements(By.CSS_SELECTOR, "#workers-table .tag")) == 3)
+        drains = d.find_elements(By.CSS_SELECTOR, "#workers-table button")
+        if not drains or any(b.get_attribute("disabled") is None for b in drains):
+            fail("a user is offered a worker's drain")
+        d.save_screenshot(os.path.join(ARTEFACTS, "monitor-shared-workers.png"))
+        errors = console_errors(d)
+        if errors:
+            fail(f"console errors on the shared farm: {errors}")
+    except BaseException:
+        d.save_screenshot(os.path.join(ARTEFACTS, "monitor-failure.png"))
+        print("page text at the failure:", d.find_element(By.TAG_NAME, "body").text[:2000])
+        print("browser log:", d.get_log("browser"))
+        raise
+    finally:
+        d.quit()
 
 
 try:
