@@ -14,7 +14,13 @@
 //
 // The simulated workers share the machine with the coordinator; their own CPU use is printed too, so a row where
 // the clients starve the coordinator can be told apart from one where the coordinator is the limit.
+//
+// With --share, the farm is shared by two users of a users file (docs/protocol.md, "Sharing the farm"): ana submits
+// one --big-tiles job at the start, ben a --small-tiles job every --small-every seconds, and the run reports each
+// user's part of the worker time while both have work, each small job's time to its first tile, and the tile rate;
+// --one-user submits both as ana (one owner: strict priority, then age) for the comparison.
 #include "core/image/image.h"
+#include "core/util/sha256.h"
 #include "protocol/messages.h"
 #include "protocol/routes.h"
 #include "worker/child_process.h"
@@ -65,6 +71,11 @@ struct Options {
   fs::path data_dir;             ///< Where coordinator data folders go (default: a temporary folder).
   bool spec_by_get = false;      ///< Bare lease requests and a GET of the spec per job (workers before the spec came
                                  ///< with the lease).
+  bool share = false;            ///< Two users share the farm (the big and the small jobs) instead of the feeder's.
+  bool one_user = false;         ///< With share: both users' jobs submitted by the first (strict priority).
+  double small_every = 60;       ///< With share: seconds between the second user's small jobs.
+  int small_tiles = 200;         ///< With share: tiles of each small job (a row of tiles: small_tiles x 1).
+  int big_tiles_edge = 100;      ///< With share: the big job is big_tiles_edge x big_tiles_edge tiles.
 };
 
 /// The request kinds we time separately.
@@ -78,6 +89,13 @@ struct WorkerTally {
   int64_t upload_bytes = 0;    ///< Bytes of those uploads.
   int64_t errors = 0;          ///< Transport failures or unexpected statuses.
   std::string first_error;     ///< The first of them, for the report.
+  /// Every accepted tile: its job, when its lease was granted and when its upload was answered (a shared farm's
+  /// report counts worker time by owner).
+  struct Span {
+    std::string job;
+    Clock::time_point granted, done;
+  };
+  std::vector<Span> spans;
 };
 
 /// What the whole farm did in one window.
@@ -87,33 +105,36 @@ struct RunResult {
   double coordinator_cpu_seconds = 0; ///< utime + stime of `tessera serve` over the window.
   double client_cpu_seconds = 0;      ///< This process's CPU over the window.
   WorkerTally total;                  ///< All workers' tallies merged.
+  std::map<std::string, std::pair<std::string, Clock::time_point>> jobs;  ///< With share: job -> (owner, submitted).
+  Clock::time_point window_start, window_end;  ///< The window.
 };
 
-/// A tile EXR for every window of the job geometry, encoded once and shared by all simulated workers.
+/// A tile EXR for every window of each job geometry added, encoded once and shared by all simulated workers.
 class TileBank {
  public:
-  /// Encodes every tile of an image x image job cut into tile x tile squares (uncompressed float32, constant grey).
-  TileBank(int image, int tile) {
-    for (int y0 = 0; y0 < image; y0 += tile) {
-      for (int x0 = 0; x0 < image; x0 += tile) {
-        const tessera::PixelWindow w{x0, y0, std::min(x0 + tile, image), std::min(y0 + tile, image)};
+  /// Encodes every tile of a width x height job cut into tile x tile squares (uncompressed float32, constant grey).
+  void add(int width, int height, int tile) {
+    for (int y0 = 0; y0 < height; y0 += tile) {
+      for (int x0 = 0; x0 < width; x0 += tile) {
+        const tessera::PixelWindow w{x0, y0, std::min(x0 + tile, width), std::min(y0 + tile, height)};
         tessera::Image img = tessera::Image::make(w.width(), w.height());
         std::fill(img.rgb.begin(), img.rgb.end(), 0.25f);
         tessera::ExrWriteOptions wo;
         wo.compression = tessera::ExrCompression::kNone;
-        wo.display_window = {0, 0, image, image};
+        wo.display_window = {0, 0, width, height};
         wo.data_window = w;
         const std::vector<uint8_t> bytes = tessera::encode_exr(img, wo);
-        tiles_[key(w)] = std::string(bytes.begin(), bytes.end());
+        tiles_[{width, height, x0, y0}] = std::string(bytes.begin(), bytes.end());
       }
     }
   }
-  /// The encoded tile for a leased window; throws std::out_of_range for a window of another geometry.
-  const std::string& at(const std::array<int, 4>& window) const { return tiles_.at(key({window[0], window[1], window[2], window[3]})); }
+  /// The encoded tile for a window leased of a width x height job; throws std::out_of_range for another geometry.
+  const std::string& at(int width, int height, const std::array<int, 4>& window) const {
+    return tiles_.at({width, height, window[0], window[1]});
+  }
 
  private:
-  static int64_t key(const tessera::PixelWindow& w) { return (int64_t(w.y0) << 32) | int64_t(w.x0); }
-  std::map<int64_t, std::string> tiles_;
+  std::map<std::array<int, 4>, std::string> tiles_;  // (job width, height, x0, y0) -> EXR
 };
 
 /// CPU seconds (user + system) that process pid has used, from /proc/<pid>/stat; -1 when unreadable.
@@ -138,11 +159,11 @@ double self_cpu_seconds() {
 }
 
 /// A small sphere scene (no assets) of the given size: the coordinator validates it like any submission.
-std::string job_body(int image, int tile) {
+std::string job_body(int width, int height, int tile, const std::string& name) {
   json scene = {
       {"integrator", {{"type", "intersection_test"}, {"spp", 1}, {"point_light_position", {0, 3, 3}},
                       {"point_light_flux", {40, 40, 40}}}},
-      {"film", {{"resolution", {image, image}}}},
+      {"film", {{"resolution", {width, height}}}},
       {"camera", {{"position", {0, 0.3, 4}}, {"look_at", {0, 0, 0}}, {"fov", 45}}},
       {"textures", {{"white", {{"type", "constant"}, {"color", {0.8, 0.7, 0.6}}}}}},
       {"materials", {{"m", {{"type", "diffuse"}, {"texture_name", "white"}}}}},
@@ -150,7 +171,7 @@ std::string job_body(int image, int tile) {
   protocol::JobSubmission job;
   job.scene = std::move(scene);
   job.tile_size = tile;
-  job.name = "sim_workers";
+  job.name = name;
   return json(job).dump();
 }
 
@@ -166,6 +187,30 @@ struct Farm {
   std::mutex stop_mu;                  ///< With stop_cv: naps end at once when the farm stops.
   std::condition_variable stop_cv;
   Clock::time_point window_start, window_end;  ///< Measurements count only between these.
+  std::string worker_token, big_token, small_token;  ///< With share: the users' tokens (else none are needed).
+  /// A job the feeders submitted.
+  struct Job {
+    int width = 0, height = 0;   ///< Its image.
+    std::string owner;           ///< "big" or "small": whose job it is in the share report.
+    Clock::time_point submitted; ///< When its submission was answered.
+  };
+  std::mutex jobs_mu;
+  std::map<std::string, Job> jobs;  ///< (jobs_mu) every job submitted, by id
+  /// Submits a width x height job through `http` and records it; throws on a refusal.
+  std::string submit(HttpClient& http, int width, int height, const std::string& owner) {
+    const HttpResponse r = http.send("POST", routes::jobs(), job_body(width, height, opt.tile, owner));
+    if (r.status != 201) throw std::runtime_error("POST " + routes::jobs() + " answered " + r.error_text());
+    const std::string id = protocol::parse_answer<protocol::SubmitAnswer>(r.body, "submission").id;
+    std::lock_guard lock(jobs_mu);
+    jobs[id] = Job{width, height, owner, Clock::now()};
+    return id;
+  }
+  /// The image size of a submitted job.
+  std::pair<int, int> size_of(const std::string& id) {
+    std::lock_guard lock(jobs_mu);
+    const Job& j = jobs.at(id);
+    return {j.width, j.height};
+  }
 };
 
 /// Sleeps d unless the farm stops first; false when stopped. One wake-up per nap (a thousand threads that polled a
@@ -187,6 +232,7 @@ void stop_farm(Farm& farm) {
 /// One simulated worker: the protocol loop of `tessera worker` with sleeps in place of rendering.
 void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
   HttpClient http(farm.url);
+  http.set_bearer_token(farm.worker_token);
   std::mt19937_64 rng(0x5eed0000u + unsigned(index));
   auto timed = [&](Route route, auto&& call) -> HttpResponse {
     const auto t0 = Clock::now();
@@ -242,6 +288,7 @@ void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
       const std::string& lease_id = lease.id;
       const std::string& job = lease.job;
       const std::array<int, 4> window = {lease.window.x0, lease.window.y0, lease.window.x1, lease.window.y1};
+      const auto granted = Clock::now();
       if (job != spec_job) {
         const HttpResponse s = timed(kSpec, [&] { return http.send("GET", routes::job_spec(job)); });
         if (s.status != 200) { error("spec answered " + s.error_text()); continue; }
@@ -264,7 +311,8 @@ void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
         if (h.status != 200) error("heartbeat answered " + h.error_text());
       }
       if (farm.stop.load() || revoked) continue;
-      const std::string& exr = farm.bank.at(window);
+      const auto [job_width, job_height] = farm.size_of(job);
+      const std::string& exr = farm.bank.at(job_width, job_height, window);
       tessera::client::HttpRequest up;
       up.method = "PUT";
       up.target = routes::lease_result(lease_id);
@@ -275,6 +323,7 @@ void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
       const auto t0 = Clock::now();
       const HttpResponse u = timed(kUpload, [&] { return http.send(up); });
       if (u.status == 200) {
+        tally.spans.push_back({job, granted, Clock::now()});
         if (t0 >= farm.window_start && Clock::now() <= farm.window_end) {
           ++tally.tiles_accepted;
           tally.upload_bytes += int64_t(exr.size());
@@ -292,7 +341,6 @@ void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
 /// Keeps at least two unfinished jobs on the coordinator so that workers always find work.
 void feeder(Farm& farm, WorkerTally& tally) {
   HttpClient http(farm.url);
-  const std::string body = job_body(farm.opt.image, farm.opt.tile);
   while (!farm.stop.load()) {
     try {
       const HttpResponse r = http.send("GET", routes::jobs());
@@ -309,8 +357,7 @@ void feeder(Farm& farm, WorkerTally& tally) {
       const int64_t per_job = int64_t((farm.opt.image + farm.opt.tile - 1) / farm.opt.tile) *
                               ((farm.opt.image + farm.opt.tile - 1) / farm.opt.tile);
       while (unfinished < 2 || pending < 2 * int64_t(farm.workers)) {
-        const HttpResponse s = http.send("POST", routes::jobs(), body);
-        if (s.status != 201) throw std::runtime_error("POST " + routes::jobs() + " answered " + s.error_text());
+        farm.submit(http, farm.opt.image, farm.opt.image, "sim_workers");
         ++unfinished;
         pending += per_job;
       }
@@ -319,6 +366,24 @@ void feeder(Farm& farm, WorkerTally& tally) {
       if (tally.first_error.empty()) tally.first_error = std::string("feeder: ") + e.what();
     }
     nap(farm, 500ms);
+  }
+}
+
+/// A shared farm's submissions: the big user's job at once, then the small user's every small_every seconds.
+void share_feeder(Farm& farm, WorkerTally& tally) {
+  HttpClient big(farm.url), small(farm.url);
+  big.set_bearer_token(farm.big_token);
+  small.set_bearer_token(farm.opt.one_user ? farm.big_token : farm.small_token);
+  const int edge = farm.opt.big_tiles_edge * farm.opt.tile;
+  try {
+    farm.submit(big, edge, edge, "big");
+    for (Clock::time_point next = farm.window_start; nap(farm, next - Clock::now());) {
+      farm.submit(small, farm.opt.small_tiles * farm.opt.tile, farm.opt.tile, "small");
+      next += std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(farm.opt.small_every));
+    }
+  } catch (const std::exception& e) {
+    ++tally.errors;
+    if (tally.first_error.empty()) tally.first_error = std::string("share feeder: ") + e.what();
   }
 }
 
@@ -340,12 +405,29 @@ RunResult run_farm(const Options& opt, const TileBank& bank, const fs::path& bas
   fs::remove_all(dir);
   fs::create_directories(dir);
   std::vector<tessera::worker::ChildProcess> children;
-  children.push_back(tessera::worker::spawn_child(
-      {opt.tessera.string(), "serve", "--listen", "127.0.0.1:0", "--data", (dir / "data").string(), "--ready-file",
-       (dir / "ready").string(), "--heartbeat-seconds", std::to_string(opt.heartbeat_seconds), "--max-connections",
-       std::to_string(std::max(1024, n + 64)),  // one connection per simulated worker, the feeder's, and spare
-       "--max-registrations-per-minute", std::to_string(60 * std::max(600, n))},  // every worker registers at once
-      "coordinator", dir / "serve.log"));
+  std::vector<std::string> serve = {
+      opt.tessera.string(), "serve", "--listen", "127.0.0.1:0", "--data", (dir / "data").string(), "--ready-file",
+      (dir / "ready").string(), "--heartbeat-seconds", std::to_string(opt.heartbeat_seconds), "--max-connections",
+      std::to_string(std::max(1024, n + 64)),  // one connection per simulated worker, the feeder's, and spare
+      "--max-registrations-per-minute", std::to_string(60 * std::max(600, n))};  // every worker registers at once
+  // A shared farm: two users and the workers' user, in a users file as `tessera users add` writes it.
+  std::string tokens[3];
+  if (opt.share) {
+    json users = json::array();
+    const char* names[3] = {"ana", "ben", "farm"};
+    const char* roles[3] = {"user", "user", "worker"};
+    std::mt19937_64 rng(std::random_device{}());
+    for (int i = 0; i < 3; ++i) {
+      char hex[49];
+      std::snprintf(hex, sizeof hex, "%016llx%016llx%016llx", static_cast<unsigned long long>(rng()),
+                    static_cast<unsigned long long>(rng()), static_cast<unsigned long long>(rng()));
+      tokens[i] = hex;
+      users.push_back({{"name", names[i]}, {"role", roles[i]}, {"token_sha256", tessera::sha256_hex(tokens[i])}});
+    }
+    std::ofstream(dir / "users.json") << json{{"users", users}}.dump();
+    serve.insert(serve.end(), {"--users", (dir / "users.json").string()});
+  }
+  children.push_back(tessera::worker::spawn_child(serve, "coordinator", dir / "serve.log"));
   const std::string hostport = wait_ready(dir / "ready", children[0]);
   if (hostport.empty()) {
     tessera::worker::stop_children(children, 2s);
@@ -354,13 +436,16 @@ RunResult run_farm(const Options& opt, const TileBank& bank, const fs::path& bas
 
   Farm farm{opt, bank, tessera::client::parse_http_url("http://" + hostport)};
   farm.workers = n;
+  farm.big_token = tokens[0];
+  farm.small_token = tokens[1];
+  farm.worker_token = tokens[2];
   const auto start = Clock::now();
   farm.window_start = start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(opt.warmup));
   farm.window_end = farm.window_start +
                     std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(opt.seconds));
   std::vector<WorkerTally> tallies(size_t(n) + 1);
   std::vector<std::thread> threads;
-  threads.emplace_back(feeder, std::ref(farm), std::ref(tallies[size_t(n)]));
+  threads.emplace_back(opt.share ? share_feeder : feeder, std::ref(farm), std::ref(tallies[size_t(n)]));
   for (int i = 0; i < n; ++i) threads.emplace_back(simulated_worker, std::ref(farm), i, std::ref(tallies[size_t(i)]));
 
   std::this_thread::sleep_until(farm.window_start);
@@ -383,8 +468,12 @@ RunResult run_farm(const Options& opt, const TileBank& bank, const fs::path& bas
     result.total.tiles_accepted += t.tiles_accepted;
     result.total.upload_bytes += t.upload_bytes;
     result.total.errors += t.errors;
+    result.total.spans.insert(result.total.spans.end(), t.spans.begin(), t.spans.end());
     if (result.total.first_error.empty()) result.total.first_error = t.first_error;
   }
+  for (const auto& [id, j] : farm.jobs) result.jobs[id] = {j.owner, j.submitted};
+  result.window_start = farm.window_start;
+  result.window_end = farm.window_end;
   fs::remove_all(dir);
   return result;
 }
@@ -395,6 +484,59 @@ double quantile(std::vector<float>& values, double q) {
   std::sort(values.begin(), values.end());
   const size_t i = std::min(values.size() - 1, size_t(q * double(values.size() - 1) + 0.5));
   return values[i];
+}
+
+/// A shared farm's figures: each user's part of the worker time while the small user has work (from each small job's
+/// submission to its last tile's upload, within the window), also without each small job's first lease round (the
+/// tiles already leased when it arrives finish first), and each small job's time to its first tile.
+void report_share(const Options& opt, const RunResult& r) {
+  struct Small {
+    Clock::time_point submitted, first = Clock::time_point::max(), last = Clock::time_point::min();
+    int tiles = 0;
+  };
+  std::map<std::string, Small> small;
+  for (const auto& [id, job] : r.jobs)
+    if (job.first == "small") small[id].submitted = job.second;
+  for (const WorkerTally::Span& sp : r.total.spans) {
+    const auto it = small.find(sp.job);
+    if (it == small.end()) continue;
+    it->second.first = std::min(it->second.first, sp.granted);
+    it->second.last = std::max(it->second.last, sp.done);
+    ++it->second.tiles;
+  }
+  const auto round = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.2 * opt.tile_seconds));
+  double whole[2] = {0, 0}, steady[2] = {0, 0};  // worker-seconds of the big and the small user
+  const auto overlap = [](Clock::time_point a0, Clock::time_point a1, Clock::time_point b0, Clock::time_point b1) {
+    return std::max(0.0, std::chrono::duration<double>(std::min(a1, b1) - std::max(a0, b0)).count());
+  };
+  std::vector<double> first_tile;
+  int finished = 0;
+  for (const auto& [id, sm] : small) {
+    if (sm.submitted >= r.window_end) continue;
+    const bool done = sm.tiles >= opt.small_tiles;
+    finished += done;
+    const Clock::time_point end = std::min(done ? sm.last : r.window_end, r.window_end);
+    if (sm.first != Clock::time_point::max())
+      first_tile.push_back(std::chrono::duration<double>(sm.first - sm.submitted).count());
+    for (const WorkerTally::Span& sp : r.total.spans) {
+      const auto job = r.jobs.find(sp.job);
+      const int who = job != r.jobs.end() && job->second.first == "small" ? 1 : 0;
+      whole[who] += overlap(sp.granted, sp.done, std::max(sm.submitted, r.window_start), end);
+      steady[who] += overlap(sp.granted, sp.done, std::max(sm.submitted + round, r.window_start), end);
+    }
+  }
+  std::sort(first_tile.begin(), first_tile.end());
+  const auto pct = [](const double (&w)[2], int who) { return w[0] + w[1] > 0 ? 100 * w[who] / (w[0] + w[1]) : 0.0; };
+  std::printf("  %s: %zu small jobs submitted in the window, %d finished in it\n",
+              opt.one_user ? "one user (strict priority, then age)" : "two users, equal weights", first_tile.size(),
+              finished);
+  std::printf("  worker time while the small jobs' user has work: big %.1f%%, small %.1f%% (%.0f worker-s); without "
+              "each small job's first lease round: big %.1f%%, small %.1f%%\n",
+              pct(whole, 0), pct(whole, 1), whole[0] + whole[1], pct(steady, 0), pct(steady, 1));
+  if (!first_tile.empty())
+    std::printf("  time to a small job's first tile: median %.2f s, max %.2f s (%.2f lease rounds of %.2f s)\n",
+                first_tile[first_tile.size() / 2], first_tile.back(), first_tile.back() / opt.tile_seconds,
+                opt.tile_seconds);
 }
 
 }  // namespace
@@ -412,6 +554,14 @@ int main(int argc, char** argv) {
   app.add_option("--image", opt.image, "Job image edge in pixels")->check(CLI::Range(16, 16384));
   app.add_option("--tile", opt.tile, "Tile edge in pixels")->check(CLI::Range(8, 4096));
   app.add_option("--data-dir", opt.data_dir, "Folder for the coordinators' data (default: a temporary folder)");
+  app.add_flag("--share", opt.share,
+               "Two users share the farm: one big job and a small job every --small-every seconds (users file)");
+  app.add_flag("--one-user", opt.one_user, "With --share: submit both users' jobs as one user (strict priority)");
+  app.add_option("--small-every", opt.small_every, "With --share: seconds between small jobs")
+      ->check(CLI::Range(1.0, 3600.0));
+  app.add_option("--small-tiles", opt.small_tiles, "With --share: tiles of a small job")->check(CLI::Range(1, 4096));
+  app.add_option("--big-tiles-edge", opt.big_tiles_edge, "With --share: the big job is this many tiles square")
+      ->check(CLI::Range(1, 1000));
   app.add_flag("--spec-by-get", opt.spec_by_get,
                "Ask for bare leases and GET each job's spec (as workers did before specs came with leases)");
   CLI11_PARSE(app, argc, argv);
@@ -420,8 +570,16 @@ int main(int argc, char** argv) {
     fs::path base = opt.data_dir;
     if (base.empty()) base = fs::temp_directory_path() / ("tessera-sim-workers-" + std::to_string(getpid()));
     fs::create_directories(base);
-    const TileBank bank(opt.image, opt.tile);
-    const std::string tile_bytes = std::to_string(bank.at({0, 0, std::min(opt.tile, opt.image), std::min(opt.tile, opt.image)}).size());
+    TileBank bank;
+    if (opt.share) {
+      bank.add(opt.big_tiles_edge * opt.tile, opt.big_tiles_edge * opt.tile, opt.tile);
+      bank.add(opt.small_tiles * opt.tile, opt.tile, opt.tile);
+      opt.image = opt.big_tiles_edge * opt.tile;  // for the line below
+    } else {
+      bank.add(opt.image, opt.image, opt.tile);
+    }
+    const int first = std::min(opt.tile, opt.image);
+    const std::string tile_bytes = std::to_string(bank.at(opt.image, opt.image, {0, 0, first, first}).size());
 
     std::printf("sim_workers: %d-pixel jobs in %d-pixel tiles (upload %s bytes each, uncompressed float32), "
                 "tile time %.2f s +-20%%, heartbeat every %d s, window %.0f s after %.0f s warm-up, %u cores, %s\n",
@@ -448,6 +606,7 @@ int main(int argc, char** argv) {
                   100 * r.client_cpu_seconds / r.window_seconds, quantile(r.total.latency_ms[kLease], 0.5),
                   quantile(r.total.latency_ms[kLease], 0.99), quantile(r.total.latency_ms[kUpload], 0.5),
                   quantile(r.total.latency_ms[kUpload], 0.99), static_cast<long long>(r.total.errors));
+      if (opt.share) report_share(opt, r);
       std::fflush(stdout);
       results.push_back(std::move(r));
     }

@@ -183,6 +183,54 @@ TEST_F(DatabaseTest, APausedJobStaysPausedAcrossARestart) {
   EXPECT_EQ(lease(w).tile, 1);
 }
 
+TEST_F(DatabaseTest, OwnersRequirementsCapsTagsAndLiveLeasesPerOwnerSurviveARestart) {
+  JobParams p;
+  p.width = 256;
+  p.height = 64;
+  p.tile_size = 64;
+  p.spp = 1;
+  p.scene_hash = "h";
+  p.owner = "ana";
+  p.require = {"bigmem", "site-a"};
+  p.max_workers = 1;
+  const std::string j = sched->add_job(p);
+  const std::string big = sched->register_worker("big", 4, {"bigmem", "gpu", "site-a"}).id;
+  const std::string other = sched->register_worker("other", 4, {"bigmem", "site-a"}).id;
+  lease(big);
+  reopen();
+  const JobStatus s = *sched->job(j);
+  EXPECT_EQ(s.params.owner, "ana");
+  EXPECT_EQ(s.params.require, (std::vector<std::string>{"bigmem", "site-a"}));
+  EXPECT_EQ(s.params.max_workers, 1);
+  EXPECT_EQ(sched->worker(big)->tags, (std::vector<std::string>{"bigmem", "gpu", "site-a"}));
+  // The lease held across the restart still counts against the job's cap of 1.
+  EXPECT_EQ(sched->acquire(other).status, AcquireResult::no_work);
+  EXPECT_EQ(*sched->job_owner(j), "ana");
+}
+
+TEST_F(DatabaseTest, TheAuditTrailSurvivesARestartPagesNewestFirstAndForgetsOldEntries) {
+  for (int i = 0; i < 5; ++i)
+    store->append_audit({0, 1000 + i, i % 2 ? "ben" : "ana", "user", "POST /v1/jobs/{id}/pause", "j-" + std::to_string(i),
+                         "127.0.0.1", 200});
+  reopen();
+  protocol::AuditQuery q;
+  q.limit = 2;
+  const protocol::AuditList first = store->audit(q);
+  ASSERT_EQ(first.entries.size(), 2u);
+  EXPECT_EQ(first.entries[0].target, "j-4");
+  EXPECT_EQ(first.entries[1].target, "j-3");
+  ASSERT_TRUE(first.next);
+  q.before = *first.next;
+  q.user = "ana";
+  q.limit = 10;
+  const protocol::AuditList rest = store->audit(q);
+  ASSERT_EQ(rest.entries.size(), 2u);  // j-2 and j-0
+  EXPECT_EQ(rest.entries[0].target, "j-2");
+  EXPECT_FALSE(rest.next);
+  EXPECT_EQ(store->forget_audit(1003), 3);
+  EXPECT_EQ(store->audit(protocol::AuditQuery{}).entries.size(), 2u);
+}
+
 TEST_F(DatabaseTest, ADrainedWorkerStaysDrainedAcrossARestart) {
   job();
   const std::string w = sched->register_worker("w").id, v = sched->register_worker("v").id;
