@@ -110,6 +110,22 @@ TEST_F(FairShareTest, JobAndUserCapsBoundTheLeasesHeldAtOnce) {
   EXPECT_EQ(s.job(capped)->params.max_workers, 2);
 }
 
+TEST_F(FairShareTest, AJobAtItsCapCountsNoLeasableTilesAndItsEndedLeaseNotesWork) {
+  int noted = 0;
+  s.on_work([&] { ++noted; });
+  const std::string capped = job("ana", 10, 0, {}, /*max_workers=*/1);
+  const std::vector<std::string> ws = workers(2);
+  const Lease l = s.acquire(ws[0]).lease;
+  EXPECT_EQ(s.leasable_tiles(ws[1]), 0);  // a held lease request is not woken for tiles it cannot take
+  EXPECT_EQ(s.acquire(ws[1]).status, AcquireResult::no_work);
+  noted = 0;
+  ASSERT_EQ(s.claim_result(l.id).status, ResultClaim::proceed);
+  s.finish_result(l.id, 1);
+  EXPECT_GE(noted, 1);  // the slot freed: held requests hear of it
+  EXPECT_EQ(s.leasable_tiles(ws[1]), 1);
+  EXPECT_EQ(s.acquire(ws[1]).lease.job, capped);
+}
+
 TEST_F(FairShareTest, RequirementsNeedEveryTagAndSayWhatTheyWaitFor) {
   const std::string big = job("ana", 4, 0, {"bigmem", "site-a"});
   const std::string plain = job("ana", 4, 0);

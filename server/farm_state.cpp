@@ -2,6 +2,7 @@
 
 #include "protocol/tags.h"
 
+#include <algorithm>
 #include <set>
 #include <string_view>
 #include <utility>
@@ -215,10 +216,28 @@ void FarmState::count_live(const std::string& job, int64_t delta) {
   JobRec* j = find_job(job);
   if (!j) return;
   JobRec& t = top(*j);
+  const bool job_was_capped = t.status.params.max_workers > 0 && t.live >= t.status.params.max_workers;
   t.live += delta;
   if (&t != j) j->live += delta;
-  const auto [it, added] = live_by_owner.try_emplace(t.status.params.owner, 0);
+  const std::string& owner = t.status.params.owner;
+  const auto [it, added] = live_by_owner.try_emplace(owner, 0);
+  const int64_t cap = share_of(owner).max_workers;
+  const bool owner_was_capped = cap > 0 && it->second >= cap;
   if ((it->second += delta) <= 0) live_by_owner.erase(it);
+  // A lease ended on a job or an owner at its cap: its pending tiles may be leased again.
+  if (delta < 0 && (job_was_capped || owner_was_capped)) work_appeared();
+}
+
+int64_t FarmState::leasable_now(const JobRec& j) const {
+  const JobRec& t = j.sequence ? *j.sequence : j;
+  int64_t n = int64_t(j.pending.size());
+  if (t.status.params.max_workers > 0) n = std::min(n, std::max<int64_t>(0, t.status.params.max_workers - t.live));
+  const int64_t cap = share_of(t.status.params.owner).max_workers;
+  if (cap > 0) {
+    const auto live = live_by_owner.find(t.status.params.owner);
+    n = std::min(n, std::max<int64_t>(0, cap - (live == live_by_owner.end() ? 0 : live->second)));
+  }
+  return n;
 }
 
 void FarmState::go_live(const LeaseRec& l) {

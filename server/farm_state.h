@@ -116,6 +116,8 @@ struct FarmState {
   void dequeue(const JobRec& j);
   /// The share of a user (weight 1 and no cap for one the shares do not name).
   const OwnerShare& share_of(std::string_view owner) const;
+  /// How many of the job's pending tiles its cap and its owner's let be leased now.
+  int64_t leasable_now(const JobRec& j) const;
   /// Why a job with pending tiles is leased none for want of a worker with its tags, or nothing.
   std::optional<std::string> waiting_for(const JobRec& j, int64_t now) const;
   /// Tells whoever watches (on_work) that tiles may have become leasable.

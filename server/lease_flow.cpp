@@ -167,7 +167,7 @@ int64_t LeaseFlow::leasable_tiles(const std::string& worker) const {
   for (const auto& [key, j] : s_.queue)
     if (j->status.state != JobState::paused && protocol::has_tags(w->tags, j->status.params.require) &&
         !s_.blocklisted(*j, worker))
-      n += int64_t(j->pending.size());
+      n += s_.leasable_now(*j);
   return n;
 }
 
