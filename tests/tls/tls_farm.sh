@@ -3,7 +3,8 @@
 # --tls-client-ca renders bitwise identically for a worker and a submit that verify it; clients refuse a server they
 # cannot verify (unknown CA, wrong host name, plain HTTP behind an https:// URL) with a clear message and the server
 # refuses clients without a certificate from its CA; SIGHUP re-reads the certificate (new connections see the new
-# one, a lease held across the reload completes, an unreadable key keeps the old one).
+# one, a lease held across the reload completes, an unreadable key keeps the old one). With a users file, a client
+# certificate whose common name is a user's stands for that user without a token.
 source "$(dirname "$0")/../farm/common.sh"
 # shellcheck source-path=SCRIPTDIR source=../lib/tls.sh
 source "$(dirname "$0")/../lib/tls.sh"
@@ -95,5 +96,24 @@ expect_exit 0 "$WORK/jobs.log" -- "$TESSERA" jobs ls --coordinator "$URL" --ca-f
 [ "$(grep -c ' done ' "$WORK/jobs.log")" -eq 2 ] || fail "jobs ls over TLS did not list the two done jobs"
 expect_exit 1 "$WORK/jobs-no-ca.log" -- "$TESSERA" jobs ls --coordinator "$URL" "${MTLS[@]}"
 log_has "$WORK/jobs-no-ca.log" "certificate is not accepted" || fail "jobs ls without the CA did not say why"
+
+# A users file beside mutual TLS: the certificate of CN=ben submits as ben with no token; CN=stranger names nobody.
+kill -TERM "$SERVE_PID"
+wait "$SERVE_PID" || true
+make_cert "$T" ca2 ben "DNS:ben" clientAuth
+make_cert "$T" ca2 stranger "DNS:stranger" clientAuth
+"$TESSERA" users add ben --role user --users "$WORK/users.json" >/dev/null 2>&1 || fail "users add failed"
+start_serve --tls-cert "$T/live.pem" --tls-key "$T/live.key" --tls-client-ca "$T/both.pem" --users "$WORK/users.json" \
+  --worker-token-file "$WORK/worker.token"
+URL="https://127.0.0.1:${URL##*:}"
+BEN=(--ca-file "$T/ca2.pem" --tls-cert "$T/ben.pem" --tls-key "$T/ben.key")
+JOB=$(env -u TESSERA_CLIENT_TOKEN "$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --detach "${BEN[@]}") \
+  || fail "the certificate of a user could not submit without a token"
+env -u TESSERA_CLIENT_TOKEN "$TESSERA" jobs ls --mine --coordinator "$URL" "${BEN[@]}" >"$WORK/ben.log" 2>&1 \
+  || fail "jobs ls --mine by certificate failed"
+log_has "$WORK/ben.log" "^$JOB +queued +ben " || fail "the job submitted by certificate is not ben's: $(cat "$WORK/ben.log")"
+expect_exit 2 "$WORK/stranger.log" -- env -u TESSERA_CLIENT_TOKEN "$TESSERA" jobs ls --coordinator "$URL" \
+  --ca-file "$T/ca2.pem" --tls-cert "$T/stranger.pem" --tls-key "$T/stranger.key"
+log_has "$WORK/stranger.log" "401" || fail "a certificate naming no user was not refused with 401"
 grep -q "$(cat "$WORK/worker.token")" "$WORK"/*.log && fail "a token was logged"
 echo "PASS"
