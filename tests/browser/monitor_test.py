@@ -156,6 +156,13 @@ def preview_is_the_coordinators(d, job):
         }).catch((e) => done('error: ' + e));""", job)
 
 
+def report_failure(d):
+    """What the page showed when a check failed: a screenshot, its text and the browser's log."""
+    d.save_screenshot(os.path.join(ARTEFACTS, "monitor-failure.png"))
+    print("page text at the failure:", d.find_element(By.TAG_NAME, "body").text[:2000])
+    print("browser log:", d.get_log("browser"))
+
+
 def console_errors(d):
     return [e for e in d.get_log("browser") if e["level"] == "SEVERE"]
 
@@ -663,9 +670,7 @@ def main():
         if errors:
             fail(f"console errors: {errors}")
     except BaseException:
-        d.save_screenshot(os.path.join(ARTEFACTS, "monitor-failure.png"))
-        print("page text at the failure:", d.find_element(By.TAG_NAME, "body").text[:2000])
-        print("browser log:", d.get_log("browser"))
+        report_failure(d)
         raise
     finally:
         d.quit()
@@ -743,9 +748,7 @@ def check_shared_farm():
         if errors:
             fail(f"console errors on the shared farm: {errors}")
     except BaseException:
-        d.save_screenshot(os.path.join(ARTEFACTS, "monitor-failure.png"))
-        print("page text at the failure:", d.find_element(By.TAG_NAME, "body").text[:2000])
-        print("browser log:", d.get_log("browser"))
+        report_failure(d)
         raise
     finally:
         d.quit()
