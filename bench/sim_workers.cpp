@@ -510,9 +510,10 @@ void report_share(const Options& opt, const RunResult& r) {
     return std::max(0.0, std::chrono::duration<double>(std::min(a1, b1) - std::max(a0, b0)).count());
   };
   std::vector<double> first_tile;
-  int finished = 0;
+  int submitted = 0, finished = 0;
   for (const auto& [id, sm] : small) {
     if (sm.submitted >= r.window_end) continue;
+    ++submitted;
     const bool done = sm.tiles >= opt.small_tiles;
     finished += done;
     const Clock::time_point end = std::min(done ? sm.last : r.window_end, r.window_end);
@@ -527,16 +528,18 @@ void report_share(const Options& opt, const RunResult& r) {
   }
   std::sort(first_tile.begin(), first_tile.end());
   const auto pct = [](const double (&w)[2], int who) { return w[0] + w[1] > 0 ? 100 * w[who] / (w[0] + w[1]) : 0.0; };
-  std::printf("  %s: %zu small jobs submitted in the window, %d finished in it\n",
-              opt.one_user ? "one user (strict priority, then age)" : "two users, equal weights", first_tile.size(),
-              finished);
+  std::printf("  %s: %d small jobs submitted in the window, %zu given a first tile and %d finished in it\n",
+              opt.one_user ? "one user (strict priority, then age)" : "two users, equal weights", submitted,
+              first_tile.size(), finished);
   std::printf("  worker time while the small jobs' user has work: big %.1f%%, small %.1f%% (%.0f worker-s); without "
               "each small job's first lease round: big %.1f%%, small %.1f%%\n",
               pct(whole, 0), pct(whole, 1), whole[0] + whole[1], pct(steady, 0), pct(steady, 1));
   if (!first_tile.empty())
-    std::printf("  time to a small job's first tile: median %.2f s, max %.2f s (%.2f lease rounds of %.2f s)\n",
+    std::printf("  time to a small job's first tile: median %.2f s, max %.2f s (%.2f lease rounds of %.2f s)%s\n",
                 first_tile[first_tile.size() / 2], first_tile.back(), first_tile.back() / opt.tile_seconds,
-                opt.tile_seconds);
+                opt.tile_seconds, int(first_tile.size()) < submitted ? "; the others none within the window" : "");
+  else if (submitted)
+    std::printf("  time to a small job's first tile: none was given a tile within the window\n");
 }
 
 }  // namespace
