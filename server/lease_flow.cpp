@@ -137,9 +137,10 @@ JobRec* LeaseFlow::pick_job(const std::string& worker, const WorkerRec& w, std::
   }
   // The owner furthest below its share of the rendering workers (this grant included) gets the lease; ties go to the
   // job first in the queue.
+  // The owners sharing the farm: those with a job to lease and those holding leases.
   double weights = 0;
   for (const auto& [owner, c] : candidates)
-    if (c.job || c.shared) weights += s_.share_of(owner).weight;
+    if (c.job || c.shared || s_.live_by_owner.count(owner)) weights += s_.share_of(owner).weight;
   for (const auto& [owner, live] : s_.live_by_owner)
     if (!candidates.count(owner)) weights += s_.share_of(owner).weight;
   const double rendering = double(s_.live_leases.size() + 1);
