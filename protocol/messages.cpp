@@ -271,7 +271,7 @@ int request_priority(const json& j) {
 JobSubmission parse_job_submission(const std::string& body) {
   json j = parse_request_object(
       body, {"scene", "assets", "frames", "frame_order", "spp", "seed", "tile_size", "priority", "name", "integrator",
-             "target_error", "min_spp", "max_spp", "error_floor", "replicates", "area_sampling", "env_sampling", "bvh",
+             "target_error", "min_spp", "max_spp", "error_floor", "replicates", "area_sampling", "env_sampling", "bvh", "layers",
              "resumable", "tile_timeout_seconds"},
       false);
   JobSubmission s;

@@ -59,6 +59,13 @@ std::vector<std::string> layer_channels(Layer layer) {
   return {};
 }
 
+std::vector<std::string> layer_channels(LayerSet layers) {
+  std::vector<std::string> out;
+  for (const Layer l : layers.list())
+    for (std::string& c : layer_channels(l)) out.push_back(std::move(c));
+  return out;
+}
+
 std::vector<ExrPart> layer_parts(const Image& img) {
   std::vector<ExrPart> parts;
   for (int i = 0; i < kLayerCount; ++i) {

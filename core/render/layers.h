@@ -64,6 +64,9 @@ std::string layers_to_string(LayerSet layers);
 /// The EXR channels a layer fills, in the order they are written.
 std::vector<std::string> layer_channels(Layer layer);
 
+/// The channels of every layer of the set, layer by layer in declaration order.
+std::vector<std::string> layer_channels(LayerSet layers);
+
 /// The parts of a multi-part EXR of img (write_exr_multipart): one per layer whose channels img has, named as the
 /// layer; the colour and any other channel stay in the first part.
 std::vector<ExrPart> layer_parts(const Image& img);
