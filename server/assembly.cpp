@@ -1,5 +1,7 @@
 #include "server/assembly.h"
 
+#include "server/layer_preview.h"
+
 #include "core/image/exr_uncompressed.h"
 
 #include "failpoint/failpoint.h"
@@ -296,6 +298,13 @@ void JobImage::paste(const Image& tile, const PixelWindow& w) {
 std::vector<uint8_t> JobImage::preview_png() {
   std::lock_guard lock(mu_);
   return server::preview_png(image_.rgb.empty() ? nullptr : &image_, width_, height_);
+}
+
+std::vector<uint8_t> JobImage::layer_preview_png(Layer layer) {
+  std::lock_guard lock(mu_);
+  allocate_locked();
+  const Image shown = layer_display(image_, layer);
+  return server::preview_png(&shown, width_, height_);
 }
 
 void JobImage::write_exr(const std::filesystem::path& file, const std::map<std::string, std::string>& metadata,

@@ -2,6 +2,7 @@
 #pragma once
 
 #include "core/image/image.h"
+#include "core/render/layers.h"
 #include "server/preview.h"
 
 #include <cstdint>
@@ -56,6 +57,9 @@ class JobImage {
   /// An sRGB PNG of the image as far as it is filled (black elsewhere), scaled down by a whole factor to at most
   /// kMaxPreviewSide pixels on its long side; a job with no tile yet costs only the PNG's pixels.
   std::vector<uint8_t> preview_png();
+  /// The same of an output layer of the job (server/layer_preview.h); throws std::invalid_argument when the image
+  /// has no such layer.
+  std::vector<uint8_t> layer_preview_png(Layer layer);
   /// Writes the image to `file` as an uncompressed float32 EXR, its layer channels included, with string metadata (and UINT channels, e.g. a
   /// resumable job's state channels), straight from the image (a finished 4K frame is 100 MB: no copy of it is made
   /// in memory); throws ImageError naming the file.

@@ -4,6 +4,8 @@
 #include "core/scene/scene_loader.h"
 #include "core/image/tiles.h"
 #include "core/render/layer_film.h"
+#include "core/util/enum_names.h"
+#include "server/layer_preview.h"
 #include "failpoint/failpoint.h"
 #include "server/tile_state.h"
 
@@ -453,8 +455,10 @@ std::filesystem::path JobService::result_exr(const std::string& id) {
   return jobs_.result_path(id);
 }
 
-std::vector<uint8_t> JobService::preview_png(const std::string& id) {
+std::vector<uint8_t> JobService::preview_png(const std::string& id, std::optional<Layer> layer) {
   protocol::JobStatus s = status(id);
+  if (layer && !s.frames && !job_layers(id).has(*layer))
+    throw ApiError(404, "job " + id + " has no layer " + std::string(enum_name(*layer, kLayerNames)));
   if (s.frames) {
     // A sequence shows its latest frame with pixels: the last done one, else the first started, else the first.
     const FramePage page = *sched_.frames(id, std::nullopt, 0);
@@ -462,7 +466,7 @@ std::vector<uint8_t> JobService::preview_png(const std::string& id) {
     for (const protocol::JobStatus& f : page.frames)
       if (f.state == JobState::done || (shown->state != JobState::done && f.started_ms && !shown->started_ms))
         shown = &f;
-    return preview_png(shown->id);
+    return preview_png(shown->id, layer);
   }
   const int width = s.params.width, height = s.params.height;
   // The version of the pixels a preview shows: a job's image in memory changes its generation with every tile pasted;
@@ -474,6 +478,22 @@ std::vector<uint8_t> JobService::preview_png(const std::string& id) {
     version = "tiles " + std::to_string(image->generation());  // read before the preview is made from the image
   } else {
     version = s.state == JobState::done ? "done " + std::to_string(s.params.spp) : "black";
+  }
+  if (layer) {
+    version += " " + std::string(enum_name(*layer, kLayerNames));
+    if (const Png kept = previews_.find(id, version)) return *kept;
+    std::vector<uint8_t> bytes;
+    if (image) {
+      bytes = image->layer_preview_png(*layer);
+    } else if (s.state == JobState::done) {
+      const Image shown = layer_display(read_exr(jobs_.result_path(id)).pixels, *layer);
+      bytes = server::preview_png(&shown, width, height);
+    } else {
+      bytes = server::preview_png(nullptr, width, height);
+    }
+    Png png = std::make_shared<const std::vector<uint8_t>>(std::move(bytes));
+    previews_.put(id, version, png);
+    return *png;
   }
   if (const Png kept = previews_.find(id, version)) return *kept;
   Png png = std::make_shared<const std::vector<uint8_t>>(

@@ -106,7 +106,7 @@ class JobService {
   std::filesystem::path result_exr(const std::string& id);
   /// The image as far as it has rendered, as PNG (server/preview.h), made again only once the job's pixels have
   /// changed (server/preview_cache.h); ApiError 404.
-  std::vector<uint8_t> preview_png(const std::string& id);
+  std::vector<uint8_t> preview_png(const std::string& id, std::optional<Layer> layer = std::nullopt);
 
   /// Validates and merges an uploaded tile (rays add to the job's count) and calls `done` once: `accepted` only after
   /// the tile's pixels are on the disk (a group commit: concurrent uploads share one flush, and no thread waits for
