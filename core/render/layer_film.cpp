@@ -13,7 +13,7 @@ namespace tessera {
 namespace {
 
 // Adds one sample of `id` to the pixel's (id, samples) list.
-void count(std::vector<std::pair<uint32_t, uint32_t>>& ids, uint32_t id) {
+void tally(std::vector<std::pair<uint32_t, uint32_t>>& ids, uint32_t id) {
   for (auto& e : ids)
     if (e.first == id) {
       ++e.second;
@@ -101,8 +101,8 @@ void LayerFilm::render_pixel(int px, int row, uint64_t seed, uint32_t n, uint32_
     PixelSampler sampler = replicates <= 1 ? PixelSampler(key, s) : pixel_sampler(seed, px, row, s, replicates);
     const FirstHit f =
         first_hit(scene, scene.camera.generate_pixel(px, row, sampler.next_2d(), scene.width, scene.height));
-    if (need_materials_) count(scratch.materials, f.hit ? f.material : 0u);
-    if (need_objects_) count(scratch.objects, f.hit ? f.object : 0u);
+    if (need_materials_) tally(scratch.materials, f.hit ? f.material : 0u);
+    if (need_objects_) tally(scratch.objects, f.hit ? f.object : 0u);
     if (!f.hit) continue;
     ++hits;
     albedo += glm::dvec3(f.albedo);
