@@ -1,5 +1,7 @@
 #include "cli/existing_render.h"
 
+#include "core/render/layers.h"
+
 #include "cli/sampling_flags.h"
 #include "core/image/image.h"
 #include "core/render/render_state.h"
@@ -72,7 +74,7 @@ ExpectedRender expected_render(const RenderArgs& args, const std::string& scene_
   e.height = height;
   e.sampling = sampling_settings(args, args.spp ? *args.spp : scene_spp).metadata();
   e.half = args.half;
-  e.variance = args.variance;
+  e.variance = args.variance || parse_layers(args.layers).has(Layer::kVariance);
   e.resumable = args.resumable;
   return e;
 }
@@ -109,7 +111,10 @@ ExistingRender examine_render(const fs::path& path, const ExpectedRender& expect
   for (const auto& [name, type] : h.channels) exact |= name.rfind(kStateChannelPrefix, 0) == 0;
   const auto colour = h.channels.find("R");
   const bool half = colour != h.channels.end() && colour->second == ExrPixelType::kHalf;
-  const bool variance = h.channels.count("variance.R") > 0;
+  // Variance channels are in the first part, or in a part of their own in a multi-part file (its tessera:layers says).
+  const auto layers = m.find("tessera:layers");
+  const bool variance = h.channels.count("variance.R") > 0 ||
+                        (layers != m.end() && parse_layers(layers->second).has(Layer::kVariance));
   const std::string settings = sampling_difference(m, expected.sampling);
   const std::string settings_but_spp = sampling_difference(m, expected.sampling, "tessera:spp");
   const std::string variance_why = variance == expected.variance ? ""

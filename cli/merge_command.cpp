@@ -2,8 +2,10 @@
 
 #include "cli/exit_status.h"
 
+#include "core/image/exr_multipart.h"
 #include "core/image/image.h"
 #include "core/image/merge.h"
+#include "core/render/layers.h"
 
 #include <spdlog/spdlog.h>
 
@@ -18,10 +20,13 @@ CLI::App* add_merge_command(CLI::App& app, MergeArgs& a) {
       ->check(CLI::ExistingFile);
   c->add_option("-o,--output", a.output, "Output EXR file (written atomically)")->required();
   c->add_flag("--half", a.half, "Write half floats instead of float32");
+  c->add_flag("--multipart", a.multipart,
+              "Write a multi-part EXR, one part per output layer (default: one part holding every channel)");
   c->footer(
-      "Every pixel of the display window must come from some tile. Tiles may overlap only where their R,G,B values "
-      "are bitwise identical (as re-rendered tiles are); any other overlap, and any gap, is an error listing the "
-      "pixel rectangles concerned. Extra channels are not merged.");
+      "Every pixel of the display window must come from some tile. Tiles may be single- or multi-part EXRs and must "
+      "all have the same extra channels (output layers, variance), which are merged with the colour. Tiles may "
+      "overlap only where all their channels are bitwise identical (as re-rendered tiles are); any other overlap, "
+      "and any gap, is an error listing the pixel rectangles concerned.");
   return c;
 }
 
@@ -31,7 +36,7 @@ int run_merge(const MergeArgs& a) {
   MergeResult merged;
   try {
     inputs.reserve(a.inputs.size());
-    for (const auto& path : a.inputs) inputs.push_back({path, read_exr(path)});
+    for (const auto& path : a.inputs) inputs.push_back({path, read_exr_all_parts(path)});
     merged = merge_tiles(inputs);
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());
@@ -43,7 +48,8 @@ int run_merge(const MergeArgs& a) {
     wo.data_window = merged.display_window;
     wo.display_window = merged.display_window;
     wo.metadata = merged.metadata;
-    write_exr(a.output, merged.image, wo);
+    if (a.multipart) write_exr_multipart(a.output, merged.image, wo, layer_parts(merged.image));
+    else write_exr(a.output, merged.image, wo);
   } catch (const std::exception& e) {
     spdlog::error("merge failed: {}", e.what());
     return kExitFailed;

@@ -13,6 +13,7 @@ struct MergeArgs {
   std::vector<std::string> inputs;  ///< Tile EXRs.
   std::string output;               ///< EXR to write.
   bool half = false;                ///< Write half floats.
+  bool multipart = false;           ///< Write one EXR part per output layer.
 };
 
 /// Registers the subcommand's options on `app`.

@@ -13,7 +13,9 @@
 #include "cli/render_sequence.h"
 
 #include "core/util/enum_names.h"
+#include "core/image/exr_multipart.h"
 #include "core/image/exr_stream.h"
+#include "core/render/layer_film.h"
 #include "core/render/render.h"
 #include "core/scene/scene_loader.h"
 
@@ -42,6 +44,9 @@ CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
   c->add_option("--crop", a.crop, "Render only pixels [X0,X1) x [Y0,Y1) (row 0 = top)")->expected(4);
   c->add_flag("--half", a.half, "Write half floats instead of float32");
   c->add_flag("--variance", a.variance, "Also write per-pixel variance-of-the-mean and sample-count channels");
+  c->add_flag("--multipart", a.multipart,
+              "Write a multi-part EXR: the colour in part \"rgba\", each output layer in a part of its own name "
+              "(default: one part holding every channel)");
   c->add_option("--preview", a.preview,
                 "Also write an sRGB tone-mapped PNG (with several frames, a '#' pattern like -o)");
   c->add_flag("--strict", a.strict, "Treat unknown scene keys as errors");
@@ -71,7 +76,7 @@ CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
               "Skip each frame whose output is already a complete render of its scene with these settings (as the "
               "EXR's metadata records them); render the others again");
   // The sampling settings come from the file: giving them again could only contradict it.
-  for (const char* name : {"--seed", "--crop", "--variance", "--target-error", "--min-spp", "--max-spp",
+  for (const char* name : {"--seed", "--crop", "--variance", "--layers", "--target-error", "--min-spp", "--max-spp",
                            "--error-floor", "--replicates", "--area-sampling", "--env-sampling", "--bvh", "--workers"})
     resume->excludes(c->get_option(name));
   return c;
@@ -162,7 +167,7 @@ int render_scene(const RenderArgs& given) {
     std::optional<ExrImage> resume_file;
     if (!given.resume.empty()) {
       try {
-        resume_file = read_exr(given.resume);
+        resume_file = read_exr_all_parts(given.resume);
       } catch (const std::exception& e) {
         throw Refusal(e.what());
       }
@@ -222,7 +227,7 @@ int render_scene(const RenderArgs& given) {
     layout.data_window = ro.window.empty() ? PixelWindow{0, 0, scene.width, scene.height} : ro.window;
     layout.display_window = PixelWindow{0, 0, scene.width, scene.height};
     ExrStream exr(layout);
-    ro.rows_final = [&](const Image& film, const RenderState& state, int y0, int y1) {
+    if (!a.multipart) ro.rows_final = [&](const Image& film, const RenderState& state, int y0, int y1) {
       if (exr.rows_written() != y0) return;  // stopped at a failed band
       try {
         Image band = image_rows(film, y0, y1);
@@ -247,6 +252,7 @@ int render_scene(const RenderArgs& given) {
     wo.metadata["tessera:renderSeconds"] = std::to_string(res.seconds);
     wo.metadata["tessera:areaSampling"] = std::string(enum_name(scene.settings.area_sampling, kAreaSamplingNames));
     wo.metadata["tessera:envSampling"] = std::string(enum_name(scene.settings.env_sampling, kEnvSamplingNames));
+    wo.metadata.merge(layer_metadata(scene, ro.layers));
     const size_t done = rendered_pixels(res.state);
     const size_t pixels_total = res.state.samples.size();
     if (res.cancelled) {
@@ -254,7 +260,8 @@ int render_scene(const RenderArgs& given) {
     }
     if (res.cancelled || ro.keep_state) write_state_channels(res.state, res.image);
     const auto t_write = std::chrono::steady_clock::now();
-    exr.write(a.output, res.image, wo);
+    if (a.multipart) write_exr_multipart(a.output, res.image, wo, layer_parts(res.image));
+    else exr.write(a.output, res.image, wo);
     if (!a.preview.empty()) write_png_srgb(a.preview, res.image);
     if (a.timing) {
       const double write_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_write).count();

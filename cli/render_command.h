@@ -28,6 +28,7 @@ struct RenderArgs : SamplingArgs {
   std::vector<int> crop;                ///< X0 Y0 X1 Y1 (half-open, row 0 = top).
   bool half = false;                    ///< Write half floats.
   bool variance = false;                ///< Write variance and sample-count channels.
+  bool multipart = false;               ///< Write one EXR part per output layer.
   std::string preview;                  ///< Also write an sRGB PNG here (with several frames, a '#' pattern).
   bool strict = false;                  ///< Unknown scene keys are errors.
   std::string asset_root;               ///< Allow assets anywhere below this folder.

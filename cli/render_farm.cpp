@@ -5,7 +5,9 @@
 #include "cli/output_check.h"
 #include "cli/interrupt_guard.h"
 #include "cli/submit_command.h"
+#include "core/image/exr_multipart.h"
 #include "core/image/image.h"
+#include "core/render/layers.h"
 #include "server/auth.h"
 #include "server/coordinator_store.h"
 #include "core/util/file_io.h"
@@ -92,17 +94,19 @@ uint64_t take_result(const fs::path& data_dir, const std::string& job, const fs:
   return size;
 }
 
-// Writes the --half copy and the --preview PNG of a finished image, as a render in one process would have.
+// Writes the --half or --multipart copy and the --preview PNG of a finished image, as a render in one process would
+// have.
 void finish_output(const RenderArgs& a, const std::string& output, const std::string& preview) {
-  if (!a.half && preview.empty()) return;
+  if (!a.half && !a.multipart && preview.empty()) return;
   const ExrImage img = read_exr(output);
-  if (a.half) {
+  if (a.half || a.multipart) {
     ExrWriteOptions wo;
-    wo.half = true;
+    wo.half = a.half;
     wo.data_window = img.data_window;
     wo.display_window = img.display_window;
     wo.metadata = img.metadata;
-    write_exr(output, img.pixels, wo);
+    if (a.multipart) write_exr_multipart(output, img.pixels, wo, layer_parts(img.pixels));
+    else write_exr(output, img.pixels, wo);
   }
   if (!preview.empty()) write_png_srgb(preview, img.pixels);
 }
@@ -111,7 +115,7 @@ void finish_output(const RenderArgs& a, const std::string& output, const std::st
 
 int run_render_farm(const RenderArgs& a, const std::vector<client::FrameScene>& frames) {
   if (!a.crop.empty() || a.variance) {
-    spdlog::error("--workers renders whole images without variance channels: drop --crop/--variance");
+    spdlog::error("--workers renders whole images without --variance (ask for --layers variance): drop --crop/--variance");
     return kExitRefused;
   }
   // --strict is a property of loading the file here, which the coordinator does not repeat: refused, never dropped.

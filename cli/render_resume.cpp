@@ -63,6 +63,7 @@ RenderArgs resumed_args(const RenderArgs& given, const ExrImage& file) {
   a.area_sampling = override_of("tessera:areaSamplingOverride");
   a.env_sampling = override_of("tessera:envSamplingOverride");
   a.bvh = override_of("tessera:bvhOverride");
+  a.layers = override_of("tessera:layers");
   const PixelWindow& w = file.data_window;
   a.crop = {w.x0, w.y0, w.x1, w.y1};
   a.variance = file.pixels.extra.count("variance.R") > 0;

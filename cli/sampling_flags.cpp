@@ -34,6 +34,18 @@ void add_sampling_flags(CLI::App* c, SamplingArgs& a) {
       ->check(CLI::IsMember(enum_names(kEnvSamplingNames)));
   c->add_option("--bvh", a.bvh, "BVH build: binned SAH or object median (overrides the scene)")
       ->check(CLI::IsMember(enum_names(kSplitMethodNames)));
+  c->add_option("--layers", a.layers,
+                "Output layers written beside the colour, comma-separated: albedo, normal, depth, position, "
+                "material_id, object_id, variance, crypto_material, crypto_object (first-hit layers describe the "
+                "first surface that is not glass or refraction)")
+      ->check([](const std::string& v) {
+        try {
+          (void)parse_layers(v);
+          return std::string();
+        } catch (const std::invalid_argument& e) {
+          return std::string(e.what());
+        }
+      });
 }
 
 protocol::SamplingSettings sampling_settings(const SamplingArgs& a, uint32_t spp) {
@@ -49,6 +61,7 @@ protocol::SamplingSettings sampling_settings(const SamplingArgs& a, uint32_t spp
   s.area_sampling = a.area_sampling;
   s.env_sampling = a.env_sampling;
   s.bvh = a.bvh;
+  s.layers = parse_layers(a.layers);
   return s;
 }
 

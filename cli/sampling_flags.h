@@ -29,10 +29,11 @@ struct SamplingArgs {
   std::string area_sampling;                     ///< Overrides integrator.area_sampling (auto, solid_angle or area).
   std::string env_sampling;                      ///< Overrides integrator.env_sampling (mis, importance, cosine, uniform).
   std::string bvh;                               ///< Overrides integrator.bvh (sah or median).
+  std::string layers;                            ///< Output layers, comma-separated (core/render/layers.h).
 };
 
 /// Registers --spp, --seed, --integrator, --target-error, --min-spp, --max-spp, --error-floor, --replicates,
-/// --area-sampling, --env-sampling and --bvh on `command`, writing into `args`.
+/// --area-sampling, --env-sampling, --bvh and --layers on `command`, writing into `args`.
 void add_sampling_flags(CLI::App* command, SamplingArgs& args);
 
 /// The settings `args` give, at `spp` samples per pixel (0: the scene's): what a render's options, the EXR metadata

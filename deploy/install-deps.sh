@@ -14,6 +14,7 @@ PACKAGES=(
   slurm-wlm munge python3-yaml python3-kubernetes systemd
   openssl iproute2
   chromium chromium-driver python3-selenium
+  python3-openimageio python3-numpy openexr
 )
 
 missing=()

@@ -29,6 +29,33 @@ std::string strategy(const json& j, const char* key, const std::string_view (&ta
   return v;
 }
 
+// The "layers" of a request: an array of distinct layer names.
+LayerSet request_layers(const json& j) {
+  LayerSet set;
+  if (!j.contains("layers")) return set;
+  const json& v = j["layers"];
+  const auto bad = [&](const std::string& why) {
+    std::string list;
+    for (std::string_view n : kLayerNames) list += (list.empty() ? "" : ", ") + std::string(n);
+    return ProtocolError("'layers' must be an array of layer names (" + list + ")" + why);
+  };
+  if (!v.is_array()) throw bad(" (got " + v.dump() + ")");
+  for (const json& e : v) {
+    const std::optional<Layer> l = e.is_string() ? enum_from_name<Layer>(e.get<std::string>(), kLayerNames) : std::nullopt;
+    if (!l) throw bad(" (got " + e.dump() + ")");
+    if (set.has(*l)) throw bad(": " + e.dump() + " is named twice");
+    set.add(*l);
+  }
+  return set;
+}
+
+// The layers as a JSON array of names.
+json layer_names(LayerSet layers) {
+  json a = json::array();
+  for (const Layer l : layers.list()) a.push_back(std::string(enum_name(l, kLayerNames)));
+  return a;
+}
+
 // Sampling settings of a request object, checked with the coordinator's sentences.
 SamplingSettings request_sampling(const json& j) {
   SamplingSettings s;
@@ -63,6 +90,7 @@ SamplingSettings request_sampling(const json& j) {
   s.area_sampling = strategy(j, "area_sampling", kAreaSamplingNames);
   s.env_sampling = strategy(j, "env_sampling", kEnvSamplingNames);
   s.bvh = strategy(j, "bvh", kSplitMethodNames);
+  s.layers = request_layers(j);
   return s;
 }
 
@@ -81,6 +109,7 @@ void put_sampling(json& j, const SamplingSettings& s) {
   if (!s.area_sampling.empty()) j["area_sampling"] = s.area_sampling;
   if (!s.env_sampling.empty()) j["env_sampling"] = s.env_sampling;
   if (!s.bvh.empty()) j["bvh"] = s.bvh;
+  if (!s.layers.empty()) j["layers"] = layer_names(s.layers);
 }
 
 // Reads settings written by put_sampling (a spec from the coordinator).
@@ -97,6 +126,13 @@ SamplingSettings answer_sampling(const json& j, const char* msg) {
   s.area_sampling = answer_field_or<std::string>(j, "area_sampling", msg, "");
   s.env_sampling = answer_field_or<std::string>(j, "env_sampling", msg, "");
   s.bvh = answer_field_or<std::string>(j, "bvh", msg, "");
+  if (j.contains("layers")) {
+    try {
+      s.layers = request_layers(j);
+    } catch (const ProtocolError& e) {
+      throw ProtocolError(std::string(msg) + ": " + e.what());
+    }
+  }
   if (!(s.target_error >= 0.0) || s.min_spp < 1 || s.min_spp > s.max_spp || !(s.error_floor > 0.0))
     throw ProtocolError(std::string(msg) + ": bad adaptive sampling settings (target_error, min_spp, max_spp, error_floor)");
   if (s.replicates < 1 || s.replicates > kMaxReplicates)
@@ -192,6 +228,7 @@ std::map<std::string, std::string> SamplingSettings::metadata() const {
   if (!area_sampling.empty()) m["tessera:areaSamplingOverride"] = area_sampling;
   if (!env_sampling.empty()) m["tessera:envSamplingOverride"] = env_sampling;
   if (!bvh.empty()) m["tessera:bvhOverride"] = bvh;
+  if (!layers.empty()) m["tessera:layers"] = layers_to_string(layers);
   return m;
 }
 
@@ -202,6 +239,7 @@ void SamplingSettings::apply_to(RenderOptions& o) const {
   o.max_spp = max_spp;
   o.error_floor = float(error_floor);
   o.replicates = replicates;
+  o.layers = layers;
 }
 
 void to_json(json& j, const JobSubmission& s) {
@@ -236,7 +274,7 @@ int request_priority(const json& j) {
 JobSubmission parse_job_submission(const std::string& body) {
   json j = parse_request_object(
       body, {"scene", "assets", "frames", "frame_order", "spp", "seed", "tile_size", "priority", "name", "integrator",
-             "target_error", "min_spp", "max_spp", "error_floor", "replicates", "area_sampling", "env_sampling", "bvh",
+             "target_error", "min_spp", "max_spp", "error_floor", "replicates", "area_sampling", "env_sampling", "bvh", "layers",
              "resumable", "tile_timeout_seconds", "require", "max_workers"},
       false);
   JobSubmission s;

@@ -35,13 +35,14 @@ struct SamplingSettings {
   std::string area_sampling;   ///< Overrides the scene's integrator.area_sampling ("": the scene's).
   std::string env_sampling;    ///< Overrides the scene's integrator.env_sampling ("": the scene's).
   std::string bvh;             ///< Overrides the scene's integrator.bvh ("": the scene's).
+  LayerSet layers;             ///< Output layers beside the colour (core/render/layers.h); JSON: an array of names.
 
   /// What loading the scene needs from these settings (spp override, integrator, strategy overrides).
   LoadOptions load_options() const;
-  /// Sets the render options these settings decide (seed, adaptive sampling, replicates).
+  /// Sets the render options these settings decide (seed, adaptive sampling, replicates, layers).
   void apply_to(RenderOptions& options) const;
-  /// The EXR metadata that records these settings (`tessera:spp`, `tessera:seed`, adaptive options, replicates and
-  /// strategy overrides), written alike by `tessera render` and the coordinator, and read back by `render --resume`.
+  /// The EXR metadata that records these settings (`tessera:spp`, `tessera:seed`, adaptive options, replicates,
+  /// strategy overrides and `tessera:layers` when there are layers), written alike by `tessera render` and the coordinator, and read back by `render --resume`.
   std::map<std::string, std::string> metadata() const;
 };
 

@@ -224,6 +224,14 @@ TEST(Messages, SubmissionRefusesUnknownKeysAndBadSettings) {
   EXPECT_EQ(error_of(R"({"scene": {}, "resumable": 1})"), "'resumable' must be true or false (got 1)");
   EXPECT_EQ(error_of(R"({"scene": {}, "resumable": true, "target_error": 0.1})").rfind("'resumable' needs a fixed spp", 0), 0u);
   EXPECT_TRUE(parse_job_submission(R"({"scene": {}, "resumable": true})").resumable);
+  EXPECT_EQ(error_of(R"({"scene": {}, "layers": "albedo"})").rfind("'layers' must be an array of layer names", 0), 0u);
+  EXPECT_NE(error_of(R"({"scene": {}, "layers": ["albedo", "albedo"]})").find("\"albedo\" is named twice"),
+            std::string::npos);
+  EXPECT_NE(error_of(R"({"scene": {}, "layers": ["beauty"]})").find("(got \"beauty\")"), std::string::npos);
+  const JobSubmission layered = parse_job_submission(R"({"scene": {}, "layers": ["normal", "crypto_object"]})");
+  EXPECT_EQ(layers_to_string(layered.sampling.layers), "normal,crypto_object");
+  EXPECT_EQ(nlohmann::json(layered.sampling)["layers"], nlohmann::json::parse(R"(["normal", "crypto_object"])"));
+  EXPECT_EQ(layered.sampling.metadata().at("tessera:layers"), "normal,crypto_object");
 }
 
 TEST(Messages, AJobPatchCarriesAPriorityAndOrAnSpp) {

@@ -1,5 +1,7 @@
 #include "protocol/query.h"
 
+#include "core/util/enum_names.h"
+
 #include "protocol/errors.h"
 #include "protocol/events.h"
 
@@ -190,6 +192,19 @@ std::string AuditQuery::to_query() const {
   if (limit != AuditQuery{}.limit) add("limit", std::to_string(limit));
   if (!user.empty()) add("user", user);
   return q;
+}
+
+std::optional<Layer> parse_preview_query(std::string_view target) {
+  const auto params = query_params(target, {"layer"});
+  const auto it = params.find("layer");
+  if (it == params.end()) return std::nullopt;
+  const std::optional<Layer> l = enum_from_name<Layer>(it->second, kLayerNames);
+  if (!l) {
+    std::string list;
+    for (std::string_view n : kLayerNames) list += (list.empty() ? "" : ", ") + std::string(n);
+    throw ProtocolError("layer: '" + it->second + "' is not one of " + list);
+  }
+  return l;
 }
 
 bool parse_purge_query(std::string_view target) {

@@ -1,8 +1,9 @@
-// Query strings of request targets: GET /v1/jobs?state=S[,S]&limit=N&after=CURSOR, DELETE /v1/jobs/{id}?purge=B and
-// GET /v1/events?only=NAME[,NAME].
+// Query strings of request targets: GET /v1/jobs?state=S[,S]&limit=N&after=CURSOR, DELETE /v1/jobs/{id}?purge=B,
+// GET /v1/jobs/{id}/preview.png?layer=NAME and GET /v1/events?only=NAME[,NAME].
 // Parsers refuse unknown keys, repeated keys and bad values with a ProtocolError (400) naming them.
 #pragma once
 
+#include "core/render/layers.h"
 #include "protocol/job.h"
 
 #include <cstddef>
@@ -54,6 +55,9 @@ struct AuditQuery {
 AuditQuery parse_audit_query(std::string_view target);
 /// Parses the query of GET /v1/jobs/{id}/frames; throws ProtocolError with the sentence answered (400).
 FrameListQuery parse_frame_list_query(std::string_view target);
+/// Parses the query of GET /v1/jobs/{id}/preview.png: layer=NAME shows that output layer (core/render/layers.h)
+/// instead of the colour; nothing for the colour.
+std::optional<Layer> parse_preview_query(std::string_view target);
 /// Parses the query of DELETE /v1/jobs/{id}: true for purge=true; false for none or purge=false.
 bool parse_purge_query(std::string_view target);
 /// Parses the query of GET /v1/events (only=NAME[,NAME]: just those events, and resync); empty: every event.

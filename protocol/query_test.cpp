@@ -120,3 +120,16 @@ TEST(FrameListQuery, BadValuesAreRefusedWithASentence) {
 
 }  // namespace
 }  // namespace tessera::protocol
+
+namespace tessera::protocol {
+namespace {
+
+TEST(PreviewQuery, ALayerByNameOrNone) {
+  EXPECT_FALSE(parse_preview_query("/v1/jobs/j/preview.png"));
+  EXPECT_EQ(parse_preview_query("/v1/jobs/j/preview.png?layer=normal"), Layer::kNormal);
+  EXPECT_THROW(parse_preview_query("/v1/jobs/j/preview.png?layer=beauty"), ProtocolError);
+  EXPECT_THROW(parse_preview_query("/v1/jobs/j/preview.png?size=2"), ProtocolError);
+}
+
+}  // namespace
+}  // namespace tessera::protocol

@@ -30,7 +30,8 @@ const std::string kSha = std::string(64, 'a');
 
 SamplingSettings full_sampling() {
   return {.spp = 4, .seed = 7, .integrator = "direct", .target_error = 0.05, .min_spp = 8, .max_spp = 64,
-          .error_floor = 0.02, .replicates = 2, .area_sampling = "area", .env_sampling = "cosine", .bvh = "median"};
+          .error_floor = 0.02, .replicates = 2, .area_sampling = "area", .env_sampling = "cosine", .bvh = "median",
+          .layers = parse_layers("albedo,normal,depth,crypto_object")};
 }
 
 json sample_scene() { return {{"film", {{"resolution", {16, 16}}}}}; }

@@ -1,5 +1,7 @@
 #include "server/assembly.h"
 
+#include "server/layer_preview.h"
+
 #include "core/image/exr_uncompressed.h"
 
 #include "failpoint/failpoint.h"
@@ -101,9 +103,11 @@ ExrLayout read_layout(std::string_view exr) {
   return h;
 }
 
-// The channel problems a tile can have: R, G and B must be there, float32 and full resolution.
-std::optional<std::string> check_channels(const ExrLayout& h) {
-  for (const char* wanted : {"R", "G", "B"}) {
+// The channel problems a tile can have: R, G, B and the layers' channels must be there, float32 and full resolution.
+std::optional<std::string> check_channels(const ExrLayout& h, const std::vector<std::string>& layers) {
+  std::vector<std::string> names = {"R", "G", "B"};
+  names.insert(names.end(), layers.begin(), layers.end());
+  for (const std::string& wanted : names) {
     const auto it = std::find_if(h.channels.begin(), h.channels.end(), [&](const auto& c) { return c.name == wanted; });
     if (it == h.channels.end()) return std::string("channel ") + wanted + " is missing";
     if (it->type != kExrFloat) return std::string("channel ") + wanted + " is not float32";
@@ -116,14 +120,15 @@ std::optional<std::string> check_channels(const ExrLayout& h) {
 // kMaxTileChannels channels among which R, G and B are float32 at full resolution, the job's image as display window
 // and the lease's tile as data window.
 constexpr size_t kMaxTileChannels = 64;
-std::optional<std::string> check_header(const ExrLayout& h, const PixelWindow& window, int width, int height) {
+std::optional<std::string> check_header(const ExrLayout& h, const PixelWindow& window, int width, int height,
+                                        const std::vector<std::string>& layers) {
   constexpr int32_t kDeep = 0x800, kMultiPart = 0x1000;
   if ((h.version & 0xff) != 2) return "OpenEXR version " + std::to_string(h.version & 0xff) + " is not 2";
   if (h.version & (kDeep | kMultiPart)) return std::string("a tile must be one flat image, not deep or multi-part");
   if (h.channels.size() > kMaxTileChannels)
     return std::to_string(h.channels.size()) + " channels, more than the " + std::to_string(kMaxTileChannels) +
            " a tile may have";
-  if (auto e = check_channels(h)) return e;
+  if (auto e = check_channels(h, layers)) return e;
   const PixelWindow full{0, 0, width, height};
   if (!h.display) return std::string("the header has no display window");
   if (!(*h.display == full)) return "display window is " + describe(*h.display) + ", expected " + describe(full);
@@ -170,7 +175,8 @@ std::optional<ExrImage> decode_plain_tile(std::string_view exr, const ExrLayout&
 
 }  // namespace
 
-TileCheck check_tile_exr(std::string_view bytes, const PixelWindow& window, int width, int height) {
+TileCheck check_tile_exr(std::string_view bytes, const PixelWindow& window, int width, int height,
+                         const std::vector<std::string>& layers) {
   TileCheck r;
   try {
     // The header is checked against the lease before a pixel is decoded, so that a decoder never allocates more than
@@ -180,7 +186,7 @@ TileCheck check_tile_exr(std::string_view bytes, const PixelWindow& window, int 
       return r;
     }
     const ExrLayout layout = read_layout(bytes);
-    if (auto e = check_header(layout, window, width, height)) {
+    if (auto e = check_header(layout, window, width, height, layers)) {
       r.error = *e;
       return r;
     }
@@ -199,7 +205,16 @@ TileCheck check_tile_exr(std::string_view bytes, const PixelWindow& window, int 
                   std::to_string(window.y0 + int(p / size_t(window.width()))) + ") is not finite";
         return r;
       }
-    exr.pixels.extra.clear();
+    std::map<std::string, std::vector<float>> kept;
+    for (const std::string& name : layers) {
+      const auto it = exr.pixels.extra.find(name);
+      if (it == exr.pixels.extra.end()) {
+        r.error = "channel " + name + " is missing";
+        return r;
+      }
+      kept.emplace(name, std::move(it->second));
+    }
+    exr.pixels.extra = std::move(kept);
     r.pixels = std::move(exr.pixels);
   } catch (const std::exception& e) {
     r.error = std::string("not a readable OpenEXR file: ") + e.what();
@@ -207,17 +222,31 @@ TileCheck check_tile_exr(std::string_view bytes, const PixelWindow& window, int 
   return r;
 }
 
-std::string_view tile_bytes(const Image& tile) {
-  return std::string_view(reinterpret_cast<const char*>(tile.rgb.data()), tile.rgb.size() * sizeof(float));
+std::string_view tile_bytes(const Image& tile, const std::vector<std::string>& layers, std::string& buffer) {
+  const std::string_view rgb = tile_bytes(tile);
+  if (layers.empty()) return rgb;
+  buffer.assign(rgb);
+  for (const std::string& name : layers) {
+    const std::vector<float>& ch = tile.extra.at(name);
+    buffer.append(reinterpret_cast<const char*>(ch.data()), ch.size() * sizeof(float));
+  }
+  return buffer;
 }
 
-Image tile_from_bytes(std::string_view bytes, int width, int height) {
+Image tile_from_bytes(std::string_view bytes, int width, int height, const std::vector<std::string>& layers) {
   Image img = Image::make(width, height);
-  if (bytes.size() != img.rgb.size() * sizeof(float))
+  const size_t rgb = img.rgb.size() * sizeof(float), plane = size_t(width) * size_t(height) * sizeof(float);
+  if (bytes.size() != rgb + layers.size() * plane)
     throw std::invalid_argument("stored tile has " + std::to_string(bytes.size()) + " bytes, expected " +
-                                std::to_string(img.rgb.size() * sizeof(float)) + " for " + std::to_string(width) + "x" +
-                                std::to_string(height) + " float32 RGB");
-  std::memcpy(img.rgb.data(), bytes.data(), bytes.size());
+                                std::to_string(rgb + layers.size() * plane) + " for " + std::to_string(width) + "x" +
+                                std::to_string(height) + " float32 RGB and " + std::to_string(layers.size()) +
+                                " layer channel(s)");
+  std::memcpy(img.rgb.data(), bytes.data(), rgb);
+  for (size_t c = 0; c < layers.size(); ++c) {
+    std::vector<float>& ch = img.extra[layers[c]];
+    ch.resize(size_t(width) * size_t(height));
+    std::memcpy(ch.data(), bytes.data() + rgb + c * plane, plane);
+  }
   return img;
 }
 
@@ -228,7 +257,8 @@ std::atomic<uint64_t> g_generations{0};
 
 }  // namespace
 
-JobImage::JobImage(int width, int height) : width_(width), height_(height), generation_(++g_generations) {
+JobImage::JobImage(int width, int height, std::vector<std::string> layers)
+    : width_(width), height_(height), layers_(std::move(layers)), generation_(++g_generations) {
   if (width <= 0 || height <= 0) throw std::invalid_argument("job image needs a positive size");
 }
 
@@ -238,7 +268,9 @@ uint64_t JobImage::generation() {
 }
 
 void JobImage::allocate_locked() {
-  if (image_.rgb.empty()) image_ = Image::make(width_, height_);
+  if (!image_.rgb.empty()) return;
+  image_ = Image::make(width_, height_);
+  for (const std::string& name : layers_) image_.extra[name].assign(size_t(width_) * size_t(height_), 0.f);
 }
 
 void JobImage::paste(const Image& tile, const PixelWindow& w) {
@@ -253,11 +285,26 @@ void JobImage::paste(const Image& tile, const PixelWindow& w) {
   for (int y = 0; y < w.height(); ++y)
     std::memcpy(&image_.rgb[3 * (size_t(w.y0 + y) * size_t(width_) + size_t(w.x0))], &tile.rgb[size_t(y) * row_floats],
                 row_floats * sizeof(float));
+  for (const std::string& name : layers_) {
+    const auto it = tile.extra.find(name);
+    if (it == tile.extra.end()) continue;  // a tile of a job without layers
+    std::vector<float>& ch = image_.extra[name];
+    for (int y = 0; y < w.height(); ++y)
+      std::memcpy(&ch[size_t(w.y0 + y) * size_t(width_) + size_t(w.x0)], &it->second[size_t(y) * size_t(w.width())],
+                  size_t(w.width()) * sizeof(float));
+  }
 }
 
 std::vector<uint8_t> JobImage::preview_png() {
   std::lock_guard lock(mu_);
   return server::preview_png(image_.rgb.empty() ? nullptr : &image_, width_, height_);
+}
+
+std::vector<uint8_t> JobImage::layer_preview_png(Layer layer) {
+  std::lock_guard lock(mu_);
+  allocate_locked();
+  const Image shown = layer_display(image_, layer);
+  return server::preview_png(&shown, width_, height_);
 }
 
 void JobImage::write_exr(const std::filesystem::path& file, const std::map<std::string, std::string>& metadata,
@@ -281,6 +328,10 @@ void JobImage::write_exr(const std::filesystem::path& file, const std::map<std::
                                          3 * sizeof(float) * size_t(width_)));
     }
     const size_t pixels = size_t(width_) * size_t(height_);
+    for (const auto& [name, values] : image_.extra) {
+      header.channels().insert(name, Imf::Channel(Imf::FLOAT));
+      fb.insert(name, Imf::Slice::Make(Imf::FLOAT, values.data(), window));
+    }
     for (const auto& [name, values] : uint_channels) {
       if (values.size() != pixels || header.channels().findChannel(name))
         throw std::runtime_error("channel " + name + " does not fit the image");

@@ -141,3 +141,51 @@ TEST(JobImage, PreviewsAreBoundedAndAQueuedJobAllocatesNoFrame) {
 
 }  // namespace
 }  // namespace tessera::server
+
+namespace tessera::server {
+namespace {
+
+// A layered tile (its colour and two layer channels) as a worker uploads it.
+Image layered_tile(const PixelWindow& w) {
+  Image img = Image::make(w.width(), w.height());
+  for (size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = float(i) * 0.25f;
+  const size_t n = size_t(w.width()) * size_t(w.height());
+  img.extra["Z"].assign(n, std::numeric_limits<float>::infinity());  // depth may be infinite: only colours are checked
+  img.extra["object_id"].assign(n, 3.f);
+  img.extra["tessera.unused"].assign(n, 1.f);  // not a layer of the job: dropped
+  return img;
+}
+
+TEST(CheckTileExr, LayeredTilesKeepTheirLayersAndStoreThemAfterTheColour) {
+  const PixelWindow w{8, 4, 24, 12};
+  const Image sent = layered_tile(w);
+  ExrWriteOptions o;
+  o.compression = ExrCompression::kNone;
+  o.data_window = w;
+  o.display_window = PixelWindow{0, 0, 32, 16};
+  const std::vector<uint8_t> bytes = encode_exr(sent, o);
+  const std::string exr(bytes.begin(), bytes.end());
+  const std::vector<std::string> layers = {"Z", "object_id"};
+  const TileCheck c = check_tile_exr(exr, w, 32, 16, layers);
+  ASSERT_FALSE(c.error) << *c.error;
+  EXPECT_EQ(c.pixels.extra.size(), 2u);
+  EXPECT_EQ(c.pixels.extra.at("object_id"), sent.extra.at("object_id"));
+  const TileCheck missing = check_tile_exr(exr, w, 32, 16, {"Z", "N.X"});
+  ASSERT_TRUE(missing.error);
+  EXPECT_EQ(*missing.error, "channel N.X is missing");
+  std::string buffer;
+  const std::string_view stored = tile_bytes(c.pixels, layers, buffer);
+  EXPECT_EQ(stored.size(), size_t(w.width() * w.height()) * 5 * sizeof(float));
+  const Image back = tile_from_bytes(stored, w.width(), w.height(), layers);
+  EXPECT_EQ(back.rgb, sent.rgb);
+  EXPECT_EQ(std::memcmp(back.extra.at("Z").data(), sent.extra.at("Z").data(), sent.extra.at("Z").size() * 4), 0);
+  EXPECT_THROW(tile_from_bytes(stored, w.width(), w.height()), std::invalid_argument);
+  // A job's image takes the layers of its tiles and writes them beside the colour.
+  JobImage job(32, 16, layers);
+  job.paste(c.pixels, w);
+  EXPECT_FALSE(job.layer_preview_png(Layer::kObjectId).empty());
+  EXPECT_THROW(job.layer_preview_png(Layer::kAlbedo), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace tessera::server

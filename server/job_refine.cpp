@@ -79,6 +79,22 @@ std::optional<protocol::SamplingSettings> JobService::resumable_sampling(const s
   return cached().value_or(std::nullopt);
 }
 
+LayerSet JobService::job_layers(const std::string& job) {
+  const auto cached = [&]() -> std::optional<LayerSet> {
+    std::lock_guard lock(mu_);
+    const auto it = specs_.find(job);
+    if (it == specs_.end()) return std::nullopt;
+    return it->second.sampling.layers;
+  };
+  if (auto r = cached()) return *r;
+  try {
+    spec(job);  // loads the record into the cache
+  } catch (const ApiError&) {  // no record (a job of an older version) or a sequence: no layers
+    return LayerSet{};
+  }
+  return cached().value_or(LayerSet{});
+}
+
 protocol::Lease JobService::with_state(protocol::Lease lease) {
   if (!resumable_sampling(lease.job)) return lease;
   lease.resumable = true;

@@ -3,6 +3,9 @@
 #include "core/util/file_io.h"
 #include "core/scene/scene_loader.h"
 #include "core/image/tiles.h"
+#include "core/render/layer_film.h"
+#include "core/util/enum_names.h"
+#include "server/layer_preview.h"
 #include "failpoint/failpoint.h"
 #include "server/tile_state.h"
 
@@ -130,7 +133,7 @@ JobService::CheckedScene JobService::check_scene(const json& scene, const std::m
   } catch (const ApiError& e) {
     throw ApiError(400, where + e.what());
   }
-  return {s.width, s.height, s.settings.spp, s.hash, std::move(loaded.warnings)};
+  return {s.width, s.height, s.settings.spp, s.hash, std::move(loaded.warnings), layer_metadata(s, sampling.layers)};
 }
 
 ApiError JobService::queue_full() const {
@@ -461,8 +464,10 @@ std::filesystem::path JobService::result_exr(const std::string& id) {
   return jobs_.result_path(id);
 }
 
-std::vector<uint8_t> JobService::preview_png(const std::string& id) {
+std::vector<uint8_t> JobService::preview_png(const std::string& id, std::optional<Layer> layer) {
   protocol::JobStatus s = status(id);
+  if (layer && !s.frames && !job_layers(id).has(*layer))
+    throw ApiError(404, "job " + id + " has no layer " + std::string(enum_name(*layer, kLayerNames)));
   if (s.frames) {
     // A sequence shows its latest frame with pixels: the last done one, else the first started, else the first.
     const FramePage page = *sched_.frames(id, std::nullopt, 0);
@@ -470,7 +475,7 @@ std::vector<uint8_t> JobService::preview_png(const std::string& id) {
     for (const protocol::JobStatus& f : page.frames)
       if (f.state == JobState::done || (shown->state != JobState::done && f.started_ms && !shown->started_ms))
         shown = &f;
-    return preview_png(shown->id);
+    return preview_png(shown->id, layer);
   }
   const int width = s.params.width, height = s.params.height;
   // The version of the pixels a preview shows: a job's image in memory changes its generation with every tile pasted;
@@ -483,6 +488,22 @@ std::vector<uint8_t> JobService::preview_png(const std::string& id) {
   } else {
     version = s.state == JobState::done ? "done " + std::to_string(s.params.spp) : "black";
   }
+  if (layer) {
+    version += " " + std::string(enum_name(*layer, kLayerNames));
+    if (const Png kept = previews_.find(id, version)) return *kept;
+    std::vector<uint8_t> bytes;
+    if (image) {
+      bytes = image->layer_preview_png(*layer);
+    } else if (s.state == JobState::done) {
+      const Image shown = layer_display(read_exr(jobs_.result_path(id)).pixels, *layer);
+      bytes = server::preview_png(&shown, width, height);
+    } else {
+      bytes = server::preview_png(nullptr, width, height);
+    }
+    Png png = std::make_shared<const std::vector<uint8_t>>(std::move(bytes));
+    previews_.put(id, version, png);
+    return *png;
+  }
   if (const Png kept = previews_.find(id, version)) return *kept;
   Png png = std::make_shared<const std::vector<uint8_t>>(
       image                          ? image->preview_png()
@@ -493,18 +514,19 @@ std::vector<uint8_t> JobService::preview_png(const std::string& id) {
 }
 
 std::shared_ptr<JobImage> JobService::image_for(const std::string& job, int width, int height) {
+  const std::vector<std::string> layers = layer_channels(job_layers(job));
   std::lock_guard lock(mu_);
   auto& slot = images_[job];
   if (!slot) {
     // First use since the coordinator started: the done tiles are in the store. Holding the lock while reading them
     // means an upload finishing meanwhile either is among them or pastes into this image afterwards.
-    auto img = std::make_shared<JobImage>(width, height);
+    auto img = std::make_shared<JobImage>(width, height, layers);
     const auto s = sched_.job(job);
     if (s) {
       const TileGrid grid(s->params.width, s->params.height, s->params.tile_size);
       for (const auto& [index, bytes] : jobs_.tile_pixels(job)) {
         const PixelWindow w = grid.window(index);
-        img->paste(tile_from_bytes(bytes, w.width(), w.height()), w);
+        img->paste(tile_from_bytes(bytes, w.width(), w.height(), layers), w);
       }
     }
     slot = std::move(img);
@@ -571,7 +593,8 @@ void JobService::accept_tile(const std::string& lease, std::string_view exr, uin
     if (settled(pre)) return;
 
     // Validated outside every lock, decoded from memory.
-    TileCheck check = check_tile_exr(exr, pre.window, pre.width, pre.height);
+    const std::vector<std::string> layers = layer_channels(job_layers(pre.job));
+    TileCheck check = check_tile_exr(exr, pre.window, pre.width, pre.height, layers);
     // A resumable job's tile must carry its exact sums at the job's spp (server/tile_state.h).
     const std::optional<protocol::SamplingSettings> sampling = resumable_sampling(pre.job);
     if (!check.error && sampling) check.error = check_tile_state(check.pixels, pre.spp, sampling->replicates);
@@ -594,7 +617,8 @@ void JobService::accept_tile(const std::string& lease, std::string_view exr, uin
       image_for(c.job, c.width, c.height)->paste(check.pixels, c.window);  // after a restart, rebuilt from the store first
       // Durable before acknowledged: the pixels and the tile's done state go to the store in one transaction, and the
       // answer waits for the flush that covers it.
-      sched_.finish_result(lease, rays, tile_bytes(check.pixels), [this, c, rays, done](FinishResult r) noexcept {
+      std::string layered;  // the stored bytes of a tile with layers
+      sched_.finish_result(lease, rays, tile_bytes(check.pixels, layers, layered), [this, c, rays, done](FinishResult r) noexcept {
         metrics_.add_rays(rays, clock_());
         spdlog::info("job {} tile {} worker {}: merged", c.job, c.tile, c.worker);
         events_.tile(protocol::events::kTileDone, {c.job, c.tile, c.worker, std::nullopt, std::nullopt});
@@ -761,13 +785,23 @@ void JobService::finalize(const std::string& job) {
   protocol::SamplingSettings sampling;
   sampling.spp = s->params.spp;
   sampling.seed = s->params.seed;
+  std::map<std::string, std::string> meta;
   try {
-    sampling = spec(job).sampling;
+    const protocol::JobSpec sp = spec(job);
+    sampling = sp.sampling;
+    // Cryptomatte's manifests name the scene's materials and objects: the scene is read again (not built) for them.
+    if (sampling.layers.has(Layer::kCryptoMaterial) || sampling.layers.has(Layer::kCryptoObject)) {
+      try {
+        meta = check_scene(sp.scene, sp.assets, sampling, "").layer_metadata;
+      } catch (const std::exception& e) {
+        spdlog::warn("job {}: no Cryptomatte manifest in the result: {}", job, e.what());
+      }
+    }
   } catch (const ApiError&) {
   }
   sampling.spp = s->params.spp;
   const bool resumable = resumable_sampling(job).has_value();
-  std::map<std::string, std::string> meta = sampling.metadata();
+  meta.merge(sampling.metadata());
   meta.insert({
       {"tessera:version", TESSERA_VERSION},
       {"tessera:job", job},

@@ -106,7 +106,7 @@ class JobService {
   std::filesystem::path result_exr(const std::string& id);
   /// The image as far as it has rendered, as PNG (server/preview.h), made again only once the job's pixels have
   /// changed (server/preview_cache.h); ApiError 404.
-  std::vector<uint8_t> preview_png(const std::string& id);
+  std::vector<uint8_t> preview_png(const std::string& id, std::optional<Layer> layer = std::nullopt);
 
   /// Validates and merges an uploaded tile (rays add to the job's count) and calls `done` once: `accepted` only after
   /// the tile's pixels are on the disk (a group commit: concurrent uploads share one flush, and no thread waits for
@@ -151,6 +151,7 @@ class JobService {
     uint32_t spp = 0;
     std::string hash;
     std::vector<std::string> warnings;
+    std::map<std::string, std::string> layer_metadata;  // the Cryptomatte attributes of the sampling's layers
   };
   int64_t unfinished_jobs();
   protocol::ApiError queue_full() const;  // the 429 of a submission beyond --max-queued-jobs
@@ -173,6 +174,8 @@ class JobService {
   void refuse_frame(const std::string& id, const char* what);
   /// The sampling settings of a resumable job; nothing for other jobs.
   std::optional<protocol::SamplingSettings> resumable_sampling(const std::string& job);
+  /// The job's output layers, from its cached spec (none for a job without a record).
+  LayerSet job_layers(const std::string& job);
   /// ApiError 400 when width x height x per_pixel samples are over the limit.
   void check_samples(int width, int height, uint32_t per_pixel, bool adaptive) const;
   std::shared_ptr<JobImage> image_for(const std::string& job, int width, int height);

@@ -33,7 +33,7 @@ HttpResponse JobsHandler::handle(const protocol::RouteMatch& route, HttpRequest&
       if (!protocol::parse_purge_query(req.target())) return json_response(http::status::ok, jobs_.cancel(id), v);
       return json_response(http::status::ok, protocol::PurgeAnswer{id, collector_.purge(id)}, v);
     case Endpoint::job_preview: {
-      const std::vector<uint8_t> png = jobs_.preview_png(id);
+      const std::vector<uint8_t> png = jobs_.preview_png(id, protocol::parse_preview_query(req.target()));
       return bytes_response(std::string(png.begin(), png.end()), "image/png", v);
     }
     case Endpoint::job_spec: return bytes_response(jobs_.spec_json(id), "application/json", v);

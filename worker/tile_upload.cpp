@@ -46,7 +46,8 @@ DeliveryOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, 
   wo.compression = ExrCompression::kNone;  // noisy floats barely compress; the CPU is better spent rendering
   wo.data_window = l.window;
   wo.display_window = PixelWindow{0, 0, width, height};
-  wo.write_extra = l.resumable;  // a resumable job's tile carries its state channels
+  // A resumable job's tile carries its state channels, a layered job's its output layers.
+  wo.write_extra = l.resumable || !res.image.extra.empty();
   std::vector<uint8_t> bytes = encode_exr(res.image, wo);
   TESSERA_FAIL_POINT_RETURN("worker.upload.corrupt", [&](const std::string& how) { bytes = corrupt_tile(res.image, wo, how); });
   client::HttpRequest req;

@@ -73,6 +73,13 @@ PixelWindow intersect(const PixelWindow& a, const PixelWindow& b) {
   return {std::max(a.x0, b.x0), std::max(a.y0, b.y0), std::min(a.x1, b.x1), std::min(a.y1, b.y1)};
 }
 
+// The names of an image's float extra channels, comma-separated ("none" when it has none).
+std::string channel_list(const Image& img) {
+  std::string out;
+  for (const auto& entry : img.extra) out += (out.empty() ? "" : ", ") + entry.first;
+  return out.empty() ? "none" : out;
+}
+
 }  // namespace
 
 MergeResult merge_tiles(const std::vector<MergeInput>& inputs) {
@@ -92,6 +99,9 @@ MergeResult merge_tiles(const std::vector<MergeInput>& inputs) {
       problems.push_back(in.name + " has " + std::to_string(in.image.pixels.width) + "x" +
                          std::to_string(in.image.pixels.height) + " pixels for data window " +
                          format_window(in.image.data_window));
+    } else if (channel_list(in.image.pixels) != channel_list(inputs[0].image.pixels)) {
+      problems.push_back(in.name + " has extra channels " + channel_list(in.image.pixels) + ", but " +
+                         inputs[0].name + " has " + channel_list(inputs[0].image.pixels));
     }
   }
   if (!problems.empty()) {
@@ -104,6 +114,13 @@ MergeResult merge_tiles(const std::vector<MergeInput>& inputs) {
   MergeResult out;
   out.display_window = display;
   out.image = Image::make(W, H);
+  // The float extra channels, merged like the colour: (output, input channel of the current tile) per channel.
+  std::vector<std::pair<float*, const float*>> extra;
+  for (const auto& entry : inputs[0].image.pixels.extra) {
+    std::vector<float>& ch = out.image.extra[entry.first];
+    ch.assign(size_t(W) * size_t(H), 0.f);
+    extra.emplace_back(ch.data(), nullptr);
+  }
   std::vector<int32_t> owner(size_t(W) * size_t(H), -1);
   // Conflicts per (first supplier, later supplier): a mask over the intersection of their data windows.
   std::map<std::pair<int32_t, int32_t>, std::vector<uint8_t>> conflicts;
@@ -111,18 +128,24 @@ MergeResult merge_tiles(const std::vector<MergeInput>& inputs) {
   for (int32_t i = 0; i < int32_t(inputs.size()); ++i) {
     const ExrImage& tile = inputs[size_t(i)].image;
     const PixelWindow& dw = tile.data_window;
+    size_t e = 0;
+    for (const auto& entry : tile.pixels.extra) extra[e++].second = entry.second.data();
     for (int y = dw.y0; y < dw.y1; ++y) {
       for (int x = dw.x0; x < dw.x1; ++x) {
         const size_t dst = size_t(y - display.y0) * size_t(W) + size_t(x - display.x0);
-        const float* src = &tile.pixels.rgb[3 * (size_t(y - dw.y0) * size_t(dw.width()) + size_t(x - dw.x0))];
+        const size_t at = size_t(y - dw.y0) * size_t(dw.width()) + size_t(x - dw.x0);
+        const float* src = &tile.pixels.rgb[3 * at];
         float* px = &out.image.rgb[3 * dst];
         if (owner[dst] < 0) {
           owner[dst] = i;
           std::memcpy(px, src, 3 * sizeof(float));
+          for (const auto& [to, from] : extra) to[dst] = from[at];
           continue;
         }
         ++out.overlap_pixels;
-        if (std::memcmp(px, src, 3 * sizeof(float)) == 0) continue;
+        bool same = std::memcmp(px, src, 3 * sizeof(float)) == 0;
+        for (const auto& [to, from] : extra) same = same && std::memcmp(&to[dst], &from[at], sizeof(float)) == 0;
+        if (same) continue;
         const int32_t first = owner[dst];
         const PixelWindow both = intersect(inputs[size_t(first)].image.data_window, dw);
         auto& mask = conflicts[{first, i}];

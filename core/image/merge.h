@@ -1,4 +1,5 @@
-// Assembling cropped EXR tiles (each a data window inside the full display window) into the full image.
+// Assembling cropped EXR tiles (each a data window inside the full display window) into the full image, with their
+// output layers.
 #pragma once
 
 #include "core/image/image.h"
@@ -24,17 +25,18 @@ struct MergeInput {
 
 /// The assembled image.
 struct MergeResult {
-  Image image;                   ///< display_window.width() x display_window.height() RGB pixels.
+  Image image;                   ///< display_window.width() x display_window.height() pixels, extra channels included.
   PixelWindow display_window;    ///< The frame shared by all inputs.
   int64_t overlap_pixels = 0;    ///< Pixels supplied by more than one input (all with identical values).
   /// Metadata entries present with the same value in every input (e.g. scene hash, spp, seed).
   std::map<std::string, std::string> metadata;
 };
 
-/// Merges the R,G,B channels of tiles that share one display window. Every display-window pixel must come from at
-/// least one input; a pixel supplied by several inputs is accepted when their R,G,B are bitwise identical (a
-/// re-rendered tile is, since pixels are a pure function of the seed and position) and is a conflict otherwise.
-/// Extra channels are ignored. Throws MergeError listing, as merged rectangles, the pixels covered by no input, the
+/// Merges the R,G,B channels and the float extra channels (output layers, variance) of tiles that share one display
+/// window; every input must have the same extra channels (UINT ones are ignored). Every display-window pixel must
+/// come from at least one input; a pixel supplied by several inputs is accepted when all its channels are bitwise
+/// identical (a re-rendered tile's are, since pixels are a pure function of the seed and position) and is a conflict
+/// otherwise. Throws MergeError listing, as merged rectangles, the pixels covered by no input, the
 /// conflicting overlaps per pair of inputs, and any input whose data window leaves the display window or whose
 /// display window differs from the first input's.
 MergeResult merge_tiles(const std::vector<MergeInput>& inputs);

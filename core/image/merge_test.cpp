@@ -162,3 +162,33 @@ TEST(MergeTiles, KeepsMetadataCommonToAllInputs) {
 
 }  // namespace
 }  // namespace tessera
+
+namespace tessera {
+namespace {
+
+TEST(MergeTiles, ExtraChannelsAreMergedAndMustMatch) {
+  const PixelWindow display{0, 0, 6, 4};
+  const Image full = reference(6, 4);
+  MergeInput a = crop("a", full, display, PixelWindow{0, 0, 3, 4});
+  MergeInput b = crop("b", full, display, PixelWindow{3, 0, 6, 4});
+  a.image.pixels.extra["Z"] = std::vector<float>(12, 2.f);
+  b.image.pixels.extra["Z"] = std::vector<float>(12, 5.f);
+  const MergeResult m = merge_tiles({a, b});
+  ASSERT_EQ(m.image.extra.count("Z"), 1u);
+  EXPECT_EQ(m.image.extra.at("Z")[0], 2.f);
+  EXPECT_EQ(m.image.extra.at("Z")[5], 5.f);
+  // An overlap whose layer differs is a conflict even when the colours agree.
+  MergeInput c = crop("c", full, display, PixelWindow{2, 0, 4, 1});
+  c.image.pixels.extra["Z"] = std::vector<float>(2, 9.f);
+  EXPECT_THROW(merge_tiles({a, b, c}), MergeError);
+  b.image.pixels.extra.clear();
+  try {
+    merge_tiles({a, b});
+    FAIL() << "tiles of other channels merged";
+  } catch (const MergeError& e) {
+    EXPECT_NE(std::string(e.what()).find("b has extra channels none, but a has Z"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace tessera

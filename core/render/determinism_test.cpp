@@ -38,6 +38,7 @@ struct Case {
   std::string scene;  // in scenes/
   uint32_t spp;
   uint32_t replicates;
+  LayerSet layers{};  // output layers beside the colour
 };
 
 const std::vector<Case> kCases = {{"cbox_area_light", "cbox_area_light.json", 8, 1},
@@ -46,7 +47,11 @@ const std::vector<Case> kCases = {{"cbox_area_light", "cbox_area_light.json", 8,
                                   {"sky_sun", "sky_sun.json", 8, 1},
                                   // The path tracer: diffuse interreflection, glass and rough metal.
                                   {"cbox_gi", "cbox_gi.json", 8, 1},
-                                  {"cbox_glass", "cbox_glass.json", 8, 2}};
+                                  {"cbox_glass", "cbox_glass.json", 8, 2},
+                                  // Every output layer, through refraction and glass.
+                                  {"cbox_no_light_refraction_layers", "cbox_no_light_refraction.json", 8, 1,
+                                   LayerSet::from_bits(~0u)},
+                                  {"cbox_glass_layers", "cbox_glass.json", 8, 2, LayerSet::from_bits(~0u)}};
 
 const Scene& scene_of(const std::string& file) {
   static std::map<std::string, LoadedScene> cache;
@@ -83,6 +88,7 @@ Rendered render_case(const Case& c, int threads, const Scene& scene) {
   o.seed = 7;
   o.variance = true;
   o.replicates = c.replicates;
+  o.layers = c.layers;
   o.tile_size = 8;
   const int x0 = scene.width / 2 - 48, y0 = scene.height / 2 - 32;
   o.window = PixelWindow{x0, y0, x0 + 96, y0 + 64};
@@ -175,8 +181,9 @@ TEST(Determinism, RendersMatchTheGoldenChecksums) {
   if (std::getenv("TESSERA_UPDATE_GOLDEN")) {
     std::ofstream out(kGolden);
     out << "# SHA-256 of the pixels (core/render/determinism_test.cpp, pixel_hash) of small renders of scenes/: a 96x64\n"
-           "# window at the image centre, 8 spp, seed 7, variance channels. A change here means a changed pixel: only a\n"
-           "# deliberate change of the estimator may update it, in the same commit, with the reason in its message.\n"
+           "# window at the image centre, 8 spp, seed 7, variance channels (the *_layers renders: every output layer).\n"
+           "# A change here means a changed pixel: only a deliberate change of the estimator may update it, in the same\n"
+           "# commit, with the reason in its message.\n"
         << lines;
     std::printf("rewrote %s\n", kGolden.c_str());
   }

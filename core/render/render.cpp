@@ -1,5 +1,6 @@
 #include "core/render/render.h"
 
+#include "core/render/layer_film.h"
 #include "core/render/path_integrator.h"
 #include "core/util/zeroed_buffer.h"
 
@@ -110,7 +111,8 @@ PixelAccumulator sample_adaptive(const Scene& scene, int px, int row, uint64_t s
 const char* const kVarianceChannels[4] = {"variance.R", "variance.G", "variance.B", "samples"};
 
 // Refuses a previous render that cannot be continued into this one (see RenderOptions::previous).
-void check_previous(const StoredRender& p, const RenderOptions& opt, const PixelWindow& w, uint32_t spp, uint32_t k) {
+void check_previous(const StoredRender& p, const RenderOptions& opt, bool variance, const PixelWindow& w, uint32_t spp,
+                    uint32_t k) {
   const auto refuse = [](const std::string& why) { throw std::invalid_argument("cannot continue the render: " + why); };
   const size_t n = size_t(w.width()) * size_t(w.height());
   if (p.image.width != w.width() || p.image.height != w.height() || p.state.samples.size() != n)
@@ -119,7 +121,7 @@ void check_previous(const StoredRender& p, const RenderOptions& opt, const Pixel
   if (p.state.exact() && p.state.sums.size() != n * PixelAccumulator::state_size(k))
     refuse("its accumulators do not cover the window");
   if (opt.keep_state && !p.state.exact()) refuse("its exact accumulators were not kept");
-  if (opt.variance)
+  if (variance)
     for (const char* c : kVarianceChannels)
       if (!p.image.extra.count(c) || p.image.extra.at(c).size() != n) refuse(std::string("it has no ") + c + " channel");
   if (opt.target_error > 0.f) return;  // adaptive: pixels with samples are kept as they are
@@ -148,7 +150,8 @@ RenderResult render(const Scene& scene, const RenderOptions& opt) {
   const AdaptiveOptions ao{opt.target_error, opt.min_spp, opt.max_spp, opt.error_floor, opt.replicates};
   const uint32_t k = std::clamp<uint32_t>(opt.replicates, 1, kMaxReplicates);
   const StoredRender* prev = opt.previous;
-  if (prev) check_previous(*prev, opt, w, spp, k);
+  const bool variance = opt.variance || opt.layers.has(Layer::kVariance);
+  if (prev) check_previous(*prev, opt, variance, w, spp, k);
   const size_t npix = size_t(w.width()) * size_t(w.height());
   res.image = Image::make(w.width(), w.height());
   res.state.replicates = k;
@@ -157,7 +160,7 @@ RenderResult render(const Scene& scene, const RenderOptions& opt) {
   // Channel pointers taken once: threads write disjoint pixels and never touch the maps themselves.
   float* var_ch[4] = {nullptr, nullptr, nullptr, nullptr};
   const float* prev_var_ch[4] = {nullptr, nullptr, nullptr, nullptr};
-  if (opt.variance) {
+  if (variance) {
     for (int c = 0; c < 4; ++c) {
       std::vector<float>& ch = res.image.extra[kVarianceChannels[c]];
       assign_zeroed(ch, npix);
@@ -165,11 +168,18 @@ RenderResult render(const Scene& scene, const RenderOptions& opt) {
       if (prev) prev_var_ch[c] = prev->image.extra.at(kVarianceChannels[c]).data();
     }
   }
+  const LayerFilm layers(scene, opt.layers, res.image);
+  tbb::enumerable_thread_specific<LayerScratch> layer_scratch;
+  // The first-hit layers of a pixel with n samples (recomputed from its camera rays, even for a copied pixel).
+  const auto store_layers = [&](size_t i, int lx, int ly, uint32_t n) {
+    if (layers.active()) layers.render_pixel(w.x0 + lx, w.y0 + ly, opt.seed, n, k, i, layer_scratch.local());
+  };
   // A pixel's result from its accumulator.
   const auto store = [&](size_t i, int lx, int ly, const PixelAccumulator& acc) {
     const PixelEstimate e = acc.estimate();
     res.image.set(lx, ly, e.mean);
-    if (opt.variance) {
+    store_layers(i, lx, ly, acc.count());
+    if (variance) {
       for (int c = 0; c < 3; ++c) var_ch[c][i] = e.var_mean[c];
       var_ch[3][i] = float(e.spp);
     }
@@ -179,7 +189,8 @@ RenderResult render(const Scene& scene, const RenderOptions& opt) {
   // A pixel copied as the previous render wrote it (its colour was written as float: see the CLI's partial files).
   const auto copy_previous = [&](size_t i, int lx, int ly) {
     res.image.set(lx, ly, prev->image.at(lx, ly));
-    if (opt.variance)
+    store_layers(i, lx, ly, prev->state.samples[i]);
+    if (variance)
       for (int c = 0; c < 4; ++c) var_ch[c][i] = prev_var_ch[c][i];
     res.state.samples[i] = prev->state.samples[i];
   };

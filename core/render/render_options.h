@@ -2,6 +2,7 @@
 #pragma once
 
 #include "core/image/pixel_window.h"
+#include "core/render/layers.h"
 #include "core/sampling/adaptive.h"
 
 #include <atomic>
@@ -30,6 +31,10 @@ struct RenderOptions {
   PixelWindow window;                ///< Pixels to render (empty: the whole image); row 0 is the top.
   int tile_size = 16;                ///< Edge of the square tiles the window is cut into for threads.
   bool variance = false;             ///< Also write variance-of-the-mean channels and a sample count.
+  /// Output layers written beside the colour as extra channels of the image (core/render/layers.h; Layer::kVariance
+  /// is `variance`). They never change the colour: the first-hit layers come from a pass of their own over each
+  /// pixel's camera rays once its samples are taken (core/render/layer_film.h).
+  LayerSet layers;
   /// Adaptive sampling: when > 0, each pixel is sampled in doubling rounds (min_spp, 2 min_spp, ... up to
   /// max_spp) until its relative standard error on luminance falls to target_error (see core/sampling/adaptive.h);
   /// spp is then ignored. The decision uses only the pixel's own samples, so tiling never changes a bit.

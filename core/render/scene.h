@@ -101,6 +101,11 @@ struct Scene {
   IntegratorSettings settings;             ///< Integrator settings.
   std::vector<Texture> textures;           ///< Textures in use.
   std::vector<Material> materials;         ///< Materials in use (index 0 is kNone).
+  /// Per material: its name in the scene file's `materials` ("" for index 0). Materials are numbered in the order
+  /// objects first name them.
+  std::vector<std::string> material_names;
+  /// Per entry of the scene file's `objects`: its `name`, or "objects[I]" when it has none.
+  std::vector<std::string> object_names;
   /// Where the scene's coordinates have their origin, in the scene file's coordinates: the loader centres them on
   /// the camera (core/render/camera_frame.h), so the camera sits at (0, 0, 0).
   glm::dvec3 frame_origin{0.0};
@@ -108,8 +113,10 @@ struct Scene {
   std::vector<TriangleSurface> triangle_surfaces;  ///< Per triangle: normal and error term of its points (finish()).
   std::vector<PrimAttr> triangle_attr;     ///< Per triangle.
   std::vector<TriangleShading> triangle_shading;  ///< Shading data of triangles that have some.
+  std::vector<uint32_t> triangle_object;   ///< Per triangle: the index of its object in object_names.
   std::vector<Sphere> spheres;             ///< Spheres.
   std::vector<PrimAttr> sphere_attr;       ///< Per sphere.
+  std::vector<uint32_t> sphere_object;     ///< Per sphere: the index of its object in object_names.
   Bvh bvh;                                 ///< Acceleration structure over triangles and spheres.
   std::optional<PointLight> point_light;   ///< The integrator's point light (absent when its flux is zero).
   std::vector<AreaLight> area_lights;      ///< Emitting objects.

@@ -90,10 +90,11 @@ class Loader {
     textures_ = j_.contains("textures") ? &ctx_.object(j_["textures"], "textures") : &empty_;
     materials_ = j_.contains("materials") ? &ctx_.object(j_["materials"], "materials") : &empty_;
     s_.materials.push_back(Material{});  // index 0: no material
+    s_.material_names.emplace_back();
     objects();
     unused_keys();
     environment();
-    validate_scene(s_, triangle_object_, ctx_);
+    validate_scene(s_, ctx_);
     if (options_.build) {
       build_scene(s_, bvh_options_);
       // A table built from recorded pixels goes into the record, for the next scene with the same map.
@@ -139,7 +140,6 @@ class Loader {
   };
   std::map<uint32_t, ImageSource> image_source_;  // by texture index
   fs::path env_file_;                             // the environment map's file (empty: constant or none)
-  std::vector<uint32_t> triangle_object_;  // object index of each triangle, for coincident-face warnings
 };
 
 void Loader::integrator() {
@@ -364,6 +364,7 @@ uint32_t Loader::material(const std::string& mname, const std::string& from) {
     ctx_.fail(mp + ".type", "'" + type + "' is not supported (supported: " + join_names(kSupportedMaterials) + ")");
   }
   s_.materials.push_back(mat);
+  s_.material_names.push_back(mname);
   const uint32_t idx = uint32_t(s_.materials.size() - 1);
   material_index_[mname] = idx;
   return idx;
@@ -377,6 +378,7 @@ void Loader::objects() {
     const std::string op = "objects[" + std::to_string(oi) + "]";
     const json& o = ctx_.object(objects[oi], op);
     const std::string type = ctx_.string(o, "type", op);
+    s_.object_names.push_back(o.contains("name") ? ctx_.string(o, "name", op) : op);
     // Light
     std::optional<Vec3> radiance;
     if (o.contains("light")) {
@@ -403,7 +405,7 @@ void Loader::objects() {
     if (type == "mesh") {
       mesh(o, op, mat, light_index, oi);
     } else if (type == "sphere") {
-      ctx_.check_keys(o, op, {"type", "center", "radius", "material_name", "light"});
+      ctx_.check_keys(o, op, {"type", "name", "center", "radius", "material_name", "light"});
       Sphere sp;
       sp.center = frame_.local(ctx_.dvec3(o, "center", op, glm::dvec3(0.0)));
       const double r = ctx_.number(o, "radius", op, 1.0);
@@ -416,6 +418,7 @@ void Loader::objects() {
       sp.radius = float(r);
       s_.spheres.push_back(sp);
       s_.sphere_attr.push_back(PrimAttr{mat, light_index, false, -1});
+      s_.sphere_object.push_back(uint32_t(oi));
       if (light_index >= 0) s_.area_lights[size_t(light_index)].sphere = sp;
     } else {
       ctx_.fail(op + ".type", "'" + type + "' is not supported (supported: mesh, sphere)");
@@ -424,7 +427,7 @@ void Loader::objects() {
 }
 
 void Loader::mesh(const json& o, const std::string& op, uint32_t mat, int32_t light_index, size_t oi) {
-  ctx_.check_keys(o, op, {"type", "path", "material_name", "translate", "transform", "light"});
+  ctx_.check_keys(o, op, {"type", "name", "path", "material_name", "translate", "transform", "light"});
   const std::string rel = ctx_.string(o, "path", op);
   const fs::path file = resolve_(rel, op + ".path");
   const glm::dvec3 tr = ctx_.dvec3(o, "translate", op, glm::dvec3(0.0));
@@ -446,7 +449,7 @@ void Loader::mesh(const json& o, const std::string& op, uint32_t mat, int32_t li
     }
     s_.triangles.push_back(obj.tris[t]);
     s_.triangle_attr.push_back(a);
-    triangle_object_.push_back(uint32_t(oi));
+    s_.triangle_object.push_back(uint32_t(oi));
     const Triangle& tri = obj.tris[t];
     Vec3 n = glm::normalize(glm::cross(tri.p1 - tri.p0, tri.p2 - tri.p0));
     normals.push_back(obj.flip[t] ? -n : n);

@@ -8,11 +8,11 @@
 
 namespace tessera {
 
-void validate_scene(const Scene& s, const std::vector<uint32_t>& triangle_object, SceneJson& ctx) {
+void validate_scene(const Scene& s, SceneJson& ctx) {
   // Exactly coincident triangles (z-fighting), one warning per pair of objects.
   std::map<std::pair<uint32_t, uint32_t>, size_t> per_objects;
   for (const CoincidentPair& c : find_coincident_triangles(s.triangles))
-    ++per_objects[{triangle_object[c.first], triangle_object[c.second]}];
+    ++per_objects[{s.triangle_object[c.first], s.triangle_object[c.second]}];
   for (const auto& [objs, count] : per_objects) {
     const std::string a = "objects[" + std::to_string(objs.first) + "]", b = "objects[" + std::to_string(objs.second) + "]";
     ctx.warn(b, std::to_string(count) + " triangle(s) coincide exactly with triangles of " +

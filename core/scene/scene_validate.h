@@ -5,12 +5,9 @@
 #include "core/render/scene.h"
 #include "core/scene/scene_json.h"
 
-#include <cstdint>
-#include <vector>
-
 namespace tessera {
 
-/// Warns through `json` about `scene`; `triangle_object[i]` is the index in "objects" of triangle i.
-void validate_scene(const Scene& scene, const std::vector<uint32_t>& triangle_object, SceneJson& json);
+/// Warns through `json` about `scene`.
+void validate_scene(const Scene& scene, SceneJson& json);
 
 }  // namespace tessera

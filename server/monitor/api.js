@@ -73,16 +73,17 @@ export async function call(method, path, body) {
   return text ? JSON.parse(text) : null;
 }
 
-/** The preview PNG as a Blob. */
-export async function previewBlob(jobId) {
-  const res = await fetch(route('job_preview', jobId), { headers: headers(), cache: 'no-store' });
+/** The preview PNG as a Blob: of the colour, or of the output layer named `layer`. */
+export async function previewBlob(jobId, layer = '') {
+  const query = layer ? '?layer=' + encodeURIComponent(layer) : '';
+  const res = await fetch(route('job_preview', jobId) + query, { headers: headers(), cache: 'no-store' });
   if (!res.ok) throw await errorOf(res);
   return res.blob();
 }
 
-/** The preview PNG as an object URL (the caller revokes it). */
-export async function previewUrl(jobId) {
-  return URL.createObjectURL(await previewBlob(jobId));
+/** The preview PNG (of the colour or of `layer`) as an object URL (the caller revokes it). */
+export async function previewUrl(jobId, layer = '') {
+  return URL.createObjectURL(await previewBlob(jobId, layer));
 }
 
 /**

@@ -50,6 +50,10 @@ export function mount(host, ctx) {
     drawDetail();
   }
   const img = el('img', { id: 'preview', alt: 'Partial image of the job', hidden: true });
+  // Which image the preview shows: the colour, or one of the job's output layers (listed once its spec is read).
+  const layerSelect = el('select', { id: 'preview-layer', 'aria-label': 'Layer shown', hidden: true,
+    onchange: () => { previewKey = ''; refreshPreview().catch(() => {}); } },
+  el('option', { value: '', text: 'Colour' }));
   const imgNote = el('p', { class: 'sub', id: 'preview-note', text: 'The image appears as tiles are done.' });
 
   // ---- controls ----
@@ -82,7 +86,8 @@ export function mount(host, ctx) {
         map.grid),
       el('div', { class: 'stack' },
         el('section', { class: 'card' },
-          el('div', { class: 'card-head' }, el('h2', { text: 'Image' }), el('span', { class: 'sub', id: 'preview-age' })),
+          el('div', { class: 'card-head' }, el('h2', { text: 'Image' }), layerSelect,
+            el('span', { class: 'sub', id: 'preview-age' })),
           el('div', { class: 'preview-box' }, img), imgNote),
         el('section', { class: 'card' }, detail))));
 
@@ -180,17 +185,19 @@ export function mount(host, ctx) {
   async function refreshPreview() {
     if (previewBusy) { previewAgain = true; return; }
     const done = job.tiles.done, total = job.tiles.total;
-    const key = `${done}/${job.state}`;
+    const layer = layerSelect.value;
+    const key = `${done}/${job.state}/${layer}`;
     if (key === previewKey || done === 0) return;
     previewBusy = true;
     try {
-      const url = await api.previewUrl(id);
+      const url = await api.previewUrl(id, layer);
       await new Promise((resolve) => { img.onload = resolve; img.onerror = resolve; img.src = url; });
       if (previewUrl) URL.revokeObjectURL(previewUrl);
       previewUrl = url;
       previewKey = key;
       img.hidden = false;
       img.dataset.tilesDone = String(done);
+      img.dataset.layer = layer;
       imgNote.hidden = true;
       document.getElementById('preview-age').textContent = `${done} of ${total} tiles`;
     } finally {
@@ -213,6 +220,9 @@ export function mount(host, ctx) {
       if (!specAsked) {
         specAsked = true;
         spec = await api.call('GET', api.route('job_spec', id)).catch(() => null);
+        const layers = (spec && Array.isArray(spec.layers)) ? spec.layers : [];
+        for (const l of layers) layerSelect.append(el('option', { value: l, text: l }));
+        layerSelect.hidden = layers.length === 0;
       }
       drawHead();
       const body = await api.call('GET', api.route('job_tiles', id));

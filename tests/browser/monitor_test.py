@@ -134,10 +134,10 @@ def browser():
     return d
 
 
-def preview_is_the_coordinators(d, job):
-    """Whether the preview the page shows has the same pixels as the one the coordinator makes now."""
+def preview_is_the_coordinators(d, job, layer=""):
+    """Whether the preview the page shows has the same pixels as the one the coordinator makes now (of `layer`)."""
     return d.execute_async_script("""
-        const [job, done] = arguments;
+        const [job, layer, done] = arguments;
         const pixels = (img) => {
           const c = document.createElement('canvas');
           c.width = img.naturalWidth;
@@ -147,13 +147,13 @@ def preview_is_the_coordinators(d, job):
           return g.getImageData(0, 0, c.width, c.height).data;
         };
         import('/monitor/api.js').then(async (api) => {
-          const url = await api.previewUrl(job);
+          const url = await api.previewUrl(job, layer);
           const now = new Image();
           await new Promise((resolve, reject) => { now.onload = resolve; now.onerror = reject; now.src = url; });
           const a = pixels(document.getElementById('preview')), b = pixels(now);
           URL.revokeObjectURL(url);
           done(a.length === b.length && a.every((v, i) => v === b[i]));
-        }).catch((e) => done('error: ' + e));""", job)
+        }).catch((e) => done('error: ' + e));""", job, layer)
 
 
 def report_failure(d):
@@ -436,7 +436,8 @@ def main():
             fail("index has Content-Type " + r.headers["Content-Type"])
 
     status, body = client.call("POST", "/v1/jobs", {"scene": sphere_scene(), "assets": {}, "tile_size": TILE, "seed": 3,
-                                                     "replicates": 2, "bvh": "median", "name": "browser-test spheres"})
+                                                     "replicates": 2, "bvh": "median", "name": "browser-test spheres",
+                                                     "layers": ["albedo", "normal", "depth", "object_id"]})
     if status != 201:
         fail(f"submit answered {status}: {body}")
     job = body["id"]
@@ -591,6 +592,23 @@ def main():
             fail(f"the downloaded file is not the job's result ({status}, {os.path.getsize(saved)} / {len(exr)} bytes)")
         print(f"download: {os.path.basename(saved)}, {len(exr)} bytes, the coordinator's result")
         d.save_screenshot(os.path.join(ARTEFACTS, "monitor-job-done.png"))
+
+        # The layer selector lists the job's output layers; choosing one shows the coordinator's preview of it.
+        options = d.execute_script(
+            "return [...document.querySelectorAll('#preview-layer option')].map((o) => o.value);")
+        if options != ["", "albedo", "normal", "depth", "object_id"]:
+            fail(f"the layer selector offers {options}")
+        for layer in ("normal", ""):
+            d.execute_script("const s = document.getElementById('preview-layer'); s.value = arguments[0];"
+                             "s.dispatchEvent(new Event('change'));", layer)
+            wait_for(f"the preview of layer '{layer}'", lambda: d.execute_script(
+                "const i = document.getElementById('preview'); return i.complete && i.dataset.layer === arguments[0];",
+                layer))
+            if preview_is_the_coordinators(d, job, layer) is not True:
+                fail(f"the preview of layer '{layer}' is not the coordinator's")
+            if layer:
+                d.save_screenshot(os.path.join(ARTEFACTS, "monitor-layers.png"))
+        print("layer selector: albedo, normal, depth, object_id; the normal layer's preview is the coordinator's")
 
         # Delete the finished job from its page (the button asks for a second click); another job stays listed.
         status, kept = client.call("POST", "/v1/jobs", {"scene": sphere_scene(), "assets": {}, "tile_size": TILE,
