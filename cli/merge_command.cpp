@@ -5,7 +5,7 @@
 #include "core/image/exr_multipart.h"
 #include "core/image/image.h"
 #include "core/image/merge.h"
-#include "core/render/layers.h"
+#include "core/render/layer_film.h"
 
 #include <spdlog/spdlog.h>
 

@@ -7,7 +7,7 @@
 #include "cli/submit_command.h"
 #include "core/image/exr_multipart.h"
 #include "core/image/image.h"
-#include "core/render/layers.h"
+#include "core/render/layer_film.h"
 #include "server/auth.h"
 #include "server/coordinator_store.h"
 #include "core/util/file_io.h"

@@ -138,4 +138,15 @@ std::map<std::string, std::string> layer_metadata(const Scene& scene, LayerSet l
   return out;
 }
 
+std::vector<ExrPart> layer_parts(const Image& img) {
+  std::vector<ExrPart> parts;
+  for (int i = 0; i < kLayerCount; ++i) {
+    std::vector<std::string> channels = layer_channels(Layer(i));
+    if (!img.extra.count(channels.front())) continue;
+    std::erase_if(channels, [&](const std::string& c) { return !img.extra.count(c); });
+    parts.push_back({std::string(kLayerNames[i]), std::move(channels)});
+  }
+  return parts;
+}
+
 }  // namespace tessera

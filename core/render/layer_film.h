@@ -2,6 +2,7 @@
 // that fills one pixel of them from its camera samples.
 #pragma once
 
+#include "core/image/exr_multipart.h"
 #include "core/image/image.h"
 #include "core/render/layers.h"
 #include "core/render/scene.h"
@@ -64,5 +65,9 @@ class LayerFilm {
 /// The EXR header attributes of the set's Cryptomatte layers for the scene (cryptomatte_metadata of its material
 /// and object names); empty without one.
 std::map<std::string, std::string> layer_metadata(const Scene& scene, LayerSet layers);
+
+/// The parts of a multi-part EXR of img (write_exr_multipart): one per layer whose channels img has, named as the
+/// layer; the colour and any other channel stay in the first part.
+std::vector<ExrPart> layer_parts(const Image& img);
 
 }  // namespace tessera

@@ -2,8 +2,6 @@
 // EXR channel names each one fills.
 #pragma once
 
-#include "core/image/exr_multipart.h"
-
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -66,10 +64,6 @@ std::vector<std::string> layer_channels(Layer layer);
 
 /// The channels of every layer of the set, layer by layer in declaration order.
 std::vector<std::string> layer_channels(LayerSet layers);
-
-/// The parts of a multi-part EXR of img (write_exr_multipart): one per layer whose channels img has, named as the
-/// layer; the colour and any other channel stay in the first part.
-std::vector<ExrPart> layer_parts(const Image& img);
 
 /// Ranks (id, coverage pairs) a Cryptomatte layer stores per pixel: 6, in three RGBA channel groups.
 inline constexpr int kCryptomatteRanks = 6;

@@ -16,7 +16,7 @@ root = pathlib.Path(sys.argv[1] if len(sys.argv) > 1 else pathlib.Path(__file__)
 
 CORE_LAYERS = {"util": 0, "geometry": 1, "sampling": 1, "image": 1, "render": 2, "scene": 3}
 PROTOCOL_CORE = {
-    "core/image/pixel_window.h", "core/render/render_options.h", "core/scene/load_options.h",
+    "core/image/pixel_window.h", "core/render/render_options.h", "core/render/layers.h", "core/scene/load_options.h",
     "core/geometry/split_method.h", "core/render/light_sampling.h", "core/sampling/adaptive.h",
     "core/util/enum_names.h", "core/util/sha256.h", "core/scene/json_depth.h",
 }
