@@ -36,6 +36,9 @@ void to_json(json& j, const JobStatus& s) {
   }
   if (s.sequence) j["sequence"] = *s.sequence;
   if (s.frame) j["frame"] = *s.frame;
+  put_pipeline(j, s.params.pipeline);
+  if (!s.dependents.empty()) j["dependents"] = s.dependents;
+  if (s.reason) j["reason"] = *s.reason;
 }
 
 void from_json(const json& j, JobStatus& s) {
@@ -84,6 +87,9 @@ void from_json(const json& j, JobStatus& s) {
   }
   if (j.contains("sequence") && !j["sequence"].is_null()) s.sequence = answer_field<std::string>(j, "sequence", kMsg);
   if (j.contains("frame") && !j["frame"].is_null()) s.frame = answer_field<int64_t>(j, "frame", kMsg);
+  p.pipeline = answer_pipeline(j);
+  s.dependents = answer_field_or<std::vector<std::string>>(j, "dependents", kMsg, {});
+  if (j.contains("reason") && !j["reason"].is_null()) s.reason = answer_field<std::string>(j, "reason", kMsg);
 }
 
 }  // namespace tessera::protocol

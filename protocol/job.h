@@ -3,6 +3,7 @@
 
 #include "core/util/enum_names.h"
 #include "protocol/defaults.h"
+#include "protocol/pipeline.h"
 #include "protocol/sequence.h"
 
 #include <nlohmann/json_fwd.hpp>
@@ -16,13 +17,16 @@
 namespace tessera::protocol {
 
 /// Life cycle of a job (docs/protocol.md, "Jobs, tiles and leases").
-enum class JobState { queued, running, paused, done, failed, cancelled };
+/// waiting: a dependency is not done yet; blocked: a dependency failed, was cancelled or is blocked itself.
+enum class JobState { queued, running, paused, done, failed, cancelled, waiting, blocked };
 /// Every job state, in declaration order.
-inline constexpr JobState kAllJobStates[] = {JobState::queued, JobState::running, JobState::paused,
-                                             JobState::done,   JobState::failed,  JobState::cancelled};
+inline constexpr JobState kAllJobStates[] = {JobState::queued, JobState::running,   JobState::paused,
+                                             JobState::done,   JobState::failed,    JobState::cancelled,
+                                             JobState::waiting, JobState::blocked};
 
 /// The protocol's lowercase name of each job state, in declaration order.
-inline constexpr std::string_view kJobStateNames[] = {"queued", "running", "paused", "done", "failed", "cancelled"};
+inline constexpr std::string_view kJobStateNames[] = {"queued", "running",   "paused",  "done",
+                                                      "failed", "cancelled", "waiting", "blocked"};
 
 /// The protocol's lowercase name of a job state.
 inline const char* to_string(JobState s) { return enum_c_name(s, kJobStateNames); }
@@ -32,6 +36,8 @@ inline JobState job_state_from_string(std::string_view s) {
 }
 /// True for states a job never leaves (done, failed, cancelled).
 inline bool is_final(JobState s) { return s == JobState::done || s == JobState::failed || s == JobState::cancelled; }
+/// True for states a job is held in by its dependencies (waiting, blocked): it gets no lease.
+inline bool is_held(JobState s) { return s == JobState::waiting || s == JobState::blocked; }
 
 /// What a job renders and how it is scheduled, fixed at submission.
 struct JobParams {
@@ -45,6 +51,7 @@ struct JobParams {
   std::string scene_hash;               ///< The loader's content hash of scene and assets.
   int64_t tile_timeout_seconds = kDefaultTileTimeoutSeconds;  ///< A lease older than this (since grant) is revoked.
   FrameOrder frame_order = FrameOrder::in_order;  ///< A sequence: the order its frames are leased in.
+  Pipeline pipeline;                    ///< Its dependencies, steps and webhook (protocol/pipeline.h).
 };
 
 /// Tile counts of a job.
@@ -73,6 +80,8 @@ struct JobStatus {
   std::optional<FrameCounts> frames;
   std::optional<std::string> sequence;  ///< A frame of a sequence: the sequence's id.
   std::optional<int64_t> frame;         ///< A frame of a sequence: its number.
+  std::vector<std::string> dependents;  ///< Jobs waiting for this one (params.pipeline.after names its own).
+  std::optional<std::string> reason;    ///< Waiting or blocked: which dependency holds it and why.
   /// True for done, failed and cancelled.
   bool finished() const { return is_final(state); }
 };

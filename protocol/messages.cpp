@@ -220,6 +220,7 @@ void to_json(json& j, const JobSubmission& s) {
   if (s.tile_timeout_seconds != kDefaultTileTimeoutSeconds) j["tile_timeout_seconds"] = s.tile_timeout_seconds;
   put_sampling(j, s.sampling);
   if (s.resumable) j["resumable"] = true;
+  put_pipeline(j, s.pipeline);
 }
 
 namespace {
@@ -234,7 +235,7 @@ JobSubmission parse_job_submission(const std::string& body) {
   json j = parse_request_object(
       body, {"scene", "assets", "frames", "frame_order", "spp", "seed", "tile_size", "priority", "name", "integrator",
              "target_error", "min_spp", "max_spp", "error_floor", "replicates", "area_sampling", "env_sampling", "bvh",
-             "resumable", "tile_timeout_seconds"},
+             "resumable", "tile_timeout_seconds", "after", "per_frame", "then", "notify"},
       false);
   JobSubmission s;
   if (j.contains("frames")) {
@@ -267,6 +268,10 @@ JobSubmission parse_job_submission(const std::string& body) {
   if (s.resumable && s.sampling.target_error > 0.0)
     throw ProtocolError("'resumable' needs a fixed spp: with 'target_error' each pixel stops at its own sample count, so "
                         "there is no common spp to raise later");
+  s.pipeline = request_pipeline(j);
+  if (s.pipeline.per_frame && s.frames.empty())
+    throw ProtocolError("'per_frame' applies only to a sequence ('frames'): frame k waits for frame k of each job in "
+                        "'after'");
   return s;
 }
 

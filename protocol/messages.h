@@ -70,6 +70,7 @@ struct JobSubmission {
   /// Keep each pixel's exact sums with its tile, so the job's spp can be raised later (docs/resume.md).
   bool resumable = false;
   int64_t tile_timeout_seconds = kDefaultTileTimeoutSeconds;  ///< A lease older than this is revoked (a failure).
+  Pipeline pipeline;  ///< The jobs it waits for, the steps after its merge, its webhook (protocol/pipeline.h).
 };
 /// The submission's JSON (sampling settings at their defaults are left out).
 void to_json(nlohmann::json& j, const JobSubmission& s);

@@ -172,8 +172,9 @@ void restore(FarmState& s, SchedulerSnapshot snap, int64_t now) {
       if (t.state == TileState::done) ++j->status.tiles.done;
       if (t.state == TileState::pending) j->pending.insert(j->pending.end(), i);
     }
-    if (!is_final(j->status.state) && !j->is_sequence()) s.enqueue(*j);
+    if (!is_final(j->status.state) && !is_held(j->status.state) && !j->is_sequence()) s.enqueue(*j);
   }
+  restore_dependencies(s);
 }
 
 }  // namespace tessera::server

@@ -97,6 +97,8 @@ constexpr AddedColumn kAddedColumns[] = {
     {"jobs", "frame_order", "TEXT NOT NULL DEFAULT 'in_order'"},
     {"jobs", "sequence", "TEXT NOT NULL DEFAULT ''"},
     {"jobs", "frame", "INTEGER NOT NULL DEFAULT 0"},
+    // Pipelines: a job's dependencies, steps and webhook as the JSON object of protocol/pipeline.h.
+    {"jobs", "pipeline", "TEXT NOT NULL DEFAULT '{}'"},
 };
 
 }  // namespace
@@ -384,8 +386,8 @@ void DurableStore::apply_locked(const SchedulerChanges& c) {
     Statement& st = db_.statement(
         "INSERT INTO jobs(id, seq, name, priority, width, height, tile_size, spp, seed, scene_hash, state, created_ms,"
         " started_ms, finished_ms, error, rays, workers, worker_failures, worker_last_error, tile_timeout_s,"
-        " frame_total, frame_order, sequence, frame)"
-        " VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)"
+        " frame_total, frame_order, sequence, frame, pipeline)"
+        " VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)"
         " ON CONFLICT(id) DO UPDATE SET priority = excluded.priority, spp = excluded.spp, state = excluded.state,"
         " started_ms = excluded.started_ms,"
         " finished_ms = excluded.finished_ms, error = excluded.error, rays = excluded.rays,"
@@ -399,6 +401,9 @@ void DurableStore::apply_locked(const SchedulerChanges& c) {
     st.bind_text(19, map_json(r.worker_last_error).dump()).bind(20, p.tile_timeout_seconds);
     st.bind(21, s.frames ? s.frames->total : 0).bind_text(22, to_string(p.frame_order));
     st.bind_text(23, s.sequence.value_or("")).bind(24, s.frame.value_or(0));
+    json pipeline = json::object();
+    protocol::put_pipeline(pipeline, p.pipeline);
+    st.bind_text(25, pipeline.dump());
     st.run();
   }
   for (const JobWorkerRow& r : c.job_workers)
@@ -499,7 +504,7 @@ SchedulerSnapshot DurableStore::load() {
     Statement& st = db_.statement(
         "SELECT id, seq, name, priority, width, height, tile_size, spp, seed, scene_hash, state, created_ms, started_ms,"
         " finished_ms, error, rays, workers, worker_failures, worker_last_error, tile_timeout_s, frame_total,"
-        " frame_order, sequence, frame FROM jobs ORDER BY seq");
+        " frame_order, sequence, frame, pipeline FROM jobs ORDER BY seq");
     while (st.step()) {
       JobRow r;
       JobStatus& s = r.status;
@@ -540,6 +545,11 @@ SchedulerSnapshot DurableStore::load() {
       if (!st.text(22).empty()) {
         s.sequence = st.text(22);
         s.frame = st.integer(23);
+      }
+      try {
+        s.params.pipeline = protocol::answer_pipeline(json::parse(st.text(24)));
+      } catch (const std::exception& e) {
+        throw StorageError("job " + s.id + ": stored pipeline is unreadable: " + e.what());
       }
       snap.jobs.push_back(std::move(r));
     }

@@ -49,19 +49,23 @@ protocol::FrameCounts count_frames(const JobRec& seq) {
       case JobState::done: ++c.done; break;
       case JobState::failed: ++c.failed; break;
       case JobState::cancelled: ++c.cancelled; break;
+      case JobState::waiting: ++c.waiting; break;
+      case JobState::blocked: ++c.blocked; break;
     }
   }
   return c;
 }
 
 // A sequence's state from its frames': ended when every frame has (done if all are, else failed if one failed, else
-// cancelled); otherwise running once a frame started or ended, paused when its unended frames are all paused, or
-// queued.
+// cancelled); otherwise running once a frame started or ended, paused when its unended frames are all paused,
+// blocked when a frame is, waiting when every unended frame is, or queued.
 JobState sequence_state(const protocol::FrameCounts& c, bool started) {
-  const int64_t open = c.queued + c.running + c.paused;
+  const int64_t open = c.queued + c.running + c.paused + c.waiting + c.blocked;
   if (open == 0) return c.done == c.total ? JobState::done : c.failed > 0 ? JobState::failed : JobState::cancelled;
   if (c.paused == open) return JobState::paused;
-  return started ? JobState::running : JobState::queued;
+  if (started) return JobState::running;
+  if (c.blocked > 0) return JobState::blocked;
+  return c.waiting == open ? JobState::waiting : JobState::queued;
 }
 
 }  // namespace
@@ -117,6 +121,8 @@ JobStatus FarmState::snapshot(const JobRec& j, int64_t now) const {
                 std::to_string(*failed->status.frame) + ": " + failed->status.error.value_or("(no error)");
   }
   if (s.started_ms) s.render_seconds = double(s.finished_ms.value_or(now) - *s.started_ms) / 1000.0;
+  if (!j.status.params.pipeline.after.empty() || j.is_sequence()) s.reason = held_reason(*this, j);
+  s.dependents = dependents_of(*this, j);
   return s;
 }
 
@@ -209,9 +215,12 @@ int FarmState::finish_job(JobRec& j, JobState to, int64_t now, std::optional<std
   j.status.state = to;
   j.status.finished_ms = now;
   j.status.error = std::move(error);
+  j.status.reason.reset();
   changes.need_sync();
   touch(j);
-  return revoke_leases(j);
+  const int revoked = revoke_leases(j);
+  settle_dependents(*this, j);
+  return revoked;
 }
 
 }  // namespace tessera::server

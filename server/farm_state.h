@@ -4,6 +4,7 @@
 #pragma once
 
 #include "server/change_log.h"
+#include "server/dependencies.h"
 #include "server/scheduler_types.h"
 #include "server/worker_registry.h"
 
@@ -81,6 +82,7 @@ struct FarmState {
   std::set<std::string> live_leases;                 ///< Ids of the live leases.
   WorkerRegistry workers;                            ///< Every registered worker.
   ChangeLog changes;                                 ///< What changed since the last write to the store.
+  DependencyIndex dependents;                        ///< Which jobs wait for which (server/dependencies.h).
   uint64_t tiles_rendered = 0;                       ///< Tiles merged.
   uint64_t lease_expiries = 0;                       ///< Leases that expired.
   uint64_t rays = 0;                                 ///< Rays reported by workers.

@@ -57,7 +57,7 @@ JobService::JobService(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, M
 int64_t JobService::unfinished_jobs() {
   const SchedulerCounters c = sched_.counters();
   int64_t n = 0;
-  for (const JobState st : {JobState::queued, JobState::running, JobState::paused})
+  for (const JobState st : {JobState::queued, JobState::running, JobState::paused, JobState::waiting, JobState::blocked})
     if (const auto it = c.jobs.find(st); it != c.jobs.end()) n += it->second;
   return n;
 }
@@ -135,7 +135,7 @@ JobService::CheckedScene JobService::check_scene(const json& scene, const std::m
 
 ApiError JobService::queue_full() const {
   return ApiError(429, "too many unfinished jobs: " + std::to_string(limits_.max_queued_jobs) +
-                           " are queued, running or paused (--max-queued-jobs); retry later");
+                           " are queued, running, paused, waiting or blocked (--max-queued-jobs); retry later");
 }
 
 protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
@@ -153,6 +153,7 @@ protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
   p.spp = s.spp;
   p.seed = sub.sampling.seed;
   p.scene_hash = s.hash;
+  p.pipeline = sub.pipeline;
 
   protocol::JobSpec spec{sub.scene, sub.assets, sub.sampling, p.width, p.height, p.tile_size, sub.resumable};
   spec.sampling.spp = p.spp;
@@ -166,7 +167,14 @@ protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
     std::lock_guard lock(mu_);
     cache_spec_locked(id, spec, true);
   }
-  sched_.add_job(p, id);
+  try {
+    sched_.add_job(p, id);
+  } catch (const std::invalid_argument& e) {  // its dependencies refused: the cached spec goes (the record is inert)
+    std::lock_guard lock(mu_);
+    specs_.erase(id);
+    spec_json_.erase(id);
+    throw ApiError(400, e.what());
+  }
   admit.unlock();
   spdlog::info("job {}: submitted '{}' {}x{} spp {} seed {} tile {} priority {} ({} tiles)", id, p.name, p.width,
                p.height, p.spp, p.seed, p.tile_size, p.priority, TileGrid(p.width, p.height, p.tile_size).count());
@@ -234,6 +242,7 @@ protocol::SubmitAnswer JobService::submit_sequence(const protocol::JobSubmission
   p.spp = frames.front().spp;
   p.seed = sub.sampling.seed;
   p.frame_order = sub.frame_order;
+  p.pipeline = sub.pipeline;
   std::unique_lock admit(admit_mu_);
   if (unfinished_jobs() >= limits_.max_queued_jobs) throw queue_full();
   // Again, now that no blob collection can run before the job is stored: each distinct blob once, and the frames'
@@ -693,6 +702,12 @@ protocol::JobState JobService::purge(const std::string& id) {
     case PurgeResult::busy:
       throw ApiError(409, "job " + id + " is " + to_string(r.was) + " but an upload of one of its tiles is being stored; "
                               "purge it again in a moment");
+    case PurgeResult::holds: {
+      std::string held;
+      for (const std::string& h : r.held) held += (held.empty() ? "" : ", ") + h;
+      throw ApiError(409, "job " + id + " holds back " + held + " (waiting for it or blocked by it); cancel " +
+                              (r.held.size() > 1 ? "them" : "it") + " first");
+    }
     case PurgeResult::purged: break;
   }
   for (const std::string& job : gone) {

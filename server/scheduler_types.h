@@ -23,6 +23,7 @@ using ClockMs = std::function<int64_t()>;
 
 // The protocol's job, tile and lease types are the scheduler's own (protocol/job.h, tile.h, lease.h, messages.h).
 using protocol::is_final;
+using protocol::is_held;
 using protocol::to_string;
 using protocol::job_state_from_string;
 using protocol::JobParams;
@@ -144,9 +145,10 @@ struct RaiseResult {
 /// Outcome of purging a job.
 struct PurgeResult {
   /// purged: gone from memory and store; not_ended: queued, running or paused; busy: an upload of one of its tiles is
-  /// being stored (try again); unknown: no such job.
-  enum Status { purged, not_ended, busy, unknown } status = unknown;
+  /// being stored (try again); holds: jobs wait for it or are blocked by it (`held`); unknown: no such job.
+  enum Status { purged, not_ended, busy, holds, unknown } status = unknown;
   JobState was = JobState::queued;  ///< The state it had.
+  std::vector<std::string> held;    ///< holds: the jobs it holds back.
 };
 
 /// Outcome of requeueing one tile.
