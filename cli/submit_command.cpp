@@ -33,6 +33,12 @@ CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
   c->add_flag("--resumable", a.resumable,
               "Keep each tile's exact per-pixel sums, so that `tessera jobs spp ID M` can raise the job's spp later "
               "(bitwise as if submitted at M; docs/resume.md)");
+  c->add_option("--after", a.after,
+                "Wait until these jobs are done before starting (ID[,ID...]); a failed or cancelled one blocks this job "
+                "until it is retried")
+      ->delimiter(',');
+  c->add_flag("--per-frame", a.per_frame,
+              "A sequence after sequences: frame k starts once frame k of each --after job is done");
   c->add_flag("--detach", a.detach, "Print the job id and return without waiting");
   c->add_flag("-q,--quiet", a.quiet, "No progress bar");
   return c;
@@ -170,6 +176,8 @@ int run_submit(const SubmitArgs& a) {
     o.tile_timeout_seconds = a.tile_timeout_seconds;
     o.name = a.name;
     o.resumable = a.resumable;
+    o.pipeline.after = a.after;
+    o.pipeline.per_frame = a.per_frame;
     if (a.detach) {
       const client::SubmitResult sub = client::submit_job(http, o);
       std::printf("%s\n", sub.job_id.c_str());

@@ -33,6 +33,8 @@ struct SubmitArgs : SamplingArgs {
   bool resumable = false;           ///< Keep each tile's exact sums so `jobs spp` can raise the job's spp later.
   bool detach = false;              ///< Print the job id and return without waiting.
   bool quiet = false;               ///< No progress bar.
+  std::vector<std::string> after;   ///< --after: jobs that must be done before this one starts.
+  bool per_frame = false;           ///< --per-frame: frame k of the sequence waits for frame k of each --after job.
 };
 
 /// The job settings `submit` and `render --workers` share, from either's arguments (the fields have the same names):

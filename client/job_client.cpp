@@ -171,6 +171,7 @@ protocol::JobSubmission job_submission(const SubmitOptions& o, SceneFiles files)
                                 : o.frames.front().scene.filename().string() + " .. " +
                                       o.frames.back().scene.filename().string();
   job.resumable = o.resumable;
+  job.pipeline = o.pipeline;
   return job;
 }
 

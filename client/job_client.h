@@ -47,6 +47,7 @@ struct SubmitOptions {
   std::string name;                    ///< Job label (default: the scene's file name).
   std::optional<std::filesystem::path> asset_root;  ///< Assets may lie anywhere below this folder.
   bool resumable = false;              ///< Tiles keep their exact sums, so the spp can be raised later.
+  protocol::Pipeline pipeline;         ///< Jobs it waits for, steps after its merge, its webhook.
 };
 
 /// Counts of a submission's asset uploads.

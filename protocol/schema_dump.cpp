@@ -31,12 +31,19 @@ SamplingSettings full_sampling() {
           .error_floor = 0.02, .replicates = 2, .area_sampling = "area", .env_sampling = "cosine", .bvh = "median"};
 }
 
+// per_frame applies to a sequence only.
+Pipeline full_pipeline(bool per_frame) {
+  return {.after = {"j-0"}, .per_frame = per_frame, .then = {Step::preview, Step::half},
+          .notify = "https://hooks.example/tessera"};
+}
+
 json sample_scene() { return {{"film", {{"resolution", {16, 16}}}}}; }
 
 JobSubmission full_submission() {
   return {.scene = sample_scene(), .assets = {{"assets/floor.obj", kSha}},
           .frames = {}, .frame_order = FrameOrder::in_order, .sampling = full_sampling(), .tile_size = 8,
-          .priority = 3, .name = "sample", .resumable = true, .tile_timeout_seconds = 60};
+          .priority = 3, .name = "sample", .resumable = true, .tile_timeout_seconds = 60,
+          .pipeline = full_pipeline(false)};
 }
 
 // A sequence's submission: "frames" (with a frame's own assets) and "frame_order" instead of "scene".
@@ -45,6 +52,7 @@ JobSubmission full_sequence_submission() {
   s.resumable = false;
   s.frames = {{.number = 1, .scene = sample_scene(), .assets = {{"assets/floor.obj", kSha}}}};
   s.frame_order = FrameOrder::any;
+  s.pipeline = full_pipeline(true);
   return s;
 }
 
@@ -56,7 +64,8 @@ JobSpec full_spec() {
 JobStatus full_job() {
   return {.id = "j-1",
           .params = {.name = "sample", .priority = 3, .width = 16, .height = 16, .tile_size = 8, .spp = 4, .seed = 7,
-                     .scene_hash = "hash", .tile_timeout_seconds = 60, .frame_order = FrameOrder::any},
+                     .scene_hash = "hash", .tile_timeout_seconds = 60, .frame_order = FrameOrder::any,
+                     .pipeline = full_pipeline(true)},
           .state = JobState::failed,
           .tiles = {.total = 4, .done = 1, .leased = 1, .pending = 2},
           .created_ms = 1000,
@@ -67,9 +76,11 @@ JobStatus full_job() {
           .workers = {"w-1"},
           .render_seconds = 1.5,
           .frames = FrameCounts{.total = 3, .queued = 1, .running = 1, .paused = 0, .done = 1, .failed = 0,
-                                .cancelled = 0, .first = 1, .last = 3},
+                                .cancelled = 0, .waiting = 0, .blocked = 0, .first = 1, .last = 3},
           .sequence = "j-0",
-          .frame = 2};
+          .frame = 2,
+          .dependents = {"j-5"},
+          .reason = "dependency j-0 failed: a tile failed on 3 workers"};
 }
 
 Lease full_lease() {
