@@ -39,6 +39,8 @@ CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
       ->delimiter(',');
   c->add_flag("--per-frame", a.per_frame,
               "A sequence after sequences: frame k starts once frame k of each --after job is done");
+  c->add_option("--notify", a.notify,
+                "Also POST this job's end to this URL (allowed by the coordinator's --webhook-allow)");
   c->add_flag("--detach", a.detach, "Print the job id and return without waiting");
   c->add_flag("-q,--quiet", a.quiet, "No progress bar");
   return c;
@@ -178,6 +180,7 @@ int run_submit(const SubmitArgs& a) {
     o.resumable = a.resumable;
     o.pipeline.after = a.after;
     o.pipeline.per_frame = a.per_frame;
+    o.pipeline.notify = a.notify;
     if (a.detach) {
       const client::SubmitResult sub = client::submit_job(http, o);
       std::printf("%s\n", sub.job_id.c_str());

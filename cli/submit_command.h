@@ -35,6 +35,7 @@ struct SubmitArgs : SamplingArgs {
   bool quiet = false;               ///< No progress bar.
   std::vector<std::string> after;   ///< --after: jobs that must be done before this one starts.
   bool per_frame = false;           ///< --per-frame: frame k of the sequence waits for frame k of each --after job.
+  std::string notify;               ///< --notify: the job's own webhook address.
 };
 
 /// The job settings `submit` and `render --workers` share, from either's arguments (the fields have the same names):

@@ -61,6 +61,8 @@ const std::vector<RouteSpec>& route_table() {
       {Endpoint::lease_release, "lease_release", "/v1/leases/{lease}/release", R::leases, {{"POST", A::worker}}},
       {Endpoint::lease_state, "lease_state", "/v1/leases/{lease}/state", R::leases, {{"GET", A::worker}}},
       {Endpoint::events, "events", "/v1/events", R::events, {{"GET", A::client, false, "events"}}},
+      {Endpoint::webhook_deliveries, "webhook_deliveries", "/v1/webhooks/deliveries", R::webhooks,
+       {{"GET", A::client, false, "webhook_deliveries"}}},
   };
   return table;
 }

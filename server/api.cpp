@@ -39,7 +39,8 @@ Api::Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metric
       workers_handler_(scheduler, opt_.heartbeat_seconds, opt_.registrations_per_minute, clock, events),
       blobs_handler_(blobs),
       health_handler_(scheduler, metrics, clock, *lease_waiters_, disk),
-      events_handler_(bus) {
+      events_handler_(bus),
+      webhooks_handler_(opt_.webhook_log) {
   sched_.on_work([w = lease_waiters_.get()] { w->note_work(); });
 }
 
@@ -217,6 +218,7 @@ ResourceHandler& Api::handler_for(protocol::Resource resource) {
     case protocol::Resource::tiles: return tiles_handler_;
     case protocol::Resource::workers: return workers_handler_;
     case protocol::Resource::leases: return leases_handler_;
+    case protocol::Resource::webhooks: return webhooks_handler_;
     case protocol::Resource::events: break;  // answered by the router itself (a stream)
   }
   throw ApiError(404, "no such endpoint");

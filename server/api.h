@@ -23,6 +23,7 @@
 #include "server/scheduler.h"
 #include "server/storage.h"
 #include "server/tiles_handler.h"
+#include "server/webhooks_handler.h"
 #include "server/workers_handler.h"
 
 #include <cstddef>
@@ -44,6 +45,7 @@ struct ApiOptions : AdmissionLimits {
   AccessTokens tokens;                               ///< Bearer tokens (empty: that side's endpoints are open).
   RetentionOptions retention;                        ///< How long finished jobs and unreferenced blobs are kept.
   double registrations_per_minute = 600;  ///< Worker registrations taken a minute; more get 429 (0: no limit).
+  WebhookLog* webhook_log = nullptr;  ///< The delivery log GET /v1/webhooks/deliveries lists (none: an empty list).
 };
 
 /// The endpoints a request target can name (protocol/routes.h).
@@ -110,6 +112,7 @@ class Api final : public RoutedHandler {
   BlobsHandler blobs_handler_;
   HealthHandler health_handler_;
   EventsHandler events_handler_;
+  WebhooksHandler webhooks_handler_;
 };
 
 }  // namespace tessera::server

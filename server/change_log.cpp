@@ -28,6 +28,7 @@ void ChangeLog::clear() {
   workers_.clear();
   forgotten_workers_.clear();
   purged_jobs_.clear();
+  outbox_.clear();
 }
 
 void ChangeLog::flush(FarmState& s) {
@@ -40,7 +41,7 @@ void ChangeLog::flush(FarmState& s) {
     return;
   }
   if (jobs_.empty() && job_workers_.empty() && tiles_.empty() && leases_.empty() && workers_.empty() &&
-      forgotten_workers_.empty() && purged_jobs_.empty() && counters == flushed_counters_)
+      forgotten_workers_.empty() && purged_jobs_.empty() && outbox_.empty() && counters == flushed_counters_)
     return;
   SchedulerChanges c;
   c.counters = counters;
@@ -73,6 +74,7 @@ void ChangeLog::flush(FarmState& s) {
     if (const WorkerRec* w = s.workers.find(id)) c.workers.push_back(WorkerRow{id, w->name, w->drained, w->secret_hash});
   c.forgotten_workers.assign(forgotten_workers_.begin(), forgotten_workers_.end());
   c.purged_jobs.assign(purged_jobs_.begin(), purged_jobs_.end());
+  c.outbox = outbox_;
   // On failure the sets stay, so the next flush writes these rows again.
   store_->apply(c);
   if (std::exchange(sync_needed_, false)) sync_due_ = true;

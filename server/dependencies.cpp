@@ -1,6 +1,7 @@
 #include "server/dependencies.h"
 
 #include "server/farm_state.h"
+#include "server/outbox.h"
 
 #include <algorithm>
 #include <deque>
@@ -59,11 +60,14 @@ Verdict judge(const FarmState& s, const JobRec& j) {
   return {};
 }
 
-// Applies the verdict to a job that settles(); true when its state changed.
-bool settle(FarmState& s, JobRec& j) {
+// Applies the verdict to a job that settles(); true when its state changed. With `now`, a job (or its sequence)
+// newly blocked is a webhook event.
+bool settle(FarmState& s, JobRec& j, std::optional<int64_t> now) {
   const Verdict v = judge(s, j);
   const JobState was = j.status.state;
   if (v.state == was && v.reason == j.status.reason) return false;
+  const JobRec& shown = FarmState::top(j);
+  const JobState shown_was = s.state_of(shown);
   j.status.state = v.state;
   j.status.reason = v.reason;
   s.touch(j);
@@ -73,11 +77,12 @@ bool settle(FarmState& s, JobRec& j) {
   } else if (!is_held(was) && is_held(v.state)) {
     s.dequeue(j);
   }
+  if (now) note_job_event(s, shown, shown_was, *now);
   return was != v.state;
 }
 
 // Settles the jobs that wait for each id in `changed`, and the jobs that wait for those in turn.
-void settle_from(FarmState& s, std::deque<std::string> changed) {
+void settle_from(FarmState& s, std::deque<std::string> changed, std::optional<int64_t> now) {
   std::set<std::string> seen(changed.begin(), changed.end());
   while (!changed.empty()) {
     const std::string id = std::move(changed.front());
@@ -87,7 +92,7 @@ void settle_from(FarmState& s, std::deque<std::string> changed) {
     const std::vector<std::string> ids(deps->begin(), deps->end());  // settle() does not change the index
     for (const std::string& d : ids) {
       JobRec* dj = s.find_job(d);
-      if (!dj || !settles(*dj) || !settle(s, *dj)) continue;
+      if (!dj || !settles(*dj) || !settle(s, *dj, now)) continue;
       for (const std::string& next : {dj->status.id, dj->sequence ? dj->sequence->status.id : std::string()})
         if (!next.empty() && seen.insert(next).second) changed.push_back(next);
     }
@@ -174,23 +179,24 @@ std::vector<std::string> frame_dependencies(const protocol::Pipeline& p, int64_t
   return out;
 }
 
-void hold_new_job(FarmState& s, JobRec& j) {
+void hold_new_job(FarmState& s, JobRec& j, int64_t now) {
   if (j.status.params.pipeline.after.empty()) return;
   s.dependents.add(j);
   const Verdict v = judge(s, j);
   j.status.state = v.state;
   j.status.reason = v.reason;
+  if (!j.sequence) note_job_event(s, j, JobState::queued, now);
 }
 
-void settle_dependents(FarmState& s, const JobRec& j) {
+void settle_dependents(FarmState& s, const JobRec& j, int64_t now) {
   std::deque<std::string> changed{j.status.id};
   if (j.sequence) changed.push_back(j.sequence->status.id);
-  settle_from(s, std::move(changed));
+  settle_from(s, std::move(changed), now);
 }
 
-void settle_retried(FarmState& s, JobRec& j) {
-  if (settles(j)) settle(s, j);
-  settle_dependents(s, j);
+void settle_retried(FarmState& s, JobRec& j, int64_t now) {
+  if (settles(j)) settle(s, j, now);
+  settle_dependents(s, j, now);
 }
 
 void restore_dependencies(FarmState& s) {
@@ -198,8 +204,8 @@ void restore_dependencies(FarmState& s) {
   for (const auto& [id, j] : s.jobs) s.dependents.add(*j);
   std::deque<std::string> changed;
   for (auto& [id, j] : s.jobs)
-    if (settles(*j) && settle(s, *j)) changed.push_back(id);
-  settle_from(s, std::move(changed));
+    if (settles(*j) && settle(s, *j, std::nullopt)) changed.push_back(id);
+  settle_from(s, std::move(changed), std::nullopt);  // a restart repairs; the events were stored with the changes
 }
 
 std::vector<std::string> held_dependents(const FarmState& s, const JobRec& j) {

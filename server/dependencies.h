@@ -43,14 +43,16 @@ void check_dependencies(const FarmState& s, const std::string& id, const protoco
 /// per-frame, else the jobs themselves.
 std::vector<std::string> frame_dependencies(const protocol::Pipeline& p, int64_t number);
 /// Sets the state of a job just made (not yet in the queue) from its dependencies: waiting or blocked with its
-/// reason, or left queued when they are all done. Notes it in the index.
-void hold_new_job(FarmState& s, JobRec& j);
+/// reason, or left queued when they are all done. Notes it in the index. A one-image job blocked from the start is a
+/// webhook event at `now` (a sequence's is noted once its frames are all added).
+void hold_new_job(FarmState& s, JobRec& j, int64_t now);
 /// Settles every job that waits for `j` (or for its sequence), and in turn those that wait for them, after j's state
-/// changed: a job that has not started becomes waiting, blocked or queued again as its dependencies now say.
-void settle_dependents(FarmState& s, const JobRec& j);
+/// changed: a job that has not started becomes waiting, blocked or queued again as its dependencies now say. A job
+/// (or sequence) that becomes blocked is a webhook event (server/outbox.h) at `now`.
+void settle_dependents(FarmState& s, const JobRec& j, int64_t now);
 /// Settles `j` itself after it was put back in the queue (retried): waiting or blocked again when its dependencies
 /// say so; then its dependents.
-void settle_retried(FarmState& s, JobRec& j);
+void settle_retried(FarmState& s, JobRec& j, int64_t now);
 /// After a restart: the index rebuilt from the stored jobs and every job that has not started settled again.
 void restore_dependencies(FarmState& s);
 /// The jobs held back by `j` (waiting or blocked because of it), for a purge's refusal.

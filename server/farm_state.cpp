@@ -1,5 +1,7 @@
 #include "server/farm_state.h"
 
+#include "server/outbox.h"
+
 #include <set>
 #include <string_view>
 #include <utility>
@@ -211,6 +213,8 @@ int FarmState::revoke_leases(JobRec& j) {
 }
 
 int FarmState::finish_job(JobRec& j, JobState to, int64_t now, std::optional<std::string> error) {
+  const JobRec& shown = top(j);
+  const JobState was = state_of(shown);
   dequeue(j);
   j.status.state = to;
   j.status.finished_ms = now;
@@ -219,7 +223,8 @@ int FarmState::finish_job(JobRec& j, JobState to, int64_t now, std::optional<std
   changes.need_sync();
   touch(j);
   const int revoked = revoke_leases(j);
-  settle_dependents(*this, j);
+  settle_dependents(*this, j, now);
+  note_job_event(*this, shown, was, now);
   return revoked;
 }
 

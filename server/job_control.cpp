@@ -1,6 +1,7 @@
 #include "server/job_control.h"
 
 #include "core/image/tiles.h"
+#include "server/outbox.h"
 
 #include <algorithm>
 #include <memory>
@@ -52,7 +53,7 @@ std::string JobControl::add_job(const JobParams& p, const std::string& id_in, in
   JobRec& j = *rec;
   const std::string id = rec->status.id;
   s_.jobs.emplace(id, std::move(rec));
-  hold_new_job(s_, j);
+  hold_new_job(s_, j, now);
   if (!is_held(j.status.state)) s_.enqueue(j);
   try {
     s_.changes.flush(s_);  // here rather than after: a job the store did not take (the disk is full) must not exist
@@ -120,9 +121,10 @@ std::string JobControl::add_sequence(const JobParams& p, const std::vector<Frame
       added.push_back(rec->status.id);
       s_.jobs.emplace(rec->status.id, std::move(rec));
       sq.frames.push_back(&j);
-      hold_new_job(s_, j);
+      hold_new_job(s_, j, now);
       if (!is_held(j.status.state)) s_.enqueue(j);
     }
+    note_job_event(s_, sq, JobState::queued, now);  // blocked from the start
     s_.touch(sq);  // after its frames: its stored row counts them
     s_.changes.need_sync();  // the client is told the job exists
     s_.changes.flush(s_);  // as add_job: a sequence the store did not take must not exist
@@ -156,7 +158,7 @@ CancelResult JobControl::cancel(const std::string& job, int64_t now) {
   });
 }
 
-RetryResult JobControl::retry(const std::string& job, const std::vector<int64_t>& frames) {
+RetryResult JobControl::retry(const std::string& job, const std::vector<int64_t>& frames, int64_t now) {
   return with_job<RetryResult>(job, [&](JobRec& j, RetryResult& r) {
     if (!j.is_sequence()) {
       if (!require_ended(j, r)) return;
@@ -164,7 +166,7 @@ RetryResult JobControl::retry(const std::string& job, const std::vector<int64_t>
         r.status = RetryResult::done;
         return;
       }
-      retry_ended(j, r);
+      retry_ended(j, r, now);
       return;
     }
     r.was = s_.state_of(j);
@@ -186,7 +188,7 @@ RetryResult JobControl::retry(const std::string& job, const std::vector<int64_t>
     bool all_done = true;
     for (JobRec* f : chosen) {
       all_done = all_done && f->status.state == JobState::done;
-      if (f->status.state == JobState::failed || f->status.state == JobState::cancelled) retry_ended(*f, r);
+      if (f->status.state == JobState::failed || f->status.state == JobState::cancelled) retry_ended(*f, r, now);
     }
     if (!r.jobs.empty()) {
       s_.touch(j);
@@ -197,7 +199,7 @@ RetryResult JobControl::retry(const std::string& job, const std::vector<int64_t>
   });
 }
 
-void JobControl::retry_ended(JobRec& j, RetryResult& r) {
+void JobControl::retry_ended(JobRec& j, RetryResult& r, int64_t now) {
   {
     // Leases were revoked when it ended, so its unfinished tiles are pending; only the bookkeeping of its failures
     // goes. It keeps its place in the queue (created_ms and seq).
@@ -221,7 +223,7 @@ void JobControl::retry_ended(JobRec& j, RetryResult& r) {
     r.status = RetryResult::retried;
     r.pending += int64_t(j.pending.size());
     r.jobs.push_back(j.status.id);
-    settle_retried(s_, j);  // waiting again if its own dependencies are not done; its dependents wait for it again
+    settle_retried(s_, j, now);  // waiting again if its own dependencies are not done; its dependents wait for it again
   }
 }
 

@@ -139,6 +139,15 @@ ApiError JobService::queue_full() const {
 }
 
 protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
+  if (!sub.pipeline.notify.empty()) {
+    try {
+      limits_.notify_allowed.check(sub.pipeline.notify);
+    } catch (const std::invalid_argument& e) {
+      throw ApiError(403, e.what());
+    }
+  }
+  if (!sub.pipeline.then.empty())
+    throw ApiError(400, "'then': this coordinator runs no steps after the merge; submit without them");
   // Admission: queued plus running jobs are bounded (checked again, atomically with add_job, below).
   if (unfinished_jobs() >= limits_.max_queued_jobs) throw queue_full();
   if (!sub.frames.empty()) return submit_sequence(sub);

@@ -16,6 +16,7 @@
 #include "server/preview_cache.h"
 #include "server/scheduler.h"
 #include "server/storage.h"
+#include "server/webhook_url.h"
 
 #include <cstddef>
 #include <cstdint>
@@ -41,6 +42,7 @@ struct AdmissionLimits {
   double max_job_samples = 4e10;                 ///< width x height x spp (x max_spp when adaptive) of one job.
   AssetLimits assets;  ///< Each image texture's and mesh's size, checked from its header (or count) at submission.
   int64_t max_job_frames = protocol::kDefaultMaxJobFrames;  ///< Frames of one sequence.
+  WebhookAllowList notify_allowed;  ///< The webhook addresses a submission's "notify" may name (none: no address).
 };
 
 /// How an upload was settled (its name is the result answer's "status").

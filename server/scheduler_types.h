@@ -46,6 +46,7 @@ struct SchedulerConfig {
   int64_t max_workers = 10000;     ///< Registered workers at most; more registrations are refused (0: no bound).
   /// A worker that is not present, holds no live lease and was not seen for this long is forgotten (0: never).
   int64_t worker_retention_ms = 86'400'000;
+  std::vector<std::string> webhooks{};  ///< Addresses told of every job's end (server/outbox.h); none: only jobs' own.
 };
 
 /// Outcome of registering a worker.
