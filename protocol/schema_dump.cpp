@@ -8,6 +8,7 @@
 #include "protocol/job.h"
 #include "protocol/messages.h"
 #include "protocol/tile.h"
+#include "protocol/webhook.h"
 #include "protocol/worker.h"
 
 #include <nlohmann/json.hpp>
@@ -117,6 +118,11 @@ json dump() {
   minimal_sequence.frames = {FrameSubmission{}};
   add(out, "JobSubmission", "JobSubmission (sequence)", kRequest, full_sequence_submission(), minimal_sequence);
   add(out, "RetryRequest", "RetryRequest", kRequest, RetryRequest{{1, 2}}, RetryRequest{});
+  const WebhookDelivery delivery{.id = "e-1", .url = "https://hooks.example/t", .event = "job.done", .job = "j-1",
+                                 .state = "pending", .attempts = 2, .created_ms = 1000, .next_ms = 5000,
+                                 .last_status = 500, .last_error = "answered 500"};
+  add(out, "WebhookDelivery", "WebhookDelivery", kAnswer, delivery, WebhookDelivery{});
+  add(out, "WebhookDeliveryList", "WebhookDeliveryList", kAnswer, WebhookDeliveryList{{delivery}}, WebhookDeliveryList{});
   add(out, "JobPatch", "JobPatch", kRequest, JobPatch{3, 8}, JobPatch{});
   add(out, "SubmitAnswer", "SubmitAnswer", kAnswer, SubmitAnswer{"j-1", {"a warning"}}, SubmitAnswer{});
   add(out, "JobSpec", "JobSpec", kAnswer, full_spec(), JobSpec{});
