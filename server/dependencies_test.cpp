@@ -199,6 +199,39 @@ TEST_F(DependencyTest, PerFrameDependenciesReleaseFrameByFrame) {
   EXPECT_EQ(status(whole).state, JobState::queued);
 }
 
+// The worked example of docs/protocol.md, "Dependencies", row by row.
+TEST_F(DependencyTest, TheProtocolsWorkedExample) {
+  const std::string a = sequence({1, 2, 3}), b = sequence({1, 2, 3}, {a}, true), c = job({b});
+  const auto f = [](const std::string& seq, int64_t n) { return frame_job_id(seq, n); };
+  EXPECT_EQ(status(b).state, JobState::waiting);
+  EXPECT_EQ(status(b).reason, "frame 1: waiting for " + f(a, 1));
+  EXPECT_EQ(status(c).reason, "waiting for " + b);
+  finish(f(a, 1));
+  EXPECT_EQ(status(a).state, JobState::running);
+  EXPECT_EQ(status(f(b, 1)).state, JobState::queued);
+  EXPECT_EQ(status(f(b, 2)).state, JobState::waiting);
+  s->fail_job(f(a, 2), "boom");
+  EXPECT_EQ(status(a).state, JobState::running);
+  EXPECT_EQ(status(f(b, 2)).reason, "dependency " + f(a, 2) + " failed: boom");
+  EXPECT_EQ(status(c).state, JobState::waiting);
+  finish(f(a, 3));
+  EXPECT_EQ(status(a).state, JobState::failed);
+  finish(f(b, 1));
+  finish(f(b, 3));
+  EXPECT_EQ(status(b).state, JobState::blocked);
+  EXPECT_EQ(status(b).reason, "frame 2: dependency " + f(a, 2) + " failed: boom");
+  EXPECT_EQ(status(c).state, JobState::blocked);
+  EXPECT_EQ(status(c).reason, "dependency " + b + " is blocked: frame 2: dependency " + f(a, 2) + " failed: boom");
+  ASSERT_EQ(s->retry(a, {2}).status, RetryResult::retried);
+  EXPECT_EQ(status(a).state, JobState::running);
+  EXPECT_EQ(status(b).state, JobState::waiting);
+  EXPECT_EQ(status(c).state, JobState::waiting);
+  finish(f(a, 2));
+  finish(f(b, 2));
+  EXPECT_EQ(status(c).state, JobState::queued);
+  finish(c);
+}
+
 TEST_F(DependencyTest, PerFrameNeedsSequencesWithTheFrames) {
   const std::string one = job(), a = sequence({1, 2});
   EXPECT_THROW(sequence({1}, {one}, true), std::invalid_argument);

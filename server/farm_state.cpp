@@ -59,15 +59,14 @@ protocol::FrameCounts count_frames(const JobRec& seq) {
 }
 
 // A sequence's state from its frames': ended when every frame has (done if all are, else failed if one failed, else
-// cancelled); otherwise running once a frame started or ended, paused when its unended frames are all paused,
-// blocked when a frame is, waiting when every unended frame is, or queued.
+// cancelled); otherwise paused when its unended frames are all paused, held when they are all held by dependencies
+// (blocked if one is blocked, else waiting), running once a frame started or ended, or queued.
 JobState sequence_state(const protocol::FrameCounts& c, bool started) {
   const int64_t open = c.queued + c.running + c.paused + c.waiting + c.blocked;
   if (open == 0) return c.done == c.total ? JobState::done : c.failed > 0 ? JobState::failed : JobState::cancelled;
   if (c.paused == open) return JobState::paused;
-  if (started) return JobState::running;
-  if (c.blocked > 0) return JobState::blocked;
-  return c.waiting == open ? JobState::waiting : JobState::queued;
+  if (c.waiting + c.blocked == open) return c.blocked > 0 ? JobState::blocked : JobState::waiting;
+  return started ? JobState::running : JobState::queued;
 }
 
 }  // namespace
