@@ -39,6 +39,7 @@ WebhookSender::~WebhookSender() {
     std::lock_guard lock(mu_);
     stop_ = true;
   }
+  stopper_.stop();
   cv_.notify_all();
   for (std::thread& t : threads_) t.join();
 }
@@ -94,10 +95,11 @@ void WebhookSender::deliver(const DueDelivery& d) {
                          "sha256=" + hmac_sha256_hex(opt_.secret, timestamp + "." + d.body));
   PostAnswer answer;
   try {
-    answer = post_webhook(parse_webhook_url(d.url), d.body, headers, opt_.timeout);
+    answer = post_webhook(parse_webhook_url(d.url), d.body, headers, opt_.timeout, &stopper_);
   } catch (const std::exception& e) {  // an address stored by a build that read it otherwise
     answer.error = e.what();
   }
+  if (!answer.status && answer.error == "stopped") return;  // shutting down: not an attempt, the row stays due
   DeliveryAttempt a;
   a.status = answer.status;
   const int64_t attempts = d.attempts + 1;

@@ -1,10 +1,12 @@
 // Delivers the webhook outbox (server/outbox.h) on threads of its own, never on the scheduler's or a request's: each
 // due delivery is POSTed, signed (HMAC-SHA256 over the timestamp, ".", and the body), and recorded; an attempt without
 // a 2xx answer is tried again after an exponential backoff with jitter, up to a number of attempts, then marked
-// failed. A receiver that never answers holds one sender thread for the attempt's timeout, nothing else.
+// failed. A receiver that never answers holds one sender thread for the attempt's timeout, nothing else; destruction
+// ends the attempts under way at once (they are tried again after a restart).
 #pragma once
 
 #include "server/scheduler_types.h"
+#include "server/webhook_post.h"
 #include "server/webhook_log.h"
 
 #include <chrono>
@@ -60,6 +62,7 @@ class WebhookSender {
   std::deque<DueDelivery> queue_;                       // due, not yet taken (mu_)
   std::set<std::pair<std::string, std::string>> busy_;  // queued or under way: (id, url) (mu_)
   uint64_t jitter_state_;                               // (mu_)
+  PostStopper stopper_;                                 // ends the attempts under way at destruction
   std::vector<std::thread> threads_;
 };
 

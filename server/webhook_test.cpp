@@ -3,13 +3,17 @@
 #include "server/database.h"
 #include "server/scheduler.h"
 #include "server/webhook_sender.h"
+#include "server/webhook_post.h"
 #include "server/webhook_url.h"
 
 #include "tests/support/test_files.h"
 
 #include <gtest/gtest.h>
 
+#include <boost/asio/ip/tcp.hpp>
+
 #include <filesystem>
+#include <thread>
 
 namespace tessera::server {
 namespace {
@@ -44,6 +48,33 @@ TEST(WebhookSignature, IsHmacSha256InHex) {
   // RFC 4231, test case 2.
   EXPECT_EQ(hmac_sha256_hex("Jefe", "what do ya want for nothing?"),
             "5bdcc146bf60754e6a042426089575c75a003f089d2739839dec58b964ec3843");
+}
+
+// A socket that takes connections (the kernel completes them) and never reads: a receiver that never answers.
+struct SilentReceiver {
+  boost::asio::io_context ioc;
+  boost::asio::ip::tcp::acceptor acceptor{ioc, {boost::asio::ip::make_address("127.0.0.1"), 0}};
+  std::string url() const { return "http://127.0.0.1:" + std::to_string(acceptor.local_endpoint().port()) + "/h"; }
+};
+
+TEST(WebhookPost, ASilentReceiverTimesOutAndAStopEndsTheAttempt) {
+  SilentReceiver silent;
+  const PostAnswer late = post_webhook(parse_webhook_url(silent.url()), "{}", {}, std::chrono::milliseconds(200));
+  EXPECT_FALSE(late.status);
+  EXPECT_EQ(late.error, "no answer within 200 ms");
+  PostStopper stopper;
+  std::thread stop([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    stopper.stop();
+  });
+  // An attempt that could wait ten minutes ends with the stop (or, stopped first, at once).
+  const PostAnswer stopped =
+      post_webhook(parse_webhook_url(silent.url()), "{}", {}, std::chrono::minutes(10), &stopper);
+  stop.join();
+  EXPECT_FALSE(stopped.status);
+  EXPECT_EQ(stopped.error, "stopped");
+  EXPECT_EQ(post_webhook(parse_webhook_url(silent.url()), "{}", {}, std::chrono::minutes(10), &stopper).error,
+            "stopped");
 }
 
 // A delivery log that holds nothing: the sender's threads start and stop without work.
