@@ -17,6 +17,7 @@ void ChangeLog::purge_job(const std::string& job) {
 
 void ChangeLog::withdraw_job(const std::string& job) {
   jobs_.erase(job);
+  std::erase_if(outbox_, [&](const OutboxRow& r) { return r.job == job; });
   for (auto t = tiles_.lower_bound({job, INT64_MIN}); t != tiles_.end() && t->first == job;) t = tiles_.erase(t);
 }
 
