@@ -6,6 +6,7 @@
 #include "cli/output_check.h"
 #include "cli/progress_bar.h"
 #include "core/scene/scene_loader.h"
+#include "core/util/enum_names.h"
 
 #include <spdlog/spdlog.h>
 
@@ -39,6 +40,12 @@ CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
       ->delimiter(',');
   c->add_flag("--per-frame", a.per_frame,
               "A sequence after sequences: frame k starts once frame k of each --after job is done");
+  c->add_option("--then", a.then,
+                "Steps the coordinator runs on the result once the job is done: preview (a full-size PNG), half (a "
+                "half-float EXR), contact_sheet (a sequence's frames in one PNG); files under GET "
+                "/v1/jobs/ID/outputs/NAME")
+      ->delimiter(',')
+      ->check(CLI::IsMember(enum_names(protocol::kStepNames)));
   c->add_option("--notify", a.notify,
                 "Also POST this job's end to this URL (allowed by the coordinator's --webhook-allow)");
   c->add_flag("--detach", a.detach, "Print the job id and return without waiting");
@@ -181,6 +188,7 @@ int run_submit(const SubmitArgs& a) {
     o.pipeline.after = a.after;
     o.pipeline.per_frame = a.per_frame;
     o.pipeline.notify = a.notify;
+    for (const std::string& step : a.then) o.pipeline.then.push_back(protocol::step_from_string(step));
     if (a.detach) {
       const client::SubmitResult sub = client::submit_job(http, o);
       std::printf("%s\n", sub.job_id.c_str());

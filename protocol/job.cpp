@@ -39,6 +39,7 @@ void to_json(json& j, const JobStatus& s) {
   put_pipeline(j, s.params.pipeline);
   if (!s.dependents.empty()) j["dependents"] = s.dependents;
   if (s.reason) j["reason"] = *s.reason;
+  if (!s.outputs.empty()) j["outputs"] = s.outputs;
 }
 
 void from_json(const json& j, JobStatus& s) {
@@ -90,6 +91,7 @@ void from_json(const json& j, JobStatus& s) {
   p.pipeline = answer_pipeline(j);
   s.dependents = answer_field_or<std::vector<std::string>>(j, "dependents", kMsg, {});
   if (j.contains("reason") && !j["reason"].is_null()) s.reason = answer_field<std::string>(j, "reason", kMsg);
+  s.outputs = answer_field_or<std::vector<StepOutput>>(j, "outputs", kMsg, {});
 }
 
 }  // namespace tessera::protocol

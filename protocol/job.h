@@ -82,6 +82,7 @@ struct JobStatus {
   std::optional<int64_t> frame;         ///< A frame of a sequence: its number.
   std::vector<std::string> dependents;  ///< Jobs waiting for this one (params.pipeline.after names its own).
   std::optional<std::string> reason;    ///< Waiting or blocked: which dependency holds it and why.
+  std::vector<StepOutput> outputs;      ///< Done with steps (params.pipeline.then): each step's state and files.
   /// True for done, failed and cancelled.
   bool finished() const { return is_final(state); }
 };

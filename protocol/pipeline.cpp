@@ -63,6 +63,22 @@ Pipeline request_pipeline(const json& j) {
   return p;
 }
 
+void to_json(json& j, const StepOutput& o) {
+  j = {{"step", to_string(o.step)}, {"state", o.state}, {"files", o.files}, {"log", o.log}};
+}
+
+void from_json(const json& j, StepOutput& o) {
+  constexpr const char* kMsg = "step output";
+  try {
+    o.step = step_from_string(answer_field<std::string>(j, "step", kMsg));
+  } catch (const std::invalid_argument& e) {
+    throw ProtocolError(std::string(kMsg) + ": " + e.what());
+  }
+  o.state = answer_field<std::string>(j, "state", kMsg);
+  o.files = answer_field_or<std::vector<std::string>>(j, "files", kMsg, {});
+  o.log = answer_field_or<std::string>(j, "log", kMsg, "");
+}
+
 Pipeline answer_pipeline(const json& j) {
   constexpr const char* kMsg = "job";
   Pipeline p;

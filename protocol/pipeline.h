@@ -45,6 +45,16 @@ struct Pipeline {
   bool empty() const { return after.empty() && !per_frame && then.empty() && notify.empty(); }
 };
 
+/// Where a step of a done job is: "pending" (queued or running), "done" (its files listed) or "failed" (its log).
+struct StepOutput {
+  Step step = Step::preview;         ///< Which step.
+  std::string state;                 ///< pending, done or failed.
+  std::vector<std::string> files;    ///< done: its files (GET /v1/jobs/{id}/outputs/{name}).
+  std::string log;                   ///< failed: what it said.
+};
+void to_json(nlohmann::json& j, const StepOutput& o);
+void from_json(const nlohmann::json& j, StepOutput& o);
+
 /// Writes the pipeline's fields into an object (a submission or a job), leaving out those at their defaults.
 void put_pipeline(nlohmann::json& j, const Pipeline& p);
 /// Reads the pipeline fields of a submission ("after", "per_frame", "then", "notify"), checking their types and sizes;

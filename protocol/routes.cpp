@@ -63,6 +63,7 @@ const std::vector<RouteSpec>& route_table() {
       {Endpoint::events, "events", "/v1/events", R::events, {{"GET", A::client, false, "events"}}},
       {Endpoint::webhook_deliveries, "webhook_deliveries", "/v1/webhooks/deliveries", R::webhooks,
        {{"GET", A::client, false, "webhook_deliveries"}}},
+      {Endpoint::job_output, "job_output", "/v1/jobs/{id}/outputs/{name}", R::steps, {{"GET", A::client, false, "outputs"}}},
   };
   return table;
 }

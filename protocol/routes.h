@@ -14,7 +14,7 @@ namespace tessera::protocol {
 enum class Endpoint {
   none, healthz, metrics, blobs, blob, jobs, job, job_result, job_preview, job_spec, job_retry, job_pause, job_resume, job_tiles,
   job_tile_requeue, job_frames, job_frame_result, workers, worker_drain, worker_undrain, worker_lease, lease_heartbeat, lease_result, lease_fail,
-  lease_release, lease_state, events, webhook_deliveries
+  lease_release, lease_state, events, webhook_deliveries, job_output
 };
 
 /// The token a request must carry (docs/protocol.md, "Access").
@@ -35,7 +35,7 @@ enum class Room {
 };
 
 /// The coordinator's resource handler that answers a route.
-enum class Resource { health, blobs, jobs, tiles, workers, leases, events, webhooks };
+enum class Resource { health, blobs, jobs, tiles, workers, leases, events, webhooks, steps };
 
 /// One method a route accepts.
 struct MethodSpec {
@@ -118,6 +118,7 @@ inline std::string lease_release(std::string_view lease) { return path(Endpoint:
 inline std::string lease_state(std::string_view lease) { return path(Endpoint::lease_state, lease); }
 inline std::string events() { return path(Endpoint::events); }
 inline std::string webhook_deliveries() { return path(Endpoint::webhook_deliveries); }
+inline std::string job_output(std::string_view id, std::string_view name) { return path(Endpoint::job_output, id, name); }
 }  // namespace routes
 
 }  // namespace tessera::protocol

@@ -81,7 +81,8 @@ JobStatus full_job() {
           .sequence = "j-0",
           .frame = 2,
           .dependents = {"j-5"},
-          .reason = "dependency j-0 failed: a tile failed on 3 workers"};
+          .reason = "dependency j-0 failed: a tile failed on 3 workers",
+          .outputs = {{.step = Step::preview, .state = "done", .files = {"preview.png"}, .log = ""}}};
 }
 
 Lease full_lease() {

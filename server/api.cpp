@@ -29,6 +29,7 @@ Api::Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metric
       token_check_(opt_.tokens),
       sched_(scheduler),
       lease_waiters_(std::make_unique<LeaseWaiters>()),
+      steps_(scheduler, jobs),
       jobs_(scheduler, blobs, jobs, metrics, clock,
             static_cast<const AdmissionLimits&>(opt_),
             events, disk, std::move(background)),
@@ -40,7 +41,9 @@ Api::Api(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metric
       blobs_handler_(blobs),
       health_handler_(scheduler, metrics, clock, *lease_waiters_, disk),
       events_handler_(bus),
-      webhooks_handler_(opt_.webhook_log) {
+      webhooks_handler_(opt_.webhook_log),
+      outputs_handler_(steps_) {
+  jobs_.use_steps(&steps_);
   sched_.on_work([w = lease_waiters_.get()] { w->note_work(); });
 }
 
@@ -219,6 +222,7 @@ ResourceHandler& Api::handler_for(protocol::Resource resource) {
     case protocol::Resource::workers: return workers_handler_;
     case protocol::Resource::leases: return leases_handler_;
     case protocol::Resource::webhooks: return webhooks_handler_;
+    case protocol::Resource::steps: return outputs_handler_;
     case protocol::Resource::events: break;  // answered by the router itself (a stream)
   }
   throw ApiError(404, "no such endpoint");

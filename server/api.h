@@ -21,6 +21,8 @@
 #include "server/route.h"
 #include "server/health_handler.h"
 #include "server/scheduler.h"
+#include "server/steps/outputs_handler.h"
+#include "server/steps/step_runner.h"
 #include "server/storage.h"
 #include "server/tiles_handler.h"
 #include "server/webhooks_handler.h"
@@ -75,7 +77,10 @@ class Api final : public RoutedHandler {
   /// from the thread that flushed its tile.
   void handle_routed(HttpRequest&& request, const Route& route, Reply done) noexcept override;
   /// After a restart: finishes jobs whose every tile was stored but whose result was not written yet.
-  void recover() { jobs_.recover(); }
+  void recover() {
+    jobs_.recover();
+    steps_.resume();
+  }
   /// Purges finished jobs past their retention time and collects unreferenced blobs (see Collector::sweep).
   SweepReport sweep() { return collector_.sweep(); }
   /// Writes the results that waited for disk space; false when one still does not fit (JobService::write_waiting_results).
@@ -103,6 +108,7 @@ class Api final : public RoutedHandler {
   LogLimit refusal_log_{10, std::chrono::minutes(1)};  // the 401 and 403 lines
   Scheduler& sched_;                              // notes new work to lease_waiters_ while this lives
   std::unique_ptr<LeaseWaiters> lease_waiters_;  // ended first in ~Api, while what its requests answer through lives
+  StepRunner steps_;  // before jobs_, which runs steps on it: ended after it
   JobService jobs_;
   Collector collector_;
   JobsHandler jobs_handler_;
@@ -113,6 +119,7 @@ class Api final : public RoutedHandler {
   HealthHandler health_handler_;
   EventsHandler events_handler_;
   WebhooksHandler webhooks_handler_;
+  OutputsHandler outputs_handler_;
 };
 
 }  // namespace tessera::server

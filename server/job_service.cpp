@@ -146,8 +146,14 @@ protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub) {
       throw ApiError(403, e.what());
     }
   }
-  if (!sub.pipeline.then.empty())
-    throw ApiError(400, "'then': this coordinator runs no steps after the merge; submit without them");
+  for (const protocol::Step step : sub.pipeline.then) {
+    if (step == protocol::Step::movie)
+      throw ApiError(400, "'then': this coordinator does not offer the movie step (its H.264 encoder, ffmpeg, is not "
+                          "part of it); submit without it");
+    if (step == protocol::Step::contact_sheet && sub.frames.empty())
+      throw ApiError(400, "'then': contact_sheet needs a sequence ('frames'): it lays out its frames");
+    if (!steps_) throw ApiError(400, "'then': this coordinator runs no steps after the merge");
+  }
   // Admission: queued plus running jobs are bounded (checked again, atomically with add_job, below).
   if (unfinished_jobs() >= limits_.max_queued_jobs) throw queue_full();
   if (!sub.frames.empty()) return submit_sequence(sub);
@@ -317,6 +323,7 @@ std::string JobService::frame_job(const std::string& id, const std::string& fram
 protocol::JobStatus JobService::status(const std::string& id) {
   auto s = sched_.job(id);
   if (!s) throw ApiError(404, "no job " + id);
+  if (steps_ && !s->params.pipeline.then.empty()) s->outputs = steps_->outputs(*s);
   return std::move(*s);
 }
 
@@ -832,6 +839,7 @@ void JobService::finalize(const std::string& job) {
   drop_image(job);
   const protocol::JobStatus done = announce(job);
   if (done.sequence) events_.frame_done({*done.sequence, *done.frame, job});
+  if (steps_) steps_->job_done(job);
   spdlog::info("job {}: done, result written in {:.3f}s", job,
                std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
 }

@@ -15,6 +15,7 @@
 #include "server/metrics.h"
 #include "server/preview_cache.h"
 #include "server/scheduler.h"
+#include "server/steps/step_runner.h"
 #include "server/storage.h"
 #include "server/webhook_url.h"
 
@@ -75,6 +76,9 @@ class JobService {
   std::string frame_job(const std::string& id, const std::string& frame);
   /// A job's snapshot; ApiError 404 for unknown ids.
   protocol::JobStatus status(const std::string& id);
+  /// Runs the steps of jobs it finishes on `runner` and lists their outputs in status() (set before the service is
+  /// shared; nullptr: no steps).
+  void use_steps(StepRunner* runner) { steps_ = runner; }
   /// Every job, newest first.
   std::vector<protocol::JobStatus> list();
   /// The jobs a listing asks for, newest first, with the cursor of the next page ("c<seq>"; `after` also takes a job
@@ -190,6 +194,7 @@ class JobService {
   Metrics& metrics_;
   ClockMs clock_;
   AdmissionLimits limits_;
+  StepRunner* steps_ = nullptr;  // runs done jobs' steps (use_steps)
   FarmEvents& events_;
   DiskSpace& disk_;
   Background background_;
