@@ -1,5 +1,7 @@
 // A job's place in a pipeline, as the job page and the sequence page show it: the jobs it waits for and the jobs that
-// wait for it (each a link to its page), why it is waiting or blocked, and the outputs of the steps run on its result.
+// wait for it (each a link to its page), why it is waiting or blocked, and the outputs of the steps run on its result
+// (each file a download, a failed step its log).
+import * as api from './api.js';
 import { el } from './format.js';
 
 /** A link to a job's page (the page moves on to a sequence's or a frame's own address). */
@@ -31,6 +33,12 @@ export class PipelineView {
     if (after.length)
       rows.push(['Waits for', [...links(after), job.per_frame ? ' (frame by frame)' : ''], 'pipe-after']);
     if (dependents.length) rows.push(['Then', links(dependents), 'pipe-dependents']);
+    for (const o of job.outputs || []) {
+      const files = o.files.map((name) => el('button', { type: 'button', class: 'ghost mono', 'data-output': name,
+        text: name, onclick: () => api.download(api.route('job_output', job.id, name), name).catch(() => {}) }));
+      const shown = o.state === 'done' ? files : [o.state === 'failed' ? 'failed: ' + o.log : o.state];
+      rows.push([`Step ${o.step.replace(/_/g, ' ')}`, shown, 'pipe-step-' + o.step]);
+    }
     this.card.hidden = rows.length === 0;
     this.list.replaceChildren(...rows.map(([k, v, id]) =>
       el('div', { class: 'fig wide' }, el('dt', { text: k }), el('dd', { id }, ...v))));

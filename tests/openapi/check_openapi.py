@@ -396,7 +396,8 @@ def exercise(c, tessera, workdir, address):
         c.call("DELETE", f"/v1/jobs/{blocked['id']}?purge=true", expect=200)  # the listings below count the others
     c.call("POST", "/v1/jobs", {**job, "after": ["j-none"]}, expect=400)
     c.call("POST", "/v1/jobs", {**job, "notify": "http://127.0.0.1:9/x"}, expect=403)
-    c.call("POST", "/v1/jobs", {**job, "then": ["preview"]}, expect=400)
+    c.call("POST", "/v1/jobs", {**job, "then": ["movie"]}, expect=400)
+    c.call("GET", f"/v1/jobs/{a}/outputs/preview.png", expect=404)  # no steps
     c.call("GET", "/v1/webhooks/deliveries", expect=200)
 
     # A resumable job a real worker renders: the done states, the result and an accepted upload.
