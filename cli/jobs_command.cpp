@@ -19,6 +19,21 @@ namespace tessera::cli {
 
 namespace {
 
+// Under a job with dependencies: what it waits for ("after j-1, j-2 (per frame)") and why it is held.
+void print_dependencies(const protocol::JobStatus& j) {
+  const protocol::Pipeline& p = j.params.pipeline;
+  if (p.after.empty() && j.dependents.empty()) return;
+  std::string line;
+  for (const std::string& id : p.after) line += (line.empty() ? "after " : ", ") + id;
+  if (p.per_frame) line += " (per frame)";
+  if (!j.dependents.empty()) {
+    line += line.empty() ? "" : "; ";
+    for (size_t i = 0; i < j.dependents.size(); ++i) line += (i ? ", " : "then ") + j.dependents[i];
+  }
+  if (j.reason) line += ": " + *j.reason;
+  std::printf("%-20s   %s\n", "", line.c_str());
+}
+
 // One line per job: id, state, owner, priority, tiles done/total, render time (first lease to the end, or to now)
 // and the rays per second over it, name (and what it waits for, if no worker may take it).
 void print_table(const std::vector<protocol::JobStatus>& jobs) {
@@ -37,6 +52,7 @@ void print_table(const std::vector<protocol::JobStatus>& jobs) {
     std::printf("%-20s %-10s %-12s %8d %13s %8s %8s  %s\n", j.id.c_str(), protocol::to_string(j.state), owner.c_str(),
                 j.params.priority, tiles.c_str(), time.c_str(), format_mrays(j.rays, j.render_seconds).c_str(),
                 name.c_str());
+    print_dependencies(j);
   }
 }
 
@@ -102,7 +118,7 @@ CLI::App* add_jobs_command(CLI::App& app, JobsArgs& a) {
   c->add_flag("--tiles", a.tiles, "show: print the tile table after the job");
   c->add_option("--frames", a.frames, "retry: only these frames of a sequence (1-240, 1-240x2, 1,5,10-20)");
   c->add_flag("--purge", a.purge, "rm: delete a done, failed or cancelled job entirely (rows, tile pixels, result)");
-  c->add_option("--state", a.states, "ls: only jobs in these states (queued, running, paused, done, failed, cancelled)")
+  c->add_option("--state", a.states, "ls: only jobs in these states (queued, running, paused, done, failed, cancelled, waiting, blocked)")
       ->delimiter(',');
   c->add_option("--limit", a.limit, "ls: at most this many jobs, newest first")
       ->check(CLI::Range(size_t(1), protocol::kMaxJobListLimit));

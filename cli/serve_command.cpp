@@ -10,6 +10,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include <fstream>
+
 namespace tessera::cli {
 
 namespace {
@@ -52,6 +54,23 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
   c->add_option("--users", a.users_file,
                 "Users file (made with `tessera users add`): named tokens with roles, shares and caps (re-read on SIGHUP)")
       ->check(CLI::ExistingFile);
+  c->add_option("--webhook", o.webhooks,
+                "POST every job's end (done, failed, cancelled) and blocking to this URL, at least once, from an outbox "
+                "in the database (repeatable)");
+  c->add_option("--webhook-allow", o.webhook_allow,
+                "A URL prefix (scheme, host, port, path) a submission's own webhook (submit --notify) may name "
+                "(repeatable; none: submissions name none)");
+  c->add_option("--webhook-secret-file", a.webhook_secret_file,
+                "File holding the key each delivery is signed with (HMAC-SHA256 of timestamp.body, header "
+                "X-Tessera-Signature)");
+  c->add_option("--webhook-attempts", o.webhook_sender.max_attempts,
+                "Attempts of a delivery before it is marked failed")
+      ->check(CLI::Range(1, 100))->capture_default_str();
+  c->add_option("--webhook-retry-seconds", a.webhook_retry_seconds,
+                "Wait before a delivery's second attempt, doubled for each next (up to 5 min), with jitter")
+      ->check(CLI::Range(0.01, 3600.0))->capture_default_str();
+  c->add_option("--webhook-timeout-seconds", a.webhook_timeout_seconds, "One delivery attempt, connection to answer")
+      ->check(CLI::Range(0.1, 600.0))->capture_default_str();
   c->add_option("--tls-cert", o.tls.cert_file, "Serve HTTPS with this PEM certificate chain (re-read on SIGHUP)");
   c->add_option("--tls-key", o.tls.key_file, "Private key (PEM) of --tls-cert (re-read on SIGHUP)");
   c->add_option("--tls-client-ca", o.tls.client_ca_file,
@@ -119,6 +138,18 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
 }
 
 namespace {
+
+// The webhook signing key: the file's first line without surrounding blanks.
+std::string load_secret_file(const std::string& file) {
+  std::ifstream in(file);
+  if (!in) throw std::runtime_error("cannot read the webhook secret file " + file);
+  std::string line;
+  std::getline(in, line);
+  const size_t b = line.find_first_not_of(" \t\r\n");
+  if (b == std::string::npos) throw std::runtime_error("the webhook secret file " + file + " is empty");
+  return line.substr(b, line.find_last_not_of(" \t\r\n") - b + 1);
+}
+
 // The credentials a coordinator takes, for its start-up line: "client token, worker token, users file F" or "none".
 std::string credentials_text(const server::AccessTokens& t) {
   std::string out;
@@ -144,6 +175,9 @@ int run_serve(const ServeArgs& a) {
     o.limits.tokens.client = load_token(a.client_token_file, "TESSERA_CLIENT_TOKEN");
     o.limits.tokens.worker = load_token(a.worker_token_file, "TESSERA_WORKER_TOKEN");
     o.limits.tokens.users_file = a.users_file;
+    if (!a.webhook_secret_file.empty()) o.webhook_sender.secret = load_secret_file(a.webhook_secret_file);
+    o.webhook_sender.first_retry = std::chrono::milliseconds(int64_t(a.webhook_retry_seconds * 1000));
+    o.webhook_sender.timeout = std::chrono::milliseconds(int64_t(a.webhook_timeout_seconds * 1000));
     server::Coordinator coordinator(o);
     const auto ep = coordinator.endpoint();
     const std::string bound = ep.address().to_string() + ":" + std::to_string(ep.port());

@@ -34,6 +34,9 @@ struct ServeArgs {
   std::string users_file;                 ///< The users file (`tessera users`), re-read on SIGHUP.
   std::string worker_token_file;          ///< File holding the worker token (else $TESSERA_WORKER_TOKEN).
   bool verbose = false;                   ///< Debug logging.
+  std::string webhook_secret_file;        ///< File holding the key webhook deliveries are signed with.
+  double webhook_retry_seconds = 1;       ///< The wait before a delivery's second attempt (doubled for each next).
+  double webhook_timeout_seconds = 10;    ///< One delivery attempt, connection to answer.
 };
 
 /// Registers the subcommand's options on `app`.

@@ -8,6 +8,7 @@
 #include "cli/output_check.h"
 #include "cli/progress_bar.h"
 #include "core/scene/scene_loader.h"
+#include "core/util/enum_names.h"
 #include "protocol/tags.h"
 
 #include <spdlog/spdlog.h>
@@ -41,6 +42,20 @@ CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
   c->add_flag("--resumable", a.resumable,
               "Keep each tile's exact per-pixel sums, so that `tessera jobs spp ID M` can raise the job's spp later "
               "(bitwise as if submitted at M; docs/resume.md)");
+  c->add_option("--after", a.after,
+                "Wait until these jobs are done before starting (ID[,ID...]); a failed or cancelled one blocks this job "
+                "until it is retried")
+      ->delimiter(',');
+  c->add_flag("--per-frame", a.per_frame,
+              "A sequence after sequences: frame k starts once frame k of each --after job is done");
+  c->add_option("--then", a.then,
+                "Steps the coordinator runs on the result once the job is done: preview (a full-size PNG), half (a "
+                "half-float EXR), contact_sheet (a sequence's frames in one PNG); files under GET "
+                "/v1/jobs/ID/outputs/NAME")
+      ->delimiter(',')
+      ->check(CLI::IsMember(enum_names(protocol::kStepNames)));
+  c->add_option("--notify", a.notify,
+                "Also POST this job's end to this URL (allowed by the coordinator's --webhook-allow)");
   c->add_flag("--detach", a.detach, "Print the job id and return without waiting");
   c->add_flag("-q,--quiet", a.quiet, "No progress bar");
   return c;
@@ -187,6 +202,10 @@ int run_submit(const SubmitArgs& a) {
     o.resumable = a.resumable;
     o.require = require;
     o.max_workers = a.max_workers;
+    o.pipeline.after = a.after;
+    o.pipeline.per_frame = a.per_frame;
+    o.pipeline.notify = a.notify;
+    for (const std::string& step : a.then) o.pipeline.then.push_back(protocol::step_from_string(step));
     if (a.detach) {
       const client::SubmitResult sub = client::submit_job(http, o);
       std::printf("%s\n", sub.job_id.c_str());

@@ -35,6 +35,10 @@ struct SubmitArgs : SamplingArgs {
   int64_t max_workers = 0;          ///< --max-workers: tiles leased at once at most (0: no cap).
   bool detach = false;              ///< Print the job id and return without waiting.
   bool quiet = false;               ///< No progress bar.
+  std::vector<std::string> after;   ///< --after: jobs that must be done before this one starts.
+  bool per_frame = false;           ///< --per-frame: frame k of the sequence waits for frame k of each --after job.
+  std::string notify;               ///< --notify: the job's own webhook address.
+  std::vector<std::string> then;    ///< --then: steps run on the result once the job is done.
 };
 
 /// The job settings `submit` and `render --workers` share, from either's arguments (the fields have the same names):

@@ -173,6 +173,7 @@ protocol::JobSubmission job_submission(const SubmitOptions& o, SceneFiles files)
   job.resumable = o.resumable;
   job.require = o.require;
   job.max_workers = o.max_workers;
+  job.pipeline = o.pipeline;
   return job;
 }
 

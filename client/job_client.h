@@ -51,6 +51,7 @@ struct SubmitOptions {
   bool resumable = false;              ///< Tiles keep their exact sums, so the spp can be raised later.
   std::vector<std::string> require;    ///< Tags a worker must have to take its tiles.
   int64_t max_workers = 0;             ///< Its tiles leased at once at most; 0: no cap.
+  protocol::Pipeline pipeline;         ///< Jobs it waits for, steps after its merge, its webhook.
 };
 
 /// Counts of a submission's asset uploads.

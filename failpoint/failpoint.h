@@ -46,7 +46,7 @@
 namespace tessera::failpoint {
 
 /// Every fail point: where it is and what it is for (docs/testing.md lists the same).
-inline constexpr std::array<std::string_view, 10> kNames = {
+inline constexpr std::array<std::string_view, 11> kNames = {
     "worker.render",          // worker: after the job's scene is ready, before the tile's render (cancellable pause)
     "worker.render.fail_tiles",  // worker: return(N,M,...) fails the render of the listed tiles (on every worker)
     "worker.upload",          // worker: a rendered tile, before its upload
@@ -57,6 +57,7 @@ inline constexpr std::array<std::string_view, 10> kNames = {
     "assembly.paste",         // coordinator: an upload's pixels, before they are pasted into the job's image
     "assembly.write_result",  // coordinator: all tiles done, before the result EXR is written
     "submit.validate",        // coordinator: a job submission, before its scene is loaded and checked
+    "webhook.deliver",        // coordinator: a webhook event stored, before an attempt to deliver it
 };
 
 /// Whether `name` is a known fail point (checked at compile time by the macros).

@@ -40,6 +40,10 @@ void to_json(json& j, const JobStatus& s) {
   j["require"] = s.params.require;
   j["max_workers"] = s.params.max_workers;
   j["waiting_for"] = optional_json(s.waiting_for);
+  put_pipeline(j, s.params.pipeline);
+  if (!s.dependents.empty()) j["dependents"] = s.dependents;
+  if (s.reason) j["reason"] = *s.reason;
+  if (!s.outputs.empty()) j["outputs"] = s.outputs;
 }
 
 void from_json(const json& j, JobStatus& s) {
@@ -93,6 +97,10 @@ void from_json(const json& j, JobStatus& s) {
   p.max_workers = answer_field_or<int64_t>(j, "max_workers", kMsg, 0);
   if (j.contains("waiting_for") && !j["waiting_for"].is_null())
     s.waiting_for = answer_field<std::string>(j, "waiting_for", kMsg);
+  p.pipeline = answer_pipeline(j);
+  s.dependents = answer_field_or<std::vector<std::string>>(j, "dependents", kMsg, {});
+  if (j.contains("reason") && !j["reason"].is_null()) s.reason = answer_field<std::string>(j, "reason", kMsg);
+  s.outputs = answer_field_or<std::vector<StepOutput>>(j, "outputs", kMsg, {});
 }
 
 }  // namespace tessera::protocol

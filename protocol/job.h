@@ -3,6 +3,7 @@
 
 #include "core/util/enum_names.h"
 #include "protocol/defaults.h"
+#include "protocol/pipeline.h"
 #include "protocol/sequence.h"
 
 #include <nlohmann/json_fwd.hpp>
@@ -16,13 +17,16 @@
 namespace tessera::protocol {
 
 /// Life cycle of a job (docs/protocol.md, "Jobs, tiles and leases").
-enum class JobState { queued, running, paused, done, failed, cancelled };
+/// waiting: a dependency is not done yet; blocked: a dependency failed, was cancelled or is blocked itself.
+enum class JobState { queued, running, paused, done, failed, cancelled, waiting, blocked };
 /// Every job state, in declaration order.
-inline constexpr JobState kAllJobStates[] = {JobState::queued, JobState::running, JobState::paused,
-                                             JobState::done,   JobState::failed,  JobState::cancelled};
+inline constexpr JobState kAllJobStates[] = {JobState::queued, JobState::running,   JobState::paused,
+                                             JobState::done,   JobState::failed,    JobState::cancelled,
+                                             JobState::waiting, JobState::blocked};
 
 /// The protocol's lowercase name of each job state, in declaration order.
-inline constexpr std::string_view kJobStateNames[] = {"queued", "running", "paused", "done", "failed", "cancelled"};
+inline constexpr std::string_view kJobStateNames[] = {"queued", "running",   "paused",  "done",
+                                                      "failed", "cancelled", "waiting", "blocked"};
 
 /// The protocol's lowercase name of a job state.
 inline const char* to_string(JobState s) { return enum_c_name(s, kJobStateNames); }
@@ -32,6 +36,8 @@ inline JobState job_state_from_string(std::string_view s) {
 }
 /// True for states a job never leaves (done, failed, cancelled).
 inline bool is_final(JobState s) { return s == JobState::done || s == JobState::failed || s == JobState::cancelled; }
+/// True for states a job is held in by its dependencies (waiting, blocked): it gets no lease.
+inline bool is_held(JobState s) { return s == JobState::waiting || s == JobState::blocked; }
 
 /// What a job renders and how it is scheduled, fixed at submission.
 struct JobParams {
@@ -48,6 +54,7 @@ struct JobParams {
   std::string owner;                    ///< The user who submitted it ("" for jobs from before users were recorded).
   std::vector<std::string> require;     ///< Tags a worker must have to be leased its tiles (sorted).
   int64_t max_workers = 0;              ///< Its tiles leased at once at most (a sequence: over all frames); 0: no cap.
+  Pipeline pipeline;                    ///< Its dependencies, steps and webhook (protocol/pipeline.h).
 };
 
 /// Tile counts of a job.
@@ -79,6 +86,9 @@ struct JobStatus {
   /// Why a job with pending tiles gets none leased, when it is for want of a worker that may take them (e.g.
   /// "a worker with tags bigmem"); derived when the snapshot is taken.
   std::optional<std::string> waiting_for;
+  std::vector<std::string> dependents;  ///< Jobs waiting for this one (params.pipeline.after names its own).
+  std::optional<std::string> reason;    ///< Waiting or blocked: which dependency holds it and why.
+  std::vector<StepOutput> outputs;      ///< Done with steps (params.pipeline.then): each step's state and files.
   /// True for done, failed and cancelled.
   bool finished() const { return is_final(state); }
 };

@@ -261,6 +261,7 @@ void to_json(json& j, const JobSubmission& s) {
   if (s.max_workers) j["max_workers"] = s.max_workers;
   put_sampling(j, s.sampling);
   if (s.resumable) j["resumable"] = true;
+  put_pipeline(j, s.pipeline);
 }
 
 namespace {
@@ -275,7 +276,7 @@ JobSubmission parse_job_submission(const std::string& body) {
   json j = parse_request_object(
       body, {"scene", "assets", "frames", "frame_order", "spp", "seed", "tile_size", "priority", "name", "integrator",
              "target_error", "min_spp", "max_spp", "error_floor", "replicates", "area_sampling", "env_sampling", "bvh", "layers",
-             "resumable", "tile_timeout_seconds", "require", "max_workers"},
+             "resumable", "tile_timeout_seconds", "require", "max_workers", "after", "per_frame", "then", "notify"},
       false);
   JobSubmission s;
   if (j.contains("frames")) {
@@ -310,6 +311,10 @@ JobSubmission parse_job_submission(const std::string& body) {
   if (s.resumable && s.sampling.target_error > 0.0)
     throw ProtocolError("'resumable' needs a fixed spp: with 'target_error' each pixel stops at its own sample count, so "
                         "there is no common spp to raise later");
+  s.pipeline = request_pipeline(j);
+  if (s.pipeline.per_frame && s.frames.empty())
+    throw ProtocolError("'per_frame' applies only to a sequence ('frames'): frame k waits for frame k of each job in "
+                        "'after'");
   return s;
 }
 

@@ -73,6 +73,7 @@ struct JobSubmission {
   int64_t tile_timeout_seconds = kDefaultTileTimeoutSeconds;  ///< A lease older than this is revoked (a failure).
   std::vector<std::string> require;  ///< Tags a worker must have to take its tiles (protocol/tags.h).
   int64_t max_workers = 0;           ///< Its tiles leased at once at most; 0: no cap.
+  Pipeline pipeline;  ///< The jobs it waits for, the steps after its merge, its webhook (protocol/pipeline.h).
 };
 /// The submission's JSON (sampling settings at their defaults are left out).
 void to_json(nlohmann::json& j, const JobSubmission& s);

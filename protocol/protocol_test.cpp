@@ -566,7 +566,7 @@ TEST(Sequences, ASequencesJobCarriesItsFrameCountsAndOrder) {
                          .first = 1, .last = 4};
   const json j = json(s);
   EXPECT_EQ(j["frames"], json::parse(R"({"total": 4, "queued": 0, "running": 0, "paused": 0, "done": 3, "failed": 1,
-                                         "cancelled": 0, "first": 1, "last": 4})"));
+                                         "cancelled": 0, "waiting": 0, "blocked": 0, "first": 1, "last": 4})"));
   EXPECT_EQ(j["frame_order"], "any");
   EXPECT_EQ(j["scene_hash"], "");
   EXPECT_FALSE(j.contains("sequence"));

@@ -64,6 +64,9 @@ const std::vector<RouteSpec>& route_table() {
       // Who the coordinator takes the caller for, and the trail of control actions.
       {Endpoint::me, "me", "/v1/me", R::users, {{"GET", A::either}}},
       {Endpoint::audit, "audit", "/v1/audit", R::users, {{"GET", A::admin, false, "audit"}}},
+      {Endpoint::webhook_deliveries, "webhook_deliveries", "/v1/webhooks/deliveries", R::webhooks,
+       {{"GET", A::admin, false, "webhook_deliveries"}}},
+      {Endpoint::job_output, "job_output", "/v1/jobs/{id}/outputs/{name}", R::steps, {{"GET", A::read, false, "outputs"}}},
   };
   return table;
 }

@@ -14,7 +14,7 @@ namespace tessera::protocol {
 enum class Endpoint {
   none, healthz, metrics, blobs, blob, jobs, job, job_result, job_preview, job_spec, job_retry, job_pause, job_resume, job_tiles,
   job_tile_requeue, job_frames, job_frame_result, workers, worker_drain, worker_undrain, worker_lease, lease_heartbeat, lease_result, lease_fail,
-  lease_release, lease_state, events, me, audit
+  lease_release, lease_state, events, me, audit, webhook_deliveries, job_output
 };
 
 /// The credential a request must carry (docs/protocol.md, "Access"); protocol/access.h says which roles each admits.
@@ -39,7 +39,7 @@ enum class Room {
 };
 
 /// The coordinator's resource handler that answers a route.
-enum class Resource { health, blobs, jobs, tiles, workers, leases, events, users };
+enum class Resource { health, blobs, jobs, tiles, workers, leases, events, users, webhooks, steps };
 
 /// One method a route accepts.
 struct MethodSpec {
@@ -123,6 +123,8 @@ inline std::string lease_state(std::string_view lease) { return path(Endpoint::l
 inline std::string events() { return path(Endpoint::events); }
 inline std::string me() { return path(Endpoint::me); }
 inline std::string audit() { return path(Endpoint::audit); }
+inline std::string webhook_deliveries() { return path(Endpoint::webhook_deliveries); }
+inline std::string job_output(std::string_view id, std::string_view name) { return path(Endpoint::job_output, id, name); }
 }  // namespace routes
 
 }  // namespace tessera::protocol

@@ -10,6 +10,7 @@
 #include "protocol/audit.h"
 #include "protocol/messages.h"
 #include "protocol/tile.h"
+#include "protocol/webhook.h"
 #include "protocol/worker.h"
 
 #include <nlohmann/json.hpp>
@@ -34,13 +35,19 @@ SamplingSettings full_sampling() {
           .layers = parse_layers("albedo,normal,depth,crypto_object")};
 }
 
+// per_frame applies to a sequence only.
+Pipeline full_pipeline(bool per_frame) {
+  return {.after = {"j-0"}, .per_frame = per_frame, .then = {Step::preview, Step::half},
+          .notify = "https://hooks.example/tessera"};
+}
+
 json sample_scene() { return {{"film", {{"resolution", {16, 16}}}}}; }
 
 JobSubmission full_submission() {
   return {.scene = sample_scene(), .assets = {{"assets/floor.obj", kSha}},
           .frames = {}, .frame_order = FrameOrder::in_order, .sampling = full_sampling(), .tile_size = 8,
           .priority = 3, .name = "sample", .resumable = true, .tile_timeout_seconds = 60, .require = {"bigmem"},
-          .max_workers = 4};
+          .max_workers = 4, .pipeline = full_pipeline(false)};
 }
 
 // A sequence's submission: "frames" (with a frame's own assets) and "frame_order" instead of "scene".
@@ -49,6 +56,7 @@ JobSubmission full_sequence_submission() {
   s.resumable = false;
   s.frames = {{.number = 1, .scene = sample_scene(), .assets = {{"assets/floor.obj", kSha}}}};
   s.frame_order = FrameOrder::any;
+  s.pipeline = full_pipeline(true);
   return s;
 }
 
@@ -61,7 +69,7 @@ JobStatus full_job() {
   return {.id = "j-1",
           .params = {.name = "sample", .priority = 3, .width = 16, .height = 16, .tile_size = 8, .spp = 4, .seed = 7,
                      .scene_hash = "hash", .tile_timeout_seconds = 60, .frame_order = FrameOrder::any,
-                     .owner = "ana", .require = {"bigmem"}, .max_workers = 4},
+                     .owner = "ana", .require = {"bigmem"}, .max_workers = 4, .pipeline = full_pipeline(true)},
           .state = JobState::failed,
           .tiles = {.total = 4, .done = 1, .leased = 1, .pending = 2},
           .created_ms = 1000,
@@ -72,10 +80,13 @@ JobStatus full_job() {
           .workers = {"w-1"},
           .render_seconds = 1.5,
           .frames = FrameCounts{.total = 3, .queued = 1, .running = 1, .paused = 0, .done = 1, .failed = 0,
-                                .cancelled = 0, .first = 1, .last = 3},
+                                .cancelled = 0, .waiting = 0, .blocked = 0, .first = 1, .last = 3},
           .sequence = "j-0",
           .frame = 2,
-          .waiting_for = "a worker with tags bigmem"};
+          .waiting_for = "a worker with tags bigmem",
+          .dependents = {"j-5"},
+          .reason = "dependency j-0 failed: a tile failed on 3 workers",
+          .outputs = {{.step = Step::preview, .state = "done", .files = {"preview.png"}, .log = ""}}};
 }
 
 Lease full_lease() {
@@ -113,6 +124,11 @@ json dump() {
   minimal_sequence.frames = {FrameSubmission{}};
   add(out, "JobSubmission", "JobSubmission (sequence)", kRequest, full_sequence_submission(), minimal_sequence);
   add(out, "RetryRequest", "RetryRequest", kRequest, RetryRequest{{1, 2}}, RetryRequest{});
+  const WebhookDelivery delivery{.id = "e-1", .url = "https://hooks.example/t", .event = "job.done", .job = "j-1",
+                                 .state = "pending", .attempts = 2, .created_ms = 1000, .next_ms = 5000,
+                                 .last_status = 500, .last_error = "answered 500"};
+  add(out, "WebhookDelivery", "WebhookDelivery", kAnswer, delivery, WebhookDelivery{});
+  add(out, "WebhookDeliveryList", "WebhookDeliveryList", kAnswer, WebhookDeliveryList{{delivery}}, WebhookDeliveryList{});
   add(out, "JobPatch", "JobPatch", kRequest, JobPatch{3, 8}, JobPatch{});
   add(out, "SubmitAnswer", "SubmitAnswer", kAnswer, SubmitAnswer{"j-1", {"a warning"}}, SubmitAnswer{});
   add(out, "JobSpec", "JobSpec", kAnswer, full_spec(), JobSpec{});

@@ -12,8 +12,8 @@ using nlohmann::json;
 
 void to_json(json& j, const FrameCounts& c) {
   j = {{"total", c.total},   {"queued", c.queued}, {"running", c.running},     {"paused", c.paused},
-       {"done", c.done},     {"failed", c.failed}, {"cancelled", c.cancelled}, {"first", c.first},
-       {"last", c.last}};
+       {"done", c.done},     {"failed", c.failed}, {"cancelled", c.cancelled}, {"waiting", c.waiting},
+       {"blocked", c.blocked}, {"first", c.first},   {"last", c.last}};
 }
 
 void from_json(const json& j, FrameCounts& c) {
@@ -25,6 +25,8 @@ void from_json(const json& j, FrameCounts& c) {
   c.done = answer_field_or<int64_t>(j, "done", kMsg, 0);
   c.failed = answer_field_or<int64_t>(j, "failed", kMsg, 0);
   c.cancelled = answer_field_or<int64_t>(j, "cancelled", kMsg, 0);
+  c.waiting = answer_field_or<int64_t>(j, "waiting", kMsg, 0);
+  c.blocked = answer_field_or<int64_t>(j, "blocked", kMsg, 0);
   c.first = answer_field_or<int64_t>(j, "first", kMsg, 0);
   c.last = answer_field_or<int64_t>(j, "last", kMsg, 0);
 }

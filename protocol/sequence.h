@@ -47,6 +47,8 @@ struct FrameCounts {
   int64_t done = 0;       ///< Result written.
   int64_t failed = 0;     ///< Failed (the other frames go on).
   int64_t cancelled = 0;  ///< Cancelled.
+  int64_t waiting = 0;    ///< Waiting for a dependency.
+  int64_t blocked = 0;    ///< Blocked by a dependency that failed or was cancelled.
   int64_t first = 0;      ///< The lowest frame number.
   int64_t last = 0;       ///< The highest frame number.
 };

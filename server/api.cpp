@@ -29,6 +29,7 @@ Api::Api(Scheduler& scheduler, BlobStore& blobs, CoordinatorStore& jobs, Metrics
       credentials_(opt_.tokens),
       sched_(scheduler),
       lease_waiters_(std::make_unique<LeaseWaiters>()),
+      steps_(scheduler, jobs),
       jobs_(scheduler, blobs, jobs, metrics, clock,
             static_cast<const AdmissionLimits&>(opt_),
             events, disk, std::move(background)),
@@ -41,7 +42,10 @@ Api::Api(Scheduler& scheduler, BlobStore& blobs, CoordinatorStore& jobs, Metrics
       blobs_handler_(blobs),
       health_handler_(scheduler, metrics, clock, *lease_waiters_, disk),
       events_handler_(bus),
-      users_handler_(audit_) {
+      users_handler_(audit_),
+      webhooks_handler_(opt_.webhook_log),
+      outputs_handler_(steps_) {
+  jobs_.use_steps(&steps_);
   sched_.on_work([w = lease_waiters_.get()] { w->note_work(); });
   share_farm();
 }
@@ -284,6 +288,8 @@ ResourceHandler& Api::handler_for(protocol::Resource resource) {
     case protocol::Resource::tiles: return tiles_handler_;
     case protocol::Resource::workers: return workers_handler_;
     case protocol::Resource::leases: return leases_handler_;
+    case protocol::Resource::webhooks: return webhooks_handler_;
+    case protocol::Resource::steps: return outputs_handler_;
     case protocol::Resource::events: break;  // answered by the router itself (a stream)
   }
   throw ApiError(404, "no such endpoint");

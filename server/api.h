@@ -23,9 +23,12 @@
 #include "server/route.h"
 #include "server/health_handler.h"
 #include "server/scheduler.h"
+#include "server/steps/outputs_handler.h"
+#include "server/steps/step_runner.h"
 #include "server/storage.h"
 #include "server/tiles_handler.h"
 #include "server/users_handler.h"
+#include "server/webhooks_handler.h"
 #include "server/workers_handler.h"
 
 #include <cstddef>
@@ -47,6 +50,7 @@ struct ApiOptions : AdmissionLimits {
   AccessTokens tokens;  ///< Bearer tokens and the users file (none on a side: that side's endpoints are open).
   RetentionOptions retention;                        ///< How long finished jobs and unreferenced blobs are kept.
   double registrations_per_minute = 600;  ///< Worker registrations taken a minute; more get 429 (0: no limit).
+  WebhookLog* webhook_log = nullptr;  ///< The delivery log GET /v1/webhooks/deliveries lists (none: an empty list).
 };
 
 /// The endpoints a request target can name (protocol/routes.h).
@@ -76,7 +80,10 @@ class Api final : public RoutedHandler {
   /// from the thread that flushed its tile.
   void handle_routed(HttpRequest&& request, const Route& route, Reply done) noexcept override;
   /// After a restart: finishes jobs whose every tile was stored but whose result was not written yet.
-  void recover() { jobs_.recover(); }
+  void recover() {
+    jobs_.recover();
+    steps_.resume();
+  }
   /// Purges finished jobs and audit entries past their retention time and collects unreferenced blobs (see
   /// Collector::sweep).
   SweepReport sweep();
@@ -116,6 +123,7 @@ class Api final : public RoutedHandler {
   LogLimit refusal_log_{10, std::chrono::minutes(1)};  // the 401 and 403 lines
   Scheduler& sched_;                              // notes new work to lease_waiters_ while this lives
   std::unique_ptr<LeaseWaiters> lease_waiters_;  // ended first in ~Api, while what its requests answer through lives
+  StepRunner steps_;  // before jobs_, which runs steps on it: ended after it
   JobService jobs_;
   Collector collector_;
   AuditTrail audit_;
@@ -127,6 +135,8 @@ class Api final : public RoutedHandler {
   HealthHandler health_handler_;
   EventsHandler events_handler_;
   UsersHandler users_handler_;
+  WebhooksHandler webhooks_handler_;
+  OutputsHandler outputs_handler_;
 };
 
 }  // namespace tessera::server

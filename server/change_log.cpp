@@ -17,6 +17,7 @@ void ChangeLog::purge_job(const std::string& job) {
 
 void ChangeLog::withdraw_job(const std::string& job) {
   jobs_.erase(job);
+  std::erase_if(outbox_, [&](const OutboxRow& r) { return r.job == job; });
   for (auto t = tiles_.lower_bound({job, INT64_MIN}); t != tiles_.end() && t->first == job;) t = tiles_.erase(t);
 }
 
@@ -28,6 +29,7 @@ void ChangeLog::clear() {
   workers_.clear();
   forgotten_workers_.clear();
   purged_jobs_.clear();
+  outbox_.clear();
 }
 
 void ChangeLog::flush(FarmState& s) {
@@ -40,7 +42,7 @@ void ChangeLog::flush(FarmState& s) {
     return;
   }
   if (jobs_.empty() && job_workers_.empty() && tiles_.empty() && leases_.empty() && workers_.empty() &&
-      forgotten_workers_.empty() && purged_jobs_.empty() && counters == flushed_counters_)
+      forgotten_workers_.empty() && purged_jobs_.empty() && outbox_.empty() && counters == flushed_counters_)
     return;
   SchedulerChanges c;
   c.counters = counters;
@@ -73,6 +75,7 @@ void ChangeLog::flush(FarmState& s) {
     if (const WorkerRec* w = s.workers.find(id)) c.workers.push_back(WorkerRow{id, w->name, w->drained, w->secret_hash, w->tags});
   c.forgotten_workers.assign(forgotten_workers_.begin(), forgotten_workers_.end());
   c.purged_jobs.assign(purged_jobs_.begin(), purged_jobs_.end());
+  c.outbox = outbox_;
   // On failure the sets stay, so the next flush writes these rows again.
   store_->apply(c);
   if (std::exchange(sync_needed_, false)) sync_due_ = true;
@@ -173,8 +176,9 @@ void restore(FarmState& s, SchedulerSnapshot snap, int64_t now) {
       if (t.state == TileState::done) ++j->status.tiles.done;
       if (t.state == TileState::pending) j->pending.insert(j->pending.end(), i);
     }
-    if (!is_final(j->status.state) && !j->is_sequence()) s.enqueue(*j);
+    if (!is_final(j->status.state) && !is_held(j->status.state) && !j->is_sequence()) s.enqueue(*j);
   }
+  restore_dependencies(s);
 }
 
 }  // namespace tessera::server

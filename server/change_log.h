@@ -51,6 +51,8 @@ class ChangeLog {
   void forget_lease(const std::string& lease) { leases_.erase(lease); }
   /// The job is gone with every row of it: none is written, and the store deletes them.
   void purge_job(const std::string& job);
+  /// A webhook event to store with the changes (server/outbox.h).
+  void add_outbox(OutboxRow row) { outbox_.push_back(std::move(row)); }
   /// The job was never stored and is taken back: none of its rows is written.
   void withdraw_job(const std::string& job);
   /// The changes include an acknowledgement: once they are stored, the operation syncs the store before it returns.
@@ -72,6 +74,7 @@ class ChangeLog {
   std::vector<JobWorkerRow> job_workers_;         // workers added to jobs' lists since the last flush
   std::set<std::pair<std::string, int64_t>> tiles_;
   std::set<std::string> purged_jobs_;             // purged since the last flush
+  std::vector<OutboxRow> outbox_;                 // webhook events since the last flush
   std::optional<std::pair<std::pair<std::string, int64_t>, std::string_view>> done_pixels_;  // tile -> pixels
   CounterRow flushed_counters_;                   // counters as last stored
   bool sync_needed_ = false;                      // the pending changes include an acknowledgement

@@ -83,7 +83,25 @@ SchedulerConfig scheduler_config(const CoordinatorOptions& o) {
   c.id_tag = random_hex(3);
   c.max_workers = o.max_workers;
   c.worker_retention_ms = int64_t(o.worker_retention_seconds * 1000.0);
+  c.webhooks = o.webhooks;
   return c;
+}
+
+// The API's options with what the coordinator's webhook settings give it: the addresses submissions may name and the
+// delivery log (the store's, when it keeps one).
+ApiOptions api_options(const CoordinatorOptions& o, CoordinatorStore& store) {
+  ApiOptions a = o.limits;
+  a.notify_allowed = WebhookAllowList(o.webhook_allow);
+  a.webhook_log = dynamic_cast<WebhookLog*>(&store);
+  return a;
+}
+
+// Webhook addresses are checked before anything opens; a coordinator without an outbox (in memory) refuses them.
+void check_webhook_setup(const CoordinatorOptions& o) {
+  for (const std::string& url : o.webhooks) parse_webhook_url(url);
+  for (const std::string& url : o.webhook_allow) parse_webhook_url(url);
+  if ((!o.webhooks.empty() || !o.webhook_allow.empty()) && o.durability == Durability::none)
+    throw std::runtime_error("webhooks need the outbox of the data folder's database: not with --durability none");
 }
 
 }  // namespace
@@ -97,7 +115,7 @@ struct Coordinator::Impl {
         sched(scheduler_config(opt), wall_ms, *store),
         bus(opt.events, random_hex(4)),
         farm_events(bus),
-        api(sched, blobs, *store, metrics, wall_ms, opt.limits, bus, farm_events, disk,
+        api(sched, blobs, *store, metrics, wall_ms, api_options(opt, *store), bus, farm_events, disk,
             [this](std::function<void()> work) { asio::post(pool, std::move(work)); }),  // a finished job's result
         monitor(api, !opt.limits.tokens.client.empty() || !opt.limits.tokens.users_file.empty()),
         pool(std::size_t(opt.handler_threads > 0 ? opt.handler_threads : std::max(2u, std::thread::hardware_concurrency()))),
@@ -106,7 +124,10 @@ struct Coordinator::Impl {
                HttpServerOptions{opt.host, opt.port, opt.listen_fd, opt.read_timeout, opt.header_limit, opt.max_connections,
                                  opt.stream_idle, opt.peers, opt.tls}),
         tick(ioc),
-        signals(ioc) {}
+        signals(ioc) {
+    if (WebhookLog* log = dynamic_cast<WebhookLog*>(store.get()); log && (!opt.webhooks.empty() || !opt.webhook_allow.empty()))
+      sender = std::make_unique<WebhookSender>(*log, opt.webhook_sender, wall_ms);
+  }
 
   void arm_tick() {
     tick.expires_after(std::chrono::seconds(1));
@@ -167,6 +188,7 @@ struct Coordinator::Impl {
   std::atomic<bool> recovering{false};  // a recover_disk() is queued or running
   uint64_t last_expiries = 0;
   uint64_t ticks = 0;
+  std::unique_ptr<WebhookSender> sender;  // delivers the outbox (last: stopped before the store closes)
 };
 
 Coordinator::Coordinator(CoordinatorOptions options) {
@@ -174,6 +196,11 @@ Coordinator::Coordinator(CoordinatorOptions options) {
   if (options.lease_seconds <= 0) throw std::runtime_error("--lease-seconds must be positive");
   if (options.listen_fd >= 0) options.host = listening_address(options.listen_fd);  // the rules are the address's
   check_access_setup(options.host, options.limits.tokens);
+  try {
+    check_webhook_setup(options);
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(e.what());
+  }
   try {
     impl_ = std::make_unique<Impl>(std::move(options));
   } catch (const StorageError& e) {

@@ -5,6 +5,7 @@
 #include "server/api.h"
 #include "server/event_bus.h"
 #include "server/tls_context.h"
+#include "server/webhook_sender.h"
 
 #include <boost/asio/ip/tcp.hpp>
 
@@ -45,6 +46,9 @@ struct CoordinatorOptions {
   int handler_threads = 0;                     ///< Request handler threads (0: max(2, cores)).
   AdmissionOptions admission;                  ///< Job submissions checked at once and waiting (their own pool).
   bool handle_signals = false;                 ///< Stop gracefully on SIGINT/SIGTERM; re-read the TLS files on SIGHUP.
+  std::vector<std::string> webhooks;           ///< Webhook addresses told of every job's end.
+  std::vector<std::string> webhook_allow;      ///< The addresses a submission's own webhook ("notify") may name.
+  WebhookSenderOptions webhook_sender;         ///< Signing secret, attempts, backoff and timeout of deliveries.
 };
 
 /// A running coordinator. Construction binds the port; run() serves until stop() (or a signal).

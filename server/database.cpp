@@ -78,6 +78,13 @@ CREATE TABLE IF NOT EXISTS job_workers(job TEXT NOT NULL, idx INTEGER NOT NULL, 
 CREATE TABLE IF NOT EXISTS audit(id INTEGER PRIMARY KEY AUTOINCREMENT, at_ms INTEGER NOT NULL, user TEXT NOT NULL,
   role TEXT NOT NULL, action TEXT NOT NULL, target TEXT NOT NULL, address TEXT NOT NULL, status INTEGER NOT NULL);
 CREATE INDEX IF NOT EXISTS audit_at ON audit(at_ms);
+-- The webhook outbox (server/outbox.h): a row per event and destination, written with the change that caused the
+-- event, then updated by each delivery attempt.
+CREATE TABLE IF NOT EXISTS webhook_outbox(id TEXT NOT NULL, url TEXT NOT NULL, event TEXT NOT NULL, job TEXT NOT NULL,
+  created_ms INTEGER NOT NULL, body TEXT NOT NULL, state TEXT NOT NULL DEFAULT 'pending',
+  attempts INTEGER NOT NULL DEFAULT 0, next_ms INTEGER NOT NULL DEFAULT 0, last_status INTEGER, last_error TEXT,
+  PRIMARY KEY(id, url));
+CREATE INDEX IF NOT EXISTS webhook_outbox_due ON webhook_outbox(state, next_ms);
 )sql";
 
 // Columns added after version 1 was released: older files gain them with these defaults (the schema version stays,
@@ -107,6 +114,8 @@ constexpr AddedColumn kAddedColumns[] = {
     {"jobs", "require", "TEXT NOT NULL DEFAULT '[]'"},
     {"jobs", "max_workers", "INTEGER NOT NULL DEFAULT 0"},
     {"workers", "tags", "TEXT NOT NULL DEFAULT '[]'"},
+    // Pipelines: a job's dependencies, steps and webhook as the JSON object of protocol/pipeline.h.
+    {"jobs", "pipeline", "TEXT NOT NULL DEFAULT '{}'"},
 };
 
 }  // namespace
@@ -394,8 +403,8 @@ void DurableStore::apply_locked(const SchedulerChanges& c) {
     Statement& st = db_.statement(
         "INSERT INTO jobs(id, seq, name, priority, width, height, tile_size, spp, seed, scene_hash, state, created_ms,"
         " started_ms, finished_ms, error, rays, workers, worker_failures, worker_last_error, tile_timeout_s,"
-        " frame_total, frame_order, sequence, frame, owner, require, max_workers)"
-        " VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)"
+        " frame_total, frame_order, sequence, frame, owner, require, max_workers, pipeline)"
+        " VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)"
         " ON CONFLICT(id) DO UPDATE SET priority = excluded.priority, spp = excluded.spp, state = excluded.state,"
         " started_ms = excluded.started_ms,"
         " finished_ms = excluded.finished_ms, error = excluded.error, rays = excluded.rays,"
@@ -410,6 +419,9 @@ void DurableStore::apply_locked(const SchedulerChanges& c) {
     st.bind(21, s.frames ? s.frames->total : 0).bind_text(22, to_string(p.frame_order));
     st.bind_text(23, s.sequence.value_or("")).bind(24, s.frame.value_or(0));
     st.bind_text(25, p.owner).bind_text(26, json(p.require).dump()).bind(27, p.max_workers);
+    json pipeline = json::object();
+    protocol::put_pipeline(pipeline, p.pipeline);
+    st.bind_text(28, pipeline.dump());
     st.run();
   }
   for (const JobWorkerRow& r : c.job_workers)
@@ -472,6 +484,16 @@ void DurableStore::apply_locked(const SchedulerChanges& c) {
   for (const auto& [key, value, written] : counters)
     if (value != written)
       db_.statement("INSERT OR REPLACE INTO meta(key, value) VALUES(?,?)").bind_text(1, key).bind(2, int64_t(value)).run();
+  for (const OutboxRow& r : c.outbox)
+    db_.statement("INSERT OR IGNORE INTO webhook_outbox(id, url, event, job, created_ms, body, next_ms) VALUES(?,?,?,?,?,?,?)")
+        .bind_text(1, r.id)
+        .bind_text(2, r.url)
+        .bind_text(3, r.event)
+        .bind_text(4, r.job)
+        .bind(5, r.created_ms)
+        .bind_text(6, r.body)
+        .bind(7, r.created_ms)
+        .run();
   for (const std::string& job : c.purged_jobs)
     for (const char* sql : {"DELETE FROM leases WHERE job = ?", "DELETE FROM tile_states WHERE job = ?",
                             "DELETE FROM tiles WHERE job = ?", "DELETE FROM job_records WHERE id = ?",
@@ -511,7 +533,7 @@ SchedulerSnapshot DurableStore::load() {
     Statement& st = db_.statement(
         "SELECT id, seq, name, priority, width, height, tile_size, spp, seed, scene_hash, state, created_ms, started_ms,"
         " finished_ms, error, rays, workers, worker_failures, worker_last_error, tile_timeout_s, frame_total,"
-        " frame_order, sequence, frame, owner, require, max_workers FROM jobs ORDER BY seq");
+        " frame_order, sequence, frame, owner, require, max_workers, pipeline FROM jobs ORDER BY seq");
     while (st.step()) {
       JobRow r;
       JobStatus& s = r.status;
@@ -560,6 +582,11 @@ SchedulerSnapshot DurableStore::load() {
         throw StorageError("job " + s.id + ": stored requirements are not a JSON list: " + e.what());
       }
       s.params.max_workers = st.integer(26);
+      try {
+        s.params.pipeline = protocol::answer_pipeline(json::parse(st.text(27)));
+      } catch (const std::exception& e) {
+        throw StorageError("job " + s.id + ": stored pipeline is unreadable: " + e.what());
+      }
       snap.jobs.push_back(std::move(r));
     }
   }
@@ -701,6 +728,49 @@ std::optional<std::pair<uint32_t, std::string>> DurableStore::tile_state(const s
   if (!st.step()) return std::nullopt;
   std::pair<uint32_t, std::string> out{uint32_t(st.integer(0)), st.blob(1)};
   st.reset();
+  return out;
+}
+
+std::vector<DueDelivery> DurableStore::due_deliveries(int64_t now, size_t limit) {
+  std::lock_guard lock(mu_);
+  std::vector<DueDelivery> out;
+  Statement& st = db_.statement(
+      "SELECT id, url, body, attempts FROM webhook_outbox WHERE state = 'pending' AND next_ms <= ? ORDER BY next_ms, rowid"
+      " LIMIT ?");
+  st.bind(1, now).bind(2, int64_t(limit));
+  while (st.step()) out.push_back({st.text(0), st.text(1), st.text(2), st.integer(3)});
+  return out;
+}
+
+void DurableStore::record_attempt(const std::string& id, const std::string& url, const DeliveryAttempt& a) {
+  std::lock_guard lock(mu_);
+  write_locked([&] {
+    Statement& st = db_.statement(
+        "UPDATE webhook_outbox SET state = ?, attempts = attempts + 1, next_ms = ?, last_status = ?, last_error = ?"
+        " WHERE id = ? AND url = ?");
+    st.bind_text(1, a.state).bind(2, a.next_ms.value_or(0));
+    if (a.status) st.bind(3, int64_t(*a.status));
+    if (a.error) st.bind_text(4, *a.error);
+    st.bind_text(5, id).bind_text(6, url);
+    st.run();
+  });
+}
+
+std::vector<protocol::WebhookDelivery> DurableStore::deliveries(size_t limit) {
+  std::lock_guard lock(mu_);
+  std::vector<protocol::WebhookDelivery> out;
+  Statement& st = db_.statement(
+      "SELECT id, url, event, job, state, attempts, created_ms, next_ms, last_status, last_error FROM webhook_outbox"
+      " ORDER BY rowid DESC LIMIT ?");
+  st.bind(1, int64_t(limit));
+  while (st.step()) {
+    protocol::WebhookDelivery d{st.text(0), st.text(1), st.text(2), st.text(3), st.text(4), st.integer(5), st.integer(6),
+                                std::nullopt, std::nullopt, std::nullopt};
+    if (d.state == "pending") d.next_ms = st.integer(7);
+    if (!st.is_null(8)) d.last_status = int(st.integer(8));
+    if (!st.is_null(9)) d.last_error = st.text(9);
+    out.push_back(std::move(d));
+  }
   return out;
 }
 

@@ -7,6 +7,7 @@
 #include "server/scheduler_store.h"
 #include "server/storage.h"
 #include "server/wal_checkpointer.h"
+#include "server/webhook_log.h"
 
 #include <cstdint>
 #include <filesystem>
@@ -118,7 +119,7 @@ class Transaction {
 /// A write that fails for want of space (DiskFullError) stops every later write, which fails the same way at once,
 /// until make_room() has copied the write-ahead log into the database file and cut the log to nothing: the space
 /// freed on the disk then goes to the database, not to a log that grows into it again.
-class DurableStore final : public CoordinatorStore {
+class DurableStore final : public CoordinatorStore, public WebhookLog {
  public:
   /// The database's file name in the store's folder.
   static constexpr const char* kFileName = "tessera.db";
@@ -135,6 +136,9 @@ class DurableStore final : public CoordinatorStore {
   ~DurableStore() override;
 
   void apply(const SchedulerChanges& changes) override;
+  std::vector<DueDelivery> due_deliveries(int64_t now, size_t limit) override;
+  void record_attempt(const std::string& id, const std::string& url, const DeliveryAttempt& attempt) override;
+  std::vector<protocol::WebhookDelivery> deliveries(size_t limit) override;
   SchedulerSnapshot load() override;
   /// Commits run with synchronous=NORMAL (safe against a process crash); with Durability::machine this waits for an
   /// fdatasync of the write-ahead log, which makes them safe against a power cut. The flush is a group commit (one

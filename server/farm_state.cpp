@@ -3,6 +3,8 @@
 #include "protocol/tags.h"
 
 #include <algorithm>
+#include "server/outbox.h"
+
 #include <set>
 #include <string_view>
 #include <utility>
@@ -52,18 +54,21 @@ protocol::FrameCounts count_frames(const JobRec& seq) {
       case JobState::done: ++c.done; break;
       case JobState::failed: ++c.failed; break;
       case JobState::cancelled: ++c.cancelled; break;
+      case JobState::waiting: ++c.waiting; break;
+      case JobState::blocked: ++c.blocked; break;
     }
   }
   return c;
 }
 
 // A sequence's state from its frames': ended when every frame has (done if all are, else failed if one failed, else
-// cancelled); otherwise running once a frame started or ended, paused when its unended frames are all paused, or
-// queued.
+// cancelled); otherwise paused when its unended frames are all paused, held when they are all held by dependencies
+// (blocked if one is blocked, else waiting), running once a frame started or ended, or queued.
 JobState sequence_state(const protocol::FrameCounts& c, bool started) {
-  const int64_t open = c.queued + c.running + c.paused;
+  const int64_t open = c.queued + c.running + c.paused + c.waiting + c.blocked;
   if (open == 0) return c.done == c.total ? JobState::done : c.failed > 0 ? JobState::failed : JobState::cancelled;
   if (c.paused == open) return JobState::paused;
+  if (c.waiting + c.blocked == open) return c.blocked > 0 ? JobState::blocked : JobState::waiting;
   return started ? JobState::running : JobState::queued;
 }
 
@@ -121,6 +126,8 @@ JobStatus FarmState::snapshot(const JobRec& j, int64_t now) const {
   }
   if (s.started_ms) s.render_seconds = double(s.finished_ms.value_or(now) - *s.started_ms) / 1000.0;
   s.waiting_for = waiting_for(j, now);
+  if (!j.status.params.pipeline.after.empty() || j.is_sequence()) s.reason = held_reason(*this, j);
+  s.dependents = dependents_of(*this, j);
   return s;
 }
 
@@ -265,13 +272,19 @@ int FarmState::revoke_leases(JobRec& j) {
 }
 
 int FarmState::finish_job(JobRec& j, JobState to, int64_t now, std::optional<std::string> error) {
+  const JobRec& shown = top(j);
+  const JobState was = state_of(shown);
   dequeue(j);
   j.status.state = to;
   j.status.finished_ms = now;
   j.status.error = std::move(error);
+  j.status.reason.reset();
   changes.need_sync();
   touch(j);
-  return revoke_leases(j);
+  const int revoked = revoke_leases(j);
+  settle_dependents(*this, j, now);
+  note_job_event(*this, shown, was, now);
+  return revoked;
 }
 
 }  // namespace tessera::server

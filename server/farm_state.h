@@ -4,6 +4,7 @@
 #pragma once
 
 #include "server/change_log.h"
+#include "server/dependencies.h"
 #include "server/scheduler_types.h"
 #include "server/worker_registry.h"
 
@@ -91,6 +92,7 @@ struct FarmState {
   std::map<std::string, int64_t, std::less<>> live_by_owner;   ///< Live leases by their job's owner (none: absent).
   std::map<std::string, int64_t, std::less<>> queued_by_owner; ///< Jobs in the queue by owner (none: absent).
   ChangeLog changes;                                 ///< What changed since the last write to the store.
+  DependencyIndex dependents;                        ///< Which jobs wait for which (server/dependencies.h).
   uint64_t tiles_rendered = 0;                       ///< Tiles merged.
   uint64_t lease_expiries = 0;                       ///< Leases that expired.
   uint64_t rays = 0;                                 ///< Rays reported by workers.

@@ -1,6 +1,7 @@
 #include "server/job_control.h"
 
 #include "core/image/tiles.h"
+#include "server/outbox.h"
 
 #include <algorithm>
 #include <memory>
@@ -38,6 +39,7 @@ std::string JobControl::add_job(const JobParams& p, const std::string& id_in, in
   rec->seq = s_.next_seq++;
   rec->status.id = id_in.empty() ? s_.next_id('j') : id_in;
   if (s_.jobs.count(rec->status.id)) throw std::invalid_argument("job id " + rec->status.id + " is already in use");
+  check_dependencies(s_, rec->status.id, p.pipeline, {});
   rec->status.params = p;
   rec->status.created_ms = now;
   rec->status.tiles.total = grid.count();
@@ -51,11 +53,13 @@ std::string JobControl::add_job(const JobParams& p, const std::string& id_in, in
   JobRec& j = *rec;
   const std::string id = rec->status.id;
   s_.jobs.emplace(id, std::move(rec));
-  s_.enqueue(j);
+  hold_new_job(s_, j, now);
+  if (!is_held(j.status.state)) s_.enqueue(j);
   try {
     s_.changes.flush(s_);  // here rather than after: a job the store did not take (the disk is full) must not exist
   } catch (...) {
     s_.dequeue(j);
+    s_.dependents.remove(id);
     s_.changes.withdraw_job(id);
     s_.jobs.erase(id);  // j is gone with it
     throw;
@@ -72,6 +76,11 @@ std::string JobControl::add_sequence(const JobParams& p, const std::vector<Frame
   seq->status.id = id_in.empty() ? s_.next_id('j') : id_in;
   const std::string id = seq->status.id;
   if (s_.jobs.count(id)) throw std::invalid_argument("job id " + id + " is already in use");
+  {
+    std::vector<int64_t> numbers;
+    for (const FrameParams& f : frames) numbers.push_back(f.number);
+    check_dependencies(s_, id, p.pipeline, numbers);
+  }
   seq->status.params = p;
   seq->status.params.width = frames.front().width;
   seq->status.params.height = frames.front().height;
@@ -93,6 +102,9 @@ std::string JobControl::add_sequence(const JobParams& p, const std::vector<Frame
       rec->status.params.height = f.height;
       rec->status.params.spp = f.spp;
       rec->status.params.scene_hash = f.scene_hash;
+      // A frame waits as the sequence says; steps and webhooks are the sequence's.
+      rec->status.params.pipeline = protocol::Pipeline{};
+      rec->status.params.pipeline.after = frame_dependencies(p.pipeline, f.number);
       rec->status.created_ms = now;
       rec->status.sequence = id;
       rec->status.frame = f.number;
@@ -109,14 +121,17 @@ std::string JobControl::add_sequence(const JobParams& p, const std::vector<Frame
       added.push_back(rec->status.id);
       s_.jobs.emplace(rec->status.id, std::move(rec));
       sq.frames.push_back(&j);
-      s_.enqueue(j);
+      hold_new_job(s_, j, now);
+      if (!is_held(j.status.state)) s_.enqueue(j);
     }
+    note_job_event(s_, sq, JobState::queued, now);  // blocked from the start
     s_.touch(sq);  // after its frames: its stored row counts them
     s_.changes.need_sync();  // the client is told the job exists
     s_.changes.flush(s_);  // as add_job: a sequence the store did not take must not exist
   } catch (...) {
     for (auto it = added.rbegin(); it != added.rend(); ++it) {
       if (JobRec* j = s_.find_job(*it); j && j->sequence) s_.dequeue(*j);
+      s_.dependents.remove(*it);
       s_.changes.withdraw_job(*it);
       s_.jobs.erase(*it);
     }
@@ -143,7 +158,7 @@ CancelResult JobControl::cancel(const std::string& job, int64_t now) {
   });
 }
 
-RetryResult JobControl::retry(const std::string& job, const std::vector<int64_t>& frames) {
+RetryResult JobControl::retry(const std::string& job, const std::vector<int64_t>& frames, int64_t now) {
   return with_job<RetryResult>(job, [&](JobRec& j, RetryResult& r) {
     if (!j.is_sequence()) {
       if (!require_ended(j, r)) return;
@@ -151,7 +166,7 @@ RetryResult JobControl::retry(const std::string& job, const std::vector<int64_t>
         r.status = RetryResult::done;
         return;
       }
-      retry_ended(j, r);
+      retry_ended(j, r, now);
       return;
     }
     r.was = s_.state_of(j);
@@ -173,7 +188,7 @@ RetryResult JobControl::retry(const std::string& job, const std::vector<int64_t>
     bool all_done = true;
     for (JobRec* f : chosen) {
       all_done = all_done && f->status.state == JobState::done;
-      if (f->status.state == JobState::failed || f->status.state == JobState::cancelled) retry_ended(*f, r);
+      if (f->status.state == JobState::failed || f->status.state == JobState::cancelled) retry_ended(*f, r, now);
     }
     if (!r.jobs.empty()) {
       s_.touch(j);
@@ -184,7 +199,7 @@ RetryResult JobControl::retry(const std::string& job, const std::vector<int64_t>
   });
 }
 
-void JobControl::retry_ended(JobRec& j, RetryResult& r) {
+void JobControl::retry_ended(JobRec& j, RetryResult& r, int64_t now) {
   {
     // Leases were revoked when it ended, so its unfinished tiles are pending; only the bookkeeping of its failures
     // goes. It keeps its place in the queue (created_ms and seq).
@@ -208,6 +223,7 @@ void JobControl::retry_ended(JobRec& j, RetryResult& r) {
     r.status = RetryResult::retried;
     r.pending += int64_t(j.pending.size());
     r.jobs.push_back(j.status.id);
+    settle_retried(s_, j, now);  // waiting again if its own dependencies are not done; its dependents wait for it again
   }
 }
 
@@ -294,7 +310,7 @@ PriorityResult JobControl::set_priority(const std::string& job, int priority) {
       if (is_final(f->status.state)) continue;
       s_.dequeue(*f);
       f->status.params.priority = priority;
-      s_.enqueue(*f);
+      if (!is_held(f->status.state)) s_.enqueue(*f);
       s_.touch(*f);
     }
     j.status.params.priority = priority;
@@ -345,6 +361,12 @@ PurgeResult JobControl::purge(const std::string& job) {
     // The jobs that go: the job, or a sequence with its frames.
     std::set<std::string> gone{job};
     for (const JobRec* f : j.frames) gone.insert(f->status.id);
+    // Jobs it holds back would lose what they wait for (or what blocks them).
+    r.held = held_dependents(s_, j);
+    if (!r.held.empty()) {
+      r.status = PurgeResult::holds;
+      return;
+    }
     // An upload claimed before the job ended is still being stored (finish_result or abandon_result follow).
     for (const std::string& id : gone)
       if (has_merging_tile(*s_.jobs.at(id))) {
@@ -362,6 +384,7 @@ PurgeResult JobControl::purge(const std::string& job) {
     }
     for (const std::string& id : gone) {
       s_.changes.purge_job(id);
+      s_.dependents.remove(id);
       s_.jobs.erase(id);  // j is gone with the last of them
     }
     s_.changes.need_sync();  // the client is told the job is gone

@@ -31,7 +31,7 @@ class JobControl {
   CancelResult cancel(const std::string& job, int64_t now);
   /// Puts a failed or cancelled job back in the queue (a sequence: its failed or cancelled frames, those numbered in
   /// `frames` when it is not empty).
-  RetryResult retry(const std::string& job, const std::vector<int64_t>& frames = {});
+  RetryResult retry(const std::string& job, const std::vector<int64_t>& frames, int64_t now);
   /// Pauses (true) or resumes (false) a job (a sequence: every frame that can be).
   PauseResult set_paused(const std::string& job, bool paused);
   /// Renders a tile of a job again.
@@ -60,7 +60,7 @@ class JobControl {
   }
 
   // Puts one failed or cancelled job back in the queue (it has ended and is not done).
-  void retry_ended(JobRec& j, RetryResult& r);
+  void retry_ended(JobRec& j, RetryResult& r, int64_t now);
   // One job's pause or resume; false when its state does not allow it.
   bool pause_one(JobRec& j, bool paused);
 

@@ -60,7 +60,7 @@ JobService::JobService(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, M
 int64_t JobService::unfinished_jobs() {
   const SchedulerCounters c = sched_.counters();
   int64_t n = 0;
-  for (const JobState st : {JobState::queued, JobState::running, JobState::paused})
+  for (const JobState st : {JobState::queued, JobState::running, JobState::paused, JobState::waiting, JobState::blocked})
     if (const auto it = c.jobs.find(st); it != c.jobs.end()) n += it->second;
   return n;
 }
@@ -138,7 +138,7 @@ JobService::CheckedScene JobService::check_scene(const json& scene, const std::m
 
 ApiError JobService::queue_full() const {
   return ApiError(429, "too many unfinished jobs: " + std::to_string(limits_.max_queued_jobs) +
-                           " are queued, running or paused (--max-queued-jobs); retry later");
+                           " are queued, running, paused, waiting or blocked (--max-queued-jobs); retry later");
 }
 
 namespace {
@@ -156,6 +156,21 @@ JobParams submitted_params(const protocol::JobSubmission& sub, const std::string
 }  // namespace
 
 protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub, const std::string& owner) {
+  if (!sub.pipeline.notify.empty()) {
+    try {
+      limits_.notify_allowed.check(sub.pipeline.notify);
+    } catch (const std::invalid_argument& e) {
+      throw ApiError(403, e.what());
+    }
+  }
+  for (const protocol::Step step : sub.pipeline.then) {
+    if (step == protocol::Step::movie)
+      throw ApiError(400, "'then': this coordinator does not offer the movie step (its H.264 encoder, ffmpeg, is not "
+                          "part of it); submit without it");
+    if (step == protocol::Step::contact_sheet && sub.frames.empty())
+      throw ApiError(400, "'then': contact_sheet needs a sequence ('frames'): it lays out its frames");
+    if (!steps_) throw ApiError(400, "'then': this coordinator runs no steps after the merge");
+  }
   // Admission: queued plus running jobs are bounded (checked again, atomically with add_job, below).
   if (unfinished_jobs() >= limits_.max_queued_jobs) throw queue_full();
   if (!sub.frames.empty()) return submit_sequence(sub, owner);
@@ -167,6 +182,7 @@ protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub, co
   p.spp = s.spp;
   p.seed = sub.sampling.seed;
   p.scene_hash = s.hash;
+  p.pipeline = sub.pipeline;
 
   protocol::JobSpec spec{sub.scene, sub.assets, sub.sampling, p.width, p.height, p.tile_size, sub.resumable};
   spec.sampling.spp = p.spp;
@@ -180,7 +196,14 @@ protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub, co
     std::lock_guard lock(mu_);
     cache_spec_locked(id, spec, true);
   }
-  sched_.add_job(p, id);
+  try {
+    sched_.add_job(p, id);
+  } catch (const std::invalid_argument& e) {  // its dependencies refused: the cached spec goes (the record is inert)
+    std::lock_guard lock(mu_);
+    specs_.erase(id);
+    spec_json_.erase(id);
+    throw ApiError(400, e.what());
+  }
   admit.unlock();
   spdlog::info("job {}: submitted '{}' {}x{} spp {} seed {} tile {} priority {} ({} tiles)", id, p.name, p.width,
                p.height, p.spp, p.seed, p.tile_size, p.priority, TileGrid(p.width, p.height, p.tile_size).count());
@@ -245,6 +268,7 @@ protocol::SubmitAnswer JobService::submit_sequence(const protocol::JobSubmission
   p.spp = frames.front().spp;
   p.seed = sub.sampling.seed;
   p.frame_order = sub.frame_order;
+  p.pipeline = sub.pipeline;
   std::unique_lock admit(admit_mu_);
   if (unfinished_jobs() >= limits_.max_queued_jobs) throw queue_full();
   // Again, now that no blob collection can run before the job is stored: each distinct blob once, and the frames'
@@ -310,6 +334,7 @@ std::string JobService::frame_job(const std::string& id, const std::string& fram
 protocol::JobStatus JobService::status(const std::string& id) {
   auto s = sched_.job(id);
   if (!s) throw ApiError(404, "no job " + id);
+  if (steps_ && !s->params.pipeline.then.empty()) s->outputs = steps_->outputs(*s);
   return std::move(*s);
 }
 
@@ -726,6 +751,12 @@ protocol::JobState JobService::purge(const std::string& id) {
     case PurgeResult::busy:
       throw ApiError(409, "job " + id + " is " + to_string(r.was) + " but an upload of one of its tiles is being stored; "
                               "purge it again in a moment");
+    case PurgeResult::holds: {
+      std::string held;
+      for (const std::string& h : r.held) held += (held.empty() ? "" : ", ") + h;
+      throw ApiError(409, "job " + id + " holds back " + held + " (waiting for it or blocked by it); cancel " +
+                              (r.held.size() > 1 ? "them" : "it") + " first");
+    }
     case PurgeResult::purged: break;
   }
   for (const std::string& job : gone) {
@@ -851,6 +882,7 @@ void JobService::finalize(const std::string& job) {
   drop_image(job);
   const protocol::JobStatus done = announce(job);
   if (done.sequence) events_.frame_done({*done.sequence, *done.frame, job});
+  if (steps_) steps_->job_done(job);
   spdlog::info("job {}: done, result written in {:.3f}s", job,
                std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
 }

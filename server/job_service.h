@@ -15,7 +15,9 @@
 #include "server/metrics.h"
 #include "server/preview_cache.h"
 #include "server/scheduler.h"
+#include "server/steps/step_runner.h"
 #include "server/storage.h"
+#include "server/webhook_url.h"
 
 #include <cstddef>
 #include <cstdint>
@@ -41,6 +43,7 @@ struct AdmissionLimits {
   double max_job_samples = 4e10;                 ///< width x height x spp (x max_spp when adaptive) of one job.
   AssetLimits assets;  ///< Each image texture's and mesh's size, checked from its header (or count) at submission.
   int64_t max_job_frames = protocol::kDefaultMaxJobFrames;  ///< Frames of one sequence.
+  WebhookAllowList notify_allowed;  ///< The webhook addresses a submission's "notify" may name (none: no address).
 };
 
 /// How an upload was settled (its name is the result answer's "status").
@@ -73,6 +76,9 @@ class JobService {
   std::string frame_job(const std::string& id, const std::string& frame);
   /// A job's snapshot; ApiError 404 for unknown ids.
   protocol::JobStatus status(const std::string& id);
+  /// Runs the steps of jobs it finishes on `runner` and lists their outputs in status() (set before the service is
+  /// shared; nullptr: no steps).
+  void use_steps(StepRunner* runner) { steps_ = runner; }
   /// Every job, newest first.
   std::vector<protocol::JobStatus> list();
   /// The jobs a listing asks for, newest first, with the cursor of the next page ("c<seq>"; `after` also takes a job
@@ -191,6 +197,7 @@ class JobService {
   Metrics& metrics_;
   ClockMs clock_;
   AdmissionLimits limits_;
+  StepRunner* steps_ = nullptr;  // runs done jobs' steps (use_steps)
   FarmEvents& events_;
   DiskSpace& disk_;
   Background background_;

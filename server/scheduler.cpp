@@ -256,7 +256,7 @@ CancelResult Scheduler::cancel(const std::string& job) {
 }
 
 RetryResult Scheduler::retry(const std::string& job, const std::vector<int64_t>& frames) {
-  return transact([&](int64_t) { return control_.retry(job, frames); });
+  return transact([&](int64_t now) { return control_.retry(job, frames, now); });
 }
 
 PauseResult Scheduler::pause(const std::string& job) {

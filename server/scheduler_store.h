@@ -2,6 +2,7 @@
 // each batch in one transaction (server/database.h in SQLite, server/memory_store.h in memory).
 #pragma once
 
+#include "server/outbox.h"
 #include "server/scheduler_types.h"
 
 #include <cstdint>
@@ -80,11 +81,12 @@ struct SchedulerChanges {
   std::vector<WorkerRow> workers;  ///< New workers, and workers drained or undrained.
   std::vector<std::string> forgotten_workers;  ///< Workers whose rows go (offline past their retention).
   std::vector<std::string> purged_jobs;  ///< Jobs whose every row (job, tiles, leases, record) goes.
+  std::vector<OutboxRow> outbox;   ///< Webhook events the changes caused (server/outbox.h).
   CounterRow counters;             ///< Counters after the operation.
   /// True when nothing but the counters changed.
   bool empty() const {
     return jobs.empty() && job_workers.empty() && tiles.empty() && leases.empty() && workers.empty() &&
-           forgotten_workers.empty() && purged_jobs.empty();
+           forgotten_workers.empty() && purged_jobs.empty() && outbox.empty();
   }
 };
 

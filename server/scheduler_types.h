@@ -23,6 +23,7 @@ using ClockMs = std::function<int64_t()>;
 
 // The protocol's job, tile and lease types are the scheduler's own (protocol/job.h, tile.h, lease.h, messages.h).
 using protocol::is_final;
+using protocol::is_held;
 using protocol::to_string;
 using protocol::job_state_from_string;
 using protocol::JobParams;
@@ -45,6 +46,7 @@ struct SchedulerConfig {
   int64_t max_workers = 10000;     ///< Registered workers at most; more registrations are refused (0: no bound).
   /// A worker that is not present, holds no live lease and was not seen for this long is forgotten (0: never).
   int64_t worker_retention_ms = 86'400'000;
+  std::vector<std::string> webhooks{};  ///< Addresses told of every job's end (server/outbox.h); none: only jobs' own.
 };
 
 /// Outcome of registering a worker.
@@ -144,9 +146,10 @@ struct RaiseResult {
 /// Outcome of purging a job.
 struct PurgeResult {
   /// purged: gone from memory and store; not_ended: queued, running or paused; busy: an upload of one of its tiles is
-  /// being stored (try again); unknown: no such job.
-  enum Status { purged, not_ended, busy, unknown } status = unknown;
+  /// being stored (try again); holds: jobs wait for it or are blocked by it (`held`); unknown: no such job.
+  enum Status { purged, not_ended, busy, holds, unknown } status = unknown;
   JobState was = JobState::queued;  ///< The state it had.
+  std::vector<std::string> held;    ///< holds: the jobs it holds back.
 };
 
 /// Outcome of requeueing one tile.

@@ -91,7 +91,12 @@ export async function previewUrl(jobId, layer = '') {
  * send) as a download named `filename`; resolves with the file's size in bytes, rejects with ApiError.
  */
 export async function downloadResult(jobId, filename) {
-  const res = await fetch(route('job_result', jobId), { headers: headers(), cache: 'no-store' });
+  return download(route('job_result', jobId), filename);
+}
+
+/** Saves the file at `path` (fetched with the token) as `filename`; returns its size in bytes. */
+export async function download(path, filename) {
+  const res = await fetch(path, { headers: headers(), cache: 'no-store' });
   if (!res.ok) throw await refusal(res);
   const blob = await res.blob();
   const url = URL.createObjectURL(blob);

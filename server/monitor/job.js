@@ -5,6 +5,7 @@ import { el, badge, duration, clock, jobFigures, progressBar, mrays, shownState,
   clockRuns, jobHref, plural, refusedControl } from './format.js';
 import { TileMap, shownTileState, workerColor } from './tilemap.js';
 import { JobControls, actor, fetchJob } from './controls.js';
+import { PipelineView } from './pipeline.js';
 
 // A worker as the page names it: "name (id)", or the id when it has no name.
 function workerText(id, name) { return name ? `${name} (${id})` : id; }
@@ -38,6 +39,7 @@ export function mount(host, ctx) {
   const actionMsg = el('p', { class: 'action-msg', id: 'action-msg', role: 'status' });
   const figures = el('dl', { class: 'figures', id: 'job-figures' });
   const errorBox = el('div', { class: 'errorbox', id: 'job-error', hidden: true });
+  const pipeline = new PipelineView(ctx.embedded ? 'frame' : 'job');
   const tileCounts = el('div', { class: 'legend', id: 'tile-legend' });
   const detail = el('div', { class: 'tile-detail', id: 'tile-detail' },
     el('p', { class: 'sub', text: 'Click a tile for its worker, failures and log lines.' }));
@@ -78,7 +80,7 @@ export function mount(host, ctx) {
   host.append(
     el('div', { class: ctx.embedded ? 'page-head frame-head' : 'page-head' },
       el('div', { class: 'title' }, title, stateBadge, idNote), controls.element),
-    actionMsg, errorBox,
+    actionMsg, errorBox, pipeline.element,
     el('div', { class: 'card figures-card' }, figures),
     el('div', { class: 'split' },
       el('section', { class: 'card' },
@@ -120,6 +122,7 @@ export function mount(host, ctx) {
       ].map((pair) => el('div', { class: 'fig' }, pair)));
     errorBox.hidden = !job.error && !job.waiting_for;
     errorBox.textContent = job.error ? 'Failed: ' + job.error : job.waiting_for ? 'Waiting for ' + job.waiting_for + '.' : '';
+    pipeline.update(job);
     controls.update(job);
     downloadB.hidden = job.state !== 'done';
   }

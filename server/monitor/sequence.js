@@ -5,6 +5,7 @@ import { el, badge, duration, clock, jobFigures, progressBar, mrays, shownState,
   countTileEvent, plural } from './format.js';
 import { JobControls, actor, fetchJob } from './controls.js';
 import { FrameStrip } from './framestrip.js';
+import { PipelineView } from './pipeline.js';
 import * as jobView from './job.js';
 
 const PAGE = 60;  // frames in the strip's window
@@ -28,6 +29,7 @@ export function mount(host, ctx) {
   const actionMsg = el('p', { class: 'action-msg', id: 'seq-action-msg', role: 'status' });
   const figures = el('dl', { class: 'figures', id: 'seq-figures' });
   const errorBox = el('div', { class: 'errorbox', id: 'seq-error', hidden: true });
+  const pipeline = new PipelineView('seq');
   const act = actor(actionMsg, ctx.refresh);
   const controls = new JobControls(ctx, id, act, () => { deleted = true; location.hash = '#/jobs'; });
   controls.element.id = 'seq-actions';
@@ -48,7 +50,7 @@ export function mount(host, ctx) {
   host.append(
     el('div', { class: 'crumbs' }, el('a', { href: '#/jobs', text: 'Jobs' }), ' / ', el('span', { text: id })),
     el('div', { class: 'page-head' }, el('div', { class: 'title' }, title, stateBadge, kind), controls.element),
-    actionMsg, errorBox,
+    actionMsg, errorBox, pipeline.element,
     el('div', { class: 'card figures-card' }, figures),
     el('section', { class: 'card strip-card' },
       el('div', { class: 'card-head' },
@@ -87,6 +89,7 @@ export function mount(host, ctx) {
       ].map((pair) => el('div', { class: 'fig' }, pair)));
     errorBox.hidden = !seq.error;
     errorBox.textContent = seq.error ? 'Failed: ' + seq.error : '';
+    pipeline.update(seq);
     controls.update(seq);
     legend.replaceChildren(...api.JOB_STATES.map((s) =>
       el('span', { class: 'key', 'data-count': s }, el('i', { class: 'swatch state-' + s }), `${s} ${count(fc[s] || 0)}`)));

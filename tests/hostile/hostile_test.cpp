@@ -63,7 +63,8 @@ const std::vector<std::string> kServeLimits = {
     "--read-timeout-seconds", std::to_string(kReadTimeoutSeconds), "--max-connections", "16", "--max-queued-jobs", "4",
     "--max-json-bytes",       "65536",  "--max-blob-bytes",  "1048576",  "--max-result-bytes", "4194304",
     "--max-header-bytes",     "8192",   "--max-job-pixels",  "1048576",  "--max-job-samples",  "1e8",
-    "--max-event-streams",    "4",      "--max-asset-pixels", "262144",   "--max-mesh-triangles", "1000"};
+    "--max-event-streams",    "4",      "--max-asset-pixels", "262144",   "--max-mesh-triangles", "1000",
+    "--webhook-allow",        "http://127.0.0.1:9/hooks/"};
 
 std::string slurp(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);

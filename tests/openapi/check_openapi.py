@@ -392,6 +392,24 @@ def exercise(c, tessera, workdir, address):
     c.call("PATCH", f"/v1/jobs/{a}", {"spp": 0}, expect=400)
     c.call("DELETE", f"/v1/jobs/{a}", expect=200)
     c.call("PUT", f"/v1/leases/{l3['lease']}/result", b"x", "image/x-exr", expect=410)
+    # A job submitted after the cancelled one (dependencies): blocked, saying why; refusals of the pipeline fields;
+    # the (empty) webhook log.
+    status, blocked = c.call("POST", "/v1/jobs", {**job, "after": [a]}, expect=201)
+    if status == 201:
+        _, shown = c.call("GET", f"/v1/jobs/{blocked['id']}", expect=200)
+        if shown["state"] != "blocked" or shown.get("reason") != f"dependency {a} was cancelled":
+            failures.append(f"a job submitted after the cancelled {a} is not blocked by it: {shown}")
+        _, held = c.call("GET", f"/v1/jobs/{a}", expect=200)
+        if held.get("dependents") != [blocked["id"]]:
+            failures.append(f"{a} does not list {blocked['id']} as its dependent: {held}")
+        c.call("DELETE", f"/v1/jobs/{a}?purge=true", expect=409)  # it holds the blocked job back
+        c.call("DELETE", f"/v1/jobs/{blocked['id']}", expect=200)
+        c.call("DELETE", f"/v1/jobs/{blocked['id']}?purge=true", expect=200)  # the listings below count the others
+    c.call("POST", "/v1/jobs", {**job, "after": ["j-none"]}, expect=400)
+    c.call("POST", "/v1/jobs", {**job, "notify": "http://127.0.0.1:9/x"}, expect=403)
+    c.call("POST", "/v1/jobs", {**job, "then": ["movie"]}, expect=400)
+    c.call("GET", f"/v1/jobs/{a}/outputs/preview.png", expect=404)  # no steps
+    c.call("GET", "/v1/webhooks/deliveries", expect=200)
 
     # A resumable job a real worker renders: the done states, the result and an accepted upload.
     _, b = c.call("POST", "/v1/jobs", {**job, "resumable": True}, expect=201)

@@ -1,0 +1,21 @@
+#include "server/steps/outputs_handler.h"
+
+#include "server/file_stream.h"
+
+namespace tessera::server {
+
+HttpResponse OutputsHandler::handle(const protocol::RouteMatch&, HttpRequest&) {
+  throw protocol::ApiError(404, "no such endpoint");  // every answer is a stream
+}
+
+std::optional<HttpReply> OutputsHandler::stream(const protocol::RouteMatch& route, HttpRequest& req) {
+  const std::filesystem::path file = runner_.output_file(route.param, route.param2);
+  const std::string ext = file.extension().string();
+  std::optional<HttpReply> r =
+      file_reply(file, ext == ".png" ? "image/png" : ext == ".exr" ? "image/x-exr" : "application/octet-stream",
+                 req.version());
+  if (!r) throw protocol::ApiError(404, "job " + route.param + " has no output " + route.param2);
+  return r;
+}
+
+}  // namespace tessera::server

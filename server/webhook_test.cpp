@@ -1,0 +1,145 @@
+// Webhook pieces without a network: addresses and the allow-list, the signature, the backoff's bounds, and the outbox
+// rows a job's end writes with the change itself.
+#include "server/database.h"
+#include "server/scheduler.h"
+#include "server/webhook_sender.h"
+#include "server/webhook_post.h"
+#include "server/webhook_url.h"
+
+#include "tests/support/test_files.h"
+
+#include <gtest/gtest.h>
+
+#include <boost/asio/ip/tcp.hpp>
+
+#include <filesystem>
+#include <thread>
+
+namespace tessera::server {
+namespace {
+
+namespace fs = std::filesystem;
+
+TEST(WebhookUrl, AddressesParseStrictly) {
+  const WebhookUrl u = parse_webhook_url("https://Hooks.Example:8443/t?x=1");
+  EXPECT_TRUE(u.https);
+  EXPECT_EQ(u.host, "hooks.example");
+  EXPECT_EQ(u.port, "8443");
+  EXPECT_EQ(u.target, "/t?x=1");
+  EXPECT_EQ(parse_webhook_url("http://[::1]/").host, "::1");
+  EXPECT_EQ(parse_webhook_url("http://h").target, "/");
+  EXPECT_EQ(parse_webhook_url("http://h").port, "80");
+  for (const char* bad : {"ftp://h/", "http://", "http://u:p@h/", "http://h:0/", "http://h:99999/", "http://h/#f",
+                          "http://h/a b", "https://[::1/"})
+    EXPECT_THROW(parse_webhook_url(bad), std::invalid_argument) << bad;
+}
+
+TEST(WebhookUrl, TheAllowListMatchesSchemeHostPortAndPathPrefix) {
+  const WebhookAllowList allow({"https://hooks.example/tessera/", "http://127.0.0.1:9000/"});
+  allow.check("https://HOOKS.example:443/tessera/job-1");
+  allow.check("http://127.0.0.1:9000/anything");
+  for (const char* bad : {"http://hooks.example/tessera/x", "https://hooks.example/other", "https://hooks.example:444/tessera/",
+                          "https://evil.example/tessera/", "http://127.0.0.1:9001/", "https://hooks.example@evil.example/tessera/"})
+    EXPECT_THROW(allow.check(bad), std::invalid_argument) << bad;
+  EXPECT_THROW(WebhookAllowList().check("https://hooks.example/"), std::invalid_argument);
+}
+
+TEST(WebhookSignature, IsHmacSha256InHex) {
+  // RFC 4231, test case 2.
+  EXPECT_EQ(hmac_sha256_hex("Jefe", "what do ya want for nothing?"),
+            "5bdcc146bf60754e6a042426089575c75a003f089d2739839dec58b964ec3843");
+}
+
+// A socket that takes connections (the kernel completes them) and never reads: a receiver that never answers.
+struct SilentReceiver {
+  boost::asio::io_context ioc;
+  boost::asio::ip::tcp::acceptor acceptor{ioc, {boost::asio::ip::make_address("127.0.0.1"), 0}};
+  std::string url() const { return "http://127.0.0.1:" + std::to_string(acceptor.local_endpoint().port()) + "/h"; }
+};
+
+TEST(WebhookPost, ASilentReceiverTimesOutAndAStopEndsTheAttempt) {
+  SilentReceiver silent;
+  const PostAnswer late = post_webhook(parse_webhook_url(silent.url()), "{}", {}, std::chrono::milliseconds(200));
+  EXPECT_FALSE(late.status);
+  EXPECT_EQ(late.error, "no answer within 200 ms");
+  PostStopper stopper;
+  std::thread stop([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    stopper.stop();
+  });
+  // An attempt that could wait ten minutes ends with the stop (or, stopped first, at once).
+  const PostAnswer stopped =
+      post_webhook(parse_webhook_url(silent.url()), "{}", {}, std::chrono::minutes(10), &stopper);
+  stop.join();
+  EXPECT_FALSE(stopped.status);
+  EXPECT_EQ(stopped.error, "stopped");
+  EXPECT_EQ(post_webhook(parse_webhook_url(silent.url()), "{}", {}, std::chrono::minutes(10), &stopper).error,
+            "stopped");
+}
+
+// A delivery log that holds nothing: the sender's threads start and stop without work.
+struct EmptyLog final : WebhookLog {
+  std::vector<DueDelivery> due_deliveries(int64_t, size_t) override { return {}; }
+  void record_attempt(const std::string&, const std::string&, const DeliveryAttempt&) override {}
+  std::vector<protocol::WebhookDelivery> deliveries(size_t) override { return {}; }
+};
+
+TEST(WebhookSender, BackoffDoublesUpToTheLimitWithJitter) {
+  EmptyLog log;
+  WebhookSenderOptions o;
+  o.first_retry = std::chrono::milliseconds(1000);
+  o.max_retry = std::chrono::milliseconds(10'000);
+  WebhookSender sender(log, o, [] { return int64_t(0); });
+  for (int64_t attempt = 1; attempt <= 40; ++attempt) {
+    const int64_t full = std::min<int64_t>(int64_t(1000) << std::min<int64_t>(attempt - 1, 30), 10'000);
+    const int64_t w = sender.backoff(attempt).count();
+    EXPECT_GE(w, full / 2) << attempt;
+    EXPECT_LE(w, full) << attempt;
+  }
+}
+
+TEST(WebhookOutbox, AJobsEndIsStoredWithTheChangeForEachAddress) {
+  const fs::path dir = fs::temp_directory_path() / ("tessera-outbox-test-" + random_hex(6));
+  {
+    int64_t now = 3'000'000;
+    DurableStore store(dir, Durability::process);
+    SchedulerConfig config{10'000, 1, 1, ""};
+    config.webhooks = {"http://farm.example/hook"};
+    Scheduler s(config, [&] { return now; }, store);
+    JobParams p;
+    p.width = p.height = p.tile_size = 16;
+    p.scene_hash = "h";
+    p.pipeline.notify = "http://own.example/hook";
+    const std::string a = s.add_job(p);
+    EXPECT_TRUE(store.deliveries(10).empty());  // queued: no event
+    ASSERT_EQ(s.cancel(a).status, CancelResult::cancelled);
+    const std::vector<protocol::WebhookDelivery> rows = store.deliveries(10);
+    ASSERT_EQ(rows.size(), 2u);
+    EXPECT_EQ(rows[0].id, rows[1].id);
+    EXPECT_NE(rows[0].url, rows[1].url);
+    for (const protocol::WebhookDelivery& d : rows) {
+      EXPECT_EQ(d.event, "job.cancelled");
+      EXPECT_EQ(d.job, a);
+      EXPECT_EQ(d.state, "pending");
+      EXPECT_EQ(d.created_ms, now);
+    }
+    ASSERT_EQ(store.due_deliveries(now, 10).size(), 2u);
+    store.record_attempt(rows[0].id, rows[0].url, {"pending", now + 500, 500, "answered 500"});
+    EXPECT_EQ(store.due_deliveries(now, 10).size(), 1u);  // the other one; this one is due later
+    EXPECT_EQ(store.due_deliveries(now + 500, 10).size(), 2u);
+    // A job waiting for the cancelled one is blocked from the start: job.blocked to the farm's address only.
+    JobParams q = p;
+    q.pipeline.notify.clear();
+    q.pipeline.after = {a};
+    const std::string b = s.add_job(q);
+    const std::vector<protocol::WebhookDelivery> more = store.deliveries(10);
+    ASSERT_EQ(more.size(), 3u);
+    EXPECT_EQ(more[0].event, "job.blocked");
+    EXPECT_EQ(more[0].job, b);
+    EXPECT_EQ(more[0].url, "http://farm.example/hook");
+  }
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace tessera::server
