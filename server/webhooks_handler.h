@@ -12,7 +12,7 @@ class WebhooksHandler final : public ResourceHandler {
  public:
   /// Lists from `log` (nullptr: a coordinator that keeps none answers an empty list).
   explicit WebhooksHandler(WebhookLog* log) : log_(log) {}
-  HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& req) override;
+  HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& req, const Caller& caller) override;
 
  private:
   WebhookLog* log_;

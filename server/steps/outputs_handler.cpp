@@ -4,11 +4,11 @@
 
 namespace tessera::server {
 
-HttpResponse OutputsHandler::handle(const protocol::RouteMatch&, HttpRequest&) {
+HttpResponse OutputsHandler::handle(const protocol::RouteMatch&, HttpRequest&, const Caller&) {
   throw protocol::ApiError(404, "no such endpoint");  // every answer is a stream
 }
 
-std::optional<HttpReply> OutputsHandler::stream(const protocol::RouteMatch& route, HttpRequest& req) {
+std::optional<HttpReply> OutputsHandler::stream(const protocol::RouteMatch& route, HttpRequest& req, const Caller& /*caller*/) {
   const std::filesystem::path file = runner_.output_file(route.param, route.param2);
   const std::string ext = file.extension().string();
   std::optional<HttpReply> r =

@@ -11,8 +11,8 @@ class OutputsHandler final : public ResourceHandler {
  public:
   /// Serves the files of `runner` (which must outlive it).
   explicit OutputsHandler(StepRunner& runner) : runner_(runner) {}
-  HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& req) override;
-  std::optional<HttpReply> stream(const protocol::RouteMatch& route, HttpRequest& req) override;
+  HttpResponse handle(const protocol::RouteMatch& route, HttpRequest& req, const Caller& caller) override;
+  std::optional<HttpReply> stream(const protocol::RouteMatch& route, HttpRequest& req, const Caller& caller) override;
 
  private:
   StepRunner& runner_;
