@@ -152,6 +152,7 @@ RenderArgs settings_from_files(const RenderArgs& given, const std::vector<FrameF
       s.area_sampling = r.area_sampling;
       s.env_sampling = r.env_sampling;
       s.bvh = r.bvh;
+      s.layers = r.layers;
       s.variance = r.variance;
       if (!given.spp && r.target_error <= 0 && r.spp && *r.spp != scenes[i].spp) s.spp = r.spp;
       source = i;

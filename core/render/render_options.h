@@ -60,7 +60,8 @@ struct RenderOptions {
   /// has the window's size (and the variance channels when `variance` is set), no pixel has more than spp samples,
   /// keep_state needs an exact previous state, and adaptive sampling cannot continue a pixel.
   const StoredRender* previous = nullptr;
-  /// When set, receives every ray the render traces, from its threads (see core/render/ray_recorder.h); pixels are the same.
+  /// When set, receives every ray the colour's samples trace, from the render's threads (see
+  /// core/render/ray_recorder.h; the layers' pass is neither recorded nor counted); pixels are the same.
   RayRecorder* recorder = nullptr;
   /// When set, told as soon as rows of the window are final, e.g. to compress them into a file while the render
   /// goes on: rows [y0, y1) (0 = the window's first row) of `film` (the result's image as the render fills it) and
