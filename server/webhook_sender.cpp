@@ -2,6 +2,7 @@
 
 #include "failpoint/failpoint.h"
 #include "protocol/webhook.h"
+#include "server/helper_thread.h"
 #include "server/webhook_post.h"
 #include "server/webhook_url.h"
 
@@ -54,6 +55,7 @@ std::chrono::milliseconds WebhookSender::backoff(int64_t attempt) {
 }
 
 void WebhookSender::dispatch() {
+  block_signals_in_helper_thread();
   std::unique_lock lock(mu_);
   while (!stop_) {
     lock.unlock();
@@ -72,6 +74,7 @@ void WebhookSender::dispatch() {
 }
 
 void WebhookSender::deliver_loop() {
+  block_signals_in_helper_thread();
   std::unique_lock lock(mu_);
   while (true) {
     cv_.wait(lock, [this] { return stop_ || !queue_.empty(); });

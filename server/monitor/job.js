@@ -238,6 +238,7 @@ export function mount(host, ctx) {
       if (!job) return false;
       if (type === 'job') {
         if (d.id !== id) return true;
+        if (d.then && d.then.length) return false;  // its steps' outputs come with the job's own answer, not events
         job = arrived(d);
         drawHead();
         refreshPreview().catch(() => {});

@@ -252,6 +252,7 @@ export function mount(host, ctx) {
       if (!seq) return false;
       if (type === 'job') {
         if (d.id === id) {
+          if (d.then && d.then.length) return false;  // its steps' outputs come with the job's own answer
           seq = arrived(d);
           drawHead();
           reloadSoon();  // a pause or resume of the sequence changes its frames without an event of theirs

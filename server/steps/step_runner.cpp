@@ -3,6 +3,7 @@
 #include "core/image/contact_sheet.h"
 #include "core/image/image.h"
 #include "protocol/errors.h"
+#include "server/helper_thread.h"
 
 #include <spdlog/spdlog.h>
 
@@ -88,6 +89,7 @@ void StepRunner::queue(const protocol::JobStatus& top) {
 }
 
 void StepRunner::run() {
+  block_signals_in_helper_thread();
   std::unique_lock lock(mu_);
   while (true) {
     cv_.wait(lock, [this] { return stop_ || !queue_.empty(); });
