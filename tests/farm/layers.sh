@@ -35,7 +35,9 @@ JOB=$(grep -Eo "as j-[^ ]+" "$WORK/submit.log" | head -n1 | cut -c4-)
 # A local farm writing one part per layer: merged back to one part, the same bits.
 "$TESSERA" render "$WORK/s.json" -o "$WORK/farm.exr" -q --workers 2 --farm-tile 16 --layers "$LAYERS" --multipart \
   >"$WORK/farm.log" 2>&1 || fail "render --workers --layers --multipart failed: $(tail -n 3 "$WORK/farm.log")"
-exrheader "$WORK/farm.exr" | grep -q 'name (type string): "crypto_material"' || fail "no crypto_material part"
+# (into a file first: grep -q stops reading at its match, and under pipefail exrheader's SIGPIPE would fail the line)
+exrheader "$WORK/farm.exr" >"$WORK/farm.header"
+grep -q '^name (type string): "crypto_material"' "$WORK/farm.header" || fail "no crypto_material part"
 "$TESSERA" merge "$WORK/farm.exr" -o "$WORK/farm-one.exr" || fail "merge of the multi-part result failed"
 "$EXR_COMPARE" "$WORK/ref.exr" "$WORK/farm-one.exr" || fail "the multi-part farm render differs"
 echo "PASS"
