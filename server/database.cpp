@@ -774,10 +774,6 @@ std::vector<protocol::WebhookDelivery> DurableStore::deliveries(size_t limit) {
   return out;
 }
 
-}  // namespace tessera::server
-
-namespace tessera::server {
-
 void DurableStore::append_audit(const protocol::AuditEntry& e) {
   std::lock_guard lock(mu_);
   write_locked([&] {

@@ -68,10 +68,6 @@ std::optional<std::pair<uint32_t, std::string>> MemoryStore::tile_state(const st
   return it->second;
 }
 
-}  // namespace tessera::server
-
-namespace tessera::server {
-
 void MemoryStore::append_audit(const protocol::AuditEntry& entry) {
   std::lock_guard lock(mu_);
   protocol::AuditEntry e = entry;
