@@ -14,6 +14,8 @@
 
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
+#include <sstream>
 
 namespace tessera::cli {
 
@@ -54,6 +56,37 @@ void print_table(const std::vector<protocol::JobStatus>& jobs) {
                 name.c_str());
     print_dependencies(j);
   }
+}
+
+// One line per step of a done job: its name, state and files (or its log when it failed); with `dir`, the done steps'
+// files are saved in that folder under their own names. kExitFailed when a step failed, kExitOk otherwise.
+int print_outputs(client::HttpClient& http, const std::string& id, const std::string& dir) {
+  const protocol::JobStatus s = client::get_job(http, id);
+  if (s.params.pipeline.then.empty()) throw client::SubmitError("job " + id + " has no steps (submit --then names them)");
+  if (s.state != protocol::JobState::done)
+    throw client::SubmitError("job " + id + " is " + protocol::to_string(s.state) + ": its steps run once it is done");
+  bool failed = false;
+  for (const protocol::StepOutput& o : s.outputs) {
+    std::string files;
+    for (const std::string& f : o.files) files += (files.empty() ? "" : " ") + f;
+    std::printf("%-14s %-8s %s\n", protocol::to_string(o.step), o.state.c_str(), files.c_str());
+    if (o.state == "failed") {
+      failed = true;
+      std::istringstream log(o.log);
+      for (std::string line; std::getline(log, line);) std::printf("  | %s\n", line.c_str());
+    }
+    if (dir.empty() || o.state != "done") continue;
+    for (const std::string& f : o.files) {
+      // The names are the coordinator's: one that is not a plain file name is not followed out of the folder.
+      if (f.empty() || f == "." || f == ".." || f.find('/') != std::string::npos)
+        throw std::runtime_error("job " + id + " lists an output named '" + f + "', which is not a file name");
+      std::filesystem::create_directories(dir);
+      const std::filesystem::path to = std::filesystem::path(dir) / f;
+      const uint64_t bytes = client::download_output(http, id, f, to);
+      std::printf("  saved %s (%llu bytes)\n", to.string().c_str(), static_cast<unsigned long long>(bytes));
+    }
+  }
+  return failed ? kExitFailed : kExitOk;
 }
 
 // One line per frame of a sequence: number, its job, state, tiles done/total, render time, error.
@@ -106,12 +139,12 @@ CLI::App* add_jobs_command(CLI::App& app, JobsArgs& a) {
   auto* c = app.add_subcommand("jobs", "List and control a coordinator's jobs");
   c->add_option("action", a.action, "ls: list; show ID: the job as JSON, with its sampling settings; pause ID: no new leases (running tiles "
                                     "finish); resume ID; tiles ID: one line per tile, then failures with their log "
-                                    "lines; requeue ID N: render tile N again; priority ID N: lease its tiles in a new order; spp ID M: raise a --resumable job to M samples per pixel, continuing its stored tiles; retry ID: render a failed or cancelled job's missing tiles (a sequence: its failed and cancelled frames, or those of --frames); frames ID: one line per frame of a sequence; "
+                                    "lines; requeue ID N: render tile N again; priority ID N: lease its tiles in a new order; spp ID M: raise a --resumable job to M samples per pixel, continuing its stored tiles; retry ID: render a failed or cancelled job's missing tiles (a sequence: its failed and cancelled frames, or those of --frames); frames ID: one line per frame of a sequence; outputs ID: each step's state and files (submit --then), with -o DIR saved in that folder; "
                                     "cancel ID; rm ID: cancel it, or with --purge delete an ended job, its tiles and result; "
                                     "wait ID: follow the job until it ends and, with -o, save its result (Ctrl-C stops "
                                     "waiting and leaves the job as it is)")
       ->required()
-      ->check(CLI::IsMember({"ls", "show", "tiles", "requeue", "pause", "resume", "priority", "spp", "retry", "frames", "cancel", "rm",
+      ->check(CLI::IsMember({"ls", "show", "tiles", "requeue", "pause", "resume", "priority", "spp", "retry", "frames", "outputs", "cancel", "rm",
                              "wait"}));
   c->add_option("job", a.job, "Job id (all but ls)");
   c->add_option("value", a.priority, "New priority, higher runs first (priority); new samples per pixel (spp); the tile number (requeue)");
@@ -125,7 +158,8 @@ CLI::App* add_jobs_command(CLI::App& app, JobsArgs& a) {
   c->add_option("--after", a.after, "ls: the page after this cursor (printed by a listing with --limit) or job id");
   c->add_flag("--mine", a.mine, "ls: only the jobs of the user this credential stands for");
   c->add_option("--owner", a.owner, "ls: only this user's jobs");
-  c->add_option("-o,--output", a.output, "wait: save the finished job's EXR to this file");
+  c->add_option("-o,--output", a.output,
+                "wait: save the finished job's EXR to this file; outputs: save the steps' files in this folder");
   c->add_flag("-q,--quiet", a.quiet, "wait: no progress bar");
   add_coordinator_access_flags(c, a.access);
   return c;
@@ -166,12 +200,12 @@ int run_jobs(const JobsArgs& a) {
     spdlog::error("give --mine or --owner, not both");
     return kExitRefused;
   }
-  if (!a.output.empty() && a.action != "wait") {
-    spdlog::error("-o goes with jobs wait");
+  if (!a.output.empty() && a.action != "wait" && a.action != "outputs") {
+    spdlog::error("-o goes with jobs wait or jobs outputs");
     return kExitRefused;
   }
   // Before waiting: a result that could not be saved would be found out only at the end.
-  if (!a.output.empty() && !output_writable(a.output)) return kExitRefused;
+  if (!a.output.empty() && a.action == "wait" && !output_writable(a.output)) return kExitRefused;
   return run_with_coordinator(a.access, "jobs " + a.action, [&](client::HttpClient& http) {
     if (a.action == "wait") {
       client::get_job(http, a.job);  // an unknown id is refused here (exit 2), not after a wait
@@ -226,6 +260,8 @@ int run_jobs(const JobsArgs& a) {
                   static_cast<long long>(s.tiles.total));
     } else if (a.action == "frames") {
       print_frames(http, a.job);
+    } else if (a.action == "outputs") {
+      return print_outputs(http, a.job, a.output);
     } else if (a.action == "retry") {
       std::vector<int64_t> frames;
       if (!a.frames.empty()) frames = parse_frame_range(a.frames);

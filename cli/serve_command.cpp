@@ -71,6 +71,10 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
       ->check(CLI::Range(0.01, 3600.0))->capture_default_str();
   c->add_option("--webhook-timeout-seconds", a.webhook_timeout_seconds, "One delivery attempt, connection to answer")
       ->check(CLI::Range(0.1, 600.0))->capture_default_str();
+  c->add_option("--ffmpeg", o.limits.steps.ffmpeg,
+                "The encoder the movie step runs (submit --then movie): a path, or a name looked up on the "
+                "coordinator's PATH; when there is none, movies are refused at submission")
+      ->capture_default_str();
   c->add_option("--tls-cert", o.tls.cert_file, "Serve HTTPS with this PEM certificate chain (re-read on SIGHUP)");
   c->add_option("--tls-key", o.tls.key_file, "Private key (PEM) of --tls-cert (re-read on SIGHUP)");
   c->add_option("--tls-client-ca", o.tls.client_ca_file,

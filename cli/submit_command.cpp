@@ -13,6 +13,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 
@@ -50,12 +51,19 @@ CLI::App* add_submit_command(CLI::App& app, SubmitArgs& a) {
               "A sequence after sequences: frame k starts once frame k of each --after job is done");
   c->add_option("--then", a.then,
                 "Steps the coordinator runs on the result once the job is done: preview (a full-size PNG), half (a "
-                "half-float EXR), contact_sheet (a sequence's frames in one PNG); files under GET "
-                "/v1/jobs/ID/outputs/NAME")
+                "half-float EXR), contact_sheet (a sequence's frames in one PNG), movie (a sequence's frames as an "
+                "H.264 MP4; needs ffmpeg on the coordinator); files under GET /v1/jobs/ID/outputs/NAME, saved by "
+                "`tessera jobs outputs ID -o DIR`")
       ->delimiter(',')
       ->check(CLI::IsMember(enum_names(protocol::kStepNames)));
+  c->add_option("--fps", a.fps,
+                "Frames per second of the movie step's MP4 (default " + std::to_string(protocol::kDefaultMovieFps) +
+                    ")")
+      ->check(CLI::Range(1, protocol::kMaxMovieFps));
   c->add_option("--notify", a.notify,
                 "Also POST this job's end to this URL (allowed by the coordinator's --webhook-allow)");
+  c->add_flag("--notify-frames", a.notify_frames,
+              "A sequence: also POST each frame done to the --notify URL (event frame.done)");
   c->add_flag("--detach", a.detach, "Print the job id and return without waiting");
   c->add_flag("-q,--quiet", a.quiet, "No progress bar");
   return c;
@@ -191,6 +199,10 @@ int run_submit(const SubmitArgs& a) {
     spdlog::error("submit: {}", e.what());
     return kExitRefused;
   }
+  if (a.fps && std::find(a.then.begin(), a.then.end(), "movie") == a.then.end()) {
+    spdlog::error("submit: --fps is the frame rate of the movie step: it goes with --then movie");
+    return kExitRefused;
+  }
   return run_with_coordinator(a.access, "submit", [&](client::HttpClient& http) {
     client::SubmitOptions o = shared_job_options(a);
     o.frames = frames;
@@ -205,7 +217,9 @@ int run_submit(const SubmitArgs& a) {
     o.pipeline.after = a.after;
     o.pipeline.per_frame = a.per_frame;
     o.pipeline.notify = a.notify;
+    o.pipeline.notify_frames = a.notify_frames;
     for (const std::string& step : a.then) o.pipeline.then.push_back(protocol::step_from_string(step));
+    if (a.fps) o.pipeline.fps = *a.fps;
     if (a.detach) {
       const client::SubmitResult sub = client::submit_job(http, o);
       std::printf("%s\n", sub.job_id.c_str());

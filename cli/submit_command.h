@@ -38,7 +38,9 @@ struct SubmitArgs : SamplingArgs {
   std::vector<std::string> after;   ///< --after: jobs that must be done before this one starts.
   bool per_frame = false;           ///< --per-frame: frame k of the sequence waits for frame k of each --after job.
   std::string notify;               ///< --notify: the job's own webhook address.
+  bool notify_frames = false;       ///< --notify-frames: --notify is also told of each frame done.
   std::vector<std::string> then;    ///< --then: steps run on the result once the job is done.
+  std::optional<int> fps;           ///< --fps: the movie step's frame rate.
 };
 
 /// The job settings `submit` and `render --workers` share, from either's arguments (the fields have the same names):

@@ -418,6 +418,17 @@ uint64_t download_frame(HttpClient& http, const std::string& id, int64_t frame, 
   return r.body.size();
 }
 
+uint64_t download_output(HttpClient& http, const std::string& id, const std::string& name, const fs::path& path) {
+  const HttpResponse r = http.send("GET", routes::job_output(id, name));
+  if (r.status != 200) refuse("downloading output " + name + " of " + id, r);
+  try {
+    write_file_atomic(path, r.body);
+  } catch (const FileError& e) {
+    throw SubmitError(e.what());
+  }
+  return r.body.size();
+}
+
 protocol::PurgeAnswer purge_job(HttpClient& http, const std::string& id) {
   return control<protocol::PurgeAnswer>(http, id, "DELETE", routes::job_purge(id), "purging");
 }

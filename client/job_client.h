@@ -122,6 +122,11 @@ uint64_t download_frame(HttpClient& http, const std::string& id, int64_t frame, 
 /// or TransportError. Returns the number of bytes.
 uint64_t download_result(HttpClient& http, const std::string& id, const std::filesystem::path& path);
 
+/// Downloads output `name` of a done job's steps (GET /v1/jobs/{id}/outputs/{name}) to path atomically, as
+/// download_result does; returns the number of bytes.
+uint64_t download_output(HttpClient& http, const std::string& id, const std::string& name,
+                         const std::filesystem::path& path);
+
 /// GET /v1/jobs: every job, newest first; throws SubmitError or TransportError.
 std::vector<JobStatus> list_jobs(HttpClient& http);
 /// GET /v1/jobs?state=&limit=&after=: one page of the jobs a query asks for, with the next page's cursor.

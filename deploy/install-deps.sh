@@ -15,6 +15,7 @@ PACKAGES=(
   openssl iproute2
   chromium chromium-driver python3-selenium
   python3-openimageio python3-numpy openexr
+  ffmpeg
 )
 
 missing=()

@@ -276,7 +276,8 @@ JobSubmission parse_job_submission(const std::string& body) {
   json j = parse_request_object(
       body, {"scene", "assets", "frames", "frame_order", "spp", "seed", "tile_size", "priority", "name", "integrator",
              "target_error", "min_spp", "max_spp", "error_floor", "replicates", "area_sampling", "env_sampling", "bvh", "layers",
-             "resumable", "tile_timeout_seconds", "require", "max_workers", "after", "per_frame", "then", "notify"},
+             "resumable", "tile_timeout_seconds", "require", "max_workers", "after", "per_frame", "then", "fps", "notify",
+             "notify_frames"},
       false);
   JobSubmission s;
   if (j.contains("frames")) {
@@ -315,6 +316,8 @@ JobSubmission parse_job_submission(const std::string& body) {
   if (s.pipeline.per_frame && s.frames.empty())
     throw ProtocolError("'per_frame' applies only to a sequence ('frames'): frame k waits for frame k of each job in "
                         "'after'");
+  if (s.pipeline.notify_frames && s.frames.empty())
+    throw ProtocolError("'notify_frames' applies only to a sequence ('frames'): it tells of each frame done");
   return s;
 }
 

@@ -19,7 +19,9 @@ void put_pipeline(json& j, const Pipeline& p) {
     for (const Step s : p.then) steps.push_back(to_string(s));
     j["then"] = std::move(steps);
   }
+  if (p.fps != kDefaultMovieFps) j["fps"] = p.fps;
   if (!p.notify.empty()) j["notify"] = p.notify;
+  if (p.notify_frames) j["notify_frames"] = true;
 }
 
 Pipeline request_pipeline(const json& j) {
@@ -60,6 +62,18 @@ Pipeline request_pipeline(const json& j) {
     if (p.notify.empty() || p.notify.size() > kMaxWebhookUrlBytes)
       throw ProtocolError("'notify' must be a URL of 1 to " + std::to_string(kMaxWebhookUrlBytes) + " bytes");
   }
+  if (j.contains("fps")) {
+    p.fps = int(request_int(j, "fps", kDefaultMovieFps, 1, kMaxMovieFps));
+    if (std::find(p.then.begin(), p.then.end(), Step::movie) == p.then.end())
+      throw ProtocolError("'fps' is the frame rate of the movie step: it needs \"then\" to name movie");
+  }
+  if (j.contains("notify_frames")) {
+    if (!j["notify_frames"].is_boolean())
+      throw ProtocolError("'notify_frames' must be true or false (got " + j["notify_frames"].dump() + ")");
+    p.notify_frames = j["notify_frames"].get<bool>();
+    if (p.notify_frames && p.notify.empty())
+      throw ProtocolError("'notify_frames' needs 'notify': each frame done is told to the job's own address");
+  }
   return p;
 }
 
@@ -91,7 +105,9 @@ Pipeline answer_pipeline(const json& j) {
       throw ProtocolError(std::string(kMsg) + ": " + e.what());
     }
   }
+  p.fps = answer_field_or<int>(j, "fps", kMsg, kDefaultMovieFps);
   p.notify = answer_field_or<std::string>(j, "notify", kMsg, "");
+  p.notify_frames = answer_field_or<bool>(j, "notify_frames", kMsg, false);
   return p;
 }
 

@@ -19,6 +19,10 @@ inline constexpr size_t kMaxDependencies = 64;
 inline constexpr size_t kMaxJobIdBytes = 200;
 /// The longest webhook address a submission may give.
 inline constexpr size_t kMaxWebhookUrlBytes = 2048;
+/// Frames per second of the movie step's MP4 unless the submission says otherwise ("fps").
+inline constexpr int kDefaultMovieFps = 24;
+/// The highest frame rate a movie may ask for.
+inline constexpr int kMaxMovieFps = 240;
 
 /// A built-in step the coordinator runs on a finished job's result (no other command ever runs).
 enum class Step {
@@ -40,9 +44,13 @@ struct Pipeline {
   /// A sequence after sequences: its frame k waits only for their frame k (else every frame waits for the whole jobs).
   bool per_frame = false;
   std::vector<Step> then;  ///< Steps run on its result once it is done, in this order (no duplicates).
+  int fps = kDefaultMovieFps;  ///< Frames per second of the movie step's MP4.
   std::string notify;      ///< A webhook address told when it ends or is blocked ("": none but the farm's own).
+  bool notify_frames = false;  ///< A sequence: `notify` is also told of each frame done (event "frame.done").
   /// True when it is the default (no dependency, no step, no address).
-  bool empty() const { return after.empty() && !per_frame && then.empty() && notify.empty(); }
+  bool empty() const {
+    return after.empty() && !per_frame && then.empty() && fps == kDefaultMovieFps && notify.empty() && !notify_frames;
+  }
 };
 
 /// Where a step of a done job is: "pending" (queued or running), "done" (its files listed) or "failed" (its log).
@@ -57,7 +65,8 @@ void from_json(const nlohmann::json& j, StepOutput& o);
 
 /// Writes the pipeline's fields into an object (a submission or a job), leaving out those at their defaults.
 void put_pipeline(nlohmann::json& j, const Pipeline& p);
-/// Reads the pipeline fields of a submission ("after", "per_frame", "then", "notify"), checking their types and sizes;
+/// Reads the pipeline fields of a submission ("after", "per_frame", "then", "fps", "notify", "notify_frames"), checking
+/// their types, sizes and that each goes with what it needs;
 /// throws ProtocolError with the sentence the coordinator answers (400).
 Pipeline request_pipeline(const nlohmann::json& j);
 /// Reads the pipeline fields of an answer (a job), tolerating absent ones; throws ProtocolError on wrong types.

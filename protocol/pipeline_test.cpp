@@ -20,18 +20,24 @@ std::string pipeline_refusal(const std::string& body) {
 TEST(PipelineFields, ASubmissionsPipelineRoundTrips) {
   const JobSubmission s = parse_job_submission(
       R"({"frames": [{"number": 1, "scene": {}}], "after": ["j-1", "j-2", "j-1"], "per_frame": true,
-          "then": ["movie", "preview"], "notify": "https://hooks.example/x"})");
+          "then": ["movie", "preview"], "fps": 30, "notify": "https://hooks.example/x", "notify_frames": true})");
   EXPECT_EQ(s.pipeline.after, (std::vector<std::string>{"j-1", "j-2"}));  // a repeated id once
   EXPECT_TRUE(s.pipeline.per_frame);
   EXPECT_EQ(s.pipeline.then, (std::vector<Step>{Step::movie, Step::preview}));
   EXPECT_EQ(s.pipeline.notify, "https://hooks.example/x");
+  EXPECT_EQ(s.pipeline.fps, 30);
+  EXPECT_TRUE(s.pipeline.notify_frames);
   const JobSubmission back = parse_job_submission(json(s).dump());
   EXPECT_EQ(back.pipeline.after, s.pipeline.after);
   EXPECT_EQ(back.pipeline.then, s.pipeline.then);
   EXPECT_TRUE(back.pipeline.per_frame);
+  EXPECT_EQ(back.pipeline.fps, 30);
+  EXPECT_TRUE(back.pipeline.notify_frames);
+  EXPECT_EQ(answer_pipeline(json(s)).fps, 30);  // a job's answer (and its stored row) carries them too
+  EXPECT_TRUE(answer_pipeline(json(s)).notify_frames);
   // A job without any writes none of the fields.
   const json plain = json(parse_job_submission(R"({"scene": {}})"));
-  for (const char* k : {"after", "per_frame", "then", "notify"}) EXPECT_FALSE(plain.contains(k)) << k;
+  for (const char* k : {"after", "per_frame", "then", "fps", "notify", "notify_frames"}) EXPECT_FALSE(plain.contains(k)) << k;
 }
 
 TEST(PipelineFields, BadPipelinesAreRefusedWithASentence) {
@@ -45,6 +51,14 @@ TEST(PipelineFields, BadPipelinesAreRefusedWithASentence) {
             "\"then\" names an unknown step 'shell' (the steps are preview, half, contact_sheet, movie)");
   EXPECT_EQ(pipeline_refusal(R"({"scene": {}, "then": ["half", "half"]})"), "\"then\" names the step 'half' twice");
   EXPECT_EQ(pipeline_refusal(R"({"scene": {}, "notify": 5})"), "'notify' must be a URL string (got 5)");
+  EXPECT_EQ(pipeline_refusal(R"({"frames": [{"number": 1, "scene": {}}], "fps": 30})"),
+            "'fps' is the frame rate of the movie step: it needs \"then\" to name movie");
+  EXPECT_EQ(pipeline_refusal(R"({"frames": [{"number": 1, "scene": {}}], "then": ["movie"], "fps": 0})"),
+            "'fps' must be an integer in 1..240 (got 0)");
+  EXPECT_EQ(pipeline_refusal(R"({"frames": [{"number": 1, "scene": {}}], "notify_frames": true})"),
+            "'notify_frames' needs 'notify': each frame done is told to the job's own address");
+  EXPECT_EQ(pipeline_refusal(R"({"scene": {}, "notify": "https://h.example/x", "notify_frames": true})"),
+            "'notify_frames' applies only to a sequence ('frames'): it tells of each frame done");
 }
 
 TEST(PipelineFields, AJobCarriesItsDependenciesDependentsAndReason) {

@@ -35,10 +35,13 @@ SamplingSettings full_sampling() {
           .layers = parse_layers("albedo,normal,depth,crypto_object")};
 }
 
-// per_frame applies to a sequence only.
-Pipeline full_pipeline(bool per_frame) {
-  return {.after = {"j-0"}, .per_frame = per_frame, .then = {Step::preview, Step::half},
-          .notify = "https://hooks.example/tessera"};
+// per_frame, the movie step (and its fps) and notify_frames apply to a sequence only.
+Pipeline full_pipeline(bool sequence) {
+  if (!sequence)
+    return {.after = {"j-0"}, .per_frame = false, .then = {Step::preview, Step::half},
+            .fps = kDefaultMovieFps, .notify = "https://hooks.example/tessera", .notify_frames = false};
+  return {.after = {"j-0"}, .per_frame = true, .then = {Step::preview, Step::contact_sheet, Step::movie},
+          .fps = 12, .notify = "https://hooks.example/tessera", .notify_frames = true};
 }
 
 json sample_scene() { return {{"film", {{"resolution", {16, 16}}}}}; }

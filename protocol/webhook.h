@@ -19,8 +19,11 @@ inline constexpr std::string_view kWebhookTimestampHeader = "X-Tessera-Timestamp
 /// "sha256=" and the lowercase hex HMAC-SHA256, keyed by the webhook secret, of the timestamp, ".", and the body.
 inline constexpr std::string_view kWebhookSignatureHeader = "X-Tessera-Signature";
 
+/// A frame of a sequence submitted with "notify_frames" was done (told to the job's own address only).
+inline constexpr std::string_view kFrameDoneWebhookEvent = "frame.done";
 /// The events a webhook is told of, as their names go in the body's "event".
-inline constexpr std::string_view kWebhookEvents[] = {"job.done", "job.failed", "job.cancelled", "job.blocked"};
+inline constexpr std::string_view kWebhookEvents[] = {"job.done", "job.failed", "job.cancelled", "job.blocked",
+                                                      kFrameDoneWebhookEvent};
 
 /// One delivery of one event to one address, as the log keeps it.
 struct WebhookDelivery {

@@ -29,7 +29,7 @@ Api::Api(Scheduler& scheduler, BlobStore& blobs, CoordinatorStore& jobs, Metrics
       credentials_(opt_.tokens),
       sched_(scheduler),
       lease_waiters_(std::make_unique<LeaseWaiters>()),
-      steps_(scheduler, jobs),
+      steps_(scheduler, jobs, opt_.steps),
       jobs_(scheduler, blobs, jobs, metrics, clock,
             static_cast<const AdmissionLimits&>(opt_),
             events, disk, std::move(background)),

@@ -51,6 +51,7 @@ struct ApiOptions : AdmissionLimits {
   RetentionOptions retention;                        ///< How long finished jobs and unreferenced blobs are kept.
   double registrations_per_minute = 600;  ///< Worker registrations taken a minute; more get 429 (0: no limit).
   WebhookLog* webhook_log = nullptr;  ///< The delivery log GET /v1/webhooks/deliveries lists (none: an empty list).
+  StepOptions steps;  ///< How the steps after the merge run (the movie step's ffmpeg).
 };
 
 /// The endpoints a request target can name (protocol/routes.h).

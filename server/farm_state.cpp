@@ -283,6 +283,7 @@ int FarmState::finish_job(JobRec& j, JobState to, int64_t now, std::optional<std
   touch(j);
   const int revoked = revoke_leases(j);
   settle_dependents(*this, j, now);
+  if (&shown != &j && to == JobState::done) note_frame_event(*this, shown, j, now);
   note_job_event(*this, shown, was, now);
   return revoked;
 }

@@ -164,12 +164,14 @@ protocol::SubmitAnswer JobService::submit(const protocol::JobSubmission& sub, co
     }
   }
   for (const protocol::Step step : sub.pipeline.then) {
-    if (step == protocol::Step::movie)
-      throw ApiError(400, "'then': this coordinator does not offer the movie step (its H.264 encoder, ffmpeg, is not "
-                          "part of it); submit without it");
     if (step == protocol::Step::contact_sheet && sub.frames.empty())
       throw ApiError(400, "'then': contact_sheet needs a sequence ('frames'): it lays out its frames");
+    if (step == protocol::Step::movie && sub.frames.empty())
+      throw ApiError(400, "'then': movie needs a sequence ('frames'): it plays its frames in order");
     if (!steps_) throw ApiError(400, "'then': this coordinator runs no steps after the merge");
+    if (step == protocol::Step::movie && !steps_->ffmpeg())
+      throw ApiError(400, "'then': this coordinator cannot make the movie step: " + steps_->ffmpeg_missing() +
+                              "; submit without it");
   }
   // Admission: queued plus running jobs are bounded (checked again, atomically with add_job, below).
   if (unfinished_jobs() >= limits_.max_queued_jobs) throw queue_full();
@@ -261,6 +263,13 @@ protocol::SubmitAnswer JobService::submit_sequence(const protocol::JobSubmission
   });
   for (const std::exception_ptr& e : refused)
     if (e) std::rethrow_exception(e);
+  if (std::find(sub.pipeline.then.begin(), sub.pipeline.then.end(), protocol::Step::movie) != sub.pipeline.then.end())
+    for (const FrameParams& f : frames)
+      if (f.width != frames.front().width || f.height != frames.front().height)
+        throw ApiError(400, "'then': movie needs frames of one size: frame " + std::to_string(f.number) + " is " +
+                                std::to_string(f.width) + "x" + std::to_string(f.height) + ", frame " +
+                                std::to_string(frames.front().number) + " " + std::to_string(frames.front().width) +
+                                "x" + std::to_string(frames.front().height));
   std::vector<std::string> warnings;
   for (auto& w : frame_warnings) warnings.insert(warnings.end(), w.begin(), w.end());
   JobParams p = submitted_params(sub, owner);

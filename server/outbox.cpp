@@ -1,6 +1,7 @@
 #include "server/outbox.h"
 
 #include "protocol/routes.h"
+#include "protocol/webhook.h"
 #include "server/farm_state.h"
 
 #include <nlohmann/json.hpp>
@@ -25,6 +26,21 @@ void note_job_event(FarmState& s, const JobRec& top, JobState was, int64_t now) 
       {"id", id}, {"event", event}, {"created_ms", now}, {"job", s.snapshot(top, now)}, {"links", links}};
   const std::string text = body.dump();
   for (const std::string& url : urls) s.changes.add_outbox(OutboxRow{id, url, event, job, now, text});
+}
+
+void note_frame_event(FarmState& s, const JobRec& top, const JobRec& frame, int64_t now) {
+  const protocol::Pipeline& p = top.status.params.pipeline;
+  if (!p.notify_frames || p.notify.empty() || !frame.status.frame) return;
+  const std::string id = s.next_id('e');
+  const std::string event(protocol::kFrameDoneWebhookEvent);
+  const std::string& job = top.status.id;
+  const int64_t number = *frame.status.frame;
+  const nlohmann::json links = {{"job", protocol::routes::job(job)},
+                                {"frame", protocol::routes::job(frame.status.id)},
+                                {"result", protocol::routes::job_frame_result(job, number)}};
+  const nlohmann::json body = {{"id", id},         {"event", event}, {"created_ms", now},
+                               {"frame", number},  {"job", s.snapshot(frame, now)}, {"links", links}};
+  s.changes.add_outbox(OutboxRow{id, p.notify, event, job, now, body.dump()});
 }
 
 }  // namespace tessera::server

@@ -1,5 +1,5 @@
-// The webhook outbox (docs/operations.md, "Webhooks"): when a job ends or is blocked, one row per destination is
-// written with the change that caused it, in the same transaction, so that a coordinator killed before the delivery
+// The webhook outbox (docs/operations.md, "Webhooks"): when a job ends or is blocked (or, when asked, a sequence's
+// frame is done), one row per destination is written with the change that caused it, in the same transaction, so that a coordinator killed before the delivery
 // still delivers it after a restart (server/webhook_sender.h sends them).
 #pragma once
 

@@ -1,5 +1,6 @@
 // Webhook pieces without a network: addresses and the allow-list, the signature, the backoff's bounds, and the outbox
-// rows a job's end writes with the change itself.
+// rows a job's end (and, when asked, a sequence's frame done) writes with the change itself.
+#include "protocol/routes.h"
 #include "server/database.h"
 #include "server/scheduler.h"
 #include "server/webhook_sender.h"
@@ -12,7 +13,10 @@
 
 #include <boost/asio/ip/tcp.hpp>
 
+#include <nlohmann/json.hpp>
+
 #include <filesystem>
+#include <set>
 #include <thread>
 
 namespace tessera::server {
@@ -137,6 +141,64 @@ TEST(WebhookOutbox, AJobsEndIsStoredWithTheChangeForEachAddress) {
     EXPECT_EQ(more[0].event, "job.blocked");
     EXPECT_EQ(more[0].job, b);
     EXPECT_EQ(more[0].url, "http://farm.example/hook");
+  }
+  fs::remove_all(dir);
+}
+
+TEST(WebhookOutbox, ASequenceAskingForFramesTellsItsOwnAddressOfEachFrameDone) {
+  const fs::path dir = fs::temp_directory_path() / ("tessera-outbox-test-" + random_hex(6));
+  {
+    int64_t now = 5'000'000;
+    DurableStore store(dir, Durability::process);
+    SchedulerConfig config{10'000, 1, 1, ""};
+    config.webhooks = {"http://farm.example/hook"};
+    Scheduler s(config, [&] { return now; }, store);
+    JobParams p;
+    p.tile_size = 16;  // one tile a frame
+    p.pipeline.notify = "http://own.example/hook";
+    p.pipeline.notify_frames = true;
+    const std::string seq = s.add_sequence(p, {{1, 16, 16, 1, "h1"}, {2, 16, 16, 1, "h2"}});
+    JobParams q = p;
+    q.pipeline.notify_frames = false;  // the default: frames are not told
+    const std::string quiet = s.add_sequence(q, {{1, 16, 16, 1, "h1"}});
+    const std::string w = s.register_worker("a").id;
+    const auto render = [&](const std::string& frame_job) {
+      const AcquireResult r = s.acquire(w);
+      ASSERT_EQ(r.status, AcquireResult::granted);
+      ASSERT_EQ(r.lease.job, frame_job);
+      ASSERT_EQ(s.claim_result(r.lease.id).status, ResultClaim::proceed);
+      s.finish_result(r.lease.id);
+      ++now;
+      s.complete_job(frame_job);
+    };
+    render(frame_job_id(seq, 1));
+    std::vector<protocol::WebhookDelivery> rows = store.deliveries(10);
+    ASSERT_EQ(rows.size(), 1u);  // stored with the frame's completion, to the job's own address only
+    EXPECT_EQ(rows[0].event, "frame.done");
+    EXPECT_EQ(rows[0].job, seq);
+    EXPECT_EQ(rows[0].url, "http://own.example/hook");
+    EXPECT_EQ(rows[0].created_ms, now);
+    const std::vector<DueDelivery> due = store.due_deliveries(now, 10);
+    ASSERT_EQ(due.size(), 1u);
+    const nlohmann::json body = nlohmann::json::parse(due[0].body);
+    EXPECT_EQ(body["event"], "frame.done");
+    EXPECT_EQ(body["frame"], 1);
+    EXPECT_EQ(body["job"]["id"], frame_job_id(seq, 1));
+    EXPECT_EQ(body["job"]["state"], "done");
+    EXPECT_EQ(body["links"]["result"], protocol::routes::job_frame_result(seq, 1));
+    render(frame_job_id(seq, 2));  // the last frame: its frame.done, then the sequence's job.done to both addresses
+    rows = store.deliveries(10);
+    ASSERT_EQ(rows.size(), 4u);
+    std::multiset<std::string> events;
+    for (const protocol::WebhookDelivery& d : rows) events.insert(d.event);
+    EXPECT_EQ(events, (std::multiset<std::string>{"frame.done", "frame.done", "job.done", "job.done"}));
+    render(frame_job_id(quiet, 1));  // no frame.done: only the job's end, to both addresses
+    rows = store.deliveries(10);
+    ASSERT_EQ(rows.size(), 6u);
+    for (size_t i = 0; i < 2; ++i) {
+      EXPECT_EQ(rows[i].event, "job.done");
+      EXPECT_EQ(rows[i].job, quiet);
+    }
   }
   fs::remove_all(dir);
 }

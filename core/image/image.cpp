@@ -504,11 +504,17 @@ uint8_t to_srgb8(float v) {
   return uint8_t(std::lround(e * 255.f));
 }
 
+std::vector<uint8_t> srgb8_impl(const Image& img, float exposure) {
+  check_rgb_shape(img);
+  std::vector<uint8_t> pixels(img.rgb.size());
+  for (size_t i = 0; i < pixels.size(); ++i) pixels[i] = to_srgb8(img.rgb[i] * exposure);
+  return pixels;
+}
+
 std::vector<uint8_t> encode_png_impl(const Image& img, float exposure) {
   check_rgb_shape(img);
   if (img.width == 0 || img.height == 0) throw std::runtime_error("a PNG cannot hold an empty image");
-  std::vector<uint8_t> pixels(img.rgb.size());
-  for (size_t i = 0; i < pixels.size(); ++i) pixels[i] = to_srgb8(img.rgb[i] * exposure);
+  const std::vector<uint8_t> pixels = srgb8_impl(img, exposure);
 
   png_image image;
   std::memset(&image, 0, sizeof image);
@@ -584,6 +590,10 @@ void write_exr(const std::filesystem::path& path, const Image& img, const ExrWri
 
 std::vector<uint8_t> encode_exr(const Image& img, const ExrWriteOptions& opt) {
   return with_context("cannot encode EXR", [&] { return encode_exr_impl("memory", img, opt); });
+}
+
+std::vector<uint8_t> srgb8_pixels(const Image& img, float exposure) {
+  return with_context("cannot tone-map", [&] { return srgb8_impl(img, exposure); });
 }
 
 std::vector<uint8_t> encode_png_srgb(const Image& img, float exposure) {

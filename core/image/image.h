@@ -140,8 +140,11 @@ void write_exr(const std::filesystem::path& path, const Image& img, const ExrWri
 /// The bytes write_exr would write, in memory (e.g. for an HTTP upload); throws ImageError.
 std::vector<uint8_t> encode_exr(const Image& img, const ExrWriteOptions& opt = {});
 
-/// The bytes of an 8-bit sRGB PNG of img: each value times exposure, clamped to [0,1] (NaN -> 0), sRGB-encoded and
-/// rounded. Throws ImageError for an empty or malformed image.
+/// img tone-mapped to 8-bit sRGB, R,G,B per pixel row by row: each value times exposure, clamped to [0,1] (NaN -> 0),
+/// sRGB-encoded and rounded. Throws ImageError for a malformed image.
+std::vector<uint8_t> srgb8_pixels(const Image& img, float exposure = 1.f);
+
+/// The bytes of an 8-bit sRGB PNG of img: its srgb8_pixels. Throws ImageError for an empty or malformed image.
 std::vector<uint8_t> encode_png_srgb(const Image& img, float exposure = 1.f);
 
 /// Writes encode_png_srgb(img, exposure) to path, atomically like write_exr. Throws ImageError naming the file.

@@ -4,6 +4,8 @@
 #include "core/image/image.h"
 #include "protocol/errors.h"
 #include "server/helper_thread.h"
+#include "server/steps/movie_encoder.h"
+#include "server/steps/tool_path.h"
 
 #include <spdlog/spdlog.h>
 
@@ -30,8 +32,21 @@ std::string marker(Step step, const char* what) { return "." + std::string(proto
 
 }  // namespace
 
-StepRunner::StepRunner(Scheduler& scheduler, JobStore& store, size_t capacity)
-    : sched_(scheduler), store_(store), capacity_(capacity), thread_([this] { run(); }) {}
+StepRunner::StepRunner(Scheduler& scheduler, JobStore& store, StepOptions options, size_t capacity)
+    : sched_(scheduler), store_(store), opt_(std::move(options)), capacity_(capacity), thread_([this] { run(); }) {}
+
+std::optional<fs::path> StepRunner::ffmpeg() const { return find_tool(opt_.ffmpeg, process_search_path()); }
+
+std::string StepRunner::ffmpeg_missing() const {
+  if (opt_.ffmpeg.find('/') != std::string::npos)
+    return "ffmpeg is not an executable file at " + opt_.ffmpeg + " (serve --ffmpeg)";
+  return "'" + opt_.ffmpeg + "' is not found on the coordinator's PATH (install ffmpeg, or name it with serve --ffmpeg)";
+}
+
+bool StepRunner::stopping() {
+  std::lock_guard lock(mu_);
+  return stop_;
+}
 
 StepRunner::~StepRunner() {
   {
@@ -62,7 +77,7 @@ void StepRunner::resume() {
 }
 
 void StepRunner::queue(const protocol::JobStatus& top) {
-  Work w{top.id, {}, {}};
+  Work w{top.id, {}, top.params.pipeline.fps, {}};
   for (const Step step : top.params.pipeline.then)
     if (!settled(top.id, step)) w.steps.push_back(step);
   if (w.steps.empty()) return;
@@ -97,7 +112,8 @@ void StepRunner::run() {
     Work w = std::move(queue_.front());
     queue_.pop_front();
     lock.unlock();
-    for (const Step step : w.steps) run_step(w, step);
+    for (const Step step : w.steps)
+      if (!stopping()) run_step(w, step);  // those not run are queued again after the restart (resume)
     lock.lock();
     busy_.erase(w.job);
   }
@@ -125,10 +141,22 @@ void StepRunner::run_step(const Work& w, Step step) {
         write_png_srgb(d / output_name(step, std::nullopt, ".png"), contact_sheet(cells));
         break;
       }
-      case Step::movie: throw std::runtime_error("this coordinator does not make movies");
+      case Step::movie: {
+        MovieJob movie;
+        if (std::optional<fs::path> tool = ffmpeg()) movie.ffmpeg = std::move(*tool);
+        else throw std::runtime_error("no movie: " + ffmpeg_missing());
+        for (const auto& [frame, file] : w.results) movie.frames.push_back(file);
+        movie.fps = w.fps;
+        movie.output = d / output_name(step, std::nullopt, ".mp4");
+        movie.log = d / marker(step, "log");
+        encode_movie(movie, [this] { return stopping(); });
+        break;
+      }
     }
     std::ofstream(d / marker(step, "done")) << "done\n";
     spdlog::info("job {}: step {} done", w.job, protocol::to_string(step));
+  } catch (const EncodeInterrupted& e) {  // neither done nor failed: made again after the restart (resume)
+    spdlog::info("job {}: step {} {}", w.job, protocol::to_string(step), e.what());
   } catch (const std::exception& e) {
     spdlog::warn("job {}: step {} failed: {}", w.job, protocol::to_string(step), e.what());
     std::error_code ec;

@@ -4,8 +4,10 @@
 # SIGKILLed while the sender holds the delivery (fail point webhook.deliver); restarted on the same data folder, it
 # delivers it (after the two 500s, with backoff). Job B names its own address (submit --notify, allowed by
 # --webhook-allow) and is cancelled: both addresses hear it under one event id. Job C waits for B and is blocked at
-# submission: job.blocked. An address outside the allow-list is refused at submission. GET /v1/webhooks/deliveries
-# lists each delivery with its attempts and last answer.
+# submission: job.blocked. Sequence D asks for its frames too (submit --notify URL --notify-frames): its address hears
+# frame.done for each frame, then job.done; --notify-frames without --notify is refused. An address outside the
+# allow-list is refused at submission. GET /v1/webhooks/deliveries lists each delivery with its attempts and last
+# answer.
 source "$(dirname "$0")/common.sh"
 
 echo "test-secret-$$" >"$WORK/secret"
@@ -18,6 +20,7 @@ SERVE_FLAGS=(--webhook "$HOOK/farm" --webhook-allow "$HOOK/jobs/" --webhook-secr
              --webhook-retry-seconds 0.2)
 
 write_sphere_scene "$WORK/s.json" 16 16 1
+for n in 1 2; do write_sphere_scene "$WORK/f_$n.json" 16 16 1; done
 FAIL_POINTS="webhook.deliver=pause($WORK/never)" start_serve "${SERVE_FLAGS[@]}"
 ADDRESS=$(head -n1 "$WORK/ready")
 A=$("$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 16 --detach 2>>"$WORK/submit.log") || fail "submit A"
@@ -39,6 +42,11 @@ B=$("$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 16 --notify "$H
 C=$("$TESSERA" submit "$WORK/s.json" --coordinator "$URL" --tile 16 --after "$B" --detach 2>>"$WORK/submit.log") \
   || fail "submit C"
 kill -CONT "$WORKER_PID"
+D=$("$TESSERA" submit "$WORK/f_#.json" --frames 1-2 --coordinator "$URL" --tile 16 --notify "$HOOK/jobs/d" \
+      --notify-frames --detach 2>>"$WORK/submit.log") || fail "submit D"
+expect_exit 2 "$WORK/frames-refused.log" -- "$TESSERA" submit "$WORK/f_#.json" --frames 1-2 --coordinator "$URL" \
+  --notify-frames --detach
+log_has "$WORK/frames-refused.log" "'notify_frames' needs 'notify'" || fail "--notify-frames without --notify was not refused"
 
 # Every event once after de-duplication by (id, address); every signature right; the ids in the header and body agree.
 summary() {
@@ -51,26 +59,30 @@ events = collections.Counter((r["event"], r["job"], r["path"]) for r in ok.value
 print(len(bad), len(rows), " ".join(sorted(f"{e}:{j}:{p}:{n}" for (e, j, p), n in events.items())))
 PY
 }
-want="job.blocked:$C:/farm:1 job.cancelled:$B:/farm:1 job.cancelled:$B:/jobs/b:1 job.done:$A:/farm:1"
+want=$(printf '%s\n' "job.blocked:$C:/farm:1" "job.cancelled:$B:/farm:1" "job.cancelled:$B:/jobs/b:1" \
+  "job.done:$A:/farm:1" "frame.done:$D.f1:/jobs/d:1" "frame.done:$D.f2:/jobs/d:1" "job.done:$D:/farm:1" \
+  "job.done:$D:/jobs/d:1" | LC_ALL=C sort | paste -sd' ')
 all_heard() { [ "$(summary | cut -d' ' -f3-)" = "$want" ]; }
 wait_for all_heard || fail "the receiver heard $(summary), not: $want"
 read -r BAD TOTAL _ <<<"$(summary)"
 [ "$BAD" = 0 ] || fail "$BAD deliveries had a wrong signature or id"
-[ "$TOTAL" = 6 ] || fail "$TOTAL requests for 4 deliveries and two 500s, not 6"
+[ "$TOTAL" = 10 ] || fail "$TOTAL requests for 8 deliveries and two 500s, not 10"
 python3 - "$WORK/received.jsonl" "$B" <<'PY' || fail "B's two deliveries do not share one event id"
 import json, sys
 ids = {json.loads(l)["id"] for l in open(sys.argv[1]) if json.loads(l)["job"] == sys.argv[2]}
 sys.exit(len(ids) != 1)
 PY
 log_has "$WORK/received.jsonl" "\"result\": \"/v1/jobs/$A/result.exr\"" || fail "A's event has no result link"
+log_has "$WORK/received.jsonl" "\"result\": \"/v1/jobs/$D/frames/2/result.exr\"" \
+  || fail "D's frame.done has no link to the frame's result"
 
 curl -sS -f "$URL/v1/webhooks/deliveries" >"$WORK/deliveries.json" || fail "GET /v1/webhooks/deliveries failed"
 python3 - "$WORK/deliveries.json" "$TOTAL" <<'PY' || fail "the delivery log does not account for every attempt: $(cat "$WORK/deliveries.json")"
 import json, sys
 rows = json.load(open(sys.argv[1]))["deliveries"]
-assert len(rows) == 4, rows
+assert len(rows) == 8, rows
 assert all(d["state"] == "delivered" and d["last_status"] == 200 and d["next_ms"] is None for d in rows), rows
 # Each request the receiver took is one attempt: the two answered 500 were tried again.
-assert sum(d["attempts"] for d in rows) == int(sys.argv[2]) == 6, rows
+assert sum(d["attempts"] for d in rows) == int(sys.argv[2]) == 10, rows
 PY
 echo "PASS"
