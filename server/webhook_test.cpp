@@ -167,7 +167,7 @@ TEST(WebhookOutbox, ASequenceAskingForFramesTellsItsOwnAddressOfEachFrameDone) {
       ASSERT_EQ(r.status, AcquireResult::granted);
       ASSERT_EQ(r.lease.job, frame_job);
       ASSERT_EQ(s.claim_result(r.lease.id).status, ResultClaim::proceed);
-      s.finish_result(r.lease.id);
+      s.finish_result(r.lease.id, 0, "pixels");
       ++now;
       s.complete_job(frame_job);
     };
