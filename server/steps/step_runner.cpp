@@ -33,7 +33,12 @@ std::string marker(Step step, const char* what) { return "." + std::string(proto
 }  // namespace
 
 StepRunner::StepRunner(Scheduler& scheduler, JobStore& store, StepOptions options, size_t capacity)
-    : sched_(scheduler), store_(store), opt_(std::move(options)), capacity_(capacity), thread_([this] { run(); }) {}
+    : sched_(scheduler), store_(store), opt_(std::move(options)), capacity_(capacity), thread_([this] { run(); }) {
+  if (const std::optional<fs::path> tool = ffmpeg())
+    spdlog::info("steps: the movie step runs {}", tool->string());
+  else
+    spdlog::info("steps: movies are refused at submission: {}", ffmpeg_missing());
+}
 
 std::optional<fs::path> StepRunner::ffmpeg() const { return find_tool(opt_.ffmpeg, process_search_path()); }
 
