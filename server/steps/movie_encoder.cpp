@@ -3,6 +3,7 @@
 #include "core/image/image.h"
 
 #include <fcntl.h>
+#include <poll.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -55,21 +56,34 @@ struct Fd {
   }
 };
 
+// How often a wait on ffmpeg (for room in the pipe, or for its exit) looks whether the encoder is to stop.
+constexpr int kStopCheckMs = 50;
+
 // The child: killed and reaped unless it was waited for.
 struct Child {
   pid_t pid = -1;
   ~Child() {
     if (pid > 0) {
       ::kill(pid, SIGKILL);
-      wait();
+      int status = 0;
+      while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+      }
     }
   }
-  int wait() {
-    int status = 0;
-    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  // Its exit status, once it exited; throws EncodeInterrupted (the destructor then kills it) when `stopping` turns true
+  // first, so that an ffmpeg that hangs does not hold the coordinator's stop.
+  int wait(const std::function<bool()>& stopping) {
+    while (true) {
+      int status = 0;
+      const pid_t r = ::waitpid(pid, &status, WNOHANG);
+      if (r == pid) {
+        pid = -1;
+        return status;
+      }
+      if (r < 0 && errno != EINTR) throw std::runtime_error(std::string("cannot wait for ffmpeg: ") + std::strerror(errno));
+      if (stopping()) throw EncodeInterrupted("stopped while ffmpeg finished the movie");
+      ::poll(nullptr, 0, kStopCheckMs);
     }
-    pid = -1;
-    return status;
   }
 };
 
@@ -90,12 +104,19 @@ struct SigpipeBlocked {
   }
 };
 
-// Writes all of `bytes`; false when ffmpeg stopped reading (EPIPE).
-bool write_all(int fd, const uint8_t* bytes, size_t n) {
+// Writes all of `bytes` to the (non-blocking) pipe; false when ffmpeg stopped reading (EPIPE). Throws
+// EncodeInterrupted when `stopping` turns true while the pipe is full.
+bool write_all(int fd, const uint8_t* bytes, size_t n, const std::function<bool()>& stopping) {
   while (n > 0) {
     const ssize_t w = ::write(fd, bytes, n);
     if (w < 0 && errno == EINTR) continue;
     if (w < 0 && errno == EPIPE) return false;
+    if (w < 0 && errno == EAGAIN) {
+      if (stopping()) throw EncodeInterrupted("stopped while ffmpeg read a frame");
+      pollfd p{fd, POLLOUT, 0};
+      ::poll(&p, 1, kStopCheckMs);
+      continue;
+    }
     if (w < 0) throw std::runtime_error(std::string("cannot feed ffmpeg: ") + std::strerror(errno));
     bytes += w;
     n -= size_t(w);
@@ -177,6 +198,8 @@ void encode_movie(const MovieJob& job, const std::function<bool()>& stopping) {
   }
   read_end.reset();
   log.reset();
+  if (::fcntl(write_end.fd, F_SETFL, O_NONBLOCK) != 0)
+    throw std::runtime_error(std::string("cannot feed ffmpeg: ") + std::strerror(errno));
 
   bool fed = true;
   {
@@ -189,11 +212,11 @@ void encode_movie(const MovieJob& job, const std::function<bool()>& stopping) {
         throw std::runtime_error("a movie's frames must have one size: " + job.frames[i].string() + " is " + this_size +
                                  ", the first frame " + size);
       const std::vector<uint8_t> rgb = srgb8_pixels(img);
-      fed = write_all(write_end.fd, rgb.data(), rgb.size());
+      fed = write_all(write_end.fd, rgb.data(), rgb.size(), stopping);
     }
   }
   write_end.reset();  // end of input: ffmpeg finishes the file
-  const int status = child.wait();
+  const int status = child.wait(stopping);
   if (!fed || !WIFEXITED(status) || WEXITSTATUS(status) != 0)
     throw std::runtime_error("ffmpeg " + (fed ? describe_status(status)
                                               : describe_status(status) + " before it read every frame") +

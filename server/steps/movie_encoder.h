@@ -27,8 +27,8 @@ struct MovieJob {
 };
 
 /// Encodes the movie. Throws std::runtime_error with a sentence (for a failed ffmpeg: how it ended and the end of its
-/// log), or EncodeInterrupted when `stopping` turned true between two frames (ffmpeg is killed). Leaves no partial
-/// output either way.
+/// log), or EncodeInterrupted when `stopping` turned true before ffmpeg exited (it is looked at between frames and
+/// every 50 ms while ffmpeg is waited for; ffmpeg is then killed). Leaves no partial output either way.
 void encode_movie(const MovieJob& job, const std::function<bool()>& stopping);
 
 }  // namespace tessera::server

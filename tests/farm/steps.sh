@@ -6,7 +6,7 @@
 # outputs -o` saved it. Refused at submission with a sentence: a contact sheet or a movie of one image, a movie of
 # frames of two sizes, --fps without a movie, and (a coordinator whose PATH has no ffmpeg) any movie. A coordinator
 # whose --ffmpeg fails leaves the job done and its movie step failed with the end of ffmpeg's log. Nothing runs a
-# shell command.
+# shell command. A coordinator stopped while its ffmpeg hangs kills it, and makes the movie after its restart.
 source "$(dirname "$0")/common.sh"
 
 write_sphere_scene "$WORK/s.json" 24 16 1
@@ -134,6 +134,19 @@ expect_exit 1 "$WORK/b-outputs.log" -- "$TESSERA" jobs outputs "$B" --coordinato
 log_has "$WORK/b-outputs.log" "the encoder broke on purpose" || fail "jobs outputs does not show the failed step's log"
 curl -sS -o /dev/null -w '%{http_code}' "$URL/v1/jobs/$B/outputs/movie.mp4" >"$WORK/b-code.txt"
 [ "$(cat "$WORK/b-code.txt")" = 404 ] || fail "a failed movie is served ($(cat "$WORK/b-code.txt"))"
+
+# A coordinator stopped while its ffmpeg runs (one that never ends) kills it without failing the movie, which the
+# restarted coordinator makes.
+printf '#!/bin/sh\n: >"%s"\nexec /bin/sleep 600\n' "$WORK/encoding" >"$WORK/hung-ffmpeg"
+chmod +x "$WORK/hung-ffmpeg"
+restart_serve --ffmpeg "$WORK/hung-ffmpeg"
+H=$("$TESSERA" submit "$WORK/m_#.json" --frames 1-2 --coordinator "$URL" --tile 8 --then movie \
+      --detach 2>>"$WORK/submit.log") || fail "submit the movie to the hung ffmpeg"
+wait_for test -e "$WORK/encoding" || fail "the hung ffmpeg did not start"
+restart_serve
+log_has "$WORK/serve.log" "job $H: step movie stopped while ffmpeg finished the movie" \
+  || fail "the stop did not interrupt the hung ffmpeg"
+wait_for outputs_done "$H" || fail "the interrupted movie was not made after the restart: $(curl -sS "$URL/v1/jobs/$H")"
 
 # A coordinator whose PATH holds no ffmpeg refuses a movie at submission (the other steps still go).
 kill -TERM "$SERVE_PID"
