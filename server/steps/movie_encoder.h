@@ -4,6 +4,8 @@
 // to a log file whose end a failure quotes.
 #pragma once
 
+#include "protocol/pipeline.h"
+
 #include <filesystem>
 #include <functional>
 #include <stdexcept>
@@ -21,7 +23,7 @@ struct EncodeInterrupted : std::runtime_error {
 struct MovieJob {
   std::filesystem::path ffmpeg;               ///< The executable to run.
   std::vector<std::filesystem::path> frames;  ///< The frames' EXR results, in play order, all of one size.
-  int fps = 24;                               ///< Frames per second.
+  int fps = protocol::kDefaultMovieFps;       ///< Frames per second.
   std::filesystem::path output;               ///< The MP4 written (replaced whole, only when ffmpeg succeeded).
   std::filesystem::path log;                  ///< ffmpeg's standard output and error (overwritten).
 };
