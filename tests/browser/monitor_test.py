@@ -560,9 +560,11 @@ def main():
         click(d, '#tilemap .tile[data-state="leased"]', "a leased tile")
         wait_for("the tile details", lambda: "holder" in d.find_element(By.ID, "tile-detail").text)
         click(d, '#tilemap .tile[data-state="done"]', "a done tile")
-        wait_for("a done tile's details from GET /v1/jobs/{id}/tiles, with the worker that rendered it", lambda: all(
-            w in d.find_element(By.ID, "tile-detail").text
-            for w in ("Attempts", "Render time", "Rays", "No failures", "Rendered by", "render-1 (w-")))
+        # With the log lines the worker sent with its upload (what it said about the lease, up to "rendered in").
+        wait_for("a done tile's details from GET /v1/jobs/{id}/tiles, with the worker that rendered it and its log",
+                 lambda: all(w in d.find_element(By.ID, "tile-detail").text
+                             for w in ("Attempts", "Render time", "Rays", "No failures", "Rendered by", "render-1 (w-",
+                                       "Log", "leased window", "rendered in")))
         d.save_screenshot(os.path.join(ARTEFACTS, "monitor-job-mid-render.png"))
 
         click(d, '[data-action="pause"]', "the pause button")
