@@ -743,13 +743,21 @@ std::optional<std::pair<uint32_t, std::string>> DurableStore::tile_state(const s
   return out;
 }
 
-std::vector<DueDelivery> DurableStore::due_deliveries(int64_t now, size_t limit) {
+std::vector<DueDelivery> DurableStore::due_deliveries(int64_t now, size_t limit, const std::set<std::string>& skip) {
   std::lock_guard lock(mu_);
   std::vector<DueDelivery> out;
-  Statement& st = db_.statement(
-      "SELECT id, url, body, attempts FROM webhook_outbox WHERE state = 'pending' AND next_ms <= ? ORDER BY next_ms, rowid"
-      " LIMIT ?");
-  st.bind(1, now).bind(2, int64_t(limit));
+  std::string sql = "SELECT id, url, body, attempts FROM webhook_outbox WHERE state = 'pending' AND next_ms <= ?";
+  if (!skip.empty()) {
+    sql += " AND url NOT IN (?";
+    for (size_t i = 1; i < skip.size(); ++i) sql += ",?";
+    sql += ')';
+  }
+  sql += " ORDER BY next_ms, rowid LIMIT ?";
+  Statement& st = db_.statement(sql);
+  int i = 1;
+  st.bind(i++, now);
+  for (const std::string& url : skip) st.bind_text(i++, url);
+  st.bind(i, int64_t(limit));
   while (st.step()) out.push_back({st.text(0), st.text(1), st.text(2), st.integer(3)});
   return out;
 }
