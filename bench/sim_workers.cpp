@@ -19,16 +19,27 @@
 // one --big-tiles job at the start, ben a --small-tiles job every --small-every seconds, and the run reports each
 // user's part of the worker time while both have work, each small job's time to its first tile, and the tile rate;
 // --one-user submits both as ana (one owner: strict priority, then age) for the comparison.
+//
+// With --hanging-webhooks N, the first farm size runs four times, A B A B: A without webhooks, B with the
+// coordinator's webhook (serve --webhook) pointing at a receiver in this process that accepts connections and never
+// answers. In both, a stream of job events runs beside the workers (N + 20 jobs submitted and cancelled at once at the
+// start, then 4 a second; each cancellation is a delivery to every webhook), so that in B at least N deliveries are
+// pending while the window is measured. It prints tiles/s and lease p99 for each run and variant, and B / A.
 #include "core/image/image.h"
 #include "core/util/sha256.h"
 #include "protocol/messages.h"
 #include "protocol/routes.h"
+#include "protocol/webhook.h"
 #include "worker/child_process.h"
 #include "client/http_client.h"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <poll.h>
 #include <sys/resource.h>
+#include <sys/socket.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -76,6 +87,7 @@ struct Options {
   double small_every = 60;       ///< With share: seconds between the second user's small jobs.
   int small_tiles = 200;         ///< With share: tiles of each small job (a row of tiles: small_tiles x 1).
   int big_tiles_edge = 100;      ///< With share: the big job is big_tiles_edge x big_tiles_edge tiles.
+  int hanging_webhooks = 0;      ///< >0: the A/B run with a receiver that never answers, this many deliveries pending.
 };
 
 /// The request kinds we time separately.
@@ -107,6 +119,9 @@ struct RunResult {
   WorkerTally total;                  ///< All workers' tallies merged.
   std::map<std::string, std::pair<std::string, Clock::time_point>> jobs;  ///< With share: job -> (owner, submitted).
   Clock::time_point window_start, window_end;  ///< The window.
+  int64_t job_events = 0;             ///< With hanging webhooks: jobs submitted and cancelled for their events.
+  int64_t deliveries = 0;             ///< Webhook deliveries the coordinator listed at the window's end.
+  int64_t pending_deliveries = 0;     ///< Of them, those still pending.
 };
 
 /// A tile EXR for every window of each job geometry added, encoded once and shared by all simulated workers.
@@ -158,8 +173,56 @@ double self_cpu_seconds() {
   return double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) + 1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
 }
 
+/// A webhook receiver that accepts connections and never answers (nor reads them): every delivery to it lasts the
+/// sender's whole timeout. Counts the connections it accepted; closes them when destroyed.
+class HangingReceiver {
+ public:
+  HangingReceiver() {
+    fd_ = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    socklen_t len = sizeof a;
+    if (fd_ < 0 || bind(fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0 || listen(fd_, 1024) != 0 ||
+        getsockname(fd_, reinterpret_cast<sockaddr*>(&a), &len) != 0)
+      throw std::runtime_error("cannot listen for the hanging webhook receiver");
+    port_ = ntohs(a.sin_port);
+    thread_ = std::thread([this] { loop(); });
+  }
+  ~HangingReceiver() {
+    stop_ = true;
+    thread_.join();
+    for (int c : conns_) close(c);
+    close(fd_);
+  }
+  HangingReceiver(const HangingReceiver&) = delete;
+  HangingReceiver& operator=(const HangingReceiver&) = delete;
+  /// The address to give `serve --webhook`.
+  std::string url() const { return "http://127.0.0.1:" + std::to_string(port_) + "/hook"; }
+  /// Connections accepted so far.
+  int64_t accepted() const { return accepted_.load(); }
+
+ private:
+  void loop() {
+    while (!stop_.load()) {
+      pollfd p{fd_, POLLIN, 0};
+      if (poll(&p, 1, 100) <= 0) continue;
+      const int c = accept4(fd_, nullptr, nullptr, SOCK_CLOEXEC);
+      if (c < 0) continue;
+      conns_.push_back(c);
+      ++accepted_;
+    }
+  }
+  int fd_ = -1;
+  int port_ = 0;
+  std::atomic<bool> stop_{false};
+  std::atomic<int64_t> accepted_{0};
+  std::vector<int> conns_;  // (loop's thread until joined)
+  std::thread thread_;      // last: starts after the rest is ready
+};
+
 /// A small sphere scene (no assets) of the given size: the coordinator validates it like any submission.
-std::string job_body(int width, int height, int tile, const std::string& name) {
+std::string job_body(int width, int height, int tile, const std::string& name, int priority = 0) {
   json scene = {
       {"integrator", {{"type", "intersection_test"}, {"spp", 1}, {"point_light_position", {0, 3, 3}},
                       {"point_light_flux", {40, 40, 40}}}},
@@ -172,6 +235,7 @@ std::string job_body(int width, int height, int tile, const std::string& name) {
   job.scene = std::move(scene);
   job.tile_size = tile;
   job.name = name;
+  job.priority = priority;
   return json(job).dump();
 }
 
@@ -197,8 +261,8 @@ struct Farm {
   std::mutex jobs_mu;
   std::map<std::string, Job> jobs;  ///< (jobs_mu) every job submitted, by id
   /// Submits a width x height job through `http` and records it; throws on a refusal.
-  std::string submit(HttpClient& http, int width, int height, const std::string& owner) {
-    const HttpResponse r = http.send("POST", routes::jobs(), job_body(width, height, opt.tile, owner));
+  std::string submit(HttpClient& http, int width, int height, const std::string& owner, int priority = 0) {
+    const HttpResponse r = http.send("POST", routes::jobs(), job_body(width, height, opt.tile, owner, priority));
     if (r.status != 201) throw std::runtime_error("POST " + routes::jobs() + " answered " + r.error_text());
     const std::string id = protocol::parse_answer<protocol::SubmitAnswer>(r.body, "submission").id;
     std::lock_guard lock(jobs_mu);
@@ -369,6 +433,26 @@ void feeder(Farm& farm, WorkerTally& tally) {
   }
 }
 
+/// Job events for the webhooks, the same with and without them: one-tile jobs submitted and cancelled at once (lowest
+/// priority, so that a worker leases one only when it has nothing else; each cancellation is a delivery to every
+/// webhook), `burst` of them at the start, then 4 a second until the farm stops.
+void job_events(Farm& farm, WorkerTally& tally, int burst, std::atomic<int64_t>& count) {
+  HttpClient http(farm.url);
+  const auto one = [&] {
+    const std::string id = farm.submit(http, farm.opt.tile, farm.opt.tile, "event", -1000);
+    const HttpResponse c = http.send("DELETE", routes::job(id));
+    if (c.status != 200) throw std::runtime_error("DELETE " + routes::job(id) + " answered " + c.error_text());
+    ++count;
+  };
+  try {
+    for (int i = 0; i < burst && !farm.stop.load(); ++i) one();
+    while (nap(farm, 250ms)) one();
+  } catch (const std::exception& e) {
+    ++tally.errors;
+    if (tally.first_error.empty()) tally.first_error = std::string("job events: ") + e.what();
+  }
+}
+
 /// A shared farm's submissions: the big user's job at once, then the small user's every small_every seconds.
 void share_feeder(Farm& farm, WorkerTally& tally) {
   HttpClient big(farm.url), small(farm.url);
@@ -399,8 +483,9 @@ std::string wait_ready(const fs::path& ready, tessera::worker::ChildProcess& ser
   return {};
 }
 
-/// Runs one coordinator with n simulated workers; throws std::runtime_error when the coordinator does not start.
-RunResult run_farm(const Options& opt, const TileBank& bank, const fs::path& base, int n) {
+/// Runs one coordinator with n simulated workers (and with opt.hanging_webhooks, the job events; its deliveries go to
+/// `webhook` when not empty); throws std::runtime_error when the coordinator does not start.
+RunResult run_farm(const Options& opt, const TileBank& bank, const fs::path& base, int n, const std::string& webhook = {}) {
   const fs::path dir = base / ("n" + std::to_string(n));
   fs::remove_all(dir);
   fs::create_directories(dir);
@@ -427,6 +512,7 @@ RunResult run_farm(const Options& opt, const TileBank& bank, const fs::path& bas
     std::ofstream(dir / "users.json") << json{{"users", users}}.dump();
     serve.insert(serve.end(), {"--users", (dir / "users.json").string()});
   }
+  if (!webhook.empty()) serve.insert(serve.end(), {"--webhook", webhook});
   children.push_back(tessera::worker::spawn_child(serve, "coordinator", dir / "serve.log"));
   const std::string hostport = wait_ready(dir / "ready", children[0]);
   if (hostport.empty()) {
@@ -443,20 +529,40 @@ RunResult run_farm(const Options& opt, const TileBank& bank, const fs::path& bas
   farm.window_start = start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(opt.warmup));
   farm.window_end = farm.window_start +
                     std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(opt.seconds));
-  std::vector<WorkerTally> tallies(size_t(n) + 1);
+  std::vector<WorkerTally> tallies(size_t(n) + 2);
   std::vector<std::thread> threads;
   threads.emplace_back(opt.share ? share_feeder : feeder, std::ref(farm), std::ref(tallies[size_t(n)]));
+  std::atomic<int64_t> events{0};
+  if (opt.hanging_webhooks > 0)
+    threads.emplace_back(job_events, std::ref(farm), std::ref(tallies[size_t(n) + 1]), opt.hanging_webhooks + 20,
+                         std::ref(events));
   for (int i = 0; i < n; ++i) threads.emplace_back(simulated_worker, std::ref(farm), i, std::ref(tallies[size_t(i)]));
 
   std::this_thread::sleep_until(farm.window_start);
   const double serve_cpu0 = process_cpu_seconds(children[0].pid), self_cpu0 = self_cpu_seconds();
   std::this_thread::sleep_until(farm.window_end);
   const double serve_cpu1 = process_cpu_seconds(children[0].pid), self_cpu1 = self_cpu_seconds();
+  RunResult result;
+  if (opt.hanging_webhooks > 0) {  // how many deliveries the coordinator has, and how many are still pending
+    try {
+      HttpClient http(farm.url);
+      const HttpResponse r = http.send("GET", routes::webhook_deliveries());
+      if (r.status != 200) throw std::runtime_error("answered " + r.error_text());
+      for (const protocol::WebhookDelivery& d :
+           protocol::parse_answer<protocol::WebhookDeliveryList>(r.body, "delivery list").deliveries) {
+        ++result.deliveries;
+        if (d.state == "pending") ++result.pending_deliveries;
+      }
+    } catch (const std::exception& e) {
+      ++tallies[size_t(n) + 1].errors;
+      tallies[size_t(n) + 1].first_error = std::string("deliveries: ") + e.what();
+    }
+  }
   stop_farm(farm);
   for (std::thread& t : threads) t.join();
   tessera::worker::stop_children(children, 10s);
 
-  RunResult result;
+  result.job_events = events.load();
   result.workers = n;
   result.window_seconds = opt.seconds;
   result.coordinator_cpu_seconds = serve_cpu1 - serve_cpu0;
@@ -544,6 +650,58 @@ void report_share(const Options& opt, const RunResult& r) {
 
 }  // namespace
 
+/// The A/B run of --hanging-webhooks: the first farm size four times, A B A B (the machine's other load falls on both
+/// variants alike), then each variant's tiles/s and lease p99 over its runs, and B / A.
+void run_hanging_webhooks(const Options& opt, const TileBank& bank, const fs::path& base) {
+  const int n = opt.worker_counts.front();
+  HangingReceiver receiver;
+  std::printf("A: no webhooks; B: serve --webhook %s, a receiver that accepts connections and never answers "
+              "(the sender's default timeout and threads). Both: %d jobs submitted and cancelled at the start, then "
+              "4 a second (a delivery each in B).\n",
+              receiver.url().c_str(), opt.hanging_webhooks + 20);
+  std::printf("%5s %3s %9s %10s %10s %10s %10s %12s %9s %9s %7s\n", "run", "", "tiles/s", "lease p50", "lease p99",
+              "upld p99", "coord CPU", "job events", "delivs", "pending", "errors");
+  struct Variant {
+    const char* name;
+    std::string webhook;
+    int64_t tiles = 0;
+    double seconds = 0;
+    std::vector<float> lease_ms{};
+    int64_t min_pending = INT64_MAX;
+  };
+  Variant variants[2] = {{"A", {}}, {"B", receiver.url()}};
+  for (int round = 0; round < 4; ++round) {
+    Variant& v = variants[round % 2];
+    RunResult r = run_farm(opt, bank, base, n, v.webhook);
+    std::vector<float>& lease = r.total.latency_ms[kLease];
+    std::printf("%5d %3s %9.1f %10.2f %10.2f %10.2f %9.1f%% %12lld %9lld %9lld %7lld\n", round + 1, v.name,
+                double(r.total.tiles_accepted) / r.window_seconds, quantile(lease, 0.5), quantile(lease, 0.99),
+                quantile(r.total.latency_ms[kUpload], 0.99), 100 * r.coordinator_cpu_seconds / r.window_seconds,
+                static_cast<long long>(r.job_events), static_cast<long long>(r.deliveries),
+                static_cast<long long>(r.pending_deliveries), static_cast<long long>(r.total.errors));
+    if (!r.total.first_error.empty()) std::printf("      first error: %s\n", r.total.first_error.c_str());
+    std::fflush(stdout);
+    v.tiles += r.total.tiles_accepted;
+    v.seconds += r.window_seconds;
+    v.lease_ms.insert(v.lease_ms.end(), lease.begin(), lease.end());
+    v.min_pending = std::min(v.min_pending, r.pending_deliveries);
+  }
+  const Variant& a = variants[0];
+  const Variant& b = variants[1];
+  std::vector<float> la = a.lease_ms, lb = b.lease_ms;
+  const double rate_a = double(a.tiles) / a.seconds, rate_b = double(b.tiles) / b.seconds;
+  const double p99_a = quantile(la, 0.99), p99_b = quantile(lb, 0.99);
+  std::printf("\nA (no webhooks):             %8.1f tiles/s, lease p50 %.2f ms, p99 %.2f ms\n", rate_a,
+              quantile(la, 0.5), p99_a);
+  std::printf("B (deliveries hanging):      %8.1f tiles/s, lease p50 %.2f ms, p99 %.2f ms; at least %lld deliveries "
+              "pending at the end of each window, %lld connections accepted by the receiver\n",
+              rate_b, quantile(lb, 0.5), p99_b, static_cast<long long>(b.min_pending),
+              static_cast<long long>(receiver.accepted()));
+  std::printf("B / A: tiles/s %.3f, lease p99 %.2f\n", rate_a > 0 ? rate_b / rate_a : 0.0, p99_a > 0 ? p99_b / p99_a : 0.0);
+  if (b.min_pending < opt.hanging_webhooks)
+    std::printf("NOTE: fewer than %d deliveries were pending in a B window\n", opt.hanging_webhooks);
+}
+
 int main(int argc, char** argv) {
   Options opt;
   CLI::App app{"N simulated workers against a real tessera serve: coordinator CPU, latency and tile rate"};
@@ -565,6 +723,10 @@ int main(int argc, char** argv) {
   app.add_option("--small-tiles", opt.small_tiles, "With --share: tiles of a small job")->check(CLI::Range(1, 4096));
   app.add_option("--big-tiles-edge", opt.big_tiles_edge, "With --share: the big job is this many tiles square")
       ->check(CLI::Range(1, 1000));
+  app.add_option("--hanging-webhooks", opt.hanging_webhooks,
+                 "A B A B at the first --workers count: without webhooks, and with this many deliveries or more "
+                 "pending to a receiver that never answers")
+      ->check(CLI::Range(1, 100000));
   app.add_flag("--spec-by-get", opt.spec_by_get,
                "Ask for bare leases and GET each job's spec (as workers did before specs came with leases)");
   CLI11_PARSE(app, argc, argv);
@@ -581,6 +743,7 @@ int main(int argc, char** argv) {
     } else {
       bank.add(opt.image, opt.image, opt.tile);
     }
+    if (opt.hanging_webhooks > 0) bank.add(opt.tile, opt.tile, opt.tile);  // the job events' one-tile jobs
     const int first = std::min(opt.tile, opt.image);
     const std::string tile_bytes = std::to_string(bank.at(opt.image, opt.image, {0, 0, first, first}).size());
 
@@ -595,6 +758,11 @@ int main(int argc, char** argv) {
       load >> l1 >> l5 >> l15;
       std::printf("load average before the run: %s %s %s (other processes share these cores)\n", l1.c_str(),
                   l5.c_str(), l15.c_str());
+    }
+    if (opt.hanging_webhooks > 0) {
+      run_hanging_webhooks(opt, bank, base);
+      fs::remove_all(base);
+      return 0;
     }
     std::printf("%6s %9s %9s %10s %10s %9s %9s %9s %9s %9s %7s\n", "N", "tiles/s", "ideal/s", "coord CPU",
                 "ms/tile", "client", "lease p50", "lease p99", "upld p50", "upld p99", "errors");

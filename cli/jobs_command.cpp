@@ -114,7 +114,8 @@ std::string worker_text(const std::optional<std::string>& id, const std::optiona
 }
 
 // One line per tile (index, state, its worker: the lease holder's, or for a done tile the one that rendered it,
-// attempts, render seconds, rays, failing workers), then each failure with the log lines its worker sent.
+// attempts, render seconds, rays, failing workers), then each failure with the log lines its worker sent, then each
+// done tile with the log lines sent with its upload, and how many done tiles' logs were not kept.
 void print_tiles(const protocol::TileList& list) {
   std::printf("%6s %-8s %-24s %8s %9s %14s %8s\n", "TILE", "STATE", "WORKER", "ATTEMPTS", "SECONDS", "RAYS", "FAILURES");
   for (const protocol::TileInfo& t : list.tiles) {
@@ -131,6 +132,16 @@ void print_tiles(const protocol::TileList& list) {
       std::printf("\ntile %lld failed on %s: %s\n", static_cast<long long>(t.index), who.c_str(), f.error.c_str());
       for (const std::string& line : f.log) std::printf("  | %s\n", line.c_str());
     }
+  for (const protocol::TileInfo& t : list.tiles) {
+    if (t.log.empty()) continue;
+    const std::string who = worker_text(t.rendered_by, t.rendered_by_name);
+    std::printf("\ntile %lld rendered by %s:\n", static_cast<long long>(t.index), who.c_str());
+    for (const std::string& line : t.log) std::printf("  | %s\n", line.c_str());
+  }
+  if (list.logs_not_kept > 0)
+    std::printf("\n%lld done tiles' logs were not kept: the job's tile logs reached the coordinator's bound "
+                "(serve --max-tile-log-bytes)\n",
+                static_cast<long long>(list.logs_not_kept));
 }
 
 }  // namespace
@@ -138,8 +149,8 @@ void print_tiles(const protocol::TileList& list) {
 CLI::App* add_jobs_command(CLI::App& app, JobsArgs& a) {
   auto* c = app.add_subcommand("jobs", "List and control a coordinator's jobs");
   c->add_option("action", a.action, "ls: list; show ID: the job as JSON, with its sampling settings; pause ID: no new leases (running tiles "
-                                    "finish); resume ID; tiles ID: one line per tile, then failures with their log "
-                                    "lines; requeue ID N: render tile N again; priority ID N: lease its tiles in a new order; spp ID M: raise a --resumable job to M samples per pixel, continuing its stored tiles; retry ID: render a failed or cancelled job's missing tiles (a sequence: its failed and cancelled frames, or those of --frames); frames ID: one line per frame of a sequence; outputs ID: each step's state and files (submit --then), with -o DIR saved in that folder; "
+                                    "finish); resume ID; tiles ID: one line per tile, then failures and done tiles with "
+                                    "their log lines; requeue ID N: render tile N again; priority ID N: lease its tiles in a new order; spp ID M: raise a --resumable job to M samples per pixel, continuing its stored tiles; retry ID: render a failed or cancelled job's missing tiles (a sequence: its failed and cancelled frames, or those of --frames); frames ID: one line per frame of a sequence; outputs ID: each step's state and files (submit --then), with -o DIR saved in that folder; "
                                     "cancel ID; rm ID: cancel it, or with --purge delete an ended job, its tiles and result; "
                                     "wait ID: follow the job until it ends and, with -o, save its result (Ctrl-C stops "
                                     "waiting and leaves the job as it is)")

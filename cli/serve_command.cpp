@@ -42,6 +42,9 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
   c->add_option("--tile-failure-workers", o.tile_failure_workers,
                 "Distinct workers failing one tile that fail its job")
       ->check(CLI::Range(1, 1000))->capture_default_str();
+  c->add_option("--max-tile-log-bytes", o.job_tile_log_bytes,
+                "Bytes of done tiles' logs kept per job; a tile's log beyond them is not kept, and counted (0: none)")
+      ->check(CLI::Range(int64_t(0), int64_t(1) << 30))->capture_default_str();
   c->add_option("--heartbeat-seconds", o.limits.heartbeat_seconds, "Heartbeat interval announced to workers")
       ->check(CLI::Range(1, 3600))->capture_default_str();
   c->add_option("--read-timeout-seconds", a.read_timeout_seconds, "A whole request must arrive within this time")

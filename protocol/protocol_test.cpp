@@ -3,6 +3,7 @@
 #include "protocol/routes.h"
 #include "protocol/sequence.h"
 #include "protocol/tile.h"
+#include "protocol/tile_log.h"
 #include "protocol/worker.h"
 
 #include <gtest/gtest.h>
@@ -265,8 +266,41 @@ TEST(Messages, AFailReportCarriesBoundedLogLines) {
   EXPECT_THROW(parse_fail_report(json{{"log", {std::string(kMaxFailureLogLineBytes + 1, 'x')}}}.dump()), ProtocolError);
 }
 
+TEST(TileLog, AnUploadsLogTravelsAsABoundedAsciiHeader) {
+  EXPECT_EQ(tile_log_header({}), "");
+  EXPECT_TRUE(parse_tile_log_header("").empty());  // an upload without the header: no log
+  const std::vector<std::string> lines{"leased window [0,8)x[0,8)", "rendered in 0.5s \"quoted\" \xc3\xa9t\xc3\xa9"};
+  const std::string header = tile_log_header(lines);
+  EXPECT_TRUE(std::all_of(header.begin(), header.end(), [](char c) { return c >= 0x20 && c < 0x7f; })) << header;
+  EXPECT_EQ(parse_tile_log_header(header), lines);
+  // The worker's side keeps within the bounds: the last lines, each cut (never inside a character), the oldest
+  // dropped until the header fits.
+  std::vector<std::string> many;
+  for (int i = 0; i < 30; ++i) many.push_back("line " + std::to_string(i));
+  const auto last = parse_tile_log_header(tile_log_header(many));
+  ASSERT_EQ(last.size(), kMaxTileLogLines);
+  EXPECT_EQ(last.front(), "line 10");
+  std::string accents;
+  while (accents.size() < 2 * kMaxTileLogLineBytes) accents += "\xc3\xa9";
+  const auto cut = parse_tile_log_header(tile_log_header({"x" + accents}));
+  ASSERT_EQ(cut.size(), 1u);
+  EXPECT_EQ(cut[0].size(), kMaxTileLogLineBytes - 1);  // "x" and whole two-byte characters
+  const std::vector<std::string> wide(kMaxTileLogLines, accents);  // each escaped to 6 bytes a character
+  const std::string fitted = tile_log_header(wide);
+  EXPECT_LE(fitted.size(), kMaxTileLogHeaderBytes);
+  EXPECT_LT(parse_tile_log_header(fitted).size(), kMaxTileLogLines);
+  EXPECT_FALSE(parse_tile_log_header(fitted).empty());
+  // The coordinator's side refuses what is beyond them.
+  EXPECT_THROW(parse_tile_log_header(std::string(kMaxTileLogHeaderBytes + 1, ' ')), ProtocolError);
+  EXPECT_THROW(parse_tile_log_header("not json"), ProtocolError);
+  EXPECT_THROW(parse_tile_log_header(R"({"log": []})"), ProtocolError);
+  EXPECT_THROW(parse_tile_log_header("[1]"), ProtocolError);
+  EXPECT_THROW(parse_tile_log_header(json(std::vector<std::string>(kMaxTileLogLines + 1, "x")).dump()), ProtocolError);
+  EXPECT_THROW(parse_tile_log_header(json({std::string(kMaxTileLogLineBytes + 1, 'x')}).dump()), ProtocolError);
+}
+
 TEST(Messages, TileListRoundTrips) {
-  TileList l{"j-1", {}};
+  TileList l{"j-1", {}, 5};
   TileInfo t;
   t.index = 3;
   t.window = {64, 0, 128, 64};
@@ -275,6 +309,8 @@ TEST(Messages, TileListRoundTrips) {
   t.render_seconds = 1.25;
   t.rays = 99;
   t.failures = {{"w-1", "alpha", "boom", {"x", "y"}}};
+  t.log = {"rendered in 1.25s"};
+  t.log_not_kept = true;
   l.tiles.push_back(t);
   TileInfo leased;
   leased.state = "leased";
@@ -287,7 +323,14 @@ TEST(Messages, TileListRoundTrips) {
   EXPECT_EQ(back.tiles[0].window, t.window);
   EXPECT_EQ(back.tiles[0].render_seconds, 1.25);
   EXPECT_EQ(back.tiles[0].failures[0].log, t.failures[0].log);
+  EXPECT_EQ(back.tiles[0].log, t.log);
+  EXPECT_TRUE(back.tiles[0].log_not_kept);
+  EXPECT_EQ(back.logs_not_kept, 5);
   EXPECT_EQ(back.tiles[1].worker, "w-2");
+  // An older coordinator's answer, without the done tiles' logs.
+  const TileList old = json::parse(R"({"job": "j-1", "tiles": [{"index": 0, "state": "done"}]})").get<TileList>();
+  EXPECT_TRUE(old.tiles[0].log.empty());
+  EXPECT_EQ(old.logs_not_kept, 0);
   EXPECT_TRUE(json(l)["tiles"][1]["render_seconds"].is_null());
 }
 

@@ -110,7 +110,7 @@ TileFailure full_failure() {
 TileInfo full_tile() {
   return {.index = 2, .window = {8, 0, 16, 8}, .state = "leased", .worker = "w-1", .worker_name = "host-1",
           .attempts = 2, .render_seconds = 0.5, .rays = 789, .rendered_by = "w-3", .rendered_by_name = "host-3",
-          .failures = {full_failure()}};
+          .failures = {full_failure()}, .log = {"rendered in 0.5s"}, .log_not_kept = true};
 }
 
 // One entry of the output: out[schema][type].
@@ -167,7 +167,7 @@ json dump() {
   add(out, "AuditList", "AuditList", kAnswer, AuditList{{entry}, 6}, AuditList{});
   add(out, "TileFailure", "TileFailure", kAnswer, full_failure(), TileFailure{});
   add(out, "Tile", "TileInfo", kAnswer, full_tile(), TileInfo{});
-  add(out, "TileList", "TileList", kAnswer, TileList{"j-1", {full_tile()}}, TileList{});
+  add(out, "TileList", "TileList", kAnswer, TileList{"j-1", {full_tile()}, 3}, TileList{});
   add(out, "TileEvent", "TileEvent", kAnswer, TileEvent{"j-1", 2, "w-1", "l-1", "it broke"}, TileEvent{});
   add(out, "FrameEvent", "FrameEvent", kAnswer, FrameEvent{"j-1", 2, "j-1.f2"}, FrameEvent{});
   add(out, "WorkerEvent", "WorkerEvent", kAnswer, WorkerEvent{"registered", full_worker()}, WorkerEvent{});

@@ -31,7 +31,9 @@ void to_json(json& j, const TileInfo& t) {
        {"rays", t.rays},
        {"rendered_by", optional_json(t.rendered_by)},
        {"rendered_by_name", optional_json(t.rendered_by_name)},
-       {"failures", t.failures}};
+       {"failures", t.failures},
+       {"log", t.log},
+       {"log_not_kept", t.log_not_kept}};
 }
 
 void from_json(const json& j, TileInfo& t) {
@@ -54,13 +56,16 @@ void from_json(const json& j, TileInfo& t) {
   if (j.contains("rendered_by_name") && !j["rendered_by_name"].is_null())
     t.rendered_by_name = answer_field<std::string>(j, "rendered_by_name", kMsg);
   t.failures = answer_field_or<std::vector<TileFailure>>(j, "failures", kMsg, {});
+  t.log = answer_field_or<std::vector<std::string>>(j, "log", kMsg, {});
+  t.log_not_kept = answer_field_or<bool>(j, "log_not_kept", kMsg, false);
 }
 
-void to_json(json& j, const TileList& l) { j = {{"job", l.job}, {"tiles", l.tiles}}; }
+void to_json(json& j, const TileList& l) { j = {{"job", l.job}, {"tiles", l.tiles}, {"logs_not_kept", l.logs_not_kept}}; }
 
 void from_json(const json& j, TileList& l) {
   l.job = answer_field_or<std::string>(j, "job", "tile list", "");
   l.tiles = answer_field<std::vector<TileInfo>>(j, "tiles", "tile list");
+  l.logs_not_kept = answer_field_or<int64_t>(j, "logs_not_kept", "tile list", 0);
 }
 
 }  // namespace tessera::protocol

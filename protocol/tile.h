@@ -54,12 +54,15 @@ struct TileInfo {
   std::optional<std::string> rendered_by;    ///< The worker whose result was accepted (done tiles).
   std::optional<std::string> rendered_by_name;  ///< That worker's name ("" once the coordinator forgot it).
   std::vector<TileFailure> failures;         ///< Each failing worker's latest failure, by worker id.
+  std::vector<std::string> log;              ///< Done tiles: the log lines sent with the accepted upload, oldest first.
+  bool log_not_kept = false;                 ///< Done tiles: a log came, but the job's tile logs were full.
 };
 
 /// Answer of GET /v1/jobs/{id}/tiles.
 struct TileList {
   std::string job;               ///< Job id.
   std::vector<TileInfo> tiles;   ///< Every tile in index order.
+  int64_t logs_not_kept = 0;     ///< Done tiles whose log was not kept (the job's tile logs were full).
 };
 
 void to_json(nlohmann::json& j, const TileFailure& f);

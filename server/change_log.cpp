@@ -62,8 +62,8 @@ void ChangeLog::flush(FarmState& s) {
     const auto it = s.jobs.find(key.first);
     if (it == s.jobs.end()) continue;
     const TileRec& t = it->second->tiles[size_t(key.second)];
-    TileRow row{key.first, key.second, t.state, t.lease, t.failures, std::nullopt, t.logs, t.attempts, t.render_ms, t.rays,
-                t.rendered_by};
+    TileRow row{key.first, key.second, t.state,       t.lease, t.failures,    std::nullopt, t.logs,
+                t.attempts, t.render_ms,  t.rays, t.rendered_by, t.log, t.log_not_kept};
     if (pixels && pixels->first == key && !pixels->second.empty()) row.pixels = pixels->second;
     c.tiles.push_back(std::move(row));
   }
@@ -137,6 +137,10 @@ void restore(FarmState& s, SchedulerSnapshot snap, int64_t now) {
     t.render_ms = row.render_ms;
     t.rays = row.rays;
     t.rendered_by = std::move(row.rendered_by);
+    t.log = std::move(row.log);
+    t.log_not_kept = row.log_not_kept;
+    for (const std::string& line : t.log) j->log_bytes += int64_t(line.size());
+    if (t.log_not_kept) ++j->logs_not_kept;
   }
   for (LeaseRow& row : snap.leases) {
     const JobRec* j = s.find_job(row.lease.job);

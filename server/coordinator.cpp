@@ -82,6 +82,7 @@ SchedulerConfig scheduler_config(const CoordinatorOptions& o) {
   c.worker_failure_limit = o.worker_failure_limit;
   c.id_tag = random_hex(3);
   c.max_workers = o.max_workers;
+  c.job_tile_log_bytes = o.job_tile_log_bytes;
   c.worker_retention_ms = int64_t(o.worker_retention_seconds * 1000.0);
   c.webhooks = o.webhooks;
   return c;

@@ -31,6 +31,7 @@ struct CoordinatorOptions {
   int worker_failure_limit = SchedulerConfig{}.worker_failure_limit;  ///< Failures blocklisting a worker for a job.
   int tile_failure_workers = SchedulerConfig{}.tile_failure_workers;  ///< Workers failing one tile that fail its job.
   int64_t max_workers = SchedulerConfig{}.max_workers;  ///< Registered workers at most (more registrations get 503).
+  int64_t job_tile_log_bytes = SchedulerConfig{}.job_tile_log_bytes;  ///< Bytes of done tiles' logs kept per job.
   /// An offline worker holding no lease is forgotten this long after it was last seen.
   double worker_retention_seconds = double(SchedulerConfig{}.worker_retention_ms) / 1000.0;
   ApiOptions limits;  ///< Heartbeat interval, body sizes, queued jobs, job size, access tokens, retention, registrations.

@@ -100,6 +100,9 @@ constexpr AddedColumn kAddedColumns[] = {
     {"tiles", "rays", "INTEGER NOT NULL DEFAULT 0"},
     {"tiles", "logs", "TEXT NOT NULL DEFAULT '{}'"},
     {"tiles", "rendered_by", "TEXT NOT NULL DEFAULT ''"},
+    // A done tile's log (sent with its upload), or that it was not kept.
+    {"tiles", "log", "TEXT NOT NULL DEFAULT '[]'"},
+    {"tiles", "log_not_kept", "INTEGER NOT NULL DEFAULT 0"},
     {"leases", "granted_ms", "INTEGER NOT NULL DEFAULT 0"},
     {"jobs", "tile_timeout_s", "INTEGER NOT NULL DEFAULT 3600"},
     {"workers", "drained", "INTEGER NOT NULL DEFAULT 0"},
@@ -434,21 +437,24 @@ void DurableStore::apply_locked(const SchedulerChanges& c) {
     if (r.pixels) TESSERA_FAIL_POINT("store.tile_commit");
     const std::string failures = map_json(r.failures).dump();
     const std::string logs = json(r.logs).dump();
+    const std::string log = json(r.log).dump(-1, ' ', false, json::error_handler_t::replace);
     Statement& up = db_.statement(
         "UPDATE tiles SET state = ?, lease = ?, failures = ?, pixels = coalesce(?, pixels), attempts = ?, render_ms = ?,"
-        " rays = ?, logs = ?, rendered_by = ? WHERE job = ? AND idx = ?");
+        " rays = ?, logs = ?, rendered_by = ?, log = ?, log_not_kept = ? WHERE job = ? AND idx = ?");
     up.bind_text(1, to_string(r.state)).bind_text(2, r.lease).bind_text(3, failures);
     if (r.pixels) up.bind_blob_uncopied(4, *r.pixels);  // the tile's bytes outlive this change
     up.bind(5, r.attempts).bind(6, r.render_ms).bind(7, int64_t(r.rays)).bind_text(8, logs);
-    up.bind_text(9, r.rendered_by).bind_text(10, r.job).bind(11, r.index);
+    up.bind_text(9, r.rendered_by).bind_text(10, log).bind(11, int64_t(r.log_not_kept));
+    up.bind_text(12, r.job).bind(13, r.index);
     up.run();
     if (db_.changes() > 0) continue;
     Statement& ins = db_.statement(
-        "INSERT INTO tiles(job, idx, state, lease, failures, pixels, attempts, render_ms, rays, logs, rendered_by)"
-        " VALUES(?,?,?,?,?,?,?,?,?,?,?)");
+        "INSERT INTO tiles(job, idx, state, lease, failures, pixels, attempts, render_ms, rays, logs, rendered_by, log,"
+        " log_not_kept) VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?)");
     ins.bind_text(1, r.job).bind(2, r.index).bind_text(3, to_string(r.state)).bind_text(4, r.lease).bind_text(5, failures);
     if (r.pixels) ins.bind_blob_uncopied(6, *r.pixels);
     ins.bind(7, r.attempts).bind(8, r.render_ms).bind(9, int64_t(r.rays)).bind_text(10, logs).bind_text(11, r.rendered_by);
+    ins.bind_text(12, log).bind(13, int64_t(r.log_not_kept));
     ins.run();
   }
   for (const LeaseRow& r : c.leases) {
@@ -602,7 +608,7 @@ SchedulerSnapshot DurableStore::load() {
     }
   }
   {
-    Statement& st = db_.statement("SELECT job, idx, state, lease, failures, attempts, render_ms, rays, logs, rendered_by FROM tiles");
+    Statement& st = db_.statement("SELECT job, idx, state, lease, failures, attempts, render_ms, rays, logs, rendered_by, log, log_not_kept FROM tiles");
     while (st.step()) {
       TileRow r;
       r.job = st.text(0);
@@ -619,6 +625,12 @@ SchedulerSnapshot DurableStore::load() {
       r.rays = uint64_t(st.integer(7));
       r.logs = json_map<std::vector<std::string>>(st.text(8), "tile failure logs");
       r.rendered_by = st.text(9);
+      try {
+        r.log = json::parse(st.text(10)).get<std::vector<std::string>>();
+      } catch (const json::exception& e) {
+        throw StorageError(std::string("stored tile log is not a JSON array of strings: ") + e.what());
+      }
+      r.log_not_kept = st.integer(11) != 0;
       snap.tiles.push_back(std::move(r));
     }
   }
@@ -731,13 +743,21 @@ std::optional<std::pair<uint32_t, std::string>> DurableStore::tile_state(const s
   return out;
 }
 
-std::vector<DueDelivery> DurableStore::due_deliveries(int64_t now, size_t limit) {
+std::vector<DueDelivery> DurableStore::due_deliveries(int64_t now, size_t limit, const std::set<std::string>& skip) {
   std::lock_guard lock(mu_);
   std::vector<DueDelivery> out;
-  Statement& st = db_.statement(
-      "SELECT id, url, body, attempts FROM webhook_outbox WHERE state = 'pending' AND next_ms <= ? ORDER BY next_ms, rowid"
-      " LIMIT ?");
-  st.bind(1, now).bind(2, int64_t(limit));
+  std::string sql = "SELECT id, url, body, attempts FROM webhook_outbox WHERE state = 'pending' AND next_ms <= ?";
+  if (!skip.empty()) {
+    sql += " AND url NOT IN (?";
+    for (size_t i = 1; i < skip.size(); ++i) sql += ",?";
+    sql += ')';
+  }
+  sql += " ORDER BY next_ms, rowid LIMIT ?";
+  Statement& st = db_.statement(sql);
+  int i = 1;
+  st.bind(i++, now);
+  for (const std::string& url : skip) st.bind_text(i++, url);
+  st.bind(i, int64_t(limit));
   while (st.step()) out.push_back({st.text(0), st.text(1), st.text(2), st.integer(3)});
   return out;
 }

@@ -136,7 +136,7 @@ class DurableStore final : public CoordinatorStore, public WebhookLog {
   ~DurableStore() override;
 
   void apply(const SchedulerChanges& changes) override;
-  std::vector<DueDelivery> due_deliveries(int64_t now, size_t limit) override;
+  std::vector<DueDelivery> due_deliveries(int64_t now, size_t limit, const std::set<std::string>& skip) override;
   void record_attempt(const std::string& id, const std::string& url, const DeliveryAttempt& attempt) override;
   std::vector<protocol::WebhookDelivery> deliveries(size_t limit) override;
   SchedulerSnapshot load() override;

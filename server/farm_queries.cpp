@@ -64,7 +64,7 @@ std::optional<protocol::TileList> FarmQueries::tiles(const std::string& job) con
   if (it == s_.jobs.end()) return std::nullopt;
   const JobParams& p = it->second->status.params;
   const TileGrid grid(p.width, p.height, p.tile_size);
-  protocol::TileList out{job, {}};
+  protocol::TileList out{job, {}, it->second->logs_not_kept};
   out.tiles.reserve(it->second->tiles.size());
   for (size_t i = 0; i < it->second->tiles.size(); ++i) {
     const TileRec& t = it->second->tiles[i];
@@ -88,6 +88,10 @@ std::optional<protocol::TileList> FarmQueries::tiles(const std::string& job) con
       const auto log = t.logs.find(worker);
       v.failures.push_back(
           {worker, s_.workers.name_of(worker), error, log == t.logs.end() ? std::vector<std::string>{} : log->second});
+    }
+    if (t.state == TileState::done) {
+      v.log = t.log;
+      v.log_not_kept = t.log_not_kept;
     }
     out.tiles.push_back(std::move(v));
   }

@@ -182,6 +182,33 @@ FailResult FarmState::record_failure(JobRec& j, LeaseRec& l, const std::string& 
   return r;
 }
 
+namespace {
+int64_t log_size(const std::vector<std::string>& log) {
+  int64_t n = 0;
+  for (const std::string& line : log) n += int64_t(line.size());
+  return n;
+}
+}  // namespace
+
+void FarmState::keep_tile_log(JobRec& j, TileRec& t, std::vector<std::string> log) const {
+  forget_tile_log(j, t);
+  if (log.empty()) return;
+  const int64_t size = log_size(log);
+  if (j.log_bytes + size > config.job_tile_log_bytes) {
+    t.log_not_kept = true;
+    ++j.logs_not_kept;
+    return;
+  }
+  j.log_bytes += size;
+  t.log = std::move(log);
+}
+
+void FarmState::forget_tile_log(JobRec& j, TileRec& t) {
+  j.log_bytes -= log_size(t.log);
+  t.log.clear();
+  if (std::exchange(t.log_not_kept, false)) --j.logs_not_kept;
+}
+
 void FarmState::return_to_pending(JobRec& j, int64_t tile) {
   TileRec& t = j.tiles[size_t(tile)];
   if (t.unflushed) {  // no longer done: its flush has nothing left to show

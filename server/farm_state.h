@@ -26,6 +26,8 @@ struct TileRec {
   std::string lease;                                     ///< The live lease, or the lease whose upload claimed it.
   std::map<std::string, std::string> failures;           ///< Worker -> last error text.
   std::map<std::string, std::vector<std::string>> logs;  ///< Worker -> log lines of its last failure.
+  std::vector<std::string> log;                          ///< Done: the log lines sent with the accepted upload.
+  bool log_not_kept = false;                             ///< Done: a log came, but the job's tile logs were full.
   int64_t attempts = 0;                                  ///< Leases granted.
   int64_t render_ms = -1;                                ///< Grant to upload of the accepted result.
   uint64_t rays = 0;                                     ///< Rays of the accepted result's lease.
@@ -43,6 +45,8 @@ struct JobRec {
   std::map<std::string, std::string> worker_last_error;  ///< Worker -> the latest error it reported on this job.
   std::set<std::string> worker_set;                      ///< status.workers, for lookups.
   int64_t unflushed = 0;                                 ///< Tiles done but not yet flushed (TileRec::unflushed).
+  int64_t log_bytes = 0;                                 ///< Bytes of its tiles' kept logs (TileRec::log).
+  int64_t logs_not_kept = 0;                             ///< Its tiles whose log was not kept (TileRec::log_not_kept).
   int64_t live = 0;  ///< Live leases on its tiles (a sequence: on its frames'), against params.max_workers.
   /// A sequence: its frames' jobs by frame number. A sequence has no tiles of its own and is never in the queue; its
   /// state is derived from its frames' (FarmState::snapshot).
@@ -139,6 +143,11 @@ struct FarmState {
   /// worker, fails the job by the thresholds of SchedulerConfig).
   FailResult record_failure(JobRec& j, LeaseRec& l, const std::string& error, std::vector<std::string> log,
                             int64_t now);
+  /// Keeps `log` as the done log of the job's tile `t` (in place of the one it had), or, when it would take the job's
+  /// kept logs past config.job_tile_log_bytes, marks it not kept.
+  void keep_tile_log(JobRec& j, TileRec& t, std::vector<std::string> log) const;
+  /// Forgets the done log of the job's tile `t` (and that one was not kept).
+  static void forget_tile_log(JobRec& j, TileRec& t);
   /// Hands a tile back to the queue: pending, no lease, leasable again.
   void return_to_pending(JobRec& j, int64_t tile);
   /// Makes a lease live (it counts against its job's and its owner's caps and shares).

@@ -260,6 +260,7 @@ RequeueResult JobControl::requeue(const std::string& job, int64_t tile) {
       t.render_ms = -1;
       t.rays = 0;
       t.rendered_by.clear();
+      FarmState::forget_tile_log(j, t);
       s_.touch(j);
     }
     t.failures.clear();
@@ -335,8 +336,10 @@ RaiseResult JobControl::raise_spp(const std::string& job, uint32_t spp, int64_t 
       return;
     }
     r.revoked_leases = s_.revoke_leases(j);
-    for (int64_t i = 0; i < j.status.tiles.total; ++i)
+    for (int64_t i = 0; i < j.status.tiles.total; ++i) {
+      FarmState::forget_tile_log(j, j.tiles[size_t(i)]);  // its render at the new spp will say its own
       if (j.tiles[size_t(i)].state != TileState::pending) s_.return_to_pending(j, i);
+    }
     j.status.tiles.done = 0;
     j.status.params.spp = spp;
     if (j.status.state == JobState::done) {

@@ -594,17 +594,19 @@ protocol::JobStatus JobService::announce(const std::string& job) {
   return s;
 }
 
-UploadOutcome JobService::accept_tile(const std::string& lease, std::string_view exr, uint64_t rays) {
+UploadOutcome JobService::accept_tile(const std::string& lease, std::string_view exr, uint64_t rays,
+                                      std::vector<std::string> log) {
   std::promise<UploadOutcome> answer;
   std::future<UploadOutcome> answered = answer.get_future();
-  accept_tile(lease, exr, rays, [&answer](UploadOutcome o, std::exception_ptr error) {
+  accept_tile(lease, exr, rays, std::move(log), [&answer](UploadOutcome o, std::exception_ptr error) {
     if (error) answer.set_exception(error);
     else answer.set_value(o);
   });
   return answered.get();
 }
 
-void JobService::accept_tile(const std::string& lease, std::string_view exr, uint64_t rays, UploadDone done) {
+void JobService::accept_tile(const std::string& lease, std::string_view exr, uint64_t rays, std::vector<std::string> log,
+                             UploadDone done) {
   // A settled upload's answer: a duplicate only once what it duplicates is on the disk (its merge may have been
   // committed a moment ago, and the uploader stops retrying on this answer).
   auto settled = [&](const ResultClaim& c) -> bool {
@@ -652,7 +654,8 @@ void JobService::accept_tile(const std::string& lease, std::string_view exr, uin
       // Durable before acknowledged: the pixels and the tile's done state go to the store in one transaction, and the
       // answer waits for the flush that covers it.
       std::string layered;  // the stored bytes of a tile with layers
-      sched_.finish_result(lease, rays, tile_bytes(check.pixels, layers, layered), [this, c, rays, done](FinishResult r) noexcept {
+      sched_.finish_result(lease, rays, tile_bytes(check.pixels, layers, layered), std::move(log),
+                           [this, c, rays, done](FinishResult r) noexcept {
         metrics_.add_rays(rays, clock_());
         spdlog::info("job {} tile {} worker {}: merged", c.job, c.tile, c.worker);
         events_.tile(protocol::events::kTileDone, {c.job, c.tile, c.worker, std::nullopt, std::nullopt});

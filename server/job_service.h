@@ -119,9 +119,11 @@ class JobService {
   /// it), `duplicate` once what it duplicates is, `discarded` at once; refusals ApiError 404 unknown lease, 422
   /// invalid (counted as the worker's failure). The upload that completes the job writes its result (in the
   /// background) before it is answered. `exr` is read only before this returns.
-  void accept_tile(const std::string& lease, std::string_view exr, uint64_t rays, UploadDone done);
+  void accept_tile(const std::string& lease, std::string_view exr, uint64_t rays, std::vector<std::string> log,
+                   UploadDone done);
   /// As above, waiting for the answer; throws the refusal.
-  UploadOutcome accept_tile(const std::string& lease, std::string_view exr, uint64_t rays);
+  UploadOutcome accept_tile(const std::string& lease, std::string_view exr, uint64_t rays,
+                            std::vector<std::string> log = {});
   /// Records a worker's failure report with the log lines it sent; ApiError 404 for unknown leases.
   void record_failure(const std::string& lease, const protocol::FailReport& report);
   /// Every tile of a job (state, worker, attempts, render time, rays, failures with log lines); ApiError 404.

@@ -247,7 +247,8 @@ ResultClaim LeaseFlow::claim_result(const std::string& lease, int64_t now) {
   return c;
 }
 
-FinishResult LeaseFlow::finish_result(const std::string& lease, uint64_t rays, std::string_view pixels, int64_t now,
+FinishResult LeaseFlow::finish_result(const std::string& lease, uint64_t rays, std::string_view pixels,
+                                      std::vector<std::string> log, int64_t now,
                                       std::pair<std::string, int64_t>* tile_key) {
   FinishResult r;
   const auto it = s_.leases.find(lease);
@@ -260,11 +261,13 @@ FinishResult LeaseFlow::finish_result(const std::string& lease, uint64_t rays, s
                            " is not claimed by lease " + lease);
   const TileRec tile_before = t;
   const uint64_t rays_before = s_.rays, rendered_before = s_.tiles_rendered, job_rays_before = j.status.rays;
+  const int64_t log_bytes_before = j.log_bytes, logs_not_kept_before = j.logs_not_kept;
   t.state = TileState::done;
   t.lease.clear();
   t.render_ms = std::max<int64_t>(0, now - it->second.granted_ms);
   t.rays = it->second.rays + rays;
   t.rendered_by = it->second.lease.worker;
+  s_.keep_tile_log(j, t, std::move(log));
   ++j.status.tiles.done;
   ++s_.tiles_rendered;
   j.status.rays += rays;
@@ -285,6 +288,8 @@ FinishResult LeaseFlow::finish_result(const std::string& lease, uint64_t rays, s
   } catch (...) {
     s_.workers.debit(w, t.render_ms, t.rays);  // before t is restored: its rays and time are what was added
     t = tile_before;
+    j.log_bytes = log_bytes_before;
+    j.logs_not_kept = logs_not_kept_before;
     --j.status.tiles.done;
     j.status.rays = job_rays_before;
     if (new_worker) {

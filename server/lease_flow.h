@@ -41,8 +41,9 @@ class LeaseFlow {
   ResultClaim claim_result(const std::string& lease, int64_t now);
   /// Marks a claimed tile done and writes the change to the store at once (restoring the tile when that throws); sets
   /// `tile_key` to (job, tile) for flushed().
-  FinishResult finish_result(const std::string& lease, uint64_t rays, std::string_view pixels, int64_t now,
-                             std::pair<std::string, int64_t>* tile_key);
+  /// Keeps `log` (the lines sent with the upload) as the tile's done log, within the job's bound.
+  FinishResult finish_result(const std::string& lease, uint64_t rays, std::string_view pixels,
+                             std::vector<std::string> log, int64_t now, std::pair<std::string, int64_t>* tile_key);
   /// The tile's done state, committed earlier, is now on the disk: it counts as done in snapshots from now on.
   void flushed(const std::string& job, int64_t tile);
   /// Gives up a claimed tile's merge.

@@ -1,5 +1,7 @@
 #include "server/leases_handler.h"
 
+#include "protocol/tile_log.h"
+
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -170,9 +172,10 @@ void LeasesHandler::result(const std::string& lease, HttpRequest& req, Answer an
     if (ec != std::errc() || ptr != h.data() + h.size())
       throw ApiError(400, std::string(protocol::kRaysHeader) + " must be a non-negative integer (got '" + std::string(h) + "')");
   }
+  std::vector<std::string> log = protocol::parse_tile_log_header(req[protocol::kTileLogHeader]);
   require_holder(lease, req);
   const unsigned version = req.version();
-  jobs_.accept_tile(lease, req.body(), rays, [answer, version](UploadOutcome o, std::exception_ptr refusal) {
+  jobs_.accept_tile(lease, req.body(), rays, std::move(log), [answer, version](UploadOutcome o, std::exception_ptr refusal) {
     if (refusal) return answer(HttpResponse{}, refusal);
     answer(json_response(o == UploadOutcome::discarded ? http::status::gone : http::status::ok,
                          protocol::ResultAnswer{o}, version),

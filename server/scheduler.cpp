@@ -206,19 +206,23 @@ ResultClaim Scheduler::claim_result(const std::string& lease) {
   return transact([&](int64_t now) { return leases_.claim_result(lease, now); }, Store::later);
 }
 
-FinishResult Scheduler::finish_result(const std::string& lease, uint64_t rays, std::string_view pixels) {
+FinishResult Scheduler::finish_result(const std::string& lease, uint64_t rays, std::string_view pixels,
+                                      std::vector<std::string> log) {
   std::pair<std::string, int64_t> tile;
-  const FinishResult r = transact([&](int64_t now) { return leases_.finish_result(lease, rays, pixels, now, &tile); });
+  const FinishResult r =
+      transact([&](int64_t now) { return leases_.finish_result(lease, rays, pixels, std::move(log), now, &tile); });
   std::lock_guard lock(mu_);  // transact returned after the flush
   leases_.flushed(tile.first, tile.second);
   return r;
 }
 
 void Scheduler::finish_result(const std::string& lease, uint64_t rays, std::string_view pixels,
-                              std::function<void(FinishResult)> durable) {
+                              std::vector<std::string> log, std::function<void(FinishResult)> durable) {
   // Set under the lock, before the store can run the continuation.
   auto result = std::make_shared<std::pair<FinishResult, std::pair<std::string, int64_t>>>();
-  transact([&](int64_t now) { return result->first = leases_.finish_result(lease, rays, pixels, now, &result->second); },
+  transact([&](int64_t now) {
+             return result->first = leases_.finish_result(lease, rays, pixels, std::move(log), now, &result->second);
+           },
            Store::now, [this, result, durable = std::move(durable)] {
              {
                std::lock_guard lock(mu_);

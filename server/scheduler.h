@@ -109,11 +109,13 @@ class Scheduler {
   ResultClaim claim_result(const std::string& lease);
   /// Marks a claimed tile done with its validated `pixels` (stored with the tile in the same change, so a tile is never
   /// done without them); `rays` adds to the job's count. When the store fails, the tile stays claimed and this throws.
-  /// Returns once the change is on the disk (SchedulerStore::sync).
-  FinishResult finish_result(const std::string& lease, uint64_t rays = 0, std::string_view pixels = {});
+  /// `log` is the log its worker sent with it, kept with the tile within the job's bound
+  /// (SchedulerConfig::job_tile_log_bytes). Returns once the change is on the disk (SchedulerStore::sync).
+  FinishResult finish_result(const std::string& lease, uint64_t rays = 0, std::string_view pixels = {},
+                             std::vector<std::string> log = {});
   /// As finish_result, but returns once the change is committed; `durable` runs (on another thread, or on this one
   /// when the store does not flush) once it is on the disk: only then may the upload be acknowledged.
-  void finish_result(const std::string& lease, uint64_t rays, std::string_view pixels,
+  void finish_result(const std::string& lease, uint64_t rays, std::string_view pixels, std::vector<std::string> log,
                      std::function<void(FinishResult)> durable);
   /// Runs `then` once every change stored so far is on the disk (at once without a store): a duplicate upload is
   /// acknowledged only once the tile it duplicates is durable.

@@ -44,6 +44,8 @@ struct TileRow {
   int64_t render_ms = -1;                         ///< Lease grant to upload of the accepted result (-1: none yet).
   uint64_t rays = 0;                              ///< Rays of the accepted result's lease.
   std::string rendered_by;                        ///< The worker whose result was accepted ("" until done).
+  std::vector<std::string> log{};                 ///< Done: the log lines sent with the accepted upload.
+  bool log_not_kept = false;                      ///< Done: a log came, but the job's tile logs were full.
 };
 
 /// A lease as the store keeps it.

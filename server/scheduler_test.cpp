@@ -762,6 +762,74 @@ TEST_F(SchedulerTest, TileDetailsCountAttemptsTimeRaysAndFailuresWithTheirLogLin
   (void)third;
 }
 
+// Uploads the lease's result with `log` (claim, finish).
+void upload_with_log(Scheduler& s, const std::string& lease, std::vector<std::string> log) {
+  ASSERT_EQ(s.claim_result(lease).status, ResultClaim::proceed);
+  s.finish_result(lease, 1, {}, std::move(log));
+}
+
+TEST_F(SchedulerTest, ADoneTileKeepsTheLogSentWithItsUploadUntilItIsRenderedAgain) {
+  const std::string j = job();  // 4 tiles
+  const std::string w = s.register_worker("a").id;
+  upload_with_log(s, lease(w).id, {"leased window", "rendered in 0.5s"});
+  upload_with_log(s, lease(w).id, {});  // a worker that sends no log
+  const Lease third = lease(w);
+  auto tiles = s.tiles(j);
+  ASSERT_TRUE(tiles);
+  EXPECT_EQ(tiles->tiles[0].log, (std::vector<std::string>{"leased window", "rendered in 0.5s"}));
+  EXPECT_FALSE(tiles->tiles[0].log_not_kept);
+  EXPECT_TRUE(tiles->tiles[1].log.empty());
+  EXPECT_FALSE(tiles->tiles[1].log_not_kept);  // none came: none was dropped
+  EXPECT_TRUE(tiles->tiles[2].log.empty());    // leased
+  EXPECT_EQ(tiles->logs_not_kept, 0);
+  // Requeued, its log goes with its render; rendered again, it has the new one.
+  EXPECT_EQ(s.requeue(j, 0).status, RequeueResult::requeued);
+  EXPECT_TRUE(s.tiles(j)->tiles[0].log.empty());
+  upload_with_log(s, third.id, {"third"});
+  upload_with_log(s, lease(w).id, {"again"});
+  EXPECT_EQ(s.tiles(j)->tiles[0].log, (std::vector<std::string>{"again"}));
+}
+
+TEST(SchedulerTileLogs, AJobKeepsTileLogsUpToItsBoundAndCountsTheTilesWhoseLogWasNotKept) {
+  int64_t now = 1'000'000;
+  SchedulerConfig config{10'000, 3, 2, ""};
+  config.job_tile_log_bytes = 10;
+  Scheduler s{config, [&now] { return now; }};
+  JobParams p;
+  p.width = 128;
+  p.height = 128;
+  p.tile_size = 64;
+  p.spp = 1;
+  p.scene_hash = "abc";
+  const std::string j = s.add_job(p), k = s.add_job(p);
+  const std::string w = s.register_worker("a").id;
+  const auto next = [&] { return s.acquire(w).lease.id; };
+  upload_with_log(s, next(), {"12345", "678"});  // 8 bytes: kept
+  upload_with_log(s, next(), {"123"});           // 11 in all: not kept
+  upload_with_log(s, next(), {"12"});            // 10 in all: kept
+  upload_with_log(s, next(), {"1"});             // 11: not kept
+  auto tiles = s.tiles(j);
+  ASSERT_TRUE(tiles);
+  EXPECT_EQ(tiles->tiles[0].log.size(), 2u);
+  EXPECT_TRUE(tiles->tiles[1].log.empty());
+  EXPECT_TRUE(tiles->tiles[1].log_not_kept);
+  EXPECT_EQ(tiles->tiles[2].log, (std::vector<std::string>{"12"}));
+  EXPECT_TRUE(tiles->tiles[3].log_not_kept);
+  EXPECT_EQ(tiles->logs_not_kept, 2);
+  // The bound is per job: the next job keeps its own.
+  upload_with_log(s, next(), {"0123456789"});
+  EXPECT_EQ(s.tiles(k)->tiles[0].log.size(), 1u);
+  EXPECT_EQ(s.tiles(k)->logs_not_kept, 0);
+  // Rendering a tile again frees what its log took, and forgets that one was not kept.
+  EXPECT_EQ(s.requeue(k, 0).status, RequeueResult::requeued);
+  upload_with_log(s, next(), {"0123456789"});
+  EXPECT_EQ(s.tiles(k)->tiles[0].log.size(), 1u);
+  upload_with_log(s, next(), {"x"});  // 11 bytes in all
+  EXPECT_EQ(s.tiles(k)->logs_not_kept, 1);
+  ASSERT_EQ(s.requeue(k, 1).status, RequeueResult::requeued);
+  EXPECT_EQ(s.tiles(k)->logs_not_kept, 0);
+}
+
 TEST_F(SchedulerTest, RequeueRendersADoneOrLeasedTileAgainAndRefusesOtherStates) {
   const std::string j = job();  // 4 tiles
   const std::string w = s.register_worker("a").id;
@@ -935,7 +1003,7 @@ TEST(SchedulerFlush, ADoneTileIsAcknowledgedAndCountedOnlyOnceItsFlushReturned) 
   const Lease l0 = s.acquire(w).lease;
   ASSERT_EQ(s.claim_result(l0.id).status, ResultClaim::proceed);
   std::optional<FinishResult> acked;
-  s.finish_result(l0.id, 0, pixels, [&](FinishResult r) { acked = r; });
+  s.finish_result(l0.id, 0, pixels, {}, [&](FinishResult r) { acked = r; });
   EXPECT_FALSE(acked) << "acknowledged before the flush";
   JobStatus st = *s.job(j);
   EXPECT_EQ(st.tiles.done, 0) << "an unflushed tile counted as done";
@@ -957,7 +1025,7 @@ TEST(SchedulerFlush, ADoneTileIsAcknowledgedAndCountedOnlyOnceItsFlushReturned) 
   const Lease l1 = s.acquire(w).lease;
   ASSERT_EQ(s.claim_result(l1.id).status, ResultClaim::proceed);
   acked.reset();
-  s.finish_result(l1.id, 0, pixels, [&](FinishResult r) { acked = r; });
+  s.finish_result(l1.id, 0, pixels, {}, [&](FinishResult r) { acked = r; });
   EXPECT_FALSE(acked);
   store.flush_all();
   ASSERT_TRUE(acked);
@@ -973,7 +1041,7 @@ TEST(SchedulerFlush, ARequeuedUnflushedTileIsCountedOnce) {
   const Lease l0 = s.acquire(w).lease;
   ASSERT_EQ(s.claim_result(l0.id).status, ResultClaim::proceed);
   bool acked = false;
-  s.finish_result(l0.id, 0, std::string(4 * 4 * 3 * sizeof(float), '\0'), [&](FinishResult) { acked = true; });
+  s.finish_result(l0.id, 0, std::string(4 * 4 * 3 * sizeof(float), '\0'), {}, [&](FinishResult) { acked = true; });
   ASSERT_EQ(s.requeue(j, 0).status, RequeueResult::requeued);
   store.flush_all();
   EXPECT_TRUE(acked);

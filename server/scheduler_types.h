@@ -47,6 +47,8 @@ struct SchedulerConfig {
   /// A worker that is not present, holds no live lease and was not seen for this long is forgotten (0: never).
   int64_t worker_retention_ms = 86'400'000;
   std::vector<std::string> webhooks{};  ///< Addresses told of every job's end (server/outbox.h); none: only jobs' own.
+  /// Bytes of done tiles' logs kept per job at most; a log beyond it is not kept, and counted (0: none kept).
+  int64_t job_tile_log_bytes = int64_t(1) << 20;
 };
 
 /// Outcome of registering a worker.

@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -32,8 +33,9 @@ struct DeliveryAttempt {
 class WebhookLog {
  public:
   virtual ~WebhookLog() = default;
-  /// Pending deliveries due at `now` (next attempt at or before it), oldest first, at most `limit`.
-  virtual std::vector<DueDelivery> due_deliveries(int64_t now, size_t limit) = 0;
+  /// Pending deliveries due at `now` (next attempt at or before it), oldest first, at most `limit`, none to the
+  /// addresses in `skip`.
+  virtual std::vector<DueDelivery> due_deliveries(int64_t now, size_t limit, const std::set<std::string>& skip) = 0;
   /// Records an attempt of the delivery of event `id` to `url`.
   virtual void record_attempt(const std::string& id, const std::string& url, const DeliveryAttempt& attempt) = 0;
   /// The most recent deliveries first, at most `limit`.

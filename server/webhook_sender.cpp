@@ -57,17 +57,30 @@ std::chrono::milliseconds WebhookSender::backoff(int64_t attempt) {
 void WebhookSender::dispatch() {
   block_signals_in_helper_thread();
   std::unique_lock lock(mu_);
+  const int cap = std::max(1, opt_.per_address);
   while (!stop_) {
+    // Addresses with as many deliveries under way as they may have are skipped: one that never answers cannot fill
+    // the batch (and the threads) while others' deliveries are due.
+    std::set<std::string> full;
+    for (const auto& [url, n] : per_address_)
+      if (n >= cap) full.insert(url);
     lock.unlock();
     std::vector<DueDelivery> due;
     try {
-      due = log_.due_deliveries(clock_(), 64);
+      due = log_.due_deliveries(clock_(), 64, full);
     } catch (const std::exception& e) {
       spdlog::warn("webhooks: cannot read the outbox: {}", e.what());
     }
     lock.lock();
-    for (DueDelivery& d : due)
-      if (busy_.emplace(d.id, d.url).second) queue_.push_back(std::move(d));
+    for (DueDelivery& d : due) {
+      int& n = per_address_[d.url];
+      if (n < cap && busy_.emplace(d.id, d.url).second) {
+        ++n;
+        queue_.push_back(std::move(d));
+      } else if (n == 0) {
+        per_address_.erase(d.url);
+      }
+    }
     if (!queue_.empty()) cv_.notify_all();
     cv_.wait_for(lock, opt_.poll, [this] { return stop_; });
   }
@@ -85,6 +98,7 @@ void WebhookSender::deliver_loop() {
     deliver(d);
     lock.lock();
     busy_.erase({d.id, d.url});
+    if (--per_address_[d.url] <= 0) per_address_.erase(d.url);
   }
 }
 

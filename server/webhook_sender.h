@@ -1,8 +1,9 @@
 // Delivers the webhook outbox (server/outbox.h) on threads of its own, never on the scheduler's or a request's: each
 // due delivery is POSTed, signed (HMAC-SHA256 over the timestamp, ".", and the body), and recorded; an attempt without
 // a 2xx answer is tried again after an exponential backoff with jitter, up to a number of attempts, then marked
-// failed. A receiver that never answers holds one sender thread for the attempt's timeout, nothing else; destruction
-// ends the attempts under way at once (they are tried again after a restart).
+// failed. A receiver that never answers holds one sender thread for the attempt's timeout, nothing else, and at most
+// per_address threads at once; destruction ends the attempts under way at once (they are tried again after a
+// restart).
 #pragma once
 
 #include "server/scheduler_types.h"
@@ -13,6 +14,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
+#include <map>
 #include <mutex>
 #include <set>
 #include <string>
@@ -30,6 +32,9 @@ struct WebhookSenderOptions {
   std::chrono::milliseconds max_retry{300'000};      ///< The longest wait between attempts.
   std::chrono::milliseconds timeout{10'000};         ///< One attempt, connection to answer.
   int threads = 4;                                   ///< Deliveries under way at once.
+  /// Deliveries to one address under way (or waiting for a thread) at once: a receiver that never answers holds at
+  /// most this many threads, and deliveries to the others go on.
+  int per_address = 2;
   std::chrono::milliseconds poll{250};               ///< How often the log is asked for due deliveries.
 };
 
@@ -61,6 +66,7 @@ class WebhookSender {
   bool stop_ = false;                                   // (mu_)
   std::deque<DueDelivery> queue_;                       // due, not yet taken (mu_)
   std::set<std::pair<std::string, std::string>> busy_;  // queued or under way: (id, url) (mu_)
+  std::map<std::string, int> per_address_;              // url -> how many of busy_ go there (mu_)
   uint64_t jitter_state_;                               // (mu_)
   PostStopper stopper_;                                 // ends the attempts under way at destruction
   std::vector<std::thread> threads_;

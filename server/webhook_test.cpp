@@ -15,7 +15,10 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+#include <condition_variable>
 #include <filesystem>
+#include <mutex>
 #include <set>
 #include <thread>
 
@@ -83,10 +86,60 @@ TEST(WebhookPost, ASilentReceiverTimesOutAndAStopEndsTheAttempt) {
 
 // A delivery log that holds nothing: the sender's threads start and stop without work.
 struct EmptyLog final : WebhookLog {
-  std::vector<DueDelivery> due_deliveries(int64_t, size_t) override { return {}; }
+  std::vector<DueDelivery> due_deliveries(int64_t, size_t, const std::set<std::string>&) override { return {}; }
   void record_attempt(const std::string&, const std::string&, const DeliveryAttempt&) override {}
   std::vector<protocol::WebhookDelivery> deliveries(size_t) override { return {}; }
 };
+
+// A delivery log in memory: its rows in the order given (the oldest first), each attempt recorded in order.
+struct ListLog final : WebhookLog {
+  std::mutex mu;
+  std::condition_variable cv;
+  std::vector<DueDelivery> rows;      // (mu) pending until attempted
+  std::vector<std::string> attempted;  // (mu) ids, in the order their attempts ended
+  std::vector<DueDelivery> due_deliveries(int64_t, size_t limit, const std::set<std::string>& skip) override {
+    std::lock_guard lock(mu);
+    std::vector<DueDelivery> out;
+    for (const DueDelivery& d : rows)
+      if (out.size() < limit && !skip.count(d.url) &&
+          std::find(attempted.begin(), attempted.end(), d.id) == attempted.end())
+        out.push_back(d);
+    return out;
+  }
+  void record_attempt(const std::string& id, const std::string&, const DeliveryAttempt&) override {
+    std::lock_guard lock(mu);
+    attempted.push_back(id);
+    cv.notify_all();
+  }
+  std::vector<protocol::WebhookDelivery> deliveries(size_t) override { return {}; }
+};
+
+TEST(WebhookSender, AReceiverThatNeverAnswersHoldsAtMostItsShareOfTheThreads) {
+  SilentReceiver silent;
+  // An address where nothing listens: its attempts end at once (connection refused).
+  std::string refused;
+  {
+    SilentReceiver closed;
+    refused = closed.url();
+  }
+  ListLog log;
+  for (int i = 0; i < 10; ++i) log.rows.push_back({"s" + std::to_string(i), silent.url(), "{}", 0});
+  log.rows.push_back({"r", refused, "{}", 0});  // due after every delivery to the silent receiver
+  WebhookSenderOptions o;
+  o.threads = 4;
+  o.per_address = 2;
+  o.max_attempts = 1;
+  o.timeout = std::chrono::minutes(10);  // the silent receiver's attempts end only when the sender does
+  o.poll = std::chrono::milliseconds(20);
+  {
+    WebhookSender sender(log, o, [] { return int64_t(0); });
+    std::unique_lock lock(log.mu);
+    ASSERT_TRUE(log.cv.wait_for(lock, std::chrono::seconds(30), [&] { return !log.attempted.empty(); }))
+        << "the other address's delivery waited behind the silent receiver's";
+    EXPECT_EQ(log.attempted, std::vector<std::string>{"r"});
+  }
+  EXPECT_EQ(log.attempted, std::vector<std::string>{"r"});  // the silent receiver's attempts were stopped, not recorded
+}
 
 TEST(WebhookSender, BackoffDoublesUpToTheLimitWithJitter) {
   EmptyLog log;
@@ -127,10 +180,12 @@ TEST(WebhookOutbox, AJobsEndIsStoredWithTheChangeForEachAddress) {
       EXPECT_EQ(d.state, "pending");
       EXPECT_EQ(d.created_ms, now);
     }
-    ASSERT_EQ(store.due_deliveries(now, 10).size(), 2u);
+    ASSERT_EQ(store.due_deliveries(now, 10, {}).size(), 2u);
+    EXPECT_EQ(store.due_deliveries(now, 10, {"http://farm.example/hook"}).size(), 1u);  // an address skipped
+    EXPECT_TRUE(store.due_deliveries(now, 10, {"http://farm.example/hook", "http://own.example/hook"}).empty());
     store.record_attempt(rows[0].id, rows[0].url, {"pending", now + 500, 500, "answered 500"});
-    EXPECT_EQ(store.due_deliveries(now, 10).size(), 1u);  // the other one; this one is due later
-    EXPECT_EQ(store.due_deliveries(now + 500, 10).size(), 2u);
+    EXPECT_EQ(store.due_deliveries(now, 10, {}).size(), 1u);  // the other one; this one is due later
+    EXPECT_EQ(store.due_deliveries(now + 500, 10, {}).size(), 2u);
     // A job waiting for the cancelled one is blocked from the start: job.blocked to the farm's address only.
     JobParams q = p;
     q.pipeline.notify.clear();
@@ -178,7 +233,7 @@ TEST(WebhookOutbox, ASequenceAskingForFramesTellsItsOwnAddressOfEachFrameDone) {
     EXPECT_EQ(rows[0].job, seq);
     EXPECT_EQ(rows[0].url, "http://own.example/hook");
     EXPECT_EQ(rows[0].created_ms, now);
-    const std::vector<DueDelivery> due = store.due_deliveries(now, 10);
+    const std::vector<DueDelivery> due = store.due_deliveries(now, 10, {});
     ASSERT_EQ(due.size(), 1u);
     const nlohmann::json body = nlohmann::json::parse(due[0].body);
     EXPECT_EQ(body["event"], "frame.done");

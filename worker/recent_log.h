@@ -1,4 +1,5 @@
-// The worker's recent log lines, kept so that a failure report can carry what the worker logged about that lease.
+// The worker's recent log lines, kept so that a failure report or a tile's upload can carry what the worker logged
+// about that lease.
 #pragma once
 
 #include <spdlog/sinks/base_sink.h>

@@ -4,6 +4,7 @@
 #include "core/image/image.h"
 #include "failpoint/failpoint.h"
 #include "protocol/routes.h"
+#include "protocol/tile_log.h"
 
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
@@ -41,7 +42,7 @@ std::vector<uint8_t> corrupt_tile(const Image& image, ExrWriteOptions wo, const 
 
 DeliveryOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, const std::string& worker_secret,
                             const std::string& prefix, const RenderResult& res, int width, int height,
-                            std::chrono::milliseconds max_retry_wait, const std::function<std::string()>& give_up) {
+                            const std::vector<std::string>& log, std::chrono::milliseconds max_retry_wait, const std::function<std::string()>& give_up) {
   ExrWriteOptions wo;
   wo.compression = ExrCompression::kNone;  // noisy floats barely compress; the CPU is better spent rendering
   wo.data_window = l.window;
@@ -57,6 +58,7 @@ DeliveryOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, 
   req.content_type = "image/x-exr";
   req.headers[protocol::kRaysHeader] = std::to_string(res.counters.rays);
   req.headers[protocol::kWorkerSecretHeader] = worker_secret;
+  if (std::string header = protocol::tile_log_header(log); !header.empty()) req.headers[protocol::kTileLogHeader] = std::move(header);
   TESSERA_FAIL_POINT("worker.upload");
   client::Backoff backoff(200ms, max_retry_wait);
   std::string why;  // the reason to give up, once there is one
@@ -90,6 +92,11 @@ DeliveryOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, 
       if (r.status == 404) {
         spdlog::warn("{}: the coordinator does not know the lease any more; tile dropped", prefix);
         return DeliveryOutcome::kDropped;
+      }
+      // A coordinator whose header limit (serve --max-header-bytes) is below the log's size: the tile goes without it.
+      if (r.status == 431 && req.headers.erase(protocol::kTileLogHeader) > 0) {
+        spdlog::warn("{}: upload answered 431: {}; sending it again without its log lines", prefix, r.error_text());
+        continue;
       }
       if (!r.retryable()) {
         spdlog::error("{}: upload answered {}: {}; tile dropped", prefix, r.status, r.error_text());

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <functional>
 #include <string>
+#include <vector>
 
 namespace tessera::worker {
 
@@ -20,13 +21,15 @@ enum class DeliveryOutcome {
 };
 
 /// Uploads the render of lease `l`'s tile of a width x height image through `http`, as the worker whose secret is
-/// `worker_secret`, logging under `prefix`. Transport
+/// `worker_secret`, logging under `prefix`, with `log` (its last log lines about the lease, oldest first; cut to the
+/// protocol's bounds, protocol/tile_log.h) for the coordinator to keep with the done tile; an upload answered 431 (the
+/// coordinator's header limit is below the log's size) is sent again at once without the log. Transport
 /// errors and retryable answers are retried with backoff up to `max_retry_wait` apart, until `give_up` gives a reason
 /// (non-empty) to stop trying: asked between attempts and every 100 ms of a request under way, which it interrupts.
 /// The upload then ends kDropped, logged as "giving up the upload of tile N of job J: REASON". Throws only what
 /// encoding throws.
 DeliveryOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, const std::string& worker_secret,
                             const std::string& prefix, const RenderResult& res, int width, int height,
-                            std::chrono::milliseconds max_retry_wait, const std::function<std::string()>& give_up);
+                            const std::vector<std::string>& log, std::chrono::milliseconds max_retry_wait, const std::function<std::string()>& give_up);
 
 }  // namespace tessera::worker

@@ -8,6 +8,7 @@
 #include "protocol/messages.h"
 #include "protocol/routes.h"
 #include "protocol/tile.h"
+#include "protocol/tile_log.h"
 #include "worker/arena_pinning.h"
 #include "worker/asset_cache.h"
 #include "worker/job_scenes.h"
@@ -527,12 +528,15 @@ class Worker {
     using LeaseEnd = std::atomic<std::chrono::steady_clock::time_point>;
     const auto lease_end = std::make_shared<LeaseEnd>(std::chrono::steady_clock::time_point::max());
     const auto rendered = std::chrono::steady_clock::now();
+    // The upload carries the last lines logged about this lease, as a failure report does (within the upload's bounds).
+    std::vector<std::string> log =
+        recent_.log().lines_with(pfx + ":", protocol::kMaxTileLogLines, protocol::kMaxTileLogLineBytes);
     // The secret is copied: the worker may register again (with a new one) while this upload is under way.
     uploads_.post([this, l, secret = secret_, pfx, res = std::make_shared<RenderResult>(std::move(*result)), width,
-                   height, lease_end, rendered] {
+                   height, lease_end, rendered, log = std::move(log)] {
       try {
         const DeliveryOutcome outcome =
-            upload_tile(upload_http_, l, secret, pfx, *res, width, height, opt_.max_retry_wait,
+            upload_tile(upload_http_, l, secret, pfx, *res, width, height, log, opt_.max_retry_wait,
                         [this, lease_end, rendered] { return upload_give_up(rendered, lease_end->load()); });
         count(outcome == DeliveryOutcome::kUploaded ? &WorkerStats::tiles_uploaded
               : outcome == DeliveryOutcome::kFailed ? &WorkerStats::tiles_failed

@@ -217,8 +217,9 @@ class WorkerLoop : public ::testing::Test {
   }
 
   // A coordinator announcing 1 s heartbeats, with the given lease length, and the proxy in front of it.
-  void start_coordinator(double lease_seconds = 30) {
+  void start_coordinator(double lease_seconds = 30, size_t header_limit = server::CoordinatorOptions{}.header_limit) {
     server::CoordinatorOptions o;
+    o.header_limit = header_limit;
     o.durability = server::Durability::none;
     o.handler_threads = 2;
     o.limits.heartbeat_seconds = 1;
@@ -323,6 +324,32 @@ TEST_F(WorkerLoop, RendersEveryTileOnceBitwiseLikeOneRender) {
   EXPECT_EQ(stats.tiles_dropped + stats.tiles_failed + stats.tiles_released, 0);
   expect_each_tile_rendered_once(id);
   expect_bitwise_one_render(id);
+}
+
+// Each upload carries the worker's log lines about its lease, kept with the done tile; behind a coordinator whose
+// header limit is below a log's size, the upload goes again without the log, and no tile is lost.
+TEST_F(WorkerLoop, UploadsCarryTheirLogLinesAndGoWithoutThemWhenTheHeaderIsTooLarge) {
+  spdlog::set_level(spdlog::level::info);  // the lines a tile's log is made of
+  for (const size_t header_limit : {server::CoordinatorOptions{}.header_limit, size_t(450)}) {
+    SCOPED_TRACE("header limit " + std::to_string(header_limit));
+    start_coordinator(30, header_limit);
+    const std::string id = submit(32, 16, 16, 1);  // 2 tiles
+    WorkerThread w(worker_options("w1"));
+    ASSERT_EQ(wait_ended(id).state, JobState::done);
+    w.request_stop();
+    EXPECT_EQ(w.join().tiles_uploaded, 2);
+    for (const protocol::TileInfo& t : client::get_job_tiles(*http_, id).tiles) {
+      if (header_limit == size_t(450)) {
+        EXPECT_TRUE(t.log.empty()) << "tile " << t.index;
+        continue;
+      }
+      ASSERT_FALSE(t.log.empty()) << "tile " << t.index;
+      EXPECT_NE(t.log.front().find("tile=" + std::to_string(t.index) + " lease="), std::string::npos) << t.log.front();
+      EXPECT_NE(t.log.back().find("rendered in"), std::string::npos) << t.log.back();
+    }
+    proxy_.reset();
+    coordinator_.reset();
+  }
 }
 
 // A stop request mid-job: the worker finishes and uploads its tile, hands back the one it was given next, and

@@ -169,14 +169,22 @@ export function mount(host, ctx) {
       !['done', 'cancelled'].includes(job.state)
       ? el('button', { type: 'button', id: 'tile-requeue', text: 'Requeue tile', onclick: () => act('Requeue', 'POST', api.route('job_tile_requeue', id, selected)) })
       : null;
+    // Log lines a worker sent (with a failure, or with a done tile's upload), or why there are none.
+    const logLines = (lines, none) => (lines || []).length
+      ? el('pre', { class: 'log', text: lines.join('\n') })
+      : el('p', { class: 'sub', text: none });
     detail.replaceChildren(...[
       el('h3', {}, `Tile ${selected}`, requeue),
       el('dl', { class: 'kv' }, rows.map(([k, v]) => [el('dt', { text: k }), el('dd', { text: v })])),
+      t.state === 'done'
+        ? el('div', { class: 'tile-log' }, el('h4', { text: 'Log' }),
+            logLines(t.log, t.log_not_kept ? "Not kept: the job's tile logs reached the coordinator's bound." : 'No log lines sent.'))
+        : null,
       failures.length
         ? el('div', { class: 'tile-failures' }, el('h4', { text: 'Failures' }),
             ...failures.map((f) => el('div', { class: 'tile-failure' },
               el('p', { class: 'failure-head', text: `${workerText(f.worker, f.worker_name)}: ${f.error}` }),
-              (f.log || []).length ? el('pre', { class: 'log', text: f.log.join('\n') }) : el('p', { class: 'sub', text: 'No log lines sent.' }))))
+              logLines(f.log, 'No log lines sent.'))))
         : el('p', { class: 'sub', text: 'No failures on this tile.' }),
     ].filter(Boolean));
   }

@@ -560,10 +560,15 @@ def main():
         click(d, '#tilemap .tile[data-state="leased"]', "a leased tile")
         wait_for("the tile details", lambda: "holder" in d.find_element(By.ID, "tile-detail").text)
         click(d, '#tilemap .tile[data-state="done"]', "a done tile")
-        wait_for("a done tile's details from GET /v1/jobs/{id}/tiles, with the worker that rendered it", lambda: all(
-            w in d.find_element(By.ID, "tile-detail").text
-            for w in ("Attempts", "Render time", "Rays", "No failures", "Rendered by", "render-1 (w-")))
+        # With the log lines the worker sent with its upload (what it said about the lease, up to "rendered in").
+        wait_for("a done tile's details from GET /v1/jobs/{id}/tiles, with the worker that rendered it and its log",
+                 lambda: all(w in d.find_element(By.ID, "tile-detail").text
+                             for w in ("Attempts", "Render time", "Rays", "No failures", "Rendered by", "render-1 (w-",
+                                       "leased window", "rendered in")))
         d.save_screenshot(os.path.join(ARTEFACTS, "monitor-job-mid-render.png"))
+        d.execute_script("document.querySelector('#tile-detail .tile-log').scrollIntoView();")
+        d.save_screenshot(os.path.join(ARTEFACTS, "monitor-tile-log.png"))
+        d.execute_script("window.scrollTo(0, 0);")  # the job's buttons back from under the header
 
         click(d, '[data-action="pause"]', "the pause button")
         wait_for("paused", lambda: (lambda j: j.get("state") == "paused" or j.get("paused") is True)(client.call("GET", f"/v1/jobs/{job}")[1]))
@@ -758,9 +763,10 @@ def check_shared_farm():
         # Workers: their tags; no drain for a user.
         d.get(base + "/#/workers")
         wait_for("the workers' tags", lambda: len(d.find_elements(By.CSS_SELECTOR, "#workers-table .tag")) == 3)
-        drains = d.find_elements(By.CSS_SELECTOR, "#workers-table button")
-        if not drains or any(b.get_attribute("disabled") is None for b in drains):
-            fail("a user is offered a worker's drain")
+        # Looked up afresh on each poll: the table is redrawn as the workers' figures change.
+        wait_for("every drain button disabled for a user", lambda: (lambda drains: bool(drains) and all(
+            b.get_attribute("disabled") is not None for b in drains))(
+                d.find_elements(By.CSS_SELECTOR, "#workers-table button")))
         d.save_screenshot(os.path.join(ARTEFACTS, "monitor-shared-workers.png"))
         errors = console_errors(d)
         if errors:
