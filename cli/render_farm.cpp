@@ -11,6 +11,7 @@
 #include "server/auth.h"
 #include "server/coordinator_store.h"
 #include "core/util/file_io.h"
+#include "core/util/remove_tree.h"
 #include "core/scene/scene_loader.h"
 #include "worker/arena_pinning.h"
 #include "worker/asset_cache.h"
@@ -261,7 +262,7 @@ int run_render_farm(const RenderArgs& a, const std::vector<client::FrameScene>& 
     if (!dir.empty()) spdlog::error("logs kept in {}", dir.string());
   } else if (!dir.empty()) {
     std::error_code ec;
-    fs::remove_all(dir, ec);
+    remove_tree(dir, ec);  // its entries in parallel: one by one, a disk that waits per entry took 70 ms
   }
   return rc;
 }
