@@ -72,8 +72,33 @@ std::uintmax_t remove_tree(const fs::path& dir, std::error_code& ec) {
   std::atomic<std::uintmax_t> removed{0};
   std::mutex ec_mutex;
   remove_all_of(files, false, removed, ec, ec_mutex);
-  for (auto level = folders_by_depth.rbegin(); level != folders_by_depth.rend() && !ec; ++level)
-    remove_all_of(*level, true, removed, ec, ec_mutex);
+  if (ec) return removed.load();
+  // Emptied of files, the deeper folders are moved up beside the others (a rename frees nothing, so it does not wait),
+  // deepest first, so that every folder is then removed in one parallel round instead of one round per depth.
+  std::vector<fs::path> folders;
+  size_t moved = 0;
+  bool moving = true;  // until a move fails: then the folders not moved yet stay where they are (their paths hold)
+  for (size_t depth = folders_by_depth.size(); depth-- > 0;)
+    for (const fs::path& f : folders_by_depth[depth]) {
+      if (depth > 0 && moving) {
+        fs::path up = dir / (".removing-" + std::to_string(moved++));
+        if (::rename(f.c_str(), up.c_str()) == 0) {
+          folders.push_back(std::move(up));
+          continue;
+        }
+        moving = false;
+      }
+      folders.push_back(f);
+    }
+  // Folders left in place come after their children: if the parallel round could not remove one (its children were
+  // going at the same time), a pass in this order removes the rest one by one.
+  remove_all_of(folders, true, removed, ec, ec_mutex);
+  if (ec && ec == std::errc::directory_not_empty) {
+    ec.clear();
+    for (const fs::path& f : folders)
+      if (::rmdir(f.c_str()) == 0) removed.fetch_add(1);
+      else if (errno != ENOENT && !ec) ec = std::error_code(errno, std::generic_category());
+  }
   if (!ec) {
     if (::rmdir(dir.c_str()) == 0) removed.fetch_add(1);
     else ec = std::error_code(errno, std::generic_category());
