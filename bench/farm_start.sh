@@ -23,7 +23,7 @@ echo "farm_start: $(date -u +%FT%TZ), commit $commit"
 echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), nproc $(nproc); build: $flags"
 spp=()
 [ -n "${SPP:-}" ] && spp=(--spp "$SPP")
-echo "command: ${SPP:+SPP=$SPP }bash bench/farm_start.sh $BUILD $N $SCENE"
+echo "command: ${SPP:+SPP=$SPP }bash bench/farm_start.sh $BUILD $N ${SCENE#"$ROOT"/}"
 echo "load average at the start: $(cut -d' ' -f1-3 /proc/loadavg)"
 echo
 printf "  %4s  %12s  %12s  %12s\n" pair "single ms" "workers 1 ms" "difference"
