@@ -23,6 +23,7 @@ git -C "$ROOT" diff --quiet HEAD 2>/dev/null || commit="$commit-dirty"
 flags=$(sed -nE 's/^(CMAKE_BUILD_TYPE|TESSERA_NATIVE|CMAKE_CXX_FLAGS_RELEASE):[A-Z]+=(.*)/\1=\2/p' "$BUILD/CMakeCache.txt" | tr '\n' ' ')
 echo "farm_start: $(date -u +%FT%TZ), commit $commit"
 echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), nproc $(nproc); build: $flags"
+echo "binary: $("$T" --version)"
 spp=()
 [ -n "${SPP:-}" ] && spp=(--spp "$SPP")
 echo "command: ${SPP:+SPP=$SPP }bash bench/farm_start.sh $BUILD $N ${SCENE#"$ROOT"/}"

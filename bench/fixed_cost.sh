@@ -47,6 +47,7 @@ git -C "$ROOT" diff --quiet HEAD 2>/dev/null || commit="$commit-dirty"
 flags=$(sed -nE 's/^(CMAKE_BUILD_TYPE|TESSERA_NATIVE|CMAKE_CXX_FLAGS_RELEASE):[A-Z]+=(.*)/\1=\2/p' "$BUILD/CMakeCache.txt" | tr '\n' ' ')
 echo "fixed_cost: $(date -u +%FT%TZ), commit $commit"
 echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), nproc $(nproc); build: $flags"
+echo "binary: $("$T" --version)"
 echo "command: bash bench/fixed_cost.sh $BUILD $N; $N rounds, each running every command below once in turn"
 echo "load average at the start: $(cut -d' ' -f1-3 /proc/loadavg)"
 
