@@ -269,8 +269,8 @@ int render_scene(const RenderArgs& given) {
       const double total = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_load).count();
       const double outside = total - res.parallel_seconds;
       std::fprintf(stderr,
-                   "timing: load %.3fs + film %.3fs + threaded render %.3fs on %d thread(s), idle %.3f thread-s "
-                   "(%.2f%%) + write %.3fs = %.3fs; outside the threaded render %.3fs (%.2f%%)\n",
+                   "timing: load %.4fs + film %.4fs + threaded render %.4fs on %d thread(s), idle %.4f thread-s "
+                   "(%.2f%%) + write %.4fs = %.4fs; outside the threaded render %.4fs (%.2f%%)\n",
                    load_s, film_s, res.parallel_seconds, res.threads, res.idle_thread_seconds,
                    res.parallel_seconds > 0 ? 100.0 * res.idle_thread_seconds / (res.threads * res.parallel_seconds) : 0.0,
                    write_s, total, outside, total > 0 ? 100.0 * outside / total : 0.0);

@@ -10,7 +10,9 @@
 #include "core/render/layer_film.h"
 #include "server/auth.h"
 #include "server/coordinator_store.h"
+#include "server/storage.h"
 #include "core/util/file_io.h"
+#include "core/util/remove_tree.h"
 #include "core/scene/scene_loader.h"
 #include "worker/arena_pinning.h"
 #include "worker/asset_cache.h"
@@ -157,16 +159,27 @@ int run_render_farm(const RenderArgs& a, const std::vector<client::FrameScene>& 
     o.tile_size = a.farm_tile;
     o.resumable = a.resumable;  // the result then carries the state channels, as `render --resumable` writes them
     // While the coordinator starts: the scene's assets are hashed and put in the workers' cache, where they would
-    // otherwise fetch them one by one from the coordinator.
+    // otherwise fetch them one by one from the coordinator, and linked into the coordinator's blob folder, so that
+    // the submission finds them stored instead of uploading each one.
     std::optional<client::SceneFiles> files;
     try {
       files = client::read_scene_files(o);
       worker::AssetCache cache(dir / "cache");
-      for (const client::LocalAsset& asset : files->assets)
-        cache.get(asset.sha256, [&](const std::string&) { return read_file_bytes(asset.file); });
+      const fs::path blobs = server::blobs_dir(dir / "data");
+      const auto store = [&](const client::LocalAsset& asset) {
+        const fs::path verified = cache.get(asset.sha256, [&](const std::string&) { return read_file_bytes(asset.file); });
+        // A whole file appears at once (no temp file for the starting coordinator to clear); should it fail, the
+        // submission uploads the asset.
+        const fs::path stored = server::blob_file(blobs, asset.sha256);
+        std::error_code ec;
+        fs::create_directories(stored.parent_path(), ec);
+        if (!ec) fs::create_hard_link(verified, stored, ec);
+        if (ec && ec != std::errc::file_exists)
+          spdlog::debug("{} goes to the coordinator by upload: {}", asset.path, ec.message());
+      };
+      for (const client::LocalAsset& asset : files->assets) store(asset);
       for (const client::FrameFiles& frame : files->frames)
-        for (const client::LocalAsset& asset : frame.assets)
-          cache.get(asset.sha256, [&](const std::string&) { return read_file_bytes(asset.file); });
+        for (const client::LocalAsset& asset : frame.assets) store(asset);
     } catch (const SceneError& e) {
       spdlog::error("{}", e.what());
       rc = kExitRefused;
@@ -261,7 +274,7 @@ int run_render_farm(const RenderArgs& a, const std::vector<client::FrameScene>& 
     if (!dir.empty()) spdlog::error("logs kept in {}", dir.string());
   } else if (!dir.empty()) {
     std::error_code ec;
-    fs::remove_all(dir, ec);
+    remove_tree(dir, ec);  // its entries in parallel: one by one, a disk that waits per entry took 70 ms
   }
   return rc;
 }

@@ -111,7 +111,7 @@ struct Coordinator::Impl {
   explicit Impl(CoordinatorOptions o)
       : opt(std::move(o)),
         disk(opt.data_dir, opt.min_free_disk),
-        blobs(opt.data_dir / "blobs", opt.durability),
+        blobs(blobs_dir(opt.data_dir), opt.durability),
         store(open_coordinator_store(opt.data_dir, opt.durability)),
         sched(scheduler_config(opt), wall_ms, *store),
         bus(opt.events, random_hex(4)),

@@ -48,7 +48,9 @@ DiskBlobStore::DiskBlobStore(fs::path dir, Durability durability) : dir_(std::mo
   leftovers_removed_ = remove_leftovers(dir_);  // blob writes a crash interrupted
 }
 
-fs::path DiskBlobStore::path_of(const std::string& sha) const { return dir_ / sha.substr(0, 2) / sha; }
+fs::path blobs_dir(const fs::path& data_dir) { return data_dir / "blobs"; }
+
+fs::path blob_file(const fs::path& dir, const std::string& sha) { return dir / sha.substr(0, 2) / sha; }
 
 PutBlobResult DiskBlobStore::put(const std::string& sha, std::string_view bytes) {
   if (!is_sha256_hex(sha)) throw std::invalid_argument("not a SHA-256: " + sha);

@@ -68,6 +68,13 @@ class BlobStore {
   virtual void remove(const std::string& sha256) = 0;
 };
 
+/// Where the coordinator with data folder `data_dir` keeps its blobs (a DiskBlobStore's folder): DATA_DIR/blobs.
+std::filesystem::path blobs_dir(const std::filesystem::path& data_dir);
+
+/// The file of the blob `sha256` in a DiskBlobStore rooted at `dir`: DIR/<first 2 hex digits>/<sha256>. A file put
+/// there whole (e.g. a hard link to a verified copy) is a stored blob for the store.
+std::filesystem::path blob_file(const std::filesystem::path& dir, const std::string& sha256);
+
 /// Blobs as files DIR/<2 hex>/<64 hex>, written to a temp file, fsynced (Durability::machine) and renamed into place.
 class DiskBlobStore final : public BlobStore {
  public:
@@ -84,7 +91,7 @@ class DiskBlobStore final : public BlobStore {
   void remove(const std::string& sha256) override;
 
  private:
-  std::filesystem::path path_of(const std::string& sha256) const;
+  std::filesystem::path path_of(const std::string& sha256) const { return blob_file(dir_, sha256); }
   std::filesystem::path dir_;
   Durability durability_;
   size_t leftovers_removed_ = 0;
