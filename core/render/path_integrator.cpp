@@ -13,6 +13,13 @@ namespace {
 // (a reflecting vertex gathers light only there; the light samplers' receiver-normal strategies weight by it).
 Vec3 receiver_normal(const SurfaceHit& h, const Vec3& wo) { return glm::dot(wo, h.sp.n) >= 0.f ? h.ns : -h.ns; }
 
+// Density of the environment sample for direction d at a vertex of receiver normal nr: a constant environment is
+// sampled by the cosine around nr (no direction below the receiver is drawn; a uniform sphere would waste half),
+// an image by its importance.
+float env_light_pdf(const Environment& env, const Vec3& d, const Vec3& nr) {
+  return env.constant() ? std::max(0.f, glm::dot(d, nr)) * kInvPi : env.pdf(d);
+}
+
 // Light gathered at a non-delta vertex by sampling every light once: the point light always (a delta light, no
 // other strategy can find it); area lights and the environment unless the profile is RW, weighted against BSDF
 // sampling by the power heuristic under MIS. Area lights are sampled with the receiver normal nr (in proportion to
@@ -53,7 +60,13 @@ Vec3 sample_lights(const Scene& scene, const SurfaceHit& h, const Vec3& nr, cons
   }
   if (scene.environment) {
     const Environment& env = *scene.environment;
-    const LightSample ls = env.sample(draw_2d());
+    LightSample ls;
+    if (env.constant()) {
+      const Vec3 wi = Frame::from_z(nr).to_world(sample_cosine_hemisphere(draw_2d()));
+      ls = {wi, Vec3(0.f), env.radiance(wi), env_light_pdf(env, wi, nr)};
+    } else {
+      ls = env.sample(draw_2d());
+    }
     const Vec3 wi = ls.p;
     if (ls.pdf > 0.f && max_component(ls.radiance) > 0.f) {
       const Vec3 f = bsdf.f(wo, wi);
@@ -90,8 +103,10 @@ Vec3 trace_path(const Scene& scene, Ray r, const std::optional<Hit>& camera_hit,
     if (!hit) {
       if (scene.environment) {
         const Vec3 d = glm::normalize(r.d);
+        const Environment& env = *scene.environment;
         float lp = 0.f;
-        const Vec3 le = after_delta ? scene.environment->radiance(d) : scene.environment->radiance_and_pdf(d, &lp);
+        const Vec3 le = after_delta || env.constant() ? env.radiance(d) : env.radiance_and_pdf(d, &lp);
+        if (!after_delta && env.constant()) lp = env_light_pdf(env, d, prev_n);
         L += beta * le * emission_weight(st.profile, after_delta, bsdf_pdf, lp);
       }
       break;
