@@ -331,7 +331,7 @@ def build(scene_path, width, height, threads, desc=None):
     textures = desc.get("textures", {})
     materials = {}
     for name, m in desc.get("materials", {}).items():
-        if bounces == 0 and m.get("type") != "diffuse":
+        if kind in ("intersection_test", "direct") and m.get("type") != "diffuse":
             raise ValueError(f"{scene_path}: material {name}: only diffuse materials are converted for direct light")
         materials[name] = _material(scene_path, folder, textures, name, m)
 
