@@ -292,6 +292,19 @@ double error_at_time(const std::vector<Point>& c, double t) {
 
 // The path tracer's report: error against time on the path-traced scenes, the three profiles at equal time, and
 // Russian roulette on and off. Writes speed-vs-error-path.md beside the main report.
+// Writes a report to `file`, keeping the section "Against Blender Cycles" of the file's previous version as it is:
+// that section comes from bench/vs_cycles/run.sh, not from this bench.
+void write_report(const fs::path& file, const std::string& text) {
+  const std::string cycles_heading = "\n## Against Blender Cycles";
+  std::string kept;
+  if (std::ifstream old(file); old) {
+    const std::string previous((std::istreambuf_iterator<char>(old)), std::istreambuf_iterator<char>());
+    if (const size_t at = previous.find(cycles_heading); at != std::string::npos) kept = previous.substr(at);
+  }
+  std::ofstream(file) << text << kept;
+  log("wrote " + file.string());
+}
+
 int path_tracing_report(const Args& a, const fs::path& data, const std::string& stamp, const std::string& machine) {
   struct PathScene {
     std::string name;
@@ -409,8 +422,7 @@ int path_tracing_report(const Args& a, const fs::path& data, const std::string& 
   compare("Roulette", "cbox_gi", rr, "max_depth 16, walls of albedo 0.05-0.73.");
   compare("Roulette", "veach_mis", rr, "max_depth 8: metal plates and a dark backdrop (albedo 0.1).");
   md << "\n" << kPathDiscussion;
-  std::ofstream(a.out / "speed-vs-error-path.md") << md.str();
-  log("wrote " + (a.out / "speed-vs-error-path.md").string());
+  write_report(a.out / "speed-vs-error-path.md", md.str());
   (void)data;
   return 0;
 }
@@ -723,14 +735,6 @@ int main(int argc, char** argv) {
   const int rc = std::system(("cd '" + data.string() + "' && gnuplot plots.gp").c_str());
   if (rc != 0) log("gnuplot failed (is gnuplot-nox installed?)");
 
-  // The Blender Cycles section comes from bench/vs_cycles/run.sh, not from this bench: keep it as it is.
-  const std::string cycles_heading = "\n## Against Blender Cycles";
-  std::string kept;
-  if (std::ifstream old(a.out / "speed-vs-error.md"); old) {
-    const std::string text((std::istreambuf_iterator<char>(old)), std::istreambuf_iterator<char>());
-    if (const size_t at = text.find(cycles_heading); at != std::string::npos) kept = text.substr(at);
-  }
-  std::ofstream(a.out / "speed-vs-error.md") << md.str() << kept;
-  log("wrote " + (a.out / "speed-vs-error.md").string());
+  write_report(a.out / "speed-vs-error.md", md.str());
   return 0;
 }

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Tessera against Blender Cycles at equal error (direct lighting), optional and not in CI.
+# Tessera against Blender Cycles at equal error (direct lighting and path tracing), optional and not in CI.
 # Usage: bench/vs_cycles/run.sh [--tessera PATH] [options of vs_cycles.py, e.g. --threads 2 --repeats 3]
 # Writes bench/results/vs_cycles.txt unless --out is given. Needs Debian's `blender` (3.4); skipped without it.
 set -euo pipefail

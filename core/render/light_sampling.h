@@ -7,11 +7,11 @@ namespace tessera {
 
 /// How area lights are sampled (the speed-against-error comparisons select each strategy by this).
 enum class AreaSampling {
-  /// The default. Without a receiver normal (the path tracer): per shading point, rectangles by solid angle when it
-  /// is close to them, by area when far. With one (the direct integrator): rectangles approximately in proportion
-  /// to their unoccluded contribution, by projected solid angle when close (spherical rectangles warped by the
-  /// cosines towards their corners, Hart et al. 2020) and by area warped by the contributions of their corners when
-  /// far. Other triangles by area, spheres by cone in both cases.
+  /// The default. With a receiver normal (both integrators pass one): rectangles approximately in proportion to
+  /// their unoccluded contribution, by projected solid angle when close (spherical rectangles warped by the cosines
+  /// towards their corners, Hart et al. 2020) and by area warped by the contributions of their corners when far.
+  /// Without one: per shading point, rectangles by solid angle when it is close to them, by area when far. Other
+  /// triangles by area, spheres by cone in both cases.
   kAuto,
   kSolidAngle,  ///< Spherical rectangles for rectangles, uniform cones for spheres.
   kArea,        ///< Uniform points by area (the baseline).

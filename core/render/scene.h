@@ -78,7 +78,9 @@ struct IntegratorSettings {
   AreaSampling area_sampling = AreaSampling::kAuto;  ///< Area light strategy.
   EnvSampling env_sampling = EnvSampling::kMis;           ///< Environment strategy.
   /// Direct integrator: the first area-light draw of a camera sample is stratified jointly with its pixel position
-  /// (PixelSampler::next_2d_paired); false draws it independently (a baseline for bench/speed_vs_error).
+  /// (PixelSampler::next_2d_paired); path tracer: every vertex's light draws with the previous 2D draw (the pixel
+  /// position, then the BSDF direction that led to the vertex). False draws them independently (a baseline for
+  /// bench/speed_vs_error).
   bool pair_light_with_pixel = true;
   IntegratorKind integrator = IntegratorKind::kDirect;    ///< Integrator.
   PathProfile profile = PathProfile::kMis;                ///< Path tracer: light gathering.
