@@ -18,12 +18,9 @@ trap 'rm -rf "$WORK"' EXIT
 now() { date +%s.%N; }
 ms() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.1f", 1000 * (b - a) }'; }
 
-commit=$(git -C "$ROOT" rev-parse --short HEAD 2>/dev/null || echo unknown)
-git -C "$ROOT" diff --quiet HEAD 2>/dev/null || commit="$commit-dirty"
-flags=$(sed -nE 's/^(CMAKE_BUILD_TYPE|TESSERA_NATIVE|CMAKE_CXX_FLAGS_RELEASE):[A-Z]+=(.*)/\1=\2/p' "$BUILD/CMakeCache.txt" | tr '\n' ' ')
-echo "farm_start: $(date -u +%FT%TZ), commit $commit"
-echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), nproc $(nproc); build: $flags"
-echo "binary: $("$T" --version)"
+# shellcheck source-path=SCRIPTDIR source=run_header.sh
+source "$(dirname "$0")/run_header.sh"
+run_header farm_start "$ROOT" "$BUILD"
 spp=()
 [ -n "${SPP:-}" ] && spp=(--spp "$SPP")
 echo "command: ${SPP:+SPP=$SPP }bash bench/farm_start.sh $BUILD $N ${SCENE#"$ROOT"/}"

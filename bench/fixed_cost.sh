@@ -42,12 +42,9 @@ timing() {
 }
 render() { "$T" render "$WORK/$1" -o "$WORK/$2.exr" -q "${@:3}"; }
 
-commit=$(git -C "$ROOT" rev-parse --short HEAD 2>/dev/null || echo unknown)
-git -C "$ROOT" diff --quiet HEAD 2>/dev/null || commit="$commit-dirty"
-flags=$(sed -nE 's/^(CMAKE_BUILD_TYPE|TESSERA_NATIVE|CMAKE_CXX_FLAGS_RELEASE):[A-Z]+=(.*)/\1=\2/p' "$BUILD/CMakeCache.txt" | tr '\n' ' ')
-echo "fixed_cost: $(date -u +%FT%TZ), commit $commit"
-echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), nproc $(nproc); build: $flags"
-echo "binary: $("$T" --version)"
+# shellcheck source-path=SCRIPTDIR source=run_header.sh
+source "$(dirname "$0")/run_header.sh"
+run_header fixed_cost "$ROOT" "$BUILD"
 echo "command: bash bench/fixed_cost.sh $BUILD $N; $N rounds, each running every command below once in turn"
 echo "load average at the start: $(cut -d' ' -f1-3 /proc/loadavg)"
 
