@@ -78,6 +78,10 @@ CLI::App* add_serve_command(CLI::App& app, ServeArgs& a) {
                 "The encoder the movie step runs (submit --then movie): a path, or a name looked up on the "
                 "coordinator's PATH; when there is none, movies are refused at submission")
       ->capture_default_str();
+  c->add_option("--movie-stall-seconds", o.limits.steps.movie_stall_seconds,
+                "An ffmpeg that reads no frame, or does not finish once fed, for this long is killed and the movie "
+                "step failed with its log")
+      ->check(CLI::Range(0.1, 86400.0))->capture_default_str();
   c->add_option("--tls-cert", o.tls.cert_file, "Serve HTTPS with this PEM certificate chain (re-read on SIGHUP)");
   c->add_option("--tls-key", o.tls.key_file, "Private key (PEM) of --tls-cert (re-read on SIGHUP)");
   c->add_option("--tls-client-ca", o.tls.client_ca_file,

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <chrono>
 #include <cstring>
 #include <deque>
 #include <fstream>
@@ -59,6 +60,20 @@ struct Fd {
 // How often a wait on ffmpeg (for room in the pipe, or for its exit) looks whether the encoder is to stop.
 constexpr int kStopCheckMs = 50;
 
+// When ffmpeg last made progress (read from the pipe, or was fed its last frame); throws once it made none for longer
+// than the job allows.
+struct Progress {
+  using Clock = std::chrono::steady_clock;
+  double limit_seconds;
+  Clock::time_point last = Clock::now();
+  void made() { last = Clock::now(); }
+  void check(const char* waiting_for) const {
+    if (std::chrono::duration<double>(Clock::now() - last).count() > limit_seconds)
+      throw std::runtime_error("ffmpeg " + std::string(waiting_for) + " for " + std::to_string(int(limit_seconds)) +
+                               " s and was killed");
+  }
+};
+
 // The child: killed and reaped unless it was waited for.
 struct Child {
   pid_t pid = -1;
@@ -72,7 +87,8 @@ struct Child {
   }
   // Its exit status, once it exited; throws EncodeInterrupted (the destructor then kills it) when `stopping` turns true
   // first, so that an ffmpeg that hangs does not hold the coordinator's stop.
-  int wait(const std::function<bool()>& stopping) {
+  // Throws std::runtime_error when it has not exited `progress`'s limit after its input ended.
+  int wait(const std::function<bool()>& stopping, const Progress& progress) {
     while (true) {
       int status = 0;
       const pid_t r = ::waitpid(pid, &status, WNOHANG);
@@ -82,6 +98,7 @@ struct Child {
       }
       if (r < 0 && errno != EINTR) throw std::runtime_error(std::string("cannot wait for ffmpeg: ") + std::strerror(errno));
       if (stopping()) throw EncodeInterrupted("stopped while ffmpeg finished the movie");
+      progress.check("did not finish the movie");
       ::poll(nullptr, 0, kStopCheckMs);
     }
   }
@@ -105,19 +122,22 @@ struct SigpipeBlocked {
 };
 
 // Writes all of `bytes` to the (non-blocking) pipe; false when ffmpeg stopped reading (EPIPE). Throws
-// EncodeInterrupted when `stopping` turns true while the pipe is full.
-bool write_all(int fd, const uint8_t* bytes, size_t n, const std::function<bool()>& stopping) {
+// EncodeInterrupted when `stopping` turns true while the pipe is full, std::runtime_error when ffmpeg read nothing for
+// `progress`'s limit.
+bool write_all(int fd, const uint8_t* bytes, size_t n, const std::function<bool()>& stopping, Progress& progress) {
   while (n > 0) {
     const ssize_t w = ::write(fd, bytes, n);
     if (w < 0 && errno == EINTR) continue;
     if (w < 0 && errno == EPIPE) return false;
     if (w < 0 && errno == EAGAIN) {
       if (stopping()) throw EncodeInterrupted("stopped while ffmpeg read a frame");
+      progress.check("read nothing");
       pollfd p{fd, POLLOUT, 0};
       ::poll(&p, 1, kStopCheckMs);
       continue;
     }
     if (w < 0) throw std::runtime_error(std::string("cannot feed ffmpeg: ") + std::strerror(errno));
+    progress.made();
     bytes += w;
     n -= size_t(w);
   }
@@ -202,6 +222,7 @@ void encode_movie(const MovieJob& job, const std::function<bool()>& stopping) {
     throw std::runtime_error(std::string("cannot feed ffmpeg: ") + std::strerror(errno));
 
   bool fed = true;
+  Progress progress{job.stall_seconds};
   {
     SigpipeBlocked quiet;
     for (size_t i = 0; i < job.frames.size() && fed; ++i) {
@@ -212,11 +233,19 @@ void encode_movie(const MovieJob& job, const std::function<bool()>& stopping) {
         throw std::runtime_error("a movie's frames must have one size: " + job.frames[i].string() + " is " + this_size +
                                  ", the first frame " + size);
       const std::vector<uint8_t> rgb = srgb8_pixels(img);
-      fed = write_all(write_end.fd, rgb.data(), rgb.size(), stopping);
+      fed = write_all(write_end.fd, rgb.data(), rgb.size(), stopping, progress);
     }
   }
   write_end.reset();  // end of input: ffmpeg finishes the file
-  const int status = child.wait(stopping);
+  progress.made();
+  int status = 0;
+  try {
+    status = child.wait(stopping, progress);
+  } catch (const EncodeInterrupted&) {
+    throw;
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(std::string(e.what()) + "; the end of its log:\n" + log_tail(job.log));
+  }
   if (!fed || !WIFEXITED(status) || WEXITSTATUS(status) != 0)
     throw std::runtime_error("ffmpeg " + (fed ? describe_status(status)
                                               : describe_status(status) + " before it read every frame") +

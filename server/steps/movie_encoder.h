@@ -26,10 +26,11 @@ struct MovieJob {
   int fps = protocol::kDefaultMovieFps;       ///< Frames per second.
   std::filesystem::path output;               ///< The MP4 written (replaced whole, only when ffmpeg succeeded).
   std::filesystem::path log;                  ///< ffmpeg's standard output and error (overwritten).
+  double stall_seconds = 600;                 ///< ffmpeg killed, and the step failed, after this long without progress.
 };
 
 /// Encodes the movie. Throws std::runtime_error with a sentence (for a failed ffmpeg: how it ended and the end of its
-/// log), or EncodeInterrupted when `stopping` turned true before ffmpeg exited (it is looked at between frames and
+/// log; for one that neither read a frame nor, once fed, exited within MovieJob::stall_seconds: that, after killing it), or EncodeInterrupted when `stopping` turned true before ffmpeg exited (it is looked at between frames and
 /// every 50 ms while ffmpeg is waited for; ffmpeg is then killed). Leaves no partial output either way.
 void encode_movie(const MovieJob& job, const std::function<bool()>& stopping);
 

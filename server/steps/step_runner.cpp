@@ -152,6 +152,7 @@ void StepRunner::run_step(const Work& w, Step step) {
         else throw std::runtime_error("no movie: " + ffmpeg_missing());
         for (const auto& [frame, file] : w.results) movie.frames.push_back(file);
         movie.fps = w.fps;
+        movie.stall_seconds = opt_.movie_stall_seconds;
         movie.output = d / output_name(step, std::nullopt, ".mp4");
         movie.log = d / marker(step, "log");
         encode_movie(movie, [this] { return stopping(); });

@@ -28,6 +28,9 @@ namespace tessera::server {
 struct StepOptions {
   /// The movie step's encoder (`serve --ffmpeg`): a path, or a name looked up on the coordinator's PATH.
   std::string ffmpeg = "ffmpeg";
+  /// `serve --movie-stall-seconds`: an ffmpeg that reads no frame, or does not exit once fed, for this long is killed
+  /// and the movie step failed.
+  double movie_stall_seconds = 600;
 };
 
 /// Runs the steps of done jobs.

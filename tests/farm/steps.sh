@@ -6,7 +6,8 @@
 # outputs -o` saved it. Refused at submission with a sentence: a contact sheet or a movie of one image, a movie of
 # frames of two sizes, --fps without a movie, and (a coordinator whose PATH has no ffmpeg) any movie. A coordinator
 # whose --ffmpeg fails leaves the job done and its movie step failed with the end of ffmpeg's log. Nothing runs a
-# shell command. A coordinator stopped while its ffmpeg hangs kills it, and makes the movie after its restart.
+# shell command. A coordinator stopped while its ffmpeg hangs kills it, and makes the movie after its restart; an
+# ffmpeg stalled for --movie-stall-seconds is killed and fails the step.
 source "$(dirname "$0")/common.sh"
 
 write_sphere_scene "$WORK/s.json" 24 16 1
@@ -147,6 +148,23 @@ restart_serve
 log_has "$WORK/serve.log" "job $H: step movie stopped while ffmpeg finished the movie" \
   || fail "the stop did not interrupt the hung ffmpeg"
 wait_for outputs_done "$H" || fail "the interrupted movie was not made after the restart: $(curl -sS "$URL/v1/jobs/$H")"
+
+# An ffmpeg that makes no progress for --movie-stall-seconds is killed: the movie step fails with that sentence, the
+# render stays done.
+restart_serve --ffmpeg "$WORK/hung-ffmpeg" --movie-stall-seconds 1
+rm -f "$WORK/encoding"
+K=$("$TESSERA" submit "$WORK/m_#.json" --frames 1-2 --coordinator "$URL" --tile 8 --then movie \
+      --detach 2>>"$WORK/submit.log") || fail "submit the movie to the stalling ffmpeg"
+wait_for steps_settled "$K" || fail "the stalled movie's step did not settle: $(curl -sS "$URL/v1/jobs/$K")"
+curl -sS -f "$URL/v1/jobs/$K" >"$WORK/k.json"
+python3 - "$WORK/k.json" <<'PY' || fail "a stalled ffmpeg did not fail the movie step with a sentence: $(cat "$WORK/k.json")"
+import json, sys
+j = json.load(open(sys.argv[1]))
+assert j["state"] == "done", j["state"]
+(movie,) = j["outputs"]
+assert movie["state"] == "failed" and "did not finish the movie for 1 s and was killed" in movie["log"], movie
+PY
+restart_serve
 
 # A coordinator whose PATH holds no ffmpeg refuses a movie at submission (the other steps still go).
 kill -TERM "$SERVE_PID"
