@@ -49,6 +49,15 @@ std::map<std::string, T> json_map(const std::string& text, const char* what) {
   }
 }
 
+// A stored JSON list of strings; `what` names it in the error ("job j-1: stored workers").
+std::vector<std::string> json_list(const std::string& text, const std::string& what) {
+  try {
+    return json::parse(text).get<std::vector<std::string>>();
+  } catch (const json::exception& e) {
+    throw StorageError(what + " is not a JSON list: " + e.what());
+  }
+}
+
 // The schema (version 1). A tile can only be done with its pixels: the database itself refuses anything else.
 constexpr const char* kSchema = R"sql(
 CREATE TABLE IF NOT EXISTS meta(key TEXT PRIMARY KEY, value INTEGER NOT NULL);
@@ -563,11 +572,7 @@ SchedulerSnapshot DurableStore::load() {
       if (!st.is_null(13)) s.finished_ms = st.integer(13);
       if (!st.is_null(14)) s.error = st.text(14);
       s.rays = uint64_t(st.integer(15));
-      try {
-        s.workers = json::parse(st.text(16)).get<std::vector<std::string>>();
-      } catch (const json::exception& e) {
-        throw StorageError("job " + s.id + ": stored workers are not a JSON list: " + e.what());
-      }
+      s.workers = json_list(st.text(16), "job " + s.id + ": stored workers");
       r.worker_failures = json_map<int>(st.text(17), "worker failures");
       r.worker_last_error = json_map<std::string>(st.text(18), "worker errors");
       s.params.tile_timeout_seconds = st.integer(19);
@@ -582,11 +587,7 @@ SchedulerSnapshot DurableStore::load() {
         s.frame = st.integer(23);
       }
       s.params.owner = st.text(24);
-      try {
-        s.params.require = json::parse(st.text(25)).get<std::vector<std::string>>();
-      } catch (const json::exception& e) {
-        throw StorageError("job " + s.id + ": stored requirements are not a JSON list: " + e.what());
-      }
+      s.params.require = json_list(st.text(25), "job " + s.id + ": stored requirements");
       s.params.max_workers = st.integer(26);
       try {
         s.params.pipeline = protocol::answer_pipeline(json::parse(st.text(27)));
@@ -625,11 +626,7 @@ SchedulerSnapshot DurableStore::load() {
       r.rays = uint64_t(st.integer(7));
       r.logs = json_map<std::vector<std::string>>(st.text(8), "tile failure logs");
       r.rendered_by = st.text(9);
-      try {
-        r.log = json::parse(st.text(10)).get<std::vector<std::string>>();
-      } catch (const json::exception& e) {
-        throw StorageError(std::string("stored tile log is not a JSON array of strings: ") + e.what());
-      }
+      r.log = json_list(st.text(10), "job " + r.job + " tile " + std::to_string(r.index) + ": stored log");
       r.log_not_kept = st.integer(11) != 0;
       snap.tiles.push_back(std::move(r));
     }
@@ -656,11 +653,7 @@ SchedulerSnapshot DurableStore::load() {
     Statement& st = db_.statement("SELECT id, name, drained, secret_sha256, tags FROM workers");
     while (st.step()) {
       WorkerRow w{st.text(0), st.text(1), st.integer(2) != 0, st.text(3)};
-      try {
-        w.tags = json::parse(st.text(4)).get<std::vector<std::string>>();
-      } catch (const json::exception& e) {
-        throw StorageError("worker " + w.id + ": stored tags are not a JSON list: " + e.what());
-      }
+      w.tags = json_list(st.text(4), "worker " + w.id + ": stored tags");
       snap.workers.push_back(std::move(w));
     }
   }
