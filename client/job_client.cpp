@@ -396,37 +396,32 @@ JobStatus wait_for_job(HttpClient& http, const std::string& id, const std::funct
   }
 }
 
-uint64_t download_result(HttpClient& http, const std::string& id, const fs::path& path) {
-  const HttpResponse r = http.send("GET", routes::job_result(id));
-  if (r.status != 200) refuse("downloading the result of " + id, r);
+namespace {
+
+// GETs `route` and writes its body to `path` whole (write_file_atomic); `what` names the download in a refusal.
+uint64_t download_to(HttpClient& http, const std::string& route, const std::string& what, const fs::path& path) {
+  const HttpResponse r = http.send("GET", route);
+  if (r.status != 200) refuse("downloading " + what, r);
   try {
     write_file_atomic(path, r.body);
   } catch (const FileError& e) {
     throw SubmitError(e.what());
   }
   return r.body.size();
+}
+
+}  // namespace
+
+uint64_t download_result(HttpClient& http, const std::string& id, const fs::path& path) {
+  return download_to(http, routes::job_result(id), "the result of " + id, path);
 }
 
 uint64_t download_frame(HttpClient& http, const std::string& id, int64_t frame, const fs::path& path) {
-  const HttpResponse r = http.send("GET", routes::job_frame_result(id, frame));
-  if (r.status != 200) refuse("downloading frame " + std::to_string(frame) + " of " + id, r);
-  try {
-    write_file_atomic(path, r.body);
-  } catch (const FileError& e) {
-    throw SubmitError(e.what());
-  }
-  return r.body.size();
+  return download_to(http, routes::job_frame_result(id, frame), "frame " + std::to_string(frame) + " of " + id, path);
 }
 
 uint64_t download_output(HttpClient& http, const std::string& id, const std::string& name, const fs::path& path) {
-  const HttpResponse r = http.send("GET", routes::job_output(id, name));
-  if (r.status != 200) refuse("downloading output " + name + " of " + id, r);
-  try {
-    write_file_atomic(path, r.body);
-  } catch (const FileError& e) {
-    throw SubmitError(e.what());
-  }
-  return r.body.size();
+  return download_to(http, routes::job_output(id, name), "output " + name + " of " + id, path);
 }
 
 protocol::PurgeAnswer purge_job(HttpClient& http, const std::string& id) {
