@@ -45,9 +45,15 @@ export function mount(host, ctx) {
     el('p', { class: 'sub', text: 'Click a tile for its worker, failures and log lines.' }));
   const map = new TileMap((i) => { selected = i; drawDetail(); reloadTiles().catch(() => {}); });
   // The tile list as the coordinator has it (events carry states only: attempts, times, rays and logs come from here).
-  async function reloadTiles() {
+  // How many done tiles' logs the coordinator did not keep (the job's tile logs reached its bound).
+  let logsNotKept = 0;
+  async function fetchTiles() {
     const body = await api.call('GET', api.route('job_tiles', id));
-    tiles = Array.isArray(body) ? body : body.tiles || [];
+    tiles = body.tiles || [];
+    logsNotKept = body.logs_not_kept || 0;
+  }
+  async function reloadTiles() {
+    await fetchTiles();
     drawTiles();
     drawDetail();
   }
@@ -137,14 +143,18 @@ export function mount(host, ctx) {
       n[s] = (n[s] || 0) + 1;
       if (s === 'leased' && t.worker) workers.set(t.worker, t.worker_name || t.worker);
     }
-    tileCounts.replaceChildren(
+    tileCounts.replaceChildren(...[
       ...SHOWN_TILE_STATES.map((s) =>
         el('span', { class: 'key', 'data-count': s }, el('i', { class: 'swatch tile', 'data-state': s }), `${s} ${n[s] || 0}`)),
       ...[...workers].map(([w, name]) => {
         const sw = el('i', { class: 'swatch' });
         sw.style.background = workerColor(w);
         return el('span', { class: 'key worker-key', title: w }, sw, name);
-      }));
+      }),
+      logsNotKept ? el('span', { class: 'key', id: 'logs-not-kept',
+        title: "The job's tile logs reached the coordinator's bound (serve --max-tile-log-bytes)",
+        text: `${logsNotKept} tile log${logsNotKept === 1 ? '' : 's'} not kept` }) : null,
+    ].filter(Boolean));
     drawDetail();
   }
 
@@ -236,8 +246,7 @@ export function mount(host, ctx) {
         layerSelect.hidden = layers.length === 0;
       }
       drawHead();
-      const body = await api.call('GET', api.route('job_tiles', id));
-      tiles = Array.isArray(body) ? body : body.tiles || [];
+      await fetchTiles();
       drawTiles();
       await refreshPreview();
     },

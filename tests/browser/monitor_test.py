@@ -418,6 +418,8 @@ def main():
     # Long leases: the held tiles stay leased for the whole test, whatever the machine's speed.
     serve = start([TESSERA, "serve", "--data", os.path.join(WORK, "data"), "--listen", "127.0.0.1:0",
                    "--ready-file", ready, "--lease-seconds", "600", "--tile-failure-workers", "1",
+                   # Room for the first few done tiles' logs only: the job page counts the rest as not kept.
+                   "--max-tile-log-bytes", "2048",
                    "--client-token-file", client_path,
                    "--worker-token-file", worker_path], "serve.log")
     wait_for("the coordinator", lambda: os.path.exists(ready) and open(ready).read().strip())
@@ -583,6 +585,14 @@ def main():
 
         wait_for("job done on the page", lambda: "done" in d.find_element(By.ID, "job-state").text)
         wait_for("every tile done on the map", lambda: tiles_in(d, "done") == TOTAL_TILES)
+        # The legend counts the done tiles whose logs the coordinator did not keep, as its tile list does.
+        _, listed = client.call("GET", f"/v1/jobs/{job}/tiles")
+        if not listed.get("logs_not_kept"):
+            fail(f"no tile log went unkept under --max-tile-log-bytes 2048: {listed.get('logs_not_kept')}")
+        click(d, '#tilemap .tile[data-state="done"]', "a done tile")
+        unkept = f"{listed['logs_not_kept']} tile logs not kept"
+        wait_for(f"the legend's '{unkept}'", lambda: [e.text for e in visible(d, "#logs-not-kept")] == [unkept])
+        print(f"tile logs: {unkept}, shown in the legend")
         wait_for("the final preview", lambda: d.execute_script(
             "const i = document.getElementById('preview'); return i.complete && i.dataset.tilesDone === String(arguments[0]);",
             TOTAL_TILES))
