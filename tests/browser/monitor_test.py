@@ -248,8 +248,10 @@ def check_sequences(d, base, client, workerside, holder, worker_path):
     retried from the page. No worker runs when this starts; the scripted worker `holder` keeps a tile where a state
     must hold still."""
     # A 6-frame sequence; the holder takes a tile of frame 1 (frames are leased in order) before any worker runs.
+    # It ends in a movie of its frames (the coordinator's ffmpeg, which deploy/install-deps.sh installs).
     status, body = client.call("POST", "/v1/jobs", {"frames": sequence_frames(SEQ_FRAMES), "frame_order": "in_order",
-                                                     "tile_size": TILE, "seed": 5, "name": "browser-test sequence"})
+                                                     "tile_size": TILE, "seed": 5, "name": "browser-test sequence",
+                                                     "then": ["movie"], "fps": 12})
     if status != 201:
         fail(f"submit of the sequence answered {status}: {body}")
     seq = body["id"]
@@ -300,6 +302,15 @@ def check_sequences(d, base, client, workerside, holder, worker_path):
     if fetched != SEQ_FRAMES:
         fail(f"the strip fetched {fetched} thumbnails for {SEQ_FRAMES} done frames (each once, then from its cache)")
     print(f"sequence page: {SEQ_FRAMES} frames done in the strip, {fetched} thumbnails fetched")
+    # The movie step's row names its file once ffmpeg is done; the page's download is the coordinator's movie.
+    click(d, '#seq-pipeline #pipe-step-movie [data-output="movie.mp4"]', "the movie's download button")
+    saved = os.path.join(DOWNLOADS, "movie.mp4")
+    status, movie = client.call("GET", f"/v1/jobs/{seq}/outputs/movie.mp4")
+    if status != 200:
+        fail(f"the sequence's movie answered {status}")
+    wait_for("the downloaded movie", lambda: os.path.exists(saved) and open(saved, "rb").read() == movie)
+    d.save_screenshot(os.path.join(ARTEFACTS, "monitor-sequence-movie.png"))
+    print(f"movie: the step's row offers movie.mp4, downloaded from the page ({len(movie)} bytes, the coordinator's)")
 
     # Another frame chosen from the strip: its own tile map, image and result.
     click(d, '#frame-strip .frame-cell[data-frame="3"]', "frame 3's cell")
