@@ -94,6 +94,9 @@ CREATE TABLE IF NOT EXISTS webhook_outbox(id TEXT NOT NULL, url TEXT NOT NULL, e
   attempts INTEGER NOT NULL DEFAULT 0, next_ms INTEGER NOT NULL DEFAULT 0, last_status INTEGER, last_error TEXT,
   PRIMARY KEY(id, url));
 CREATE INDEX IF NOT EXISTS webhook_outbox_due ON webhook_outbox(state, next_ms);
+-- Due deliveries are looked up address by address (DurableStore::due_deliveries), so that the many pending rows of
+-- an address the sender skips are never read.
+CREATE INDEX IF NOT EXISTS webhook_outbox_url_due ON webhook_outbox(state, url, next_ms);
 )sql";
 
 // Columns added after version 1 was released: older files gain them with these defaults (the schema version stays,
@@ -738,20 +741,35 @@ std::optional<std::pair<uint32_t, std::string>> DurableStore::tile_state(const s
 
 std::vector<DueDelivery> DurableStore::due_deliveries(int64_t now, size_t limit, const std::set<std::string>& skip) {
   std::lock_guard lock(mu_);
-  std::vector<DueDelivery> out;
-  std::string sql = "SELECT id, url, body, attempts FROM webhook_outbox WHERE state = 'pending' AND next_ms <= ?";
-  if (!skip.empty()) {
-    sql += " AND url NOT IN (?";
-    for (size_t i = 1; i < skip.size(); ++i) sql += ",?";
-    sql += ')';
+  // Address by address over the (state, url, next_ms) index: each address with pending rows is found by one seek
+  // past the one before, and only the first `limit` due rows of an address not skipped are read. One query over
+  // every pending row filtered by address read all the rows of a skipped one (a receiver down for long holds many):
+  // 34 ms at 100,000 of them, under the store's lock.
+  struct Row {
+    int64_t next_ms, rowid;
+    DueDelivery d;
+  };
+  std::vector<Row> rows;
+  std::string url;
+  for (;;) {
+    Statement& next = db_.statement(
+        "SELECT url FROM webhook_outbox WHERE state = 'pending' AND url > ? ORDER BY url LIMIT 1");
+    next.bind_text(1, url);
+    if (!next.step()) break;
+    url = next.text(0);
+    next.reset();
+    if (skip.count(url)) continue;
+    Statement& st = db_.statement(
+        "SELECT id, body, attempts, next_ms, rowid FROM webhook_outbox WHERE state = 'pending' AND url = ?"
+        " AND next_ms <= ? ORDER BY next_ms, rowid LIMIT ?");
+    st.bind_text(1, url).bind(2, now).bind(3, int64_t(limit));
+    while (st.step()) rows.push_back({st.integer(3), st.integer(4), {st.text(0), url, st.text(1), st.integer(2)}});
   }
-  sql += " ORDER BY next_ms, rowid LIMIT ?";
-  Statement& st = db_.statement(sql);
-  int i = 1;
-  st.bind(i++, now);
-  for (const std::string& url : skip) st.bind_text(i++, url);
-  st.bind(i, int64_t(limit));
-  while (st.step()) out.push_back({st.text(0), st.text(1), st.text(2), st.integer(3)});
+  // The earliest due first, as one query ordered by next_ms would give them.
+  std::sort(rows.begin(), rows.end(),
+            [](const Row& a, const Row& b) { return std::tie(a.next_ms, a.rowid) < std::tie(b.next_ms, b.rowid); });
+  std::vector<DueDelivery> out;
+  for (size_t k = 0; k < rows.size() && k < limit; ++k) out.push_back(std::move(rows[k].d));
   return out;
 }
 

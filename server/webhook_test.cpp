@@ -200,6 +200,38 @@ TEST(WebhookOutbox, AJobsEndIsStoredWithTheChangeForEachAddress) {
   fs::remove_all(dir);
 }
 
+// Due deliveries come address by address and are merged by due time: the earliest first across addresses, at most
+// `limit`, none of a skipped address (whose many rows are never read: the query per address starts at its own).
+TEST(WebhookOutbox, DueDeliveriesMergeAddressesByTimeAndSkipFullOnes) {
+  const fs::path dir = fs::temp_directory_path() / ("tessera-outbox-test-" + random_hex(6));
+  {
+    DurableStore store(dir, Durability::process);
+    SchedulerChanges c;
+    const auto row = [&](const std::string& url, int64_t at) {
+      c.outbox.push_back({"e" + std::to_string(c.outbox.size()), url, "job.done", "j", at, "{}"});
+    };
+    for (int64_t at = 1; at <= 500; ++at) row("http://full.example/hook", at);
+    for (int64_t at : {3, 7}) row("http://b.example/hook", at);
+    for (int64_t at : {2, 5, 9, 2000}) row("http://c.example/hook", at);
+    store.apply(c);
+    const auto seen = [](const std::vector<DueDelivery>& due) {
+      std::vector<std::string> out;
+      for (const DueDelivery& d : due) out.push_back(d.url.substr(7, 1) + d.id);
+      return out;
+    };
+    // e500..e501 are b's, e502..e505 c's.
+    EXPECT_EQ(seen(store.due_deliveries(1000, 4, {"http://full.example/hook"})),
+              (std::vector<std::string>{"ce502", "be500", "ce503", "be501"}));
+    EXPECT_EQ(seen(store.due_deliveries(1000, 10, {"http://full.example/hook"})),
+              (std::vector<std::string>{"ce502", "be500", "ce503", "be501", "ce504"}));  // c's at 2000 is not due
+    EXPECT_EQ(seen(store.due_deliveries(3, 5, {})),
+              (std::vector<std::string>{"fe0", "fe1", "ce502", "fe2", "be500"}));  // equal times: in insertion order
+    EXPECT_TRUE(store.due_deliveries(1000, 4, {"http://full.example/hook", "http://b.example/hook",
+                                               "http://c.example/hook"}).empty());
+  }
+  fs::remove_all(dir);
+}
+
 TEST(WebhookOutbox, ASequenceAskingForFramesTellsItsOwnAddressOfEachFrameDone) {
   const fs::path dir = fs::temp_directory_path() / ("tessera-outbox-test-" + random_hex(6));
   {
