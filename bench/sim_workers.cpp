@@ -1,6 +1,6 @@
 // Capacity of one coordinator: N simulated workers drive the real farm protocol against a real `tessera serve` on
 // loopback and we measure what the coordinator spends. Each simulated worker is a coroutine on one of --loop-threads
-// event-loop threads (2 by default; workers dealt round-robin), with its own keep-alive connection (AsyncConnection:
+// event-loop threads (4 by default; workers dealt round-robin), with its own keep-alive connection (AsyncConnection:
 // HttpClient's requests, byte for byte), doing what `tessera worker` does, minus the rendering: register, ask for a
 // lease (backing off 100 ms .. 2 s with jitter on 204) naming the job whose spec it holds, so that the first lease of
 // another job brings that job's spec (with --spec-by-get: bare leases and a GET of the spec once per job), "render"
@@ -11,7 +11,7 @@
 //
 //   ./build/bench/sim_workers --tessera build/cli/tessera [--workers 10,50,200,500] [--seconds 15] [--warmup 4]
 //       [--tile-seconds 2] [--heartbeat-seconds 1] [--image 2048] [--tile 64] [--data-dir DIR] [--spec-by-get]
-//       [--loop-threads 2]
+//       [--loop-threads 4]
 //
 // The simulated workers share the machine with the coordinator; their own CPU use is printed too (per window and per
 // tile), so a row where the clients starve the coordinator can be told apart from one where the coordinator is the
@@ -104,7 +104,7 @@ struct Options {
   int small_tiles = 200;         ///< With share: tiles of each small job (a row of tiles: small_tiles x 1).
   int big_tiles_edge = 100;      ///< With share: the big job is big_tiles_edge x big_tiles_edge tiles.
   int hanging_webhooks = 0;      ///< >0: the A/B run with a receiver that never answers, this many deliveries pending.
-  int loop_threads = 2;          ///< Event-loop threads driving the simulated workers (each worker on one of them).
+  int loop_threads = 4;          ///< Event-loop threads driving the simulated workers (each worker on one of them).
 };
 
 /// The request kinds we time separately.
