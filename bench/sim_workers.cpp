@@ -6,8 +6,8 @@
 // another job brings that job's spec (with --spec-by-get: bare leases and a GET of the spec once per job), "render"
 // by napping the tile time while heartbeating every heartbeat period, then upload a valid precomputed tile EXR of
 // the leased window (uncompressed float32, as workers send it; each tile's bytes encoded once and shared). A feeder
-// thread keeps at least two jobs and 2N pending tiles queued. For every N it prints request latency p50/p99 per route, the coordinator's CPU use (from /proc/<pid>/stat) and the
-// tile rate.
+// thread keeps at least two jobs and 2N pending tiles queued. For every N it prints request latency p50/p99 per
+// route, the coordinator's CPU use (from /proc/<pid>/stat) and the tile rate.
 //
 //   ./build/bench/sim_workers --tessera build/cli/tessera [--workers 10,50,200,500] [--seconds 15] [--warmup 4]
 //       [--tile-seconds 2] [--heartbeat-seconds 1] [--image 2048] [--tile 64] [--data-dir DIR] [--spec-by-get]
@@ -370,7 +370,8 @@ asio::awaitable<void> simulated_worker(Farm& farm, int index, WorkerTally& tally
     try {
       if (id.empty()) {
         const json reg = protocol::WorkerHello{"sim-" + std::to_string(index), 1, "sim", {}};
-        const HttpResponse r = co_await send(kRegister, tessera::client::make_request("POST", routes::workers(), reg.dump()));
+        const HttpResponse r =
+            co_await send(kRegister, tessera::client::make_request("POST", routes::workers(), reg.dump()));
         if (r.status != 201) {
           error("register answered " + r.error_text());
           co_await nap(farm, timer, 1s, tally);
@@ -424,8 +425,8 @@ asio::awaitable<void> simulated_worker(Farm& farm, int index, WorkerTally& tally
         const auto next = std::min(done, Clock::now() + std::chrono::seconds(heartbeat_seconds));
         if (!co_await nap(farm, timer, next - Clock::now(), tally)) break;
         if (Clock::now() >= done) break;
-        const HttpResponse h = co_await send(
-            kHeartbeat, as_worker("POST", routes::lease_heartbeat(lease_id), json(protocol::HeartbeatReport{4096}).dump()));
+        const std::string report = json(protocol::HeartbeatReport{4096}).dump();
+        const HttpResponse h = co_await send(kHeartbeat, as_worker("POST", routes::lease_heartbeat(lease_id), report));
         if (h.status == 410) { revoked = true; break; }
         if (h.status != 200) error("heartbeat answered " + h.error_text());
       }
