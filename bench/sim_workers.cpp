@@ -1,19 +1,22 @@
-// Capacity of one coordinator: N simulated workers drive the real farm protocol against a real
-// `tessera serve` on loopback and we measure what the coordinator spends. Each simulated worker is one thread with
-// its own keep-alive connection doing what `tessera worker` does, minus the rendering: register, ask for a lease
-// (backing off 100 ms .. 2 s with jitter on 204) naming the job whose spec it holds, so that the first lease of
+// Capacity of one coordinator: N simulated workers drive the real farm protocol against a real `tessera serve` on
+// loopback and we measure what the coordinator spends. Each simulated worker is a coroutine on one of --loop-threads
+// event-loop threads (4 by default; workers dealt round-robin), with its own keep-alive connection (AsyncConnection:
+// HttpClient's requests, byte for byte), doing what `tessera worker` does, minus the rendering: register, ask for a
+// lease (backing off 100 ms .. 2 s with jitter on 204) naming the job whose spec it holds, so that the first lease of
 // another job brings that job's spec (with --spec-by-get: bare leases and a GET of the spec once per job), "render"
-// by sleeping the tile time while heartbeating every heartbeat period, then upload a valid precomputed tile EXR of
-// the leased window
-// (uncompressed float32, as workers send it). A feeder keeps at least two jobs and 2N pending tiles queued. For
-// every N it prints request latency p50/p99 per route, the coordinator's CPU use (from /proc/<pid>/stat) and the
-// tile rate.
+// by napping the tile time while heartbeating every heartbeat period, then upload a valid precomputed tile EXR of
+// the leased window (uncompressed float32, as workers send it; each tile's bytes encoded once and shared). A feeder
+// thread keeps at least two jobs and 2N pending tiles queued. For every N it prints request latency p50/p99 per
+// route, the coordinator's CPU use (from /proc/<pid>/stat) and the tile rate.
 //
 //   ./build/bench/sim_workers --tessera build/cli/tessera [--workers 10,50,200,500] [--seconds 15] [--warmup 4]
 //       [--tile-seconds 2] [--heartbeat-seconds 1] [--image 2048] [--tile 64] [--data-dir DIR] [--spec-by-get]
+//       [--loop-threads 4]
 //
-// The simulated workers share the machine with the coordinator; their own CPU use is printed too, so a row where
-// the clients starve the coordinator can be told apart from one where the coordinator is the limit.
+// The simulated workers share the machine with the coordinator; their own CPU use is printed too (per window and per
+// tile), so a row where the clients starve the coordinator can be told apart from one where the coordinator is the
+// limit, and so is the event loops' lag (how late a nap's timer ran after its due time, p99): a loop that is late
+// reads answers late too, and a latency near its lag is the simulator's, not the coordinator's.
 //
 // With --share, the farm is shared by two users of a users file (docs/protocol.md, "Sharing the farm"): ana submits
 // one --big-tiles job at the start, ben a --small-tiles job every --small-every seconds, and the run reports each
@@ -32,8 +35,17 @@
 #include "protocol/webhook.h"
 #include "worker/child_process.h"
 #include "client/http_client.h"
+#include "bench/async_connection.h"
 
 #include <CLI/CLI.hpp>
+#include <boost/asio/co_spawn.hpp>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/post.hpp>
+#include <boost/asio/redirect_error.hpp>
+#include <boost/asio/steady_timer.hpp>
+#include <boost/asio/this_coro.hpp>
+#include <boost/asio/use_awaitable.hpp>
 #include <nlohmann/json.hpp>
 #include <arpa/inet.h>
 #include <netinet/in.h>
@@ -47,6 +59,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstdio>
+#include <deque>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -61,7 +74,10 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 using namespace std::chrono_literals;
+namespace asio = boost::asio;
+using tessera::bench::AsyncConnection;
 using tessera::client::HttpClient;
+using tessera::client::HttpRequest;
 using tessera::client::TransportError;
 using tessera::client::HttpResponse;
 namespace protocol = tessera::protocol;
@@ -88,6 +104,7 @@ struct Options {
   int small_tiles = 200;         ///< With share: tiles of each small job (a row of tiles: small_tiles x 1).
   int big_tiles_edge = 100;      ///< With share: the big job is big_tiles_edge x big_tiles_edge tiles.
   int hanging_webhooks = 0;      ///< >0: the A/B run with a receiver that never answers, this many deliveries pending.
+  int loop_threads = 4;          ///< Event-loop threads driving the simulated workers (each worker on one of them).
 };
 
 /// The request kinds we time separately.
@@ -97,6 +114,7 @@ const char* const kRouteNames[kRouteCount] = {"register", "lease 200", "lease 20
 /// One simulated worker's measurements inside the window.
 struct WorkerTally {
   std::vector<float> latency_ms[kRouteCount];  ///< Per-route request latencies (ms).
+  std::vector<float> lag_ms;   ///< How late the event loop ran each of the worker's naps after its due time (ms).
   int64_t tiles_accepted = 0;  ///< Uploads answered accepted or duplicate.
   int64_t upload_bytes = 0;    ///< Bytes of those uploads.
   int64_t errors = 0;          ///< Transport failures or unexpected statuses.
@@ -246,9 +264,10 @@ struct Farm {
   const Options& opt;
   const TileBank& bank;
   tessera::client::HttpUrl url;
+  asio::ip::tcp::resolver::results_type endpoints;  ///< url's host, resolved once for the workers' connections.
   int workers = 0;  ///< N, for the feeder's supply of pending tiles.
   std::atomic<bool> stop{false};
-  std::mutex stop_mu;                  ///< With stop_cv: naps end at once when the farm stops.
+  std::mutex stop_mu;                  ///< With stop_cv: the feeders' naps end at once when the farm stops.
   std::condition_variable stop_cv;
   Clock::time_point window_start, window_end;  ///< Measurements count only between these.
   std::string worker_token, big_token, small_token;  ///< With share: the users' tokens (else none are needed).
@@ -277,8 +296,7 @@ struct Farm {
   }
 };
 
-/// Sleeps d unless the farm stops first; false when stopped. One wake-up per nap (a thousand threads that polled a
-/// flag every 50 ms cost the shared machine more than their requests).
+/// Sleeps d (a feeder's thread) unless the farm stops first; false when stopped.
 bool nap(Farm& farm, Clock::duration d) {
   std::unique_lock lock(farm.stop_mu);
   return !farm.stop_cv.wait_for(lock, d, [&] { return farm.stop.load(); });
@@ -293,24 +311,54 @@ void stop_farm(Farm& farm) {
   farm.stop_cv.notify_all();
 }
 
-/// One simulated worker: the protocol loop of `tessera worker` with sleeps in place of rendering.
-void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
-  HttpClient http(farm.url);
+/// One event-loop thread and the simulated workers it drives: a nap timer for each of them (cancelled when the farm
+/// stops, so that every nap ends at once).
+struct Loop {
+  asio::io_context ioc{1};              ///< Run by one thread.
+  std::deque<asio::steady_timer> naps;  ///< One per worker of this loop.
+  std::thread thread;                   ///< Runs ioc until its workers have all returned.
+};
+
+/// A simulated worker's nap: d on its timer unless the farm stops first; false when stopped. A nap that ends inside
+/// the window records how late the loop ran it after its due time (the loop's lag).
+asio::awaitable<bool> nap(Farm& farm, asio::steady_timer& timer, Clock::duration d, WorkerTally& tally) {
+  if (farm.stop.load()) co_return false;
+  timer.expires_after(d);
+  boost::system::error_code ec;
+  co_await timer.async_wait(asio::redirect_error(asio::use_awaitable, ec));
+  if (ec) co_return false;  // cancelled: the farm stops
+  const auto now = Clock::now();
+  if (timer.expiry() >= farm.window_start && now <= farm.window_end)
+    tally.lag_ms.push_back(std::chrono::duration<float, std::milli>(now - timer.expiry()).count());
+  co_return !farm.stop.load();
+}
+
+/// Sends request (with body) on http and records its latency under route (lease 204s apart) when the request started
+/// and was answered inside the window: from the request's first byte written to the answer's last byte read.
+asio::awaitable<HttpResponse> timed_send(Farm& farm, WorkerTally& tally, AsyncConnection& http, Route route,
+                                         const HttpRequest& request, std::string_view body) {
+  const auto t0 = Clock::now();
+  HttpResponse r = co_await http.send(request, body);
+  const auto t1 = Clock::now();
+  if (t0 >= farm.window_start && t1 <= farm.window_end) {
+    tally.latency_ms[route == kLease && r.status == 204 ? kLease204 : route].push_back(
+        std::chrono::duration<float, std::milli>(t1 - t0).count());
+  }
+  co_return r;
+}
+
+/// One simulated worker: the protocol loop of `tessera worker` with naps in place of rendering, on its own keep-alive
+/// connection, as a coroutine of one event loop.
+asio::awaitable<void> simulated_worker(Farm& farm, int index, WorkerTally& tally, asio::steady_timer& timer) {
+  AsyncConnection http(co_await asio::this_coro::executor, farm.url, farm.endpoints);
   http.set_bearer_token(farm.worker_token);
   std::mt19937_64 rng(0x5eed0000u + unsigned(index));
-  auto timed = [&](Route route, auto&& call) -> HttpResponse {
-    const auto t0 = Clock::now();
-    HttpResponse r = call();
-    const auto t1 = Clock::now();
-    if (t0 >= farm.window_start && t1 <= farm.window_end) {
-      tally.latency_ms[route == kLease && r.status == 204 ? kLease204 : route].push_back(
-          std::chrono::duration<float, std::milli>(t1 - t0).count());
-    }
-    return r;
-  };
   auto error = [&](const std::string& what) {
     ++tally.errors;
     if (tally.first_error.empty()) tally.first_error = what;
+  };
+  const auto send = [&](Route route, const HttpRequest& request) {
+    return timed_send(farm, tally, http, route, request, request.body);
   };
 
   std::string id, secret;
@@ -318,11 +366,17 @@ void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
   std::string spec_job;  // the job whose spec we have "cached"
   std::chrono::milliseconds idle{100};
   while (!farm.stop.load()) {
+    Clock::duration pause{};  // a nap before the next round (no co_await inside a handler)
     try {
       if (id.empty()) {
         const json reg = protocol::WorkerHello{"sim-" + std::to_string(index), 1, "sim", {}};
-        const HttpResponse r = timed(kRegister, [&] { return http.send("POST", routes::workers(), reg.dump()); });
-        if (r.status != 201) { error("register answered " + r.error_text()); nap(farm, 1s); continue; }
+        const HttpResponse r =
+            co_await send(kRegister, tessera::client::make_request("POST", routes::workers(), reg.dump()));
+        if (r.status != 201) {
+          error("register answered " + r.error_text());
+          co_await nap(farm, timer, 1s, tally);
+          continue;
+        }
         const auto registration = protocol::parse_answer<protocol::Registration>(r.body, "registration");
         id = registration.id;
         secret = registration.secret;
@@ -332,19 +386,23 @@ void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
       if (!farm.opt.spec_by_get) asked.known_jobs = spec_job.empty() ? std::vector<std::string>{} : std::vector{spec_job};
       const std::string asked_body = farm.opt.spec_by_get ? std::string() : json(asked).dump();
       const auto as_worker = [&secret](std::string method, std::string target, std::string body) {
-        tessera::client::HttpRequest req{std::move(method), std::move(target), std::move(body), "application/json", {}};
+        HttpRequest req{std::move(method), std::move(target), std::move(body), "application/json", {}};
         req.headers[protocol::kWorkerSecretHeader] = secret;
         return req;
       };
-      const HttpResponse r = timed(kLease, [&] { return http.send(as_worker("POST", routes::worker_lease(id), asked_body)); });
+      const HttpResponse r = co_await send(kLease, as_worker("POST", routes::worker_lease(id), asked_body));
       if (r.status == 204) {
         std::uniform_int_distribution<long long> pick(idle.count() / 2, idle.count());
-        nap(farm, std::chrono::milliseconds(pick(rng)));
+        co_await nap(farm, timer, std::chrono::milliseconds(pick(rng)), tally);
         idle = std::min<std::chrono::milliseconds>(idle * 2, 2000ms);
         continue;
       }
       if (r.status == 404) { id.clear(); continue; }
-      if (r.status != 200) { error("lease answered " + r.error_text()); nap(farm, 1s); continue; }
+      if (r.status != 200) {
+        error("lease answered " + r.error_text());
+        co_await nap(farm, timer, 1s, tally);
+        continue;
+      }
       idle = 100ms;
       const auto answer = protocol::parse_answer<protocol::LeaseAnswer>(r.body, "lease");
       const protocol::Lease& lease = answer.lease;
@@ -354,7 +412,7 @@ void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
       const std::array<int, 4> window = {lease.window.x0, lease.window.y0, lease.window.x1, lease.window.y1};
       const auto granted = Clock::now();
       if (job != spec_job) {
-        const HttpResponse s = timed(kSpec, [&] { return http.send("GET", routes::job_spec(job)); });
+        const HttpResponse s = co_await send(kSpec, tessera::client::make_request("GET", routes::job_spec(job)));
         if (s.status != 200) { error("spec answered " + s.error_text()); continue; }
         spec_job = job;
       }
@@ -365,27 +423,24 @@ void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
       bool revoked = false;
       while (!farm.stop.load() && Clock::now() < done) {
         const auto next = std::min(done, Clock::now() + std::chrono::seconds(heartbeat_seconds));
-        if (!nap(farm, next - Clock::now())) break;
+        if (!co_await nap(farm, timer, next - Clock::now(), tally)) break;
         if (Clock::now() >= done) break;
-        const HttpResponse h = timed(kHeartbeat, [&] {
-          return http.send(
-              as_worker("POST", routes::lease_heartbeat(lease_id), json(protocol::HeartbeatReport{4096}).dump()));
-        });
+        const std::string report = json(protocol::HeartbeatReport{4096}).dump();
+        const HttpResponse h = co_await send(kHeartbeat, as_worker("POST", routes::lease_heartbeat(lease_id), report));
         if (h.status == 410) { revoked = true; break; }
         if (h.status != 200) error("heartbeat answered " + h.error_text());
       }
       if (farm.stop.load() || revoked) continue;
       const auto [job_width, job_height] = farm.size_of(job);
-      const std::string& exr = farm.bank.at(job_width, job_height, window);
-      tessera::client::HttpRequest up;
+      const std::string& exr = farm.bank.at(job_width, job_height, window);  // shared: sent without a copy
+      HttpRequest up;
       up.method = "PUT";
       up.target = routes::lease_result(lease_id);
-      up.body = exr;
       up.content_type = "image/x-exr";
       up.headers[protocol::kRaysHeader] = "4096";
       up.headers[protocol::kWorkerSecretHeader] = secret;
       const auto t0 = Clock::now();
-      const HttpResponse u = timed(kUpload, [&] { return http.send(up); });
+      const HttpResponse u = co_await timed_send(farm, tally, http, kUpload, up, exr);
       if (u.status == 200) {
         tally.spans.push_back({job, granted, Clock::now()});
         if (t0 >= farm.window_start && Clock::now() <= farm.window_end) {
@@ -397,8 +452,9 @@ void simulated_worker(Farm& farm, int index, WorkerTally& tally) {
       }
     } catch (const std::exception& e) {
       error(e.what());
-      nap(farm, 500ms);
+      pause = 500ms;
     }
+    if (pause != Clock::duration{}) co_await nap(farm, timer, pause, tally);
   }
 }
 
@@ -521,6 +577,10 @@ RunResult run_farm(const Options& opt, const TileBank& bank, const fs::path& bas
   }
 
   Farm farm{opt, bank, tessera::client::parse_http_url("http://" + hostport)};
+  {
+    asio::io_context ioc;
+    farm.endpoints = asio::ip::tcp::resolver(ioc).resolve(farm.url.host, farm.url.port);
+  }
   farm.workers = n;
   farm.big_token = tokens[0];
   farm.small_token = tokens[1];
@@ -536,7 +596,23 @@ RunResult run_farm(const Options& opt, const TileBank& bank, const fs::path& bas
   if (opt.hanging_webhooks > 0)
     threads.emplace_back(job_events, std::ref(farm), std::ref(tallies[size_t(n) + 1]), opt.hanging_webhooks + 20,
                          std::ref(events));
-  for (int i = 0; i < n; ++i) threads.emplace_back(simulated_worker, std::ref(farm), i, std::ref(tallies[size_t(i)]));
+  // The simulated workers, dealt round-robin to the event loops; each loop's thread runs until its workers return.
+  std::deque<Loop> loops(size_t(std::max(1, std::min(opt.loop_threads, n))));
+  for (int i = 0; i < n; ++i) {
+    Loop& loop = loops[size_t(i) % loops.size()];
+    WorkerTally& tally = tallies[size_t(i)];
+    asio::co_spawn(loop.ioc, simulated_worker(farm, i, tally, loop.naps.emplace_back(loop.ioc)),
+                   [&tally](const std::exception_ptr& e) {
+                     if (!e) return;
+                     ++tally.errors;
+                     try {
+                       std::rethrow_exception(e);
+                     } catch (const std::exception& x) {
+                       if (tally.first_error.empty()) tally.first_error = x.what();
+                     }
+                   });
+  }
+  for (Loop& loop : loops) loop.thread = std::thread([&loop] { loop.ioc.run(); });
 
   std::this_thread::sleep_until(farm.window_start);
   const double serve_cpu0 = process_cpu_seconds(children[0].pid), self_cpu0 = self_cpu_seconds();
@@ -559,7 +635,12 @@ RunResult run_farm(const Options& opt, const TileBank& bank, const fs::path& bas
     }
   }
   stop_farm(farm);
+  for (Loop& loop : loops)
+    asio::post(loop.ioc, [&loop] {
+      for (asio::steady_timer& t : loop.naps) t.cancel();
+    });
   for (std::thread& t : threads) t.join();
+  for (Loop& loop : loops) loop.thread.join();
   tessera::worker::stop_children(children, 10s);
 
   result.job_events = events.load();
@@ -571,6 +652,7 @@ RunResult run_farm(const Options& opt, const TileBank& bank, const fs::path& bas
     for (int r = 0; r < kRouteCount; ++r) {
       result.total.latency_ms[r].insert(result.total.latency_ms[r].end(), t.latency_ms[r].begin(), t.latency_ms[r].end());
     }
+    result.total.lag_ms.insert(result.total.lag_ms.end(), t.lag_ms.begin(), t.lag_ms.end());
     result.total.tiles_accepted += t.tiles_accepted;
     result.total.upload_bytes += t.upload_bytes;
     result.total.errors += t.errors;
@@ -659,8 +741,8 @@ void run_hanging_webhooks(const Options& opt, const TileBank& bank, const fs::pa
               "(the sender's default timeout and threads). Both: %d jobs submitted and cancelled at the start, then "
               "4 a second (a delivery each in B).\n",
               receiver.url().c_str(), opt.hanging_webhooks + 20);
-  std::printf("%5s %3s %9s %10s %10s %10s %10s %12s %9s %9s %7s\n", "run", "", "tiles/s", "lease p50", "lease p99",
-              "upld p99", "coord CPU", "job events", "delivs", "pending", "errors");
+  std::printf("%5s %3s %9s %10s %10s %10s %10s %12s %9s %9s %7s %9s\n", "run", "", "tiles/s", "lease p50",
+              "lease p99", "upld p99", "coord CPU", "job events", "delivs", "pending", "errors", "lag p99");
   struct Variant {
     const char* name;
     std::string webhook;
@@ -674,11 +756,12 @@ void run_hanging_webhooks(const Options& opt, const TileBank& bank, const fs::pa
     Variant& v = variants[round % 2];
     RunResult r = run_farm(opt, bank, base, n, v.webhook);
     std::vector<float>& lease = r.total.latency_ms[kLease];
-    std::printf("%5d %3s %9.1f %10.2f %10.2f %10.2f %9.1f%% %12lld %9lld %9lld %7lld\n", round + 1, v.name,
+    std::printf("%5d %3s %9.1f %10.2f %10.2f %10.2f %9.1f%% %12lld %9lld %9lld %7lld %9.2f\n", round + 1, v.name,
                 double(r.total.tiles_accepted) / r.window_seconds, quantile(lease, 0.5), quantile(lease, 0.99),
                 quantile(r.total.latency_ms[kUpload], 0.99), 100 * r.coordinator_cpu_seconds / r.window_seconds,
                 static_cast<long long>(r.job_events), static_cast<long long>(r.deliveries),
-                static_cast<long long>(r.pending_deliveries), static_cast<long long>(r.total.errors));
+                static_cast<long long>(r.pending_deliveries), static_cast<long long>(r.total.errors),
+                quantile(r.total.lag_ms, 0.99));
     if (!r.total.first_error.empty()) std::printf("      first error: %s\n", r.total.first_error.c_str());
     std::fflush(stdout);
     v.tiles += r.total.tiles_accepted;
@@ -727,6 +810,9 @@ int main(int argc, char** argv) {
                  "A B A B at the first --workers count: without webhooks, and with this many deliveries or more "
                  "pending to a receiver that never answers")
       ->check(CLI::Range(1, 100000));
+  app.add_option("--loop-threads", opt.loop_threads,
+                 "Event-loop threads driving the simulated workers (each a keep-alive connection on one of them)")
+      ->check(CLI::Range(1, 64));
   app.add_flag("--spec-by-get", opt.spec_by_get,
                "Ask for bare leases and GET each job's spec (as workers did before specs came with leases)");
   CLI11_PARSE(app, argc, argv);
@@ -748,10 +834,12 @@ int main(int argc, char** argv) {
     const std::string tile_bytes = std::to_string(bank.at(opt.image, opt.image, {0, 0, first, first}).size());
 
     std::printf("sim_workers: %d-pixel jobs in %d-pixel tiles (upload %s bytes each, uncompressed float32), "
-                "tile time %.2f s +-20%%, heartbeat every %d s, window %.0f s after %.0f s warm-up, %u cores, %s\n",
+                "tile time %.2f s +-20%%, heartbeat every %d s, window %.0f s after %.0f s warm-up, %u cores, %s, "
+                "workers on %d event-loop thread%s\n",
                 opt.image, opt.tile, tile_bytes.c_str(), opt.tile_seconds, opt.heartbeat_seconds, opt.seconds,
                 opt.warmup, std::thread::hardware_concurrency(),
-                opt.spec_by_get ? "specs by GET" : "specs with the leases");
+                opt.spec_by_get ? "specs by GET" : "specs with the leases", opt.loop_threads,
+                opt.loop_threads == 1 ? "" : "s");
     {
       std::ifstream load("/proc/loadavg");
       std::string l1, l5, l15;
@@ -764,19 +852,22 @@ int main(int argc, char** argv) {
       fs::remove_all(base);
       return 0;
     }
-    std::printf("%6s %9s %9s %10s %10s %9s %9s %9s %9s %9s %7s\n", "N", "tiles/s", "ideal/s", "coord CPU",
-                "ms/tile", "client", "lease p50", "lease p99", "upld p50", "upld p99", "errors");
+    std::printf("%6s %9s %9s %10s %10s %9s %9s %9s %9s %9s %7s %9s %9s\n", "N", "tiles/s", "ideal/s", "coord CPU",
+                "ms/tile", "client", "lease p50", "lease p99", "upld p50", "upld p99", "errors", "client/t", "lag p99");
     std::vector<RunResult> results;
     for (int n : opt.worker_counts) {
       RunResult r = run_farm(opt, bank, base, n);
       const double tiles_per_s = double(r.total.tiles_accepted) / r.window_seconds;
       const double ideal = double(n) / opt.tile_seconds;
-      std::printf("%6d %9.1f %9.1f %9.1f%% %10.3f %8.1f%% %9.2f %9.2f %9.2f %9.2f %7lld\n", n, tiles_per_s, ideal,
-                  100 * r.coordinator_cpu_seconds / r.window_seconds,
-                  r.total.tiles_accepted ? 1000 * r.coordinator_cpu_seconds / double(r.total.tiles_accepted) : 0.0,
+      const auto per_tile = [&](double cpu_seconds) {
+        return r.total.tiles_accepted ? 1000 * cpu_seconds / double(r.total.tiles_accepted) : 0.0;
+      };
+      std::printf("%6d %9.1f %9.1f %9.1f%% %10.3f %8.1f%% %9.2f %9.2f %9.2f %9.2f %7lld %9.3f %9.2f\n", n, tiles_per_s,
+                  ideal, 100 * r.coordinator_cpu_seconds / r.window_seconds, per_tile(r.coordinator_cpu_seconds),
                   100 * r.client_cpu_seconds / r.window_seconds, quantile(r.total.latency_ms[kLease], 0.5),
                   quantile(r.total.latency_ms[kLease], 0.99), quantile(r.total.latency_ms[kUpload], 0.5),
-                  quantile(r.total.latency_ms[kUpload], 0.99), static_cast<long long>(r.total.errors));
+                  quantile(r.total.latency_ms[kUpload], 0.99), static_cast<long long>(r.total.errors),
+                  per_tile(r.client_cpu_seconds), quantile(r.total.lag_ms, 0.99));
       if (opt.share) report_share(opt, r);
       std::fflush(stdout);
       results.push_back(std::move(r));
@@ -790,12 +881,18 @@ int main(int argc, char** argv) {
         std::printf("  %s %zu/%.2f/%.2f/%.1f", kRouteNames[k], v.size(), quantile(v, 0.5), quantile(v, 0.99),
                     double(*std::max_element(v.begin(), v.end())));
       }
+      if (!r.total.lag_ms.empty())
+        std::printf("  (loop lag %zu/%.2f/%.2f/%.1f)", r.total.lag_ms.size(), quantile(r.total.lag_ms, 0.5),
+                    quantile(r.total.lag_ms, 0.99), double(*std::max_element(r.total.lag_ms.begin(), r.total.lag_ms.end())));
       std::printf("\n");
       if (!r.total.first_error.empty()) std::printf("  first error: %s\n", r.total.first_error.c_str());
     }
     std::printf("\ncoord CPU: utime+stime of `tessera serve` / window (100%% = one core); ms/tile: coordinator CPU per "
-                "accepted tile, all its requests included; client: this process's CPU / window; ideal/s: N / tile "
-                "time (what the farm would do with no overhead and no 204 waits).\n");
+                "accepted tile, all its requests included; client: this process's CPU / window; client/t: its ms CPU per "
+                "accepted tile; lag p99: how late the event loops ran the workers' naps after their due time (ms; a "
+                "loop that lags also delays reading answers, so latencies near it are the simulator's, not the "
+                "coordinator's); latencies: request's first byte written to answer's last byte read; ideal/s: N / "
+                "tile time (what the farm would do with no overhead and no 204 waits).\n");
     fs::remove_all(base);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sim_workers: %s\n", e.what());

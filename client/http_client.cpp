@@ -1,5 +1,6 @@
 #include "client/http_client.h"
 
+#include "client/http_message.h"
 #include "net/byte_stream.h"
 #include "protocol/messages.h"
 
@@ -212,49 +213,6 @@ struct HttpClient::Impl {
   }
 };
 
-namespace {
-
-std::string describe(const error_code& ec, std::chrono::milliseconds limit) {
-  if (ec == beast::error::timeout) return "timed out after " + std::to_string(limit.count()) + " ms";
-  return ec.message();
-}
-
-// Errors that mean a kept-alive connection had been closed by the server before our request reached it.
-bool is_stale_connection(const error_code& ec) {
-  return ec == http::error::end_of_stream || ec == asio::error::eof || ec == asio::error::connection_reset ||
-         ec == asio::error::broken_pipe || ec == asio::error::connection_aborted || ec == ssl::error::stream_truncated;
-}
-
-// The Beast request for `request` to `url`, with the bearer token when there is one.
-http::request<http::string_body> beast_request(const HttpUrl& url, const std::string& token, const HttpRequest& request,
-                                               http::verb verb) {
-  http::request<http::string_body> req{verb, url.base_path + request.target, 11};
-  req.set(http::field::host, url.host + ":" + url.port);
-  req.set(http::field::user_agent, "tessera/" TESSERA_VERSION);
-  if (!request.content_type.empty()) req.set(http::field::content_type, request.content_type);
-  for (const auto& [k, v] : request.headers) req.set(k, v);
-  if (!token.empty()) req.set(http::field::authorization, "Bearer " + token);
-  req.body() = request.body;
-  req.keep_alive(true);
-  req.prepare_payload();
-  return req;
-}
-
-// Status and header fields (names lowercased) of a received header.
-template <class Header>
-HttpResponse response_head(const Header& h) {
-  HttpResponse out;
-  out.status = int(h.result_int());
-  for (const auto& field : h) {
-    std::string name(field.name_string());
-    std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-    out.headers[name] = std::string(field.value());
-  }
-  return out;
-}
-
-}  // namespace
-
 HttpClient::HttpClient(HttpUrl url, HttpTimeouts timeouts, uint64_t max_response_bytes, const ClientTlsFiles& tls)
     : url_(std::move(url)), impl_(std::make_unique<Impl>()) {
   impl_->timeouts = timeouts;
@@ -295,7 +253,7 @@ void HttpClient::connect(const std::string& what) {
   ec = im.run([&](auto handler) { im.lowest().async_connect(endpoints, std::move(handler)); });
   if (ec) {
     im.close();
-    throw TransportError(what + ": cannot connect: " + describe(ec, im.timeouts.connect));
+    throw TransportError(what + ": cannot connect: " + describe_error(ec, im.timeouts.connect));
   }
   // Requests are small writes answered at once: without TCP_NODELAY, Nagle's algorithm holds a request's last
   // segment until the server's delayed ACK (tens of milliseconds per request on loopback).
@@ -314,13 +272,17 @@ void HttpClient::connect(const std::string& what) {
 
 void HttpClient::close() { impl_->close(); }
 
-HttpResponse HttpClient::send(std::string method, std::string target, std::string body, std::string content_type) {
+HttpRequest make_request(std::string method, std::string target, std::string body, std::string content_type) {
   HttpRequest r;
   r.method = std::move(method);
   r.target = std::move(target);
   r.body = std::move(body);
   if (!r.body.empty()) r.content_type = std::move(content_type);
-  return send(r);
+  return r;
+}
+
+HttpResponse HttpClient::send(std::string method, std::string target, std::string body, std::string content_type) {
+  return send(make_request(std::move(method), std::move(target), std::move(body), std::move(content_type)));
 }
 
 HttpResponse HttpClient::send(const HttpRequest& request, const std::function<bool()>& interrupted) {
@@ -359,7 +321,7 @@ HttpResponse HttpClient::send(const HttpRequest& request) {
     im.lowest().expires_after(im.timeouts.write);
     error_code ec = im.run_on_stream([&](auto& stream, auto handler) { http::async_write(stream, req, handler); });
     if (ec) {
-      const std::string why = ec == beast::error::timeout ? describe(ec, im.timeouts.write) : im.with_hint(ec);
+      const std::string why = ec == beast::error::timeout ? describe_error(ec, im.timeouts.write) : im.with_hint(ec);
       im.close();
       if (reused && attempt == 0 && ec != beast::error::timeout) continue;
       throw TransportError(what + ": cannot send the request: " + why);
@@ -372,7 +334,7 @@ HttpResponse HttpClient::send(const HttpRequest& request) {
     ec = im.run_on_stream([&](auto& stream, auto handler) { http::async_read(stream, im.buffer, parser, std::move(handler)); });
     if (ec) {
       const bool got_some = parser.got_some();
-      const std::string why = ec == beast::error::timeout ? describe(ec, im.timeouts.read) : im.with_hint(ec);
+      const std::string why = ec == beast::error::timeout ? describe_error(ec, im.timeouts.read) : im.with_hint(ec);
       im.close();
       if (reused && attempt == 0 && !got_some && is_stale_connection(ec)) {
         if (idempotent) continue;
@@ -410,13 +372,13 @@ HttpResponse HttpClient::stream(const HttpRequest& request, std::chrono::millise
   connect(what);
   im.lowest().expires_after(im.timeouts.write);
   error_code ec = im.run_on_stream([&](auto& stream, auto handler) { http::async_write(stream, req, handler); });
-  if (ec) throw TransportError(what + ": cannot send the request: " + (ec == beast::error::timeout ? describe(ec, im.timeouts.write) : im.with_hint(ec)));
+  if (ec) throw TransportError(what + ": cannot send the request: " + (ec == beast::error::timeout ? describe_error(ec, im.timeouts.write) : im.with_hint(ec)));
 
   http::response_parser<http::buffer_body> parser;
   parser.body_limit(boost::none);
   im.lowest().expires_after(im.timeouts.read);
   ec = im.run_on_stream([&](auto& stream, auto handler) { http::async_read_header(stream, im.buffer, parser, std::move(handler)); });
-  if (ec) throw TransportError(what + ": cannot read the response: " + (ec == beast::error::timeout ? describe(ec, im.timeouts.read) : im.with_hint(ec)));
+  if (ec) throw TransportError(what + ": cannot read the response: " + (ec == beast::error::timeout ? describe_error(ec, im.timeouts.read) : im.with_hint(ec)));
   HttpResponse out = response_head(parser.get());
   const bool streaming = out.status == 200;
   if (streaming && !on_data({})) return out;
@@ -445,7 +407,7 @@ HttpResponse HttpClient::stream(const HttpRequest& request, std::chrono::millise
     if (ec == http::error::need_buffer) ec = {};
     if (ec) {
       const std::chrono::milliseconds limit = streaming ? idle : im.timeouts.read;
-      throw TransportError(what + ": the stream broke: " + (ec == beast::error::timeout ? describe(ec, limit) : im.with_hint(ec)));
+      throw TransportError(what + ": the stream broke: " + (ec == beast::error::timeout ? describe_error(ec, limit) : im.with_hint(ec)));
     }
     const std::string_view got(buf.data(), buf.size() - parser.get().body().size);
     if (!streaming) {

@@ -50,6 +50,9 @@ struct HttpTimeouts {
   std::chrono::milliseconds read{30000};    ///< Receiving the whole response.
 };
 
+/// The largest answer body a client reads unless told otherwise (2 GiB).
+inline constexpr uint64_t kMaxResponseBytes = uint64_t(2) << 30;
+
 /// One HTTP request.
 struct HttpRequest {
   std::string method = "GET";   ///< GET, HEAD, POST, PUT or DELETE.
@@ -58,6 +61,11 @@ struct HttpRequest {
   std::string content_type;     ///< Content-Type of the body, if any.
   std::map<std::string, std::string> headers;  ///< Further request headers.
 };
+
+/// A request of method to target with body, of content_type when the body is not empty (what
+/// HttpClient::send(method, target, body, content_type) sends).
+HttpRequest make_request(std::string method, std::string target, std::string body = {},
+                         std::string content_type = "application/json");
 
 /// A received response.
 struct HttpResponse {
@@ -81,7 +89,7 @@ class HttpClient {
  public:
   /// A client for url; connects lazily on the first request. TLS files are for https:// URLs only: naming one with
   /// an http:// URL, or an unusable file, throws std::invalid_argument.
-  explicit HttpClient(HttpUrl url, HttpTimeouts timeouts = {}, uint64_t max_response_bytes = uint64_t(2) << 30,
+  explicit HttpClient(HttpUrl url, HttpTimeouts timeouts = {}, uint64_t max_response_bytes = kMaxResponseBytes,
                       const ClientTlsFiles& tls = {});
   ~HttpClient();
   HttpClient(const HttpClient&) = delete;
