@@ -361,10 +361,10 @@ void DurableStore::upgrade_tiles() {
   // SQLite cannot change a CHECK in place: the table is made again under its own definition with the new CHECK, its
   // rows copied (pixels stored by version 1 stay where they are), and it takes the old one's place.
   sql.replace(check, std::strlen(kDoneCheckV1), kDoneCheck);
-  const std::string head = "CREATE TABLE tiles(";
-  if (sql.compare(0, head.size(), head) != 0)
+  const size_t open = sql.find('(');  // after CREATE TABLE tiles, its name quoted or not
+  if (open == std::string::npos || sql.find("tiles") > open)
     throw StorageError(db_.file().string() + ": the tiles table's definition is not one this build knows: " + sql_head(sql));
-  sql.replace(0, head.size(), "CREATE TABLE tiles_v2(");
+  sql.replace(0, open, "CREATE TABLE tiles_v2");
   db_.exec(sql);
   db_.exec("INSERT INTO tiles_v2 SELECT * FROM tiles");
   db_.exec("DROP TABLE tiles");
