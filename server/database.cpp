@@ -307,10 +307,10 @@ void Transaction::commit() {
 
 DurableStore::DurableStore(const fs::path& dir, Durability durability)
     : CoordinatorStore(dir, durability),
+      pixels_(dir / kPixelsDir, durability == Durability::machine),  // flushed by the group commit, as the log is
       // Commits survive a process crash without waiting for the disk; sync() makes them survive a power cut when the
       // scheduler acknowledges something, outside its lock (see SchedulerStore::sync). A store that only has to
       // survive the process lets SQLite skip its own flushes too (at checkpoints and when the file is made).
-      pixels_(dir / kPixelsDir, durability == Durability::machine),
       db_((make_dirs(dir), dir / kFileName), durability == Durability::machine ? "NORMAL" : "OFF"),
       group_([this] { flush_log(); }) {
   // Uploads being validated and results being written when the last run was killed.
@@ -599,6 +599,7 @@ void DurableStore::apply_locked(const SchedulerChanges& c, std::vector<std::pair
                             "DELETE FROM job_workers WHERE job = ?", "DELETE FROM jobs WHERE id = ?"})
       db_.statement(sql).bind_text(1, job).run();
   tx.commit();
+  appended.clear();  // stored: nothing to cut back from here on
   written_counters_ = stored;
   // A purged job's pixel file goes once no durable row can name it any more: after the next flush of the database,
   // asked for here (without flushes, now).

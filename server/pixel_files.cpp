@@ -18,7 +18,7 @@ constexpr size_t kOpenFiles = 64;
 
 }  // namespace
 
-PixelFiles::PixelFiles(fs::path dir, bool durable) : dir_(std::move(dir)) {
+PixelFiles::PixelFiles(fs::path dir, bool durable) : dir_(std::move(dir)), durable_(durable) {
   std::error_code ec;
   const bool existed = fs::is_directory(dir_, ec);
   make_dirs(dir_);
@@ -34,7 +34,7 @@ std::shared_ptr<TilePixelFile> PixelFiles::open_locked(const std::string& job, b
   const bool made = create && !fs::exists(path, ec);
   auto file = std::make_shared<TilePixelFile>(path, create);
   if (file->missing()) return file;  // not kept: an append may make it later
-  made_file_ = made_file_ || made;
+  made_file_ = made_file_ || (made && durable_);
   if (open_.size() >= kOpenFiles)
     std::erase_if(open_, [&](const auto& entry) { return !written_.count(entry.first); });
   open_.emplace(job, file);
@@ -50,7 +50,7 @@ PixelRef PixelFiles::append(const std::string& job, std::string_view bytes) {
   std::lock_guard lock(mu_);
   const auto file = open_locked(job, true);
   const PixelRef ref = file->append(bytes);
-  written_.emplace(job, file);
+  if (durable_) written_.emplace(job, file);
   return ref;
 }
 

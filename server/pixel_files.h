@@ -21,8 +21,8 @@ namespace tessera::server {
 /// Every job's pixel file in one folder. Thread-safe; appends and cuts come from one thread at a time.
 class PixelFiles {
  public:
-  /// The files in `dir`, which is made if missing (with `durable`, its entry is flushed to the disk). Throws
-  /// StorageError.
+  /// The files in `dir`, which is made if missing. With `durable`, its entry is flushed to the disk and sync_written()
+  /// flushes what was written; without, nothing is flushed. Throws StorageError.
   PixelFiles(std::filesystem::path dir, bool durable);
 
   /// Appends a done tile's bytes to `job`'s file, made if missing (TilePixelFile::append); the file is flushed by the
@@ -54,6 +54,7 @@ class PixelFiles {
   void close_locked(const std::string& job);                                         // mu_ held
 
   const std::filesystem::path dir_;
+  const bool durable_;
   std::mutex mu_;
   std::map<std::string, std::shared_ptr<TilePixelFile>> open_;     // job -> its file, as far as kept open
   std::map<std::string, std::shared_ptr<TilePixelFile>> written_;  // appended to since the last sync_written
