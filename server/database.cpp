@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <limits>
+#include <set>
 #include <tuple>
 #include <cerrno>
 #include <cstdlib>
@@ -58,7 +59,9 @@ std::vector<std::string> json_list(const std::string& text, const std::string& w
   }
 }
 
-// The schema (version 1). A tile can only be done with its pixels: the database itself refuses anything else.
+// The schema as version 1 made it; kAddedColumns and upgrade_tiles() bring it to the current version. A tile can only
+// be done with its pixels, the bytes themselves (version 1) or where they are in its job's pixel file: the database
+// itself refuses anything else.
 constexpr const char* kSchema = R"sql(
 CREATE TABLE IF NOT EXISTS meta(key TEXT PRIMARY KEY, value INTEGER NOT NULL);
 CREATE TABLE IF NOT EXISTS jobs(
@@ -99,8 +102,8 @@ CREATE INDEX IF NOT EXISTS webhook_outbox_due ON webhook_outbox(state, next_ms);
 CREATE INDEX IF NOT EXISTS webhook_outbox_url_due ON webhook_outbox(state, url, next_ms);
 )sql";
 
-// Columns added after version 1 was released: older files gain them with these defaults (the schema version stays,
-// since a version-1 reader ignores them and nothing it writes contradicts them).
+// Columns added after version 1 was released: older files gain them with these defaults (the schema version stays
+// for those a version-1 reader can ignore without contradicting them).
 struct AddedColumn {
   const char* table;
   const char* column;
@@ -131,7 +134,18 @@ constexpr AddedColumn kAddedColumns[] = {
     {"workers", "tags", "TEXT NOT NULL DEFAULT '[]'"},
     // Pipelines: a job's dependencies, steps and webhook as the JSON object of protocol/pipeline.h.
     {"jobs", "pipeline", "TEXT NOT NULL DEFAULT '{}'"},
+    // Version 2: a done tile's bytes in its job's pixel file (server/tile_pixel_file.h), NULL for a tile whose bytes
+    // are in `pixels` (stored by version 1) or that has none.
+    {"tiles", "pixel_offset", "INTEGER"},
+    {"tiles", "pixel_length", "INTEGER"},
+    {"tiles", "pixel_checksum", "INTEGER"},
 };
+
+// The tiles table's CHECK as version 1 made it, and as version 2 has it.
+constexpr const char* kDoneCheckV1 = "CHECK(state <> 'done' OR pixels IS NOT NULL)";
+constexpr const char* kDoneCheck = "CHECK(state <> 'done' OR pixels IS NOT NULL OR pixel_length IS NOT NULL)";
+
+std::string tile_name(const std::string& job, int64_t tile) { return "job " + job + " tile " + std::to_string(tile); }
 
 }  // namespace
 
@@ -293,6 +307,7 @@ void Transaction::commit() {
 
 DurableStore::DurableStore(const fs::path& dir, Durability durability)
     : CoordinatorStore(dir, durability),
+      pixels_(dir / kPixelsDir, durability == Durability::machine),  // flushed by the group commit, as the log is
       // Commits survive a process crash without waiting for the disk; sync() makes them survive a power cut when the
       // scheduler acknowledges something, outside its lock (see SchedulerStore::sync). A store that only has to
       // survive the process lets SQLite skip its own flushes too (at checkpoints and when the file is made).
@@ -319,16 +334,13 @@ DurableStore::DurableStore(const fs::path& dir, Durability durability)
     if (!present) db_.exec(std::string("ALTER TABLE ") + c.table + " ADD COLUMN " + c.column + " " + c.declaration);
   }
   Statement& get = db_.statement("SELECT value FROM meta WHERE key = 'schema_version'");
-  if (get.step()) {
-    const int64_t v = get.integer(0);
-    get.reset();
-    if (v != kSchemaVersion)
-      throw StorageError(db_.file().string() + " has schema version " + std::to_string(v) + "; this build reads version " +
-                         std::to_string(kSchemaVersion));
-  } else {
-    get.reset();
-    db_.statement("INSERT INTO meta(key, value) VALUES('schema_version', ?)").bind(1, int64_t(kSchemaVersion)).run();
-  }
+  const std::optional<int64_t> version = get.step() ? std::optional<int64_t>(get.integer(0)) : std::nullopt;
+  get.reset();
+  if (version && *version != kSchemaVersion && *version != 1)
+    throw StorageError(db_.file().string() + " has schema version " + std::to_string(*version) +
+                       "; this build reads versions 1 and " + std::to_string(kSchemaVersion));
+  upgrade_tiles();
+  db_.statement("INSERT OR REPLACE INTO meta(key, value) VALUES('schema_version', ?)").bind(1, int64_t(kSchemaVersion)).run();
   tx.commit();
   // From here on the log is checkpointed by a thread of its own, never inside a commit.
   checkpointer_ = std::make_unique<WalCheckpointer>(
@@ -338,6 +350,25 @@ DurableStore::DurableStore(const fs::path& dir, Durability durability)
         checkpoint();
       });
   db_.on_commit([this](int frames) { checkpointer_->committed(frames); });
+}
+
+void DurableStore::upgrade_tiles() {
+  Statement& get = db_.statement("SELECT sql FROM sqlite_master WHERE type = 'table' AND name = 'tiles'");
+  std::string sql = get.step() ? get.text(0) : "";
+  get.reset();
+  const size_t check = sql.find(kDoneCheckV1);
+  if (check == std::string::npos) return;
+  // SQLite cannot change a CHECK in place: the table is made again under its own definition with the new CHECK, its
+  // rows copied (pixels stored by version 1 stay where they are), and it takes the old one's place.
+  sql.replace(check, std::strlen(kDoneCheckV1), kDoneCheck);
+  const size_t open = sql.find('(');  // after CREATE TABLE tiles, its name quoted or not
+  if (open == std::string::npos || sql.find("tiles") > open)
+    throw StorageError(db_.file().string() + ": the tiles table's definition is not one this build knows: " + sql_head(sql));
+  sql.replace(0, open, "CREATE TABLE tiles_v2");
+  db_.exec(sql);
+  db_.exec("INSERT INTO tiles_v2 SELECT * FROM tiles");
+  db_.exec("DROP TABLE tiles");
+  db_.exec("ALTER TABLE tiles_v2 RENAME TO tiles");
 }
 
 DurableStore::~DurableStore() = default;  // group_, then checkpointer_, then db_ (the connection's last checkpoint)
@@ -370,11 +401,28 @@ void DurableStore::flush_log() {
   }
   bool flush_fails = false;  // set by tests to take the failure path below
   TESSERA_FAIL_POINT_RETURN("store.sync", [&](const std::string&) { flush_fails = true; });
-  // No lock held during the flush: concurrent callers wait for the same disk write instead of queueing behind a mutex.
-  if (fd >= 0 && !flush_fails && ::fdatasync(fd) == 0) return;
-  const int err = flush_fails ? EIO : errno;
   // After a failed flush the kernel may have dropped the dirty pages, so retrying cannot tell whether they reached
-  // the disk: stop, and let a restart recover from what the disk holds (acknowledged results were never acknowledged).
+  // the disk: stop, and let a restart recover from what the disk holds (acknowledged results were never acknowledged;
+  // a tile whose row reached the disk without its bytes is pending again, see load()). The disk being full cannot
+  // fail a pixel file's flush: its space was allocated when the bytes were written.
+  std::vector<fs::path> purged;
+  try {
+    // The tiles' bytes first: a row that names them is never on the disk before they are.
+    purged = pixels_.sync_written();
+  } catch (const StorageError& e) {
+    spdlog::critical("{}; stopping the coordinator", e.what());
+    std::abort();
+  }
+  // No lock held during the flush: concurrent callers wait for the same disk write instead of queueing behind a mutex.
+  if (fd >= 0 && !flush_fails && ::fdatasync(fd) == 0) {
+    try {
+      PixelFiles::delete_files(purged);  // the rows that named them are gone for good now
+    } catch (const StorageError& e) {
+      spdlog::warn("{} (removed when the coordinator next starts)", e.what());
+    }
+    return;
+  }
+  const int err = flush_fails ? EIO : errno;
   spdlog::critical("cannot flush {}-wal to disk ({}); stopping the coordinator", db_.file().string(),
                    fd < 0 ? "cannot open it" : std::strerror(err));
   std::abort();
@@ -406,10 +454,25 @@ bool DurableStore::make_room() {
 
 void DurableStore::apply(const SchedulerChanges& c) {
   std::lock_guard lock(mu_);
-  write_locked([&] { apply_locked(c); });
+  write_locked([&] {
+    // Pixel files appended to by this change, with their sizes before it: cut back when the change is not stored.
+    std::vector<std::pair<std::string, int64_t>> appended;
+    try {
+      apply_locked(c, appended);
+    } catch (...) {
+      for (auto it = appended.rbegin(); it != appended.rend(); ++it) {
+        try {
+          pixels_.cut(it->first, it->second);
+        } catch (const StorageError& e) {
+          spdlog::warn("{} (its unnamed bytes stay until the job is deleted)", e.what());
+        }
+      }
+      throw;
+    }
+  });
 }
 
-void DurableStore::apply_locked(const SchedulerChanges& c) {
+void DurableStore::apply_locked(const SchedulerChanges& c, std::vector<std::pair<std::string, int64_t>>& appended) {
   Transaction tx(db_);
   for (const JobRow& r : c.jobs) {
     const JobStatus& s = r.status;
@@ -446,27 +509,45 @@ void DurableStore::apply_locked(const SchedulerChanges& c) {
         .bind_text(3, r.worker)
         .run();
   for (const TileRow& r : c.tiles) {
-    if (r.pixels) TESSERA_FAIL_POINT("store.tile_commit");
+    // A tile that became done: its bytes go to the end of its job's pixel file (one write, flushed before the
+    // database by the next sync), its row names where they are. A tile that is done no more keeps its reference
+    // until a new upload replaces it.
+    std::optional<PixelRef> ref;
+    if (r.pixels) {
+      TESSERA_FAIL_POINT("store.tile_commit");
+      const std::string& job = r.job;
+      const auto before = std::find_if(appended.begin(), appended.end(), [&](const auto& a) { return a.first == job; });
+      const PixelRef written = pixels_.append(job, *r.pixels);
+      if (before == appended.end()) appended.emplace_back(job, written.offset);
+      ref = written;
+    }
     const std::string failures = map_json(r.failures).dump();
     const std::string logs = json(r.logs).dump();
     const std::string log = json(r.log).dump(-1, ' ', false, json::error_handler_t::replace);
     Statement& up = db_.statement(
-        "UPDATE tiles SET state = ?, lease = ?, failures = ?, pixels = coalesce(?, pixels), attempts = ?, render_ms = ?,"
-        " rays = ?, logs = ?, rendered_by = ?, log = ?, log_not_kept = ? WHERE job = ? AND idx = ?");
+        ref ? "UPDATE tiles SET state = ?, lease = ?, failures = ?, attempts = ?, render_ms = ?, rays = ?, logs = ?,"
+              " rendered_by = ?, log = ?, log_not_kept = ?, pixels = NULL, pixel_offset = ?, pixel_length = ?,"
+              " pixel_checksum = ? WHERE job = ? AND idx = ?"
+            : "UPDATE tiles SET state = ?, lease = ?, failures = ?, attempts = ?, render_ms = ?, rays = ?, logs = ?,"
+              " rendered_by = ?, log = ?, log_not_kept = ? WHERE job = ? AND idx = ?");
     up.bind_text(1, to_string(r.state)).bind_text(2, r.lease).bind_text(3, failures);
-    if (r.pixels) up.bind_blob_uncopied(4, *r.pixels);  // the tile's bytes outlive this change
-    up.bind(5, r.attempts).bind(6, r.render_ms).bind(7, int64_t(r.rays)).bind_text(8, logs);
-    up.bind_text(9, r.rendered_by).bind_text(10, log).bind(11, int64_t(r.log_not_kept));
-    up.bind_text(12, r.job).bind(13, r.index);
+    up.bind(4, r.attempts).bind(5, r.render_ms).bind(6, int64_t(r.rays)).bind_text(7, logs);
+    up.bind_text(8, r.rendered_by).bind_text(9, log).bind(10, int64_t(r.log_not_kept));
+    int next = 11;
+    if (ref) {
+      up.bind(11, ref->offset).bind(12, ref->length).bind(13, int64_t(ref->checksum));
+      next = 14;
+    }
+    up.bind_text(next, r.job).bind(next + 1, r.index);
     up.run();
     if (db_.changes() > 0) continue;
     Statement& ins = db_.statement(
-        "INSERT INTO tiles(job, idx, state, lease, failures, pixels, attempts, render_ms, rays, logs, rendered_by, log,"
-        " log_not_kept) VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?)");
+        "INSERT INTO tiles(job, idx, state, lease, failures, attempts, render_ms, rays, logs, rendered_by, log,"
+        " log_not_kept, pixel_offset, pixel_length, pixel_checksum) VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     ins.bind_text(1, r.job).bind(2, r.index).bind_text(3, to_string(r.state)).bind_text(4, r.lease).bind_text(5, failures);
-    if (r.pixels) ins.bind_blob_uncopied(6, *r.pixels);
-    ins.bind(7, r.attempts).bind(8, r.render_ms).bind(9, int64_t(r.rays)).bind_text(10, logs).bind_text(11, r.rendered_by);
-    ins.bind_text(12, log).bind(13, int64_t(r.log_not_kept));
+    ins.bind(6, r.attempts).bind(7, r.render_ms).bind(8, int64_t(r.rays)).bind_text(9, logs).bind_text(10, r.rendered_by);
+    ins.bind_text(11, log).bind(12, int64_t(r.log_not_kept));
+    if (ref) ins.bind(13, ref->offset).bind(14, ref->length).bind(15, int64_t(ref->checksum));
     ins.run();
   }
   for (const LeaseRow& r : c.leases) {
@@ -518,7 +599,22 @@ void DurableStore::apply_locked(const SchedulerChanges& c) {
                             "DELETE FROM job_workers WHERE job = ?", "DELETE FROM jobs WHERE id = ?"})
       db_.statement(sql).bind_text(1, job).run();
   tx.commit();
+  appended.clear();  // stored: nothing to cut back from here on
   written_counters_ = stored;
+  // A purged job's pixel file goes once no durable row can name it any more: after the next flush of the database,
+  // asked for here (without flushes, now).
+  for (const std::string& job : c.purged_jobs) {
+    if (durability_ == Durability::machine) {
+      pixels_.remove_when_flushed(job);
+      group_.after_flush([] {});
+    } else {
+      try {
+        pixels_.remove(job);
+      } catch (const StorageError& e) {
+        spdlog::warn("{} (removed when the coordinator next starts)", e.what());
+      }
+    }
+  }
   if (!c.purged_jobs.empty()) give_back_free_pages();
 }
 
@@ -611,8 +707,17 @@ SchedulerSnapshot DurableStore::load() {
       it->second->status.workers.push_back(st.text(1));
     }
   }
+  std::vector<TileRow*> damaged;  // done tiles whose bytes are not in their pixel file intact
   {
-    Statement& st = db_.statement("SELECT job, idx, state, lease, failures, attempts, render_ms, rays, logs, rendered_by, log, log_not_kept FROM tiles");
+    std::set<std::string> jobs;
+    for (const JobRow& r : snap.jobs) jobs.insert(r.status.id);
+    if (const size_t n = pixels_.keep_only(jobs)) spdlog::info("removed the pixel files of {} deleted job(s)", n);
+  }
+  {
+    Statement& st = db_.statement(
+        "SELECT job, idx, state, lease, failures, attempts, render_ms, rays, logs, rendered_by, log, log_not_kept,"
+        " pixel_offset, pixel_length, pixel_checksum FROM tiles");
+    std::vector<std::pair<size_t, PixelRef>> refs;  // done tiles' references, checked below
     while (st.step()) {
       TileRow r;
       r.job = st.text(0);
@@ -631,7 +736,39 @@ SchedulerSnapshot DurableStore::load() {
       r.rendered_by = st.text(9);
       r.log = json_list(st.text(10), "job " + r.job + " tile " + std::to_string(r.index) + ": stored log");
       r.log_not_kept = st.integer(11) != 0;
+      if (r.state == TileState::done && !st.is_null(13))
+        refs.emplace_back(snap.tiles.size(), PixelRef{st.integer(12), st.integer(13), uint64_t(st.integer(14))});
       snap.tiles.push_back(std::move(r));
+    }
+    // Each file read front to back.
+    std::sort(refs.begin(), refs.end(), [&](const auto& a, const auto& b) {
+      return std::tie(snap.tiles[a.first].job, a.second.offset) < std::tie(snap.tiles[b.first].job, b.second.offset);
+    });
+    for (const auto& [i, ref] : refs)
+      if (!pixels_.read(snap.tiles[i].job, ref)) damaged.push_back(&snap.tiles[i]);
+  }
+  for (TileRow* t : damaged) {
+    // Its row reached the disk and its bytes did not: the machine stopped before the flush that would have
+    // acknowledged it. It is rendered again.
+    spdlog::warn("{}: its pixels are not in {} intact (the machine stopped before they were flushed); the tile is "
+                 "pending again", tile_name(t->job, t->index), pixels_.file_of(t->job).string());
+    t->state = TileState::pending;
+    t->lease.clear();
+    db_.statement("UPDATE tiles SET state = ?, lease = '', pixel_offset = NULL, pixel_length = NULL,"
+                  " pixel_checksum = NULL WHERE job = ? AND idx = ?")
+        .bind_text(1, to_string(TileState::pending))
+        .bind_text(2, t->job)
+        .bind(3, t->index)
+        .run();
+    for (JobRow& j : snap.jobs) {
+      if (j.status.id != t->job || j.status.state != JobState::done) continue;
+      spdlog::warn("job {}: running again to render its tile {}", j.status.id, t->index);
+      j.status.state = JobState::running;
+      j.status.finished_ms.reset();
+      db_.statement("UPDATE jobs SET state = ?, finished_ms = NULL WHERE id = ?")
+          .bind_text(1, to_string(JobState::running))
+          .bind_text(2, j.status.id)
+          .run();
     }
   }
   {
@@ -699,11 +836,27 @@ std::optional<json> DurableStore::load_record(const std::string& job) {
 }
 
 std::vector<std::pair<int64_t, std::string>> DurableStore::tile_pixels(const std::string& job) {
-  std::lock_guard lock(mu_);
   std::vector<std::pair<int64_t, std::string>> out;
-  Statement& st = db_.statement("SELECT idx, pixels FROM tiles WHERE job = ? AND state = 'done' ORDER BY idx");
-  st.bind_text(1, job);
-  while (st.step()) out.emplace_back(st.integer(0), st.blob(1));
+  std::vector<std::pair<size_t, PixelRef>> refs;  // tiles of `out` whose bytes are in the pixel file
+  {
+    std::lock_guard lock(mu_);
+    Statement& st = db_.statement(
+        "SELECT idx, pixels, pixel_offset, pixel_length, pixel_checksum FROM tiles WHERE job = ? AND state = 'done'"
+        " ORDER BY idx");
+    st.bind_text(1, job);
+    while (st.step()) {
+      if (!st.is_null(3)) refs.emplace_back(out.size(), PixelRef{st.integer(2), st.integer(3), uint64_t(st.integer(4))});
+      out.emplace_back(st.integer(0), st.is_null(3) ? st.blob(1) : std::string());  // version 1 kept the bytes here
+    }
+  }
+  // Read without the store's lock (appends go on meanwhile; a done tile's bytes never change).
+  for (const auto& [i, ref] : refs) {
+    auto bytes = pixels_.read(job, ref);
+    if (!bytes)
+      throw StorageError(tile_name(job, out[i].first) + ": its pixels are not in " + pixels_.file_of(job).string() +
+                         " intact");
+    out[i].second = std::move(*bytes);
+  }
   return out;
 }
 

@@ -1,9 +1,10 @@
 // The coordinator's durable state in one SQLite file (WAL): a small RAII wrapper over the C API and the store that keeps
-// jobs, tiles (with the pixels of done tiles), leases, workers and job records in it.
+// jobs, tiles, leases, workers and job records in it, and done tiles' pixels in a file per job beside it.
 #pragma once
 
 #include "server/coordinator_store.h"
 #include "server/group_commit.h"
+#include "server/pixel_files.h"
 #include "server/scheduler_store.h"
 #include "server/storage.h"
 #include "server/wal_checkpointer.h"
@@ -113,8 +114,9 @@ class Transaction {
   bool done_ = false;
 };
 
-/// The coordinator's state under DIR: DIR/tessera.db holds jobs, tiles, leases, workers and job records, DIR/jobs/<id>/
-/// the merged results, DIR/tmp/ scratch files. Thread-safe (one connection behind a mutex). The database runs with
+/// The coordinator's state under DIR: DIR/tessera.db holds jobs, tiles, leases, workers and job records, DIR/pixels/
+/// the done tiles' pixels (a file per job, each tile's row naming where its bytes are: server/pixel_files.h),
+/// DIR/jobs/<id>/ the merged results, DIR/tmp/ scratch files. Thread-safe (one connection behind a mutex). The database runs with
 /// auto_vacuum=INCREMENTAL: a change that purges jobs hands their pages back and truncates the write-ahead log.
 /// A write that fails for want of space (DiskFullError) stops every later write, which fails the same way at once,
 /// until make_room() has copied the write-ahead log into the database file and cut the log to nothing: the space
@@ -123,15 +125,19 @@ class DurableStore final : public CoordinatorStore, public WebhookLog {
  public:
   /// The database's file name in the store's folder.
   static constexpr const char* kFileName = "tessera.db";
-  /// The schema version this build reads and writes.
-  static constexpr int kSchemaVersion = 1;
+  /// The schema version this build reads and writes (version 2: a done tile's pixels may be in its job's pixel file).
+  /// A file of version 1 is upgraded when opened.
+  static constexpr int kSchemaVersion = 2;
+  /// The folder of the pixel files in the store's folder.
+  static constexpr const char* kPixelsDir = "pixels";
   /// Frames (4 KiB pages) in the write-ahead log that start a checkpoint (SQLite's own default).
   static constexpr int kCheckpointFrames = 1000;
   /// Ids reserved ahead by each write of the id sequence.
   static constexpr uint64_t kIdBlock = 1024;
 
-  /// Opens or creates the store under `dir`, removing what a crash can leave behind: every file in DIR/tmp/ and the
-  /// temp files of interrupted result writes under DIR/jobs/. Throws StorageError (unreadable file, newer schema).
+  /// Opens or creates the store under `dir`, removing what a crash can leave behind: every file in DIR/tmp/, the
+  /// temp files of interrupted result writes under DIR/jobs/ and the pixel files of jobs it no longer holds (at
+  /// load()). Throws StorageError (unreadable file, newer schema).
   explicit DurableStore(const std::filesystem::path& dir, Durability durability = Durability::machine);
   ~DurableStore() override;
 
@@ -139,9 +145,13 @@ class DurableStore final : public CoordinatorStore, public WebhookLog {
   std::vector<DueDelivery> due_deliveries(int64_t now, size_t limit, const std::set<std::string>& skip) override;
   void record_attempt(const std::string& id, const std::string& url, const DeliveryAttempt& attempt) override;
   std::vector<protocol::WebhookDelivery> deliveries(size_t limit) override;
+  /// Every row. A done tile whose bytes its job's pixel file does not hold intact (the machine stopped after the row
+  /// reached the disk but before its bytes did, so the tile was never acknowledged) is pending again, and a done job
+  /// of it running again, each with a warning; the repair is stored.
   SchedulerSnapshot load() override;
   /// Commits run with synchronous=NORMAL (safe against a process crash); with Durability::machine this waits for an
-  /// fdatasync of the write-ahead log, which makes them safe against a power cut. The flush is a group commit (one
+  /// fdatasync of the pixel files written since the last flush, then of the write-ahead log, which makes them safe
+  /// against a power cut. The flush is a group commit (one
   /// thread, one fdatasync for every caller that arrived while the previous one ran). A failed flush aborts the
   /// process (the page cache can no longer be trusted; a restart recovers from what is on disk). With
   /// Durability::process nothing is flushed.
@@ -169,9 +179,11 @@ class DurableStore final : public CoordinatorStore, public WebhookLog {
   GroupCommitStats flushes() { return group_.stats(); }
 
  private:
-  void apply_locked(const SchedulerChanges& changes);  // apply() with mu_ held
+  // apply() with mu_ held; each pixel file it appends to is noted in `appended` with its size before the change.
+  void apply_locked(const SchedulerChanges& changes, std::vector<std::pair<std::string, int64_t>>& appended);
   void give_back_free_pages();  // after a purge: shrink the file and the log (mu_ held)
-  void flush_log();             // fdatasync of the write-ahead log, on the group commit's thread
+  void flush_log();             // fdatasync of the pixel files, then of the write-ahead log, on the group commit's thread
+  void upgrade_tiles();         // a version-1 tiles table gains the pixel file's columns in its CHECK (in a transaction)
   template <class F>
   void write_locked(F&& write);  // runs a write (mu_ held) unless the disk was full, noting when it is (full_)
   std::mutex mu_;
@@ -184,6 +196,7 @@ class DurableStore final : public CoordinatorStore, public WebhookLog {
   std::mutex wal_mu_;   // guards wal_fd_
   LogFile wal_fd_;      // the write-ahead log, opened for flush_log() (closed after group_ has stopped)
   size_t leftovers_removed_ = 0;
+  PixelFiles pixels_;   // done tiles' bytes (appended with mu_ held; flushed by flush_log)
   Database db_;
   std::unique_ptr<WalCheckpointer> checkpointer_;  // checkpoints db_'s log (stopped before db_ closes)
   GroupCommit group_;   // last: its thread flushes the log of db_

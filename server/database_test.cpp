@@ -352,6 +352,119 @@ TEST_F(DatabaseTest, JobFinishedAcrossARestartKeepsItsImage) {
   EXPECT_TRUE(sched->unfinalized_jobs().empty());
 }
 
+// The machine stopped after done tiles' rows reached the disk but before their bytes did (the flush that would have
+// acknowledged them never came): at the restart those tiles are pending again, and their job, done by then, running,
+// instead of the coordinator failing; the repair is stored, and the tiles rendered again complete the job.
+TEST_F(DatabaseTest, TilesWhoseBytesAreMissingOrDamagedArePendingAgainAfterARestart) {
+  const std::string j = job(192, 64, 64);
+  const std::string w = sched->register_worker("w").id;
+  const Lease a = lease(w), b = lease(w), c = lease(w);
+  upload(a, 1.0f);
+  upload(b, 2.0f);
+  upload(c, 3.0f);
+  sched->complete_job(j);
+  ASSERT_EQ(sched->job(j)->state, JobState::done);
+  sched.reset();
+  store.reset();
+  const fs::path file = dir / DurableStore::kPixelsDir / (j + ".pixels");
+  const uintmax_t tile = fs::file_size(file) / 3;  // the tiles in upload order, one after another
+  {
+    // b's bytes damaged in the middle, c's cut short by a byte.
+    std::fstream f(file, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekg(std::streamoff(tile + tile / 2));
+    const char byte = char(f.get());
+    f.seekp(std::streamoff(tile + tile / 2));
+    f.put(char(~byte));
+  }
+  fs::resize_file(file, 3 * tile - 1);
+  for (int restart = 0; restart < 2; ++restart) {  // the second finds the repair stored
+    open();
+    EXPECT_EQ(sched->job(j)->state, JobState::running);
+    EXPECT_EQ(sched->job(j)->tiles.done, 1);
+    EXPECT_EQ(sched->job(j)->tiles.pending, 2);
+    const auto px = store->tile_pixels(j);
+    ASSERT_EQ(px.size(), 1u);
+    EXPECT_EQ(px[0].first, a.tile);
+    EXPECT_EQ(tile_from_bytes(px[0].second, 64, 64).rgb, pixels_for(a.window, 1.0f).rgb);
+    sched.reset();
+    store.reset();
+  }
+  open();
+  const Lease b2 = lease(w), c2 = lease(w);
+  EXPECT_EQ((std::set<int64_t>{b2.tile, c2.tile}), (std::set<int64_t>{b.tile, c.tile}));
+  upload(b2, 2.0f);
+  EXPECT_TRUE(sched->claim_result(c2.id).status == ResultClaim::proceed);
+  EXPECT_TRUE(sched->finish_result(c2.id, 100, tile_bytes(pixels_for(c2.window, 3.0f))).last);
+  sched->complete_job(j);
+  reopen();
+  EXPECT_EQ(sched->job(j)->state, JobState::done);
+  EXPECT_EQ(store->tile_pixels(j).size(), 3u);
+}
+
+// A database of schema version 1 keeps done tiles' bytes in their rows: it opens (upgraded to version 2), those tiles
+// read as they were, and a tile rendered again has its new bytes in the job's pixel file.
+TEST_F(DatabaseTest, ADatabaseOfVersion1WithPixelsInItsRowsKeepsLoading) {
+  const std::string j = job(128, 64, 64);
+  const std::string w = sched->register_worker("w").id;
+  const Lease a = lease(w), b = lease(w);
+  upload(a, 1.0f);
+  upload(b, 2.0f);
+  const auto before = store->tile_pixels(j);
+  ASSERT_EQ(before.size(), 2u);
+  sched.reset();
+  store.reset();
+  const fs::path file = dir / DurableStore::kPixelsDir / (j + ".pixels");
+  const auto version = [&] {
+    Database db(dir / DurableStore::kFileName);
+    Statement& st = db.statement("SELECT value FROM meta WHERE key = 'schema_version'");
+    return st.step() ? st.integer(0) : -1;
+  };
+  {
+    // As version 1 made it: its CHECK, the bytes in the rows, no pixel file.
+    Database db(dir / DurableStore::kFileName);
+    for (const auto& [index, bytes] : before)
+      db.statement("UPDATE tiles SET pixels = ?, pixel_offset = NULL, pixel_length = NULL, pixel_checksum = NULL"
+                   " WHERE job = ? AND idx = ?")
+          .bind_blob(1, bytes)
+          .bind_text(2, j)
+          .bind(3, index)
+          .run();
+    Statement& get = db.statement("SELECT sql FROM sqlite_master WHERE type = 'table' AND name = 'tiles'");
+    ASSERT_TRUE(get.step());
+    std::string sql = get.text(0);
+    get.reset();
+    const std::string v2 = " OR pixel_length IS NOT NULL";
+    ASSERT_NE(sql.find(v2), std::string::npos) << sql;
+    sql.erase(sql.find(v2), v2.size());
+    sql.replace(0, sql.find('('), "CREATE TABLE tiles_v1");
+    db.exec(sql);
+    db.exec("INSERT INTO tiles_v1 SELECT * FROM tiles; DROP TABLE tiles; ALTER TABLE tiles_v1 RENAME TO tiles");
+    db.exec("UPDATE meta SET value = 1 WHERE key = 'schema_version'");
+  }
+  fs::remove(file);
+  ASSERT_EQ(version(), 1);
+  open();
+  EXPECT_EQ(version(), 2);
+  EXPECT_EQ(store->tile_pixels(j), before);
+  EXPECT_EQ(sched->job(j)->tiles.done, 2);
+  // Rendered again: the new bytes in the pixel file, the other tile's still in its row.
+  ASSERT_EQ(sched->requeue(j, a.tile).status, RequeueResult::requeued);
+  const Lease again = lease(w);
+  ASSERT_EQ(again.tile, a.tile);
+  upload(again, 5.0f);
+  EXPECT_TRUE(fs::exists(file));
+  reopen();
+  const auto after = store->tile_pixels(j);
+  ASSERT_EQ(after.size(), 2u);
+  for (const auto& [index, bytes] : after)
+    EXPECT_EQ(tile_from_bytes(bytes, 64, 64).rgb,
+              pixels_for(index == a.tile ? a.window : b.window, index == a.tile ? 5.0f : 2.0f).rgb);
+  // The version-2 CHECK still refuses a done tile without either.
+  Database db(dir / DurableStore::kFileName);
+  EXPECT_THROW(db.exec("UPDATE tiles SET pixels = NULL, pixel_length = NULL WHERE idx = " + std::to_string(b.tile)),
+               StorageError);
+}
+
 // The coordinator died between storing a job's last tile and writing its result: starting it again writes the result
 // from the stored tiles and marks the job done.
 TEST_F(DatabaseTest, CoordinatorStartFinishesAJobWhoseTilesWereAllStored) {

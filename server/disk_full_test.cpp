@@ -133,6 +133,13 @@ TEST(DiskFullTest, TheStoreRefusesWritesUntilItsLogIsCutThenTakesTheWaitingChang
       CHILD_CHECK(stored < 64);
     }
     CHILD_CHECK(stored > 0);
+    // The pixel files hold the stored tiles' bytes and nothing of the refused one.
+    const auto pixel_bytes = [&] {
+      uintmax_t n = 0;
+      for (const auto& f : fs::directory_iterator(dir / DurableStore::kPixelsDir)) n += fs::file_size(f.path());
+      return n;
+    };
+    CHILD_CHECK(pixel_bytes() == uintmax_t(stored) * pixels.size());
     // Views still answer, with nothing lost or invented (the first job's two tiles were leased first).
     const auto done = [&] { return sched.job(first)->tiles.done + sched.job(big)->tiles.done; };
     CHILD_CHECK(done() == stored);
@@ -160,6 +167,7 @@ TEST(DiskFullTest, TheStoreRefusesWritesUntilItsLogIsCutThenTakesTheWaitingChang
     const std::string later = sched.add_job(params(1));
     CHILD_CHECK(done() == stored + 1);
     CHILD_CHECK(store.tile_pixels(first).size() + store.tile_pixels(big).size() == size_t(stored) + 1);
+    CHILD_CHECK(pixel_bytes() == uintmax_t(stored + 1) * pixels.size());
     // And all of it is what a restart finds.
     SchedulerSnapshot snap = store.load();
     CHILD_CHECK(snap.jobs.size() == 3);

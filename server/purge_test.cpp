@@ -108,8 +108,11 @@ struct PurgeTest : ::testing::Test {
     const uint64_t n = fs::file_size(p, ec);
     return ec ? 0 : n;
   }
-  uint64_t database_bytes() const {
-    return file_bytes(dir / "tessera.db") + file_bytes(fs::path(dir / "tessera.db").string() + "-wal");
+  // The database, its log and the pixel files.
+  uint64_t stored_bytes() const {
+    uint64_t pixels = 0;
+    for (const auto& f : fs::directory_iterator(dir / DurableStore::kPixelsDir)) pixels += file_bytes(f.path());
+    return file_bytes(dir / "tessera.db") + file_bytes(fs::path(dir / "tessera.db").string() + "-wal") + pixels;
   }
 };
 
@@ -151,8 +154,8 @@ TEST_F(PurgeTest, OnlyEndedJobsArePurgedAndTheirLeasesBecomeUnknown) {
   EXPECT_EQ(sched->heartbeat(l.lease.id).status, HeartbeatResult::unknown);
 }
 
-TEST_F(PurgeTest, PurgingGivesTheDatabasePagesBackAndLeavesOtherJobsWhole) {
-  const uint64_t empty = database_bytes();
+TEST_F(PurgeTest, PurgingGivesTheSpaceBackAndLeavesOtherJobsWhole) {
+  const uint64_t empty = stored_bytes();
   const std::string keep = job(128);
   const std::string w = sched->register_worker("w").id;
   render_all(w);
@@ -160,16 +163,19 @@ TEST_F(PurgeTest, PurgingGivesTheDatabasePagesBackAndLeavesOtherJobsWhole) {
   for (int i = 0; i < 4; ++i) doomed.push_back(job(512));
   render_all(w);
   const auto kept_pixels = store->tile_pixels(keep);
-  const uint64_t full = database_bytes();
+  const uint64_t full = stored_bytes();
   for (const std::string& j : doomed) {
     ASSERT_EQ(sched->job(j)->state, JobState::done);
     ASSERT_EQ(service->purge(j), JobState::done);
   }
-  const uint64_t after = database_bytes();
-  std::printf("database + log: empty %llu bytes, 5 jobs %llu bytes, 4 of them purged %llu bytes\n",
+  store->sync();  // a pixel file goes once the purge is on the disk
+  for (const std::string& j : doomed) EXPECT_FALSE(fs::exists(dir / DurableStore::kPixelsDir / (j + ".pixels")));
+  const uint64_t after = stored_bytes();
+  std::printf("database + log + pixel files: empty %llu bytes, 5 jobs %llu bytes, 4 of them purged %llu bytes\n",
               static_cast<unsigned long long>(empty), static_cast<unsigned long long>(full),
               static_cast<unsigned long long>(after));
-  // 4 jobs of 8 tiles of 64x64 float RGB are 1.5 MiB of pixels: the file and its log give them back.
+  // 4 jobs of 8 tiles of 64x64 float RGB are 1.5 MiB of pixels: their files go, the database and its log give back
+  // their rows.
   EXPECT_GT(full, empty + 1'500'000);
   EXPECT_LT(after, empty + 200'000);
   reopen();

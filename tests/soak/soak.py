@@ -9,7 +9,7 @@ After --seconds of faults the driver stops injecting, brings everything back up 
 until every job is done. Then it checks the end state only, never how fast anything went:
 - every submitted job exists, is done, and its result is bitwise identical to `tessera render` of the same scene,
   spp and seed (tests/exr_compare);
-- every tile of every job is done with pixels in the database, no tile was merged twice (coordinator logs) or
+- every tile of every job is done with pixels (its row names bytes its job's pixel file holds), no tile was merged twice (coordinator logs) or
   acknowledged as accepted twice (worker logs), and a tile never logged as merged was acknowledged as a duplicate
   or uploaded without an answer (its merge was committed just before a coordinator kill; the worker may have been
   killed before its retry);
@@ -438,10 +438,14 @@ def check_end_state(args, farm, jobs, submitter, faults, proxy):
         if (spp, seed, tile) != (j["spp"], j["seed"], j["tile"]):
             problems.append(f"job {jid} ({name}) has spp/seed/tile {spp}/{seed}/{tile}, submitted {j['spp']}/"
                             f"{j['seed']}/{j['tile']}")
-        n, done = db.execute("SELECT count(*), sum(state = 'done' AND pixels IS NOT NULL) FROM tiles WHERE job = ?",
-                             (jid,)).fetchone()
+        n, done, end = db.execute(
+            "SELECT count(*), sum(state = 'done' AND (pixels IS NOT NULL OR pixel_length IS NOT NULL)),"
+            " max(pixel_offset + pixel_length) FROM tiles WHERE job = ?", (jid,)).fetchone()
         if n != j["tiles"] or done != j["tiles"]:
             problems.append(f"job {jid} ({name}): {done} of {n} tiles done with pixels, expected {j['tiles']}")
+        pixel_file = farm.data / "pixels" / f"{jid}.pixels"
+        if end is not None and (not pixel_file.exists() or pixel_file.stat().st_size < end):
+            problems.append(f"job {jid} ({name}): {pixel_file} does not hold the {end} bytes its tiles name")
         result = farm.data / "jobs" / jid / "result.exr"
         r = subprocess.run([args.exr_compare, j["ref"], str(result)], capture_output=True, text=True)
         if r.returncode != 0:
@@ -509,8 +513,12 @@ def check_end_state(args, farm, jobs, submitter, faults, proxy):
     for p in (blobs.rglob("*") if blobs.exists() else []):
         if p.is_file() and p.suffix != ".tmp" and p.name not in blobs_used | farm.driver_blobs:
             problems.append(f"orphaned blob {p}")
+    pixels = farm.data / "pixels"
+    for p in (pixels.iterdir() if pixels.exists() else []):
+        if p.suffix != ".pixels" or p.stem not in ids:
+            problems.append(f"orphaned pixel file {p}")
     for p in farm.data.iterdir():
-        if p.name not in ("jobs", "tmp", "blobs", "tessera.db", "tessera.db-wal", "tessera.db-shm"):
+        if p.name not in ("jobs", "tmp", "blobs", "pixels", "tessera.db", "tessera.db-wal", "tessera.db-shm"):
             problems.append(f"unexpected entry in the data folder: {p}")
 
     # Every render is one lease's; a stored tile is never rendered again, so renders beyond one per tile are bounded
