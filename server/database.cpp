@@ -718,6 +718,12 @@ SchedulerSnapshot DurableStore::load() {
         "SELECT job, idx, state, lease, failures, attempts, render_ms, rays, logs, rendered_by, log, log_not_kept,"
         " pixel_offset, pixel_length, pixel_checksum FROM tiles");
     std::vector<std::pair<size_t, PixelRef>> refs;  // done tiles' references, checked below
+    // Only the tiles whose bytes will be read: those of jobs not done, and of done jobs without their result file
+    // (the machine stopped before it was written). A done job's result holds its pixels; reading every done tile of
+    // a long history at each start would cost as much as the history.
+    std::set<std::string> checked;
+    for (const JobRow& r : snap.jobs)
+      if (r.status.state != JobState::done || !fs::exists(result_path(r.status.id))) checked.insert(r.status.id);
     while (st.step()) {
       TileRow r;
       r.job = st.text(0);
@@ -736,7 +742,7 @@ SchedulerSnapshot DurableStore::load() {
       r.rendered_by = st.text(9);
       r.log = json_list(st.text(10), "job " + r.job + " tile " + std::to_string(r.index) + ": stored log");
       r.log_not_kept = st.integer(11) != 0;
-      if (r.state == TileState::done && !st.is_null(13))
+      if (r.state == TileState::done && !st.is_null(13) && checked.count(r.job))
         refs.emplace_back(snap.tiles.size(), PixelRef{st.integer(12), st.integer(13), uint64_t(st.integer(14))});
       snap.tiles.push_back(std::move(r));
     }

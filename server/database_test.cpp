@@ -401,6 +401,31 @@ TEST_F(DatabaseTest, TilesWhoseBytesAreMissingOrDamagedArePendingAgainAfterARest
   EXPECT_EQ(store->tile_pixels(j).size(), 3u);
 }
 
+// A done job whose result file is in place is not read back at a start (its result holds its pixels; a long history
+// would cost its whole size at every start): a damaged tile of it stays done until something reads it, which then
+// gets an error naming the tile and the file.
+TEST_F(DatabaseTest, ADoneJobWithItsResultIsNotReadBackAtAStart) {
+  const std::string j = job(128, 64, 64);
+  const std::string w = sched->register_worker("w").id;
+  upload(lease(w), 1.0f);
+  upload(lease(w), 2.0f);
+  sched->complete_job(j);
+  store->write_result(j, [](const fs::path& f) { std::ofstream(f) << "merged"; });
+  sched.reset();
+  store.reset();
+  const fs::path file = dir / DurableStore::kPixelsDir / (j + ".pixels");
+  fs::resize_file(file, fs::file_size(file) - 1);
+  open();
+  EXPECT_EQ(sched->job(j)->state, JobState::done);
+  EXPECT_EQ(sched->job(j)->tiles.done, 2);
+  try {
+    store->tile_pixels(j);
+    ADD_FAILURE() << "a cut tile read back";
+  } catch (const StorageError& e) {
+    EXPECT_NE(std::string(e.what()).find(file.string()), std::string::npos) << e.what();
+  }
+}
+
 // A database of schema version 1 keeps done tiles' bytes in their rows: it opens (upgraded to version 2), those tiles
 // read as they were, and a tile rendered again has its new bytes in the job's pixel file.
 TEST_F(DatabaseTest, ADatabaseOfVersion1WithPixelsInItsRowsKeepsLoading) {
