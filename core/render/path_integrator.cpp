@@ -21,31 +21,63 @@ float env_light_pdf(const Environment& env, const Vec3& d, const Vec3& nr) {
   return env.constant() ? std::max(0.f, glm::dot(d, nr)) * kInvPi : env.pdf(d);
 }
 
-// Light gathered at a non-delta vertex by sampling every light once: the point light always (a delta light, no
-// other strategy can find it); area lights and the environment unless the profile is RW, weighted against BSDF
-// sampling by the power heuristic under MIS. Area lights are sampled with the receiver normal nr (in proportion to
-// their approximate unoccluded contribution, see AreaSampling::kAuto). The lights' 2D draws are stratified jointly
-// with the sample's previous 2D draw (PixelSampler::next_2d_paired): the pixel position at the first vertex, the
-// BSDF direction that led to the vertex at later ones, so that a pixel's one-bounce light (direction, point on the
-// light) is a four-dimensional net rather than two independently shuffled ones.
-Vec3 sample_lights(const Scene& scene, const SurfaceHit& h, const Vec3& nr, const Bsdf& bsdf, const Vec3& wo,
-                   PixelSampler& sampler, RayCounters& counters) {
+// A vertex's light samples waiting for their shadow rays: each candidate's contribution with the ray that decides it.
+// gather() traces them in the order they came and adds the unoccluded ones to a running sum, the additions that
+// tracing each at once would make, so the sum is bitwise the same; in between the vertex samples its BSDF, work the
+// CPU then overlaps with the shadow rays' traversal instead of waiting for their answers first.
+class ShadowQueue {
+ public:
+  // Queues contribution c, counted when ray is unoccluded.
+  void push(const Scene& scene, const Ray& ray, const Vec3& c, RayCounters& counters) {
+    if (n_ == kCapacity) flush(scene, counters);
+    items_[n_++] = {ray, c};
+  }
+  // The sum of the unoccluded contributions, in the order they were queued.
+  Vec3 gather(const Scene& scene, RayCounters& counters) {
+    flush(scene, counters);
+    return sum_;
+  }
+
+ private:
+  static constexpr int kCapacity = 4;
+  void flush(const Scene& scene, RayCounters& counters) {
+    for (int i = 0; i < n_; ++i)
+      if (!trace_occluded(scene, items_[i].ray, counters)) sum_ += items_[i].c;
+    n_ = 0;
+  }
+  struct Item {
+    Ray ray;
+    Vec3 c;
+  };
+  Item items_[kCapacity];
+  int n_ = 0;
+  Vec3 sum_{0.f};
+};
+
+// Light gathered at a non-delta vertex by sampling every light once, queued in `shadows` to be traced: the point
+// light always (a delta light, no other strategy can find it); area lights and the environment unless the profile is
+// RW, weighted against BSDF sampling by the power heuristic under MIS. Area lights are sampled with the receiver
+// normal nr (in proportion to their approximate unoccluded contribution, see AreaSampling::kAuto). The lights' 2D
+// draws are stratified jointly with the sample's previous 2D draw (PixelSampler::next_2d_paired): the pixel position
+// at the first vertex, the BSDF direction that led to the vertex at later ones, so that a pixel's one-bounce light
+// (direction, point on the light) is a four-dimensional net rather than two independently shuffled ones.
+void sample_lights(const Scene& scene, const SurfaceHit& h, const Vec3& nr, const Bsdf& bsdf, const Vec3& wo,
+                   PixelSampler& sampler, ShadowQueue& shadows, RayCounters& counters) {
   const IntegratorSettings& st = scene.settings;
   const Vec3 n = h.ns;
   const bool paired = st.pair_light_with_pixel;
   auto draw_2d = [&] { return paired ? sampler.next_2d_paired() : sampler.next_2d(); };
-  Vec3 L(0.f);
-  auto unoccluded = [&](const Ray& ray) { return !trace_occluded(scene, ray, counters); };
   if (scene.point_light) {
     const PointLight& pl = *scene.point_light;
     const Vec3 d = pl.position - h.sp.p;
     const float d2 = length_squared(d);
     const Vec3 wi = d / std::sqrt(d2);
     const Vec3 f = bsdf.f(wo, wi);
-    if (max_component(f) > 0.f && unoccluded(spawn_ray_to(h.sp, pl.position)))
-      L += f * std::abs(glm::dot(n, wi)) * pl.flux / (4.f * kPi * d2);
+    if (max_component(f) > 0.f)
+      shadows.push(scene, spawn_ray_to(h.sp, pl.position), f * std::abs(glm::dot(n, wi)) * pl.flux / (4.f * kPi * d2),
+                   counters);
   }
-  if (st.profile == PathProfile::kRw) return L;
+  if (st.profile == PathProfile::kRw) return;
   const bool mis = st.profile == PathProfile::kMis;
   for (const AreaLight& light : scene.area_lights) {
     const float u_part = sampler.next_1d();
@@ -56,9 +88,9 @@ Vec3 sample_lights(const Scene& scene, const SurfaceHit& h, const Vec3& nr, cons
     float bsdf_pdf;
     const Vec3 f = bsdf.f(wo, wi, &bsdf_pdf);
     if (max_component(f) <= 0.f) continue;
-    if (!unoccluded(spawn_ray_to(h.sp, SurfacePoint{ls.p, ls.p_error, ls.n}))) continue;
     const float w = mis ? power_heuristic(ls.pdf, bsdf_pdf) : 1.f;
-    L += f * ls.radiance * (std::abs(glm::dot(n, wi)) * w / ls.pdf);
+    shadows.push(scene, spawn_ray_to(h.sp, SurfacePoint{ls.p, ls.p_error, ls.n}),
+                 f * ls.radiance * (std::abs(glm::dot(n, wi)) * w / ls.pdf), counters);
   }
   if (scene.environment) {
     const Environment& env = *scene.environment;
@@ -73,13 +105,12 @@ Vec3 sample_lights(const Scene& scene, const SurfaceHit& h, const Vec3& nr, cons
     if (ls.pdf > 0.f && max_component(ls.radiance) > 0.f) {
       float bsdf_pdf;
       const Vec3 f = bsdf.f(wo, wi, &bsdf_pdf);
-      if (max_component(f) > 0.f && unoccluded(spawn_ray(h.sp, wi))) {
+      if (max_component(f) > 0.f) {
         const float w = mis ? power_heuristic(ls.pdf, bsdf_pdf) : 1.f;
-        L += f * ls.radiance * (std::abs(glm::dot(n, wi)) * w / ls.pdf);
+        shadows.push(scene, spawn_ray(h.sp, wi), f * ls.radiance * (std::abs(glm::dot(n, wi)) * w / ls.pdf), counters);
       }
     }
   }
-  return L;
 }
 
 // Weight of emission found by a BSDF-sampled ray (light_pdf: the light sampler's density for that point).
@@ -135,9 +166,12 @@ bool path_vertex(const Scene& scene, PathState& s, const std::optional<Hit>& hit
   const Bsdf bsdf(m, h.ns, h.sp.n, reflectance);
   if (bsdf.black()) return false;
   const Vec3 nr = receiver_normal(h, wo);
-  if (!bsdf.delta()) s.L += s.beta * sample_lights(scene, h, nr, bsdf, wo, sampler, counters);
+  ShadowQueue shadows;
+  if (!bsdf.delta()) sample_lights(scene, h, nr, bsdf, wo, sampler, shadows, counters);
   const float uc = sampler.next_1d();
   const auto bs = bsdf.sample(wo, uc, sampler.next_2d());
+  // The light samples' shadow rays are traced only now, the BSDF sample taken (see ShadowQueue).
+  if (!bsdf.delta()) s.L += s.beta * shadows.gather(scene, counters);
   if (!bs) return false;
   s.beta *= bs->f * (std::abs(glm::dot(bs->wi, h.ns)) / bs->pdf);
   s.after_delta = bs->delta;
