@@ -18,6 +18,18 @@ Vec3 Bsdf::local(const Vec3& w, float side) const {
 }
 
 Vec3 Bsdf::f(const Vec3& wo, const Vec3& wi) const {
+  float pdf;
+  return f(wo, wi, &pdf);
+}
+
+float Bsdf::pdf(const Vec3& wo, const Vec3& wi) const {
+  float pdf;
+  f(wo, wi, &pdf);
+  return pdf;
+}
+
+Vec3 Bsdf::f(const Vec3& wo, const Vec3& wi, float* pdf) const {
+  *pdf = 0.f;
   if (!same_side(wo, wi)) return Vec3(0.f);
   const float side = side_of(wo);
   const Vec3 lo = local(wo, side), li = local(wi, side);
@@ -25,32 +37,16 @@ Vec3 Bsdf::f(const Vec3& wo, const Vec3& wi) const {
   switch (kind_) {
     case MaterialKind::kDiffuse:
       if (side < 0.f && !m_->twosided) return Vec3(0.f);
+      *pdf = li.z * kInvPi;
       return reflectance_ * kInvPi;
     case MaterialKind::kRoughConductor: {
       const Vec3 m = glm::normalize(lo + li);
       const Vec3 F = fresnel_conductor(glm::dot(lo, m), m_->eta_t / m_->eta_i, m_->k / m_->eta_i);
+      *pdf = beckmann_.pdf_m(m) / (4.f * glm::dot(lo, m));
       return reflectance_ * F * (beckmann_.D(m) * beckmann_.G(lo, li) / (4.f * lo.z * li.z));
     }
     default:
       return Vec3(0.f);
-  }
-}
-
-float Bsdf::pdf(const Vec3& wo, const Vec3& wi) const {
-  if (!same_side(wo, wi)) return 0.f;
-  const float side = side_of(wo);
-  const Vec3 lo = local(wo, side), li = local(wi, side);
-  if (!(lo.z > 0.f) || !(li.z > 0.f)) return 0.f;
-  switch (kind_) {
-    case MaterialKind::kDiffuse:
-      if (side < 0.f && !m_->twosided) return 0.f;
-      return li.z * kInvPi;
-    case MaterialKind::kRoughConductor: {
-      const Vec3 m = glm::normalize(lo + li);
-      return beckmann_.pdf_m(m) / (4.f * glm::dot(lo, m));
-    }
-    default:
-      return 0.f;
   }
 }
 
@@ -75,7 +71,8 @@ std::optional<BSDFSample> Bsdf::sample(const Vec3& wo, float uc, Vec2 u) const {
       if (!(li.z > 0.f)) return std::nullopt;
       li.z *= side;
       const Vec3 wi = frame_.to_world(li);
-      BSDFSample s{f(wo, wi), wi, pdf(wo, wi), false};
+      BSDFSample s{Vec3(0.f), wi, 0.f, false};
+      s.f = f(wo, wi, &s.pdf);
       if (!(s.pdf > 0.f)) return std::nullopt;
       return s;
     }

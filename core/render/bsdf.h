@@ -35,6 +35,8 @@ class Bsdf {
   Vec3 f(const Vec3& wo, const Vec3& wi) const;
   /// Solid-angle density with which sample(wo, ...) returns wi (0 for delta lobes).
   float pdf(const Vec3& wo, const Vec3& wi) const;
+  /// f(wo, wi), and pdf(wo, wi) in *pdf: bitwise the two calls, sharing the local directions they both compute.
+  Vec3 f(const Vec3& wo, const Vec3& wi, float* pdf) const;
   /// Samples wi for wo with a 1D (lobe choice) and a 2D random number; nothing when the sample is absorbed.
   std::optional<BSDFSample> sample(const Vec3& wo, float uc, Vec2 u) const;
 

@@ -35,10 +35,10 @@ PixelSampler pixel_sampler(uint64_t seed, int px, int row, uint32_t s, uint32_t 
 namespace {
 
 // Adds samples [acc.count(), end) of pixel (px, row) to acc, in order, sampler(s) giving sample s's stream. Two
-// samples at a time: both camera rays are traced before either sample is shaded, so the CPU overlaps the two
-// traversals (independent work), which one sample at a time cannot give it: each ray of a sample waits for the answer
-// before it (`integrator_vs_traversal`'s chained replay). Each sample's arithmetic and the order of the sums are
-// those of one sample at a time, so no pixel changes.
+// samples at a time: both camera rays are traced before either sample is shaded, and the path tracer goes on with the
+// two paths side by side (trace_path_pair), so the CPU overlaps two independent chains of work, which one sample at a
+// time cannot give it: each ray of a sample waits for the answer before it (`integrator_vs_traversal`'s chained
+// replay). Each sample's arithmetic and the order of the sums are those of one sample at a time, so no pixel changes.
 template <class Sampler>
 void add_samples_paired(const Scene& scene, int px, int row, uint32_t end, const Sampler& sampler, PixelAccumulator& acc,
                         RayCounters& counters) {
@@ -51,8 +51,9 @@ void add_samples_paired(const Scene& scene, int px, int row, uint32_t end, const
     const Ray ra = camera_ray(a), rb = camera_ray(b);
     const std::optional<Hit> ha = trace_closest(scene, ra, RayKind::kCamera, counters);
     const std::optional<Hit> hb = trace_closest(scene, rb, RayKind::kCamera, counters);
-    acc.add(trace_sample(scene, ra, ha, a, counters));
-    acc.add(trace_sample(scene, rb, hb, b, counters));
+    const std::array<Vec3, 2> L = trace_sample_pair(scene, ra, ha, a, rb, hb, b, counters);
+    acc.add(L[0]);
+    acc.add(L[1]);
   }
   if (s < end) {
     PixelSampler a = sampler(s);
@@ -61,12 +62,12 @@ void add_samples_paired(const Scene& scene, int px, int row, uint32_t end, const
 }
 
 // Adds samples [acc.count(), end) of pixel (px, row) to acc, in order: the samplers of pixel_sampler(), with the
-// pixel's keys hashed once.
+// pixel's keys hashed once (and, with one replicate, its dimensions' seeds once: PixelSeeds).
 void add_samples(const Scene& scene, int px, int row, uint64_t seed, uint32_t end, uint32_t replicates,
                  PixelAccumulator& acc, RayCounters& counters) {
   if (replicates <= 1) {
-    const uint32_t key = PixelSampler::pixel_key(seed, px, row);
-    add_samples_paired(scene, px, row, end, [key](uint32_t s) { return PixelSampler(key, s); }, acc, counters);
+    PixelSeeds seeds(PixelSampler::pixel_key(seed, px, row));
+    add_samples_paired(scene, px, row, end, [&seeds](uint32_t s) { return PixelSampler(seeds, s); }, acc, counters);
     return;
   }
   if (replicates > kMaxReplicates) {

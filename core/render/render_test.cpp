@@ -353,9 +353,10 @@ TEST_F(RenderTest, EveryCourseSceneRendersFiniteAndNonBlack) {
   }
 }
 
-// render_pixel traces a pixel's samples two at a time (both camera rays before either sample is shaded): the
-// estimate must be bitwise that of tracing each sample alone, in order, through trace_sample, for even and odd
-// sample counts, replicates (including more than kMaxReplicates) and both integrators.
+// render_pixel traces a pixel's samples two at a time (both camera rays before either sample is shaded, the path
+// tracer's two paths side by side) with the pixel's seed table: the estimate must be bitwise that of tracing each
+// sample alone, in order, through trace_sample with a sampler hashing per draw, for even and odd sample counts,
+// replicates (including more than kMaxReplicates) and both integrators.
 TEST_F(RenderTest, SamplesTracedInPairsGiveBitwiseTheEstimateOfOneAtATime) {
   for (const char* name : {"cbox_refract_textured.json", "glass_sphere.json"}) {  // direct lighting; path tracing
     Scene scene = load_scene_file(fs::path(TESSERA_COURSE_DIR) / name).scene;

@@ -97,6 +97,51 @@ constexpr uint32_t pair_index(uint32_t i) {
 /// 32-bit fixed point to a float in [0, 1).
 inline float u32_to_unit(uint32_t x) { return std::min(float(x) * 0x1p-32f, 0x1.fffffep-1f); }
 
+/// The scramble seeds of one dimension of a pixel's sample streams, all derived from dim_seed = hash_combine(key,
+/// dim): the index shuffle, the 2D draw's two coordinates and the 1D draw. Every sample of the pixel uses the same.
+struct DimSeeds {
+  uint32_t shuffle;  ///< hash_u32(dim_seed): the sample order's scramble.
+  uint32_t x, y;     ///< The 2D draw's scrambles: hash_combine(dim_seed, 0x51ed27U), hash_combine(dim_seed, 0x2f1c9dU).
+  uint32_t one;      ///< The 1D draw's scramble: hash_combine(dim_seed, 0x7a3b1U).
+
+  /// The seeds of dimension dim of the streams of pixel key `key`.
+  static constexpr DimSeeds of(uint32_t key, uint32_t dim) {
+    const uint32_t dim_seed = hash_combine(key, dim);
+    return {hash_u32(dim_seed), hash_combine(dim_seed, 0x51ed27U), hash_combine(dim_seed, 0x2f1c9dU),
+            hash_combine(dim_seed, 0x7a3b1U)};
+  }
+};
+
+/// The DimSeeds of one pixel key's first kDims dimensions, each hashed when a sample first draws it and then read by
+/// every later sample of the pixel (a PixelSampler made with the table): the same values as hashing them per draw,
+/// for a fraction of the work when a pixel takes many samples. One table serves one thread.
+class PixelSeeds {
+ public:
+  /// Dimensions kept; later ones are hashed per draw.
+  static constexpr uint32_t kDims = 96;
+
+  /// An empty table for pixel key `key` (PixelSampler::pixel_key).
+  explicit PixelSeeds(uint32_t key) : key_(key) {}
+
+  /// The pixel key.
+  uint32_t key() const { return key_; }
+
+  /// The seeds of dimension dim.
+  const DimSeeds& at(uint32_t dim) {
+    if (dim >= filled_) [[unlikely]] fill(dim);
+    return seeds_[dim];
+  }
+
+ private:
+  void fill(uint32_t dim) {
+    for (; filled_ <= dim; ++filled_) seeds_[filled_] = DimSeeds::of(key_, filled_);
+  }
+
+  uint32_t key_;
+  uint32_t filled_ = 0;  // dimensions [0, filled_) hold their seeds
+  DimSeeds seeds_[kDims];
+};
+
 /// One pixel sample's stream of random dimensions. Each 2D draw is a shuffled, Owen-scrambled point of the
 /// (0,2)-sequence made of the first two Sobol dimensions, so any power-of-two prefix of a pixel's samples (indeed
 /// any aligned power-of-two block of them) is stratified in every 2D projection; different draws are decorrelated
@@ -110,6 +155,11 @@ class PixelSampler {
   /// The same stream from the pixel's key, pixel_key(seed, px, py), hashed once for all the pixel's samples.
   PixelSampler(uint32_t key, uint32_t index) : key_(key), reversed_index_(reverse_bits(index)) {}
 
+  /// The same stream, reading its dimensions' seeds from the pixel's table (the same values) and filling it; the
+  /// table must outlive the sampler.
+  PixelSampler(PixelSeeds& seeds, uint32_t index)
+      : key_(seeds.key()), reversed_index_(reverse_bits(index)), table_(&seeds) {}
+
   /// The hash of (seed, px, py) that every sample stream of the pixel starts from.
   static constexpr uint32_t pixel_key(uint64_t seed, int px, int py) {
     return hash_combine(hash_combine(hash_combine(uint32_t(seed), uint32_t(seed >> 32)), uint32_t(px)), uint32_t(py));
@@ -117,11 +167,11 @@ class PixelSampler {
 
   /// Next 2D sample in [0,1)^2.
   Vec2 next_2d() {
-    const uint32_t dim_seed = hash_combine(key_, dim_++);
+    const DimSeeds d = seeds(dim_++);
     // Shuffle the sample order per dimension: the index Owen-scrambled, starting from its reversed bits.
-    last_index_ = reverse_bits(laine_karras(reversed_index_, hash_u32(dim_seed)));
+    last_index_ = reverse_bits(laine_karras(reversed_index_, d.shuffle));
     has_last_ = true;
-    return point_2d(last_index_, dim_seed);
+    return point_2d(last_index_, d);
   }
 
   /// Next 2D sample in [0,1)^2, stratified jointly with this sample's previous next_2d() draw: the point of index
@@ -132,8 +182,7 @@ class PixelSampler {
   /// Without a previous next_2d() draw it is one.
   Vec2 next_2d_paired() {
     if (!has_last_) return next_2d();
-    const uint32_t dim_seed = hash_combine(key_, dim_++);
-    return point_2d(pair_index(last_index_), dim_seed);
+    return point_2d(pair_index(last_index_), seeds(dim_++));
   }
 
   /// Skips the next 2D draw (whose value the caller does not need): later draws are those next_2d() would leave.
@@ -144,17 +193,23 @@ class PixelSampler {
 
   /// Next 1D sample in [0,1).
   float next_1d() {
-    const uint32_t dim_seed = hash_combine(key_, dim_++);
-    const uint32_t i = reverse_bits(laine_karras(reversed_index_, hash_u32(dim_seed)));
-    return u32_to_unit(reverse_bits(laine_karras(i, hash_combine(dim_seed, 0x7a3b1U))));
+    const DimSeeds d = seeds(dim_++);
+    const uint32_t i = reverse_bits(laine_karras(reversed_index_, d.shuffle));
+    return u32_to_unit(reverse_bits(laine_karras(i, d.one)));
   }
 
  private:
-  // Point i of the (0,2)-sequence, Owen-scrambled with seeds from dim_seed: Sobol dimension 0 (van der Corput, the
+  // The seeds of dimension dim: from the pixel's table when there is one and it keeps dim, else hashed here.
+  DimSeeds seeds(uint32_t dim) const {
+    if (table_ && dim < PixelSeeds::kDims) [[likely]] return table_->at(dim);
+    return DimSeeds::of(key_, dim);
+  }
+
+  // Point i of the (0,2)-sequence, Owen-scrambled with the dimension's seeds: Sobol dimension 0 (van der Corput, the
   // reversed index) and dimension 1, both built in reversed bit order, where the scramble works, and reversed once.
-  static Vec2 point_2d(uint32_t i, uint32_t dim_seed) {
-    const uint32_t x = reverse_bits(laine_karras(i, hash_combine(dim_seed, 0x51ed27U)));
-    const uint32_t y = reverse_bits(laine_karras(sobol1_reversed(i), hash_combine(dim_seed, 0x2f1c9dU)));
+  static Vec2 point_2d(uint32_t i, const DimSeeds& d) {
+    const uint32_t x = reverse_bits(laine_karras(i, d.x));
+    const uint32_t y = reverse_bits(laine_karras(sobol1_reversed(i), d.y));
     return {u32_to_unit(x), u32_to_unit(y)};
   }
 
@@ -163,6 +218,7 @@ class PixelSampler {
   uint32_t dim_ = 0;
   uint32_t last_index_ = 0;  // shuffled index of the last next_2d() draw
   bool has_last_ = false;
+  PixelSeeds* table_ = nullptr;  // the pixel's seed table, if any
 };
 
 }  // namespace tessera

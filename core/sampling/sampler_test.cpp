@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <functional>
 #include <map>
 #include <set>
@@ -58,6 +59,31 @@ bool is_net(const std::vector<Vec2>& pts) {
     if (cells.size() != n) return false;
   }
   return true;
+}
+
+// A sampler reading its seeds from the pixel's table (filled by whichever sample first draws a dimension, as
+// PixelSampler draws of any kind, paired ones included, past the table's end too) draws bitwise what one hashing per
+// draw does.
+TEST(PixelSampler, SeedTableGivesBitwiseTheSameDraws) {
+  const uint32_t key = PixelSampler::pixel_key(0x1234567890abcdefULL, 17, 5);
+  PixelSeeds table(key);
+  for (uint32_t index = 0; index < 40; ++index) {
+    PixelSampler hashed(key, index), cached(table, index);
+    // Each sample takes another mix of draws, so that a dimension is first filled by any kind of draw.
+    const uint32_t draws = PixelSeeds::kDims + 20 - index % 7;
+    for (uint32_t d = 0; d < draws; ++d) {
+      const uint32_t kind = (d * 7 + index) % 4;
+      if (kind == 0) {
+        const float a = hashed.next_1d(), b = cached.next_1d();
+        ASSERT_EQ(std::bit_cast<uint32_t>(a), std::bit_cast<uint32_t>(b)) << index << " " << d;
+      } else {
+        const Vec2 a = kind == 1 ? hashed.next_2d() : kind == 2 ? hashed.next_2d_paired() : hashed.skip_2d();
+        const Vec2 b = kind == 1 ? cached.next_2d() : kind == 2 ? cached.next_2d_paired() : cached.skip_2d();
+        ASSERT_EQ(std::bit_cast<uint32_t>(a.x), std::bit_cast<uint32_t>(b.x)) << index << " " << d;
+        ASSERT_EQ(std::bit_cast<uint32_t>(a.y), std::bit_cast<uint32_t>(b.y)) << index << " " << d;
+      }
+    }
+  }
 }
 
 TEST(PixelSampler, PowerOfTwoSampleCountsAreStratifiedInEveryDraw) {
