@@ -79,7 +79,7 @@ std::vector<fs::path> PixelFiles::sync_written() {
     made = std::exchange(made_file_, false);
   }
   for (const auto& [job, file] : written) file->sync();
-  if (made) sync_folder_of(dir_ / "x");  // the new files' entries
+  if (made) sync_folder(dir_);  // the new files' entries
   return doomed;
 }
 

@@ -109,8 +109,9 @@ void move_file_atomic(const fs::path& from, const fs::path& to) {
   write_file_atomic(to, read_file_bytes(from));
 }
 
-void sync_folder_of(const fs::path& file) {
-  const fs::path folder = file.has_parent_path() ? file.parent_path() : fs::path(".");
+void sync_folder_of(const fs::path& file) { sync_folder(file.has_parent_path() ? file.parent_path() : fs::path(".")); }
+
+void sync_folder(const fs::path& folder) {
   const int fd = ::open(folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (fd < 0) return;  // best effort: some file systems refuse folder handles
   ::fsync(fd);

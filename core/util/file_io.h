@@ -51,6 +51,10 @@ std::filesystem::path temp_path_beside(const std::filesystem::path& path);
 /// name). Best effort: some file systems refuse folder handles, and the file is in place either way.
 void sync_folder_of(const std::filesystem::path& file);
 
+/// Makes the creations, renames and removals of entries in `folder` durable (fsync of the folder). Best effort, as
+/// sync_folder_of.
+void sync_folder(const std::filesystem::path& folder);
+
 /// Reads a whole file; throws FileError naming it.
 std::string read_file_bytes(const std::filesystem::path& path);
 
