@@ -96,10 +96,11 @@ CREATE TABLE IF NOT EXISTS webhook_outbox(id TEXT NOT NULL, url TEXT NOT NULL, e
   created_ms INTEGER NOT NULL, body TEXT NOT NULL, state TEXT NOT NULL DEFAULT 'pending',
   attempts INTEGER NOT NULL DEFAULT 0, next_ms INTEGER NOT NULL DEFAULT 0, last_status INTEGER, last_error TEXT,
   PRIMARY KEY(id, url));
-CREATE INDEX IF NOT EXISTS webhook_outbox_due ON webhook_outbox(state, next_ms);
 -- Due deliveries are looked up address by address (DurableStore::due_deliveries), so that the many pending rows of
--- an address the sender skips are never read.
+-- an address the sender skips are never read; the index by (state, next_ms) alone that a file may hold from before
+-- serves no query and is dropped.
 CREATE INDEX IF NOT EXISTS webhook_outbox_url_due ON webhook_outbox(state, url, next_ms);
+DROP INDEX IF EXISTS webhook_outbox_due;
 )sql";
 
 // Columns added after version 1 was released: older files gain them with these defaults (the schema version stays
