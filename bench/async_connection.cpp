@@ -64,8 +64,7 @@ asio::awaitable<client::HttpResponse> AsyncConnection::send(const client::HttpRe
   writable.keep_alive(true);
   writable.prepare_payload();
   const http::request<http::span_body<const char>>& req = writable;
-  const bool idempotent = verb == http::verb::get || verb == http::verb::head || verb == http::verb::put ||
-                          verb == http::verb::delete_ || verb == http::verb::options;
+  const bool idempotent = client::is_idempotent(verb);
 
   for (int attempt = 0;; ++attempt) {
     if (open_ && peer_closed()) close();

@@ -309,9 +309,7 @@ HttpResponse HttpClient::send(const HttpRequest& request) {
   if (verb == http::verb::unknown) throw TransportError(what + ": unknown method");
 
   const http::request<http::string_body> req = beast_request(url_, token_, request, verb);
-  // A request whose answer was lost may have been carried out; only these may go again without the caller knowing.
-  const bool idempotent = verb == http::verb::get || verb == http::verb::head || verb == http::verb::put ||
-                          verb == http::verb::delete_ || verb == http::verb::options;
+  const bool idempotent = is_idempotent(verb);  // may go again without the caller knowing
 
   for (int attempt = 0;; ++attempt) {
     if (im.connected && im.peer_closed()) im.close();

@@ -58,4 +58,9 @@ bool is_stale_connection(const boost::system::error_code& ec) {
          ec == asio::ssl::error::stream_truncated;
 }
 
+bool is_idempotent(http::verb verb) {
+  return verb == http::verb::get || verb == http::verb::head || verb == http::verb::put ||
+         verb == http::verb::delete_ || verb == http::verb::options;
+}
+
 }  // namespace tessera::client

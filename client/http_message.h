@@ -33,6 +33,10 @@ HttpResponse response_head(const boost::beast::http::response_header<>& head);
 /// A transport error's cause in words: "timed out after <limit> ms" for a timeout, else the error's message.
 std::string describe_error(const boost::system::error_code& ec, std::chrono::milliseconds limit);
 
+/// Whether a request of method `verb` may be sent again when its answer was lost: a lost answer may hide a request that
+/// was carried out, and only these methods mean the same when carried out twice.
+bool is_idempotent(boost::beast::http::verb verb);
+
 /// Whether an error on a kept-alive connection means the server had closed it before a request reached it (end of
 /// stream, reset, broken pipe, aborted, a TLS stream cut short).
 bool is_stale_connection(const boost::system::error_code& ec);
