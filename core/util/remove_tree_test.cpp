@@ -2,6 +2,7 @@
 // removed, not followed (what they point at stays); a missing path is no error; a file that is not a folder goes
 // alone; a folder it may not empty is reported, with the rest left in place.
 #include "core/util/remove_tree.h"
+#include "tests/support/test_files.h"
 
 #include <gtest/gtest.h>
 #include <sys/stat.h>
@@ -17,24 +18,19 @@ namespace remove_tree_test {  // named: the test files share translation units i
 
 namespace fs = std::filesystem;
 
-class RemoveTree : public ::testing::Test {
+// A fresh folder per test (testing::TempDirTest); a tree a test locked is unlocked before it goes.
+class RemoveTree : public testing::TempDirTest {
  protected:
-  void SetUp() override {
-    root_ = fs::temp_directory_path() / ("tessera_remove_tree_" + std::to_string(::getpid()));
-    fs::remove_all(root_);
-    fs::create_directories(root_);
-  }
   void TearDown() override {
     std::error_code ec;
-    fs::permissions(root_ / "tree" / "locked", fs::perms::owner_all, ec);
-    fs::remove_all(root_);
+    fs::permissions(dir_ / "tree" / "locked", fs::perms::owner_all, ec);
+    TempDirTest::TearDown();
   }
   static void write(const fs::path& p, const std::string& bytes) { std::ofstream(p, std::ios::binary) << bytes; }
-  fs::path root_;
 };
 
 TEST_F(RemoveTree, RemovesATreeAndCountsItsEntries) {
-  const fs::path tree = root_ / "tree";
+  const fs::path tree = dir_ / "tree";
   for (int a = 0; a < 6; ++a)
     for (int b = 0; b < 3; ++b) {
       const fs::path d = tree / ("a" + std::to_string(a)) / ("b" + std::to_string(b));
@@ -48,15 +44,15 @@ TEST_F(RemoveTree, RemovesATreeAndCountsItsEntries) {
   EXPECT_EQ(remove_tree(tree, ec), 6u + 18u + 18u + 3u + 1u + 1u);
   EXPECT_FALSE(ec) << ec.message();
   EXPECT_FALSE(fs::exists(tree));
-  EXPECT_TRUE(fs::exists(root_));
+  EXPECT_TRUE(fs::exists(dir_));
 }
 
 TEST_F(RemoveTree, RemovesLinksWithoutFollowingThem) {
-  const fs::path outside = root_ / "outside";
+  const fs::path outside = dir_ / "outside";
   fs::create_directories(outside / "inner");
   write(outside / "inner" / "kept", "kept");
   write(outside / "file", "kept too");
-  const fs::path tree = root_ / "tree";
+  const fs::path tree = dir_ / "tree";
   fs::create_directories(tree / "sub");
   fs::create_directory_symlink(outside, tree / "sub" / "to_folder");
   fs::create_symlink(outside / "file", tree / "to_file");
@@ -70,27 +66,27 @@ TEST_F(RemoveTree, RemovesLinksWithoutFollowingThem) {
 
 TEST_F(RemoveTree, MissingPathIsNoErrorAndAFileGoesAlone) {
   std::error_code ec;
-  EXPECT_EQ(remove_tree(root_ / "nothing", ec), 0u);
+  EXPECT_EQ(remove_tree(dir_ / "nothing", ec), 0u);
   EXPECT_FALSE(ec) << ec.message();
-  write(root_ / "single", "x");
-  EXPECT_EQ(remove_tree(root_ / "single", ec), 1u);
+  write(dir_ / "single", "x");
+  EXPECT_EQ(remove_tree(dir_ / "single", ec), 1u);
   EXPECT_FALSE(ec) << ec.message();
-  EXPECT_FALSE(fs::exists(root_ / "single"));
+  EXPECT_FALSE(fs::exists(dir_ / "single"));
 }
 
 // Permissions do not bind root, so the removal runs in a child process, as the unprivileged user `nobody` (65534)
 // when the test runs as root (the tree is handed to that user first); the child's exit status says whether
 // remove_tree reported an error.
 TEST_F(RemoveTree, ReportsWhatItCannotRemove) {
-  const fs::path tree = root_ / "tree";
+  const fs::path tree = dir_ / "tree";
   fs::create_directories(tree / "locked");
   write(tree / "locked" / "stays", "x");
   write(tree / "goes", "x");
   const bool root = ::geteuid() == 0;
   constexpr uid_t kNobody = 65534;
   if (root) {
-    ASSERT_EQ(::chown(root_.c_str(), kNobody, kNobody), 0);
-    for (const fs::directory_entry& e : fs::recursive_directory_iterator(root_))
+    ASSERT_EQ(::chown(dir_.c_str(), kNobody, kNobody), 0);
+    for (const fs::directory_entry& e : fs::recursive_directory_iterator(dir_))
       ASSERT_EQ(::lchown(e.path().c_str(), kNobody, kNobody), 0) << e.path();
   }
   fs::permissions(tree / "locked", fs::perms::owner_read | fs::perms::owner_exec);
