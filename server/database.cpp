@@ -732,7 +732,7 @@ SchedulerSnapshot DurableStore::load() {
       try {
         r.state = tile_state_from_string(st.text(2));
       } catch (const std::invalid_argument& e) {
-        throw StorageError("job " + r.job + " tile " + std::to_string(r.index) + ": " + e.what());
+        throw StorageError(tile_name(r.job, r.index) + ": " + e.what());
       }
       r.lease = st.text(3);
       r.failures = json_map<std::string>(st.text(4), "tile failures");
@@ -741,7 +741,7 @@ SchedulerSnapshot DurableStore::load() {
       r.rays = uint64_t(st.integer(7));
       r.logs = json_map<std::vector<std::string>>(st.text(8), "tile failure logs");
       r.rendered_by = st.text(9);
-      r.log = json_list(st.text(10), "job " + r.job + " tile " + std::to_string(r.index) + ": stored log");
+      r.log = json_list(st.text(10), tile_name(r.job, r.index) + ": stored log");
       r.log_not_kept = st.integer(11) != 0;
       if (r.state == TileState::done && !st.is_null(13) && checked.count(r.job))
         refs.emplace_back(snap.tiles.size(), PixelRef{st.integer(12), st.integer(13), uint64_t(st.integer(14))});
