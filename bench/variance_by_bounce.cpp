@@ -2,7 +2,7 @@
 // and for variants that change one strategy (light selection, light sampling, MIS, roulette, stratification).
 //
 //   ./build/bench/variance_by_bounce [--scenes cbox_gi,cbox_env_light@path] [--res N] [--spp N] [--seeds M]
-//                                    [--variants mis,nee,area,no_rr,unpaired] [--threads N] [--out FILE]
+//                                    [--variants mis,nee,rw,area,no_rr,unpaired] [--threads N] [--out FILE]
 //
 // Method. A path of at most d bounces is a prefix of the path of at most d + 1 bounces drawn with the same seed: the
 // sampler's dimensions are drawn in the same order and a vertex does the same work until the bounce limit stops it.
@@ -37,8 +37,8 @@ namespace {
 
 struct Args {
   std::vector<std::string> scenes = {"cbox_gi", "cbox_env_light@path"};
-  std::vector<std::string> variants = {"mis", "nee", "area", "no_rr", "unpaired"};
-  int res = 128;
+  std::vector<std::string> variants = {"mis", "nee", "rw", "area", "no_rr", "unpaired"};
+  int res = 64;
   uint32_t spp = 16;
   int seeds = 16;
   int threads = 0;
@@ -66,6 +66,8 @@ constexpr Variant kVariants[] = {
      [](IntegratorSettings&) {}},
     {"nee", "light sampling only (emitters found by BSDF rays do not count)",
      [](IntegratorSettings& s) { s.profile = PathProfile::kNee; }},
+    {"rw", "no light sampling: BSDF sampling alone (the point light is still sampled)",
+     [](IntegratorSettings& s) { s.profile = PathProfile::kRw; }},
     {"area", "area lights sampled uniformly by area instead of by projected solid angle",
      [](IntegratorSettings& s) { s.area_sampling = AreaSampling::kArea; }},
     {"no_rr", "no Russian roulette (paths end only at max_depth)", [](IntegratorSettings& s) { s.rr_threshold = 0.f; }},
@@ -228,7 +230,7 @@ std::string report_scene(const std::string& spec, const Args& a) {
 
 [[noreturn]] void usage(const char* prog) {
   std::fprintf(stderr,
-               "usage: %s [--scenes A,B@path] [--res N] [--spp N] [--seeds M] [--variants mis,nee,area,no_rr,unpaired]"
+               "usage: %s [--scenes A,B@path] [--res N] [--spp N] [--seeds M] [--variants mis,nee,rw,area,no_rr,unpaired]"
                " [--threads N] [--out FILE]\n",
                prog);
   std::exit(2);
@@ -256,7 +258,7 @@ int main(int argc, char** argv) {
   }
   for (const std::string& v : a.variants)
     if (!find_variant(v)) {
-      std::fprintf(stderr, "variance_by_bounce: unknown variant '%s' (known: mis, nee, area, no_rr, unpaired)\n",
+      std::fprintf(stderr, "variance_by_bounce: unknown variant '%s' (known: mis, nee, rw, area, no_rr, unpaired)\n",
                    v.c_str());
       return 2;
     }
