@@ -18,6 +18,7 @@
 #include "core/render/layer_film.h"
 #include "core/render/render.h"
 #include "core/scene/scene_loader.h"
+#include "core/util/sha256.h"
 
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
@@ -164,6 +165,8 @@ int render_scene(const RenderArgs& given) {
     return run_render_farm(given);
   }
   try {
+    // This process renders here and speaks no TLS: OpenSSL serves the scene's hash only.
+    start_openssl_for_digests_only();
     std::optional<ExrImage> resume_file;
     if (!given.resume.empty()) {
       try {
