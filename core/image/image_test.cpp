@@ -2,6 +2,8 @@
 // writers (Y-only, tiled, luminance/chroma), rejection of bad files, sRGB PNG encoding and atomic writes.
 #include "core/image/image.h"
 
+#include "core/image/exr_layout.h"
+
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfDoubleAttribute.h>
 #include <OpenEXR/ImfFrameBuffer.h>
@@ -151,6 +153,15 @@ TEST_F(ImageExr, EveryCompressionRoundTripsBitwiseAndIsRecordedInTheHeader) {
     }
     EXPECT_EQ(read_exr(p).pixels.rgb, img.rgb) << int(imf);
   }
+}
+
+// ZIP files of 32-bit values are written at zlib's level 1 (rendered floats compress about as well at any level),
+// half colours at OpenEXR's default level, under which they compress better.
+TEST(ExrLayout, ZipLevelIsOneForFloatsAndTheDefaultForHalfColours) {
+  const Image img = Image::make(8, 4);
+  const PixelWindow data{0, 0, 8, 4};
+  EXPECT_EQ(exr_layout::header(img, {}, data).zipCompressionLevel(), 1);
+  EXPECT_EQ(exr_layout::header(img, {.half = true}, data).zipCompressionLevel(), Imf::Header(8, 4).zipCompressionLevel());
 }
 
 TEST_F(ImageExr, HalfRoundTripWithinHalfPrecision) {

@@ -1,5 +1,6 @@
 #include "core/util/sha256.h"
 
+#include <openssl/crypto.h>
 #include <openssl/evp.h>
 
 #include <fstream>
@@ -83,6 +84,12 @@ bool is_sha256_hex(std::string_view s) {
   for (char c : s)
     if (!((c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'))) return false;
   return true;
+}
+
+void start_openssl_for_digests_only() {
+  const uint64_t opts = OPENSSL_INIT_NO_LOAD_CONFIG | OPENSSL_INIT_NO_ADD_ALL_CIPHERS |
+                        OPENSSL_INIT_NO_ADD_ALL_DIGESTS | OPENSSL_INIT_NO_ATEXIT;
+  if (OPENSSL_init_crypto(opts, nullptr) != 1) throw std::runtime_error("sha256: OpenSSL did not start");
 }
 
 }  // namespace tessera

@@ -45,4 +45,11 @@ std::string sha256_file(const std::filesystem::path& path);
 /// True when s is 64 lowercase hex characters.
 bool is_sha256_hex(std::string_view s);
 
+/// For a process that uses OpenSSL for these digests only (a render on this machine): starts OpenSSL without reading
+/// the system's configuration file (openssl.cnf), without its legacy tables of cipher and digest names and without
+/// its clean-up at exit, which together cost more instructions than hashing a scene; the digests are the same. Call it
+/// before any other use of OpenSSL in the process, and never in a process that also speaks TLS, whose protocols and
+/// ciphers that file may set. Throws std::runtime_error when OpenSSL cannot start.
+void start_openssl_for_digests_only();
+
 }  // namespace tessera
