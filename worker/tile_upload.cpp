@@ -103,9 +103,15 @@ Delivery upload_tile(client::HttpClient& http, const protocol::Lease& l, const s
         spdlog::warn("{}: the coordinator does not know the lease any more; tile dropped", prefix);
         return {DeliveryOutcome::kDropped, std::nullopt};
       }
-      // A coordinator whose header limit (serve --max-header-bytes) is below the log's size: the tile goes without it.
+      // A coordinator whose header limit (serve --max-header-bytes) is below the optional headers' size: the tile goes
+      // without its log, then without asking for the next lease (the worker then asks the lease route).
       if (r.status == 431 && req.headers.erase(protocol::kTileLogHeader) > 0) {
         spdlog::warn("{}: upload answered 431: {}; sending it again without its log lines", prefix, r.error_text());
+        continue;
+      }
+      if (r.status == 431 && req.headers.erase(protocol::kNextLeaseHeader) > 0) {
+        spdlog::warn("{}: upload answered 431: {}; sending it again without asking for the next lease", prefix,
+                     r.error_text());
         continue;
       }
       if (!r.retryable()) {

@@ -30,7 +30,8 @@ struct Delivery {
 /// Uploads the render of lease `l`'s tile of a width x height image through `http`, as the worker whose secret is
 /// `worker_secret`, logging under `prefix`, with `log` (its last log lines about the lease, oldest first; cut to the
 /// protocol's bounds, protocol/tile_log.h) for the coordinator to keep with the done tile; an upload answered 431 (the
-/// coordinator's header limit is below the log's size) is sent again at once without the log. Transport
+/// coordinator's header limit is below the log's size) is sent again at once without the log, and then without asking
+/// for the next lease. Transport
 /// errors and retryable answers are retried with backoff up to `max_retry_wait` apart, until `give_up` gives a reason
 /// (non-empty) to stop trying: asked between attempts and every 100 ms of a request under way, which it interrupts.
 /// The upload then ends kDropped, logged as "giving up the upload of tile N of job J: REASON". With `next_lease`, the
