@@ -6,7 +6,8 @@
 # `tessera:PATH` another coordinator binary driven by this build's simulator, for changes to the coordinator. Prints
 # the header (commit, machine, flags), then for every run the load average before it, tiles/s, lease and upload p99,
 # the coordinator's and the simulator's CPU (share of a core, ms per accepted tile) and, for simulators that print it,
-# the event loops' lag p99.
+# the event loops' lag p99. The simulated workers ask for their next lease with each upload (sim_workers' default: one
+# request per tile; its --two-requests is the other form).
 #   bash bench/capacity_bench.sh BUILD_DIR [ROUNDS] [sim:PATH | tessera:PATH]      (ROUNDS = 2)
 set -euo pipefail
 USAGE="usage: capacity_bench.sh BUILD_DIR [ROUNDS] [sim:PATH | tessera:PATH]"
@@ -28,6 +29,7 @@ source "$(dirname "$0")/run_header.sh"
 run_header capacity "$ROOT" "$BUILD"
 echo "command: bash bench/capacity_bench.sh $BUILD $ROUNDS${OTHER:+ $OTHER}; each run:"
 echo "\$ $BUILD/bench/sim_workers --tessera $BUILD/cli/tessera --workers N ${FLAGS[*]}"
+echo "(the simulated workers ask for their next lease with each upload: one request per tile)"
 case "$OTHER" in
   sim:*) echo "other: ${OTHER#sim:} as the simulator (same flags, same coordinator binary)" ;;
   tessera:*) echo "other: ${OTHER#tessera:} as the coordinator ($("${OTHER#tessera:}" --version); same simulator and flags)" ;;

@@ -5,13 +5,17 @@
 // lease (backing off 100 ms .. 2 s with jitter on 204) naming the job whose spec it holds, so that the first lease of
 // another job brings that job's spec (with --spec-by-get: bare leases and a GET of the spec once per job), "render"
 // by napping the tile time while heartbeating every heartbeat period, then upload a valid precomputed tile EXR of
-// the leased window (uncompressed float32, as workers send it; each tile's bytes encoded once and shared). A feeder
+// the leased window (uncompressed float32, as workers send it; each tile's bytes encoded once and shared), asking in
+// the same request for the next lease (X-Tessera-Next-Lease), which its answer carries when one is granted: one
+// request per tile in the steady state. With --two-requests uploads ask for nothing and every lease is a lease request
+// of its own, which is also what `tessera worker` sends in the steady state (it asks for its next lease near the end
+// of a render, so that the next render can begin on threads the current one leaves idle). A feeder
 // thread keeps at least two jobs and 2N pending tiles queued. For every N it prints request latency p50/p99 per
 // route, the coordinator's CPU use (from /proc/<pid>/stat) and the tile rate.
 //
 //   ./build/bench/sim_workers --tessera build/cli/tessera [--workers 10,50,200,500] [--seconds 15] [--warmup 4]
 //       [--tile-seconds 2] [--heartbeat-seconds 1] [--image 2048] [--tile 64] [--data-dir DIR] [--spec-by-get]
-//       [--loop-threads 4]
+//       [--loop-threads 4] [--two-requests]
 //
 // The simulated workers share the machine with the coordinator; their own CPU use is printed too (per window and per
 // tile), so a row where the clients starve the coordinator can be told apart from one where the coordinator is the
@@ -64,10 +68,12 @@
 #include <fstream>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 namespace fs = std::filesystem;
@@ -105,6 +111,7 @@ struct Options {
   int big_tiles_edge = 100;      ///< With share: the big job is big_tiles_edge x big_tiles_edge tiles.
   int hanging_webhooks = 0;      ///< >0: the A/B run with a receiver that never answers, this many deliveries pending.
   int loop_threads = 4;          ///< Event-loop threads driving the simulated workers (each worker on one of them).
+  bool two_requests = false;     ///< Uploads do not ask for the next lease: a lease request per tile besides the upload.
 };
 
 /// The request kinds we time separately.
@@ -365,10 +372,12 @@ asio::awaitable<void> simulated_worker(Farm& farm, int index, WorkerTally& tally
   int heartbeat_seconds = 5;
   std::string spec_job;  // the job whose spec we have "cached"
   std::chrono::milliseconds idle{100};
+  std::optional<protocol::LeaseAnswer> carried;  // the next lease, granted with the last upload's answer
   while (!farm.stop.load()) {
     Clock::duration pause{};  // a nap before the next round (no co_await inside a handler)
     try {
       if (id.empty()) {
+        carried.reset();
         const json reg = protocol::WorkerHello{"sim-" + std::to_string(index), 1, "sim", {}};
         const HttpResponse r =
             co_await send(kRegister, tessera::client::make_request("POST", routes::workers(), reg.dump()));
@@ -382,29 +391,36 @@ asio::awaitable<void> simulated_worker(Farm& farm, int index, WorkerTally& tally
         secret = registration.secret;
         heartbeat_seconds = int(registration.heartbeat_seconds);
       }
-      protocol::LeaseRequest asked;
-      if (!farm.opt.spec_by_get) asked.known_jobs = spec_job.empty() ? std::vector<std::string>{} : std::vector{spec_job};
-      const std::string asked_body = farm.opt.spec_by_get ? std::string() : json(asked).dump();
+      // What a lease request asks for, in its body or with an upload: the spec of any job but the one held.
+      const auto asked = [&] {
+        protocol::LeaseRequest req;
+        if (!farm.opt.spec_by_get) req.known_jobs = spec_job.empty() ? std::vector<std::string>{} : std::vector{spec_job};
+        return req;
+      };
       const auto as_worker = [&secret](std::string method, std::string target, std::string body) {
         HttpRequest req{std::move(method), std::move(target), std::move(body), "application/json", {}};
         req.headers[protocol::kWorkerSecretHeader] = secret;
         return req;
       };
-      const HttpResponse r = co_await send(kLease, as_worker("POST", routes::worker_lease(id), asked_body));
-      if (r.status == 204) {
-        std::uniform_int_distribution<long long> pick(idle.count() / 2, idle.count());
-        co_await nap(farm, timer, std::chrono::milliseconds(pick(rng)), tally);
-        idle = std::min<std::chrono::milliseconds>(idle * 2, 2000ms);
-        continue;
-      }
-      if (r.status == 404) { id.clear(); continue; }
-      if (r.status != 200) {
-        error("lease answered " + r.error_text());
-        co_await nap(farm, timer, 1s, tally);
-        continue;
+      if (!carried) {
+        const std::string asked_body = farm.opt.spec_by_get ? std::string() : json(asked()).dump();
+        const HttpResponse r = co_await send(kLease, as_worker("POST", routes::worker_lease(id), asked_body));
+        if (r.status == 204) {
+          std::uniform_int_distribution<long long> pick(idle.count() / 2, idle.count());
+          co_await nap(farm, timer, std::chrono::milliseconds(pick(rng)), tally);
+          idle = std::min<std::chrono::milliseconds>(idle * 2, 2000ms);
+          continue;
+        }
+        if (r.status == 404) { id.clear(); continue; }
+        if (r.status != 200) {
+          error("lease answered " + r.error_text());
+          co_await nap(farm, timer, 1s, tally);
+          continue;
+        }
+        carried = protocol::parse_answer<protocol::LeaseAnswer>(r.body, "lease");
       }
       idle = 100ms;
-      const auto answer = protocol::parse_answer<protocol::LeaseAnswer>(r.body, "lease");
+      const protocol::LeaseAnswer answer = std::move(*std::exchange(carried, std::nullopt));
       const protocol::Lease& lease = answer.lease;
       if (answer.spec) spec_job = lease.job;
       const std::string& lease_id = lease.id;
@@ -439,9 +455,11 @@ asio::awaitable<void> simulated_worker(Farm& farm, int index, WorkerTally& tally
       up.content_type = "image/x-exr";
       up.headers[protocol::kRaysHeader] = "4096";
       up.headers[protocol::kWorkerSecretHeader] = secret;
+      if (!farm.opt.two_requests) up.headers[protocol::kNextLeaseHeader] = protocol::next_lease_header(asked());
       const auto t0 = Clock::now();
       const HttpResponse u = co_await timed_send(farm, tally, http, kUpload, up, exr);
       if (u.status == 200) {
+        if (!farm.opt.two_requests) carried = protocol::parse_answer<protocol::ResultAnswer>(u.body, "result").next;
         tally.spans.push_back({job, granted, Clock::now()});
         if (t0 >= farm.window_start && Clock::now() <= farm.window_end) {
           ++tally.tiles_accepted;
@@ -452,6 +470,7 @@ asio::awaitable<void> simulated_worker(Farm& farm, int index, WorkerTally& tally
       }
     } catch (const std::exception& e) {
       error(e.what());
+      carried.reset();
       pause = 500ms;
     }
     if (pause != Clock::duration{}) co_await nap(farm, timer, pause, tally);
@@ -813,6 +832,9 @@ int main(int argc, char** argv) {
   app.add_option("--loop-threads", opt.loop_threads,
                  "Event-loop threads driving the simulated workers (each a keep-alive connection on one of them)")
       ->check(CLI::Range(1, 64));
+  app.add_flag("--two-requests", opt.two_requests,
+               "Uploads do not ask for the next lease: every lease is a lease request of its own (as workers did "
+               "before uploads carried the next lease)");
   app.add_flag("--spec-by-get", opt.spec_by_get,
                "Ask for bare leases and GET each job's spec (as workers did before specs came with leases)");
   CLI11_PARSE(app, argc, argv);
@@ -834,11 +856,13 @@ int main(int argc, char** argv) {
     const std::string tile_bytes = std::to_string(bank.at(opt.image, opt.image, {0, 0, first, first}).size());
 
     std::printf("sim_workers: %d-pixel jobs in %d-pixel tiles (upload %s bytes each, uncompressed float32), "
-                "tile time %.2f s +-20%%, heartbeat every %d s, window %.0f s after %.0f s warm-up, %u cores, %s, "
+                "tile time %.2f s +-20%%, heartbeat every %d s, window %.0f s after %.0f s warm-up, %u cores, %s, %s, "
                 "workers on %d event-loop thread%s\n",
                 opt.image, opt.tile, tile_bytes.c_str(), opt.tile_seconds, opt.heartbeat_seconds, opt.seconds,
                 opt.warmup, std::thread::hardware_concurrency(),
-                opt.spec_by_get ? "specs by GET" : "specs with the leases", opt.loop_threads,
+                opt.spec_by_get ? "specs by GET" : "specs with the leases",
+                opt.two_requests ? "a lease request per tile (--two-requests)" : "the next lease asked with each upload",
+                opt.loop_threads,
                 opt.loop_threads == 1 ? "" : "s");
     {
       std::ifstream load("/proc/loadavg");

@@ -450,6 +450,31 @@ LeaseRequest parse_lease_request(const std::string& body) {
   return LeaseRequest{request_strings(j, "known_jobs", kMaxKnownJobs), request_int(j, "wait_ms", 0, 0, kMaxLeaseWaitMs)};
 }
 
+std::string next_lease_header(const LeaseRequest& r) {
+  LeaseRequest sent = r;
+  sent.wait_ms = 0;
+  return json(sent).dump(-1, ' ', true, json::error_handler_t::replace);
+}
+
+std::optional<LeaseRequest> parse_next_lease_header(std::string_view value) {
+  if (value.empty()) return std::nullopt;
+  LeaseRequest r;
+  try {
+    r = parse_lease_request(std::string(value));
+  } catch (const ProtocolError& e) {
+    throw ProtocolError(std::string(kNextLeaseHeader) + ": " + e.what());
+  }
+  if (r.wait_ms != 0)
+    throw ProtocolError(std::string(kNextLeaseHeader) + " must not ask to wait (wait_ms): an upload's answer is never "
+                        "held; a worker told of no next lease asks the lease route, which may hold its request");
+  return r;
+}
+
+void to_json(json& j, const LeaseAnswer& a) {
+  const std::string spec = a.spec ? json(*a.spec).dump() : std::string();
+  j = json::parse(lease_answer_text(a.lease, a.spec ? &spec : nullptr));
+}
+
 void from_json(const json& j, LeaseAnswer& a) {
   a.lease = j.get<Lease>();
   a.spec.reset();
@@ -489,10 +514,32 @@ UploadStatus upload_status_from_string(const std::string& name) {
   throw ProtocolError("unknown upload status '" + name + "'");
 }
 
-void to_json(json& j, const ResultAnswer& a) { j = {{"status", to_string(a.status)}}; }
+void to_json(json& j, const ResultAnswer& a) {
+  const std::string next = a.next ? json(*a.next).dump() : std::string();
+  j = json::parse(result_answer_text(a.status, a.next ? &next : nullptr));
+}
 
 void from_json(const json& j, ResultAnswer& a) {
   a.status = upload_status_from_string(answer_field<std::string>(j, "status", "result answer"));
+  a.next.reset();
+  if (j.contains("next") && !j["next"].is_null()) {
+    try {
+      a.next = j["next"].get<LeaseAnswer>();
+    } catch (const ProtocolError& e) {
+      throw ProtocolError(std::string("result answer: \"next\": ") + e.what());
+    }
+  }
+}
+
+std::string result_answer_text(UploadStatus status, const std::string* next_lease_text) {
+  std::string text = json{{"status", to_string(status)}}.dump();
+  if (next_lease_text) {
+    text.pop_back();  // the closing brace: the next lease goes in as one more key
+    text += ",\"next\":";
+    text += *next_lease_text;
+    text += '}';
+  }
+  return text;
 }
 
 void to_json(json& j, const FailReport& f) {

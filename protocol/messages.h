@@ -18,6 +18,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace tessera::protocol {
@@ -184,12 +185,19 @@ inline constexpr int64_t kMaxLeaseWaitMs = 10000;  ///< The longest wait_ms a le
 void to_json(nlohmann::json& j, const LeaseRequest& r);
 /// Parses a lease request; throws ProtocolError (400).
 LeaseRequest parse_lease_request(const std::string& body);
+/// The kNextLeaseHeader value of a result upload that asks for its worker's next lease as `r` asks for it (its wait_ms
+/// is not sent: an upload's answer is never held).
+std::string next_lease_header(const LeaseRequest& r);
+/// The lease request of a kNextLeaseHeader value, or nothing for "" (no header); throws ProtocolError (400) for a
+/// value that is no lease request or asks to wait.
+std::optional<LeaseRequest> parse_next_lease_header(std::string_view value);
 
 /// Answer 200 to POST /v1/workers/{wid}/lease: the lease, with its job's spec when the request asked for it.
 struct LeaseAnswer {
   Lease lease;                  ///< The lease (its keys at the top level of the answer).
   std::optional<JobSpec> spec;  ///< Key "spec": the job's spec, as GET /v1/jobs/{id}/spec answers it.
 };
+void to_json(nlohmann::json& j, const LeaseAnswer& a);
 void from_json(const nlohmann::json& j, LeaseAnswer& a);
 /// The answer's text from the lease and, when to be sent, the spec's JSON text as GET /v1/jobs/{id}/spec answers it
 /// (a coordinator keeps that text per job, so no spec is serialised per lease).
@@ -225,9 +233,16 @@ UploadStatus upload_status_from_string(const std::string& name);
 /// Answer to PUT /v1/leases/{lease}/result (200 accepted or duplicate, 410 discarded).
 struct ResultAnswer {
   UploadStatus status = UploadStatus::accepted;  ///< How the upload was settled.
+  /// Key "next": the worker's next lease, as POST /v1/workers/{wid}/lease answers it. Only when the upload asked for
+  /// one (kNextLeaseHeader), was settled accepted or duplicate, and a tile was leasable by the worker; absent, the
+  /// worker asks for its next lease as usual.
+  std::optional<LeaseAnswer> next;
 };
 void to_json(nlohmann::json& j, const ResultAnswer& a);
 void from_json(const nlohmann::json& j, ResultAnswer& a);
+/// The answer's text from its status and, when a next lease was granted, that lease's answer text (lease_answer_text,
+/// so no lease or spec is serialised twice).
+std::string result_answer_text(UploadStatus status, const std::string* next_lease_text);
 
 /// Body of POST /v1/leases/{lease}/fail.
 struct FailReport {

@@ -154,6 +154,66 @@ TEST(Messages, ALeaseRequestNamesKnownJobsAndItsAnswerMayCarryTheSpec) {
   }
 }
 
+TEST(Messages, AnUploadMayAskForTheNextLeaseAndItsAnswerCarriesIt) {
+  // The header is a lease request's JSON in ASCII, read back as the lease route reads its body; no header, no ask.
+  EXPECT_FALSE(parse_next_lease_header(""));
+  const LeaseRequest asked{std::vector<std::string>{"j-1", "j-\u00e9"}, 0};
+  const std::string value = next_lease_header(asked);
+  EXPECT_TRUE(std::all_of(value.begin(), value.end(), [](char c) { return c >= 0x20 && c < 0x7f; })) << value;
+  const std::optional<LeaseRequest> back = parse_next_lease_header(value);
+  ASSERT_TRUE(back);
+  EXPECT_EQ(back->known_jobs, asked.known_jobs);
+  EXPECT_EQ(back->wait_ms, 0);
+  const std::optional<LeaseRequest> bare = parse_next_lease_header(next_lease_header(LeaseRequest{}));
+  ASSERT_TRUE(bare);
+  EXPECT_FALSE(bare->known_jobs);
+  // An upload's answer is never held: a wait is not sent, and refused when asked for; bad values name the header.
+  EXPECT_EQ(next_lease_header(LeaseRequest{std::nullopt, 2000}), "{}");
+  for (const char* bad : {R"({"wait_ms": 100})", R"({"known_jobs": "j-1"})", "[]", "yes"}) {
+    try {
+      (void)parse_next_lease_header(bad);
+      ADD_FAILURE() << bad << " was taken";
+    } catch (const ProtocolError& e) {
+      EXPECT_NE(std::string(e.what()).find(kNextLeaseHeader), std::string::npos) << e.what();
+    }
+  }
+
+  // The answer: the status alone as before, or with "next", the lease route's answer (spec included) as it is.
+  EXPECT_EQ(result_answer_text(UploadStatus::accepted, nullptr), json(ResultAnswer{}).dump());
+  EXPECT_EQ(result_answer_text(UploadStatus::duplicate, nullptr), R"({"status":"duplicate"})");
+  Lease l;
+  l.id = "l-2";
+  l.job = "j-3";
+  l.tile = 5;
+  l.window = {16, 0, 32, 16};
+  l.spp = 4;
+  JobSpec spec;
+  spec.scene = {{"camera", {{"fov", 40}}}};
+  spec.sampling.spp = 4;
+  spec.width = 32;
+  spec.height = 16;
+  const std::string spec_text = json(spec).dump();
+  const std::string lease_text = lease_answer_text(l, &spec_text);
+  const std::string text = result_answer_text(UploadStatus::accepted, &lease_text);
+  EXPECT_EQ(json::parse(text)["next"], json::parse(lease_text));
+  const ResultAnswer a = parse_answer<ResultAnswer>(text, "result");
+  EXPECT_EQ(a.status, UploadStatus::accepted);
+  ASSERT_TRUE(a.next);
+  EXPECT_EQ(a.next->lease.id, "l-2");
+  EXPECT_EQ(a.next->lease.tile, 5);
+  ASSERT_TRUE(a.next->spec);
+  EXPECT_EQ(json(*a.next->spec), json(spec));
+  EXPECT_EQ(json(a), json::parse(text));  // the struct writes what the coordinator sends
+  EXPECT_FALSE(parse_answer<ResultAnswer>(R"({"status":"accepted","next":null})", "result").next);
+  EXPECT_FALSE(parse_answer<ResultAnswer>(R"({"status":"accepted"})", "result").next);  // today's answers
+  try {
+    (void)parse_answer<ResultAnswer>(R"({"status":"accepted","next":{"lease":"l-1"}})", "result");
+    ADD_FAILURE() << "a next lease without a job was taken";
+  } catch (const ProtocolError& e) {
+    EXPECT_NE(std::string(e.what()).find("\"next\""), std::string::npos) << e.what();
+  }
+}
+
 TEST(Messages, ASpecSaysWhetherTheJobIsResumable) {
   JobSpec spec;
   spec.sampling.spp = 4;

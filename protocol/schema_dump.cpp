@@ -153,7 +153,9 @@ json dump() {
   add(out, "LeaseRequest", "LeaseRequest", kRequest, LeaseRequest{std::vector<std::string>{"j-1"}, 100}, LeaseRequest{});
   add(out, "HeartbeatReport", "HeartbeatReport", kRequest, HeartbeatReport{10}, HeartbeatReport{});
   add(out, "HeartbeatAnswer", "HeartbeatAnswer", kAnswer, HeartbeatAnswer{5000}, HeartbeatAnswer{});
-  add(out, "UploadStatus", "ResultAnswer", kAnswer, ResultAnswer{UploadStatus::duplicate}, ResultAnswer{});
+  // An upload's answer with the next lease it asked for (X-Tessera-Next-Lease): the lease answer above under "next".
+  add(out, "UploadStatus", "ResultAnswer", kAnswer,
+      ResultAnswer{UploadStatus::duplicate, LeaseAnswer{full_lease(), full_spec()}}, ResultAnswer{});
   add(out, "FailReport", "FailReport", kRequest, FailReport{"it broke", {"a log line"}}, FailReport{});
   add(out, "Status", "FailAnswer", kAnswer, FailAnswer{}, FailAnswer{});
   add(out, "Status", "ReleaseAnswer", kAnswer, ReleaseAnswer{}, ReleaseAnswer{});

@@ -117,7 +117,8 @@ struct Coordinator::Impl {
         bus(opt.events, random_hex(4)),
         farm_events(bus),
         api(sched, blobs, *store, metrics, wall_ms, api_options(opt, *store), bus, farm_events, disk,
-            [this](std::function<void()> work) { asio::post(pool, std::move(work)); }),  // a finished job's result
+            // on the handler pool: a finished job's result, the next lease an upload asked for
+            [this](std::function<void()> work) { asio::post(pool, std::move(work)); }),
         monitor(api, !opt.limits.tokens.client.empty() || !opt.limits.tokens.users_file.empty()),
         pool(std::size_t(opt.handler_threads > 0 ? opt.handler_threads : std::max(2u, std::thread::hardware_concurrency()))),
         admission(monitor, opt.admission),

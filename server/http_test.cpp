@@ -88,6 +88,8 @@ class HttpTest : public ::testing::Test {
       secrets_[r.js().value("id", "")] = r.js().value("secret", "");
     if (route.endpoint() == protocol::Endpoint::worker_lease && r.status == 200)
       lease_workers_[r.js().value("lease", "")] = route.param;
+    if (route.endpoint() == protocol::Endpoint::lease_result && r.status == 200 && r.js().contains("next"))
+      lease_workers_[r.js()["next"].value("lease", "")] = lease_workers_[route.param];  // the next lease it asked for
     return r;
   }
   // The secret of the worker a request to `route` acts as ("" for none known).
@@ -721,6 +723,110 @@ TEST_F(HttpTest, ALeaseCarriesItsJobsSpecUnlessTheWorkerHoldsIt) {
   ASSERT_EQ(r.status, 200u) << r.body;
   EXPECT_EQ(r.js()["tile"], 3);
   EXPECT_EQ(r.js()["spec"], spec.js());
+}
+
+// X-Tessera-Next-Lease: an upload that asks gets its worker's next lease in its answer, granted as the lease route
+// grants one (its event, its spec unless known); without the header, or when it cannot be granted, the answer is
+// today's.
+TEST_F(HttpTest, AnUploadThatAsksCarriesItsWorkersNextLease) {
+  testing::SseReader events(server_->endpoint(), "/v1/events?only=tile_leased,tile_done");
+  ASSERT_EQ(events.status(), 200);
+  const std::string w = register_worker("one-trip");
+  const std::string id = submit(small_cbox(job_for("cbox_no_light.json")));  // 6 tiles
+  const Reply spec = call(http::verb::get, "/v1/jobs/" + id + "/spec");
+  const fs::path scratch = server_->data_dir() / "client";
+  fs::create_directories(scratch);
+  const auto tile_of = [&](const json& l) {
+    const PixelWindow win{l["window"][0], l["window"][1], l["window"][2], l["window"][3]};
+    return tile_exr(scratch, Image::make(win.x1 - win.x0, win.y1 - win.y0), win, 40, 30);
+  };
+  const auto result_url = [](const json& l) { return "/v1/leases/" + l["lease"].get<std::string>() + "/result"; };
+  const auto ask = [](std::optional<std::vector<std::string>> known) {
+    return std::vector<std::pair<std::string, std::string>>{
+        {protocol::kNextLeaseHeader, protocol::next_lease_header(protocol::LeaseRequest{std::move(known), 0})}};
+  };
+  const auto tiles_pending = [&] { return call(http::verb::get, "/v1/jobs/" + id).js()["tiles"]["pending"].get<int>(); };
+
+  Reply r = call(http::verb::post, "/v1/workers/" + w + "/lease");
+  ASSERT_EQ(r.status, 200u) << r.body;
+  const json l0 = r.js();
+  // Asked with known_jobs that do not name the job: the next lease (tile 1) comes with the spec, as the route's would.
+  r = call(http::verb::put, result_url(l0), tile_of(l0), ask(std::vector<std::string>{}));
+  ASSERT_EQ(r.status, 200u) << r.body;
+  EXPECT_EQ(r.js()["status"], "accepted");
+  ASSERT_TRUE(r.js().contains("next")) << r.body;
+  const json l1 = r.js()["next"];
+  EXPECT_EQ(l1["job"], id);
+  EXPECT_EQ(l1["tile"], 1);
+  EXPECT_EQ(l1["spec"], spec.js());
+  const auto answer = protocol::parse_answer<protocol::ResultAnswer>(r.body, "result");
+  ASSERT_TRUE(answer.next);
+  EXPECT_EQ(answer.next->lease.id, l1["lease"]);
+  // It is a lease like any other: its heartbeat, its upload; and the job knows tile 1 leased to this worker.
+  EXPECT_EQ(call(http::verb::post, "/v1/leases/" + l1["lease"].get<std::string>() + "/heartbeat").status, 200u);
+  const json tiles = call(http::verb::get, "/v1/jobs/" + id + "/tiles").js();
+  EXPECT_EQ(tiles["tiles"][1]["state"], "leased") << tiles.dump();
+  EXPECT_EQ(tiles["tiles"][1]["worker"], w) << tiles.dump();
+  // Known job: a bare lease (tile 2).
+  r = call(http::verb::put, result_url(l1), tile_of(l1), ask(std::vector<std::string>{id}));
+  ASSERT_EQ(r.status, 200u) << r.body;
+  const json l2 = r.js()["next"];
+  EXPECT_EQ(l2["tile"], 2);
+  EXPECT_FALSE(l2.contains("spec"));
+  // No header: exactly today's answer, and no tile taken.
+  const int pending = tiles_pending();
+  r = call(http::verb::put, result_url(l2), tile_of(l2));
+  ASSERT_EQ(r.status, 200u) << r.body;
+  EXPECT_EQ(r.body, R"({"status":"accepted"})");
+  EXPECT_EQ(tiles_pending(), pending);
+  // A duplicate is settled too: it asks, it gets the next tile (3).
+  r = call(http::verb::put, result_url(l2), tile_of(l2), ask(std::nullopt));
+  ASSERT_EQ(r.status, 200u) << r.body;
+  EXPECT_EQ(r.js()["status"], "duplicate");
+  const json l3 = r.js()["next"];
+  EXPECT_EQ(l3["tile"], 3);
+  EXPECT_EQ(tiles_pending(), pending - 1);
+  // Refused uploads grant nothing: a bad header (400, before the upload is looked at), a bad tile (422).
+  r = call(http::verb::put, result_url(l3), tile_of(l3), {{protocol::kNextLeaseHeader, R"({"wait_ms": 500})"}});
+  EXPECT_EQ(r.status, 400u) << r.body;
+  EXPECT_NE(r.js()["error"].get<std::string>().find(protocol::kNextLeaseHeader), std::string::npos) << r.body;
+  EXPECT_EQ(tiles_pending(), pending - 1);
+  EXPECT_EQ(call(http::verb::post, "/v1/leases/" + l3["lease"].get<std::string>() + "/heartbeat").status, 200u);
+  r = call(http::verb::put, result_url(l3), "not an exr", ask(std::nullopt));
+  EXPECT_EQ(r.status, 422u) << r.body;
+  EXPECT_FALSE(r.js().contains("next")) << r.body;
+  EXPECT_EQ(tiles_pending(), pending);  // tile 3 is pending again, nothing else taken
+  // A draining worker's upload is stored, and it gets no next lease.
+  r = call(http::verb::post, "/v1/workers/" + w + "/lease");
+  ASSERT_EQ(r.status, 200u) << r.body;
+  const json l4 = r.js();
+  ASSERT_EQ(call(http::verb::post, "/v1/workers/" + w + "/drain").status, 200u);
+  r = call(http::verb::put, result_url(l4), tile_of(l4), ask(std::nullopt));
+  ASSERT_EQ(r.status, 200u) << r.body;
+  EXPECT_EQ(r.body, R"({"status":"accepted"})");
+  ASSERT_EQ(call(http::verb::post, "/v1/workers/" + w + "/undrain").status, 200u);
+  // No tile left for it: the answer says nothing more, and the worker asks the lease route as usual.
+  std::vector<json> held;
+  while ((r = call(http::verb::post, "/v1/workers/" + w + "/lease")).status == 200) held.push_back(r.js());
+  ASSERT_FALSE(held.empty());
+  r = call(http::verb::put, result_url(held[0]), tile_of(held[0]), ask(std::nullopt));
+  ASSERT_EQ(r.status, 200u) << r.body;
+  EXPECT_EQ(r.body, R"({"status":"accepted"})");
+  // A discarded upload (the job ended) grants nothing either.
+  ASSERT_EQ(call(http::verb::delete_, "/v1/jobs/" + id).status, 200u);
+  r = call(http::verb::put, result_url(held.back()), tile_of(held.back()), ask(std::nullopt));
+  EXPECT_EQ(r.status, 410u) << r.body;
+  EXPECT_EQ(r.body, R"({"status":"discarded"})");
+
+  // The events: each next lease is a tile_leased like the lease route's, after its upload's tile_done.
+  std::vector<std::pair<std::string, int64_t>> seen;
+  for (int i = 0; i < 6; ++i) {
+    auto e = events.next();
+    ASSERT_TRUE(e) << "stream ended after " << i << " events";
+    seen.emplace_back(e->event, json::parse(e->data)["tile"].get<int64_t>());
+  }
+  EXPECT_EQ(seen, (std::vector<std::pair<std::string, int64_t>>{{"tile_leased", 0}, {"tile_done", 0}, {"tile_leased", 1},
+                                                                 {"tile_done", 1}, {"tile_leased", 2}, {"tile_done", 2}}));
 }
 
 void HttpTest::check_full_round_trip() {

@@ -13,6 +13,13 @@ namespace tessera::server {
 using protocol::ApiError;
 using protocol::Endpoint;
 
+LeasesHandler::LeasesHandler(Scheduler& scheduler, JobService& jobs, Metrics& metrics, ClockMs clock, FarmEvents& events,
+                             LeaseWaiters& waiters, Background background)
+    : sched_(scheduler), jobs_(jobs), metrics_(metrics), clock_(std::move(clock)), events_(events), waiters_(waiters),
+      background_(std::move(background)) {
+  if (!background_) background_ = [](std::function<void()> work) { work(); };
+}
+
 HttpResponse LeasesHandler::handle(const protocol::RouteMatch& route, HttpRequest& req, const Caller& /*caller*/) {
   const Endpoint endpoint = route.endpoint();
   const std::string& id = route.param;
@@ -55,7 +62,8 @@ void LeasesHandler::lease(const std::string& worker, HttpRequest& req, Answer an
   const unsigned version = req.version();
   const protocol::LeaseRequest asked = protocol::parse_lease_request(req.body());  // before a tile is taken
   require_worker(worker, req);
-  if (std::optional<HttpResponse> leased = try_lease(worker, asked, version)) return answer(std::move(*leased), nullptr);
+  if (std::optional<std::string> leased = try_lease(worker, asked))
+    return answer(bytes_response(std::move(*leased), "application/json", version), nullptr);
   if (asked.wait_ms <= 0) return answer(HttpResponse{http::status::no_content, version}, nullptr);
   // A held request's answer says how long it was held (the API counts its time apart from the route's service time).
   const auto held_since = std::chrono::steady_clock::now();
@@ -77,8 +85,7 @@ void LeasesHandler::lease(const std::string& worker, HttpRequest& req, Answer an
                 no_work);
 }
 
-std::optional<HttpResponse> LeasesHandler::try_lease(const std::string& worker, const protocol::LeaseRequest& asked,
-                                                     unsigned version) {
+std::optional<std::string> LeasesHandler::try_lease(const std::string& worker, const protocol::LeaseRequest& asked) {
   const AcquireResult r = sched_.acquire(worker);
   if (r.status == AcquireResult::unknown_worker) throw ApiError(404, "unknown worker " + worker + ": register again");
   if (r.status == AcquireResult::no_work) return std::nullopt;
@@ -101,7 +108,7 @@ std::optional<HttpResponse> LeasesHandler::try_lease(const std::string& worker, 
       spdlog::debug("lease {}: sent without its job's spec: {}", l.id, e.what());
     }
   }
-  return bytes_response(protocol::lease_answer_text(l, spec ? &*spec : nullptr), "application/json", version);
+  return protocol::lease_answer_text(l, spec ? &*spec : nullptr);
 }
 
 HttpResponse LeasesHandler::heartbeat(const std::string& lease, HttpRequest& req) {
@@ -128,11 +135,13 @@ void LeasesHandler::require_worker(const std::string& worker, const HttpRequest&
                                   : std::string(protocol::kWorkerSecretHeader) + " is not the secret of worker " + worker);
 }
 
-void LeasesHandler::require_holder(const std::string& lease, const HttpRequest& req) {
+void LeasesHandler::require_holder(const std::string& lease, const HttpRequest& req, std::string* holder_out) {
   const std::string_view secret = req[protocol::kWorkerSecretHeader];
   std::string holder;
   switch (sched_.check_lease_holder(lease, secret, &holder)) {
-    case WorkerCheck::ok: return;
+    case WorkerCheck::ok:
+      if (holder_out) *holder_out = std::move(holder);
+      return;
     case WorkerCheck::unknown_lease: throw ApiError(404, "unknown lease " + lease);
     case WorkerCheck::unknown_worker:
       throw ApiError(404, "lease " + lease + " belongs to worker " + holder + ", which this coordinator does not know: "
@@ -173,13 +182,29 @@ void LeasesHandler::result(const std::string& lease, HttpRequest& req, Answer an
       throw ApiError(400, std::string(protocol::kRaysHeader) + " must be a non-negative integer (got '" + std::string(h) + "')");
   }
   std::vector<std::string> log = protocol::parse_tile_log_header(req[protocol::kTileLogHeader]);
-  require_holder(lease, req);
+  const std::optional<protocol::LeaseRequest> next = protocol::parse_next_lease_header(req[protocol::kNextLeaseHeader]);
+  std::string worker;
+  require_holder(lease, req, &worker);
   const unsigned version = req.version();
-  jobs_.accept_tile(lease, req.body(), rays, std::move(log), [answer, version](UploadOutcome o, std::exception_ptr refusal) {
+  jobs_.accept_tile(lease, req.body(), rays, std::move(log),
+                    [this, answer, version, next, worker](UploadOutcome o, std::exception_ptr refusal) {
     if (refusal) return answer(HttpResponse{}, refusal);
-    answer(json_response(o == UploadOutcome::discarded ? http::status::gone : http::status::ok,
-                         protocol::ResultAnswer{o}, version),
-           nullptr);
+    if (!next || o == UploadOutcome::discarded)
+      return answer(json_response(o == UploadOutcome::discarded ? http::status::gone : http::status::ok,
+                                  protocol::ResultAnswer{o, std::nullopt}, version),
+                    nullptr);
+    // The upload is durable; its worker's next lease is granted as the lease route grants one (no wait: a worker
+    // told "none" asks the lease route), off the thread that acknowledges commits, which a grant may wait for.
+    background_([this, answer, version, next, worker, o] {
+      std::optional<std::string> leased;
+      try {
+        leased = try_lease(worker, *next);
+      } catch (const std::exception& e) {  // forgotten meanwhile: its next lease request hears why
+        spdlog::debug("worker {}: no next lease with its upload: {}", worker, e.what());
+      }
+      answer(bytes_response(protocol::result_answer_text(o, leased ? &*leased : nullptr), "application/json", version),
+             nullptr);
+    });
   });
 }
 

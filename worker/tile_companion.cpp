@@ -33,6 +33,12 @@ void TileCompanion::ask_next_lease() {
   cv_.notify_all();
 }
 
+bool TileCompanion::has_next_lease() {
+  std::unique_lock lock(mutex_);
+  cv_.wait(lock, [&] { return !asked_ || answered_ || done_; });
+  return next_.has_value();
+}
+
 std::optional<PrefetchedLease> TileCompanion::finish() {
   stop();
   std::lock_guard lock(mutex_);
@@ -68,6 +74,8 @@ void TileCompanion::run() noexcept {
         std::optional<PrefetchedLease> l = ask_lease_();
         lock.lock();
         if (l) next_ = std::move(*l);
+        answered_ = true;
+        cv_.notify_all();
         continue;
       }
       if (done_) break;
@@ -110,6 +118,9 @@ void TileCompanion::run() noexcept {
   } catch (...) {
     spdlog::error("{}: heartbeat thread stopped by an unknown exception", prefix_);
   }
+  std::lock_guard lock(mutex_);
+  answered_ = true;  // whatever was asked gets no answer now: has_next_lease() waits no longer
+  cv_.notify_all();
 }
 
 bool TileCompanion::beat(const std::string& lease, const std::string& body) {

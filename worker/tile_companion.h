@@ -35,6 +35,11 @@ class TileCompanion {
   /// Asks for the next lease on the companion's thread (once; never blocks).
   void ask_next_lease();
 
+  /// Whether finish() will hand over a next lease (unless a heartbeat finds it gone meanwhile): false when none was
+  /// asked for, or the request got none; waits for the answer of a request under way. Called once the render has
+  /// ended (no more asks).
+  bool has_next_lease();
+
   /// Stops the thread (after a request in flight) and hands over the next lease, if one was granted and is still live.
   std::optional<PrefetchedLease> finish();
 
@@ -59,6 +64,7 @@ class TileCompanion {
   std::condition_variable cv_;
   bool done_ = false;
   bool asked_ = false;                   // ask_next_lease was called
+  bool answered_ = false;                // ask_lease_ returned (with next_ set when it granted a lease)
   std::optional<PrefetchedLease> next_;  // its answer, when a lease was granted
   std::optional<std::chrono::steady_clock::time_point> last_beat_;  // see last_beat()
   std::thread thread_;  // last: starts after every other member is ready

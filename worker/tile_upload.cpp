@@ -40,9 +40,10 @@ std::vector<uint8_t> corrupt_tile(const Image& image, ExrWriteOptions wo, const 
 
 }  // namespace
 
-DeliveryOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, const std::string& worker_secret,
-                            const std::string& prefix, const RenderResult& res, int width, int height,
-                            const std::vector<std::string>& log, std::chrono::milliseconds max_retry_wait, const std::function<std::string()>& give_up) {
+Delivery upload_tile(client::HttpClient& http, const protocol::Lease& l, const std::string& worker_secret,
+                     const std::string& prefix, const RenderResult& res, int width, int height,
+                     const std::vector<std::string>& log, const std::optional<protocol::LeaseRequest>& next_lease,
+                     std::chrono::milliseconds max_retry_wait, const std::function<std::string()>& give_up) {
   ExrWriteOptions wo;
   wo.compression = ExrCompression::kNone;  // noisy floats barely compress; the CPU is better spent rendering
   wo.data_window = l.window;
@@ -59,6 +60,7 @@ DeliveryOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, 
   req.headers[protocol::kRaysHeader] = std::to_string(res.counters.rays);
   req.headers[protocol::kWorkerSecretHeader] = worker_secret;
   if (std::string header = protocol::tile_log_header(log); !header.empty()) req.headers[protocol::kTileLogHeader] = std::move(header);
+  if (next_lease) req.headers[protocol::kNextLeaseHeader] = protocol::next_lease_header(*next_lease);
   TESSERA_FAIL_POINT("worker.upload");
   client::Backoff backoff(200ms, max_retry_wait);
   std::string why;  // the reason to give up, once there is one
@@ -70,37 +72,51 @@ DeliveryOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, 
     try {
       const client::HttpResponse r = http.send(req, giving_up);
       if (r.status == 200) {
+        Delivery settled{DeliveryOutcome::kUploaded, std::nullopt};
         std::string status = "acknowledged";  // an answer without a known status is still an acknowledgement
         try {
-          status = protocol::to_string(protocol::parse_answer<protocol::ResultAnswer>(r.body, "result answer").status);
-        } catch (const protocol::ProtocolError&) {
+          protocol::ResultAnswer answer = protocol::parse_answer<protocol::ResultAnswer>(r.body, "result answer");
+          status = protocol::to_string(answer.status);
+          settled.next = std::move(answer.next);
+        } catch (const protocol::ProtocolError& e) {
+          if (next_lease) spdlog::warn("{}: the upload's answer is unreadable, so is its next lease: {}", prefix, e.what());
         }
-        spdlog::info("{}: upload {}", prefix, status);
+        spdlog::info("{}: upload {}{}", prefix, status,
+                     !next_lease    ? ""
+                     : settled.next ? ", next lease " + settled.next->lease.id + " (tile " +
+                                          std::to_string(settled.next->lease.tile) + " of job " + settled.next->lease.job + ")"
+                                    : ", no next lease");
         bool again = false;  // tests send the result again, as a worker that missed the answer would
         TESSERA_FAIL_POINT_RETURN("worker.upload.repeat", [&](const std::string&) { again = true; });
         if (again) continue;
-        return DeliveryOutcome::kUploaded;
+        return settled;
       }
       if (r.status == 410) {
         spdlog::info("{}: upload discarded (job cancelled or failed)", prefix);
-        return DeliveryOutcome::kDropped;
+        return {DeliveryOutcome::kDropped, std::nullopt};
       }
       if (r.status == 422) {
         spdlog::error("{}: the coordinator refused the result as invalid: {}", prefix, r.error_text());
-        return DeliveryOutcome::kFailed;
+        return {DeliveryOutcome::kFailed, std::nullopt};
       }
       if (r.status == 404) {
         spdlog::warn("{}: the coordinator does not know the lease any more; tile dropped", prefix);
-        return DeliveryOutcome::kDropped;
+        return {DeliveryOutcome::kDropped, std::nullopt};
       }
-      // A coordinator whose header limit (serve --max-header-bytes) is below the log's size: the tile goes without it.
+      // A coordinator whose header limit (serve --max-header-bytes) is below the optional headers' size: the tile goes
+      // without its log, then without asking for the next lease (the worker then asks the lease route).
       if (r.status == 431 && req.headers.erase(protocol::kTileLogHeader) > 0) {
         spdlog::warn("{}: upload answered 431: {}; sending it again without its log lines", prefix, r.error_text());
         continue;
       }
+      if (r.status == 431 && req.headers.erase(protocol::kNextLeaseHeader) > 0) {
+        spdlog::warn("{}: upload answered 431: {}; sending it again without asking for the next lease", prefix,
+                     r.error_text());
+        continue;
+      }
       if (!r.retryable()) {
         spdlog::error("{}: upload answered {}: {}; tile dropped", prefix, r.status, r.error_text());
-        return DeliveryOutcome::kDropped;
+        return {DeliveryOutcome::kDropped, std::nullopt};
       }
       spdlog::warn("{}: upload attempt {} answered {}: {}; retrying", prefix, attempt, r.status, r.error_text());
     } catch (const client::RequestInterrupted&) {
@@ -110,7 +126,7 @@ DeliveryOutcome upload_tile(client::HttpClient& http, const protocol::Lease& l, 
     }
     if (giving_up() || !client::sleep_unless(backoff.next(), giving_up)) {
       spdlog::warn("{}: giving up the upload of tile {} of job {}: {}", prefix, l.tile, l.job, why);
-      return DeliveryOutcome::kDropped;
+      return {DeliveryOutcome::kDropped, std::nullopt};
     }
   }
 }

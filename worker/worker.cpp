@@ -26,6 +26,7 @@
 #include <unistd.h>
 
 #include <exception>
+#include <future>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -97,7 +98,8 @@ class Worker {
       try {
         if (id_.empty() && !register_worker()) continue;
         std::optional<PrefetchedLease> lease = std::exchange(next, std::nullopt);
-        if (!lease) {
+        if (!lease) lease = lease_from_upload();
+        if (!lease && !stopping()) {
           std::optional<protocol::LeaseAnswer> asked = request_lease();
           if (asked)
             lease = PrefetchedLease{std::move(asked->lease), std::chrono::steady_clock::now(), nullptr, std::move(asked->spec)};
@@ -122,6 +124,7 @@ class Worker {
       release(next->lease, prefix(next->lease));
     }
     uploads_.wait_idle();  // the last tile's upload finishes (a second stop request cuts its retries short)
+    if (std::optional<PrefetchedLease> late = lease_from_upload()) release(late->lease, prefix(late->lease));
     std::lock_guard lock(stats_mutex_);
     stats_.scenes_preloaded = scenes_.preloads_used();
     spdlog::info("worker {} stopping: {} tiles uploaded, {} dropped, {} failed, {} released", id_.empty() ? name_ : id_,
@@ -345,14 +348,30 @@ class Worker {
     return req;
   }
 
-  // A lease request's body: the jobs whose scenes are built here, so that a lease of any other job brings its spec,
-  // and how long the coordinator may hold the request for work.
-  std::string lease_request_body(std::chrono::milliseconds wait = 0ms) {
+  // A lease request: the jobs whose scenes are built here, so that a lease of any other job brings its spec, and how
+  // long the coordinator may hold the request for work (sent as a lease request's body, or with an upload).
+  protocol::LeaseRequest lease_request(std::chrono::milliseconds wait = 0ms) {
     protocol::LeaseRequest req;
     req.known_jobs = scenes_.jobs();  // most recently used first: beyond the protocol's limit, the older ones go
     if (req.known_jobs->size() > protocol::kMaxKnownJobs) req.known_jobs->resize(protocol::kMaxKnownJobs);
     req.wait_ms = std::min<int64_t>(wait.count(), protocol::kMaxLeaseWaitMs);
-    return json(req).dump();
+    return req;
+  }
+  std::string lease_request_body(std::chrono::milliseconds wait = 0ms) { return json(lease_request(wait)).dump(); }
+
+  // The lease the last upload asked for, once that upload has ended (settled or given up): nothing when it did not
+  // ask, or its answer carried none (the worker then asks the lease route).
+  std::optional<PrefetchedLease> lease_from_upload() {
+    if (!upload_lease_.valid()) return std::nullopt;
+    std::optional<PrefetchedLease> l = upload_lease_.get();
+    if (!l) return std::nullopt;
+    if (upload_lease_worker_ != id_) {  // registered again meanwhile: the lease is the old identity's and expires
+      spdlog::info("{}: granted to this worker's previous registration; left to expire", prefix(l->lease));
+      return std::nullopt;
+    }
+    idle_.reset();
+    spdlog::info("{}: granted with the upload of the previous tile", prefix(l->lease));
+    return l;
   }
 
   // Asks for a lease, which the coordinator may hold for the idle backoff's next wait: a 204 before the wait is over
@@ -531,20 +550,36 @@ class Worker {
     // The upload carries the last lines logged about this lease, as a failure report does (within the upload's bounds).
     std::vector<std::string> log =
         recent_.log().lines_with(pfx + ":", protocol::kMaxTileLogLines, protocol::kMaxTileLogLineBytes);
+    // A render that ended without the next lease in hand (none was asked for, or its request got none) asks for it
+    // with the upload (docs/protocol.md, "One request per tile"); the loop then takes it from the upload's answer
+    // before it asks the lease route. One that has it (the steady state: asked for near the render's end, so that its
+    // render could begin on the threads this one leaves idle) asks for nothing more.
+    signals.attach({});
+    std::optional<protocol::LeaseRequest> ask;
+    std::shared_ptr<std::promise<std::optional<PrefetchedLease>>> granted;
+    if (!stopping() && !companion.has_next_lease()) {
+      ask = lease_request();
+      granted = std::make_shared<std::promise<std::optional<PrefetchedLease>>>();
+      upload_lease_ = granted->get_future();
+      upload_lease_worker_ = id_;
+    }
     // The secret is copied: the worker may register again (with a new one) while this upload is under way.
     uploads_.post([this, l, secret = secret_, pfx, res = std::make_shared<RenderResult>(std::move(*result)), width,
-                   height, lease_end, rendered, log = std::move(log)] {
+                   height, lease_end, rendered, log = std::move(log), ask = std::move(ask), granted] {
+      std::optional<PrefetchedLease> next;
       try {
-        const DeliveryOutcome outcome =
-            upload_tile(upload_http_, l, secret, pfx, *res, width, height, log, opt_.max_retry_wait,
-                        [this, lease_end, rendered] { return upload_give_up(rendered, lease_end->load()); });
-        count(outcome == DeliveryOutcome::kUploaded ? &WorkerStats::tiles_uploaded
-              : outcome == DeliveryOutcome::kFailed ? &WorkerStats::tiles_failed
-                                                  : &WorkerStats::tiles_dropped);
+        Delivery d = upload_tile(upload_http_, l, secret, pfx, *res, width, height, log, ask, opt_.max_retry_wait,
+                                 [this, lease_end, rendered] { return upload_give_up(rendered, lease_end->load()); });
+        if (d.next)
+          next = PrefetchedLease{std::move(d.next->lease), std::chrono::steady_clock::now(), nullptr, std::move(d.next->spec)};
+        count(d.outcome == DeliveryOutcome::kUploaded ? &WorkerStats::tiles_uploaded
+              : d.outcome == DeliveryOutcome::kFailed ? &WorkerStats::tiles_failed
+                                                    : &WorkerStats::tiles_dropped);
       } catch (const std::exception& e) {
         spdlog::error("{}: upload stopped: {}; tile dropped", pfx, e.what());
         count(&WorkerStats::tiles_dropped);
       }
+      if (granted) granted->set_value(std::move(next));
     });
     std::optional<PrefetchedLease> next = finish();  // heartbeats stop here
     lease_end->store(std::max(beaten, companion.last_beat().value_or(beaten)) + lease_length_);
@@ -612,6 +647,9 @@ class Worker {
   mutable std::atomic<std::chrono::steady_clock::time_point> stop_seen_{};  // see stopping()
   bool down_ = false;
   std::atomic<double> lease_rtt_ms_{0};  // moving average of lease round trips (0: none yet)
+  // The next lease asked for with the last upload (valid until taken), and the worker id it was asked for as.
+  std::future<std::optional<PrefetchedLease>> upload_lease_;
+  std::string upload_lease_worker_;
   std::mutex stats_mutex_;
   WorkerStats stats_;    // guarded by stats_mutex_
   UploadQueue uploads_;  // last: destroyed first, after the upload in flight has finished

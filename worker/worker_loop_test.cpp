@@ -421,6 +421,34 @@ TEST_F(WorkerLoop, HeldUploadGoesThroughWhenLet) {
   expect_bitwise_one_render(id);
 }
 
+// A render that ends without the next lease in hand (there was no other work when the worker asked for it) asks for
+// it with its upload: work that comes while the upload is under way is leased in the upload's answer, with no lease
+// request of its own, and rendered from it.
+TEST_F(WorkerLoop, AnUploadWithoutANextLeaseInHandAsksForItAndTheWorkerRendersIt) {
+  spdlog::set_level(spdlog::level::info);  // the lines a tile's log is made of
+  start_coordinator();
+  proxy_->hold_uploads(true);
+  const std::string first = submit(16, 16, 16, 4);  // one tile: the request for the next lease gets none
+  WorkerThread w(worker_options("w1"));
+  ASSERT_TRUE(eventually([&] { return proxy_->uploads_held() >= 1; }));
+  const std::string second = submit(32, 16, 16, 4);  // two tiles, submitted while the upload is held
+  proxy_->hold_uploads(false);
+  ASSERT_EQ(wait_ended(first).state, JobState::done);
+  ASSERT_EQ(wait_ended(second).state, JobState::done);
+  w.request_stop();
+  const WorkerStats stats = w.join();
+  EXPECT_EQ(stats.tiles_uploaded, 3);
+  EXPECT_EQ(stats.tiles_dropped + stats.tiles_failed + stats.tiles_released, 0);
+  // The second job's first tile came with the first job's upload (its log says so); its other tile as usual.
+  const std::vector<protocol::TileInfo> tiles = client::get_job_tiles(*http_, second).tiles;
+  int with_upload = 0;
+  for (const protocol::TileInfo& t : tiles)
+    for (const std::string& line : t.log) with_upload += line.find("granted with the upload of the previous tile") != std::string::npos;
+  EXPECT_EQ(with_upload, 1);
+  expect_each_tile_rendered_once(second);
+  expect_bitwise_one_render(second);
+}
+
 // A stopping worker whose last upload the coordinator holds gives it up and returns; `why` is the reason it logs.
 // (Should the tile's lease run out before the stop request arrives, the worker leases the tile again and gives up
 // that upload too: each upload given up is one line.)

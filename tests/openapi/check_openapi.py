@@ -150,14 +150,15 @@ class Coordinator:
             return self.holders.get(parts[3])
         return None
 
-    def call(self, method, path, body=None, content_type="application/json", expect=None, secret=None):
-        """Sends a request; one acting as a worker carries that worker's secret unless `secret` names another."""
+    def call(self, method, path, body=None, content_type="application/json", expect=None, secret=None, headers=None):
+        """Sends a request (with these extra headers); one acting as a worker carries that worker's secret unless
+        `secret` names another."""
         if isinstance(body, (dict, list)):
             body = json.dumps(body).encode()
         elif isinstance(body, str):
             body = body.encode()
         conn = http.client.HTTPConnection(self.host, int(self.port), timeout=30)
-        headers = {"Content-Type": content_type} if body is not None else {}
+        headers = {**({"Content-Type": content_type} if body is not None else {}), **(headers or {})}
         worker = self.acting_as(path)
         if secret is None and worker in self.secrets:
             secret = self.secrets[worker]
@@ -176,6 +177,8 @@ class Coordinator:
             self.secrets[answer["id"]] = answer["secret"]
         if method == "POST" and worker is not None and path.endswith("/lease") and r.status == 200:
             self.holders[answer["lease"]] = worker
+        if method == "PUT" and worker is not None and r.status == 200 and "next" in answer:
+            self.holders[answer["next"]["lease"]] = worker  # the next lease the upload asked for
         return r.status, answer
 
     def validate(self, method, path, status, ctype, data):
@@ -414,6 +417,10 @@ def exercise(c, tessera, workdir, address):
     # A resumable job a real worker renders: the done states, the result and an accepted upload.
     _, b = c.call("POST", "/v1/jobs", {**job, "resumable": True}, expect=201)
     b = b["id"]
+    # w2 takes one of b's tiles and hands it back: the real worker renders it, and w2's upload on that lease is then a
+    # duplicate (below), settled without its body being looked at.
+    _, lb = c.call("POST", f"/v1/workers/{w2['id']}/lease", expect=200)
+    c.call("POST", f"/v1/leases/{lb['lease']}/release", expect=200)
     worker = subprocess.Popen([tessera, "worker", "--coordinator", "http://" + address, "--threads", "1"],
                               stdout=subprocess.DEVNULL, stderr=open(os.path.join(workdir, "worker.log"), "w"))
     try:
@@ -490,6 +497,24 @@ def exercise(c, tessera, workdir, address):
     c.call("DELETE", f"/v1/jobs/{sq}.f1?purge=true", expect=409)
     c.call("DELETE", f"/v1/jobs/{sq}?purge=true", expect=200)  # with its frames
     c.call("GET", f"/v1/jobs/{sq}.f1", expect=404)
+
+    # One request per tile: an upload that asks (X-Tessera-Next-Lease, a lease request) carries the worker's next
+    # lease under "next", as the lease route answers it; without the header the answer is the status alone.
+    _, n = c.call("POST", "/v1/jobs", job, expect=201)
+    upload = f"/v1/leases/{lb['lease']}/result"
+    ask = {"X-Tessera-Next-Lease": json.dumps({"known_jobs": []})}
+    c.call("PUT", upload, b"x", "image/x-exr", expect=400, headers={"X-Tessera-Next-Lease": '{"wait_ms": 100}'})
+    _, settled = c.call("PUT", upload, b"x", "image/x-exr", expect=200, headers=ask)
+    nxt = settled.get("next", {}) if isinstance(settled, dict) else {}
+    if settled.get("status") != "duplicate" or nxt.get("job") != n.get("id") or "spec" not in nxt:
+        failures.append(f"an upload asking for its next lease: {settled}")
+    _, plain = c.call("PUT", upload, b"x", "image/x-exr", expect=200)
+    if plain != {"status": "duplicate"}:
+        failures.append(f"an upload not asking for its next lease: {plain}")
+    if "lease" in nxt:
+        c.call("POST", f"/v1/leases/{nxt['lease']}/heartbeat", expect=200)  # w2's, like a lease from the route
+    c.call("DELETE", f"/v1/jobs/{n['id']}", expect=200)
+    c.call("DELETE", f"/v1/jobs/{n['id']}?purge=true", expect=200)
 
     # The stream saw all of it, in order, ending with job b done and then the sequence's two frames done (each
     # frame_done after the job event of its frame's job done).
