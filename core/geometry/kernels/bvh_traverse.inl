@@ -309,15 +309,11 @@ inline void sort_descending(uint32_t* k, int n) {
   }
 }
 
-// Once a hit at t is found, boxes and primitives are tested against tmax = cull_distance(t), a little beyond t
-// (t (1 + 2^-12), then the next float up): a box holding the hit point may compute its entry distance a few
-// roundings beyond the hit's computed t, and a hit at the same t with a lower id must still be found. Primitives
-// found beyond t are then rejected by better().
-constexpr float kCullSlack = 1.f + 0x1p-12f;
-inline float cull_distance(float t) {
-  const float w = t * kCullSlack;
-  return w < __builtin_inff() ? __builtin_bit_cast(float, __builtin_bit_cast(uint32_t, w) + 1u) : w;
-}
+// Once a hit at t is found, boxes and primitives are tested against tmax = t (1 + 2^-20), not t: a box holding the
+// hit point may compute its entry distance a few roundings beyond the hit's computed t (where walls meet, for one),
+// and a hit at the same t with a lower id must still be found (for a normal t the product exceeds t by at least
+// 7 ulps). Primitives found beyond t are rejected by better().
+constexpr float kCullSlack = 1.f + 0x1p-20f;
 
 // Whether a hit at (t, id) beats the closest so far, `best`: nearer, or as near with a lower id.
 inline bool better(float t, uint32_t id, const HitRecord& best) {
@@ -326,7 +322,7 @@ inline bool better(float t, uint32_t id, const HitRecord& best) {
 
 // The closest hit, the least (t, id). Children are visited nearest first by their sort keys (entry distance, then
 // slot), the others pushed farthest first; a popped entry whose entry distance lies beyond the closest hit so far is
-// dropped (with the slack of cull_distance()).
+// dropped.
 bool intersect(const Tree& tree, const RayData& in, HitRecord* out) {
   RaySetup ray;
   if (!setup(tree, in, ray)) return false;
@@ -386,10 +382,9 @@ bool intersect(const Tree& tree, const RayData& in, HitRecord* out) {
         Lanes8 lanes;
         for (unsigned m = triangles8(*pk, valid, tr, tmax, &lanes); m; m &= m - 1) {
           const int k = lowest(m);
-          const uint32_t id = k == 0 ? id0 : pk->id[k];
-          if (better(lanes.t[k], id, best)) {
-            best = HitRecord{lanes.t[k], lanes.b1[k], lanes.b2[k], id};
-            tmax = cull_distance(best.t);
+          if (better(lanes.t[k], k == 0 ? id0 : pk->id[k], best)) {
+            best = HitRecord{lanes.t[k], lanes.b1[k], lanes.b2[k], k == 0 ? id0 : pk->id[k]};
+            tmax = best.t * kCullSlack;
             found = true;
           }
         }
@@ -401,7 +396,7 @@ bool intersect(const Tree& tree, const RayData& in, HitRecord* out) {
           if (sphere_hit(*ray.ray, pk->v[0][0][k], pk->v[0][1][k], pk->v[0][2][k], pk->v[1][0][k], tmax, &th) &&
               better(th, id, best)) {
             best = HitRecord{th, 0.f, 0.f, id};
-            tmax = cull_distance(best.t);
+            tmax = best.t * kCullSlack;
             found = true;
           }
         }
