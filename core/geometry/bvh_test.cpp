@@ -237,41 +237,45 @@ std::vector<Triangle> room() {
 
 TEST(Bvh, TinySceneGivesTheSameHitsAsBruteForceInARoom) {
   const Soup s{room(), {}};
-  const Bvh tiny = Bvh::build(s.tris, {});
+  Bvh tiny = Bvh::build(s.tris, {});
   const Bvh median = Bvh::build(s.tris, {}, BvhOptions{SplitMethod::kMedian});  // the binary build's tree
   EXPECT_EQ(tiny.stats().nodes, 1u + tiny.stats().leaves);  // one node over its leaves
   EXPECT_LE(tiny.stats().leaves, 8u);
-  std::mt19937 rng(3);
-  std::uniform_real_distribution<float> u(-1.f, 1.f);
-  size_t hits = 0;
-  for (size_t i = 0; i < testing::scaled(40000); ++i) {
-    // From inside the room, from outside and from vertices; toward random points, the edges where walls meet and
-    // the quads' diagonals (where two triangles meet at the same distance).
-    Vec3 o = Vec3(u(rng), u(rng) + 1.f, u(rng)) * 0.98f;
-    if (i % 5 == 1) o = Vec3(u(rng), u(rng) + 1.f, u(rng)) * 3.f;
-    const Triangle& t = s.tris[(i * 13) % s.tris.size()];
-    if (i % 7 == 3) o = t.p1;
-    const float f = 0.5f * (u(rng) + 1.f);
-    Vec3 target = Vec3(u(rng), u(rng) + 1.f, u(rng)) * 1.5f;
-    if (i % 3 == 1) target = t.p0 + f * (t.p1 - t.p0);
-    if (i % 3 == 2) target = t.p0 + f * (t.p2 - t.p0);
-    Ray r{o, target - o};
-    if (i % 4 == 2) r.tmax = 0.5f + (u(rng) + 1.f);
-    const auto expect = brute_force(s, r);
-    const auto got = tiny.intersect(r), other = median.intersect(r);
-    ASSERT_EQ(expect.has_value(), got.has_value()) << "ray " << i;
-    ASSERT_EQ(tiny.occluded(r), expect.has_value()) << "ray " << i;
-    if (!expect) continue;
-    ++hits;
-    ASSERT_EQ(std::bit_cast<uint32_t>(expect->t), std::bit_cast<uint32_t>(got->t)) << "ray " << i;
-    ASSERT_EQ(expect->prim, got->prim) << "ray " << i;
-    ASSERT_TRUE(other);  // and bitwise the hit of another tree
-    ASSERT_EQ(std::bit_cast<uint32_t>(other->t), std::bit_cast<uint32_t>(got->t)) << "ray " << i;
-    ASSERT_EQ(other->prim, got->prim) << "ray " << i;
-    ASSERT_EQ(std::bit_cast<uint32_t>(other->b1), std::bit_cast<uint32_t>(got->b1)) << "ray " << i;
-    ASSERT_EQ(std::bit_cast<uint32_t>(other->b2), std::bit_cast<uint32_t>(got->b2)) << "ray " << i;
+  for (SimdPath path : supported_simd_paths()) {
+    SCOPED_TRACE(std::string(kSimdPathNames[size_t(path)]));
+    tiny.set_simd_path(path);
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<float> u(-1.f, 1.f);
+    size_t hits = 0;
+    for (size_t i = 0; i < testing::scaled(40000); ++i) {
+      // From inside the room, from outside and from vertices; toward random points, the edges where walls meet and
+      // the quads' diagonals (where two triangles meet at the same distance).
+      Vec3 o = Vec3(u(rng), u(rng) + 1.f, u(rng)) * 0.98f;
+      if (i % 5 == 1) o = Vec3(u(rng), u(rng) + 1.f, u(rng)) * 3.f;
+      const Triangle& t = s.tris[(i * 13) % s.tris.size()];
+      if (i % 7 == 3) o = t.p1;
+      const float f = 0.5f * (u(rng) + 1.f);
+      Vec3 target = Vec3(u(rng), u(rng) + 1.f, u(rng)) * 1.5f;
+      if (i % 3 == 1) target = t.p0 + f * (t.p1 - t.p0);
+      if (i % 3 == 2) target = t.p0 + f * (t.p2 - t.p0);
+      Ray r{o, target - o};
+      if (i % 4 == 2) r.tmax = 0.5f + (u(rng) + 1.f);
+      const auto expect = brute_force(s, r);
+      const auto got = tiny.intersect(r), other = median.intersect(r);
+      ASSERT_EQ(expect.has_value(), got.has_value()) << "ray " << i;
+      ASSERT_EQ(tiny.occluded(r), expect.has_value()) << "ray " << i;
+      if (!expect) continue;
+      ++hits;
+      ASSERT_EQ(std::bit_cast<uint32_t>(expect->t), std::bit_cast<uint32_t>(got->t)) << "ray " << i;
+      ASSERT_EQ(expect->prim, got->prim) << "ray " << i;
+      ASSERT_TRUE(other);  // and bitwise the hit of another tree
+      ASSERT_EQ(std::bit_cast<uint32_t>(other->t), std::bit_cast<uint32_t>(got->t)) << "ray " << i;
+      ASSERT_EQ(other->prim, got->prim) << "ray " << i;
+      ASSERT_EQ(std::bit_cast<uint32_t>(other->b1), std::bit_cast<uint32_t>(got->b1)) << "ray " << i;
+      ASSERT_EQ(std::bit_cast<uint32_t>(other->b2), std::bit_cast<uint32_t>(got->b2)) << "ray " << i;
+    }
+    EXPECT_GT(hits, testing::scaled(40000) / 2);
   }
-  EXPECT_GT(hits, testing::scaled(40000) / 2);
 }
 
 TEST(Bvh, TinyRandomSoupsMatchBruteForce) {
