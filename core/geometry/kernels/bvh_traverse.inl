@@ -321,8 +321,8 @@ inline bool better(float t, uint32_t id, const HitRecord& best) {
 }
 
 // The closest hit, the least (t, id). Children are visited nearest first by their sort keys (entry distance, then
-// slot), the others pushed farthest first; a popped entry whose entry distance lies beyond the closest hit so far is
-// dropped.
+// slot), the others pushed farthest first; a popped entry whose entry distance lies beyond tmax (the closest hit so
+// far with its slack) is dropped.
 bool intersect(const Tree& tree, const RayData& in, HitRecord* out) {
   RaySetup ray;
   if (!setup(tree, in, ray)) return false;
