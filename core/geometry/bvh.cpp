@@ -608,6 +608,92 @@ struct Bvh::Builder {
     return kLeafBit | first;
   }
 
+  // ---- Tiny scenes: one wide node over at most kNodeWidth leaves.
+  //
+  // Rays in a scene of a few dozen primitives (a room and what stands in it) mostly start inside it. There the
+  // binned build's leaves, each mixing pieces of several walls to fill its packet, all span the room, so every ray
+  // enters every leaf. Scenes of at most kTinyScene references are instead grouped bottom-up: the two groups whose
+  // merge adds least to the sum over groups of packets times the area of the group's box are merged, as long as a
+  // merge adds nothing or more than kNodeWidth groups remain, up to kTinyLeaf references a group. A room's walls so
+  // become leaves of their own, flat boxes that only the rays reaching them enter.
+  static constexpr size_t kTinyScene = size_t(kNodeWidth) * size_t(kPacketWidth);
+  static constexpr uint32_t kTinyLeaf = 2 * uint32_t(kPacketWidth);
+
+  // Builds the tiny layout over all references into bvh; false (nothing written) when they do not fit in
+  // kNodeWidth groups.
+  bool build_tiny() {
+    const uint32_t ntri = bvh.num_triangles_;
+    struct Group {
+      Bounds3 box;
+      uint32_t tris = 0, others = 0;
+      std::vector<uint32_t> refs;
+    };
+    const auto cost = [](const Bounds3& b, uint32_t tris, uint32_t others) {
+      return float(packets_for(tris) + packets_for(others)) * b.surface_area();
+    };
+    std::vector<Group> groups(refs.size());
+    std::vector<float> costs(refs.size());
+    for (uint32_t i = 0; i < refs.size(); ++i) {
+      const BuildRef& r = refs[i];
+      groups[i].box = Bounds3{Vec3(r.lo[0], r.lo[1], r.lo[2]), Vec3(r.hi[0], r.hi[1], r.hi[2])};
+      (refs[i].id < ntri ? groups[i].tris : groups[i].others) = 1;
+      groups[i].refs = {i};
+      costs[i] = cost(groups[i].box, groups[i].tris, groups[i].others);
+    }
+    for (;;) {
+      float best = kInfinity;
+      size_t bi = 0, bj = 0;
+      for (size_t i = 0; i < groups.size(); ++i)
+        for (size_t j = i + 1; j < groups.size(); ++j) {
+          if (groups[i].refs.size() + groups[j].refs.size() > kTinyLeaf) continue;
+          Bounds3 u = groups[i].box;
+          u.extend(groups[j].box);
+          const float d = cost(u, groups[i].tris + groups[j].tris, groups[i].others + groups[j].others) - costs[i] -
+                          costs[j];
+          if (d < best) {
+            best = d;
+            bi = i;
+            bj = j;
+          }
+        }
+      if (best == kInfinity) {
+        if (groups.size() > size_t(kNodeWidth)) return false;
+        break;
+      }
+      if (groups.size() <= size_t(kNodeWidth) && best > 0.f) break;
+      Group& a = groups[bi];
+      Group& b = groups[bj];
+      a.box.extend(b.box);
+      a.tris += b.tris;
+      a.others += b.others;
+      a.refs.insert(a.refs.end(), b.refs.begin(), b.refs.end());
+      costs[bi] = cost(a.box, a.tris, a.others);
+      groups.erase(groups.begin() + std::ptrdiff_t(bj));
+      costs.erase(costs.begin() + std::ptrdiff_t(bj));
+    }
+    // Leaves in the order of their first reference, references in input order.
+    for (Group& gr : groups) std::sort(gr.refs.begin(), gr.refs.end());
+    std::sort(groups.begin(), groups.end(), [](const Group& x, const Group& y) { return x.refs[0] < y.refs[0]; });
+    const RefVector in(refs.begin(), refs.end());
+    uint32_t w = 0, packets = 0;
+    for (const Group& gr : groups) {
+      for (uint32_t i : gr.refs) refs[w++] = in[i];
+      packets += packets_for(gr.tris) + packets_for(gr.others);
+    }
+    bvh.packets_.resize(packets);
+    bvh.nodes_.resize(1);
+    Node& node = bvh.nodes_[0];
+    uint32_t begin = 0, next_packet = 0;
+    for (size_t k = 0; k < groups.size(); ++k) {
+      const uint32_t end = begin + uint32_t(groups[k].refs.size());
+      set_slot(node, int(k), groups[k].box, emit_leaf(begin, end, next_packet));
+      next_packet += packets_for(groups[k].tris) + packets_for(groups[k].others);
+      begin = end;
+    }
+    clear_slots(node, int(groups.size()));
+    return true;
+  }
+
   // ---- The binary tree, and its collapse into the wide tree.
   //
   // The builder first makes a binary tree (every range split once, by split()), then chooses which of its inner
@@ -847,14 +933,15 @@ Bvh Bvh::build(std::span<const Triangle> triangles, std::span<const Sphere> sphe
   }
   if (refs.empty()) return bvh;
   Range root_range;
-  root_range.begin = 0;
-  root_range.end = uint32_t(refs.size());
   root_range.box = acc.box.bounds();
   root_range.cbox = acc.cbox.bounds();
+  root_range.begin = 0;
+  root_range.end = uint32_t(refs.size());
   bvh.bounds_ = root_range.box;
 
   const size_t n = refs.size();
   Builder b(options, refs, triangles, spheres, bvh);
+  if (n <= Builder::kTinyScene && options.split == SplitMethod::kSah && b.build_tiny()) return bvh;
   // A binary tree over n references has at most 2n - 1 nodes; only the used part is touched.
   b.binary.resize(2 * n);
   b.next_binary.store(1);
@@ -866,7 +953,7 @@ Bvh Bvh::build(std::span<const Triangle> triangles, std::span<const Sphere> sphe
     // The whole scene is one leaf: a root with a single child.
     bvh.nodes_.resize(1);
     Node& node = bvh.nodes_[0];
-    Builder::set_slot(node, 0, root_range.box, b.emit_leaf(root_range.begin, root_range.end, 0));
+    Builder::set_slot(node, 0, root_range.box, b.emit_leaf(root.begin, root.end, 0));
     Builder::clear_slots(node, 1);
   } else {
     bvh.nodes_.resize(root.wide_nodes);

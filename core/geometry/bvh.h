@@ -1,5 +1,5 @@
-// Bounding volume hierarchy over triangles and spheres: binned-SAH build of a 4-wide tree with SIMD node and
-// 4-triangle leaf tests, closest-hit and any-hit queries through kernels chosen at run time (core/util/simd_path.h).
+// Bounding volume hierarchy over triangles and spheres: binned-SAH build of an 8-wide tree (tiny scenes: one node
+// over leaves grouped bottom-up) with SIMD node and 8-primitive leaf tests, closest-hit and any-hit queries through kernels chosen at run time (core/util/simd_path.h).
 #pragma once
 
 #include "core/geometry/bounds.h"
@@ -32,7 +32,9 @@ struct Hit {
 /// Build parameters.
 struct BvhOptions {
   SplitMethod split = SplitMethod::kSah;  ///< Split strategy.
-  int max_leaf_prims = 8;                 ///< Upper bound on primitives per leaf when a split is possible.
+  int max_leaf_prims = 8;                 ///< Upper bound on primitives per leaf when a split is possible (binned
+                                          ///< and median builds; scenes of at most 64 primitives built with kSah
+                                          ///< are grouped into at most 8 leaves of up to 16 instead).
   int bins = 16;                          ///< SAH bins per axis.
 };
 
@@ -86,7 +88,8 @@ class Bvh {
   static Bvh build(std::span<const Triangle> triangles, std::span<const Sphere> spheres,
                    const BvhOptions& options = {});
 
-  /// Closest hit in (0, r.tmax), or nothing; invalid rays (NaN, zero direction) never hit.
+  /// Closest hit in (0, r.tmax), or nothing; invalid rays (NaN, zero direction) never hit. Of hits at the same
+  /// distance the one with the lowest primitive id is returned, whatever the tree's shape and the SimdPath.
   std::optional<Hit> intersect(const Ray& r) const;
 
   /// True when anything is hit in (0, r.tmax); stops at the first hit found.

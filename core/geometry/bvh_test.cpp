@@ -80,6 +80,7 @@ void compare(const Soup& s, const Bvh& bvh, size_t rays, uint32_t seed) {
     if (expect) {
       ++hits;
       ASSERT_EQ(expect->t, got->t) << "ray " << i;  // bitwise: same test, same nearest distance
+      ASSERT_EQ(expect->prim, got->prim) << "ray " << i;  // the lowest id of those at that distance
     }
     ASSERT_EQ(bvh.occluded(r), expect.has_value()) << "ray " << i;
     if (expect) {
@@ -221,6 +222,105 @@ TEST(Bvh, ManyCoincidentPrimitivesKeepDepthBounded) {
     chain.push_back({{x, 0, 0}, {x, 1, 0}, {x, 0, 1}});
   }
   EXPECT_LE(Bvh::build(chain, {}).stats().max_depth, Bvh::kMaxDepth);
+}
+
+// A closed box of 12 triangles (the walls) around two smaller boxes and a light, as in the Cornell box: a tiny
+// scene, built as one node over grouped leaves.
+std::vector<Triangle> room() {
+  std::vector<Triangle> tris = make_box_grid({-1.f, 0.f, -1.f}, {1.f, 2.f, 1.f}, 1).triangles();
+  for (const Triangle& t : make_box_grid({-0.7f, 0.f, -0.6f}, {-0.1f, 1.2f, 0.f}, 1).triangles()) tris.push_back(t);
+  for (const Triangle& t : make_box_grid({0.15f, 0.f, 0.1f}, {0.65f, 0.6f, 0.6f}, 1).triangles()) tris.push_back(t);
+  tris.push_back({{-0.25f, 1.99f, -0.2f}, {0.25f, 1.99f, -0.2f}, {0.25f, 1.99f, 0.2f}});  // the light
+  tris.push_back({{-0.25f, 1.99f, -0.2f}, {0.25f, 1.99f, 0.2f}, {-0.25f, 1.99f, 0.2f}});
+  return tris;
+}
+
+TEST(Bvh, TinySceneGivesTheSameHitsAsBruteForceInARoom) {
+  const Soup s{room(), {}};
+  Bvh tiny = Bvh::build(s.tris, {});
+  const Bvh median = Bvh::build(s.tris, {}, BvhOptions{SplitMethod::kMedian});  // the binary build's tree
+  EXPECT_EQ(tiny.stats().nodes, 1u + tiny.stats().leaves);  // one node over its leaves
+  EXPECT_LE(tiny.stats().leaves, 8u);
+  for (SimdPath path : supported_simd_paths()) {
+    SCOPED_TRACE(std::string(kSimdPathNames[size_t(path)]));
+    tiny.set_simd_path(path);
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<float> u(-1.f, 1.f);
+    size_t hits = 0;
+    for (size_t i = 0; i < testing::scaled(40000); ++i) {
+      // From inside the room, from outside and from vertices; toward random points, the edges where walls meet and
+      // the quads' diagonals (where two triangles meet at the same distance).
+      Vec3 o = Vec3(u(rng), u(rng) + 1.f, u(rng)) * 0.98f;
+      if (i % 5 == 1) o = Vec3(u(rng), u(rng) + 1.f, u(rng)) * 3.f;
+      const Triangle& t = s.tris[(i * 13) % s.tris.size()];
+      if (i % 7 == 3) o = t.p1;
+      const float f = 0.5f * (u(rng) + 1.f);
+      Vec3 target = Vec3(u(rng), u(rng) + 1.f, u(rng)) * 1.5f;
+      if (i % 3 == 1) target = t.p0 + f * (t.p1 - t.p0);
+      if (i % 3 == 2) target = t.p0 + f * (t.p2 - t.p0);
+      Ray r{o, target - o};
+      if (i % 4 == 2) r.tmax = 0.5f + (u(rng) + 1.f);
+      const auto expect = brute_force(s, r);
+      const auto got = tiny.intersect(r), other = median.intersect(r);
+      ASSERT_EQ(expect.has_value(), got.has_value()) << "ray " << i;
+      ASSERT_EQ(tiny.occluded(r), expect.has_value()) << "ray " << i;
+      if (!expect) continue;
+      ++hits;
+      ASSERT_EQ(std::bit_cast<uint32_t>(expect->t), std::bit_cast<uint32_t>(got->t)) << "ray " << i;
+      ASSERT_EQ(expect->prim, got->prim) << "ray " << i;
+      ASSERT_TRUE(other);  // and bitwise the hit of another tree
+      ASSERT_EQ(std::bit_cast<uint32_t>(other->t), std::bit_cast<uint32_t>(got->t)) << "ray " << i;
+      ASSERT_EQ(other->prim, got->prim) << "ray " << i;
+      ASSERT_EQ(std::bit_cast<uint32_t>(other->b1), std::bit_cast<uint32_t>(got->b1)) << "ray " << i;
+      ASSERT_EQ(std::bit_cast<uint32_t>(other->b2), std::bit_cast<uint32_t>(got->b2)) << "ray " << i;
+    }
+    EXPECT_GT(hits, testing::scaled(40000) / 2);
+  }
+}
+
+TEST(Bvh, TinyRandomSoupsMatchBruteForce) {
+  // Up to 64 primitives: degenerate, huge, tiny and coincident triangles and spheres in a few grouped leaves.
+  for (uint32_t seed : {5u, 6u, 7u}) {
+    Soup s = random_soup(50, seed);
+    ASSERT_LE(s.tris.size() + s.spheres.size(), 64u);
+    const Bvh bvh = Bvh::build(s.tris, s.spheres);
+    EXPECT_EQ(bvh.stats().nodes, 1u + bvh.stats().leaves);
+    compare(s, bvh, testing::scaled(20000), seed * 17);
+  }
+}
+
+TEST(Bvh, HitsAtTheSameDistanceGoToTheLowestId) {
+  // Copies of one triangle among others, at ids that different trees visit in different orders; a ray through the
+  // copies meets all of them at the same t and must report the lowest id, whatever the tree and the SimdPath.
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  std::vector<Triangle> tris;
+  while (tris.size() < 300) {  // small triangles away from the ray
+    const Vec3 c = Vec3(u(rng), u(rng), u(rng)) * 10.f;
+    if (std::abs(c.x) < 2.f && std::abs(c.y) < 2.f) continue;
+    tris.push_back({c, c + Vec3(u(rng), u(rng), u(rng)) * 0.5f, c + Vec3(u(rng), u(rng), u(rng)) * 0.5f});
+  }
+  const Triangle copy{{-0.5f, -0.5f, 0.3f}, {0.6f, -0.4f, 0.35f}, {0.f, 0.7f, 0.25f}};
+  uint32_t lowest = 0xffffffffu;
+  for (uint32_t i = 17; i < 300; i += 37) {
+    tris[i] = copy;
+    lowest = std::min(lowest, i);
+  }
+  const Ray r{{0.05f, 0.02f, 5.f}, {0.f, 0.f, -1.f}};
+  for (int max_leaf : {1, 2, 8, 64}) {
+    for (SplitMethod m : {SplitMethod::kSah, SplitMethod::kMedian}) {
+      BvhOptions opt;
+      opt.split = m;
+      opt.max_leaf_prims = max_leaf;
+      Bvh bvh = Bvh::build(tris, {}, opt);
+      for (SimdPath p : supported_simd_paths()) {
+        bvh.set_simd_path(p);
+        const auto h = bvh.intersect(r);
+        ASSERT_TRUE(h);
+        EXPECT_EQ(h->prim, lowest) << "max_leaf " << max_leaf << " path " << kSimdPathNames[size_t(p)];
+      }
+    }
+  }
 }
 
 TEST(Bvh, EmptyAndInvalid) {

@@ -9,8 +9,10 @@
 //   roundings shrink it by at most (1 - 2^-24)^4, which 1 + 2 gamma(3) more than makes up).
 // * Children visited nearest first by the same sort keys (entry distance, then slot); the same stack discipline
 //   and pop-time culling.
-// * Triangle tests per lane with exactly intersect_triangle()'s operations (core/geometry/triangle.h), lanes accepted in
-//   order with t < tmax, and the same double-precision fallback.
+// * Triangle tests per lane with exactly intersect_triangle()'s operations (core/geometry/triangle.h) and the same
+//   double-precision fallback.
+// * The closest hit is the least (t, primitive id): of hits at the same distance the lowest id wins, so the answer
+//   depends neither on the tree's shape nor on the order in which leaves and lanes are met.
 
 namespace {
 
@@ -307,15 +309,27 @@ inline void sort_descending(uint32_t* k, int n) {
   }
 }
 
-// The closest hit. Children are visited nearest first by their sort keys (entry distance, then slot), the others
-// pushed farthest first; a popped entry whose entry distance lies beyond the closest hit so far is dropped.
+// Once a hit at t is found, boxes and primitives are tested against tmax = t (1 + 2^-20), not t: a box holding the
+// hit point may compute its entry distance a few roundings beyond the hit's computed t (where walls meet, for one),
+// and a hit at the same t with a lower id must still be found (for a normal t the product exceeds t by at least
+// 7 ulps). Primitives found beyond t are rejected by better().
+constexpr float kCullSlack = 1.f + 0x1p-20f;
+
+// Whether a hit at (t, id) beats the closest so far, `best`: nearer, or as near with a lower id.
+inline bool better(float t, uint32_t id, const HitRecord& best) {
+  return t < best.t || (t == best.t && id < best.prim);
+}
+
+// The closest hit, the least (t, id). Children are visited nearest first by their sort keys (entry distance, then
+// slot), the others pushed farthest first; a popped entry whose entry distance lies beyond tmax (the closest hit so
+// far with its slack) is dropped.
 bool intersect(const Tree& tree, const RayData& in, HitRecord* out) {
   RaySetup ray;
   if (!setup(tree, in, ray)) return false;
   const RaySetup& sr = ray;
   const RaySetup& tr = ray;
   float tmax = ray.tmax;
-  HitRecord best{};
+  HitRecord best{tmax, 0.f, 0.f, kNoPrim};
   bool found = false;
 
   StackEntry stack[kStackSize];
@@ -368,9 +382,9 @@ bool intersect(const Tree& tree, const RayData& in, HitRecord* out) {
         Lanes8 lanes;
         for (unsigned m = triangles8(*pk, valid, tr, tmax, &lanes); m; m &= m - 1) {
           const int k = lowest(m);
-          if (lanes.t[k] < tmax) {  // lanes in order, as a sequential loop would accept them
-            tmax = lanes.t[k];
+          if (better(lanes.t[k], k == 0 ? id0 : pk->id[k], best)) {
             best = HitRecord{lanes.t[k], lanes.b1[k], lanes.b2[k], k == 0 ? id0 : pk->id[k]};
+            tmax = best.t * kCullSlack;
             found = true;
           }
         }
@@ -378,9 +392,11 @@ bool intersect(const Tree& tree, const RayData& in, HitRecord* out) {
         for (unsigned m = valid; m; m &= m - 1) {
           const int k = lowest(m);
           float th;
-          if (sphere_hit(*ray.ray, pk->v[0][0][k], pk->v[0][1][k], pk->v[0][2][k], pk->v[1][0][k], tmax, &th)) {
-            tmax = th;
-            best = HitRecord{th, 0.f, 0.f, k == 0 ? id0 : pk->id[k]};
+          const uint32_t id = k == 0 ? id0 : pk->id[k];
+          if (sphere_hit(*ray.ray, pk->v[0][0][k], pk->v[0][1][k], pk->v[0][2][k], pk->v[1][0][k], tmax, &th) &&
+              better(th, id, best)) {
+            best = HitRecord{th, 0.f, 0.f, id};
+            tmax = best.t * kCullSlack;
             found = true;
           }
         }
