@@ -9,5 +9,7 @@ freeze_setup() {
   FREEZE_ENV=("TESSERA_FAIL_POINTS=worker.upload=1*stop")
 }
 
-# frozen_tile LOG: "tile=N" of the tile a frozen worker rendered last (the one waiting for its upload).
-frozen_tile() { grep -Eo "tile=[0-9]+ lease=[^:]+: rendered in" "$1" | tail -n1 | grep -Eo "tile=[0-9]+"; }
+# frozen_tile LOG: "tile=N" of the tile whose upload froze the worker: the first it rendered, since uploads go in the
+# order of the renders and the fail point stops the first (the render of the next tile, begun ahead on threads the
+# first left idle, may have ended too before the upload began).
+frozen_tile() { grep -Eo "tile=[0-9]+ lease=[^:]+: rendered in" "$1" | head -n1 | grep -Eo "tile=[0-9]+"; }
