@@ -1,5 +1,6 @@
 // Bounding volume hierarchy over triangles and spheres: binned-SAH build of an 8-wide tree (tiny scenes: one node
-// over leaves grouped bottom-up) with SIMD node and 8-primitive leaf tests, closest-hit and any-hit queries through kernels chosen at run time (core/util/simd_path.h).
+// over leaves grouped bottom-up) with SIMD node and 8-primitive leaf tests, closest-hit and any-hit queries through
+// kernels chosen at run time (core/util/simd_path.h).
 #pragma once
 
 #include "core/geometry/bounds.h"
