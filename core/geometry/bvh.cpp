@@ -623,22 +623,24 @@ struct Bvh::Builder {
   // kNodeWidth groups.
   bool build_tiny() {
     const uint32_t ntri = bvh.num_triangles_;
+    const auto packets = [](uint32_t tris, uint32_t others) { return packets_for(tris) + packets_for(others); };
+    const auto cost = [&](const Bounds3& b, uint32_t tris, uint32_t others) {
+      return float(packets(tris, others)) * b.surface_area();
+    };
     struct Group {
       Bounds3 box;
       uint32_t tris = 0, others = 0;
       std::vector<uint32_t> refs;
-    };
-    const auto cost = [](const Bounds3& b, uint32_t tris, uint32_t others) {
-      return float(packets_for(tris) + packets_for(others)) * b.surface_area();
+      float cost = 0.f;  // cost(box, tris, others)
     };
     std::vector<Group> groups(refs.size());
-    std::vector<float> costs(refs.size());
     for (uint32_t i = 0; i < refs.size(); ++i) {
       const BuildRef& r = refs[i];
-      groups[i].box = Bounds3{Vec3(r.lo[0], r.lo[1], r.lo[2]), Vec3(r.hi[0], r.hi[1], r.hi[2])};
-      (refs[i].id < ntri ? groups[i].tris : groups[i].others) = 1;
-      groups[i].refs = {i};
-      costs[i] = cost(groups[i].box, groups[i].tris, groups[i].others);
+      Group& g = groups[i];
+      g.box = Bounds3{Vec3(r.lo[0], r.lo[1], r.lo[2]), Vec3(r.hi[0], r.hi[1], r.hi[2])};
+      (r.id < ntri ? g.tris : g.others) = 1;
+      g.refs = {i};
+      g.cost = cost(g.box, g.tris, g.others);
     }
     for (;;) {
       float best = kInfinity;
@@ -648,8 +650,8 @@ struct Bvh::Builder {
           if (groups[i].refs.size() + groups[j].refs.size() > kTinyLeaf) continue;
           Bounds3 u = groups[i].box;
           u.extend(groups[j].box);
-          const float d = cost(u, groups[i].tris + groups[j].tris, groups[i].others + groups[j].others) - costs[i] -
-                          costs[j];
+          const float d = cost(u, groups[i].tris + groups[j].tris, groups[i].others + groups[j].others) -
+                          groups[i].cost - groups[j].cost;
           if (d < best) {
             best = d;
             bi = i;
@@ -667,27 +669,26 @@ struct Bvh::Builder {
       a.tris += b.tris;
       a.others += b.others;
       a.refs.insert(a.refs.end(), b.refs.begin(), b.refs.end());
-      costs[bi] = cost(a.box, a.tris, a.others);
+      a.cost = cost(a.box, a.tris, a.others);
       groups.erase(groups.begin() + std::ptrdiff_t(bj));
-      costs.erase(costs.begin() + std::ptrdiff_t(bj));
     }
     // Leaves in the order of their first reference, references in input order.
     for (Group& gr : groups) std::sort(gr.refs.begin(), gr.refs.end());
     std::sort(groups.begin(), groups.end(), [](const Group& x, const Group& y) { return x.refs[0] < y.refs[0]; });
     const RefVector in(refs.begin(), refs.end());
-    uint32_t w = 0, packets = 0;
+    uint32_t w = 0, total = 0;
     for (const Group& gr : groups) {
       for (uint32_t i : gr.refs) refs[w++] = in[i];
-      packets += packets_for(gr.tris) + packets_for(gr.others);
+      total += packets(gr.tris, gr.others);
     }
-    bvh.packets_.resize(packets);
+    bvh.packets_.resize(total);
     bvh.nodes_.resize(1);
     Node& node = bvh.nodes_[0];
     uint32_t begin = 0, next_packet = 0;
     for (size_t k = 0; k < groups.size(); ++k) {
       const uint32_t end = begin + uint32_t(groups[k].refs.size());
       set_slot(node, int(k), groups[k].box, emit_leaf(begin, end, next_packet));
-      next_packet += packets_for(groups[k].tris) + packets_for(groups[k].others);
+      next_packet += packets(groups[k].tris, groups[k].others);
       begin = end;
     }
     clear_slots(node, int(groups.size()));
