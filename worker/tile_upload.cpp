@@ -17,6 +17,17 @@ using namespace std::chrono_literals;
 
 namespace {
 
+// Removes the first optional header the upload still has, in the order they are given up when the coordinator's header
+// limit is too low (its log lines, then the next lease's request), and says what the upload goes without; nullptr
+// when none is left.
+const char* drop_optional_header(client::HttpRequest& req) {
+  static constexpr std::pair<const char*, const char*> kOptional[] = {
+      {protocol::kTileLogHeader, "its log lines"}, {protocol::kNextLeaseHeader, "asking for the next lease"}};
+  for (const auto& [header, without] : kOptional)
+    if (req.headers.erase(header) > 0) return without;
+  return nullptr;
+}
+
 #if defined(TESSERA_FAILPOINTS)
 // The corrupted tile of fail point worker.upload.corrupt: "nan" puts a NaN in the first pixel, "size" drops the last
 // column (or row).
@@ -105,14 +116,11 @@ Delivery upload_tile(client::HttpClient& http, const protocol::Lease& l, const s
       }
       // A coordinator whose header limit (serve --max-header-bytes) is below the optional headers' size: the tile goes
       // without its log, then without asking for the next lease (the worker then asks the lease route).
-      if (r.status == 431 && req.headers.erase(protocol::kTileLogHeader) > 0) {
-        spdlog::warn("{}: upload answered 431: {}; sending it again without its log lines", prefix, r.error_text());
-        continue;
-      }
-      if (r.status == 431 && req.headers.erase(protocol::kNextLeaseHeader) > 0) {
-        spdlog::warn("{}: upload answered 431: {}; sending it again without asking for the next lease", prefix,
-                     r.error_text());
-        continue;
+      if (r.status == 431) {
+        if (const char* dropped = drop_optional_header(req)) {
+          spdlog::warn("{}: upload answered 431: {}; sending it again without {}", prefix, r.error_text(), dropped);
+          continue;
+        }
       }
       if (!r.retryable()) {
         spdlog::error("{}: upload answered {}: {}; tile dropped", prefix, r.status, r.error_text());
