@@ -53,9 +53,7 @@ void check_path(const std::string& rel, const std::string& where) {
 JobService::JobService(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock,
                        AdmissionLimits limits, FarmEvents& events, DiskSpace& disk, Background background)
     : sched_(scheduler), blobs_(blobs), jobs_(jobs), metrics_(metrics), clock_(std::move(clock)), limits_(limits),
-      events_(events), disk_(disk), background_(std::move(background)) {
-  if (!background_) background_ = [](std::function<void()> work) { work(); };
-}
+      events_(events), disk_(disk), background_(at_once_if_empty(std::move(background))) {}
 
 int64_t JobService::unfinished_jobs() {
   const SchedulerCounters c = sched_.counters();

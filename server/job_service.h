@@ -56,6 +56,12 @@ using UploadDone = std::function<void(UploadOutcome outcome, std::exception_ptr 
 /// Runs work that may take long (writing a finished job's result) somewhere it blocks nobody; by default, at once.
 using Background = std::function<void(std::function<void()>)>;
 
+/// `background`, or one that runs the work at once when it is empty (the default of the classes that take one).
+inline Background at_once_if_empty(Background background) {
+  if (!background) background = [](std::function<void()> work) { work(); };
+  return background;
+}
+
 /// Jobs from submission to result. Thread-safe. Every change of a job, and every tile done or failed, is published
 /// to `events` after it happened.
 class JobService {

@@ -16,9 +16,7 @@ using protocol::Endpoint;
 LeasesHandler::LeasesHandler(Scheduler& scheduler, JobService& jobs, Metrics& metrics, ClockMs clock, FarmEvents& events,
                              LeaseWaiters& waiters, Background background)
     : sched_(scheduler), jobs_(jobs), metrics_(metrics), clock_(std::move(clock)), events_(events), waiters_(waiters),
-      background_(std::move(background)) {
-  if (!background_) background_ = [](std::function<void()> work) { work(); };
-}
+      background_(at_once_if_empty(std::move(background))) {}
 
 HttpResponse LeasesHandler::handle(const protocol::RouteMatch& route, HttpRequest& req, const Caller& /*caller*/) {
   const Endpoint endpoint = route.endpoint();
