@@ -57,8 +57,8 @@ CLI::App* add_render_command(CLI::App& app, RenderArgs& a) {
   c->add_option("--tile", a.tile_size, "Tile edge in pixels for the thread scheduler")->check(CLI::Range(1, 4096));
   c->add_flag("-q,--quiet", a.quiet, "No progress bar");
   c->add_flag("--timing", a.timing,
-              "Print where the wall time went: load (with the BVH build), film set-up, the threaded render and its "
-              "idle thread time, the write");
+              "Print where the wall time went: load (with the BVH build), the set-up around the threaded render, the "
+              "threaded render and its idle thread time, the write");
   c->add_option("--workers", a.workers,
                 "Render through a private coordinator and N worker processes on this machine (0: in this process)")
       ->check(CLI::Range(0, 256));
@@ -193,7 +193,8 @@ int render_scene(const RenderArgs& given) {
     for (const auto& w : loaded.warnings) spdlog::warn("{}", w);
     for (const auto& n : loaded.notes) spdlog::info("{}", n);
     const Scene& scene = loaded.scene;
-    const double load_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_load).count();
+    const auto t_loaded = std::chrono::steady_clock::now();
+    const double load_s = std::chrono::duration<double>(t_loaded - t_load).count();
     const uint32_t spp = a.spp ? *a.spp : scene.settings.spp;
     std::optional<StoredRender> previous;
     if (resume_file) {
@@ -272,9 +273,12 @@ int render_scene(const RenderArgs& given) {
     else exr.write(a.output, res.image, wo);
     if (!a.preview.empty()) write_png_srgb(a.preview, res.image);
     if (a.timing) {
-      const double write_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_write).count();
-      const double film_s = res.seconds - res.parallel_seconds;
-      const double total = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_load).count();
+      // The parts are spans between the same instants, so they add up to the total whatever the machine's load:
+      // the set-up is everything between the load and the write that the threads did not do.
+      const auto t_end = std::chrono::steady_clock::now();
+      const double write_s = std::chrono::duration<double>(t_end - t_write).count();
+      const double film_s = std::chrono::duration<double>(t_write - t_loaded).count() - res.parallel_seconds;
+      const double total = std::chrono::duration<double>(t_end - t_load).count();
       const double outside = total - res.parallel_seconds;
       std::fprintf(stderr,
                    "timing: load %.4fs + film %.4fs + threaded render %.4fs on %d thread(s), idle %.4f thread-s "
