@@ -19,7 +19,7 @@ RUN apt-get update \
  && apt-get install -y --no-install-recommends \
       build-essential cmake ninja-build pkg-config \
       libboost1.81-dev nlohmann-json3-dev libopenexr-dev libimath-dev libglm-dev libspdlog-dev libfmt-dev \
-      libtinyobjloader-dev libtbb-dev libcli11-dev libsqlite3-dev libpng-dev zlib1g-dev libssl-dev \
+      libtinyobjloader-dev libtbb-dev libcli11-dev libsqlite3-dev libpng-dev zlib1g-dev libdeflate-dev libssl-dev \
  && rm -rf /var/lib/apt/lists/*
 WORKDIR /src
 COPY . .
@@ -37,7 +37,7 @@ ARG DEBIAN_FRONTEND=noninteractive
 RUN apt-get update \
  && apt-get install -y --no-install-recommends \
       libopenexr-3-1-30 libimath-3-1-29 libpng16-16 libtinyobjloader2rc10 libssl3 libtbb12 libspdlog1.10 libfmt9 \
-      libstdc++6 libgcc-s1 libc6 zlib1g libsqlite3-0 ca-certificates tini \
+      libstdc++6 libgcc-s1 libc6 zlib1g libdeflate0 libsqlite3-0 ca-certificates tini \
  && rm -rf /var/lib/apt/lists/* \
  && useradd --system --uid 10001 --home-dir /var/lib/tessera --create-home --shell /usr/sbin/nologin tessera \
  && mkdir -p /var/cache/tessera && chown tessera:tessera /var/cache/tessera

@@ -26,7 +26,6 @@
 
 #include <cstdio>
 #include <filesystem>
-#include <malloc.h>
 #include <memory>
 #include <optional>
 #include <system_error>
@@ -168,10 +167,6 @@ int render_scene(const RenderArgs& given) {
   try {
     // This process renders here and speaks no TLS: OpenSSL serves the scene's hash only.
     start_openssl_for_digests_only();
-    // OpenEXR's ZIP compressor allocates zlib's state (about 260 KB) for every 16-row block and frees it again; with
-    // a megabyte of pad the C library keeps those pages at the top of the heap instead of handing them back and
-    // faulting them in again for the next block (a sixth fewer page faults in a 128x128 render).
-    mallopt(M_TOP_PAD, 1 << 20);
     std::optional<ExrImage> resume_file;
     if (!given.resume.empty()) {
       try {

@@ -8,7 +8,7 @@ PACKAGES=(
   clang libclang-rt-14-dev
   libboost1.81-dev nlohmann-json3-dev libopenexr-dev libimath-dev libglm-dev
   libspdlog-dev libfmt-dev libtinyobjloader-dev libtbb-dev libcli11-dev
-  libsqlite3-dev libpng-dev zlib1g-dev libssl-dev
+  libsqlite3-dev libpng-dev zlib1g-dev libdeflate-dev libssl-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libembree-dev gnuplot-nox
   slurm-wlm munge python3-yaml python3-kubernetes systemd

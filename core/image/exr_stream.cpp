@@ -1,6 +1,7 @@
 #include "core/image/exr_stream.h"
 
 #include "core/image/exr_layout.h"
+#include "core/image/exr_zip.h"
 #include "core/util/file_io.h"
 
 #include <OpenEXR/ImfChannelList.h>
@@ -19,6 +20,7 @@ struct ExrStream::Impl {
   exr_io::MemoryOStream draft{"(draft)"};  // the file under a header without metadata
   std::optional<Imf::Header> header;         // the draft's header, from the first band
   std::unique_ptr<Imf::OutputFile> out;      // writing the draft, until finish() or a failure
+  std::optional<ZipChunkStream> zip;         // instead of the draft: a ZIP file's chunks, made by libdeflate
   int rows = 0;                              // rows of the data window written
   bool stopped = false;                      // a band failed, or finish() has spent the stream
 
@@ -39,7 +41,7 @@ ExrStream::~ExrStream() = default;
 int ExrStream::rows_written() const { return impl_->rows; }
 
 bool ExrStream::complete() const {
-  return !impl_->stopped && impl_->out && impl_->rows == impl_->layout.data_window.height();
+  return !impl_->stopped && (impl_->out || impl_->zip) && impl_->rows == impl_->layout.data_window.height();
 }
 
 void ExrStream::write_rows(const Image& band) {
@@ -52,30 +54,43 @@ void ExrStream::write_rows(const Image& band) {
       throw std::runtime_error(std::to_string(band.height) + " rows after row " + std::to_string(s.rows) +
                                " go past the data window's " + std::to_string(data.height()));
     Imf::Header h = exr_layout::header(band, s.layout, data);
-    if (!s.out) {
+    const PixelWindow rows{data.x0, data.y0 + s.rows, data.x1, data.y0 + s.rows + band.height};
+    const exr_layout::Frame frame = exr_layout::frame(band, s.layout, rows);
+    const std::optional<exr_scanline::Lines> lines = exr_scanline::Lines::of(h, frame.buffer);
+    if (!s.header) {
       s.header = std::move(h);
-      // No threads of its own: OpenEXR compresses the band's blocks on the calling thread.
-      s.out = std::make_unique<Imf::OutputFile>(s.draft, *s.header, 0);
+      if (zip_lines_per_chunk(s.header->compression()) > 0 && lines) {
+        s.header->sanityCheck();  // refused here, as OutputFile would refuse it
+        s.zip.emplace(*s.header);
+      } else {
+        // No threads of its own: OpenEXR compresses the band's blocks on the calling thread.
+        s.out = std::make_unique<Imf::OutputFile>(s.draft, *s.header, 0);
+      }
     } else if (!(h.channels() == s.header->channels())) {
       throw std::runtime_error("the band's channels differ from the first band's");
     }
-    const PixelWindow rows{data.x0, data.y0 + s.rows, data.x1, data.y0 + s.rows + band.height};
-    const exr_layout::Frame frame = exr_layout::frame(band, s.layout, rows);
-    s.out->setFrameBuffer(frame.buffer);
-    s.out->writePixels(band.height);  // OpenEXR reads only these rows from the frame buffer
+    if (s.zip) {
+      if (!lines) throw std::runtime_error("the band's layout differs from the first band's");
+      s.zip->add(*lines, rows.y0, rows.y1);  // compressed on the calling thread
+    } else {
+      s.out->setFrameBuffer(frame.buffer);
+      s.out->writePixels(band.height);  // OpenEXR reads only these rows from the frame buffer
+    }
     s.rows += band.height;
   } catch (const std::exception& e) {
     s.stopped = true;
     s.out.reset();
+    s.zip.reset();
     throw ImageError(std::string("cannot write EXR rows: ") + e.what());
   }
 }
 
 bool ExrStream::Impl::reuse(Imf::OStream& file, const Image& img, const ExrWriteOptions& opt) {
-  const bool whole = !stopped && out && rows == layout.data_window.height();
+  const bool whole = !stopped && (out || zip) && rows == layout.data_window.height();
   stopped = true;
   if (!whole) {
     out.reset();
+    zip.reset();
     return false;
   }
   const PixelWindow data = exr_layout::data_window(img, opt);
@@ -84,7 +99,14 @@ bool ExrStream::Impl::reuse(Imf::OStream& file, const Image& img, const ExrWrite
   if (data != layout.data_window || final_header.compression() != header->compression() ||
       !(final_header.channels() == header->channels())) {
     out.reset();
+    zip.reset();
     return false;
+  }
+  if (zip) {
+    const bool fits = zip->fits(final_header);  // the channels are the same, checked above
+    if (fits) zip->write(file, final_header);  // the compressed chunks as they are
+    zip.reset();
+    return fits;
   }
   out.reset();  // completes the draft (its line offset table)
   const std::vector<uint8_t>& bytes = draft.bytes();

@@ -12,9 +12,9 @@ namespace tessera {
 
 /// Writes an EXR band by band as rows of its image become final (e.g. from RenderOptions::rows_final), so that
 /// little is left to compress once the image is done; the file is byte for byte the one write_exr writes of the
-/// finished image. OpenEXR compresses each band on the calling thread into memory (its line blocks are those of a
-/// one-shot write: a block is compressed once all its rows are there); finish() puts the compressed blocks under the
-/// final header, whose metadata may be known only then, with OpenEXR's raw pixel copy.
+/// finished image. Each band is compressed on the calling thread into memory, in the line blocks of a one-shot write
+/// (a block once all its rows are there): ZIP and ZIPS blocks by libdeflate (exr_zip.h), other compressions by
+/// OpenEXR; finish() puts the compressed blocks under the final header, whose metadata may be known only then.
 class ExrStream {
  public:
   /// A stream for a file laid out as `layout` says: its data window (which must not be empty), display window,

@@ -4,6 +4,7 @@
 #include "core/image/exr_core_decode.h"
 #include "core/image/exr_layout.h"
 #include "core/image/exr_uncompressed.h"
+#include "core/image/exr_zip.h"
 #include "core/util/file_io.h"
 #include "core/util/zeroed_buffer.h"
 
@@ -493,6 +494,7 @@ std::vector<uint8_t> encode_exr_impl(const char* name, const Image& img, const E
   if (opt.compression == ExrCompression::kNone) {
     if (write_uncompressed_exr(stream, header, frame.buffer)) return stream.take();
   }
+  if (write_zip_exr(stream, header, frame.buffer, exr_layout::compression_threads())) return stream.take();
   {
     Imf::OutputFile out(stream, header, opt.compression == ExrCompression::kNone ? 0 : exr_layout::compression_threads());
     out.setFrameBuffer(frame.buffer);
