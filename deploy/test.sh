@@ -57,7 +57,7 @@ if [ -n "${TESSERA_ALLOWED_SKIPS:-}" ]; then
 fi
 
 echo "== release tests"
-run_tests release build 702
+run_tests release build 705
 
 echo "== sanitizer build"
 finish_background_build build-san/build.log
@@ -70,7 +70,7 @@ build_in_background build-tsan build-tsan/build.log --target server_tests worker
 
 echo "== sanitizer tests"
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-  run_tests asan+ubsan build-san 563
+  run_tests asan+ubsan build-san 566
 
 echo "== thread sanitizer build"
 finish_background_build build-tsan/build.log
