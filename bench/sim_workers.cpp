@@ -31,7 +31,7 @@
 // coordinator's webhook (serve --webhook) pointing at a receiver in this process that accepts connections and never
 // answers. In both, a stream of job events runs beside the workers (N + 20 jobs submitted and cancelled at once at the
 // start, then 4 a second; each cancellation is a delivery to every webhook), so that in B at least N deliveries are
-// pending while the window is measured. It prints tiles/s and lease p99 for each run and variant, and B / A.
+// pending while the window is measured. It prints tiles/s and request p99 for each run and variant, and B / A.
 #include "core/image/image.h"
 #include "core/util/sha256.h"
 #include "protocol/messages.h"
@@ -752,7 +752,8 @@ void report_share(const Options& opt, const RunResult& r) {
 }  // namespace
 
 /// The A/B run of --hanging-webhooks: the first farm size four times, A B A B (the machine's other load falls on both
-/// variants alike), then each variant's tiles/s and lease p99 over its runs, and B / A.
+/// variants alike), then each variant's tiles/s and the p99 of its lease and upload requests together (with one
+/// request per tile the next lease comes with the upload) over its runs, and B / A.
 void run_hanging_webhooks(const Options& opt, const TileBank& bank, const fs::path& base) {
   const int n = opt.worker_counts.front();
   HangingReceiver receiver;
@@ -767,7 +768,7 @@ void run_hanging_webhooks(const Options& opt, const TileBank& bank, const fs::pa
     std::string webhook;
     int64_t tiles = 0;
     double seconds = 0;
-    std::vector<float> lease_ms{};
+    std::vector<float> request_ms{};  // lease and upload requests
     int64_t min_pending = INT64_MAX;
   };
   Variant variants[2] = {{"A", {}}, {"B", receiver.url()}};
@@ -785,21 +786,23 @@ void run_hanging_webhooks(const Options& opt, const TileBank& bank, const fs::pa
     std::fflush(stdout);
     v.tiles += r.total.tiles_accepted;
     v.seconds += r.window_seconds;
-    v.lease_ms.insert(v.lease_ms.end(), lease.begin(), lease.end());
+    v.request_ms.insert(v.request_ms.end(), lease.begin(), lease.end());
+    const std::vector<float>& upload = r.total.latency_ms[kUpload];
+    v.request_ms.insert(v.request_ms.end(), upload.begin(), upload.end());
     v.min_pending = std::min(v.min_pending, r.pending_deliveries);
   }
   const Variant& a = variants[0];
   const Variant& b = variants[1];
-  std::vector<float> la = a.lease_ms, lb = b.lease_ms;
+  std::vector<float> la = a.request_ms, lb = b.request_ms;
   const double rate_a = double(a.tiles) / a.seconds, rate_b = double(b.tiles) / b.seconds;
   const double p99_a = quantile(la, 0.99), p99_b = quantile(lb, 0.99);
-  std::printf("\nA (no webhooks):             %8.1f tiles/s, lease p50 %.2f ms, p99 %.2f ms\n", rate_a,
+  std::printf("\nA (no webhooks):             %8.1f tiles/s, lease and upload requests p50 %.2f ms, p99 %.2f ms\n", rate_a,
               quantile(la, 0.5), p99_a);
-  std::printf("B (deliveries hanging):      %8.1f tiles/s, lease p50 %.2f ms, p99 %.2f ms; at least %lld deliveries "
+  std::printf("B (deliveries hanging):      %8.1f tiles/s, lease and upload requests p50 %.2f ms, p99 %.2f ms; at least %lld deliveries "
               "pending at the end of each window, %lld connections accepted by the receiver\n",
               rate_b, quantile(lb, 0.5), p99_b, static_cast<long long>(b.min_pending),
               static_cast<long long>(receiver.accepted()));
-  std::printf("B / A: tiles/s %.3f, lease p99 %.2f\n", rate_a > 0 ? rate_b / rate_a : 0.0, p99_a > 0 ? p99_b / p99_a : 0.0);
+  std::printf("B / A: tiles/s %.3f, request p99 %.2f\n", rate_a > 0 ? rate_b / rate_a : 0.0, p99_a > 0 ? p99_b / p99_a : 0.0);
   if (b.min_pending < opt.hanging_webhooks)
     std::printf("NOTE: fewer than %d deliveries were pending in a B window\n", opt.hanging_webhooks);
 }

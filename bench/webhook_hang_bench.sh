@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Webhook receivers that never answer against the scheduler: bench/sim_workers --hanging-webhooks runs the same
 # simulated-worker load four times, A B A B (A: no webhooks; B: serve --webhook to a receiver that accepts connections
-# and never answers, with at least 100 deliveries pending), and prints tiles/s and lease p99 for each and B / A.
+# and never answers, with at least 100 deliveries pending), and prints tiles/s and the p99 of lease and upload requests
+# for each and B / A.
 # Writes the report, with its header (commit, machine, flags, load average), to stdout.
 # Usage: bench/webhook_hang_bench.sh BUILD_DIR [WORKERS] [SECONDS]
 set -euo pipefail
