@@ -13,6 +13,12 @@ WORKERS=${2:-16}
 SECONDS_=${3:-600}
 ROUNDS=${4:-2}
 SIM=("$BUILD/bench/sim_workers" --tessera "$BUILD/cli/tessera" --share --tile-seconds 1 --tile 16 --small-tiles 200)
+ROOT=$(cd "$(dirname "$0")/.." && pwd)
+# shellcheck source-path=SCRIPTDIR source=run_header.sh
+source "$(dirname "$0")/run_header.sh"
+run_header fair_share "$ROOT" "$BUILD"
+echo "command: bash bench/fair_share_bench.sh $BUILD $WORKERS $SECONDS_ $ROUNDS"
+echo
 for mode in "" --one-user; do
   echo "## (1) ${mode:-two users}"
   "${SIM[@]}" $mode --workers "$WORKERS" --seconds "$SECONDS_" --warmup 5 --big-tiles-edge 100 --small-every 60
