@@ -45,6 +45,11 @@ struct PrefetchedLease {
   std::chrono::steady_clock::time_point beaten;
   std::shared_ptr<HeadStart> head;
   std::optional<protocol::JobSpec> spec;  ///< The job's spec when it came with the lease.
+
+  /// The lease of an answer just received (its grant counts as now), its render not begun.
+  static PrefetchedLease granted(protocol::LeaseAnswer answer) {
+    return {std::move(answer.lease), std::chrono::steady_clock::now(), nullptr, std::move(answer.spec)};
+  }
 };
 
 }  // namespace tessera::worker

@@ -101,8 +101,7 @@ class Worker {
         if (!lease) lease = lease_from_upload();
         if (!lease && !stopping()) {
           std::optional<protocol::LeaseAnswer> asked = request_lease();
-          if (asked)
-            lease = PrefetchedLease{std::move(asked->lease), std::chrono::steady_clock::now(), nullptr, std::move(asked->spec)};
+          if (asked) lease = PrefetchedLease::granted(std::move(*asked));
         }
         if (!lease) continue;
         if (stopping()) {
@@ -236,7 +235,7 @@ class Worker {
       note_lease_round_trip(t0);
       if (r.status != 200) return std::nullopt;
       auto answer = protocol::parse_answer<protocol::LeaseAnswer>(r.body, "lease");
-      PrefetchedLease next{std::move(answer.lease), std::chrono::steady_clock::now(), nullptr, std::move(answer.spec)};
+      PrefetchedLease next = PrefetchedLease::granted(std::move(answer));
       next.head = head_start(next.lease);
       spdlog::info("{}: next lease {} (tile {} of job {}) granted while rendering{}", pfx, next.lease.id,
                    next.lease.tile, next.lease.job, next.head ? ", its render begun" : "");
@@ -570,8 +569,7 @@ class Worker {
       try {
         Delivery d = upload_tile(upload_http_, l, secret, pfx, *res, width, height, log, ask, opt_.max_retry_wait,
                                  [this, lease_end, rendered] { return upload_give_up(rendered, lease_end->load()); });
-        if (d.next)
-          next = PrefetchedLease{std::move(d.next->lease), std::chrono::steady_clock::now(), nullptr, std::move(d.next->spec)};
+        if (d.next) next = PrefetchedLease::granted(std::move(*d.next));
         count(d.outcome == DeliveryOutcome::kUploaded ? &WorkerStats::tiles_uploaded
               : d.outcome == DeliveryOutcome::kFailed ? &WorkerStats::tiles_failed
                                                     : &WorkerStats::tiles_dropped);
