@@ -62,4 +62,16 @@ T answer_field_or(const nlohmann::json& j, const char* key, const char* message,
   return answer_field<T>(j, key, message);
 }
 
+/// An optional answer field that is a message of its own (its from_json throws ProtocolError): nothing when absent or
+/// null; its error is prefixed with the message and the field.
+template <class T>
+std::optional<T> optional_message_field(const nlohmann::json& j, const char* key, const char* message) {
+  if (!j.is_object() || !j.contains(key) || j[key].is_null()) return std::nullopt;
+  try {
+    return j[key].get<T>();
+  } catch (const ProtocolError& e) {
+    throw ProtocolError(std::string(message) + ": \"" + key + "\": " + e.what());
+  }
+}
+
 }  // namespace tessera::protocol

@@ -477,14 +477,7 @@ void to_json(json& j, const LeaseAnswer& a) {
 
 void from_json(const json& j, LeaseAnswer& a) {
   a.lease = j.get<Lease>();
-  a.spec.reset();
-  if (j.contains("spec") && !j["spec"].is_null()) {
-    try {
-      a.spec = j["spec"].get<JobSpec>();
-    } catch (const ProtocolError& e) {
-      throw ProtocolError(std::string("lease: \"spec\": ") + e.what());
-    }
-  }
+  a.spec = optional_message_field<JobSpec>(j, "spec", "lease");
 }
 
 std::string lease_answer_text(const Lease& l, const std::string* spec_json) {
@@ -521,14 +514,7 @@ void to_json(json& j, const ResultAnswer& a) {
 
 void from_json(const json& j, ResultAnswer& a) {
   a.status = upload_status_from_string(answer_field<std::string>(j, "status", "result answer"));
-  a.next.reset();
-  if (j.contains("next") && !j["next"].is_null()) {
-    try {
-      a.next = j["next"].get<LeaseAnswer>();
-    } catch (const ProtocolError& e) {
-      throw ProtocolError(std::string("result answer: \"next\": ") + e.what());
-    }
-  }
+  a.next = optional_message_field<LeaseAnswer>(j, "next", "result answer");
 }
 
 std::string result_answer_text(UploadStatus status, const std::string* next_lease_text) {
