@@ -137,8 +137,8 @@ Imf::Header header(const Image& img, const ExrWriteOptions& opt, const PixelWind
   switch (opt.compression) {
     case ExrCompression::kZip:
       h.compression() = Imf::ZIP_COMPRESSION;
-      // Rendered 32-bit floats barely compress at any zlib level: level 1 writes within 0.3% of the default (4)'s
-      // bytes and spends a tenth less on them (docs/performance.md). Half colours do compress, 5-9% better at 4.
+      // Rendered 32-bit floats barely compress at any level: level 1 writes within 0.3% of the default (4)'s bytes
+      // for less work (docs/performance.md). Half colours do compress, 5-9% better at 4.
       if (!opt.half) h.zipCompressionLevel() = 1;
       break;
     case ExrCompression::kPiz: h.compression() = Imf::PIZ_COMPRESSION; break;
