@@ -29,6 +29,8 @@ class Bsdf {
 
   /// True for materials that scatter only into delta lobes (refraction, glass): f and pdf are zero everywhere.
   bool delta() const { return kind_ == MaterialKind::kRefraction || kind_ == MaterialKind::kGlass; }
+  /// True when sample() uses its 1D number to choose a lobe (glass: reflection or refraction); others ignore it.
+  bool lobe_choice() const { return kind_ == MaterialKind::kGlass; }
   /// True when the material scatters nothing (an emitter without a material).
   bool black() const { return kind_ == MaterialKind::kNone; }
   /// BSDF value for the pair (without the cosine).

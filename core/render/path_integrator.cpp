@@ -80,7 +80,8 @@ void sample_lights(const Scene& scene, const SurfaceHit& h, const Vec3& nr, cons
   if (st.profile == PathProfile::kRw) return;
   const bool mis = st.profile == PathProfile::kMis;
   for (const AreaLight& light : scene.area_lights) {
-    const float u_part = sampler.next_1d();
+    // A light of one part does not use its part choice (whose dimension is still taken).
+    const float u_part = light.parts() > 1 ? sampler.next_1d() : sampler.skip_1d();
     const Vec2 u = draw_2d();
     const LightSample ls = light.sample(h.sp.p, nr, u_part, u, st.area_sampling);
     if (!(ls.pdf > 0.f) || max_component(ls.radiance) <= 0.f) continue;
@@ -168,7 +169,7 @@ bool path_vertex(const Scene& scene, PathState& s, const std::optional<Hit>& hit
   const Vec3 nr = receiver_normal(h, wo);
   ShadowQueue shadows;
   if (!bsdf.delta()) sample_lights(scene, h, nr, bsdf, wo, sampler, shadows, counters);
-  const float uc = sampler.next_1d();
+  const float uc = bsdf.lobe_choice() ? sampler.next_1d() : sampler.skip_1d();
   const auto bs = bsdf.sample(wo, uc, sampler.next_2d());
   // The light samples' shadow rays are traced only now, the BSDF sample taken (see ShadowQueue).
   if (!bsdf.delta()) s.L += s.beta * shadows.gather(scene, counters);

@@ -191,6 +191,12 @@ class PixelSampler {
     return Vec2(0.f);
   }
 
+  /// Skips the next 1D draw (whose value the caller does not need): later draws are those next_1d() would leave.
+  float skip_1d() {
+    ++dim_;
+    return 0.f;
+  }
+
   /// Next 1D sample in [0,1).
   float next_1d() {
     const DimSeeds d = seeds(dim_++);
