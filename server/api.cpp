@@ -22,7 +22,8 @@ Access route_access(RouteId route, http::verb method) {
 }
 
 Api::Api(Scheduler& scheduler, BlobStore& blobs, CoordinatorStore& jobs, Metrics& metrics, ClockMs clock,
-         ApiOptions options, EventBus& bus, FarmEvents& events, DiskSpace& disk, Background background)
+         ApiOptions options, EventBus& bus, FarmEvents& events, DiskSpace& disk, Background background,
+         Background results)
     : metrics_(metrics),
       disk_(disk),
       opt_(options),
@@ -32,7 +33,7 @@ Api::Api(Scheduler& scheduler, BlobStore& blobs, CoordinatorStore& jobs, Metrics
       steps_(scheduler, jobs, opt_.steps),
       jobs_(scheduler, blobs, jobs, metrics, clock,
             static_cast<const AdmissionLimits&>(opt_),
-            events, disk, background),
+            events, disk, std::move(results)),
       collector_(jobs_, scheduler, blobs, clock, opt_.retention),
       audit_(jobs, clock, opt_.retention.retain_finished_ms),
       jobs_handler_(jobs_, collector_),

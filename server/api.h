@@ -66,9 +66,11 @@ class Api final : public RoutedHandler {
  public:
   /// An API over the given state, publishing changes through `events` and streaming `bus` at GET /v1/events, refusing
   /// work by the free space `disk` holds (and noting there when a write found it full); all references must outlive
-  /// it. Throws std::runtime_error for a users file it cannot read.
+  /// it. `background` runs the next lease an upload asked for, `results` writes finished jobs' results (each by
+  /// default at once). Throws std::runtime_error for a users file it cannot read.
   Api(Scheduler& scheduler, BlobStore& blobs, CoordinatorStore& store, Metrics& metrics, ClockMs clock,
-      ApiOptions options, EventBus& bus, FarmEvents& events, DiskSpace& disk, Background background = {});
+      ApiOptions options, EventBus& bus, FarmEvents& events, DiskSpace& disk, Background background = {},
+      Background results = {});
   ~Api() override;
   Api(const Api&) = delete;
   Api& operator=(const Api&) = delete;

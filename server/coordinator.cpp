@@ -3,6 +3,7 @@
 #include "server/database.h"
 #include "server/http_server.h"
 #include "server/monitor_handler.h"
+#include "server/result_thread.h"
 
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/post.hpp>
@@ -117,8 +118,9 @@ struct Coordinator::Impl {
         bus(opt.events, random_hex(4)),
         farm_events(bus),
         api(sched, blobs, *store, metrics, wall_ms, api_options(opt, *store), bus, farm_events, disk,
-            // on the handler pool: a finished job's result, the next lease an upload asked for
-            [this](std::function<void()> work) { asio::post(pool, std::move(work)); }),
+            // on the handler pool: the next lease an upload asked for; on the results' thread: a finished job's result
+            [this](std::function<void()> work) { asio::post(pool, std::move(work)); },
+            [this](std::function<void()> work) { results.post(std::move(work)); }),
         monitor(api, !opt.limits.tokens.client.empty() || !opt.limits.tokens.users_file.empty()),
         pool(std::size_t(opt.handler_threads > 0 ? opt.handler_threads : std::max(2u, std::thread::hardware_concurrency()))),
         admission(monitor, opt.admission),
@@ -182,6 +184,7 @@ struct Coordinator::Impl {
   MonitorHandler monitor;  // the web monitor at /, in front of the API
   asio::io_context ioc;
   asio::thread_pool pool;
+  ResultThread results;  // finished jobs' results (after the pool: the pool's work may queue results)
   AdmissionHandler admission;  // submissions on their own pool, in front of the monitor (after ioc: its tasks hold ioc work)
   HttpServer server;
   asio::steady_timer tick;
@@ -229,6 +232,7 @@ Coordinator::~Coordinator() {
   if (impl_) {
     impl_->pool.stop();
     impl_->pool.join();
+    impl_->results.join();
   }
 }
 
@@ -255,6 +259,7 @@ void Coordinator::run() {
   serve();
   for (auto& t : extra) t.join();
   m.pool.join();
+  m.results.join();
   m.admission.join();
   if (m.opt.handle_signals) {
     // A supervisor often signals twice (Slurm's scancel reaches both the batch shell, which passes SIGTERM on, and

@@ -51,9 +51,9 @@ void check_path(const std::string& rel, const std::string& where) {
 }  // namespace
 
 JobService::JobService(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock,
-                       AdmissionLimits limits, FarmEvents& events, DiskSpace& disk, Background background)
+                       AdmissionLimits limits, FarmEvents& events, DiskSpace& disk, Background results)
     : sched_(scheduler), blobs_(blobs), jobs_(jobs), metrics_(metrics), clock_(std::move(clock)), limits_(limits),
-      events_(events), disk_(disk), background_(at_once_if_empty(std::move(background))) {}
+      events_(events), disk_(disk), results_(at_once_if_empty(std::move(results))) {}
 
 int64_t JobService::unfinished_jobs() {
   const SchedulerCounters c = sched_.counters();
@@ -658,7 +658,7 @@ void JobService::accept_tile(const std::string& lease, std::string_view exr, uin
         spdlog::info("job {} tile {} worker {}: merged", c.job, c.tile, c.worker);
         events_.tile(protocol::events::kTileDone, {c.job, c.tile, c.worker, std::nullopt, std::nullopt});
         if (!r.last) return done(UploadOutcome::accepted, nullptr);
-        background_([this, job = c.job, done] {
+        results_([this, job = c.job, done] {
           finalize(job);
           done(UploadOutcome::accepted, nullptr);
         });

@@ -53,7 +53,8 @@ using UploadOutcome = protocol::UploadStatus;
 /// (protocol::ApiError, or another exception for a 500).
 using UploadDone = std::function<void(UploadOutcome outcome, std::exception_ptr error)>;
 
-/// Runs work that may take long (writing a finished job's result) somewhere it blocks nobody; by default, at once.
+/// Runs work that may take long (writing a finished job's result, asking for the next lease) somewhere it blocks
+/// nobody; by default, at once.
 using Background = std::function<void(std::function<void()>)>;
 
 /// `background`, or one that runs the work at once when it is empty (the default of the classes that take one).
@@ -66,10 +67,11 @@ inline Background at_once_if_empty(Background background) {
 /// to `events` after it happened.
 class JobService {
  public:
-  /// A service over the given state, noting in `disk` when a result finds the disk full; all references must
-  /// outlive it.
+  /// A service over the given state, noting in `disk` when a result finds the disk full, writing finished jobs'
+  /// results through `results` (the upload that finished a job is answered once its result is written); all
+  /// references must outlive it.
   JobService(Scheduler& scheduler, BlobStore& blobs, JobStore& jobs, Metrics& metrics, ClockMs clock,
-             AdmissionLimits limits, FarmEvents& events, DiskSpace& disk, Background background = {});
+             AdmissionLimits limits, FarmEvents& events, DiskSpace& disk, Background results = {});
 
   /// Checks the submission (asset paths, uploaded assets, the scene as `tessera render` loads it, size limits; every
   /// frame of a sequence, whose sentence then names the frame), stores its spec (each frame's) and queues it, all or
@@ -208,7 +210,7 @@ class JobService {
   StepRunner* steps_ = nullptr;  // runs done jobs' steps (use_steps)
   FarmEvents& events_;
   DiskSpace& disk_;
-  Background background_;
+  Background results_;
   std::mutex mu_;
   std::mutex admit_mu_;                                      // makes the queued-jobs check and add_job one step
   std::mutex raise_mu_;                                      // one raise_spp at a time (checks, scheduler, record)
