@@ -8,6 +8,7 @@
 # the coordinator's and the simulator's CPU (share of a core, ms per accepted tile) and, for simulators that print it,
 # the event loops' lag p99. The simulated workers ask for their next lease with each upload (sim_workers' default: one
 # request per tile; its --two-requests is the other form).
+# The coordinators keep their data under TMPDIR (default /tmp): TMPDIR=/dev/shm measures them without the disk.
 #   bash bench/capacity_bench.sh BUILD_DIR [ROUNDS] [sim:PATH | tessera:PATH]      (ROUNDS = 2)
 set -euo pipefail
 USAGE="usage: capacity_bench.sh BUILD_DIR [ROUNDS] [sim:PATH | tessera:PATH]"
@@ -30,6 +31,7 @@ run_header capacity "$ROOT" "$BUILD"
 echo "command: bash bench/capacity_bench.sh $BUILD $ROUNDS${OTHER:+ $OTHER}; each run:"
 echo "\$ $BUILD/bench/sim_workers --tessera $BUILD/cli/tessera --workers N ${FLAGS[*]}"
 echo "(the simulated workers ask for their next lease with each upload: one request per tile)"
+echo "coordinators' data folders under ${TMPDIR:-/tmp} ($(stat -f -c %T "${TMPDIR:-/tmp}") file system; TMPDIR=DIR puts them elsewhere)"
 case "$OTHER" in
   sim:*) echo "other: ${OTHER#sim:} as the simulator (same flags, same coordinator binary)" ;;
   tessera:*) echo "other: ${OTHER#tessera:} as the coordinator ($("${OTHER#tessera:}" --version); same simulator and flags)" ;;
