@@ -183,8 +183,8 @@ struct Coordinator::Impl {
   Api api;
   MonitorHandler monitor;  // the web monitor at /, in front of the API
   asio::io_context ioc;
+  ResultThread results;  // finished jobs' results (destroyed after the pool, whose work may queue one)
   asio::thread_pool pool;
-  ResultThread results;  // finished jobs' results (after the pool: the pool's work may queue results)
   AdmissionHandler admission;  // submissions on their own pool, in front of the monitor (after ioc: its tasks hold ioc work)
   HttpServer server;
   asio::steady_timer tick;
