@@ -32,14 +32,16 @@ Vec3 Bsdf::f(const Vec3& wo, const Vec3& wi, float* pdf) const {
   *pdf = 0.f;
   if (!same_side(wo, wi)) return Vec3(0.f);
   const float side = side_of(wo);
-  const Vec3 lo = local(wo, side), li = local(wi, side);
-  if (!(lo.z > 0.f) || !(li.z > 0.f)) return Vec3(0.f);
+  // The local z of both directions (local()'s, to the bit) decides diffuse reflection; a lobe needs all of them.
+  const float lo_z = glm::dot(wo, frame_.n) * side, li_z = glm::dot(wi, frame_.n) * side;
+  if (!(lo_z > 0.f) || !(li_z > 0.f)) return Vec3(0.f);
   switch (kind_) {
     case MaterialKind::kDiffuse:
       if (side < 0.f && !m_->twosided) return Vec3(0.f);
-      *pdf = li.z * kInvPi;
+      *pdf = li_z * kInvPi;
       return reflectance_ * kInvPi;
     case MaterialKind::kRoughConductor: {
+      const Vec3 lo = local(wo, side), li = local(wi, side);
       const Vec3 m = glm::normalize(lo + li);
       const Vec3 F = fresnel_conductor(glm::dot(lo, m), m_->eta_t / m_->eta_i, m_->k / m_->eta_i);
       *pdf = beckmann_.pdf_m(m) / (4.f * glm::dot(lo, m));
