@@ -23,12 +23,14 @@
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 #include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
 
 #include <cstdio>
 #include <filesystem>
 #include <memory>
 #include <optional>
 #include <system_error>
+#include <thread>
 #include <unistd.h>
 
 namespace tessera::cli {
@@ -184,7 +186,11 @@ int render_scene(const RenderArgs& given) {
       return kExitRefused;
     }
     const auto t_load = std::chrono::steady_clock::now();
+    // TBB starts its worker threads (and loads its allocator) on the first parallel loop, which on a small scene would
+    // be the render's: a trivial loop on another thread starts them while the scene loads.
+    std::thread start_pool([] { tbb::parallel_for(0, 256, [](int) {}); });
     LoadedScene loaded = load_scene_file(a.scene, lo);
+    start_pool.join();
     for (const auto& w : loaded.warnings) spdlog::warn("{}", w);
     for (const auto& n : loaded.notes) spdlog::info("{}", n);
     const Scene& scene = loaded.scene;
