@@ -188,7 +188,7 @@ int render_scene(const RenderArgs& given) {
     const auto t_load = std::chrono::steady_clock::now();
     // TBB starts its worker threads (and loads its allocator) on the first parallel loop, which on a small scene would
     // be the render's: a trivial loop on another thread starts them while the scene loads.
-    std::thread start_pool([] { tbb::parallel_for(0, 256, [](int) {}); });
+    std::jthread start_pool([] { tbb::parallel_for(0, 256, [](int) {}); });  // joined also when the load throws
     LoadedScene loaded = load_scene_file(a.scene, lo);
     start_pool.join();
     for (const auto& w : loaded.warnings) spdlog::warn("{}", w);
