@@ -267,6 +267,11 @@ uint64_t JobImage::generation() {
   return generation_;
 }
 
+void JobImage::allocate() {
+  std::lock_guard lock(mu_);
+  allocate_locked();
+}
+
 void JobImage::allocate_locked() {
   if (!image_.rgb.empty()) return;
   image_ = Image::make(width_, height_);

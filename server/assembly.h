@@ -48,6 +48,8 @@ class JobImage {
   /// A black width x height image with the channels of `layers` beside the colour; its memory is allocated on the
   /// first paste.
   JobImage(int width, int height, std::vector<std::string> layers = {});
+  /// Allocates the pixels (zeroed) now, if they are not yet, instead of at the first paste.
+  void allocate();
   /// Copies a window-sized tile (its colour and layer channels) into the image; throws std::invalid_argument when it
   /// does not fit.
   void paste(const Image& tile, const PixelWindow& window);

@@ -566,6 +566,16 @@ std::shared_ptr<JobImage> JobService::image_for(const std::string& job, int widt
   return slot;
 }
 
+void JobService::prepare_image(const std::string& job) {
+  results_([this, job] {
+    const auto s = sched_.job(job);
+    if (!s || is_final(s->state)) return;
+    image_for(job, s->params.width, s->params.height)->allocate();
+    // Ended meanwhile (its image dropped before this one was made): not kept.
+    if (const auto now = sched_.job(job); !now || is_final(now->state)) drop_image(job);
+  });
+}
+
 void JobService::drop_image(const std::string& job) {
   std::lock_guard lock(mu_);
   images_.erase(job);

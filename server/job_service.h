@@ -122,6 +122,10 @@ class JobService {
   /// changed (server/preview_cache.h); ApiError 404.
   std::vector<uint8_t> preview_png(const std::string& id, std::optional<Layer> layer = std::nullopt);
 
+  /// Allocates the image a started job's tiles are pasted into, where results are written (in the background), so
+  /// that its first tile's upload does not wait for the image's megabytes to be zeroed; called at its first lease.
+  void prepare_image(const std::string& job);
+
   /// Validates and merges an uploaded tile (rays add to the job's count) and calls `done` once: `accepted` only after
   /// the tile's pixels are on the disk (a group commit: concurrent uploads share one flush, and no thread waits for
   /// it), `duplicate` once what it duplicates is, `discarded` at once; refusals ApiError 404 unknown lease, 422

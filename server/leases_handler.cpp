@@ -89,9 +89,11 @@ std::optional<std::string> LeasesHandler::try_lease(const std::string& worker, c
   if (r.status == AcquireResult::no_work) return std::nullopt;
   const Lease l = jobs_.with_state(r.lease);
   spdlog::debug("job {} tile {} worker {}: leased as {}", l.job, l.tile, l.worker, l.id);
-  // queued -> running at the first lease (the snapshot, which lists the job's workers, only then)
+  // queued -> running at the first lease (the snapshot, which lists the job's workers, only then); its image is
+  // made ready for the tiles to come
   if (!events_.published(l.job, r.job_state))
     if (const auto s = sched_.job(l.job)) {
+      if (s->state == protocol::JobState::running) jobs_.prepare_image(l.job);
       events_.job_if_state_changed(*s);
       if (s->sequence)  // a frame's first lease may start its sequence
         if (const auto seq = sched_.job(*s->sequence)) events_.job_if_state_changed(*seq);
