@@ -67,12 +67,18 @@ void write_start(Imf::OStream& os, const Imf::Header& header) {
   header.writeTo(os);
 }
 
-void write_chunks(Imf::OStream& os, int64_t y0, int lines_per_chunk, const std::vector<std::vector<char>>& chunks) {
-  uint64_t at = os.tellp() + uint64_t(chunks.size()) * 8;
-  std::vector<char> table(chunks.size() * 8);
-  for (size_t i = 0; i < chunks.size(); at += 8 + chunks[i].size(), ++i)
+void write_offset_table(Imf::OStream& os, const std::vector<size_t>& data_bytes) {
+  uint64_t at = os.tellp() + uint64_t(data_bytes.size()) * 8;
+  std::vector<char> table(data_bytes.size() * 8);
+  for (size_t i = 0; i < data_bytes.size(); at += 8 + data_bytes[i], ++i)
     for (int b = 0; b < 8; ++b) table[i * 8 + size_t(b)] = char(at >> (8 * b));
   os.write(table.data(), int(table.size()));
+}
+
+void write_chunks(Imf::OStream& os, int64_t y0, int lines_per_chunk, const std::vector<std::vector<char>>& chunks) {
+  std::vector<size_t> sizes(chunks.size());
+  for (size_t i = 0; i < chunks.size(); ++i) sizes[i] = chunks[i].size();
+  write_offset_table(os, sizes);
   for (size_t i = 0; i < chunks.size(); ++i) {
     put32(os, int32_t(y0 + int64_t(i) * lines_per_chunk));
     put32(os, int32_t(chunks[i].size()));

@@ -43,8 +43,12 @@ class Lines {
 /// it) and the header. Throws as Imf::Header::sanityCheck does for a header OpenEXR would not write.
 void write_start(Imf::OStream& os, const Imf::Header& header);
 
-/// Writes the line offset table for chunks of the given data sizes (8 bytes of y and size before each), starting at
-/// os.tellp(), then each chunk: its first line y0 + i * lines_per_chunk, its size, its data.
+/// Writes the line offset table, at os.tellp(), of chunks with these data sizes (each chunk also carries 8 bytes: its
+/// first line and its size) written right after it.
+void write_offset_table(Imf::OStream& os, const std::vector<size_t>& data_bytes);
+
+/// Writes the line offset table for chunks of the given data (write_offset_table), then each chunk: its first line
+/// y0 + i * lines_per_chunk, its size, its data.
 void write_chunks(Imf::OStream& os, int64_t y0, int lines_per_chunk, const std::vector<std::vector<char>>& chunks);
 
 }  // namespace tessera::exr_scanline

@@ -17,11 +17,7 @@ bool write_uncompressed_exr(Imf::OStream& os, const Imf::Header& header, const I
   const Imath::Box2i dw = header.dataWindow();
   const int64_t count = int64_t(dw.max.y) - dw.min.y + 1;
   const size_t line_bytes = lines->line_bytes();
-  uint64_t at = os.tellp() + uint64_t(count) * 8;
-  std::vector<char> table(size_t(count) * 8);
-  for (int64_t i = 0; i < count; ++i, at += 8 + line_bytes)
-    for (int b = 0; b < 8; ++b) table[size_t(i) * 8 + size_t(b)] = char(at >> (8 * b));
-  os.write(table.data(), int(table.size()));
+  exr_scanline::write_offset_table(os, std::vector<size_t>(size_t(count), line_bytes));
   std::vector<char> line(8 + line_bytes);
   for (int64_t y = dw.min.y; y <= dw.max.y; ++y) {
     for (int i = 0; i < 4; ++i) {
