@@ -1,10 +1,13 @@
 #include "cli/render_farm.h"
 
 #include "cli/exit_status.h"
+#include "cli/farm_log.h"
 #include "cli/frame_list.h"
-#include "cli/output_check.h"
 #include "cli/interrupt_guard.h"
+#include "cli/output_check.h"
+#include "cli/private_coordinator.h"
 #include "cli/submit_command.h"
+#include "cli/worker_command.h"
 #include "core/image/exr_multipart.h"
 #include "core/image/image.h"
 #include "core/render/layer_film.h"
@@ -13,12 +16,13 @@
 #include "server/storage.h"
 #include "core/util/file_io.h"
 #include "core/util/remove_tree.h"
+#include "core/util/sha256.h"
 #include "core/scene/scene_loader.h"
 #include "worker/arena_pinning.h"
-#include "worker/asset_cache.h"
 #include "worker/child_process.h"
 #include "client/http_client.h"
 
+#include <spdlog/sinks/ansicolor_sink.h>
 #include <spdlog/spdlog.h>
 
 #include <arpa/inet.h>
@@ -27,9 +31,12 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <csignal>
 #include <cstdlib>
 #include <cstring>
+#include <optional>
 #include <string>
 #include <thread>
 #include <utility>
@@ -86,6 +93,79 @@ std::pair<int, unsigned short> listen_on_loopback() {
   return {fd, ntohs(addr.sin_port)};
 }
 
+// The pipes that hand the workers the job they are about to be leased (worker --preload reads its file to the end): a
+// worker is given a read end when it starts, the job is written to every write end once its assets are stored, and
+// the write ends are closed then, or on the way out (an empty pipe preloads nothing).
+class PreloadPipes {
+ public:
+  PreloadPipes() = default;
+  ~PreloadPipes() { close(); }
+  PreloadPipes(const PreloadPipes&) = delete;
+  PreloadPipes& operator=(const PreloadPipes&) = delete;
+
+  /// A new pipe's read end for the next worker (close-on-exec here: spawn_child passes it on), or -1 when none.
+  int open() {
+    int fds[2];
+    if (::pipe2(fds, O_CLOEXEC) != 0) return -1;
+    pending_read_ = fds[0];
+    writes_.push_back(fds[1]);
+    return fds[0];
+  }
+  /// The worker has started with its read end: this process's copy goes.
+  void spawned() {
+    if (pending_read_ >= 0) ::close(pending_read_);
+    pending_read_ = -1;
+  }
+  /// Writes `job` whole to every pipe that can hold it (a job larger than a pipe can be made is not preloaded).
+  void send(const std::string& job) {
+    for (const int fd : writes_) {
+      if (job.size() > kDefaultPipeBytes) ::fcntl(fd, F_SETPIPE_SZ, int(std::min<size_t>(job.size(), kMaxPipeBytes)));
+      const int capacity = ::fcntl(fd, F_GETPIPE_SZ);
+      if (capacity < 0 || size_t(capacity) < job.size()) continue;
+      for (size_t done = 0; done < job.size();) {  // the pipe is empty and holds it all: no wait for the reader
+        const ssize_t n = ::write(fd, job.data() + done, job.size() - done);
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) break;  // the worker is gone
+        done += size_t(n);
+      }
+    }
+  }
+  /// Ends every pipe: the workers read what was sent, or nothing.
+  void close() {
+    spawned();
+    for (const int fd : writes_) ::close(fd);
+    writes_.clear();
+  }
+
+ private:
+  static constexpr size_t kDefaultPipeBytes = 65536, kMaxPipeBytes = size_t(1) << 20;
+  int pending_read_ = -1;
+  std::vector<int> writes_;
+};
+
+// `tessera worker` as a child of this process started with exec: the command line of `w`'s fields that
+// run_render_farm sets.
+std::vector<std::string> worker_command_line(const std::string& self, const WorkerArgs& w) {
+  std::vector<std::string> argv{self, "worker", "--coordinator", w.coordinator, "--threads", std::to_string(w.threads),
+                                "--cache", w.cache, "--name", w.name, "--token-file", w.token_file,
+                                "--max-idle-wait-ms", std::to_string(w.max_idle_wait_ms)};
+  if (!w.preload.empty()) argv.insert(argv.end(), {"--preload", w.preload});
+  if (!w.cpus.empty()) argv.insert(argv.end(), {"--cpus", w.cpus});
+  const std::vector<std::string> limits = asset_limit_args(w.asset_limits);
+  argv.insert(argv.end(), limits.begin(), limits.end());
+  return argv;
+}
+
+// `tessera worker` in a forked copy of this process, with the logger a new process starts with (this command's
+// colours the lines for its terminal).
+int run_forked_worker(const WorkerArgs& w) {
+  spdlog::set_default_logger(
+      std::make_shared<spdlog::logger>("", std::make_shared<spdlog::sinks::ansicolor_stdout_sink_mt>()));
+  const int rc = run_worker_command(w);
+  spdlog::default_logger()->flush();
+  return rc;
+}
+
 // The done job's result is a file in the private coordinator's folder, which this command owns and throws away: it is
 // moved to `output` (synced first, as a download would have been written) or copied when `output` is on another file
 // system, instead of being sent over HTTP and written again.
@@ -126,7 +206,10 @@ int run_render_farm(const RenderArgs& a, const std::vector<client::FrameScene>& 
     return kExitRefused;
   }
   InterruptGuard guard;
-  std::vector<worker::ChildProcess> children;
+  std::signal(SIGPIPE, SIG_IGN);  // a worker that dies before it reads its job must not take this command with it
+  std::vector<worker::ChildProcess> workers;
+  std::optional<FarmLog> farm_log;
+  std::optional<PrivateCoordinator> coordinator;
   fs::path dir;
   int rc = kExitFailed;
   bool show_logs = false;
@@ -134,48 +217,88 @@ int run_render_farm(const RenderArgs& a, const std::vector<client::FrameScene>& 
     dir = make_temp_dir();
     const std::string self = fs::read_symlink("/proc/self/exe").string();
     // Fresh tokens per render: other users of this machine cannot submit to or pose as workers of this farm.
-    const std::string client_token = write_token_file(dir / "client.token");
-    write_token_file(dir / "worker.token");
-    // The private coordinator's folder is thrown away with this command, and a crash of the coordinator fails the
-    // render anyway: it keeps its jobs in memory and never waits for the disk. Its one job is refused only by a full
-    // disk, not by a floor of free space.
-    const auto [listen_fd, port] = listen_on_loopback();
-    const std::vector<std::string> limits = asset_limit_args(a.asset_limits);  // the coordinator's and the workers'
-    try {
-      std::vector<std::string> argv{self, "serve", "--listen", "fd:" + std::to_string(listen_fd), "--data",
-                                    (dir / "data").string(), "--client-token-file", (dir / "client.token").string(),
-                                    "--worker-token-file", (dir / "worker.token").string(), "--durability", "none", "--min-free-disk", "0"};
-      argv.insert(argv.end(), limits.begin(), limits.end());
-      children.push_back(worker::spawn_child(argv, "coordinator", dir / "serve.log", listen_fd));
-    } catch (...) {
-      ::close(listen_fd);
-      throw;
-    }
-    ::close(listen_fd);  // the coordinator's now: should it die, connecting fails instead of waiting
+    const std::string client_token = server::generate_token();
+    const std::string worker_token = write_token_file(dir / "worker.token");
+    // The private coordinator serves on a socket bound here, so that its address is known at once and the workers and
+    // the submission connect while it starts.
+    auto [listen_fd, port] = listen_on_loopback();
+    struct CloseUnlessTaken {
+      int& fd;
+      ~CloseUnlessTaken() { if (fd >= 0) ::close(fd); }
+    } listening{listen_fd};  // until the coordinator takes it
     const std::string url = "http://127.0.0.1:" + std::to_string(port);
+    // The workers start first, while this process has no other thread: each is a copy of it (fork without exec, nothing
+    // to load and link), which runs `tessera worker` while the scene's assets are read here and the job is submitted.
+    // Until it is in they ask for work every few milliseconds (a private farm's coordinator has nothing else to do),
+    // so the first lease follows the job's acceptance at once. Each reads the job it is about to be leased from a pipe
+    // (--preload) once its assets are in the cache.
+    const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+    const int threads = a.threads > 0 ? a.threads : std::max(1, int(cores) / a.workers);
+    // When the workers' threads fit the CPUs this command may use, each thread gets its own.
+    const std::vector<int> cpus = worker::allowed_cpus();
+    const bool pin = size_t(a.workers) * size_t(threads) <= cpus.size();
+    const bool fork_workers = worker::single_threaded();  // not under ThreadSanitizer, whose own thread runs too
+    PreloadPipes preloads;
+    for (int i = 0; i < a.workers; ++i) {
+      WorkerArgs w;
+      w.coordinator = url;
+      w.threads = threads;
+      w.cache = (dir / "data").string();
+      w.name = "local-" + std::to_string(i);
+      w.token_file = (dir / "worker.token").string();
+      w.max_idle_wait_ms = kPrivateIdleWaitMs;
+      w.asset_limits = a.asset_limits;
+      for (int t = 0; pin && t < threads; ++t) w.cpus += (t ? "," : "") + std::to_string(cpus[size_t(i * threads + t)]);
+      const int preload_fd = frames.empty() ? preloads.open() : -1;
+      if (preload_fd >= 0) w.preload = "/dev/fd/" + std::to_string(preload_fd);
+      const std::string name = "worker " + std::to_string(i);
+      const fs::path log = dir / ("worker-" + std::to_string(i) + ".log");
+      workers.push_back(fork_workers ? worker::fork_child([w] { return run_forked_worker(w); }, name, log, preload_fd,
+                                                          "tessera-worker")
+                                     : worker::spawn_child(worker_command_line(self, w), name, log, preload_fd));
+      preloads.spawned();
+    }
+    // The private coordinator runs on threads of this process (its log in serve.log): it keeps its jobs in memory and
+    // never waits for the disk, since its folder is thrown away with this command. Its one job is refused only by a
+    // full disk, not by a floor of free space.
+    farm_log.emplace(dir / "serve.log");
+    server::CoordinatorOptions co;
+    co.listen_fd = std::exchange(listen_fd, -1);  // the coordinator's from here on
+    co.data_dir = dir / "data";
+    co.durability = server::Durability::none;
+    co.min_free_disk = 0;
+    co.limits.tokens.client = client_token;
+    co.limits.tokens.worker = worker_token;
+    co.limits.assets = a.asset_limits;
+    coordinator.emplace(std::move(co));
     client::SubmitOptions o = shared_job_options(a);
     o.frames = frames;
     o.frame_order = protocol::frame_order_from_string(a.frame_order);
     o.tile_size = a.farm_tile;
     o.resumable = a.resumable;  // the result then carries the state channels, as `render --resumable` writes them
-    // While the coordinator starts: the scene's assets are hashed and put in the workers' cache, where they would
-    // otherwise fetch them one by one from the coordinator, and linked into the coordinator's blob folder, so that
-    // the submission finds them stored instead of uploading each one.
+    // While the coordinator starts: the scene's assets are hashed and copied into the coordinator's blob folder, which
+    // is also the workers' cache (the same layout, DIR/blobs/<2 hex digits>/<sha256>): the submission finds them
+    // stored instead of uploading each one, and the workers find them cached instead of fetching each one. One copy
+    // serves both, so the scratch folder has half the entries to make and to remove.
     std::optional<client::SceneFiles> files;
     try {
       files = client::read_scene_files(o);
-      worker::AssetCache cache(dir / "cache");
       const fs::path blobs = server::blobs_dir(dir / "data");
       const auto store = [&](const client::LocalAsset& asset) {
-        const fs::path verified = cache.get(asset.sha256, [&](const std::string&) { return read_file_bytes(asset.file); });
-        // A whole file appears at once (no temp file for the starting coordinator to clear); should it fail, the
-        // submission uploads the asset.
         const fs::path stored = server::blob_file(blobs, asset.sha256);
         std::error_code ec;
+        if (fs::exists(stored, ec)) return;  // the same bytes under another name
+        const std::string bytes = read_file_bytes(asset.file);
+        if (sha256_hex(bytes) != asset.sha256) throw client::SubmitError(asset.path + " changed while it was read");
+        // Staged outside the blob folders and renamed in whole: the starting coordinator clears temp files there.
+        const fs::path staged = dir / ("staged-" + asset.sha256);
+        write_file_atomic(staged, bytes, Flush::none);
         fs::create_directories(stored.parent_path(), ec);
-        if (!ec) fs::create_hard_link(verified, stored, ec);
-        if (ec && ec != std::errc::file_exists)
+        if (!ec) fs::rename(staged, stored, ec);
+        if (ec) {
           spdlog::debug("{} goes to the coordinator by upload: {}", asset.path, ec.message());
+          fs::remove(staged, ec);
+        }
       };
       for (const client::LocalAsset& asset : files->assets) store(asset);
       for (const client::FrameFiles& frame : files->frames)
@@ -188,45 +311,22 @@ int run_render_farm(const RenderArgs& a, const std::vector<client::FrameScene>& 
       rc = kExitRefused;
     }
     if (rc == kExitRefused) throw Refused();
-    // The workers load the job's scene from their cache while the coordinator starts and checks the submission.
-    // (A sequence's frames are loaded as they are leased.)
-    const fs::path expected_job = dir / "job.json";
-    if (frames.empty())
-      write_file_atomic(expected_job, nlohmann::json(client::job_submission(o, *files)).dump(), Flush::none);
+    // The workers load the job's scene from their cache while the coordinator checks the submission. (A sequence's
+    // frames are loaded as they are leased.)
+    if (frames.empty()) preloads.send(nlohmann::json(client::job_submission(o, *files)).dump());
+    preloads.close();
     client::HttpClient http(client::parse_http_url(url));
     http.set_bearer_token(client_token);
-    // The workers start while the coordinator starts and the job is submitted: until it is in they ask for work every
-    // few milliseconds (a private farm's coordinator has nothing else to do), so the first lease follows the job's
-    // acceptance at once.
-    const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
-    const int threads = a.threads > 0 ? a.threads : std::max(1, int(cores) / a.workers);
-    // When the workers' threads fit the CPUs this command may use, each thread gets its own.
-    const std::vector<int> cpus = worker::allowed_cpus();
-    const bool pin = size_t(a.workers) * size_t(threads) <= cpus.size();
-    for (int i = 0; i < a.workers; ++i) {
-      std::vector<std::string> argv{self, "worker", "--coordinator", url, "--threads", std::to_string(threads),
-                                    "--cache", (dir / "cache").string(), "--name", "local-" + std::to_string(i),
-                                    "--token-file", (dir / "worker.token").string(), "--max-idle-wait-ms",
-                                    std::to_string(kPrivateIdleWaitMs)};
-      if (frames.empty()) argv.insert(argv.end(), {"--preload", expected_job.string()});
-      argv.insert(argv.end(), limits.begin(), limits.end());
-      if (pin) {
-        std::string list;
-        for (int t = 0; t < threads; ++t) list += (t ? "," : "") + std::to_string(cpus[size_t(i * threads + t)]);
-        argv.insert(argv.end(), {"--cpus", list});
-      }
-      children.push_back(worker::spawn_child(argv, "worker " + std::to_string(i), dir / ("worker-" + std::to_string(i) + ".log")));
-    }
     if (!a.quiet)
       std::fprintf(stderr, "coordinator on %s, %d worker(s) with %d thread(s) each\n", url.c_str(), a.workers, threads);
     rc = submit_and_wait(
         http, o, a.output, a.quiet,
         [&] {
           if (InterruptGuard::interrupted()) return true;
-          // Every worker gone means no progress is possible.
-          bool all_workers_gone = children.size() > 1;
-          for (size_t i = 1; i < children.size(); ++i) all_workers_gone &= worker::child_exited(children[i]);
-          return all_workers_gone || worker::child_exited(children[0]);
+          // Every worker gone, or the coordinator, means no progress is possible.
+          bool all_workers_gone = !workers.empty();
+          for (auto& w : workers) all_workers_gone &= worker::child_exited(w);
+          return all_workers_gone || coordinator->ended();
         },
         std::move(files),
         [&](const std::string& job, const std::string& output, int64_t frame) {
@@ -248,31 +348,28 @@ int run_render_farm(const RenderArgs& a, const std::vector<client::FrameScene>& 
     rc = kExitFailed;
     show_logs = true;
   }
-  std::vector<worker::ChildProcess> workers(children.begin() + std::min<size_t>(1, children.size()), children.end());
-  std::vector<worker::ChildProcess> serve(children.begin(), children.begin() + std::min<size_t>(1, children.size()));
+  if (coordinator && coordinator->ended() && !coordinator->error().empty())
+    spdlog::error("render --workers: the coordinator stopped: {}", coordinator->error());
   std::vector<std::string> killed;
   if (rc == 0) {
-    // The job is done and its result saved: the workers hold nothing and the coordinator's folder is thrown away, so
-    // a clean shutdown (the coordinator's last checkpoint, joining every thread) would only make the user wait, about
-    // 10 ms. The coordinator is built to survive SIGKILL at any moment anyway.
-    worker::kill_children(children);
-    workers.assign(children.begin() + std::min<size_t>(1, children.size()), children.end());
-    serve.assign(children.begin(), children.begin() + std::min<size_t>(1, children.size()));
+    // The job is done and its result saved: the workers hold nothing, so a clean stop would only make the user wait.
+    worker::kill_children(workers);
   } else {
-    // Workers first (told twice, so they drop their tile at once), then the coordinator.
+    // Told twice, so that they drop their tile at once.
     killed = worker::stop_children(workers, 5s, 2);
-    const auto killed_serve = worker::stop_children(serve, 5s);
-    killed.insert(killed.end(), killed_serve.begin(), killed_serve.end());
   }
   for (const auto& name : killed) spdlog::warn("{} did not stop within 5 s and was killed", name);
-  children = serve;
-  children.insert(children.end(), workers.begin(), workers.end());
+  coordinator.reset();  // requests in flight finish; its threads are joined
   if (show_logs) {
-    for (const auto& c : children)
+    if (!dir.empty())
+      spdlog::error("coordinator, last lines of {}:\n{}", (dir / "serve.log").string(),
+                    worker::tail_of_file(dir / "serve.log", 8));
+    for (const auto& c : workers)
       spdlog::error("{} ({}), last lines of {}:\n{}", c.name, worker::describe_exit(c), c.log.string(),
                     worker::tail_of_file(c.log, 8));
     if (!dir.empty()) spdlog::error("logs kept in {}", dir.string());
   } else if (!dir.empty()) {
+    farm_log.reset();  // its file closed before the folder goes
     std::error_code ec;
     remove_tree(dir, ec);  // its entries in parallel: one by one, a disk that waits per entry took 70 ms
   }

@@ -9,9 +9,10 @@
 
 namespace tessera::cli {
 
-/// Starts `tessera serve` on a loopback port and N `tessera worker`s, submits the scene through the farm protocol,
-/// shows progress, writes the EXR, and stops the children (SIGTERM, then SIGKILL after a grace period) whatever
-/// happens, Ctrl-C included. With `frames`, the sequence is one job and each frame's EXR (and preview) is written to
+/// Runs a coordinator on a loopback port in this process (cli/private_coordinator.h; its log in the scratch folder's
+/// serve.log) and starts N `tessera worker`s, submits the scene through the farm protocol, shows progress, writes the
+/// EXR, and stops the workers (SIGTERM, then SIGKILL after a grace period) and the coordinator whatever happens,
+/// Ctrl-C included. With `frames`, the sequence is one job and each frame's EXR (and preview) is written to
 /// its '#' pattern as it finishes. Returns the process exit code.
 int run_render_farm(const RenderArgs& args, const std::vector<client::FrameScene>& frames = {});
 

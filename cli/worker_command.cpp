@@ -60,7 +60,8 @@ CLI::App* add_worker_command(CLI::App& app, WorkerArgs& a) {
   c->add_option("--preload", a.preload,
                 "A job submission (the JSON body of POST /v1/jobs) about to be leased, its assets already in --cache: "
                 "its scene is loaded while the worker registers, and a leased job with the same scene, assets and "
-                "loading settings renders from it (render --workers tells its workers the job it submits)")
+                "loading settings renders from it (render --workers tells its workers the job it submits through a pipe; an "
+                "empty file preloads nothing)")
       ->check(CLI::ExistingFile);
   c->add_option("--stop-timeout", a.stop_timeout_seconds,
                 "Once asked to stop (SIGTERM), how long the worker keeps retrying the upload of its last tile while the "
@@ -115,7 +116,10 @@ int run_worker_command(const WorkerArgs& a) {
     o.stop_timeout = std::chrono::milliseconds(int64_t(a.stop_timeout_seconds * 1000));
     if (!a.preload.empty()) {
       try {
-        o.preload = protocol::parse_job_submission(read_file_bytes(a.preload));
+        // Read to its end, so that it can be a pipe; an empty one preloads nothing (render --workers closes the
+        // pipe it gives when the job cannot be sent).
+        const std::string job = read_file_bytes(a.preload);
+        if (!job.empty()) o.preload = protocol::parse_job_submission(job);
       } catch (const std::exception& e) {
         throw std::invalid_argument("--preload " + a.preload + ": " + e.what());
       }

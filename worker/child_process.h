@@ -3,13 +3,14 @@
 
 #include <chrono>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <sys/types.h>
 #include <vector>
 
 namespace tessera::worker {
 
-/// A child process started by spawn_child; stopping is explicit (stop_children), never in a destructor.
+/// A child process started by spawn_child or fork_child; stopping is explicit (stop_children), never in a destructor.
 struct ChildProcess {
   pid_t pid = -1;              ///< Process id (-1: not running).
   std::string name;            ///< For messages, e.g. "worker 2".
@@ -24,6 +25,18 @@ struct ChildProcess {
 /// std::runtime_error naming the program when it cannot start.
 ChildProcess spawn_child(const std::vector<std::string>& argv, const std::string& name, const std::filesystem::path& log,
                          int pass_fd = -1);
+
+/// True when this process runs one thread (this one): fork_child may then run code in the child.
+bool single_threaded();
+
+/// Starts a child that runs `body` in a copy of this process (fork without exec: nothing to load and link), set up
+/// as spawn_child sets up its children, with every descriptor but 0-2 and `keep_fd` (when not -1) closed and its
+/// name (comm, as `ps` and `top` show it) `title` when given; the child exits with body's result (1 when it throws),
+/// without running this process's destructors or exit handlers. Only from a single-threaded process (a child of a
+/// threaded one would inherit locks held by threads it does not have): throws std::logic_error otherwise, and
+/// std::runtime_error when the child cannot start.
+ChildProcess fork_child(const std::function<int()>& body, const std::string& name, const std::filesystem::path& log,
+                        int keep_fd = -1, const char* title = nullptr);
 
 /// True (and status recorded) when the child has exited; never blocks.
 bool child_exited(ChildProcess& child);
