@@ -57,7 +57,7 @@ if [ -n "${TESSERA_ALLOWED_SKIPS:-}" ]; then
 fi
 
 echo "== release tests"
-run_tests release build 707
+run_tests release build 712
 
 echo "== sanitizer build"
 finish_background_build build-san/build.log
@@ -70,12 +70,12 @@ build_in_background build-tsan build-tsan/build.log --target server_tests worker
 
 echo "== sanitizer tests"
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-  run_tests asan+ubsan build-san 568
+  run_tests asan+ubsan build-san 572
 
 echo "== thread sanitizer build"
 finish_background_build build-tsan/build.log
 echo "== thread sanitizer tests"
-TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1 run_tests tsan build-tsan 253 -L 'server|worker|client|net'
+TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1 run_tests tsan build-tsan 257 -L 'server|worker|client|net'
 
 echo "== fuzzing (scene loader, OBJ reader, EXR reader, HTTP handler: 60 s each, all four at once)"
 FUZZ_PARALLEL=4 bash tests/fuzz/run.sh build-san 60
