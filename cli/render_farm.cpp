@@ -103,7 +103,8 @@ class PreloadPipes {
   PreloadPipes(const PreloadPipes&) = delete;
   PreloadPipes& operator=(const PreloadPipes&) = delete;
 
-  /// A new pipe's read end for the next worker (close-on-exec here: spawn_child passes it on), or -1 when none.
+  /// A new pipe's read end for the next worker (close-on-exec here; fork_child and spawn_child keep it open for the
+  /// worker), or -1 when none can be made.
   int open() {
     int fds[2];
     if (::pipe2(fds, O_CLOEXEC) != 0) return -1;
@@ -279,7 +280,7 @@ int run_render_farm(const RenderArgs& a, const std::vector<client::FrameScene>& 
     // While the coordinator starts: the scene's assets are hashed and copied into the coordinator's blob folder, which
     // is also the workers' cache (the same layout, DIR/blobs/<2 hex digits>/<sha256>): the submission finds them
     // stored instead of uploading each one, and the workers find them cached instead of fetching each one. One copy
-    // serves both, so the scratch folder has half the entries to make and to remove.
+    // serves both, so the scratch folder has fewer entries to make and to remove.
     std::optional<client::SceneFiles> files;
     try {
       files = client::read_scene_files(o);
