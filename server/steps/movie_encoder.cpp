@@ -1,6 +1,7 @@
 #include "server/steps/movie_encoder.h"
 
 #include "core/image/image.h"
+#include "core/util/file_io.h"
 
 #include <fcntl.h>
 #include <poll.h>
@@ -154,16 +155,6 @@ struct Partial {
   }
 };
 
-void sync_file(const fs::path& p) {
-  const int fd = ::open(p.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0 || ::fsync(fd) != 0) {
-    const int err = errno;
-    if (fd >= 0) ::close(fd);
-    throw std::runtime_error("cannot sync " + p.string() + ": " + std::strerror(err));
-  }
-  ::close(fd);
-}
-
 }  // namespace
 
 void encode_movie(const MovieJob& job, const std::function<bool()>& stopping) {
@@ -253,8 +244,7 @@ void encode_movie(const MovieJob& job, const std::function<bool()>& stopping) {
   if (!fs::is_regular_file(partial, ec) || fs::file_size(partial, ec) == 0)
     throw std::runtime_error("ffmpeg exited with status 0 but wrote no movie; the end of its log:\n" +
                              log_tail(job.log));
-  sync_file(partial);
-  fs::rename(partial, job.output);
+  move_file_atomic(partial, job.output);  // flushed, renamed, the rename flushed
   written.keep = true;
 }
 
