@@ -167,6 +167,70 @@ int run_forked_worker(const WorkerArgs& w) {
   return rc;
 }
 
+// Starts `a.workers` workers of the private farm at `url` with `dir` as their cache, appending them to `workers` as
+// they start (so that those started are stopped should a later one fail), each handed a pipe of `preloads` when
+// given; returns the render threads each has. Until the job is in they ask for work every few milliseconds (a
+// private farm's coordinator has nothing else to do), so the first lease follows the job's acceptance at once. From
+// a single-threaded process each is a forked copy of it; otherwise `tessera worker` started with exec.
+int start_workers(const RenderArgs& a, const std::string& url, const fs::path& dir, PreloadPipes* preloads,
+                  std::vector<worker::ChildProcess>& workers) {
+  const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+  const int threads = a.threads > 0 ? a.threads : std::max(1, int(cores) / a.workers);
+  // When the workers' threads fit the CPUs this command may use, each thread gets its own.
+  const std::vector<int> cpus = worker::allowed_cpus();
+  const bool pin = size_t(a.workers) * size_t(threads) <= cpus.size();
+  const bool fork_workers = worker::single_threaded();  // not under ThreadSanitizer, whose own thread runs too
+  for (int i = 0; i < a.workers; ++i) {
+    WorkerArgs w;
+    w.coordinator = url;
+    w.threads = threads;
+    w.cache = (dir / "data").string();
+    w.name = "local-" + std::to_string(i);
+    w.token_file = (dir / "worker.token").string();
+    w.max_idle_wait_ms = kPrivateIdleWaitMs;
+    w.asset_limits = a.asset_limits;
+    for (int t = 0; pin && t < threads; ++t) w.cpus += (t ? "," : "") + std::to_string(cpus[size_t(i * threads + t)]);
+    const int preload_fd = preloads ? preloads->open() : -1;
+    if (preload_fd >= 0) w.preload = "/dev/fd/" + std::to_string(preload_fd);
+    const std::string name = "worker " + std::to_string(i);
+    const fs::path log = dir / ("worker-" + std::to_string(i) + ".log");
+    workers.push_back(fork_workers ? worker::fork_child([w] { return run_forked_worker(w); }, name, log, preload_fd,
+                                                        "tessera-worker")
+                                   : worker::spawn_child(worker_command_line(fs::read_symlink("/proc/self/exe").string(), w),
+                                                         name, log, preload_fd));
+    if (preloads) preloads->spawned();
+  }
+  return threads;
+}
+
+// Copies each asset of `files` into the private coordinator's blob folder under `dir`, which is also the workers'
+// cache (the same layout, DIR/blobs/<2 hex digits>/<sha256>): the submission finds them stored instead of uploading
+// each one, and the workers find them cached instead of fetching each one. One copy serves both, so the scratch
+// folder has fewer entries to make and to remove. Throws client::SubmitError for a file that changed since it was
+// hashed; an asset that cannot be stored goes to the coordinator by upload.
+void store_assets(const client::SceneFiles& files, const fs::path& dir) {
+  const fs::path blobs = server::blobs_dir(dir / "data");
+  const auto store = [&](const client::LocalAsset& asset) {
+    const fs::path stored = server::blob_file(blobs, asset.sha256);
+    std::error_code ec;
+    if (fs::exists(stored, ec)) return;  // the same bytes under another name
+    const std::string bytes = read_file_bytes(asset.file);
+    if (sha256_hex(bytes) != asset.sha256) throw client::SubmitError(asset.path + " changed while it was read");
+    // Staged outside the blob folders and renamed in whole: the starting coordinator clears temp files there.
+    const fs::path staged = dir / ("staged-" + asset.sha256);
+    write_file_atomic(staged, bytes, Flush::none);
+    fs::create_directories(stored.parent_path(), ec);
+    if (!ec) fs::rename(staged, stored, ec);
+    if (ec) {
+      spdlog::debug("{} goes to the coordinator by upload: {}", asset.path, ec.message());
+      fs::remove(staged, ec);
+    }
+  };
+  for (const client::LocalAsset& asset : files.assets) store(asset);
+  for (const client::FrameFiles& frame : files.frames)
+    for (const client::LocalAsset& asset : frame.assets) store(asset);
+}
+
 // The done job's result is a file in the private coordinator's folder, which this command owns and throws away: it is
 // moved to `output` (synced first, as a download would have been written) or copied when `output` is on another file
 // system, instead of being sent over HTTP and written again.
@@ -216,7 +280,6 @@ int run_render_farm(const RenderArgs& a, const std::vector<client::FrameScene>& 
   bool show_logs = false;
   try {
     dir = make_temp_dir();
-    const std::string self = fs::read_symlink("/proc/self/exe").string();
     // Fresh tokens per render: other users of this machine cannot submit to or pose as workers of this farm.
     const std::string client_token = server::generate_token();
     const std::string worker_token = write_token_file(dir / "worker.token");
@@ -230,35 +293,8 @@ int run_render_farm(const RenderArgs& a, const std::vector<client::FrameScene>& 
     const std::string url = "http://127.0.0.1:" + std::to_string(port);
     // The workers start first, while this process has no other thread: each is a copy of it (fork without exec, nothing
     // to load and link), which runs `tessera worker` while the scene's assets are read here and the job is submitted.
-    // Until it is in they ask for work every few milliseconds (a private farm's coordinator has nothing else to do),
-    // so the first lease follows the job's acceptance at once. Each reads the job it is about to be leased from a pipe
-    // (--preload) once its assets are in the cache.
-    const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
-    const int threads = a.threads > 0 ? a.threads : std::max(1, int(cores) / a.workers);
-    // When the workers' threads fit the CPUs this command may use, each thread gets its own.
-    const std::vector<int> cpus = worker::allowed_cpus();
-    const bool pin = size_t(a.workers) * size_t(threads) <= cpus.size();
-    const bool fork_workers = worker::single_threaded();  // not under ThreadSanitizer, whose own thread runs too
     PreloadPipes preloads;
-    for (int i = 0; i < a.workers; ++i) {
-      WorkerArgs w;
-      w.coordinator = url;
-      w.threads = threads;
-      w.cache = (dir / "data").string();
-      w.name = "local-" + std::to_string(i);
-      w.token_file = (dir / "worker.token").string();
-      w.max_idle_wait_ms = kPrivateIdleWaitMs;
-      w.asset_limits = a.asset_limits;
-      for (int t = 0; pin && t < threads; ++t) w.cpus += (t ? "," : "") + std::to_string(cpus[size_t(i * threads + t)]);
-      const int preload_fd = frames.empty() ? preloads.open() : -1;
-      if (preload_fd >= 0) w.preload = "/dev/fd/" + std::to_string(preload_fd);
-      const std::string name = "worker " + std::to_string(i);
-      const fs::path log = dir / ("worker-" + std::to_string(i) + ".log");
-      workers.push_back(fork_workers ? worker::fork_child([w] { return run_forked_worker(w); }, name, log, preload_fd,
-                                                          "tessera-worker")
-                                     : worker::spawn_child(worker_command_line(self, w), name, log, preload_fd));
-      preloads.spawned();
-    }
+    const int threads = start_workers(a, url, dir, frames.empty() ? &preloads : nullptr, workers);
     // The private coordinator runs on threads of this process (its log in serve.log): it keeps its jobs in memory and
     // never waits for the disk, since its folder is thrown away with this command. Its one job is refused only by a
     // full disk, not by a floor of free space.
@@ -277,33 +313,12 @@ int run_render_farm(const RenderArgs& a, const std::vector<client::FrameScene>& 
     o.frame_order = protocol::frame_order_from_string(a.frame_order);
     o.tile_size = a.farm_tile;
     o.resumable = a.resumable;  // the result then carries the state channels, as `render --resumable` writes them
-    // While the coordinator starts: the scene's assets are hashed and copied into the coordinator's blob folder, which
-    // is also the workers' cache (the same layout, DIR/blobs/<2 hex digits>/<sha256>): the submission finds them
-    // stored instead of uploading each one, and the workers find them cached instead of fetching each one. One copy
-    // serves both, so the scratch folder has fewer entries to make and to remove.
+    // While the coordinator starts: the scene's assets are hashed and stored where the coordinator and the workers
+    // look for them.
     std::optional<client::SceneFiles> files;
     try {
       files = client::read_scene_files(o);
-      const fs::path blobs = server::blobs_dir(dir / "data");
-      const auto store = [&](const client::LocalAsset& asset) {
-        const fs::path stored = server::blob_file(blobs, asset.sha256);
-        std::error_code ec;
-        if (fs::exists(stored, ec)) return;  // the same bytes under another name
-        const std::string bytes = read_file_bytes(asset.file);
-        if (sha256_hex(bytes) != asset.sha256) throw client::SubmitError(asset.path + " changed while it was read");
-        // Staged outside the blob folders and renamed in whole: the starting coordinator clears temp files there.
-        const fs::path staged = dir / ("staged-" + asset.sha256);
-        write_file_atomic(staged, bytes, Flush::none);
-        fs::create_directories(stored.parent_path(), ec);
-        if (!ec) fs::rename(staged, stored, ec);
-        if (ec) {
-          spdlog::debug("{} goes to the coordinator by upload: {}", asset.path, ec.message());
-          fs::remove(staged, ec);
-        }
-      };
-      for (const client::LocalAsset& asset : files->assets) store(asset);
-      for (const client::FrameFiles& frame : files->frames)
-        for (const client::LocalAsset& asset : frame.assets) store(asset);
+      store_assets(*files, dir);
     } catch (const SceneError& e) {
       spdlog::error("{}", e.what());
       rc = kExitRefused;
