@@ -57,7 +57,7 @@ if [ -n "${TESSERA_ALLOWED_SKIPS:-}" ]; then
 fi
 
 echo "== release tests"
-run_tests release build 712
+run_tests release build 714
 
 echo "== sanitizer build"
 finish_background_build build-san/build.log
