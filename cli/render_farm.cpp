@@ -364,7 +364,7 @@ int run_render_farm(const RenderArgs& a, const std::vector<client::FrameScene>& 
     rc = kExitFailed;
     show_logs = true;
   }
-  if (coordinator && coordinator->ended() && !coordinator->error().empty())
+  if (coordinator && !coordinator->error().empty())
     spdlog::error("render --workers: the coordinator stopped: {}", coordinator->error());
   std::vector<std::string> killed;
   if (rc == 0) {

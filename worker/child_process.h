@@ -1,4 +1,5 @@
-// Starting and stopping helper processes (`tessera serve`, `tessera worker`) owned by `tessera render --workers`.
+// Starting and stopping helper processes: the workers of `tessera render --workers` (forked copies, or `tessera worker`
+// started with exec), and the coordinators and workers that benches and tests start.
 #pragma once
 
 #include <chrono>
