@@ -31,15 +31,19 @@ finish_background_build() {  # log file
   tail -n 1 "$1"
 }
 
+# Every target's files in one unity unit (TESSERA_UNITY_BATCH_SIZE=0): each header and template the files share is
+# compiled once per target, not once per batch of 8 (the release build: 388 s against 586 s on a 2-core VM).
+UNITY=-DTESSERA_UNITY_BATCH_SIZE=0
+
 echo "== release build"
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DTESSERA_WERROR=ON >/dev/null
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DTESSERA_WERROR=ON "$UNITY" >/dev/null
 cmake --build build -j "$JOBS"
 
 # clang for libFuzzer; a build-san configured by an earlier GCC-based script is started afresh.
 if [ -f build-san/CMakeCache.txt ] && ! grep -q '^CMAKE_CXX_COMPILER:[A-Z]*=.*clang' build-san/CMakeCache.txt; then
   rm -rf build-san
 fi
-CC=clang CXX=clang++ cmake -S . -B build-san -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTESSERA_WERROR=ON \
+CC=clang CXX=clang++ cmake -S . -B build-san -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTESSERA_WERROR=ON "$UNITY" \
   -DTESSERA_SANITIZE=ON -DTESSERA_FUZZ=ON -DTESSERA_ONLY_UNIT_TESTS=ON -DTESSERA_TEST_SCALE_DIVISOR=20 >/dev/null
 echo "== sanitizer build started beside the release tests (clang, ASan + UBSan: the libraries' unit tests, the"
 echo "   randomised ones at 1/20 of their cases, and the fuzz targets)"
@@ -62,7 +66,7 @@ run_tests release build 714
 echo "== sanitizer build"
 finish_background_build build-san/build.log
 
-CC=clang CXX=clang++ cmake -S . -B build-tsan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTESSERA_WERROR=ON \
+CC=clang CXX=clang++ cmake -S . -B build-tsan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTESSERA_WERROR=ON "$UNITY" \
   -DTESSERA_TSAN=ON -DTESSERA_ONLY_UNIT_TESTS=ON -DTESSERA_TEST_SCALE_DIVISOR=20 >/dev/null
 echo "== thread sanitizer build started beside the sanitizer tests (clang, TSan: the coordinator's, the worker's,"
 echo "   the client's and the byte stream's unit tests)"

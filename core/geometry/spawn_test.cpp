@@ -17,15 +17,15 @@ Vec3 random_direction(std::mt19937& rng) {
   return {r * std::cos(phi), r * std::sin(phi), z};
 }
 
-struct Scene {
+struct FarScene {
   std::vector<Triangle> tris;
   std::vector<Sphere> spheres;
   Bvh bvh;
 };
 
 // A tessellated sphere, an analytic sphere and a large two-triangle plane, all about 1e5 from the origin.
-Scene far_scene(const Vec3& offset) {
-  Scene s;
+FarScene far_scene(const Vec3& offset) {
+  FarScene s;
   const TriangleMesh m = make_icosphere(offset + Vec3(0, 0, 0), 1.f, 4);
   s.tris = m.triangles();
   const Vec3 a = offset + Vec3(-50, -3, -50), b = offset + Vec3(50, -3, -50), c = offset + Vec3(50, -3, 50),
@@ -37,7 +37,7 @@ Scene far_scene(const Vec3& offset) {
   return s;
 }
 
-SurfacePoint surface_point(const Scene& s, const Ray& r, const Hit& h) {
+SurfacePoint surface_point(const FarScene& s, const Ray& r, const Hit& h) {
   if (h.prim < s.bvh.triangle_count()) return triangle_surface_point(s.tris[h.prim], 1.f - h.b1 - h.b2, h.b1, h.b2);
   return sphere_surface_point(s.spheres[h.prim - s.bvh.triangle_count()], r, h.t);
 }
@@ -50,7 +50,7 @@ struct Counts {
 // from the surface (nothing convex can be re-hit there) and, for the analytic sphere, into it (the far side must
 // be hit at a distance of the order of the radius, not at ~0).
 Counts run(const Vec3& offset, size_t n, uint32_t seed) {
-  const Scene s = far_scene(offset);
+  const FarScene s = far_scene(offset);
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> u(-1.f, 1.f);
   Counts c;
