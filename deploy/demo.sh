@@ -6,7 +6,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash deploy/install-deps.sh
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+# Each target compiled as one unity unit, as deploy/test.sh does: the fewest compiler runs for a build from scratch.
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DTESSERA_UNITY_BATCH_SIZE=0 >/dev/null
 cmake --build build -j "$(nproc)" --target tessera
 mkdir -p out
 ./build/cli/tessera render scenes/cbox_gi.json -o out/cbox_gi.exr --preview out/cbox_gi.png --workers 2 "$@"
