@@ -4,7 +4,6 @@
 #include "server/coordinator.h"
 
 #include <atomic>
-#include <condition_variable>
 #include <mutex>
 #include <string>
 #include <thread>

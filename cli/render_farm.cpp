@@ -123,12 +123,8 @@ class PreloadPipes {
       if (job.size() > kDefaultPipeBytes) ::fcntl(fd, F_SETPIPE_SZ, int(std::min<size_t>(job.size(), kMaxPipeBytes)));
       const int capacity = ::fcntl(fd, F_GETPIPE_SZ);
       if (capacity < 0 || size_t(capacity) < job.size()) continue;
-      for (size_t done = 0; done < job.size();) {  // the pipe is empty and holds it all: no wait for the reader
-        const ssize_t n = ::write(fd, job.data() + done, job.size() - done);
-        if (n < 0 && errno == EINTR) continue;
-        if (n <= 0) break;  // the worker is gone
-        done += size_t(n);
-      }
+      // The pipe is empty and holds it all: no wait for the reader. A worker already gone (EPIPE) reads nothing.
+      write_all(fd, job);
     }
   }
   /// Ends every pipe: the workers read what was sent, or nothing.

@@ -55,6 +55,16 @@ std::string random_hex(int bytes) {
 
 fs::path temp_path_beside(const fs::path& path) { return path.string() + "." + random_hex(6) + ".tmp"; }
 
+int write_all(int fd, std::string_view bytes) {
+  for (size_t off = 0; off < bytes.size();) {
+    const ssize_t n = ::write(fd, bytes.data() + off, bytes.size() - off);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return n < 0 ? errno : EIO;
+    off += size_t(n);
+  }
+  return 0;
+}
+
 void write_file_atomic(const fs::path& path, std::string_view bytes, Flush flush) {
   const fs::path tmp = temp_path_beside(path);
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
@@ -66,16 +76,9 @@ void write_file_atomic(const fs::path& path, std::string_view bytes, Flush flush
     ::unlink(tmp.c_str());
     throw FileError(what + tmp.string() + ": " + std::strerror(err), err);
   };
-  size_t off = 0;
-  while (off < bytes.size()) {
-    const ssize_t n = ::write(fd, bytes.data() + off, bytes.size() - off);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      const int err = n < 0 ? errno : EIO;
-      ::close(fd);
-      fail("cannot write ", err);
-    }
-    off += size_t(n);
+  if (const int err = write_all(fd, bytes)) {
+    ::close(fd);
+    fail("cannot write ", err);
   }
   if (flush == Flush::to_disk && ::fsync(fd) != 0) {
     const int err = errno;

@@ -24,6 +24,10 @@ struct FileError : std::runtime_error {
 /// write returns) or only the process's (the page cache keeps every write; for files that die with their process).
 enum class Flush { to_disk, none };
 
+/// Writes all of `bytes` to descriptor `fd`, again after a short write or EINTR; 0, or the errno of the write that
+/// failed (EIO for one that wrote nothing).
+int write_all(int fd, std::string_view bytes);
+
 /// Replaces `path` with `bytes` atomically: a temp file beside it (temp_path_beside), written, flushed as `flush`
 /// says, renamed over `path`; readers see the old file or the whole new one. On failure the temp file is removed and
 /// `path` is left as it was. Throws FileError naming the file and the cause.

@@ -1,10 +1,12 @@
 // read_file_bytes: whole files of every size byte for byte, files whose reported size is not their content (procfs),
 // and clear errors for missing files and folders. write_file_atomic (of bytes, or through a writer): a replacement in
 // either flush mode leaves the new bytes and no temp file; a failed one leaves the old file and no temp file.
-// move_file_atomic: a rename, or a copy across file systems.
+// move_file_atomic: a rename, or a copy across file systems. write_all: every byte through a pipe, the errno of a
+// pipe nobody reads.
 #include "core/util/file_io.h"
 
 #include <gtest/gtest.h>
+#include <csignal>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -133,6 +135,23 @@ TEST_F(ReadFileBytes, AMoveReplacesTheTargetOrCopiesAcrossFileSystems) {
   EXPECT_TRUE(fs::exists(elsewhere));
   fs::remove(elsewhere);
   EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()), 3);  // to, kept, folder: no temp file
+}
+
+TEST(WriteAll, WritesEveryByteOrGivesTheErrno) {
+  int fds[2];
+  ASSERT_EQ(::pipe(fds), 0);
+  const std::string bytes(40000, 'x');  // within a pipe's default 64 KiB: no reader needed
+  EXPECT_EQ(write_all(fds[1], bytes), 0);
+  ::close(fds[1]);
+  EXPECT_EQ(read_file_bytes("/dev/fd/" + std::to_string(fds[0])), bytes);
+  ::close(fds[0]);
+
+  ASSERT_EQ(::pipe(fds), 0);
+  ::close(fds[0]);
+  const auto old = std::signal(SIGPIPE, SIG_IGN);
+  EXPECT_EQ(write_all(fds[1], "lost"), EPIPE);
+  std::signal(SIGPIPE, old);
+  ::close(fds[1]);
 }
 
 TEST(TempPathBeside, IsFreshBesideThePathAndEndsInTmp) {
