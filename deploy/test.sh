@@ -61,7 +61,7 @@ if [ -n "${TESSERA_ALLOWED_SKIPS:-}" ]; then
 fi
 
 echo "== release tests"
-run_tests release build 715
+run_tests release build 716
 
 echo "== sanitizer build"
 finish_background_build build-san/build.log
@@ -74,7 +74,7 @@ build_in_background build-tsan build-tsan/build.log --target server_tests worker
 
 echo "== sanitizer tests"
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-  run_tests asan+ubsan build-san 573
+  run_tests asan+ubsan build-san 574
 
 echo "== thread sanitizer build"
 finish_background_build build-tsan/build.log

@@ -88,7 +88,7 @@ void AtomicFile::write(const char c[], int n) {
 void AtomicFile::commit() {
   if (!failure_.empty()) throw std::runtime_error(failure_);
   flush();
-  if (::fsync(fd_) != 0) fail("cannot sync " + quoted(tmp_), errno);
+  if (const int err = flush_to_disk(fd_)) fail("cannot sync " + quoted(tmp_), err);
   const int fd = fd_;
   fd_ = -1;
   if (::close(fd) != 0) fail("cannot close " + quoted(tmp_), errno);

@@ -31,7 +31,7 @@ void move_into_place(const fs::path& tmp, const fs::path& path, Flush flush) {
 // Flushes a closed file's data to the disk; throws FileError naming it.
 void sync_file(const fs::path& file) {
   const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0 || ::fsync(fd) != 0) {
+  if (fd < 0 || flush_to_disk(fd) != 0) {
     const int err = errno;
     if (fd >= 0) ::close(fd);
     throw FileError("cannot sync " + file.string() + ": " + std::strerror(err), err);
@@ -54,6 +54,19 @@ std::string random_hex(int bytes) {
 }
 
 fs::path temp_path_beside(const fs::path& path) { return path.string() + "." + random_hex(6) + ".tmp"; }
+
+int flush_to_disk(int fd) {
+  struct stat st {};
+  if (::fstat(fd, &st) == 0) {
+    // Each step written and waited for; a file system that cannot (EINVAL, ESPIPE) leaves it all to the fsync, which
+    // also reports any write error of the steps.
+    for (off_t at = 0; at + kFlushStep < st.st_size; at += kFlushStep)
+      if (::sync_file_range(fd, at, kFlushStep,
+                            SYNC_FILE_RANGE_WAIT_BEFORE | SYNC_FILE_RANGE_WRITE | SYNC_FILE_RANGE_WAIT_AFTER) != 0)
+        break;
+  }
+  return ::fsync(fd) == 0 ? 0 : errno;
+}
 
 int write_all(int fd, std::string_view bytes) {
   for (size_t off = 0; off < bytes.size();) {
@@ -80,10 +93,11 @@ void write_file_atomic(const fs::path& path, std::string_view bytes, Flush flush
     ::close(fd);
     fail("cannot write ", err);
   }
-  if (flush == Flush::to_disk && ::fsync(fd) != 0) {
-    const int err = errno;
-    ::close(fd);
-    fail("cannot sync ", err);
+  if (flush == Flush::to_disk) {
+    if (const int err = flush_to_disk(fd)) {
+      ::close(fd);
+      fail("cannot sync ", err);
+    }
   }
   if (::close(fd) != 0) fail("cannot close ", errno);
   move_into_place(tmp, path, flush);

@@ -28,8 +28,17 @@ enum class Flush { to_disk, none };
 /// failed (EIO for one that wrote nothing).
 int write_all(int fd, std::string_view bytes);
 
+/// The size of flush_to_disk's steps (bench/flush_steps.cpp measures it).
+inline constexpr int64_t kFlushStep = int64_t(1) << 20;
+
+/// Flushes the file open at `fd` to the disk (fsync), its data written out first in steps of kFlushStep bytes, each
+/// finished before the next begins: a large file then never queues megabytes at the disk ahead of another file's
+/// small flush (the coordinator's log, whose flush acknowledges uploads, waits behind one step at most). 0, or the
+/// errno of the fsync that failed.
+int flush_to_disk(int fd);
+
 /// Replaces `path` with `bytes` atomically: a temp file beside it (temp_path_beside), written, flushed as `flush`
-/// says, renamed over `path`; readers see the old file or the whole new one. On failure the temp file is removed and
+/// says (flush_to_disk), renamed over `path`; readers see the old file or the whole new one. On failure the temp file is removed and
 /// `path` is left as it was. Throws FileError naming the file and the cause.
 void write_file_atomic(const std::filesystem::path& path, std::string_view bytes, Flush flush = Flush::to_disk);
 /// The same for bytes held as unsigned (an encoded image).

@@ -2,11 +2,12 @@
 // and clear errors for missing files and folders. write_file_atomic (of bytes, or through a writer): a replacement in
 // either flush mode leaves the new bytes and no temp file; a failed one leaves the old file and no temp file.
 // move_file_atomic: a rename, or a copy across file systems. write_all: every byte through a pipe, the errno of a
-// pipe nobody reads.
+// pipe nobody reads. flush_to_disk: a file of several steps flushed whole, the errno of a pipe and of a closed descriptor.
 #include "core/util/file_io.h"
 
 #include <gtest/gtest.h>
 #include <csignal>
+#include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -152,6 +153,27 @@ TEST(WriteAll, WritesEveryByteOrGivesTheErrno) {
   EXPECT_EQ(write_all(fds[1], "lost"), EPIPE);
   std::signal(SIGPIPE, old);
   ::close(fds[1]);
+}
+
+TEST(FlushToDisk, FlushesAFileOfSeveralStepsOrGivesTheErrno) {
+  const fs::path file = fs::temp_directory_path() / ("tessera_flush_" + std::to_string(::getpid()));
+  std::string bytes(size_t(kFlushStep) * 3 + 12345, '\0');
+  std::mt19937 rng(7);
+  for (char& c : bytes) c = char(rng());
+  const int fd = ::open(file.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  ASSERT_GE(fd, 0);
+  ASSERT_EQ(write_all(fd, bytes), 0);
+  EXPECT_EQ(flush_to_disk(fd), 0);
+  ::close(fd);
+  EXPECT_EQ(read_file_bytes(file), bytes);
+  fs::remove(file);
+
+  int fds[2];
+  ASSERT_EQ(::pipe(fds), 0);
+  EXPECT_EQ(flush_to_disk(fds[1]), EINVAL);  // a pipe has nothing to flush
+  ::close(fds[0]);
+  ::close(fds[1]);
+  EXPECT_EQ(flush_to_disk(fds[1]), EBADF);
 }
 
 TEST(TempPathBeside, IsFreshBesideThePathAndEndsInTmp) {
