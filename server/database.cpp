@@ -581,9 +581,14 @@ void DurableStore::apply_locked(const SchedulerChanges& c, std::vector<std::pair
       {"tiles_rendered", stored.tiles_rendered, written_counters_.tiles_rendered},
       {"lease_expiries", stored.lease_expiries, written_counters_.lease_expiries},
       {"rays", stored.rays, written_counters_.rays}};
+  // An upsert changes the row in place (the table's page only), where a replacement would delete and insert it and
+  // so rewrite its key's index page too: one page fewer in the log for every tile.
   for (const auto& [key, value, written] : counters)
     if (value != written)
-      db_.statement("INSERT OR REPLACE INTO meta(key, value) VALUES(?,?)").bind_text(1, key).bind(2, int64_t(value)).run();
+      db_.statement("INSERT INTO meta(key, value) VALUES(?,?) ON CONFLICT(key) DO UPDATE SET value = excluded.value")
+          .bind_text(1, key)
+          .bind(2, int64_t(value))
+          .run();
   for (const OutboxRow& r : c.outbox)
     db_.statement("INSERT OR IGNORE INTO webhook_outbox(id, url, event, job, created_ms, body, next_ms) VALUES(?,?,?,?,?,?,?)")
         .bind_text(1, r.id)
