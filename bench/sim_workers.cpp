@@ -63,6 +63,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstdio>
+#include <cstdlib>
 #include <deque>
 #include <filesystem>
 #include <fstream>
@@ -147,6 +148,7 @@ struct RunResult {
   int64_t job_events = 0;             ///< With hanging webhooks: jobs submitted and cancelled for their events.
   int64_t deliveries = 0;             ///< Webhook deliveries the coordinator listed at the window's end.
   int64_t pending_deliveries = 0;     ///< Of them, those still pending.
+  std::string metrics_start, metrics_end;  ///< The coordinator's /metrics at the window's start and end.
 };
 
 /// A tile EXR for every window of each job geometry added, encoded once and shared by all simulated workers.
@@ -633,11 +635,22 @@ RunResult run_farm(const Options& opt, const TileBank& bank, const fs::path& bas
   }
   for (Loop& loop : loops) loop.thread = std::thread([&loop] { loop.ioc.run(); });
 
+  const auto metrics = [&farm] {  // empty when the coordinator does not answer
+    try {
+      HttpClient http(farm.url);
+      const HttpResponse r = http.send("GET", routes::metrics());
+      return r.status == 200 ? r.body : std::string();
+    } catch (const std::exception&) {
+      return std::string();
+    }
+  };
+  RunResult result;
   std::this_thread::sleep_until(farm.window_start);
   const double serve_cpu0 = process_cpu_seconds(children[0].pid), self_cpu0 = self_cpu_seconds();
+  result.metrics_start = metrics();
   std::this_thread::sleep_until(farm.window_end);
   const double serve_cpu1 = process_cpu_seconds(children[0].pid), self_cpu1 = self_cpu_seconds();
-  RunResult result;
+  result.metrics_end = metrics();
   if (opt.hanging_webhooks > 0) {  // how many deliveries the coordinator has, and how many are still pending
     try {
       HttpClient http(farm.url);
@@ -683,6 +696,33 @@ RunResult run_farm(const Options& opt, const TileBank& bank, const fs::path& bas
   result.window_end = farm.window_end;
   fs::remove_all(dir);
   return result;
+}
+
+/// The value of sample `name` (with its labels, e.g. `x_bucket{le="0.05"}`) in a Prometheus exposition; 0 when absent.
+double sample(const std::string& text, const std::string& name) {
+  const size_t at = text.find("\n" + name + " ");
+  return at == std::string::npos ? 0.0 : std::strtod(text.c_str() + at + name.size() + 2, nullptr);
+}
+
+/// The store's disk costs within the window, from the coordinator's /metrics at its start and end: pages written to
+/// the database's log per accepted tile, flushes a second and the share of them over 25, 50 and 100 ms. Empty for a
+/// coordinator without a store on the disk.
+std::string store_costs(const RunResult& r) {
+  const std::string flush = "tessera_store_flush_duration_seconds";
+  const auto delta = [&](const std::string& name) { return sample(r.metrics_end, name) - sample(r.metrics_start, name); };
+  const double flushes = delta(flush + "_count");
+  if (r.metrics_end.find(flush) == std::string::npos || flushes <= 0) return {};
+  const auto over = [&](const char* bound) {
+    return 100 * (flushes - delta(flush + "_bucket{le=\"" + bound + "\"}")) / flushes;
+  };
+  const double tiles = double(std::max<int64_t>(1, r.total.tiles_accepted));
+  char line[256];
+  std::snprintf(line, sizeof line,
+                "store: %.2f log pages per tile, %.0f flushes a second, of them %.2f%% over 25 ms, %.2f%% over 50 ms, "
+                "%.2f%% over 100 ms",
+                delta("tessera_store_log_pages_total") / tiles, flushes / r.window_seconds, over("0.025"), over("0.05"),
+                over("0.1"));
+  return line;
 }
 
 /// The q-quantile (0..1) of values (sorted in place); 0 for none.
@@ -912,6 +952,7 @@ int main(int argc, char** argv) {
         std::printf("  (loop lag %zu/%.2f/%.2f/%.1f)", r.total.lag_ms.size(), quantile(r.total.lag_ms, 0.5),
                     quantile(r.total.lag_ms, 0.99), double(*std::max_element(r.total.lag_ms.begin(), r.total.lag_ms.end())));
       std::printf("\n");
+      if (const std::string costs = store_costs(r); !costs.empty()) std::printf("  %s\n", costs.c_str());
       if (!r.total.first_error.empty()) std::printf("  first error: %s\n", r.total.first_error.c_str());
     }
     std::printf("\ncoord CPU: utime+stime of `tessera serve` / window (100%% = one core); ms/tile: coordinator CPU per "

@@ -41,7 +41,7 @@ Api::Api(Scheduler& scheduler, BlobStore& blobs, CoordinatorStore& jobs, Metrics
       leases_handler_(scheduler, jobs_, metrics, clock, events, *lease_waiters_, std::move(background)),
       workers_handler_(scheduler, opt_.heartbeat_seconds, opt_.registrations_per_minute, clock, events),
       blobs_handler_(blobs),
-      health_handler_(scheduler, metrics, clock, *lease_waiters_, disk),
+      health_handler_(scheduler, metrics, clock, *lease_waiters_, disk, jobs),
       events_handler_(bus),
       users_handler_(audit_),
       webhooks_handler_(opt_.webhook_log),

@@ -3,16 +3,24 @@
 #pragma once
 
 #include "server/audit_store.h"
+#include "server/latency_histogram.h"
 #include "server/scheduler_store.h"
 #include "server/storage.h"
 
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 namespace tessera::server {
+
+/// What a store's disk has cost so far (GET /metrics: tessera_store_*).
+struct StoreStats {
+  LatencyHistogram flushes;  ///< Each flush: the pixel files written since the last, then the log.
+  uint64_t log_pages = 0;    ///< Database pages written to the write-ahead log.
+};
 
 /// The scheduler's store, the job store and the audit trail of one coordinator. The job outputs are files either way: merged results
 /// in DIR/jobs/<id>/result.exr, written as the durability asks, and scratch files in DIR/tmp/.
@@ -29,6 +37,8 @@ class CoordinatorStore : public SchedulerStore, public JobStore, public AuditSto
   /// database copies its write-ahead log into its file and cuts the log to nothing). True when writes may be tried
   /// again; false while the store could not do it (the disk is still too full).
   virtual bool make_room() { return true; }
+  /// What its disk has cost so far; none for a store in memory.
+  virtual std::optional<StoreStats> stats() const { return std::nullopt; }
 
   std::filesystem::path result_path(const std::string& job) final;
   void write_result(const std::string& job, const std::function<void(const std::filesystem::path&)>& write) final;

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <limits>
 #include <set>
 #include <tuple>
@@ -350,7 +351,23 @@ DurableStore::DurableStore(const fs::path& dir, Durability durability)
         std::lock_guard lock(mu_);
         checkpoint();
       });
-  db_.on_commit([this](int frames) { checkpointer_->committed(frames); });
+  db_.on_commit([this](int frames) { committed(frames); });
+}
+
+void DurableStore::committed(int frames) {
+  // A log that holds fewer frames than after the last commit started over from its beginning.
+  const int written = frames >= log_frames_ ? frames - log_frames_ : frames;
+  log_frames_ = frames;
+  {
+    std::lock_guard lock(stats_mu_);
+    stats_.log_pages += uint64_t(written);
+  }
+  checkpointer_->committed(frames);
+}
+
+std::optional<StoreStats> DurableStore::stats() const {
+  std::lock_guard lock(stats_mu_);
+  return stats_;
 }
 
 void DurableStore::upgrade_tiles() {
@@ -407,6 +424,7 @@ void DurableStore::flush_log() {
   // a tile whose row reached the disk without its bytes is pending again, see load()). The disk being full cannot
   // fail a pixel file's flush: its space was allocated when the bytes were written.
   std::vector<fs::path> purged;
+  const auto start = std::chrono::steady_clock::now();
   try {
     // The tiles' bytes first: a row that names them is never on the disk before they are.
     purged = pixels_.sync_written();
@@ -416,6 +434,10 @@ void DurableStore::flush_log() {
   }
   // No lock held during the flush: concurrent callers wait for the same disk write instead of queueing behind a mutex.
   if (fd >= 0 && !flush_fails && ::fdatasync(fd) == 0) {
+    {
+      std::lock_guard lock(stats_mu_);
+      stats_.flushes.observe(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    }
     try {
       PixelFiles::delete_files(purged);  // the rows that named them are gone for good now
     } catch (const StorageError& e) {

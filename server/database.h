@@ -175,6 +175,7 @@ class DurableStore final : public CoordinatorStore, public WebhookLog {
   size_t leftovers_removed() const override { return leftovers_removed_; }
   std::string where() const override { return database_file().string(); }
   bool make_room() override;
+  std::optional<StoreStats> stats() const override;
   /// Flushes of the write-ahead log and acknowledgements that waited for them, so far.
   GroupCommitStats flushes() { return group_.stats(); }
 
@@ -183,6 +184,7 @@ class DurableStore final : public CoordinatorStore, public WebhookLog {
   void apply_locked(const SchedulerChanges& changes, std::vector<std::pair<std::string, int64_t>>& appended);
   void give_back_free_pages();  // after a purge: shrink the file and the log (mu_ held)
   void flush_log();             // fdatasync of the pixel files, then of the write-ahead log, on the group commit's thread
+  void committed(int frames);   // after each commit, with the frames now in the log (mu_ held)
   void upgrade_tiles();         // a version-1 tiles table gains the pixel file's columns in its CHECK (in a transaction)
   template <class F>
   void write_locked(F&& write);  // runs a write (mu_ held) unless the disk was full, noting when it is (full_)
@@ -193,6 +195,9 @@ class DurableStore final : public CoordinatorStore, public WebhookLog {
     int fd = -1;
     ~LogFile();
   };
+  mutable std::mutex stats_mu_;  // guards stats_
+  StoreStats stats_;
+  int log_frames_ = 0;  // frames in the log after the last commit (mu_)
   std::mutex wal_mu_;   // guards wal_fd_
   LogFile wal_fd_;      // the write-ahead log, opened for flush_log() (closed after group_ has stopped)
   size_t leftovers_removed_ = 0;

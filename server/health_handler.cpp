@@ -12,7 +12,8 @@ HttpResponse HealthHandler::handle(const protocol::RouteMatch& route, HttpReques
     a.min_free_disk = disk_.min_free();
     return json_response(http::status::ok, a, req.version());
   }
-  return bytes_response(metrics_.prometheus(sched_.counters(), clock_(), waiters_.held()), "text/plain; version=0.0.4", req.version());
+  return bytes_response(metrics_.prometheus(sched_.counters(), clock_(), waiters_.held(), store_.stats()),
+                        "text/plain; version=0.0.4", req.version());
 }
 
 }  // namespace tessera::server

@@ -185,6 +185,17 @@ TEST_F(HttpTest, HealthAndMetrics) {
   EXPECT_NE(r.body.find("tessera_jobs{state=\"queued\"} 0"), std::string::npos) << r.body;
   EXPECT_NE(r.body.find("tessera_http_request_duration_seconds_count{route=\"GET /healthz\"} 1"), std::string::npos) << r.body;
   EXPECT_EQ(r.msg[http::field::content_type], "text/plain; version=0.0.4");
+
+  // A submission is a commit, acknowledged after a flush: the store's disk costs count it.
+  const auto metric = [&](const std::string& name) {
+    const size_t at = r.body.find("\n" + name + " ");
+    return at == std::string::npos ? -1.0 : std::stod(r.body.substr(at + name.size() + 2));
+  };
+  submit(small_cbox(job_for("cbox_no_light.json")));
+  r = call(http::verb::get, "/metrics");
+  EXPECT_GE(metric("tessera_store_flush_duration_seconds_count"), 1.0) << r.body;
+  EXPECT_GT(metric("tessera_store_log_pages_total"), 0.0) << r.body;
+  EXPECT_NE(r.body.find("tessera_store_flush_duration_seconds_bucket{le=\"+Inf\"}"), std::string::npos) << r.body;
 }
 
 TEST_F(HttpTest, BlobUploadGoodBadAndRepeat) {
@@ -935,6 +946,7 @@ class HttpMemoryTest : public HttpTest {
 TEST_F(HttpMemoryTest, FullTileRoundTripIsBitwiseIdenticalToOneRender) {
   check_full_round_trip();
   EXPECT_FALSE(fs::exists(server_->data_dir() / DurableStore::kFileName));
+  EXPECT_EQ(call(http::verb::get, "/metrics").body.find("tessera_store_"), std::string::npos);  // no disk to cost
 }
 
 TEST_F(HttpTest, ThreeWorkersFailingATileFailTheJob) {

@@ -6,11 +6,7 @@ namespace tessera::server {
 
 void Metrics::observe_request(const std::string& route, double seconds) {
   std::lock_guard lock(mu_);
-  Histogram& h = requests_[route];
-  for (size_t i = 0; i < kBuckets.size(); ++i)
-    if (seconds <= kBuckets[i]) ++h.buckets[i];
-  ++h.count;
-  h.sum += seconds;
+  requests_[route].observe(seconds);
 }
 
 void Metrics::add_rays(uint64_t rays, int64_t now_ms) {
@@ -48,7 +44,8 @@ std::string escape_label(const std::string& s) {
 
 }  // namespace
 
-std::string Metrics::prometheus(const SchedulerCounters& c, int64_t now_ms, std::size_t held_lease_requests) {
+std::string Metrics::prometheus(const SchedulerCounters& c, int64_t now_ms, std::size_t held_lease_requests,
+                                const std::optional<StoreStats>& store) {
   std::string out;
   out += "# HELP tessera_jobs Jobs by state.\n# TYPE tessera_jobs gauge\n";
   for (const auto& [state, n] : c.jobs) out += fmt::format("tessera_jobs{{state=\"{}\"}} {}\n", to_string(state), n);
@@ -71,13 +68,16 @@ std::string Metrics::prometheus(const SchedulerCounters& c, int64_t now_ms, std:
   out += fmt::format("tessera_rays_per_second {}\n", rate_locked(now_ms));
   out += "# HELP tessera_http_request_duration_seconds Request handling time by route.\n"
          "# TYPE tessera_http_request_duration_seconds histogram\n";
-  for (const auto& [route, h] : requests_) {
-    const std::string r = escape_label(route);
-    for (size_t i = 0; i < kBuckets.size(); ++i)
-      out += fmt::format("tessera_http_request_duration_seconds_bucket{{route=\"{}\",le=\"{}\"}} {}\n", r, kBuckets[i], h.buckets[i]);
-    out += fmt::format("tessera_http_request_duration_seconds_bucket{{route=\"{}\",le=\"+Inf\"}} {}\n", r, h.count);
-    out += fmt::format("tessera_http_request_duration_seconds_sum{{route=\"{}\"}} {}\n", r, h.sum);
-    out += fmt::format("tessera_http_request_duration_seconds_count{{route=\"{}\"}} {}\n", r, h.count);
+  for (const auto& [route, h] : requests_)
+    out += h.prometheus("tessera_http_request_duration_seconds", "route=\"" + escape_label(route) + "\"");
+  if (store) {
+    out += "# HELP tessera_store_flush_duration_seconds Flushes of the store to the disk (the pixel files written since the"
+           " last, then the database's log), each acknowledging the writes before it.\n"
+           "# TYPE tessera_store_flush_duration_seconds histogram\n";
+    out += store->flushes.prometheus("tessera_store_flush_duration_seconds", "");
+    out += "# HELP tessera_store_log_pages_total Database pages written to the write-ahead log.\n"
+           "# TYPE tessera_store_log_pages_total counter\n";
+    out += fmt::format("tessera_store_log_pages_total {}\n", store->log_pages);
   }
   return out;
 }
