@@ -709,7 +709,9 @@ double sample(const std::string& text, const std::string& name) {
 /// coordinator without a store on the disk.
 std::string store_costs(const RunResult& r) {
   const std::string flush = "tessera_store_flush_duration_seconds";
-  const auto delta = [&](const std::string& name) { return sample(r.metrics_end, name) - sample(r.metrics_start, name); };
+  const auto delta = [&](const std::string& name) {
+    return sample(r.metrics_end, name) - sample(r.metrics_start, name);
+  };
   const double flushes = delta(flush + "_count");
   if (r.metrics_end.find(flush) == std::string::npos || flushes <= 0) return {};
   const auto over = [&](const char* bound) {

@@ -12,9 +12,10 @@ struct LatencyHistogram {
   /// Upper bounds (seconds) of the buckets (+Inf is implied).
   static constexpr std::array<double, 10> kBuckets{0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.5, 1, 5};
 
-  std::array<uint64_t, kBuckets.size()> buckets{};  ///< Durations up to each bound (not cumulated).
-  uint64_t count = 0;                               ///< Every duration counted.
-  double sum = 0;                                   ///< Their sum in seconds.
+  /// Durations at or below each bound (cumulative, as Prometheus reads them).
+  std::array<uint64_t, kBuckets.size()> buckets{};
+  uint64_t count = 0;  ///< Every duration counted.
+  double sum = 0;      ///< Their sum in seconds.
 
   /// Counts one duration.
   void observe(double seconds);

@@ -71,8 +71,8 @@ std::string Metrics::prometheus(const SchedulerCounters& c, int64_t now_ms, std:
   for (const auto& [route, h] : requests_)
     out += h.prometheus("tessera_http_request_duration_seconds", "route=\"" + escape_label(route) + "\"");
   if (store) {
-    out += "# HELP tessera_store_flush_duration_seconds Flushes of the store to the disk (the pixel files written since the"
-           " last, then the database's log), each acknowledging the writes before it.\n"
+    out += "# HELP tessera_store_flush_duration_seconds Flushes of the store to the disk (the pixel files written since"
+           " the last, then the database's log), each acknowledging the writes before it.\n"
            "# TYPE tessera_store_flush_duration_seconds histogram\n";
     out += store->flushes.prometheus("tessera_store_flush_duration_seconds", "");
     out += "# HELP tessera_store_log_pages_total Database pages written to the write-ahead log.\n"

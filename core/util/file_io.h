@@ -38,8 +38,8 @@ inline constexpr int64_t kFlushStep = int64_t(1) << 20;
 int flush_to_disk(int fd);
 
 /// Replaces `path` with `bytes` atomically: a temp file beside it (temp_path_beside), written, flushed as `flush`
-/// says (flush_to_disk), renamed over `path`; readers see the old file or the whole new one. On failure the temp file is removed and
-/// `path` is left as it was. Throws FileError naming the file and the cause.
+/// says (flush_to_disk), renamed over `path`; readers see the old file or the whole new one. On failure the temp file
+/// is removed and `path` is left as it was. Throws FileError naming the file and the cause.
 void write_file_atomic(const std::filesystem::path& path, std::string_view bytes, Flush flush = Flush::to_disk);
 /// The same for bytes held as unsigned (an encoded image).
 inline void write_file_atomic(const std::filesystem::path& path, std::span<const uint8_t> bytes,

@@ -2,7 +2,8 @@
 // and clear errors for missing files and folders. write_file_atomic (of bytes, or through a writer): a replacement in
 // either flush mode leaves the new bytes and no temp file; a failed one leaves the old file and no temp file.
 // move_file_atomic: a rename, or a copy across file systems. write_all: every byte through a pipe, the errno of a
-// pipe nobody reads. flush_to_disk: a file of several steps flushed whole, the errno of a pipe and of a closed descriptor.
+// pipe nobody reads. flush_to_disk: a file of several steps flushed whole, the errno of a pipe and of a closed
+// descriptor.
 #include "core/util/file_io.h"
 
 #include <gtest/gtest.h>
