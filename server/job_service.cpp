@@ -614,7 +614,7 @@ UploadOutcome JobService::accept_tile(const std::string& lease, std::string_view
 }
 
 void JobService::accept_tile(const std::string& lease, std::string_view exr, uint64_t rays, std::vector<std::string> log,
-                             UploadDone done) {
+                             UploadDone done, const std::function<void()>& stored) {
   // A settled upload's answer: a duplicate only once what it duplicates is on the disk (its merge may have been
   // committed a moment ago, and the uploader stops retrying on this answer).
   auto settled = [&](const ResultClaim& c) -> bool {
@@ -679,7 +679,9 @@ void JobService::accept_tile(const std::string& lease, std::string_view exr, uin
     }
   } catch (...) {
     done(UploadOutcome::accepted, std::current_exception());
+    return;
   }
+  if (stored) stored();
 }
 
 void JobService::record_failure(const std::string& lease, const protocol::FailReport& report) {

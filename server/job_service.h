@@ -130,9 +130,11 @@ class JobService {
   /// the tile's pixels are on the disk (a group commit: concurrent uploads share one flush, and no thread waits for
   /// it), `duplicate` once what it duplicates is, `discarded` at once; refusals ApiError 404 unknown lease, 422
   /// invalid (counted as the worker's failure). The upload that completes the job writes its result (in the
-  /// background) before it is answered. `exr` is read only before this returns.
+  /// background) before it is answered. `exr` is read only before this returns. `stored`, when given, runs on the
+  /// calling thread once the tile is stored and before this returns (its flush may be done by then, and `done`
+  /// called), for an upload that is neither refused, discarded nor a duplicate; it must not throw.
   void accept_tile(const std::string& lease, std::string_view exr, uint64_t rays, std::vector<std::string> log,
-                   UploadDone done);
+                   UploadDone done, const std::function<void()>& stored = {});
   /// As above, waiting for the answer; throws the refusal.
   UploadOutcome accept_tile(const std::string& lease, std::string_view exr, uint64_t rays,
                             std::vector<std::string> log = {});

@@ -7,6 +7,9 @@
 #include <algorithm>
 #include <charconv>
 #include <future>
+#include <memory>
+#include <mutex>
+#include <optional>
 
 namespace tessera::server {
 
@@ -83,7 +86,8 @@ void LeasesHandler::lease(const std::string& worker, HttpRequest& req, Answer an
                 no_work);
 }
 
-std::optional<std::string> LeasesHandler::try_lease(const std::string& worker, const protocol::LeaseRequest& asked) {
+std::optional<std::string> LeasesHandler::try_lease(const std::string& worker, const protocol::LeaseRequest& asked,
+                                                    std::function<void()>* leased_event) {
   const AcquireResult r = sched_.acquire(worker);
   if (r.status == AcquireResult::unknown_worker) throw ApiError(404, "unknown worker " + worker + ": register again");
   if (r.status == AcquireResult::no_work) return std::nullopt;
@@ -98,7 +102,9 @@ std::optional<std::string> LeasesHandler::try_lease(const std::string& worker, c
       if (s->sequence)  // a frame's first lease may start its sequence
         if (const auto seq = sched_.job(*s->sequence)) events_.job_if_state_changed(*seq);
     }
-  events_.tile(protocol::events::kTileLeased, {l.job, l.tile, l.worker, l.id, std::nullopt});
+  auto event = [this, l] { events_.tile(protocol::events::kTileLeased, {l.job, l.tile, l.worker, l.id, std::nullopt}); };
+  if (leased_event) *leased_event = std::move(event);
+  else event();
   // The spec of a job the worker does not hold comes with the lease, saving it a GET of the spec per job.
   std::optional<std::string> spec;
   if (asked.known_jobs && std::find(asked.known_jobs->begin(), asked.known_jobs->end(), l.job) == asked.known_jobs->end()) {
@@ -186,26 +192,77 @@ void LeasesHandler::result(const std::string& lease, HttpRequest& req, Answer an
   std::string worker;
   require_holder(lease, req, &worker);
   const unsigned version = req.version();
-  jobs_.accept_tile(lease, req.body(), rays, std::move(log),
-                    [this, answer, version, next, worker](UploadOutcome o, std::exception_ptr refusal) {
-    if (refusal) return answer(HttpResponse{}, refusal);
-    if (!next || o == UploadOutcome::discarded)
-      return answer(json_response(o == UploadOutcome::discarded ? http::status::gone : http::status::ok,
-                                  protocol::ResultAnswer{o, std::nullopt}, version),
-                    nullptr);
-    // The upload is durable; its worker's next lease is granted as the lease route grants one (no wait: a worker
-    // told "none" asks the lease route), off the thread that acknowledges commits, which a grant may wait for.
-    background_([this, answer, version, next, worker, o] {
-      std::optional<std::string> leased;
-      try {
-        leased = try_lease(worker, *next);
-      } catch (const std::exception& e) {  // forgotten meanwhile: its next lease request hears why
-        spdlog::debug("worker {}: no next lease with its upload: {}", worker, e.what());
+  // The worker's next lease, granted as the lease route grants one (no wait: a worker told "none" asks the lease
+  // route). Granted on this thread once the tile is stored, so that the answer goes out as soon as the flush that
+  // makes the upload durable is done, with no second turn in the handlers' queue; when that flush comes first (or
+  // the upload is a duplicate), granted after it instead, off the thread that acknowledges commits, which a grant may
+  // wait for. The upload's answer always follows its flush, and the lease's tile_leased event its tile_done.
+  struct Grant {
+    std::optional<std::string> text;  // the lease answer, none when no tile was leasable
+    std::function<void()> event;      // its tile_leased event
+  };
+  struct NextLease {
+    std::mutex mu;
+    bool granting = false;                 // this thread took the grant
+    bool granted = false;                  // ... and made it
+    std::optional<UploadOutcome> outcome;  // the upload's, once durable
+    Grant lease;
+  };
+  const auto state = std::make_shared<NextLease>();
+  const auto grant = [this, worker, next] {
+    Grant g;
+    try {
+      g.text = try_lease(worker, *next, &g.event);
+    } catch (const std::exception& e) {  // forgotten meanwhile: its next lease request hears why
+      spdlog::debug("worker {}: no next lease with its upload: {}", worker, e.what());
+    }
+    return g;
+  };
+  const auto respond = [answer, version](UploadOutcome o, const Grant& g) {
+    if (g.event) g.event();
+    answer(bytes_response(protocol::result_answer_text(o, g.text ? &*g.text : nullptr), "application/json", version),
+           nullptr);
+  };
+  std::function<void()> stored;
+  if (next)
+    stored = [state, grant, respond] {
+      {
+        std::lock_guard lock(state->mu);
+        if (state->outcome) return;  // durable already: the grant follows the answer's outcome
+        state->granting = true;
       }
-      answer(bytes_response(protocol::result_answer_text(o, leased ? &*leased : nullptr), "application/json", version),
-             nullptr);
-    });
-  });
+      Grant g = grant();
+      std::optional<UploadOutcome> outcome;
+      {
+        std::lock_guard lock(state->mu);
+        state->granted = true;
+        outcome = state->outcome;
+        if (!outcome) state->lease = std::move(g);
+      }
+      if (outcome) respond(*outcome, g);
+    };
+  jobs_.accept_tile(
+      lease, req.body(), rays, std::move(log),
+      [this, answer, version, next, state, grant, respond](UploadOutcome o, std::exception_ptr refusal) {
+        if (refusal) return answer(HttpResponse{}, refusal);
+        if (!next || o == UploadOutcome::discarded)
+          return answer(json_response(o == UploadOutcome::discarded ? http::status::gone : http::status::ok,
+                                      protocol::ResultAnswer{o, std::nullopt}, version),
+                        nullptr);
+        Grant g;
+        {
+          std::lock_guard lock(state->mu);
+          state->outcome = o;
+          if (state->granting && !state->granted) return;  // the uploading thread answers once it has the lease
+          if (!state->granting) {
+            background_([grant, respond, o] { respond(o, grant()); });
+            return;
+          }
+          g = std::move(state->lease);
+        }
+        respond(o, g);
+      },
+      stored);
 }
 
 }  // namespace tessera::server

@@ -31,7 +31,9 @@ class LeasesHandler final : public ResourceHandler {
   void lease(const std::string& worker, HttpRequest& req, Answer answer);
   // A lease for the worker as the lease route's answer text, or nothing when there is no work for it; throws ApiError
   // (404) for an unknown worker. The one way a lease is granted, for a lease request and for an upload that asks.
-  std::optional<std::string> try_lease(const std::string& worker, const protocol::LeaseRequest& asked);
+  // With `leased_event`, the lease's tile_leased event is left there for the caller to publish.
+  std::optional<std::string> try_lease(const std::string& worker, const protocol::LeaseRequest& asked,
+                                       std::function<void()>* leased_event = nullptr);
   HttpResponse heartbeat(const std::string& lease, HttpRequest& req);
   // Throws ApiError unless the request carries the secret of the worker `worker` (404 unknown, 403 not its secret).
   void require_worker(const std::string& worker, const HttpRequest& req);
