@@ -351,18 +351,11 @@ DurableStore::DurableStore(const fs::path& dir, Durability durability)
         std::lock_guard lock(mu_);
         checkpoint();
       });
-  db_.on_commit([this](int frames) { committed(frames); });
-}
-
-void DurableStore::committed(int frames) {
-  // A log that holds fewer frames than after the last commit started over from its beginning.
-  const int written = frames >= log_frames_ ? frames - log_frames_ : frames;
-  log_frames_ = frames;
-  {
+  db_.on_commit([this](int frames) {
+    const int written = checkpointer_->committed(frames);
     std::lock_guard lock(stats_mu_);
     stats_.log_pages += uint64_t(written);
-  }
-  checkpointer_->committed(frames);
+  });
 }
 
 std::optional<StoreStats> DurableStore::stats() const {

@@ -184,7 +184,6 @@ class DurableStore final : public CoordinatorStore, public WebhookLog {
   void apply_locked(const SchedulerChanges& changes, std::vector<std::pair<std::string, int64_t>>& appended);
   void give_back_free_pages();  // after a purge: shrink the file and the log (mu_ held)
   void flush_log();             // fdatasync of the pixel files, then of the write-ahead log, on the group commit's thread
-  void committed(int frames);   // after each commit, with the frames now in the log (mu_ held)
   void upgrade_tiles();         // a version-1 tiles table gains the pixel file's columns in its CHECK (in a transaction)
   template <class F>
   void write_locked(F&& write);  // runs a write (mu_ held) unless the disk was full, noting when it is (full_)
@@ -197,7 +196,6 @@ class DurableStore final : public CoordinatorStore, public WebhookLog {
   };
   mutable std::mutex stats_mu_;  // guards stats_
   StoreStats stats_;
-  int log_frames_ = 0;  // frames in the log after the last commit (mu_)
   std::mutex wal_mu_;   // guards wal_fd_
   LogFile wal_fd_;      // the write-ahead log, opened for flush_log() (closed after group_ has stopped)
   size_t leftovers_removed_ = 0;

@@ -53,15 +53,18 @@ WalCheckpointer::~WalCheckpointer() {
 
 bool WalCheckpointer::due_locked() const { return frames_ - copied_ >= threshold_; }
 
-void WalCheckpointer::committed(int frames) {
+int WalCheckpointer::committed(int frames) {
   bool due = false;
+  int written = 0;
   {
     std::lock_guard lock(mu_);
     if (frames < copied_) copied_ = 0;  // the log started over after a checkpoint that copied all of it
+    written = frames >= frames_ ? frames - frames_ : frames;  // fewer than before: it started over
     frames_ = frames;
     due = due_locked();
   }
   if (due) cv_.notify_one();
+  return written;
 }
 
 void WalCheckpointer::loop() {

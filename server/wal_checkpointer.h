@@ -34,8 +34,9 @@ class WalCheckpointer {
   WalCheckpointer(const WalCheckpointer&) = delete;
   WalCheckpointer& operator=(const WalCheckpointer&) = delete;
 
-  /// After a commit (from the committing thread, quickly): the log now holds `frames` frames.
-  void committed(int frames);
+  /// After a commit (from the committing thread, quickly): the log now holds `frames` frames. Returns how many of them
+  /// the commit wrote (all of them when the log started over).
+  int committed(int frames);
   /// Copies the whole log into the database file and cuts the log to zero bytes, after any checkpoint in progress;
   /// the caller holds off commits (SQLite waits for a writer for up to 10 s). False when SQLite could not finish it,
   /// with SQLite's reason in `why` when given, else logged as a warning.
